@@ -1,0 +1,1 @@
+"""Shared code: Piccolo link and planning-protocol codecs, geodesy, assignment, simulator."""

@@ -1,0 +1,122 @@
+"""The thesis's deterministic greedy target assignment (section 4.4.3).
+
+Every UAV runs this function on the same set of results and must reach the same pairs
+without a coordinator, so the rule is a *total* order on the candidate triples
+
+    (approach time, Piccolo ID, target index), lowest first.
+
+The thesis orders by approach time, then by lowest Piccolo ID; the target index is the
+last key so that one UAV tied between two targets still picks deterministically. The
+greedy then repeatedly takes the first remaining triple and drops every other triple of
+that UAV or that target (thesis steps 3-4), which is one sweep over the sorted list.
+
+Approach times are seconds. ``None`` means the UAV has no answer for that target (its
+model failed or timed out); NaN and the infinities are treated the same way, because
+neither compares meaningfully and an infinite approach time means "unreachable". Such
+entries are never assigned. Any finite float, including a negative one, is ordered as
+is: the rule is well defined on it, and judging physical plausibility belongs to the
+approach-time model, not to the consensus.
+
+`results_digest` lets UAVs confirm, bit for bit, that they ran the rule on the same
+input before acting on the result.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import struct
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+__all__ = ["Assignment", "greedy_assign", "results_digest"]
+
+
+@dataclass(frozen=True, slots=True)
+class Assignment:
+    """The outcome of `greedy_assign`.
+
+    `pairs` maps Piccolo ID -> target index, in increasing Piccolo ID order.
+    `unassigned_targets` are target indices no UAV was given, ascending.
+    `idle_uavs` are Piccolo IDs left without a target (more UAVs than targets, or no
+    usable answer left for them), ascending.
+    """
+
+    pairs: dict[int, int]
+    unassigned_targets: tuple[int, ...]
+    idle_uavs: tuple[int, ...]
+
+
+def greedy_assign(results: Mapping[int, Sequence[float | None]], n_targets: int) -> Assignment:
+    """Assign targets to UAVs by the thesis's greedy rule, ties broken by a total order.
+
+    `results[uav][i]` is UAV `uav`'s approach time (s) to target `i`, or None when it has
+    no answer. Raises ValueError if `n_targets` is negative or a row does not have exactly
+    `n_targets` entries (the message names the UAV).
+    """
+    if n_targets < 0:
+        raise ValueError(f"n_targets must be >= 0, got {n_targets}")
+    for uav, row in results.items():
+        if len(row) != n_targets:
+            raise ValueError(
+                f"UAV {uav}: expected {n_targets} approach times (one per target), got {len(row)}"
+            )
+
+    # Sort all candidates once, then sweep. Candidates are numbered k = rank * n + target
+    # with UAVs ranked by increasing Piccolo ID, so increasing k is increasing
+    # (Piccolo ID, target index); a *stable* sort on the time alone therefore yields the
+    # full total order (time, Piccolo ID, target index). Sorting on a float key is about
+    # three times faster than sorting (time, uav, target) tuples, which compare slowly.
+    uavs = sorted(results)
+    times = [math.nan if time is None else time for uav in uavs for time in results[uav]]
+    order = [k for k, time in enumerate(times) if math.isfinite(time)]
+    order.sort(key=times.__getitem__)
+
+    pairs: dict[int, int] = {}
+    taken_targets: set[int] = set()
+    # Once either side is exhausted no further pair is possible: stop the sweep early,
+    # which matters when there are many more targets than UAVs.
+    max_pairs = min(len(uavs), n_targets)
+    for k in order:
+        if len(pairs) == max_pairs:
+            break
+        rank, target = divmod(k, n_targets)
+        uav = uavs[rank]
+        if uav in pairs or target in taken_targets:
+            continue
+        pairs[uav] = target
+        taken_targets.add(target)
+
+    return Assignment(
+        pairs={uav: pairs[uav] for uav in sorted(pairs)},
+        unassigned_targets=tuple(t for t in range(n_targets) if t not in taken_targets),
+        idle_uavs=tuple(sorted(uav for uav in results if uav not in pairs)),
+    )
+
+
+# Digest layout, fixed so that every implementation hashes the same bytes:
+#   per UAV in increasing Piccolo ID order: '<q' Piccolo ID, '<Q' row length, then per
+#   entry either b'T' + '<d' time (the exact IEEE-754 bits, so -0.0, NaN payloads and
+#   1-ulp differences all change the digest) or b'N' for None.
+# The row length is hashed so that rows of different lengths can never run together.
+_DIGEST_VERSION = b"fleet.assignment.results/v1\x00"
+_HEADER = struct.Struct("<qQ")
+_TIME = struct.Struct("<d")
+
+
+def results_digest(results: Mapping[int, Sequence[float | None]]) -> str:
+    """A stable 16-hex-digit digest (SHA-256 prefix) of exactly these results.
+
+    Independent of the mapping's insertion order; sensitive to every bit of every time.
+    """
+    h = hashlib.sha256(_DIGEST_VERSION)
+    for uav in sorted(results):
+        row = results[uav]
+        h.update(_HEADER.pack(uav, len(row)))
+        for time in row:
+            if time is None:
+                h.update(b"N")
+            else:
+                h.update(b"T")
+                h.update(_TIME.pack(time))
+    return h.hexdigest()[:16]

@@ -1,0 +1,21 @@
+"""CRC-16/ARC, the checksum of Piccolo stream and autopilot packets (piccolo-link.md 1).
+
+Polynomial 0x8005 reflected, initial value 0, no final XOR; check value 0xBB3D for
+b"123456789". Python's `binascii.crc_hqx` is CRC-16/CCITT, a different CRC, so the
+compiled `fastcrc` implementation is used instead: the decoder checks every byte twice
+(stream packet and autopilot packet), and a pure-Python table loop would dominate it.
+"""
+
+from __future__ import annotations
+
+from fastcrc import crc16
+
+
+def crc16_arc(data: bytes | bytearray | memoryview) -> int:
+    """Return the CRC-16/ARC of `data`."""
+    return int(crc16.arc(bytes(data)))
+
+
+def crc16_arc_bytes(data: bytes | bytearray | memoryview) -> bytes:
+    """Return the CRC-16/ARC of `data` as the link sends it: high byte first."""
+    return crc16_arc(data).to_bytes(2, "big")

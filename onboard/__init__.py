@@ -1,0 +1,1 @@
+"""The onboard planning module: one process per UAV."""
