@@ -80,7 +80,9 @@ class AutopilotPacketParser:
                 self.drops.skipped_bytes += 1
                 position = start + 1
                 continue
-            found.append(AutopilotPacket(buffer[start + 2], bytes(buffer[start + HEADER_SIZE : stop])))
+            found.append(
+                AutopilotPacket(buffer[start + 2], bytes(buffer[start + HEADER_SIZE : stop]))
+            )
             position = stop + 2
         queue.consume(position)
         return found

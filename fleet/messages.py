@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import msgspec
 
+from fleet.telemetry import Telemetry
+
 #: Planning-protocol address of every UAV (thesis 2.9).
 BROADCAST = 0xFFFF
 #: Planning-protocol address of the Mission Manager (thesis 2.9).
@@ -69,3 +71,61 @@ class MissionAbort(msgspec.Struct, frozen=True):
     """PAYLOAD_ABORT: the ground aborts a mission; every UAV resumes its course."""
 
     mission: int
+
+
+class LinkHealth(msgspec.Struct, frozen=True):
+    """The serial link as the onboard adapter sees it."""
+
+    program_up: bool
+    payload_up: bool
+    packets: int
+    drops: dict[str, int]
+    telemetry_age_s: float | None  #: seconds since the last telemetry; None before any
+
+
+class CommandResult(msgspec.Struct, frozen=True):
+    """Answer to a waypoint or track command: confirmed by the autopilot's echo, or not."""
+
+    ok: bool
+    detail: str
+    attempts: int = 0
+
+
+class AssignmentReport(msgspec.Struct, frozen=True):
+    """A UAV's committed outcome of a mission's consensus.
+
+    `digest` identifies the exact set of results the greedy was fed; every UAV that
+    used the same results reports the same digest and the same `pairs`.
+    """
+
+    mission: int
+    uav: int
+    target: int | None  #: index of this UAV's target in the mission, None if idle
+    pairs: dict[str, int]  #: every UAV's target index, keyed by Piccolo ID as a string
+    unassigned: tuple[int, ...]
+    team: tuple[int, ...]  #: the UAVs whose results were used
+    digest: str
+    eta_s: float | None = None
+
+
+class MissionProgress(msgspec.Struct, frozen=True):
+    """Where a UAV stands in its current mission (part of UavState)."""
+
+    mission: int
+    phase: str  #: computing | waiting | committed | reached | aborted | idle
+    targets: int
+    result: UavResult | None = None
+    assignment: AssignmentReport | None = None
+
+
+class UavState(msgspec.Struct, frozen=True):
+    """A UAV's answer to a state query: all a ground station needs at a glance."""
+
+    uav: int
+    enabled: bool
+    status_rate_hz: float
+    tracked_waypoint: int | None
+    telemetry: Telemetry | None  #: the latest telemetry
+    link: LinkHealth | None
+    mission: MissionProgress | None
+    last_status: str | None = None

@@ -85,7 +85,11 @@ class PiccoloLink:
             queue = self.queue(packet.stream)
             queue.append(packet.data)
             header = StreamHeader(
-                packet.source, packet.destination, packet.stream, packet.sequence, packet.acknowledge
+                packet.source,
+                packet.destination,
+                packet.stream,
+                packet.sequence,
+                packet.acknowledge,
             )
             if packet.stream == STREAM_AUTOPILOT:
                 events.extend(

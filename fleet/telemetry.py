@@ -114,12 +114,22 @@ def _angle_raw(degrees: float) -> int:
     return round(math.radians(degrees) * 1e4)
 
 
+def _heading_raw(degrees: float) -> int:
+    """A heading in 1e-4 rad: i16 spans only +-187 degrees, so 0-360 wraps to +-180."""
+    raw = _angle_raw(degrees)
+    if -0x8000 <= raw <= 0x7FFF:
+        return raw
+    return _angle_raw((degrees + 180.0) % 360.0 - 180.0)
+
+
 def decode_telemetry(data: bytes) -> Telemetry:
     """Decode the data bytes of a type-69 packet; raises TelemetryError if too short."""
     try:
         return _decode(data)
     except struct.error as error:
-        raise TelemetryError(f"telemetry of {len(data)} bytes is too short for its flags") from error
+        raise TelemetryError(
+            f"telemetry of {len(data)} bytes is too short for its flags"
+        ) from error
 
 
 def _decode(data: bytes) -> Telemetry:
@@ -243,7 +253,7 @@ def _encode(message: Telemetry) -> bytes:
             _SENSOR.pack(
                 _angle_raw(sensor.roll),
                 _angle_raw(sensor.pitch),
-                _angle_raw(sensor.yaw),
+                _heading_raw(sensor.yaw),
                 sensor.baro_altitude_raw,
                 round(sensor.wind_south * 100),
                 round(sensor.wind_west * 100),

@@ -46,8 +46,8 @@ def _radius_unit(flags2: int) -> int:
 def decode_waypoint(data: bytes) -> Waypoint:
     if len(data) != DATA_SIZE:
         raise WaypointError(f"waypoint has {len(data)} data bytes; expected {DATA_SIZE}")
-    lat, lon, flags, radius, alt, wind, orbit, index, next_index, user, flags2 = (
-        _WAYPOINT.unpack(data)
+    lat, lon, flags, radius, alt, wind, orbit, index, next_index, user, flags2 = _WAYPOINT.unpack(
+        data
     )
     return Waypoint(
         index=index,

@@ -12,9 +12,7 @@ from fleet.waypoint import Waypoint
 def sample_telemetry(time_ms: int = 1000) -> Telemetry:
     return Telemetry(
         system_time_ms=time_ms,
-        gps=GpsBlock(
-            lat=42.36, lon=-71.09, alt=120.5, vel_north=3.0, vel_east=21.5, vel_down=-0.2
-        ),
+        gps=GpsBlock(lat=42.36, lon=-71.09, alt=120.5, vel_north=3.0, vel_east=21.5, vel_down=-0.2),
         sensor=SensorBlock(roll=5.0, pitch=1.5, yaw=82.0, indicated_airspeed=22.0),
         agl=120.0,
     )

@@ -17,7 +17,9 @@ Results = dict[int, list[float | None]]
 # Small integer-valued times make ties common, which is where a weak order would show.
 _tied_time = st.integers(min_value=0, max_value=4).map(float)
 _any_time = st.floats(min_value=0.0, max_value=1e4, allow_nan=False)
-_answer = st.one_of(st.none(), _tied_time, _any_time, st.just(math.nan))
+_answer = st.one_of(
+    st.none(), _tied_time, _any_time, st.sampled_from([math.nan, math.inf, -math.inf])
+)
 
 
 @st.composite
@@ -163,6 +165,9 @@ def test_none_and_nan_and_inf_are_never_assigned() -> None:
     results: Results = {1: [None, math.nan], 2: [math.inf, -math.inf]}
     a = greedy_assign(results, 2)
     assert a == Assignment(pairs={}, unassigned_targets=(0, 1), idle_uavs=(1, 2))
+    # Around usable times too: -inf must not win, +inf must not stop the sweep early.
+    a = greedy_assign({1: [-math.inf, 5.0], 2: [math.nan, math.inf], 3: [1.0, math.inf]}, 2)
+    assert a == Assignment(pairs={1: 1, 3: 0}, unassigned_targets=(), idle_uavs=(2,))
 
 
 def test_uav_whose_only_answer_is_taken_stays_idle() -> None:

@@ -18,7 +18,6 @@ from fleet.telemetry import (
     FLAG_MAGNETOMETER,
     FLAG_RAW,
     FLAG_SENSOR,
-    Telemetry,
     decode_telemetry,
     encode_telemetry,
 )
@@ -84,20 +83,24 @@ def test_telemetry_wire_round_trip_is_byte_exact(data: bytes) -> None:
 
 
 def test_telemetry_units() -> None:
-    data = struct.pack(">HHI", FLAG_GPS | FLAG_SENSOR, 0, 12345) + struct.pack(
-        ">ii3sBHhhhHHI",
-        3_600_000 * 42,  # 42 degrees in milli-arcseconds
-        -3_600_000 * 71 - 1_800_000,  # -71.5 degrees
-        (113_050).to_bytes(3, "big"),  # 1130.50 m raw -> 130.5 m
-        0,
-        (5 << 10) | (9 << 5) | 8,
-        -150,  # -1.5 m/s north
-        2200,  # 22 m/s east
-        10,
-        0xE000,
-        2300,
-        777,
-    ) + struct.pack(">hhhhhhHHBbHH", 5236, 0, 15708, 0, 100, -200, 0, 0, 200, 20, 4500, 50000)
+    data = (
+        struct.pack(">HHI", FLAG_GPS | FLAG_SENSOR, 0, 12345)
+        + struct.pack(
+            ">ii3sBHhhhHHI",
+            3_600_000 * 42,  # 42 degrees in milli-arcseconds
+            -3_600_000 * 71 - 1_800_000,  # -71.5 degrees
+            (113_050).to_bytes(3, "big"),  # 1130.50 m raw -> 130.5 m
+            0,
+            (5 << 10) | (9 << 5) | 8,
+            -150,  # -1.5 m/s north
+            2200,  # 22 m/s east
+            10,
+            0xE000,
+            2300,
+            777,
+        )
+        + struct.pack(">hhhhhhHHBbHH", 5236, 0, 15708, 0, 100, -200, 0, 0, 200, 20, 4500, 50000)
+    )
     message = decode_telemetry(data)
     assert message.system_time_ms == 12345
     assert message.gps is not None and message.sensor is not None
@@ -134,7 +137,9 @@ def test_waypoint_round_trip(waypoint: Waypoint) -> None:
 
 @given(tracks)
 def test_track_round_trip(track: Track) -> None:
-    assert decode_autopilot_message(AutopilotPacket(10, bytes((track.waypoint, track.go_to)))) == track
+    assert (
+        decode_autopilot_message(AutopilotPacket(10, bytes((track.waypoint, track.go_to)))) == track
+    )
     assert decode_track(encode_autopilot_message(track)[4:6]) == track
 
 
@@ -152,7 +157,7 @@ def test_parser_handles_packets_spanning_and_sharing_chunks() -> None:
     wire = b"".join(encode_autopilot_message(m) for m in sent)
     queue = StreamQueue()
     parser = AutopilotPacketParser()
-    got = []
+    got: list[object] = []
     for start in range(0, len(wire), 37):
         queue.append(wire[start : start + 37])
         got.extend(decode_autopilot_message(p) for p in parser.parse(queue))

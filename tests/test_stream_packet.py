@@ -68,7 +68,7 @@ def test_one_byte_at_a_time_and_64k_at_once() -> None:
     bytewise = StreamDecoder()
     got = [p for i in range(len(wire)) for p in bytewise.feed(wire[i : i + 1])]
     assert got == sent
-    assert StreamDecoder().feed(wire + wire[:65536 - len(wire)]) [: len(sent)] == sent
+    assert StreamDecoder().feed(wire + wire[: 65536 - len(wire)])[: len(sent)] == sent
 
 
 @given(st.binary(max_size=2000))
@@ -93,7 +93,12 @@ def test_any_single_bit_flip_is_rejected(packet: StreamPacket, data: st.DataObje
 def test_garbage_between_packets_is_skipped_and_counted() -> None:
     first = StreamPacket(1, 2, 3, 4, 6, b"hello")
     second = StreamPacket(1, 2, 8, 4, 6, b"world")
-    wire = b"\x00\x5a\x11" + encode_stream_packet(first) + b"\x5a\xa5zzzz" + encode_stream_packet(second)
+    wire = (
+        b"\x00\x5a\x11"
+        + encode_stream_packet(first)
+        + b"\x5a\xa5zzzz"
+        + encode_stream_packet(second)
+    )
     decoder = StreamDecoder()
     assert decoder.feed(wire) == [first, second]
     assert decoder.drops.skipped_bytes == 9

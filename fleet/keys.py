@@ -1,0 +1,120 @@
+"""Every Zenoh key expression of the fleet, in one place.
+
+Layout (all under the prefix `fleet`):
+
+    fleet/uav/{id}/alive               liveliness token: the UAV process is up
+    fleet/uav/{id}/telemetry           Telemetry (latest TELEMETRY_HI_RES)
+    fleet/uav/{id}/track               Track (the waypoint the autopilot tracks)
+    fleet/uav/{id}/waypoint/{index}    Waypoint (as echoed by the autopilot)
+    fleet/uav/{id}/status              StatusText (thesis PAYLOAD_STATUS)
+    fleet/uav/{id}/link                LinkHealth
+    fleet/uav/{id}/state               queryable: UavState
+    fleet/uav/{id}/opm                 OpmCommand, ground -> UAV
+    fleet/uav/{id}/cmd/waypoint        queryable: Waypoint in, CommandResult out
+    fleet/uav/{id}/cmd/track           queryable: Track in, CommandResult out
+    fleet/mission/{m}/targets          MissionTargets, ground -> team (queryable too)
+    fleet/mission/{m}/result/{id}      UavResult (queryable too: late fetch)
+    fleet/mission/{m}/assignment/{id}  AssignmentReport
+    fleet/mission/{m}/abort            MissionAbort, ground -> team
+
+{id} is the Piccolo ID in decimal; {m} the mission id in decimal.
+"""
+
+from __future__ import annotations
+
+PREFIX = "fleet"
+
+
+def uav(uav_id: int, leaf: str) -> str:
+    return f"{PREFIX}/uav/{uav_id}/{leaf}"
+
+
+def alive(uav_id: int) -> str:
+    return uav(uav_id, "alive")
+
+
+ALL_ALIVE = f"{PREFIX}/uav/*/alive"
+
+
+def telemetry(uav_id: int) -> str:
+    return uav(uav_id, "telemetry")
+
+
+def track(uav_id: int) -> str:
+    return uav(uav_id, "track")
+
+
+def waypoint(uav_id: int, index: int) -> str:
+    return uav(uav_id, f"waypoint/{index}")
+
+
+def status(uav_id: int) -> str:
+    return uav(uav_id, "status")
+
+
+ALL_STATUS = f"{PREFIX}/uav/*/status"
+
+
+def link(uav_id: int) -> str:
+    return uav(uav_id, "link")
+
+
+def state(uav_id: int) -> str:
+    return uav(uav_id, "state")
+
+
+ALL_STATE = f"{PREFIX}/uav/*/state"
+
+
+def opm(uav_id: int) -> str:
+    return uav(uav_id, "opm")
+
+
+def command(uav_id: int, name: str) -> str:
+    return uav(uav_id, f"cmd/{name}")
+
+
+def mission_targets(mission: int) -> str:
+    return f"{PREFIX}/mission/{mission}/targets"
+
+
+ALL_MISSION_TARGETS = f"{PREFIX}/mission/*/targets"
+
+
+def mission_result(mission: int, uav_id: int) -> str:
+    return f"{PREFIX}/mission/{mission}/result/{uav_id}"
+
+
+def mission_results(mission: int) -> str:
+    return f"{PREFIX}/mission/{mission}/result/*"
+
+
+ALL_MISSION_RESULTS = f"{PREFIX}/mission/*/result/*"
+
+
+def mission_assignment(mission: int, uav_id: int) -> str:
+    return f"{PREFIX}/mission/{mission}/assignment/{uav_id}"
+
+
+def mission_assignments(mission: int) -> str:
+    return f"{PREFIX}/mission/{mission}/assignment/*"
+
+
+def mission_abort(mission: int) -> str:
+    return f"{PREFIX}/mission/{mission}/abort"
+
+
+ALL_MISSION_ABORTS = f"{PREFIX}/mission/*/abort"
+
+
+def uav_id_of(key: str) -> int:
+    """The Piccolo ID in a `fleet/uav/{id}/...` or `fleet/mission/{m}/.../{id}` key."""
+    parts = key.split("/")
+    if len(parts) >= 3 and parts[1] == "uav":
+        return int(parts[2])
+    return int(parts[-1])
+
+
+def mission_of(key: str) -> int:
+    """The mission id in a `fleet/mission/{m}/...` key."""
+    return int(key.split("/")[2])

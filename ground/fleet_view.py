@@ -1,0 +1,342 @@
+"""What the ground knows about each UAV: the thesis's UAV list (3.1.2) and map state.
+
+Two ways to learn it:
+
+* `fleet_snapshot`: one look, for `ground-cli uavs`. The live UAVs are the liveliness
+  tokens `fleet/uav/*/alive` (a UAV whose process died is gone within milliseconds);
+  each one's position, waypoint, module state and telemetry age come from a
+  `fleet/uav/*/state` query, which a UAV answers with its UavState.
+* `FleetView`: a live picture, for `watch` and `fleet demo`: a liveliness subscription
+  (with history, so UAVs already up are reported too) plus telemetry, track, waypoint
+  and status subscriptions, and state queries on demand to fill in what is not
+  published (module on/off, mission phase).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from contextlib import ExitStack
+from dataclasses import dataclass, field, replace
+from types import TracebackType
+from typing import Any, Self
+
+import zenoh
+
+from fleet import keys
+from fleet.messages import StatusText, UavState
+from fleet.telemetry import Telemetry
+from fleet.track import Track
+from fleet.waypoint import Waypoint
+from ground.session import decode_sample, live_tokens, query_messages
+
+log = logging.getLogger(__name__)
+
+#: How many status messages the live view keeps (the thesis's status box).
+STATUS_HISTORY = 200
+
+
+@dataclass(frozen=True)
+class UavView:
+    """One row of the UAV list. None wherever the ground has not heard the value."""
+
+    id: int
+    lat: float | None = None
+    lon: float | None = None
+    alt: float | None = None
+    ground_speed: float | None = None  #: m/s, from the GPS velocity
+    airspeed: float | None = None  #: m/s indicated
+    heading: float | None = None  #: degrees true, 0-360
+    tracked_waypoint: int | None = None
+    enabled: bool | None = None  #: the onboard planning module on/off
+    status_rate_hz: float | None = None
+    telemetry_age_s: float | None = None
+    mission: int | None = None
+    phase: str | None = None
+    target: int | None = None
+    last_status: str | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "id": self.id,
+            "lat": self.lat,
+            "lon": self.lon,
+            "alt": self.alt,
+            "ground_speed": self.ground_speed,
+            "airspeed": self.airspeed,
+            "heading": self.heading,
+            "tracked_waypoint": self.tracked_waypoint,
+            "enabled": self.enabled,
+            "status_rate_hz": self.status_rate_hz,
+            "telemetry_age_s": self.telemetry_age_s,
+            "mission": self.mission,
+            "phase": self.phase,
+            "target": self.target,
+            "last_status": self.last_status,
+        }
+
+
+def with_telemetry(view: UavView, telemetry: Telemetry) -> UavView:
+    """`view` updated with what a telemetry packet says."""
+    gps, sensor = telemetry.gps, telemetry.sensor
+    changes: dict[str, Any] = {}
+    if gps is not None:
+        changes.update(
+            lat=gps.lat,
+            lon=gps.lon,
+            alt=gps.alt,
+            ground_speed=math.hypot(gps.vel_north, gps.vel_east),
+        )
+        if sensor is None and (gps.vel_north or gps.vel_east):
+            # No attitude block: the GPS course is the best heading there is.
+            changes["heading"] = math.degrees(math.atan2(gps.vel_east, gps.vel_north)) % 360
+    if sensor is not None:
+        changes.update(heading=sensor.yaw % 360, airspeed=sensor.indicated_airspeed)
+    return replace(view, **changes)
+
+
+def view_from_state(state: UavState) -> UavView:
+    view = UavView(
+        id=state.uav,
+        tracked_waypoint=state.tracked_waypoint,
+        enabled=state.enabled,
+        status_rate_hz=state.status_rate_hz,
+        telemetry_age_s=state.link.telemetry_age_s if state.link is not None else None,
+        last_status=state.last_status,
+    )
+    if state.telemetry is not None:
+        view = with_telemetry(view, state.telemetry)
+    if state.mission is not None:
+        assignment = state.mission.assignment
+        view = replace(
+            view,
+            mission=state.mission.mission,
+            phase=state.mission.phase,
+            target=assignment.target if assignment is not None else None,
+        )
+    return view
+
+
+def live_uav_ids(session: zenoh.Session, timeout_s: float) -> list[int]:
+    """The Piccolo IDs whose liveliness token `fleet/uav/{id}/alive` is declared."""
+    ids: set[int] = set()
+    for key in live_tokens(session, keys.ALL_ALIVE, timeout_s):
+        try:
+            ids.add(keys.uav_id_of(key))
+        except ValueError:
+            log.warning("ignored liveliness token %s: no Piccolo ID in it", key)
+    return sorted(ids)
+
+
+def query_states(session: zenoh.Session, timeout_s: float) -> dict[int, UavState]:
+    return {state.uav: state for _, state in query_messages(session, keys.ALL_STATE, UavState, timeout_s)}
+
+
+def fleet_snapshot(session: zenoh.Session, timeout_s: float) -> list[UavView]:
+    """Every live UAV, with what its state query said (just its id if it did not answer)."""
+    ids = live_uav_ids(session, timeout_s)
+    states = query_states(session, timeout_s) if ids else {}
+    return [view_from_state(states[i]) if i in states else UavView(id=i) for i in ids]
+
+
+@dataclass
+class _Uav:
+    view: UavView
+    alive: bool = True
+    telemetry_at: float | None = None  #: monotonic time the last telemetry arrived
+    waypoints: dict[int, Waypoint] = field(default_factory=dict)
+    track_history: list[int] = field(default_factory=list)
+
+
+class FleetView:
+    """A live, thread-safe picture of the fleet, fed by subscriptions.
+
+    Zenoh runs the callbacks on its own threads; everything they touch is under one
+    lock, and readers get copies. `on_status` (if given) is called for every status
+    message, outside the lock, e.g. to print it as it arrives.
+    """
+
+    def __init__(
+        self,
+        session: zenoh.Session,
+        on_status: Callable[[int, str], None] | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self._session = session
+        self._on_status = on_status
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._changed = threading.Condition(self._lock)
+        self._uavs: dict[int, _Uav] = {}
+        self.statuses: deque[tuple[float, int, str]] = deque(maxlen=STATUS_HISTORY)
+        self._stack = ExitStack()
+
+    def __enter__(self) -> Self:
+        try:
+            self._declare()
+        except BaseException:
+            self._stack.close()
+            raise
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self._stack.close()
+
+    def _declare(self) -> None:
+        session = self._session
+        enter = self._stack.enter_context
+        enter(session.liveliness().declare_subscriber(keys.ALL_ALIVE, self._on_alive, history=True))
+        enter(session.declare_subscriber(keys.uav("*", "telemetry"), self._on_telemetry))  # type: ignore[arg-type]
+        enter(session.declare_subscriber(keys.uav("*", "track"), self._on_track))  # type: ignore[arg-type]
+        enter(session.declare_subscriber(keys.uav("*", "waypoint/*"), self._on_waypoint))  # type: ignore[arg-type]
+        enter(session.declare_subscriber(keys.ALL_STATUS, self._on_status_sample))
+
+    # ---- callbacks (Zenoh threads) ------------------------------------------------
+    def _entry(self, uav_id: int) -> _Uav:
+        entry = self._uavs.get(uav_id)
+        if entry is None:
+            entry = self._uavs[uav_id] = _Uav(UavView(id=uav_id))
+        return entry
+
+    def _on_alive(self, sample: zenoh.Sample) -> None:
+        uav_id = _uav_of(sample)
+        if uav_id is None:
+            return
+        alive = sample.kind == zenoh.SampleKind.PUT
+        with self._changed:
+            self._entry(uav_id).alive = alive
+            self._changed.notify_all()
+        log.info("UAV %d %s", uav_id, "joined" if alive else "left")
+
+    def _on_telemetry(self, sample: zenoh.Sample) -> None:
+        uav_id = _uav_of(sample)
+        telemetry = decode_sample(sample, Telemetry)
+        if uav_id is None or telemetry is None:
+            return
+        with self._changed:
+            entry = self._entry(uav_id)
+            entry.view = with_telemetry(entry.view, telemetry)
+            entry.telemetry_at = self._clock()
+            self._changed.notify_all()
+
+    def _on_track(self, sample: zenoh.Sample) -> None:
+        uav_id = _uav_of(sample)
+        track = decode_sample(sample, Track)
+        if uav_id is None or track is None:
+            return
+        with self._changed:
+            entry = self._entry(uav_id)
+            entry.view = replace(entry.view, tracked_waypoint=track.waypoint)
+            if not entry.track_history or entry.track_history[-1] != track.waypoint:
+                entry.track_history.append(track.waypoint)
+            self._changed.notify_all()
+
+    def _on_waypoint(self, sample: zenoh.Sample) -> None:
+        uav_id = _uav_of(sample)
+        waypoint = decode_sample(sample, Waypoint)
+        if uav_id is None or waypoint is None:
+            return
+        with self._changed:
+            self._entry(uav_id).waypoints[waypoint.index] = waypoint
+            self._changed.notify_all()
+
+    def _on_status_sample(self, sample: zenoh.Sample) -> None:
+        uav_id = _uav_of(sample)
+        status = decode_sample(sample, StatusText)
+        if uav_id is None or status is None:
+            return
+        with self._changed:
+            entry = self._entry(uav_id)
+            entry.view = replace(entry.view, last_status=status.text)
+            self.statuses.append((time.time(), uav_id, status.text))
+            self._changed.notify_all()
+        if self._on_status is not None:
+            self._on_status(uav_id, status.text)
+
+    # ---- queries and readers (caller's thread) --------------------------------------
+    def refresh_states(self, timeout_s: float) -> None:
+        """Fill in what is only in state answers (module on/off, mission phase, target)."""
+        states = query_states(self._session, timeout_s)
+        with self._changed:
+            for uav_id, state in states.items():
+                entry = self._entry(uav_id)
+                fresh = view_from_state(state)
+                if entry.telemetry_at is not None:
+                    # The subscription's telemetry is newer than the state's copy.
+                    fresh = replace(
+                        fresh,
+                        lat=entry.view.lat,
+                        lon=entry.view.lon,
+                        alt=entry.view.alt,
+                        ground_speed=entry.view.ground_speed,
+                        airspeed=entry.view.airspeed,
+                        heading=entry.view.heading,
+                        telemetry_age_s=None,
+                    )
+                entry.view = fresh
+            self._changed.notify_all()
+
+    def snapshot(self, include_gone: bool = False) -> list[UavView]:
+        """The UAVs (live ones only unless `include_gone`), by Piccolo ID."""
+        now = self._clock()
+        with self._lock:
+            views = []
+            for uav_id in sorted(self._uavs):
+                entry = self._uavs[uav_id]
+                if not (entry.alive or include_gone):
+                    continue
+                view = entry.view
+                if entry.telemetry_at is not None:
+                    view = replace(view, telemetry_age_s=now - entry.telemetry_at)
+                views.append(view)
+            return views
+
+    def live_ids(self) -> list[int]:
+        with self._lock:
+            return sorted(i for i, entry in self._uavs.items() if entry.alive)
+
+    def waypoints(self, uav_id: int) -> dict[int, Waypoint]:
+        with self._lock:
+            entry = self._uavs.get(uav_id)
+            return dict(entry.waypoints) if entry else {}
+
+    def track_history(self, uav_id: int) -> list[int]:
+        with self._lock:
+            entry = self._uavs.get(uav_id)
+            return list(entry.track_history) if entry else []
+
+    def statuses_of(self, uav_id: int) -> list[str]:
+        with self._lock:
+            return [text for _, uav, text in self.statuses if uav == uav_id]
+
+    def wait_changed(self, timeout_s: float) -> None:
+        """Block until a callback changed something, or `timeout_s` passed."""
+        with self._changed:
+            self._changed.wait(timeout_s)
+
+    def wait_for(self, ids: set[int], timeout_s: float) -> set[int]:
+        """Wait until every UAV in `ids` is live; returns those still missing."""
+        deadline = self._clock() + timeout_s
+        while True:
+            missing = ids - set(self.live_ids())
+            remaining = deadline - self._clock()
+            if not missing or remaining <= 0:
+                return missing
+            self.wait_changed(min(remaining, 0.5))
+
+
+def _uav_of(sample: zenoh.Sample) -> int | None:
+    try:
+        return keys.uav_id_of(str(sample.key_expr))
+    except (ValueError, IndexError):
+        log.warning("ignored %s: no Piccolo ID in the key", sample.key_expr)
+        return None

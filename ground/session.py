@@ -1,0 +1,165 @@
+"""The ground's Zenoh session, and the wire format of what it sends and reads.
+
+The ground is a Zenoh *client* of one router (the star of architecture.md): a client
+needs no listen port and is relayed by the router to every UAV. Opening fails fast and
+clearly when nothing answers, never hangs: a refused connection fails at once, and an
+endpoint that accepts TCP but never speaks Zenoh is given up after `open_timeout_s`
+(Zenoh's own handshake timeout, 10 s by default, is shortened here).
+
+Every message is a msgspec Struct, JSON-encoded with encoding application/json, so a
+stock Zenoh tool reads the same values the ground does.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import re
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any, TypeVar
+
+import msgspec
+import zenoh
+
+from fleet.zenoh_config import CONNECT_ENV, make_config
+
+log = logging.getLogger(__name__)
+
+JSON_ENCODING = "application/json"
+#: Exit status of a ground command that could not reach the Zenoh router.
+EXIT_NO_ROUTER = 2
+#: How long opening may take against an endpoint that accepts but does not answer.
+DEFAULT_OPEN_TIMEOUT_S = 3.0
+
+# `proto/address`, e.g. tcp/127.0.0.1:7447 or tcp/[::1]:7447; Zenoh checks the rest.
+_ENDPOINT = re.compile(r"^[a-z0-9]+/\S+$")
+
+T = TypeVar("T")
+
+
+class GroundConnectError(RuntimeError):
+    """No Zenoh router could be reached at the endpoint (or the endpoint is malformed)."""
+
+
+def open_session(connect: str, *, open_timeout_s: float = DEFAULT_OPEN_TIMEOUT_S) -> zenoh.Session:
+    """A client session to the router at `connect`; raises GroundConnectError if none answers."""
+    if not _ENDPOINT.match(connect):
+        raise GroundConnectError(
+            f"malformed Zenoh endpoint {connect!r}: expected PROTO/ADDRESS, e.g. tcp/127.0.0.1:7447"
+        )
+    config = make_config("client", [connect])
+    config.insert_json5("transport/unicast/open_timeout", json.dumps(round(open_timeout_s * 1000)))
+    try:
+        session = zenoh.open(config)
+    except zenoh.ZError as error:
+        raise GroundConnectError(
+            f"no Zenoh router answers at {connect} ({_first_line(error)}). "
+            f"Start one with `fleet up`, or point --connect / ${CONNECT_ENV} at it."
+        ) from error
+    log.debug("connected to %s as %s", connect, session.zid())
+    return session
+
+
+@contextmanager
+def ground_session(
+    connect: str, *, open_timeout_s: float = DEFAULT_OPEN_TIMEOUT_S
+) -> Iterator[zenoh.Session]:
+    """`open_session` as a context manager: the session is always closed."""
+    session = open_session(connect, open_timeout_s=open_timeout_s)
+    with session:
+        yield session
+
+
+def _first_line(error: BaseException) -> str:
+    # Zenoh appends the Rust source location ("at .../orchestrator.rs:447."): noise for
+    # an operator.
+    text = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+    return text.split("  at ")[0].strip()
+
+
+def encode(message: msgspec.Struct) -> bytes:
+    return msgspec.json.encode(message)
+
+
+def put_message(session: zenoh.Session, key: str, message: msgspec.Struct) -> None:
+    session.put(key, encode(message), encoding=JSON_ENCODING)
+
+
+def decode_sample(sample: zenoh.Sample, kind: type[T]) -> T | None:
+    """The sample's payload as `kind`, or None (logged) if it is not one."""
+    try:
+        return msgspec.json.decode(sample.payload.to_bytes(), type=kind)
+    except msgspec.ValidationError as error:
+        log.warning("ignored %s: not a %s: %s", sample.key_expr, kind.__name__, error)
+    except msgspec.DecodeError as error:
+        log.warning("ignored %s: not JSON: %s", sample.key_expr, error)
+    return None
+
+
+@dataclass(frozen=True)
+class Reply:
+    """One successful reply to a query."""
+
+    key: str
+    payload: bytes
+    encoding: str
+
+
+def query(session: zenoh.Session, selector: str, timeout_s: float) -> list[Reply]:
+    """Every successful reply to `selector` within `timeout_s`; errors are logged."""
+    replies: list[Reply] = []
+    for reply in session.get(selector, timeout=timeout_s):
+        sample = reply.ok
+        if sample is None:
+            error = reply.err
+            log.debug("query %s: error reply %s", selector, error.payload.to_string() if error else "")
+            continue
+        replies.append(Reply(str(sample.key_expr), sample.payload.to_bytes(), str(sample.encoding)))
+    return replies
+
+
+def query_messages(
+    session: zenoh.Session, selector: str, kind: type[T], timeout_s: float
+) -> list[tuple[str, T]]:
+    """The replies to `selector` that decode as `kind`, with their keys."""
+    found: list[tuple[str, T]] = []
+    for reply in query(session, selector, timeout_s):
+        try:
+            found.append((reply.key, msgspec.json.decode(reply.payload, type=kind)))
+        except (msgspec.ValidationError, msgspec.DecodeError) as error:
+            log.warning("ignored reply %s: not a %s: %s", reply.key, kind.__name__, error)
+    return found
+
+
+def live_tokens(session: zenoh.Session, selector: str, timeout_s: float) -> list[str]:
+    """The keys of the liveliness tokens alive under `selector`."""
+    keys: list[str] = []
+    for reply in session.liveliness().get(selector, timeout=timeout_s):
+        if reply.ok is not None:
+            keys.append(str(reply.ok.key_expr))
+    return keys
+
+
+def decode_value(payload: bytes, encoding: str) -> Any:
+    """A payload for display: JSON decoded, text as text, anything else as hex."""
+    if encoding.startswith(JSON_ENCODING):
+        try:
+            return msgspec.json.decode(payload)
+        except msgspec.DecodeError:
+            pass
+    if encoding.startswith(("text/", "application/json", "zenoh/string")):
+        try:
+            return payload.decode("utf-8")
+        except UnicodeDecodeError:
+            pass
+    try:
+        text = payload.decode("utf-8")
+    except UnicodeDecodeError:
+        return {"hex": payload.hex(), "bytes": len(payload)}
+    # Undeclared encodings that happen to hold JSON are still shown decoded.
+    try:
+        return msgspec.json.decode(payload)
+    except msgspec.DecodeError:
+        return text

@@ -1,0 +1,92 @@
+"""Autopilot commands confirmed by their echo, retried, or reported failed.
+
+The Piccolo echoes a WAYPOINT it stored and reports the TRACK it switched to (piccolo-
+link.md 3): that echo is the only confirmation a sender gets. A command is resent
+every `retry_interval` seconds until its echo arrives or `max_attempts` are spent.
+Pure: time comes in as `now`, bytes go out through the `send` callable.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from fleet.messages import CommandResult
+from fleet.track import Track
+from fleet.waypoint import Waypoint, encode_waypoint
+
+log = logging.getLogger(__name__)
+
+AutopilotCommand = Waypoint | Track
+Completion = Callable[[CommandResult], None]
+
+
+def echo_confirms(command: AutopilotCommand, echo: AutopilotCommand) -> bool:
+    """True when `echo` is the autopilot's confirmation of `command` (compared on the wire)."""
+    if isinstance(command, Track):
+        return isinstance(echo, Track) and echo.waypoint == command.waypoint
+    return isinstance(echo, Waypoint) and encode_waypoint(echo) == encode_waypoint(command)
+
+
+@dataclass
+class _Pending:
+    command: AutopilotCommand
+    on_done: Completion
+    attempts: int
+    next_try: float
+
+
+@dataclass
+class CommandTracker:
+    send: Callable[[AutopilotCommand], None]
+    retry_interval: float = 0.5
+    max_attempts: int = 4
+    _pending: list[_Pending] = field(default_factory=list)
+
+    def submit(self, command: AutopilotCommand, now: float, on_done: Completion) -> None:
+        # A newer command for the same waypoint (or a newer track) replaces the old one.
+        for pending in list(self._pending):
+            if _same_target(pending.command, command):
+                self._pending.remove(pending)
+                pending.on_done(CommandResult(False, "superseded", pending.attempts))
+        self.send(command)
+        self._pending.append(_Pending(command, on_done, 1, now + self.retry_interval))
+
+    def on_echo(self, echo: AutopilotCommand) -> None:
+        for pending in list(self._pending):
+            if echo_confirms(pending.command, echo):
+                self._pending.remove(pending)
+                pending.on_done(CommandResult(True, "confirmed by the autopilot", pending.attempts))
+
+    def tick(self, now: float) -> None:
+        for pending in list(self._pending):
+            if now < pending.next_try:
+                continue
+            if pending.attempts >= self.max_attempts:
+                self._pending.remove(pending)
+                log.warning("no echo for %r after %d attempts", pending.command, pending.attempts)
+                pending.on_done(
+                    CommandResult(
+                        False, f"no echo after {pending.attempts} attempts", pending.attempts
+                    )
+                )
+                continue
+            pending.attempts += 1
+            pending.next_try = now + self.retry_interval
+            self.send(pending.command)
+
+    def cancel_all(self, reason: str) -> None:
+        pending, self._pending = self._pending, []
+        for item in pending:
+            item.on_done(CommandResult(False, reason, item.attempts))
+
+    @property
+    def pending(self) -> int:
+        return len(self._pending)
+
+
+def _same_target(a: AutopilotCommand, b: AutopilotCommand) -> bool:
+    if isinstance(a, Track) and isinstance(b, Track):
+        return True
+    return isinstance(a, Waypoint) and isinstance(b, Waypoint) and a.index == b.index

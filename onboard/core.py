@@ -1,0 +1,390 @@
+"""The onboard planning module's logic: what to do with each event, and when.
+
+Events arrive here whichever way they came (Zenoh, or the payload port from a ground
+station reachable only over the Piccolo radio): one code path handles a command.
+What the module does goes out through `Outputs`, which the process wires to the link
+adapter and the Zenoh node, and which unit tests replace with a recorder. No I/O here.
+
+Flying to a target (thesis 4.3): write waypoint TARGET_WAYPOINT at the target with
+`next` = the waypoint the aircraft was tracking, then track it; when the autopilot
+moves on from it, the aircraft is back on its original course by itself.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import msgspec
+
+from fleet import keys
+from fleet.mercator import MercatorProjection
+from fleet.messages import (
+    AssignmentReport,
+    CommandResult,
+    MissionAbort,
+    MissionProgress,
+    MissionTargets,
+    OpmCommand,
+    StatusText,
+    UavResult,
+    UavState,
+)
+from fleet.targets_file import TargetsFileError, encode_targets
+from fleet.telemetry import Telemetry
+from fleet.track import Track
+from fleet.waypoint import Waypoint
+from onboard.autopilot_commands import AutopilotCommand, CommandTracker, Completion
+from onboard.mission_round import MissionRound
+from onboard.planner_worker import PlannerWorker, PlanRequest, PlanResult
+
+log = logging.getLogger(__name__)
+
+#: The waypoint index the module writes a target into (the flight plan keeps the rest).
+TARGET_WAYPOINT = 90
+#: Results for missions not seen yet are kept, at most this many, for when they start.
+MAX_EARLY_RESULTS = 256
+
+
+class Outputs(Protocol):
+    """Where the module's decisions go."""
+
+    def send_autopilot(self, command: AutopilotCommand) -> None: ...
+    def publish(self, key: str, message: msgspec.Struct) -> None: ...
+    def send_ground(self, message: StatusText | UavResult) -> None: ...
+    def fetch_results(self, mission: int) -> None: ...
+
+
+@dataclass
+class OnboardCore:
+    uav_id: int
+    outputs: Outputs
+    planner: PlannerWorker
+    planning_budget_s: float = 2.0
+    enabled: bool = True
+    status_rate_hz: float = 1.0
+    telemetry: Telemetry | None = None
+    tracked_waypoint: int | None = None
+    original_waypoint: int | None = None
+    round: MissionRound | None = None
+    phase: str = "idle"
+    last_status: str | None = None
+    alive: set[int] = field(default_factory=set)
+    commands: CommandTracker = field(init=False)
+    _early_results: list[UavResult] = field(default_factory=list)
+    _aborted: set[int] = field(default_factory=set)
+    _last_status_at: float = -math.inf
+    _plan_targets: tuple[tuple[float, float], ...] = ()
+
+    def __post_init__(self) -> None:
+        self.commands = CommandTracker(send=self.outputs.send_autopilot)
+        self.alive.add(self.uav_id)
+
+    # ---- link events -------------------------------------------------------------
+    def on_telemetry(self, telemetry: Telemetry) -> None:
+        self.telemetry = telemetry
+        self.outputs.publish(keys.telemetry(self.uav_id), telemetry)
+
+    def on_track(self, track: Track, now: float) -> None:
+        self.commands.on_echo(track)
+        previous, self.tracked_waypoint = self.tracked_waypoint, track.waypoint
+        if previous != track.waypoint:
+            self.outputs.publish(keys.track(self.uav_id), track)
+        if self.original_waypoint is None and track.waypoint != TARGET_WAYPOINT:
+            self.original_waypoint = track.waypoint
+        left_target = previous == TARGET_WAYPOINT and track.waypoint != TARGET_WAYPOINT
+        if left_target and self.phase == "flying":
+            self.phase = "reached"
+            target = self.round.committed.target if self.round and self.round.committed else None
+            self.status(
+                f"reached target {target}; resuming course at waypoint {track.waypoint}", now
+            )
+        elif track.waypoint != TARGET_WAYPOINT and self.phase not in ("flying",):
+            self.original_waypoint = track.waypoint
+
+    def on_waypoint(self, waypoint: Waypoint) -> None:
+        self.commands.on_echo(waypoint)
+        self.outputs.publish(keys.waypoint(self.uav_id, waypoint.index), waypoint)
+
+    # ---- ground commands -----------------------------------------------------------
+    def on_opm(self, command: OpmCommand, now: float) -> None:
+        if not math.isfinite(command.status_rate_hz) or command.status_rate_hz < 0:
+            self.status(f"error: OPM status rate {command.status_rate_hz!r} refused", now)
+            return
+        changed = command.enabled != self.enabled
+        self.enabled = command.enabled
+        self.status_rate_hz = command.status_rate_hz
+        if changed and not self.enabled:
+            self.commands.cancel_all("module turned off")
+        self.status(
+            f"module {'on' if self.enabled else 'off'}, status every "
+            + (f"{1 / self.status_rate_hz:.3g} s" if self.status_rate_hz else "change"),
+            now,
+        )
+
+    def command_autopilot(self, command: AutopilotCommand, now: float, on_done: Completion) -> None:
+        """A waypoint or track asked for by the ground; refused while the module is off."""
+        if not self.enabled:
+            on_done(CommandResult(False, "module is off: it does not write to the autopilot"))
+            return
+        self.commands.submit(command, now, on_done)
+
+    def on_targets(self, targets: MissionTargets, now: float) -> None:
+        if self.uav_id not in targets.team:
+            return
+        current = self.round.mission if self.round else None
+        if current is not None and targets.mission <= current:
+            return  # a repeat of the current mission, or a stale one
+        if targets.mission in self._aborted:
+            return
+        self.outputs.publish(keys.mission_targets(targets.mission), targets)
+        problem = self._refusal(targets)
+        self._start_round(targets, now)
+        if problem is not None:
+            self.status(f"error: mission {targets.mission} refused: {problem}", now)
+            self._publish_result(tuple(None for _ in targets.targets), now)
+            return
+        if not self.enabled:
+            self.status(f"mission {targets.mission}: module off, not taking part", now)
+            self._publish_result(tuple(None for _ in targets.targets), now)
+            return
+        self._start_planning(now)
+
+    def _refusal(self, targets: MissionTargets) -> str | None:
+        try:
+            encode_targets(targets.targets, source=f"mission {targets.mission}")
+        except TargetsFileError as error:
+            return error.problem if error.problem.startswith("no targets") else str(error)
+        if not math.isfinite(targets.deadline_s) or targets.deadline_s <= 0:
+            return f"deadline {targets.deadline_s!r} s is not a positive number"
+        if self.telemetry is None or self.telemetry.gps is None:
+            return "no GPS telemetry yet"
+        return None
+
+    def _start_round(self, targets: MissionTargets, now: float) -> None:
+        if self.phase == "flying":
+            self._resume_course(now)
+        self.commands.cancel_all(f"mission {targets.mission} started")
+        self.round = MissionRound(targets, self.uav_id, now)
+        self.phase = "computing"
+        early, self._early_results = self._early_results, []
+        for result in early:
+            if result.mission == targets.mission:
+                self.round.add_result(result)
+            elif result.mission > targets.mission:
+                self._early_results.append(result)
+
+    def _start_planning(self, now: float) -> None:
+        assert self.round is not None and self.telemetry is not None
+        gps = self.telemetry.gps
+        assert gps is not None
+        projection = MercatorProjection(gps.lat, gps.lon)
+        self._plan_targets = tuple(
+            projection.to_xy(t.lat, t.lon) for t in self.round.targets.targets
+        )
+        request = PlanRequest(
+            position=(0.0, 0.0),
+            velocity=(gps.vel_east, gps.vel_north),
+            targets=self._plan_targets,
+            budget_s=self.planning_budget_s,
+        )
+        if not self.planner.run(request):
+            self.status("warning: planner still busy with the previous mission", now)
+            return
+        self.status(
+            f"mission {self.round.mission}: computing approach times to "
+            f"{len(self._plan_targets)} targets",
+            now,
+        )
+
+    def on_result(self, result: UavResult, now: float) -> None:
+        if self.round is None or result.mission > self.round.mission:
+            self._early_results = [*self._early_results, result][-MAX_EARLY_RESULTS:]
+            return
+        if result.uav != self.uav_id:
+            self.round.add_result(result)
+
+    def on_assignment(self, report: AssignmentReport, now: float) -> None:
+        if self.round is None or report.uav == self.uav_id:
+            return
+        if report.mission != self.round.mission or self.round.committed is not None:
+            return
+        adopted = self.round.adopt(report)
+        if adopted is not None:
+            self.status(
+                f"mission {report.mission}: adopted the assignment of UAV {report.uav}", now
+            )
+            self._commit(adopted, now)
+
+    def on_abort(self, abort: MissionAbort, now: float) -> None:
+        self._aborted.add(abort.mission)
+        if self.round is None or self.round.mission != abort.mission:
+            return
+        if self.phase == "flying":
+            self._resume_course(now)
+        self.phase = "aborted"
+        self.status(f"mission {abort.mission} aborted; back on course", now)
+
+    def on_alive(self, uav: int, alive: bool) -> None:
+        if alive:
+            self.alive.add(uav)
+        elif uav != self.uav_id:
+            self.alive.discard(uav)
+
+    # ---- time ----------------------------------------------------------------------
+    def tick(self, now: float) -> None:
+        self.commands.tick(now)
+        self._collect_plan(now)
+        mission_round = self.round
+        if mission_round is not None and mission_round.committed is None:
+            if mission_round.should_fetch(now, self.alive):
+                mission_round.last_fetch = now
+                self.outputs.fetch_results(mission_round.mission)
+            if mission_round.ready(now, self.alive):
+                missing = mission_round.missing(self.alive)
+                report = mission_round.decide(self.alive)
+                if missing:
+                    self.status(
+                        f"mission {mission_round.mission}: deadline passed without "
+                        f"{', '.join(map(str, sorted(missing)))}; assigned without them",
+                        now,
+                    )
+                self._commit(report, now)
+        if self.status_rate_hz > 0 and now - self._last_status_at >= 1 / self.status_rate_hz:
+            self.status(self._summary(), now)
+
+    def _collect_plan(self, now: float) -> None:
+        result = self.planner.result()
+        if result is None or self.round is None or self.phase != "computing":
+            return
+        if len(result.times) != len(self.round.targets.targets):
+            return  # the answer to a superseded mission
+        self._report_plan(result, now)
+
+    def _report_plan(self, plan: PlanResult, now: float) -> None:
+        fallbacks = sum(plan.fallback)
+        text = f"mission {self.round.mission if self.round else '?'}: approach times in {plan.solve_seconds:.2f} s"
+        if fallbacks:
+            text += f"; {fallbacks} by the Dubins fallback (budget {self.planning_budget_s:g} s)"
+        if plan.error:
+            text = f"warning: {text}; solver error: {plan.error}"
+        self.status(text, now)
+        self._publish_result(tuple(plan.times), now)
+
+    def _publish_result(self, times: tuple[float | None, ...], now: float) -> None:
+        assert self.round is not None
+        result = UavResult(mission=self.round.mission, uav=self.uav_id, times=times)
+        self.round.add_result(result)
+        self.phase = "waiting" if self.round.committed is None else self.phase
+        self.outputs.publish(keys.mission_result(result.mission, self.uav_id), result)
+        self.outputs.send_ground(result)
+
+    def _commit(self, report: AssignmentReport, now: float) -> None:
+        self.outputs.publish(keys.mission_assignment(report.mission, self.uav_id), report)
+        if report.target is None:
+            self.phase = "committed"
+            self.status(f"mission {report.mission}: no target assigned; keeping course", now)
+            return
+        assert self.round is not None
+        target = self.round.targets.targets[report.target]
+        eta = f"{report.eta_s:.0f} s" if report.eta_s is not None else "unknown"
+        self.status(f"mission {report.mission}: target {report.target} chosen, ETA {eta}", now)
+        if not self.enabled:
+            self.phase = "committed"
+            return
+        self.phase = "flying"
+        back_to = self.original_waypoint
+        if back_to is None or back_to == TARGET_WAYPOINT:
+            back_to = self.tracked_waypoint if self.tracked_waypoint != TARGET_WAYPOINT else 0
+            back_to = back_to or 0
+        waypoint = Waypoint(
+            index=TARGET_WAYPOINT,
+            next_index=back_to,
+            lat=target.lat,
+            lon=target.lon,
+            alt=target.alt,
+        )
+        mission = report.mission
+
+        def track_target(result: CommandResult) -> None:
+            if not result.ok:
+                self.status(
+                    f"error: mission {mission}: target waypoint not stored: {result.detail}", now
+                )
+                return
+            self.commands.submit(Track(TARGET_WAYPOINT), now, tracked)
+
+        def tracked(result: CommandResult) -> None:
+            if not result.ok:
+                self.status(f"error: mission {mission}: track not confirmed: {result.detail}", now)
+
+        self.commands.submit(waypoint, now, track_target)
+
+    def _resume_course(self, now: float) -> None:
+        if self.original_waypoint is None or not self.enabled:
+            return
+        back = self.original_waypoint
+
+        def done(result: CommandResult) -> None:
+            if not result.ok:
+                self.status(f"error: could not resume waypoint {back}: {result.detail}", now)
+
+        self.commands.cancel_all("resuming course")
+        self.commands.submit(Track(back), now, done)
+        self.phase = "idle"
+
+    # ---- reporting -----------------------------------------------------------------
+    def status(self, text: str, now: float) -> None:
+        self._last_status_at = now
+        self.last_status = text
+        (log.warning if text.startswith(("error", "warning")) else log.info)("%s", text)
+        message = StatusText(text)
+        self.outputs.publish(keys.status(self.uav_id), message)
+        self.outputs.send_ground(message)
+
+    def _summary(self) -> str:
+        parts = [f"module {'on' if self.enabled else 'off'}"]
+        if self.tracked_waypoint is not None:
+            parts.append(f"tracking waypoint {self.tracked_waypoint}")
+        if self.round is not None:
+            parts.append(f"mission {self.round.mission} {self.phase}")
+            report = self.round.committed
+            if report is not None and report.target is not None:
+                parts.append(f"target {report.target}")
+        return "; ".join(parts)
+
+    def state(self) -> UavState:
+        progress = None
+        if self.round is not None:
+            progress = MissionProgress(
+                mission=self.round.mission,
+                phase=self.phase,
+                targets=len(self.round.targets.targets),
+                result=self.round.results.get(self.uav_id),
+                assignment=self.round.committed,
+            )
+        return UavState(
+            uav=self.uav_id,
+            enabled=self.enabled,
+            status_rate_hz=self.status_rate_hz,
+            tracked_waypoint=self.tracked_waypoint,
+            telemetry=self.telemetry,
+            link=None,
+            mission=progress,
+            last_status=self.last_status,
+        )
+
+    def mission_targets(self) -> MissionTargets | None:
+        return self.round.targets if self.round else None
+
+    def own_result(self, mission: int) -> UavResult | None:
+        if self.round is None or self.round.mission != mission:
+            return None
+        return self.round.results.get(self.uav_id)
+
+    def own_assignment(self, mission: int) -> AssignmentReport | None:
+        if self.round is None or self.round.mission != mission:
+            return None
+        return self.round.committed

@@ -1,0 +1,163 @@
+"""Analytic Dubins-path time from an aircraft's state to a point.
+
+This is the documented fallback of the approach-time model: when the LP budget runs out
+(or the solver fails) the planner still owes the fleet an approach time for every
+target, and the shortest path of a constant-speed, bank-limited aircraft to a point is
+cheap to compute in closed form.
+
+The target is a point, not a pose: the final heading is free. For that problem the
+shortest path is a turn at the minimum radius followed by a straight line (CS), or, for
+points inside a turn circle, two turns in opposite directions (CC) (Bui, Souères,
+Boissonnat and Laumond, 1994). All four families (LS, RS, LR, RL) are evaluated where
+they exist and the shortest is returned; every candidate is a flyable path, so taking
+the minimum never under-estimates the optimum.
+
+Frames: x east, y north, metres; headings are mathematical angles (counter-clockwise
+from east), so a left turn increases the angle.
+"""
+
+from __future__ import annotations
+
+import math
+
+__all__ = ["GRAVITY", "dubins_path_length", "dubins_time_to_point", "turn_radius"]
+
+GRAVITY = 9.80665
+"""Standard gravity, m/s^2."""
+
+_TWO_PI = 2.0 * math.pi
+
+
+def turn_radius(speed: float, bank_limit_deg: float) -> float:
+    """Radius in metres of a coordinated level turn at `speed` (m/s) and the bank limit.
+
+    r = v^2 / (g tan(bank)); a bank limit at or below zero means the aircraft cannot
+    turn, which is reported as an infinite radius.
+    """
+    tan_bank = math.tan(math.radians(bank_limit_deg))
+    if tan_bank <= 0.0:
+        return math.inf
+    return speed * speed / (GRAVITY * tan_bank)
+
+
+def _ccw(angle: float) -> float:
+    """Angle wrapped into [0, 2*pi): the arc swept counter-clockwise."""
+    wrapped = math.fmod(angle, _TWO_PI)
+    return wrapped + _TWO_PI if wrapped < 0.0 else wrapped
+
+
+def _turn_then_straight(
+    centre: tuple[float, float],
+    start_angle: float,
+    direction: float,
+    target: tuple[float, float],
+    radius: float,
+) -> float:
+    """Length of the CS path on the circle `centre` turning `direction` (+1 left, -1 right).
+
+    Returns inf if the target lies inside the circle (no tangent exists).
+    """
+    dx = target[0] - centre[0]
+    dy = target[1] - centre[1]
+    dist = math.hypot(dx, dy)
+    if dist < radius:
+        return math.inf
+    straight = math.sqrt(max(dist * dist - radius * radius, 0.0))
+    # The tangent point Q sees the target along the direction of travel, so the angle of
+    # Q (seen from the centre) lags the target's angle by atan2(straight, r) in the
+    # direction of the turn.
+    exit_angle = math.atan2(dy, dx) - direction * math.atan2(straight, radius)
+    arc = _ccw(direction * (exit_angle - start_angle))
+    return radius * arc + straight
+
+
+def _turn_then_turn(
+    centre: tuple[float, float],
+    start_angle: float,
+    direction: float,
+    target: tuple[float, float],
+    radius: float,
+) -> float:
+    """Length of the shortest CC path starting on `centre` turning `direction`.
+
+    The second circle touches the first one on the far side of the switching point, so
+    its centre lies at 2r from the first centre, and it must pass through the target:
+    its centre is at r from the target. Returns inf when those circles do not meet.
+    """
+    cx, cy = centre
+    dx = target[0] - cx
+    dy = target[1] - cy
+    d = math.hypot(dx, dy)
+    if d < radius or d > 3.0 * radius or d == 0.0:
+        return math.inf
+    # Intersection of circle(centre, 2r) and circle(target, r), by the law of cosines.
+    cos_half = ((2.0 * radius) ** 2 + d * d - radius * radius) / (4.0 * radius * d)
+    half = math.acos(max(-1.0, min(1.0, cos_half)))
+    base = math.atan2(dy, dx)
+    best = math.inf
+    for switch_angle in (base + half, base - half):
+        first_arc = _ccw(direction * (switch_angle - start_angle))
+        second_cx = cx + 2.0 * radius * math.cos(switch_angle)
+        second_cy = cy + 2.0 * radius * math.sin(switch_angle)
+        # On the second circle the switching point is seen at switch_angle + pi and the
+        # aircraft now turns the other way.
+        target_angle = math.atan2(target[1] - second_cy, target[0] - second_cx)
+        second_arc = _ccw(-direction * (target_angle - (switch_angle + math.pi)))
+        best = min(best, radius * (first_arc + second_arc))
+    return best
+
+
+def dubins_path_length(
+    position: tuple[float, float],
+    heading: float,
+    target: tuple[float, float],
+    radius: float,
+) -> float:
+    """Length in metres of the shortest bounded-curvature path to a point.
+
+    `heading` in radians counter-clockwise from east; `radius` is the minimum turn
+    radius (0 gives the straight-line distance).
+    """
+    dx = target[0] - position[0]
+    dy = target[1] - position[1]
+    if radius <= 0.0:
+        return math.hypot(dx, dy)
+    if not math.isfinite(radius):
+        # The aircraft cannot turn: only points dead ahead are reachable.
+        along = dx * math.cos(heading) + dy * math.sin(heading)
+        cross = -dx * math.sin(heading) + dy * math.cos(heading)
+        return along if along >= 0.0 and abs(cross) <= 1e-9 * max(1.0, along) else math.inf
+    best = math.inf
+    for direction in (1.0, -1.0):
+        # The turn centre is on the left (+1) or right (-1) of the heading.
+        centre = (
+            position[0] - direction * radius * math.sin(heading),
+            position[1] + direction * radius * math.cos(heading),
+        )
+        start_angle = math.atan2(position[1] - centre[1], position[0] - centre[0])
+        best = min(
+            best,
+            _turn_then_straight(centre, start_angle, direction, target, radius),
+            _turn_then_turn(centre, start_angle, direction, target, radius),
+        )
+    return best
+
+
+def dubins_time_to_point(
+    position: tuple[float, float],
+    velocity: tuple[float, float],
+    target: tuple[float, float],
+    turn_radius: float,
+) -> float:
+    """Seconds to fly the shortest Dubins path from (position, velocity) to `target`.
+
+    The speed is |velocity| and stays constant; the heading is the velocity's direction.
+    A stationary aircraft has no heading and cannot fly, so it gets inf unless it is
+    already on the target.
+    """
+    speed = math.hypot(velocity[0], velocity[1])
+    if speed <= 0.0:
+        on_target = position[0] == target[0] and position[1] == target[1]
+        return 0.0 if on_target else math.inf
+    heading = math.atan2(velocity[1], velocity[0])
+    return dubins_path_length(position, heading, target, turn_radius) / speed
