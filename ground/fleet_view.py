@@ -36,6 +36,11 @@ from ground.session import decode_sample, live_tokens, query_messages
 
 log = logging.getLogger(__name__)
 
+# fleet/keys.py names only the wildcards other modules needed so far.
+ALL_TELEMETRY = f"{keys.PREFIX}/uav/*/telemetry"
+ALL_TRACK = f"{keys.PREFIX}/uav/*/track"
+ALL_WAYPOINTS = f"{keys.PREFIX}/uav/*/waypoint/*"
+
 #: How many status messages the live view keeps (the thesis's status box).
 STATUS_HISTORY = 200
 
@@ -133,7 +138,10 @@ def live_uav_ids(session: zenoh.Session, timeout_s: float) -> list[int]:
 
 
 def query_states(session: zenoh.Session, timeout_s: float) -> dict[int, UavState]:
-    return {state.uav: state for _, state in query_messages(session, keys.ALL_STATE, UavState, timeout_s)}
+    return {
+        state.uav: state
+        for _, state in query_messages(session, keys.ALL_STATE, UavState, timeout_s)
+    }
 
 
 def fleet_snapshot(session: zenoh.Session, timeout_s: float) -> list[UavView]:
@@ -195,9 +203,9 @@ class FleetView:
         session = self._session
         enter = self._stack.enter_context
         enter(session.liveliness().declare_subscriber(keys.ALL_ALIVE, self._on_alive, history=True))
-        enter(session.declare_subscriber(keys.uav("*", "telemetry"), self._on_telemetry))  # type: ignore[arg-type]
-        enter(session.declare_subscriber(keys.uav("*", "track"), self._on_track))  # type: ignore[arg-type]
-        enter(session.declare_subscriber(keys.uav("*", "waypoint/*"), self._on_waypoint))  # type: ignore[arg-type]
+        enter(session.declare_subscriber(ALL_TELEMETRY, self._on_telemetry))
+        enter(session.declare_subscriber(ALL_TRACK, self._on_track))
+        enter(session.declare_subscriber(ALL_WAYPOINTS, self._on_waypoint))
         enter(session.declare_subscriber(keys.ALL_STATUS, self._on_status_sample))
 
     # ---- callbacks (Zenoh threads) ------------------------------------------------
@@ -314,6 +322,11 @@ class FleetView:
             entry = self._uavs.get(uav_id)
             return list(entry.track_history) if entry else []
 
+    def recent_statuses(self, count: int = STATUS_HISTORY) -> list[tuple[float, int, str]]:
+        """The last `count` status messages as (wall time, Piccolo ID, text), oldest first."""
+        with self._lock:
+            return list(self.statuses)[-count:]
+
     def statuses_of(self, uav_id: int) -> list[str]:
         with self._lock:
             return [text for _, uav, text in self.statuses if uav == uav_id]
@@ -340,3 +353,54 @@ def _uav_of(sample: zenoh.Sample) -> int | None:
     except (ValueError, IndexError):
         log.warning("ignored %s: no Piccolo ID in the key", sample.key_expr)
         return None
+
+
+# ---- presentation ------------------------------------------------------------------------
+_COLUMNS = (
+    ("ID", 5),
+    ("LAT", 11),
+    ("LON", 12),
+    ("ALT m", 7),
+    ("GS m/s", 6),
+    ("HDG", 5),
+    ("WP", 4),
+    ("OPM", 4),
+    ("MISSION", 8),
+    ("PHASE", 10),
+    ("TGT", 4),
+    ("TLM AGE", 8),
+)
+
+
+def _cell(value: object, digits: int = 1) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    if isinstance(value, float):
+        return f"{value:.{digits}f}"
+    return str(value)
+
+
+def format_table(views: list[UavView]) -> str:
+    """The UAV list as a fixed-width text table, one row per UAV."""
+    header = " ".join(name.rjust(width) for name, width in _COLUMNS)
+    lines = [header]
+    for v in views:
+        age = f"{v.telemetry_age_s:.1f} s" if v.telemetry_age_s is not None else "-"
+        cells = (
+            _cell(v.id),
+            _cell(v.lat, 6),
+            _cell(v.lon, 6),
+            _cell(v.alt),
+            _cell(v.ground_speed),
+            _cell(v.heading, 0),
+            _cell(v.tracked_waypoint),
+            _cell(v.enabled),
+            _cell(v.mission),
+            _cell(v.phase),
+            _cell(v.target),
+            age,
+        )
+        lines.append(" ".join(c.rjust(w) for c, (_, w) in zip(cells, _COLUMNS, strict=True)))
+    return "\n".join(lines)

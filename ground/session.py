@@ -6,8 +6,8 @@ clearly when nothing answers, never hangs: a refused connection fails at once, a
 endpoint that accepts TCP but never speaks Zenoh is given up after `open_timeout_s`
 (Zenoh's own handshake timeout, 10 s by default, is shortened here).
 
-Every message is a msgspec Struct, JSON-encoded with encoding application/json, so a
-stock Zenoh tool reads the same values the ground does.
+Every message is a msgspec Struct in `fleet.bus_codec`'s wire format (JSON, encoding
+application/json), so a stock Zenoh tool reads the same values the ground does.
 """
 
 from __future__ import annotations
@@ -23,11 +23,12 @@ from typing import Any, TypeVar
 import msgspec
 import zenoh
 
+from fleet import bus_codec
 from fleet.zenoh_config import CONNECT_ENV, make_config
 
 log = logging.getLogger(__name__)
 
-JSON_ENCODING = "application/json"
+JSON_ENCODING = str(bus_codec.ENCODING)
 #: Exit status of a ground command that could not reach the Zenoh router.
 EXIT_NO_ROUTER = 2
 #: How long opening may take against an endpoint that accepts but does not answer.
@@ -80,21 +81,19 @@ def _first_line(error: BaseException) -> str:
 
 
 def encode(message: msgspec.Struct) -> bytes:
-    return msgspec.json.encode(message)
+    return bus_codec.encode(message)
 
 
 def put_message(session: zenoh.Session, key: str, message: msgspec.Struct) -> None:
-    session.put(key, encode(message), encoding=JSON_ENCODING)
+    session.put(key, bus_codec.encode(message), encoding=bus_codec.ENCODING)
 
 
 def decode_sample(sample: zenoh.Sample, kind: type[T]) -> T | None:
     """The sample's payload as `kind`, or None (logged) if it is not one."""
     try:
-        return msgspec.json.decode(sample.payload.to_bytes(), type=kind)
-    except msgspec.ValidationError as error:
-        log.warning("ignored %s: not a %s: %s", sample.key_expr, kind.__name__, error)
-    except msgspec.DecodeError as error:
-        log.warning("ignored %s: not JSON: %s", sample.key_expr, error)
+        return bus_codec.decode(sample.payload.to_bytes(), kind, str(sample.key_expr))
+    except bus_codec.BadMessage as error:
+        log.warning("ignored %s", error)
     return None
 
 
@@ -114,7 +113,9 @@ def query(session: zenoh.Session, selector: str, timeout_s: float) -> list[Reply
         sample = reply.ok
         if sample is None:
             error = reply.err
-            log.debug("query %s: error reply %s", selector, error.payload.to_string() if error else "")
+            log.debug(
+                "query %s: error reply %s", selector, error.payload.to_string() if error else ""
+            )
             continue
         replies.append(Reply(str(sample.key_expr), sample.payload.to_bytes(), str(sample.encoding)))
     return replies
@@ -127,9 +128,9 @@ def query_messages(
     found: list[tuple[str, T]] = []
     for reply in query(session, selector, timeout_s):
         try:
-            found.append((reply.key, msgspec.json.decode(reply.payload, type=kind)))
-        except (msgspec.ValidationError, msgspec.DecodeError) as error:
-            log.warning("ignored reply %s: not a %s: %s", reply.key, kind.__name__, error)
+            found.append((reply.key, bus_codec.decode(reply.payload, kind, reply.key)))
+        except bus_codec.BadMessage as error:
+            log.warning("ignored reply %s", error)
     return found
 
 

@@ -228,6 +228,24 @@ class _PersistentHighs:
         return float(self._highs.getInfo().objective_function_value)
 
 
+def _nearest_neighbour_order(points: Sequence[tuple[float, float]]) -> list[int]:
+    """Visit order in which each point is the nearest unvisited one to the last.
+
+    Each LP warm-starts from the previous basis; the closer the previous target, the
+    fewer simplex pivots. Starts from the target nearest the aircraft. O(n^2), which is
+    nothing next to one LP for the target counts of a mission.
+    """
+    remaining = list(range(len(points)))
+    order: list[int] = []
+    cx, cy = 0.0, 0.0
+    while remaining:
+        best = min(remaining, key=lambda i: (points[i][0] - cx) ** 2 + (points[i][1] - cy) ** 2)
+        remaining.remove(best)
+        order.append(best)
+        cx, cy = points[best]
+    return order
+
+
 class ApproachTimeModel:
     """Minimum approach time from one aircraft to each target; not thread-safe.
 
@@ -409,6 +427,11 @@ class ApproachTimeModel:
     def _first_node_at_or_after(self, t: float) -> int:
         return bisect.bisect_left(self._times, t - 1e-9)
 
+    def _gap_at(self, node: int) -> float | None:
+        """Least 16-gon distance to the target at `node`; None if the LP failed."""
+        self._select(node)
+        return self._solver.minimise()
+
     def _scan(
         self,
         along: float,
@@ -416,20 +439,26 @@ class ApproachTimeModel:
         deadline: float | None,
         cancel: threading.Event | None,
     ) -> TargetSolution:
+        def expired() -> bool:
+            if cancel is not None and cancel.is_set():
+                return True
+            return deadline is not None and time.monotonic() >= deadline
+
+        speed_cap = _INRADIUS * self.limits.max_speed
         # Before any LP: node 0 is fixed, so its 16-gon distance is already a bound.
         bound = self._gauge_time(along, cross)
-        node = self._first_node_at_or_after(bound)
-        lps = 0
         if bound <= 0.0:
-            return TargetSolution(0.0, TargetStatus.SOLVED, lps)
+            return TargetSolution(0.0, TargetStatus.SOLVED, 0)
         self._set_target(along, cross)
-        while node < len(self._times):
-            if (deadline is not None and time.monotonic() >= deadline) or (
-                cancel is not None and cancel.is_set()
-            ):
+        node = self._first_node_at_or_after(bound)
+        last_refuted: int | None = None
+        lps = 0
+        while True:
+            if node >= len(self._times):
+                return TargetSolution(None, TargetStatus.UNREACHABLE, lps)
+            if expired():
                 return TargetSolution(None, TargetStatus.DEADLINE, lps)
-            self._select(node)
-            gap = self._solver.minimise()
+            gap = self._gap_at(node)
             lps += 1
             if gap is None:
                 logger.warning(
@@ -440,10 +469,19 @@ class ApproachTimeModel:
                 )
                 return TargetSolution(None, TargetStatus.SOLVER_ERROR, lps)
             if gap <= _ARRIVAL_TOLERANCE_M:
-                return TargetSolution(min(bound, self._times[node]), TargetStatus.SOLVED, lps)
-            bound = max(bound, self._times[node] + gap / (_INRADIUS * self.limits.max_speed))
+                break
+            bound = max(bound, self._times[node] + gap / speed_cap)
+            last_refuted = node
             node = max(node + 1, self._first_node_at_or_after(bound))
-        return TargetSolution(None, TargetStatus.UNREACHABLE, lps)
+        # `node` is the MILP optimum. Bounds proven far from it can be loose (the
+        # straight-line bound ignores the turn), so the arrival inside the last step is
+        # taken from the gap at the node just before, solving it if the scan jumped it.
+        if last_refuted != node - 1 and not expired():
+            gap = self._gap_at(node - 1)
+            lps += 1
+            if gap is not None:
+                bound = max(bound, self._times[node - 1] + gap / speed_cap)
+        return TargetSolution(min(bound, self._times[node]), TargetStatus.SOLVED, lps)
 
     def solve_detailed(
         self,
@@ -459,15 +497,18 @@ class ApproachTimeModel:
         # Unit heading; east when the aircraft reports no velocity at all.
         hx, hy = (vx / reported, vy / reported) if reported > 1e-9 else (1.0, 0.0)
         self._set_state(self.limits.clamp_speed(reported))
-        out: list[TargetSolution] = []
+        local: list[tuple[float, float]] = []
         for tx, ty in targets:
             dx = tx - position[0]
             dy = ty - position[1]
-            # Heading frame: x along the velocity, y to its left.
-            along = dx * hx + dy * hy
-            cross = -dx * hy + dy * hx
-            out.append(self._scan(along, cross, deadline, cancel))
-        return out
+            # Heading frame: x along the velocity, y to its left. The model is symmetric
+            # about the heading, so every target is mirrored to the left half-plane.
+            local.append((dx * hx + dy * hy, abs(-dx * hy + dy * hx)))
+        order = _nearest_neighbour_order(local)
+        out: list[TargetSolution | None] = [None] * len(local)
+        for i in order:
+            out[i] = self._scan(local[i][0], local[i][1], deadline, cancel)
+        return [sol for sol in out if sol is not None]
 
     def solve(
         self,

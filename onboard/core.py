@@ -38,7 +38,7 @@ from fleet.track import Track
 from fleet.waypoint import Waypoint
 from onboard.autopilot_commands import AutopilotCommand, CommandTracker, Completion
 from onboard.mission_round import MissionRound
-from onboard.planner_worker import PlannerWorker, PlanRequest, PlanResult
+from onboard.planner_worker import PlanRequest, PlanResult
 
 log = logging.getLogger(__name__)
 
@@ -46,6 +46,13 @@ log = logging.getLogger(__name__)
 TARGET_WAYPOINT = 90
 #: Results for missions not seen yet are kept, at most this many, for when they start.
 MAX_EARLY_RESULTS = 256
+
+
+class Planner(Protocol):
+    """The RunMILP / IsMILPRunning contract (thesis 2.8): see onboard.planner_worker."""
+
+    def run(self, request: PlanRequest) -> bool: ...
+    def result(self) -> PlanResult | None: ...
 
 
 class Outputs(Protocol):
@@ -61,7 +68,7 @@ class Outputs(Protocol):
 class OnboardCore:
     uav_id: int
     outputs: Outputs
-    planner: PlannerWorker
+    planner: Planner
     planning_budget_s: float = 2.0
     enabled: bool = True
     status_rate_hz: float = 1.0
@@ -92,17 +99,14 @@ class OnboardCore:
         previous, self.tracked_waypoint = self.tracked_waypoint, track.waypoint
         if previous != track.waypoint:
             self.outputs.publish(keys.track(self.uav_id), track)
-        if self.original_waypoint is None and track.waypoint != TARGET_WAYPOINT:
-            self.original_waypoint = track.waypoint
-        left_target = previous == TARGET_WAYPOINT and track.waypoint != TARGET_WAYPOINT
-        if left_target and self.phase == "flying":
+        if track.waypoint == TARGET_WAYPOINT:
+            return
+        if self.phase == "flying" and previous == TARGET_WAYPOINT:
             self.phase = "reached"
             target = self.round.committed.target if self.round and self.round.committed else None
-            self.status(
-                f"reached target {target}; resuming course at waypoint {track.waypoint}", now
-            )
-        elif track.waypoint != TARGET_WAYPOINT and self.phase not in ("flying",):
-            self.original_waypoint = track.waypoint
+            self.status(f"reached target {target}; resuming course at waypoint {track.waypoint}", now)
+        if self.phase != "flying":
+            self.original_waypoint = track.waypoint  # the course to come back to
 
     def on_waypoint(self, waypoint: Waypoint) -> None:
         self.commands.on_echo(waypoint)
@@ -139,28 +143,28 @@ class OnboardCore:
             return  # a repeat of the current mission, or a stale one
         if targets.mission in self._aborted:
             return
-        self.outputs.publish(keys.mission_targets(targets.mission), targets)
         problem = self._refusal(targets)
-        self._start_round(targets, now)
         if problem is not None:
+            # Bad input never disturbs the mission in progress.
             self.status(f"error: mission {targets.mission} refused: {problem}", now)
-            self._publish_result(tuple(None for _ in targets.targets), now)
             return
-        if not self.enabled:
+        self._start_round(targets, now)
+        if self.telemetry is None or self.telemetry.gps is None:
+            self.status(f"warning: mission {targets.mission}: no GPS telemetry yet", now)
+            self._publish_result(tuple(None for _ in targets.targets), now)
+        elif not self.enabled:
             self.status(f"mission {targets.mission}: module off, not taking part", now)
             self._publish_result(tuple(None for _ in targets.targets), now)
-            return
-        self._start_planning(now)
+        else:
+            self._start_planning(now)
 
     def _refusal(self, targets: MissionTargets) -> str | None:
         try:
             encode_targets(targets.targets, source=f"mission {targets.mission}")
         except TargetsFileError as error:
-            return error.problem if error.problem.startswith("no targets") else str(error)
+            return f"target {error.index}: {error.problem}" if targets.targets else error.problem
         if not math.isfinite(targets.deadline_s) or targets.deadline_s <= 0:
             return f"deadline {targets.deadline_s!r} s is not a positive number"
-        if self.telemetry is None or self.telemetry.gps is None:
-            return "no GPS telemetry yet"
         return None
 
     def _start_round(self, targets: MissionTargets, now: float) -> None:
@@ -265,7 +269,8 @@ class OnboardCore:
 
     def _report_plan(self, plan: PlanResult, now: float) -> None:
         fallbacks = sum(plan.fallback)
-        text = f"mission {self.round.mission if self.round else '?'}: approach times in {plan.solve_seconds:.2f} s"
+        mission = self.round.mission if self.round else "?"
+        text = f"mission {mission}: approach times in {plan.solve_seconds:.2f} s"
         if fallbacks:
             text += f"; {fallbacks} by the Dubins fallback (budget {self.planning_budget_s:g} s)"
         if plan.error:

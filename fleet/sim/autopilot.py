@@ -1,0 +1,384 @@
+"""One simulated Piccolo autopilot: aircraft, guidance, flight plan and its two ports.
+
+Bytes in, bytes out, stepped by simulated time; no sockets and no clock (the server in
+`fleet.sim.server` owns those). Everything here happens at the simulated instant
+`time_ms`, which only `step` advances, so a run is reproducible: the same scenario and
+the same bytes fed at the same simulated instants give the same flight.
+
+Program port (autopilot stream, id 3), every connection with its own `PiccoloLink`
+(decoder state and sequence numbers are per serial line):
+
+* TELEMETRY_HI_RES (GPS, sensor and raw blocks) every 1 / telemetry_hz simulated
+  seconds, from the Piccolo ID to all operator interfaces (0xFFFE);
+* TRACK (the waypoint being tracked) when it changes, and once a simulated second
+  besides, so that a module connecting late learns it without asking;
+* a WAYPOINT addressed to this autopilot (or broadcast 0xFFFF) is stored and echoed; a
+  TRACK is obeyed and echoed. A TRACK naming a waypoint that is not stored is refused
+  and answered with the waypoint still tracked, so the sender sees the refusal;
+* every byte that is not a valid packet is dropped by the link decoder and counted; the
+  aircraft never sees it. Valid packets the autopilot does not act on are counted too.
+
+What the autopilot sends is mirrored to every open program connection, as the Piccolo's
+program port mirrors the whole ground link.
+
+Payload port (stream 6): a transparent pipe, as on a Piccolo. Bytes from the onboard
+side come out of the ground side and back, verbatim, through bounded buffers that drop
+their oldest bytes when nobody reads.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+
+from fleet.autopilot_messages import AutopilotMessage, UnknownAutopilotMessage
+from fleet.mercator import MercatorProjection
+from fleet.piccolo_link import AutopilotEvent, PiccoloLink
+from fleet.sim.aircraft import CALM, AircraftLimits, AircraftState, G, Wind
+from fleet.sim.aircraft import step as aircraft_step
+from fleet.sim.flight_plan import FlightPlan, FlightPlanError, check_indices
+from fleet.sim.guidance import DEFAULT_ACCEPTANCE_RADIUS, GuidanceSettings, command_toward, wrap_pi
+from fleet.sim.scenario import UavSpec
+from fleet.stream_packet import ALL_OPERATOR_INTERFACES, BROADCAST_AVIONICS
+from fleet.telemetry import GpsBlock, RawBlock, SensorBlock, Telemetry
+from fleet.track import Track
+from fleet.waypoint import Waypoint
+
+logger = logging.getLogger(__name__)
+
+#: Fixed integration step (simulated milliseconds).
+STEP_MS = 20
+#: Telemetry cannot be faster than one packet a step.
+MAX_TELEMETRY_HZ = 1000.0 / STEP_MS
+DEFAULT_TELEMETRY_HZ = 20.0
+#: Period of the unsolicited TRACK report (simulated milliseconds).
+TRACK_REPORT_PERIOD_MS = 1000
+#: Bytes each outgoing buffer holds before dropping its oldest (about 5 s of 20 Hz
+#: telemetry, far more than any reader that is merely slow).
+OUTPUT_CAPACITY = 64 * 1024
+#: Simulated time 0 is the start of this GPS week; GPS time is simulated time from it.
+GPS_EPOCH_WEEK = 2300
+_MS_PER_WEEK = 7 * 24 * 3600 * 1000
+# Mercator (and any autopilot) cannot use a waypoint beyond these.
+_MAX_WAYPOINT_LAT = 85.0
+
+
+class BoundedBuffer:
+    """A byte FIFO of bounded size that drops its oldest bytes on overflow, counting them."""
+
+    def __init__(self, capacity: int = OUTPUT_CAPACITY) -> None:
+        if capacity <= 0:
+            raise ValueError(f"capacity must be positive, got {capacity}")
+        self.capacity = capacity
+        self.dropped = 0
+        self._data = bytearray()
+
+    def extend(self, data: bytes | bytearray | memoryview) -> None:
+        self._data += data
+        excess = len(self._data) - self.capacity
+        if excess > 0:
+            del self._data[:excess]
+            self.dropped += excess
+
+    def peek(self) -> bytes:
+        return bytes(self._data)
+
+    def consume(self, count: int) -> None:
+        del self._data[:count]
+
+    def take(self) -> bytes:
+        data = bytes(self._data)
+        self._data.clear()
+        return data
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+
+@dataclass
+class ProgramConnection:
+    """One client of the program port: its link state and what waits to be sent to it."""
+
+    name: str
+    link: PiccoloLink
+    output: BoundedBuffer = field(default_factory=BoundedBuffer)
+
+
+@dataclass
+class PayloadPipe:
+    """The payload port's transparent pipe between the onboard and the ground side."""
+
+    to_ground: BoundedBuffer = field(default_factory=BoundedBuffer)
+    to_onboard: BoundedBuffer = field(default_factory=BoundedBuffer)
+
+    def from_onboard(self, data: bytes) -> None:
+        self.to_ground.extend(data)
+
+    def from_ground(self, data: bytes) -> None:
+        self.to_onboard.extend(data)
+
+
+@dataclass(frozen=True, slots=True)
+class AutopilotSettings:
+    telemetry_hz: float = DEFAULT_TELEMETRY_HZ
+    acceptance_radius: float = DEFAULT_ACCEPTANCE_RADIUS
+    limits: AircraftLimits = field(default_factory=AircraftLimits)
+    wind: Wind = CALM
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.telemetry_hz <= MAX_TELEMETRY_HZ:
+            raise ValueError(
+                f"telemetry rate must be in (0, {MAX_TELEMETRY_HZ:g}] Hz, got {self.telemetry_hz}"
+            )
+        if not (math.isfinite(self.acceptance_radius) and self.acceptance_radius > 0.0):
+            raise ValueError(f"acceptance radius must be positive, got {self.acceptance_radius}")
+
+
+def isa_atmosphere(alt: float) -> tuple[float, float, float]:
+    """(density ratio, temperature in deg C, static pressure in Pa) of the ISA
+    troposphere at `alt` metres."""
+    theta = max(1.0 - 2.25577e-5 * alt, 0.1)
+    return theta**4.25588, 15.0 - 0.0065 * alt, 101_325.0 * theta**5.25588
+
+
+class SimulatedAutopilot:
+    """A Piccolo autopilot flying one aircraft of a scenario."""
+
+    def __init__(self, uav: UavSpec, settings: AutopilotSettings | None = None) -> None:
+        self.settings = AutopilotSettings() if settings is None else settings
+        self.piccolo_id = uav.piccolo_id
+        self.projection = MercatorProjection(uav.lat, uav.lon)
+        self.state = AircraftState(
+            x=0.0,
+            y=0.0,
+            alt=uav.alt,
+            heading=math.radians(uav.heading),
+            airspeed=uav.airspeed,
+        )
+        self.airspeed_command = uav.airspeed
+        self.guidance = GuidanceSettings(acceptance_radius=self.settings.acceptance_radius)
+        self.plan = FlightPlan(uav.waypoints())
+        first = self.plan.waypoints()[0]
+        self.tracked = first.index
+        self._target = self._local(first)
+        self.time_ms = 0
+        self.payload = PayloadPipe()
+        #: What the autopilot did with valid packets, by kind (see docs/simulator.md).
+        self.counters: Counter[str] = Counter()
+        self._connections: list[ProgramConnection] = []
+        self._closed_drops: Counter[str] = Counter()
+        self._telemetry_period_ms = 1000.0 / self.settings.telemetry_hz
+        self._next_telemetry_ms = self._telemetry_period_ms
+        self._next_track_report_ms = 0
+
+    # -- the aircraft -------------------------------------------------------------
+
+    def _local(self, waypoint: Waypoint) -> tuple[float, float, float]:
+        x, y = self.projection.to_xy(waypoint.lat, waypoint.lon)
+        return x, y, waypoint.alt
+
+    @property
+    def target_xy(self) -> tuple[float, float]:
+        """Local metres of the tracked waypoint."""
+        return self._target[0], self._target[1]
+
+    def position(self) -> tuple[float, float, float]:
+        """(lat, lon, alt) of the aircraft."""
+        lat, lon = self.projection.to_latlon(self.state.x, self.state.y)
+        return lat, lon, self.state.alt
+
+    def step(self) -> None:
+        """Advance the simulation by one step (20 ms simulated)."""
+        x, y, alt = self._target
+        command = command_toward(
+            self.state,
+            (x, y),
+            alt,
+            self.airspeed_command,
+            self.settings.limits,
+            self.settings.wind,
+            self.guidance,
+        )
+        self.state = aircraft_step(
+            self.state, command, self.settings.limits, self.settings.wind, STEP_MS / 1000.0
+        )
+        self.time_ms += STEP_MS
+        if math.hypot(x - self.state.x, y - self.state.y) <= self.guidance.acceptance_radius:
+            self._arrive()
+        if self.time_ms >= self._next_telemetry_ms:
+            self._send(self.telemetry(), ALL_OPERATOR_INTERFACES)
+            # From the schedule, not from now: the rate does not drift with the step.
+            while self._next_telemetry_ms <= self.time_ms:
+                self._next_telemetry_ms += self._telemetry_period_ms
+        if self.time_ms >= self._next_track_report_ms:
+            self._send(Track(self.tracked), ALL_OPERATOR_INTERFACES)
+            self._next_track_report_ms += TRACK_REPORT_PERIOD_MS
+
+    def advance_to(self, time_ms: int) -> None:
+        """Step until simulated time reaches `time_ms` (to the step at or before it)."""
+        while self.time_ms + STEP_MS <= time_ms:
+            self.step()
+
+    def _arrive(self) -> None:
+        reached = self.plan.get(self.tracked)
+        if reached is None or reached.next_index not in self.plan:
+            # Nothing to go on to: keep tracking it (the aircraft circles back over it).
+            self.counters["arrivals_without_next"] += 1
+            return
+        self.counters["arrivals"] += 1
+        self._track(reached.next_index)
+        self._send(Track(self.tracked), ALL_OPERATOR_INTERFACES)
+
+    def _track(self, index: int) -> None:
+        waypoint = self.plan.get(index)
+        if waypoint is None:
+            raise FlightPlanError(f"waypoint {index} is not stored")
+        self.tracked = index
+        self._target = self._local(waypoint)
+
+    def telemetry(self) -> Telemetry:
+        """TELEMETRY_HI_RES of the current state at the current simulated time."""
+        state = self.state
+        wind = self.settings.wind
+        lat, lon = self.projection.to_latlon(state.x, state.y)
+        north, east = state.ground_velocity(wind)
+        density, temperature, pressure = isa_atmosphere(state.alt)
+        week, time_of_week = divmod(self.time_ms, _MS_PER_WEEK)
+        heading_rate = state.heading_rate
+        return Telemetry(
+            system_time_ms=self.time_ms & 0xFFFFFFFF,
+            gps=GpsBlock(
+                lat=lat,
+                lon=lon,
+                alt=state.alt,
+                vel_north=north,
+                vel_east=east,
+                vel_down=-state.climb_rate,
+                dop=1.0,
+                sats_visible=12,
+                sats_tracked=10,
+                gps_week=GPS_EPOCH_WEEK + week,
+                gps_time_of_week_ms=time_of_week,
+            ),
+            sensor=SensorBlock(
+                roll=math.degrees(state.bank),
+                pitch=math.degrees(state.pitch),
+                # The wire holds +-pi in an i16 of 1e-4 rad: 0-360 would not fit.
+                yaw=math.degrees(wrap_pi(state.heading)),
+                indicated_airspeed=state.airspeed * math.sqrt(density),
+                wind_south=-wind.north,
+                wind_west=-wind.east,
+                density_ratio=density,
+                outside_air_temp=round(temperature),
+                static_pressure=pressure,
+            ),
+            raw=RawBlock(
+                p=math.degrees(state.roll_rate),
+                q=math.degrees(heading_rate * math.sin(state.bank)),
+                r=math.degrees(heading_rate * math.cos(state.bank)),
+                accel_x=state.acceleration,
+                accel_y=0.0,
+                # Specific force of level coordinated flight: the load factor, body down.
+                accel_z=-G / math.cos(state.bank),
+            ),
+        )
+
+    # -- the program port ---------------------------------------------------------
+
+    def open_program(self, name: str = "program") -> ProgramConnection:
+        """A new program-port client (a TCP connection, or the pty for its lifetime)."""
+        connection = ProgramConnection(name=name, link=PiccoloLink(local_address=self.piccolo_id))
+        self._connections.append(connection)
+        return connection
+
+    def close_program(self, connection: ProgramConnection) -> None:
+        if connection in self._connections:
+            self._connections.remove(connection)
+            self._closed_drops.update(connection.link.drop_counters())
+            self._closed_drops["output_overflow_bytes"] += connection.output.dropped
+
+    @property
+    def connections(self) -> tuple[ProgramConnection, ...]:
+        return tuple(self._connections)
+
+    def link_drops(self) -> dict[str, int]:
+        """Bytes and packets dropped on the program port so far, all connections."""
+        totals = Counter(self._closed_drops)
+        for connection in self._connections:
+            totals.update(connection.link.drop_counters())
+            totals["output_overflow_bytes"] += connection.output.dropped
+        return dict(totals)
+
+    def receive(self, connection: ProgramConnection, data: bytes) -> None:
+        """Bytes read from a program-port client, acted on at the current simulated time."""
+        for event in connection.link.feed(data, self.time_ms / 1000.0):
+            if not isinstance(event, AutopilotEvent):
+                # The payload stream belongs on the payload port.
+                self.counters["ignored_payload_packets"] += 1
+                continue
+            if event.header.destination not in (self.piccolo_id, BROADCAST_AVIONICS):
+                self.counters["not_addressed_to_us"] += 1
+                continue
+            self._command(event.message, event.header.source)
+
+    def _command(self, message: AutopilotMessage, source: int) -> None:
+        if isinstance(message, Waypoint):
+            self._store_waypoint(message, source)
+        elif isinstance(message, Track):
+            self._command_track(message, source)
+        elif isinstance(message, UnknownAutopilotMessage):
+            self.counters["ignored_unknown_packets"] += 1
+        else:
+            self.counters["ignored_telemetry"] += 1
+
+    def _store_waypoint(self, waypoint: Waypoint, source: int) -> None:
+        try:
+            check_indices(waypoint)
+        except FlightPlanError as error:
+            self._refuse("refused_waypoints", f"waypoint refused: {error}")
+            return
+        if abs(waypoint.lat) > _MAX_WAYPOINT_LAT or abs(waypoint.lon) > 180.0:
+            self._refuse(
+                "refused_waypoints",
+                f"waypoint {waypoint.index} refused: ({waypoint.lat}, {waypoint.lon}) "
+                "is not a usable position",
+            )
+            return
+        self.plan.store(waypoint)
+        self.counters["waypoints_stored"] += 1
+        if waypoint.index == self.tracked:
+            self._target = self._local(waypoint)
+        logger.info(
+            "uav %d: stored waypoint %d (%.6f, %.6f, %.0f m) next %d",
+            self.piccolo_id,
+            waypoint.index,
+            waypoint.lat,
+            waypoint.lon,
+            waypoint.alt,
+            waypoint.next_index,
+        )
+        self._send(waypoint, source)
+
+    def _command_track(self, track: Track, source: int) -> None:
+        if track.waypoint not in self.plan:
+            self._refuse(
+                "refused_tracks",
+                f"track to waypoint {track.waypoint} refused: not stored; "
+                f"still tracking {self.tracked}",
+            )
+            self._send(Track(self.tracked), source)
+            return
+        self._track(track.waypoint)
+        self.counters["tracks_commanded"] += 1
+        logger.info("uav %d: tracking waypoint %d", self.piccolo_id, self.tracked)
+        self._send(track, source)
+
+    def _refuse(self, counter: str, reason: str) -> None:
+        self.counters[counter] += 1
+        logger.warning("uav %d: %s", self.piccolo_id, reason)
+
+    def _send(self, message: AutopilotMessage, destination: int) -> None:
+        for connection in self._connections:
+            connection.output.extend(connection.link.encode_autopilot(message, destination))

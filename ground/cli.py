@@ -1,0 +1,535 @@
+"""`ground-cli`: the mission manager (thesis chapter 3) on the command line.
+
+Connects as a Zenoh client to the fleet's router (--connect, else $FLEET_ZENOH_CONNECT,
+else tcp/127.0.0.1:7447). Exit status: 0 success; 1 the operation failed (bad targets
+file, no UAV, mission not committed or not agreed in time); 2 usage error or no router.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import math
+import sys
+import threading
+from typing import Any, TextIO
+
+from fleet import keys
+from fleet.messages import AssignmentReport, MissionTargets, StatusText, Target, UavResult
+from fleet.targets_file import TargetsFileError, read_targets
+from fleet.zenoh_config import CONNECT_ENV, default_connect
+from ground import keyspace, targets_command
+from ground.fleet_view import fleet_snapshot, format_table, live_uav_ids
+from ground.mission_control import (
+    MAX_MISSION_ID,
+    MAX_PICCOLO_ID,
+    MIN_PICCOLO_ID,
+    Listener,
+    MissionError,
+    MissionFollower,
+    MissionOutcome,
+    TargetsServer,
+    check_agreement,
+    current_mission_id,
+    next_mission_id,
+    publish_targets,
+    send_abort,
+    send_opm,
+    wait_delivered,
+)
+from ground.session import (
+    EXIT_NO_ROUTER,
+    GroundConnectError,
+    decode_sample,
+    ground_session,
+    live_tokens,
+)
+from ground.watch import watch
+
+log = logging.getLogger("ground")
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+EXIT_USAGE = 2
+
+#: MissionTargets' own default: how long a UAV waits for its teammates' results.
+DEFAULT_DEADLINE_S = 10.0
+#: How long `opm` waits for the UAV's status message confirming the change.
+OPM_CONFIRM_S = 2.0
+#: How long `send-targets` without --wait waits for the team to acknowledge receipt.
+DELIVERY_WAIT_S = 3.0
+
+
+# ---- argument types -------------------------------------------------------------------------
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r} must be a positive number")
+    return value
+
+
+def _non_negative_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"{text!r} must be a number >= 0")
+    return value
+
+
+def _piccolo_id(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a Piccolo ID") from None
+    if not MIN_PICCOLO_ID <= value <= MAX_PICCOLO_ID:
+        raise argparse.ArgumentTypeError(
+            f"Piccolo ID {value} outside {MIN_PICCOLO_ID}-{MAX_PICCOLO_ID}"
+        )
+    return value
+
+
+def _team(text: str) -> tuple[int, ...]:
+    ids = [_piccolo_id(part.strip()) for part in text.split(",") if part.strip()]
+    if not ids:
+        raise argparse.ArgumentTypeError("an empty team")
+    return tuple(sorted(set(ids)))
+
+
+def _mission_id(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a mission id") from None
+    if not 0 <= value <= MAX_MISSION_ID:
+        raise argparse.ArgumentTypeError(f"mission id {value} does not fit in 32 bits")
+    return value
+
+
+def _count(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError("the count must be at least 1")
+    return value
+
+
+# ---- the parser ---------------------------------------------------------------------------------
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="ground-cli",
+        description="Mission manager for a fleet of Piccolo UAVs over Zenoh.",
+        epilog=__doc__.split("\n", 2)[2] if __doc__ else None,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "--connect",
+        metavar="ENDPOINT",
+        default=None,
+        help=f"Zenoh router endpoint (default ${CONNECT_ENV} or {default_connect()})",
+    )
+    parser.add_argument(
+        "--query-timeout",
+        type=_positive_float,
+        default=1.0,
+        metavar="S",
+        help="how long each Zenoh query waits for answers (default 1 s)",
+    )
+    parser.add_argument(
+        "-v", "--verbose", action="count", default=0, help="log more (-v info, -vv debug)"
+    )
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    uavs = commands.add_parser("uavs", help="list the live UAVs")
+    uavs.add_argument("--json", action="store_true", help="a JSON list of objects")
+    uavs.set_defaults(handler=cmd_uavs)
+
+    send = commands.add_parser("send-targets", help="send a targets file to the team")
+    send.add_argument("file", metavar="FILE", help="targets file (thesis format, 24 bytes each)")
+    send.add_argument(
+        "--team",
+        type=_team,
+        metavar="ID,ID,...",
+        help="Piccolo IDs of the team (default: every live UAV)",
+    )
+    send.add_argument(
+        "--wait",
+        action="store_true",
+        help="follow the mission until every UAV has committed its assignment",
+    )
+    send.add_argument(
+        "--timeout",
+        type=_positive_float,
+        default=60.0,
+        metavar="S",
+        help="how long --wait waits (default 60 s)",
+    )
+    send.add_argument(
+        "--deadline",
+        type=_positive_float,
+        default=DEFAULT_DEADLINE_S,
+        metavar="S",
+        help="how long each UAV waits for its teammates' results (default %(default)g s)",
+    )
+    send.add_argument(
+        "--mission",
+        type=_mission_id,
+        metavar="M",
+        help="mission id (default: one more than the highest mission seen)",
+    )
+    send.add_argument("--json", action="store_true", help="print the outcome as one JSON object")
+    send.set_defaults(handler=cmd_send_targets)
+
+    watch_cmd = commands.add_parser("watch", help="live table of the fleet and its status box")
+    watch_cmd.add_argument("--count", type=_count, metavar="N", help="stop after N tables")
+    watch_cmd.add_argument(
+        "--duration", type=_positive_float, metavar="S", help="stop after S seconds"
+    )
+    watch_cmd.add_argument(
+        "--interval", type=_positive_float, default=1.0, metavar="S", help="table period (1 s)"
+    )
+    watch_cmd.set_defaults(handler=cmd_watch)
+
+    opm = commands.add_parser("opm", help="turn a UAV's onboard planning module on or off")
+    opm.add_argument("uav", type=_piccolo_id, metavar="ID")
+    opm.add_argument("state", choices=("on", "off"))
+    opm.add_argument(
+        "--status-rate",
+        type=_non_negative_float,
+        default=1.0,
+        metavar="HZ",
+        help="status messages a second; 0: only on change (default 1)",
+    )
+    opm.set_defaults(handler=cmd_opm)
+
+    abort = commands.add_parser("abort", help="abort the current mission")
+    abort.add_argument(
+        "--mission", type=_mission_id, metavar="M", help="mission id (default: the latest seen)"
+    )
+    abort.set_defaults(handler=cmd_abort)
+
+    targets = commands.add_parser("targets", help="make or show a targets file")
+    targets_commands = targets.add_subparsers(dest="targets_command", required=True)
+    make = targets_commands.add_parser(
+        "make",
+        help="write a targets file (Save Targets)",
+        description="Write a targets file. Put `--` before a target starting with '-'.",
+    )
+    make.add_argument("--out", required=True, metavar="FILE")
+    make.add_argument("targets", nargs="+", metavar="LAT,LON,ALT")
+    make.set_defaults(handler=cmd_targets_make)
+    show = targets_commands.add_parser("show", help="read a targets file (Load Targets)")
+    show.add_argument("file", metavar="FILE")
+    show.add_argument("--json", action="store_true")
+    show.set_defaults(handler=cmd_targets_show)
+
+    keys_cmd = commands.add_parser("keys", help="the key space and each key's latest value")
+    keys_cmd.add_argument(
+        "expr", nargs="?", default=keyspace.DEFAULT_EXPR, metavar="EXPR", help="(fleet/**)"
+    )
+    keys_cmd.add_argument("--admin", action="store_true", help="the router's admin space too")
+    keys_cmd.add_argument(
+        "--window",
+        type=_non_negative_float,
+        default=1.0,
+        metavar="S",
+        help="how long to listen for published-only keys (default 1 s)",
+    )
+    keys_cmd.add_argument("--full", action="store_true", help="do not shorten long values")
+    keys_cmd.add_argument("--json", action="store_true", help="a JSON list of objects")
+    keys_cmd.set_defaults(handler=cmd_keys)
+    return parser
+
+
+# ---- commands ---------------------------------------------------------------------------------
+def cmd_uavs(args: argparse.Namespace) -> int:
+    with ground_session(args.connect) as session:
+        views = fleet_snapshot(session, args.query_timeout)
+    if args.json:
+        print(json.dumps([v.to_json() for v in views]))
+    elif views:
+        print(format_table(views))
+    else:
+        print("no live UAV")
+    return EXIT_OK
+
+
+def _progress_printer(out: TextIO, team: tuple[int, ...]) -> Listener:
+    """Prints each result and commitment as it arrives, with the count so far.
+
+    Once every team UAV has committed, says whether they agree (same digest and pairs).
+    """
+    # Results and reports arrive on Zenoh threads, possibly two at once.
+    lock = threading.Lock()
+    results: set[int] = set()
+    reports: dict[int, AssignmentReport] = {}
+
+    def on_message(kind: str, message: UavResult | AssignmentReport) -> None:
+        with lock:
+            if isinstance(message, UavResult):
+                results.add(message.uav)
+                times = ", ".join("-" if t is None else f"{t:.1f}" for t in message.times)
+                lines = [
+                    f"mission {message.mission}: UAV {message.uav} result: [{times}] s "
+                    f"({len(results & set(team))}/{len(team)} results)"
+                ]
+            else:
+                reports[message.uav] = message
+                target = "none" if message.target is None else str(message.target)
+                eta = "" if message.eta_s is None else f", ETA {message.eta_s:.0f} s"
+                lines = [
+                    f"mission {message.mission}: UAV {message.uav} committed target "
+                    f"{target}{eta}, digest {message.digest[:12]} "
+                    f"({len(reports.keys() & set(team))}/{len(team)} committed)"
+                ]
+                agreement = check_agreement(team, reports)
+                if not agreement.missing:
+                    verdict = "agree" if agreement.agreed else "DISAGREE"
+                    lines.append(f"mission {message.mission}: every UAV committed: they {verdict}")
+            print("\n".join(lines), file=out, flush=True)
+
+    return on_message
+
+
+def _summary(outcome: MissionOutcome) -> list[str]:
+    agreement = outcome.agreement
+    lines = [
+        f"mission {outcome.mission}: team {', '.join(map(str, outcome.team))}; "
+        f"{len(outcome.targets)} targets"
+    ]
+    for uav in outcome.team:
+        result = outcome.results.get(uav)
+        report = outcome.assignments.get(uav)
+        times = (
+            "no result"
+            if result is None
+            else "times " + ", ".join("-" if t is None else f"{t:.1f}" for t in result.times) + " s"
+        )
+        if report is None:
+            choice = "not committed"
+        elif report.target is None:
+            choice = "no target"
+        else:
+            eta = "" if report.eta_s is None else f" ETA {report.eta_s:.0f} s"
+            choice = f"target {report.target}{eta}"
+        lines.append(f"  UAV {uav}: {choice}; {times}")
+    unassigned = outcome.unassigned()
+    lines.append(f"  unassigned targets: {', '.join(map(str, unassigned)) or 'none'}")
+    if agreement.agreed:
+        digest = agreement.reference.digest[:12] if agreement.reference else ""
+        lines.append(f"  agreed: yes (digest {digest})")
+    else:
+        why = []
+        if agreement.disagreed:
+            why.append("disagreed: " + ", ".join(map(str, agreement.disagreed)))
+        if agreement.missing:
+            why.append("not committed: " + ", ".join(map(str, agreement.missing)))
+        lines.append(f"  agreed: no ({'; '.join(why)})")
+    return lines
+
+
+def cmd_send_targets(args: argparse.Namespace) -> int:
+    # The file is read and checked before anything touches the network: a bad file
+    # sends nothing.
+    try:
+        targets = tuple(read_targets(args.file))
+    except TargetsFileError as error:
+        print(f"error: {error}; nothing sent", file=sys.stderr)
+        return EXIT_FAILED
+    except OSError as error:
+        print(f"error: cannot read {args.file}: {error.strerror}; nothing sent", file=sys.stderr)
+        return EXIT_FAILED
+    progress = sys.stderr if args.json else sys.stdout
+    with ground_session(args.connect) as session:
+        team: tuple[int, ...] = args.team or tuple(live_uav_ids(session, args.query_timeout))
+        if not team:
+            print("error: no live UAV to send to (name the team with --team)", file=sys.stderr)
+            return EXIT_FAILED
+        if args.team:
+            live = set(live_uav_ids(session, args.query_timeout))
+            absent = [uav for uav in team if uav not in live]
+            if absent:
+                print(
+                    f"warning: not live now: {', '.join(map(str, absent))}; they can fetch "
+                    "the mission while this command runs",
+                    file=sys.stderr,
+                )
+        try:
+            mission = (
+                args.mission
+                if args.mission is not None
+                else next_mission_id(session, args.query_timeout)
+            )
+        except MissionError as error:
+            print(f"error: {error}", file=sys.stderr)
+            return EXIT_FAILED
+        message = MissionTargets(
+            mission=mission, team=team, targets=targets, deadline_s=args.deadline
+        )
+        listener = _progress_printer(progress, team)
+        outcome = MissionOutcome(mission=mission, team=team, targets=targets)
+        with (
+            MissionFollower(session, mission, listener if args.wait else None) as follower,
+            TargetsServer(session, message),
+        ):
+            publish_targets(session, message)
+            print(
+                f"mission {mission}: {len(targets)} targets from {args.file} sent to "
+                f"{', '.join(map(str, team))}",
+                file=progress,
+                flush=True,
+            )
+            if args.wait:
+                committed = follower.wait_committed(team, args.timeout, fetch_every_s=1.0)
+                outcome.timed_out = not committed
+            else:
+                got = wait_delivered(session, mission, team, min(DELIVERY_WAIT_S, args.timeout))
+                missing = [uav for uav in team if uav not in got]
+                if missing:
+                    print(
+                        f"mission {mission}: not yet acknowledged by "
+                        f"{', '.join(map(str, missing))}",
+                        file=progress,
+                    )
+            follower.fetch(args.query_timeout)
+            outcome.results, outcome.assignments = follower.snapshot()
+    if args.json:
+        print(json.dumps(outcome.to_json()))
+    elif args.wait:
+        print("\n".join(_summary(outcome)))
+    if not args.wait:
+        return EXIT_OK
+    return EXIT_OK if outcome.committed and outcome.agreement.agreed else EXIT_FAILED
+
+
+def cmd_watch(args: argparse.Namespace) -> int:
+    with ground_session(args.connect) as session:
+        watch(
+            session,
+            sys.stdout,
+            count=args.count,
+            duration_s=args.duration,
+            interval_s=args.interval,
+            query_timeout_s=min(args.query_timeout, args.interval),
+        )
+    return EXIT_OK
+
+
+def cmd_opm(args: argparse.Namespace) -> int:
+    enabled = args.state == "on"
+    with ground_session(args.connect) as session:
+        if not live_tokens(session, keys.alive(args.uav), args.query_timeout):
+            print(
+                f"error: UAV {args.uav} is not live (no {keys.alive(args.uav)} token); "
+                "nothing sent",
+                file=sys.stderr,
+            )
+            return EXIT_FAILED
+        confirmed = threading.Event()
+        answer: list[str] = []
+
+        def on_status(sample: Any) -> None:
+            status = decode_sample(sample, StatusText)
+            if status is not None and status.text.startswith(("module", "error: OPM")):
+                answer.append(status.text)
+                confirmed.set()
+
+        # Listen before sending: the UAV answers with a status message at once.
+        with session.declare_subscriber(keys.status(args.uav), on_status):
+            send_opm(session, args.uav, enabled, args.status_rate)
+            print(f"UAV {args.uav}: planning module {args.state} sent")
+            if confirmed.wait(OPM_CONFIRM_S):
+                print(f"UAV {args.uav}: {answer[0]}")
+            else:
+                print(f"UAV {args.uav}: no confirmation within {OPM_CONFIRM_S:g} s")
+    return EXIT_OK
+
+
+def cmd_abort(args: argparse.Namespace) -> int:
+    with ground_session(args.connect) as session:
+        mission = args.mission
+        if mission is None:
+            mission = current_mission_id(session, args.query_timeout)
+            if mission is None:
+                print("error: no mission to abort (none seen; give --mission)", file=sys.stderr)
+                return EXIT_FAILED
+        # Closing the session right after is safe: close flushes what was put (measured).
+        send_abort(session, mission)
+        print(f"mission {mission}: abort sent")
+    return EXIT_OK
+
+
+def cmd_targets_make(args: argparse.Namespace) -> int:
+    try:
+        targets = targets_command.make(args.out, args.targets)
+    except (targets_command.TargetSyntaxError, TargetsFileError) as error:
+        print(f"error: {error}; {args.out} not written", file=sys.stderr)
+        return EXIT_FAILED
+    except OSError as error:
+        print(f"error: cannot write {args.out}: {error.strerror}", file=sys.stderr)
+        return EXIT_FAILED
+    print(f"{args.out}: {len(targets)} targets written")
+    return EXIT_OK
+
+
+def cmd_targets_show(args: argparse.Namespace) -> int:
+    try:
+        targets: list[Target] = targets_command.show(args.file)
+    except TargetsFileError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return EXIT_FAILED
+    except OSError as error:
+        print(f"error: cannot read {args.file}: {error.strerror}", file=sys.stderr)
+        return EXIT_FAILED
+    if args.json:
+        print(targets_command.targets_json(targets))
+    else:
+        print(targets_command.targets_table(targets))
+    return EXIT_OK
+
+
+def cmd_keys(args: argparse.Namespace) -> int:
+    with ground_session(args.connect) as session:
+        values = keyspace.collect(
+            session,
+            args.expr,
+            window_s=args.window,
+            timeout_s=args.query_timeout,
+            admin=args.admin,
+        )
+    if args.json:
+        print(json.dumps([v.to_json() for v in values]))
+    else:
+        for line in keyspace.format_lines(values, full=args.full):
+            print(line)
+    return EXIT_OK
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    level = (logging.WARNING, logging.INFO, logging.DEBUG)[min(args.verbose, 2)]
+    logging.basicConfig(
+        level=level, format="%(asctime)s %(name)s %(levelname)s %(message)s", stream=sys.stderr
+    )
+    if args.connect is None:
+        args.connect = default_connect()
+    try:
+        status: int = args.handler(args)
+    except GroundConnectError as error:
+        print(f"ground-cli: error: {error}", file=sys.stderr)
+        return EXIT_NO_ROUTER
+    except KeyboardInterrupt:
+        return 130
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())

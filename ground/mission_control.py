@@ -1,0 +1,379 @@
+"""Mission management (thesis 3.1.4): send targets, follow the consensus, abort, OPM.
+
+Sending a mission: the ground picks a mission id (see `next_mission_id`), declares its
+subscribers to the mission's results and assignments *before* it sends, so nothing a
+fast UAV publishes is missed, serves the MissionTargets by query on
+`fleet/mission/{m}/targets` for UAVs that join late, and then puts them on that key.
+
+Following it: every UAV publishes its UavResult and, once the consensus has run, its
+AssignmentReport; both are collected by subscription and, at the end, by a query of
+`fleet/mission/{m}/result/*` and `.../assignment/*`, which the UAVs also serve, so a
+sample lost in transit is still counted.
+
+Agreement: every team UAV runs the same deterministic greedy on the same results, so
+every report must carry the same `digest` (of the results used) and the same `pairs`.
+When they do not, the largest group of identical reports is taken as the reference
+(ties: the group holding the lowest Piccolo ID) and everyone else is named as having
+disagreed.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable, Iterable
+from contextlib import ExitStack
+from dataclasses import dataclass, field
+from types import TracebackType
+from typing import Any, Self
+
+import msgspec
+import zenoh
+
+from fleet import bus_codec, keys
+from fleet.messages import (
+    AssignmentReport,
+    MissionAbort,
+    MissionTargets,
+    OpmCommand,
+    Target,
+    UavResult,
+)
+from ground.fleet_view import query_states
+from ground.session import decode_sample, put_message, query, query_messages
+
+log = logging.getLogger(__name__)
+
+#: Mission ids are u32 on the planning protocol.
+MAX_MISSION_ID = 0xFFFF_FFFF
+#: The Piccolo IDs `onboard` accepts (planning-protocol addresses below the reserved ones).
+MIN_PICCOLO_ID = 1
+MAX_PICCOLO_ID = 0xFFF0
+ALL_MISSION_KEYS = f"{keys.PREFIX}/mission/**"
+
+
+class MissionError(RuntimeError):
+    """A mission operation that cannot go ahead (no team, no mission to abort, ...)."""
+
+
+# ---- mission ids ---------------------------------------------------------------------
+def missions_seen(session: zenoh.Session, timeout_s: float) -> set[int]:
+    """Every mission id anything in the key space still answers for.
+
+    The UAVs serve their current mission's targets, results and assignments by query,
+    and report it in their state, so this sees the latest mission even after the ground
+    that sent it has gone.
+    """
+    seen: set[int] = set()
+    for reply in query(session, ALL_MISSION_KEYS, timeout_s):
+        try:
+            seen.add(keys.mission_of(reply.key))
+        except (ValueError, IndexError):
+            log.debug("no mission id in %s", reply.key)
+    for state in query_states(session, timeout_s).values():
+        if state.mission is not None:
+            seen.add(state.mission.mission)
+    return seen
+
+
+def next_mission_id(session: zenoh.Session, timeout_s: float) -> int:
+    """One more than the highest mission id seen, or 1 on a fresh fleet.
+
+    A UAV ignores a mission id not above its current one (a higher id supersedes a
+    lower one), and every UAV reports its current mission, so max + 1 is always new to
+    every live UAV, stays small and readable, and survives a ground restart.
+    """
+    seen = missions_seen(session, timeout_s)
+    mission = max(seen, default=0) + 1
+    if mission > MAX_MISSION_ID:
+        raise MissionError(f"mission id {mission} does not fit in 32 bits")
+    return mission
+
+
+def current_mission_id(session: zenoh.Session, timeout_s: float) -> int | None:
+    seen = missions_seen(session, timeout_s)
+    return max(seen) if seen else None
+
+
+# ---- the outcome -----------------------------------------------------------------------
+def _report_identity(report: AssignmentReport) -> tuple[str, tuple[tuple[str, int], ...]]:
+    return report.digest, tuple(sorted(report.pairs.items()))
+
+
+@dataclass(frozen=True)
+class Agreement:
+    agreed: bool
+    reference: AssignmentReport | None
+    disagreed: tuple[int, ...]  #: committed, but not the reference assignment
+    missing: tuple[int, ...]  #: team UAVs with no AssignmentReport
+
+
+def check_agreement(team: Iterable[int], assignments: dict[int, AssignmentReport]) -> Agreement:
+    """Whether every team UAV committed the same assignment (same digest and pairs)."""
+    team = sorted(set(team))
+    committed = [uav for uav in team if uav in assignments]
+    missing = tuple(uav for uav in team if uav not in assignments)
+    groups: dict[tuple[str, tuple[tuple[str, int], ...]], list[int]] = {}
+    for uav in committed:
+        groups.setdefault(_report_identity(assignments[uav]), []).append(uav)
+    if not groups:
+        return Agreement(False, None, (), missing)
+    # Largest group first; among equals the one with the lowest Piccolo ID.
+    reference_group = min(groups.values(), key=lambda members: (-len(members), members[0]))
+    reference = assignments[reference_group[0]]
+    disagreed = tuple(uav for uav in committed if uav not in reference_group)
+    return Agreement(not disagreed and not missing, reference, disagreed, missing)
+
+
+@dataclass
+class MissionOutcome:
+    mission: int
+    team: tuple[int, ...]
+    targets: tuple[Target, ...]
+    results: dict[int, UavResult] = field(default_factory=dict)
+    assignments: dict[int, AssignmentReport] = field(default_factory=dict)
+    timed_out: bool = False
+
+    @property
+    def agreement(self) -> Agreement:
+        return check_agreement(self.team, self.assignments)
+
+    @property
+    def committed(self) -> bool:
+        return all(uav in self.assignments for uav in self.team)
+
+    def target_of(self, uav: int) -> int | None:
+        report = self.assignments.get(uav)
+        return report.target if report is not None else None
+
+    def unassigned(self) -> list[int]:
+        taken = {self.target_of(uav) for uav in self.team}
+        return [i for i in range(len(self.targets)) if i not in taken]
+
+    def to_json(self) -> dict[str, Any]:
+        """The `send-targets --json` object (docs/ground.md)."""
+        agreement = self.agreement
+        n = len(self.targets)
+        results: dict[str, list[float | None]] = {}
+        for uav in self.team:
+            result = self.results.get(uav)
+            times = list(result.times) if result is not None and len(result.times) == n else None
+            results[str(uav)] = times if times is not None else [None] * n
+        reference = agreement.reference
+        return {
+            "mission": self.mission,
+            "team": list(self.team),
+            "targets": [msgspec.to_builtins(t) for t in self.targets],
+            "results": results,
+            "assignment": {str(uav): self.target_of(uav) for uav in self.team},
+            "eta": {
+                str(uav): (report.eta_s if (report := self.assignments.get(uav)) else None)
+                for uav in self.team
+            },
+            "unassigned": self.unassigned(),
+            "agreed": agreement.agreed,
+            "disagreed": list(agreement.disagreed),
+            "missing_results": [uav for uav in self.team if uav not in self.results],
+            "missing_assignments": list(agreement.missing),
+            "digest": reference.digest if reference is not None else None,
+            "complete": self.committed,
+            "timed_out": self.timed_out,
+        }
+
+
+# ---- following a mission -------------------------------------------------------------
+Listener = Callable[[str, UavResult | AssignmentReport], None]
+
+
+class MissionFollower:
+    """Collects one mission's results and assignments; a context manager.
+
+    `listener(kind, message)` ("result" or "assignment") is called once per new or
+    changed message, on whichever thread delivered it.
+    """
+
+    def __init__(
+        self, session: zenoh.Session, mission: int, listener: Listener | None = None
+    ) -> None:
+        self._session = session
+        self.mission = mission
+        self._listener = listener
+        self._changed = threading.Condition()
+        self.results: dict[int, UavResult] = {}
+        self.assignments: dict[int, AssignmentReport] = {}
+        self._stack = ExitStack()
+
+    def __enter__(self) -> Self:
+        enter = self._stack.enter_context
+        try:
+            enter(
+                self._session.declare_subscriber(
+                    keys.mission_results(self.mission), self._on_result_sample
+                )
+            )
+            enter(
+                self._session.declare_subscriber(
+                    keys.mission_assignments(self.mission), self._on_assignment_sample
+                )
+            )
+        except BaseException:
+            self._stack.close()
+            raise
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self._stack.close()
+
+    def _on_result_sample(self, sample: zenoh.Sample) -> None:
+        result = decode_sample(sample, UavResult)
+        if result is not None:
+            self.add_result(result)
+
+    def _on_assignment_sample(self, sample: zenoh.Sample) -> None:
+        report = decode_sample(sample, AssignmentReport)
+        if report is not None:
+            self.add_assignment(report)
+
+    def add_result(self, result: UavResult) -> None:
+        if result.mission != self.mission:
+            return
+        with self._changed:
+            if self.results.get(result.uav) == result:
+                return
+            self.results[result.uav] = result
+            self._changed.notify_all()
+        if self._listener is not None:
+            self._listener("result", result)
+
+    def add_assignment(self, report: AssignmentReport) -> None:
+        if report.mission != self.mission:
+            return
+        with self._changed:
+            if self.assignments.get(report.uav) == report:
+                return
+            self.assignments[report.uav] = report
+            self._changed.notify_all()
+        if self._listener is not None:
+            self._listener("assignment", report)
+
+    def fetch(self, timeout_s: float) -> None:
+        """Query what the UAVs serve, to catch anything the subscriptions missed."""
+        for _, result in query_messages(
+            self._session, keys.mission_results(self.mission), UavResult, timeout_s
+        ):
+            self.add_result(result)
+        for _, report in query_messages(
+            self._session, keys.mission_assignments(self.mission), AssignmentReport, timeout_s
+        ):
+            self.add_assignment(report)
+
+    def wait_committed(self, team: Iterable[int], timeout_s: float, fetch_every_s: float) -> bool:
+        """Wait until every UAV of `team` has committed; True if they all did in time.
+
+        Queries every `fetch_every_s` as well, so a lost sample costs at most that long.
+        """
+        members = set(team)
+        deadline = time.monotonic() + timeout_s
+        next_fetch = time.monotonic() + fetch_every_s
+        while True:
+            with self._changed:
+                if members <= self.assignments.keys():
+                    return True
+            now = time.monotonic()
+            if now >= deadline:
+                return False
+            if now >= next_fetch:
+                self.fetch(min(1.0, max(0.1, deadline - now)))
+                next_fetch = time.monotonic() + fetch_every_s
+                continue
+            with self._changed:
+                self._changed.wait(min(deadline, next_fetch) - now)
+
+    def snapshot(self) -> tuple[dict[int, UavResult], dict[int, AssignmentReport]]:
+        with self._changed:
+            return dict(self.results), dict(self.assignments)
+
+
+class TargetsServer:
+    """Answers queries on `fleet/mission/{m}/targets` with the mission, while open.
+
+    A UAV that starts, or reconnects, after the put can still fetch the mission.
+    """
+
+    def __init__(self, session: zenoh.Session, targets: MissionTargets) -> None:
+        self._session = session
+        self._key = keys.mission_targets(targets.mission)
+        self._payload = bus_codec.encode(targets)
+        self._stack = ExitStack()
+
+    def __enter__(self) -> Self:
+        self._stack.enter_context(self._session.declare_queryable(self._key, self._on_query))
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self._stack.close()
+
+    def _on_query(self, query: zenoh.Query) -> None:
+        # The concrete key, not the query's (possibly wildcard) one: otherwise Zenoh's
+        # consolidation would merge this reply with another mission's.
+        query.reply(self._key, self._payload, encoding=bus_codec.ENCODING)
+
+
+def publish_targets(session: zenoh.Session, targets: MissionTargets) -> None:
+    put_message(session, keys.mission_targets(targets.mission), targets)
+    log.info(
+        "mission %d: %d targets sent to %s",
+        targets.mission,
+        len(targets.targets),
+        ", ".join(map(str, targets.team)),
+    )
+
+
+def delivered_to(session: zenoh.Session, mission: int, timeout_s: float) -> set[int]:
+    """The UAVs whose state says they have seen `mission` (or a later one)."""
+    return {
+        uav
+        for uav, state in query_states(session, timeout_s).items()
+        if state.mission is not None and state.mission.mission >= mission
+    }
+
+
+def wait_delivered(
+    session: zenoh.Session, mission: int, team: Iterable[int], timeout_s: float
+) -> set[int]:
+    """Poll the UAVs' states until each of `team` has the mission; returns those that do."""
+    members = set(team)
+    deadline = time.monotonic() + timeout_s
+    got: set[int] = set()
+    while True:
+        remaining = deadline - time.monotonic()
+        got |= delivered_to(session, mission, max(0.1, min(1.0, remaining)))
+        if members <= got or remaining <= 0:
+            return got & members
+        time.sleep(min(0.2, max(0.0, deadline - time.monotonic())))
+
+
+# ---- commands ----------------------------------------------------------------------------
+def send_abort(session: zenoh.Session, mission: int) -> MissionAbort:
+    abort = MissionAbort(mission=mission)
+    put_message(session, keys.mission_abort(mission), abort)
+    log.info("mission %d: abort sent", mission)
+    return abort
+
+
+def send_opm(session: zenoh.Session, uav: int, enabled: bool, status_rate_hz: float) -> OpmCommand:
+    command = OpmCommand(enabled=enabled, status_rate_hz=status_rate_hz)
+    put_message(session, keys.opm(uav), command)
+    log.info("UAV %d: planning module %s", uav, "on" if enabled else "off")
+    return command

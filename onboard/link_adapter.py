@@ -1,0 +1,146 @@
+"""The Piccolo-serial adapter's link loop: both ports serviced every 10 ms, in a thread.
+
+The loop only moves bytes: it reads whatever each port holds, decodes it with the
+link codec and hands the events to `sink`; it writes whatever was queued for it. It
+never waits on planning or on Zenoh (thesis 2.7.4, 3.2.2): those run elsewhere and
+talk to it through thread-safe queues. A dropped port is reopened with backoff while
+the rest of the process carries on, reporting the link as down.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from fleet.autopilot_messages import AutopilotMessage
+from fleet.messages import LinkHealth
+from fleet.piccolo_link import LinkEvent, PiccoloLink
+from fleet.stream_packet import ALL_OPERATOR_INTERFACES
+from onboard.serial_port import DEFAULT_BAUD, SerialEndpoint
+
+log = logging.getLogger(__name__)
+
+#: The module's own address on the link (piccolo-link.md 1: 0xFFFE is "all operator
+#: interfaces"; the module listens in multi-homed mode like one, so it sends as one).
+ONBOARD_ADDRESS = ALL_OPERATOR_INTERFACES
+POLL_INTERVAL = 0.01
+
+
+@dataclass(frozen=True)
+class _Outbound:
+    port: str  # "program" or "payload"
+    autopilot: AutopilotMessage | None = None
+    payload: bytes = b""
+    destination: int = 0
+
+
+class LinkAdapter:
+    """Owns the program and payload ports and their codecs; runs the link loop."""
+
+    def __init__(
+        self,
+        uav_id: int,
+        program_url: str,
+        payload_url: str,
+        sink: Callable[[LinkEvent], None],
+        baud: int = DEFAULT_BAUD,
+        poll_interval: float = POLL_INTERVAL,
+    ) -> None:
+        self.uav_id = uav_id
+        self.sink = sink
+        self.poll_interval = poll_interval
+        self.program = SerialEndpoint("program", program_url, baud)
+        self.payload = SerialEndpoint("payload", payload_url, baud)
+        self.program_link = PiccoloLink(ONBOARD_ADDRESS)
+        self.payload_link = PiccoloLink(ONBOARD_ADDRESS)
+        self._outbound: queue.SimpleQueue[_Outbound] = queue.SimpleQueue()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"link-{uav_id}", daemon=True)
+        self._lock = threading.Lock()
+        self._last_telemetry: float | None = None
+        self.loop_count = 0
+        self.max_loop_gap = 0.0
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=2.0)
+        self.program.close()
+        self.payload.close()
+
+    # ---- thread-safe API ------------------------------------------------------------
+    def send_autopilot(self, message: AutopilotMessage) -> None:
+        self._outbound.put(_Outbound("program", autopilot=message, destination=self.uav_id))
+
+    def send_payload(self, planning_bytes: bytes, destination: int) -> None:
+        self._outbound.put(_Outbound("payload", payload=planning_bytes, destination=destination))
+
+    def note_telemetry(self, at: float) -> None:
+        with self._lock:
+            self._last_telemetry = at
+
+    def health(self, now: float) -> LinkHealth:
+        with self._lock:
+            last = self._last_telemetry
+            drops = {f"program_{k}": v for k, v in self.program_link.drop_counters().items()}
+            drops.update({f"payload_{k}": v for k, v in self.payload_link.drop_counters().items()})
+            packets = self.program_link.stream_decoder.packets
+            packets += self.payload_link.stream_decoder.packets
+        return LinkHealth(
+            program_up=self.program.up,
+            payload_up=self.payload.up,
+            packets=packets,
+            drops=drops,
+            telemetry_age_s=None if last is None else round(now - last, 3),
+        )
+
+    # ---- the loop -------------------------------------------------------------------
+    def _run(self) -> None:
+        previous = time.monotonic()
+        while not self._stop.is_set():
+            now = time.monotonic()
+            self.max_loop_gap = max(self.max_loop_gap, now - previous)
+            previous = now
+            self.loop_count += 1
+            try:
+                self._service(now)
+            except Exception:  # one bad event must not stop the link
+                log.exception("link loop error")
+            self._stop.wait(self.poll_interval)
+
+    def _service(self, now: float) -> None:
+        for endpoint, link in ((self.program, self.program_link), (self.payload, self.payload_link)):
+            if not endpoint.ensure_open(now):
+                continue
+            data = endpoint.read(now)
+            if data:
+                with self._lock:
+                    events = link.feed(data, now)
+                for event in events:
+                    self.sink(event)
+        self._flush(now)
+
+    def _flush(self, now: float) -> None:
+        while True:
+            try:
+                item = self._outbound.get_nowait()
+            except queue.Empty:
+                return
+            if item.port == "program":
+                assert item.autopilot is not None
+                with self._lock:
+                    data = self.program_link.encode_autopilot(item.autopilot, item.destination)
+                if not self.program.write(data, now):
+                    log.warning("program port down: %s not sent", type(item.autopilot).__name__)
+            else:
+                with self._lock:
+                    data = self.payload_link.encode_payload(item.payload, item.destination)
+                if not self.payload.write(data, now):
+                    log.debug("payload port down: %d bytes not sent", len(item.payload))

@@ -1,0 +1,270 @@
+"""The onboard process: wires the link adapter, the Zenoh node and the module logic.
+
+Threads: the link loop (onboard.link_adapter), the planner worker
+(onboard.planner_worker), Zenoh's own callback threads, and this main loop, which alone
+touches the module's state: every other thread hands it events through one queue.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import msgspec
+import zenoh
+
+from fleet import keys
+from fleet.bus_codec import BadMessage, decode
+from fleet.messages import (
+    BROADCAST,
+    MISSION_MANAGER,
+    AssignmentReport,
+    CommandResult,
+    MissionAbort,
+    MissionTargets,
+    OpmCommand,
+    StatusText,
+    UavResult,
+)
+from fleet.piccolo_link import AutopilotEvent, LinkEvent, PlanningEvent
+from fleet.planning_protocol import encode_message
+from fleet.stream_packet import ALL_GROUND_STATIONS
+from fleet.telemetry import Telemetry
+from fleet.track import Track
+from fleet.waypoint import Waypoint
+from onboard.autopilot_commands import AutopilotCommand
+from onboard.core import OnboardCore
+from onboard.link_adapter import LinkAdapter
+from onboard.planner_worker import PlannerWorker
+from onboard.zenoh_node import BusEvent, ZenohNode, reply
+
+log = logging.getLogger(__name__)
+
+LINK_HEALTH_PERIOD = 1.0
+MAIN_LOOP_PERIOD = 0.01
+
+
+@dataclass
+class OnboardSettings:
+    uav_id: int
+    program_url: str
+    payload_url: str
+    zenoh_config: zenoh.Config
+    baud: int = 57_600
+    payload_ground: bool = False
+    status_rate_hz: float = 1.0
+    planning_budget_s: float = 2.0
+    #: Test hook: drop the first publication of our own mission result (the teammates
+    #: must recover it by query).
+    drop_first_result: bool = False
+
+
+@dataclass
+class _Outputs:
+    """OnboardCore's outputs, wired to the link adapter and the Zenoh node."""
+
+    process: OnboardProcess
+    dropped_results: set[int] = field(default_factory=set)
+
+    def send_autopilot(self, command: AutopilotCommand) -> None:
+        self.process.link.send_autopilot(command)
+
+    def publish(self, key: str, message: msgspec.Struct) -> None:
+        settings = self.process.settings
+        if settings.drop_first_result and isinstance(message, UavResult):
+            if message.mission not in self.dropped_results:
+                self.dropped_results.add(message.mission)
+                log.warning("test hook: first publication of %s dropped", key)
+                return
+        self.process.node.publish(key, message)
+
+    def send_ground(self, message: StatusText | UavResult) -> None:
+        if self.process.settings.payload_ground:
+            data = encode_message(message, self.process.settings.uav_id, MISSION_MANAGER)
+            self.process.link.send_payload(data, ALL_GROUND_STATIONS)
+
+    def fetch_results(self, mission: int) -> None:
+        self.process.node.fetch(keys.mission_results(mission), UavResult)
+
+
+class OnboardProcess:
+    def __init__(self, settings: OnboardSettings) -> None:
+        self.settings = settings
+        self.events: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
+        self.stop_requested = threading.Event()
+        self.planner = PlannerWorker()
+        self.core = OnboardCore(
+            uav_id=settings.uav_id,
+            outputs=_Outputs(self),
+            planner=self.planner,
+            planning_budget_s=settings.planning_budget_s,
+            status_rate_hz=settings.status_rate_hz,
+        )
+        self.link = LinkAdapter(
+            settings.uav_id,
+            settings.program_url,
+            settings.payload_url,
+            sink=lambda event: self.events.put(("link", event)),
+            baud=settings.baud,
+        )
+        self.node = ZenohNode(
+            settings.uav_id,
+            settings.zenoh_config,
+            sink=lambda event: self.events.put(("bus", event)),
+        )
+        self._pending_queries: list[zenoh.Query] = []
+
+    def run(self) -> None:
+        self.link.start()
+        log.info("onboard module %d up", self.settings.uav_id)
+        # Catch up with a mission in progress (late join or restart).
+        self.node.fetch(keys.ALL_MISSION_TARGETS, MissionTargets)
+        next_health = 0.0
+        try:
+            while not self.stop_requested.is_set():
+                now = time.monotonic()
+                self._drain_events(now)
+                self._serve_queries(now)
+                self.core.tick(now)
+                if now >= next_health:
+                    next_health = now + LINK_HEALTH_PERIOD
+                    self.node.publish(keys.link(self.settings.uav_id), self.link.health(now))
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        self.link.stop()
+        self.planner.close()
+        self.node.close()
+        log.info("onboard module %d stopped", self.settings.uav_id)
+
+    # ---- events ---------------------------------------------------------------------
+    def _drain_events(self, now: float) -> None:
+        deadline = now + MAIN_LOOP_PERIOD
+        while True:
+            try:
+                kind, event = self.events.get(timeout=max(0.0, deadline - time.monotonic()))
+            except queue.Empty:
+                return
+            try:
+                if kind == "link":
+                    self._on_link(event, time.monotonic())
+                else:
+                    self._on_bus(event, time.monotonic())
+            except Exception:  # a bad event is logged; the module keeps serving
+                log.exception("error handling %s event %r", kind, event)
+
+    def _on_link(self, event: LinkEvent, now: float) -> None:
+        if isinstance(event, AutopilotEvent):
+            message = event.message
+            if isinstance(message, Telemetry):
+                self.link.note_telemetry(now)
+                self.core.on_telemetry(message)
+            elif isinstance(message, Track):
+                self.core.on_track(message, now)
+            elif isinstance(message, Waypoint):
+                self.core.on_waypoint(message)
+            return
+        if isinstance(event, PlanningEvent):
+            envelope = event.envelope
+            if envelope.destination not in (self.settings.uav_id, BROADCAST):
+                return
+            self._on_message(envelope.message, now, via_payload=True)
+
+    def _on_bus(self, event: BusEvent, now: float) -> None:
+        if event.key.endswith("/alive"):
+            uav, alive = event.message
+            self.core.on_alive(uav, alive)
+            return
+        self._on_message(event.message, now, via_payload=False)
+
+    def _on_message(self, message: object, now: float, via_payload: bool) -> None:
+        """One path for a command, whether it came over Zenoh or the payload port."""
+        core = self.core
+        uav = self.settings.uav_id
+        if isinstance(message, OpmCommand):
+            if via_payload:
+                self.node.publish(keys.opm(uav), message)
+            core.on_opm(message, now)
+        elif isinstance(message, MissionTargets):
+            if via_payload and uav in message.team:
+                self.node.publish(keys.mission_targets(message.mission), message)
+            core.on_targets(message, now)
+        elif isinstance(message, UavResult):
+            if via_payload:
+                self.node.publish(keys.mission_result(message.mission, message.uav), message)
+            core.on_result(message, now)
+        elif isinstance(message, AssignmentReport):
+            core.on_assignment(message, now)
+        elif isinstance(message, MissionAbort):
+            if via_payload:
+                self.node.publish(keys.mission_abort(message.mission), message)
+            core.on_abort(message, now)
+        else:
+            log.info("ignored %r", message)
+
+    # ---- queries --------------------------------------------------------------------
+    def _serve_queries(self, now: float) -> None:
+        while (query := self.node.state_queries.try_recv()) is not None:
+            state = msgspec.structs.replace(self.core.state(), link=self.link.health(now))
+            reply(query, keys.state(self.settings.uav_id), state)
+            query.drop()
+        while (query := self.node.command_queries.try_recv()) is not None:
+            self._on_command_query(query, now)
+        while (query := self.node.mission_queries.try_recv()) is not None:
+            self._on_mission_query(query)
+            query.drop()
+
+    def _on_command_query(self, query: zenoh.Query, now: float) -> None:
+        key = str(query.key_expr)
+        name = key.rsplit("/", 1)[-1]
+        kinds: dict[str, type[Waypoint] | type[Track]] = {"waypoint": Waypoint, "track": Track}
+        kind = kinds.get(name)
+        payload = query.payload.to_bytes() if query.payload is not None else b""
+        if kind is None:
+            query.reply_err(f"unknown command {name!r}: expected waypoint or track".encode())
+            query.drop()
+            return
+        try:
+            command = decode(payload, kind, key)
+        except BadMessage as error:
+            log.warning("command refused: %s", error)
+            query.reply_err(str(error).encode())
+            query.drop()
+            return
+        reply_key = keys.command(self.settings.uav_id, name)
+
+        def done(result: CommandResult) -> None:
+            reply(query, reply_key, result)
+            query.drop()
+
+        self.core.command_autopilot(command, now, done)
+
+    def _on_mission_query(self, query: zenoh.Query) -> None:
+        """Serve the current mission's targets, our result and our assignment."""
+        parts = str(query.key_expr).split("/")
+        targets = self.core.mission_targets()
+        if targets is None or len(parts) < 4:
+            return
+        mission = targets.mission
+        if parts[2] not in ("*", "**", str(mission)):
+            return
+        uav = self.settings.uav_id
+        wanted = "/".join(parts[3:])
+        answers: list[tuple[str, msgspec.Struct | None]] = [
+            ("targets", targets),
+            (f"result/{uav}", self.core.own_result(mission)),
+            (f"assignment/{uav}", self.core.own_assignment(mission)),
+        ]
+        for leaf, message in answers:
+            if message is not None and _matches(wanted, leaf):
+                reply(query, f"{keys.PREFIX}/mission/{mission}/{leaf}", message)
+
+
+def _matches(pattern: str, leaf: str) -> bool:
+    """Does a key-expression tail (`*`, `**`, literal chunks) match a concrete tail?"""
+    return bool(zenoh.KeyExpr(pattern).intersects(zenoh.KeyExpr(leaf)))

@@ -1,0 +1,179 @@
+"""Real processes and real Zenoh sessions for the end-to-end tests, always cleaned up.
+
+Every child is started in its own session (process group) and stopped by PID: SIGTERM,
+then SIGKILL after a grace period. Zenoh sessions opened here are closed by the
+fixtures that open them. All traffic stays on 127.0.0.1.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import queue
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+
+import zenoh
+
+from fleet.zenoh_config import make_config
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port: int = probe.getsockname()[1]
+        return port
+
+
+@dataclass
+class Child:
+    """A started child process whose output lines are collected by a reader thread."""
+
+    name: str
+    process: subprocess.Popen[str]
+    lines: queue.Queue[str] = field(default_factory=queue.Queue)
+    history: list[str] = field(default_factory=list)
+
+    def wait_for_line(self, predicate: Callable[[str], bool], timeout: float) -> str:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            try:
+                line = self.lines.get(timeout=0.1)
+            except queue.Empty:
+                if self.process.poll() is not None:
+                    break
+                continue
+            if predicate(line):
+                return line
+        raise AssertionError(
+            f"{self.name}: no expected line within {timeout} s; last output:\n"
+            + "\n".join(self.history[-30:])
+        )
+
+    def stop(self, grace: float = 5.0) -> int:
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGTERM)
+            try:
+                self.process.wait(grace)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait(grace)
+        return self.process.returncode
+
+    def kill(self) -> None:
+        if self.process.poll() is None:
+            self.process.kill()
+            self.process.wait(5)
+
+
+def start(name: str, argv: list[str], env: dict[str, str] | None = None) -> Child:
+    process = subprocess.Popen(
+        argv,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        start_new_session=True,
+        env={**os.environ, **(env or {})},
+    )
+    child = Child(name, process)
+
+    def pump() -> None:
+        assert process.stdout is not None
+        for line in process.stdout:
+            line = line.rstrip("\n")
+            child.history.append(line)
+            child.lines.put(line)
+
+    threading.Thread(target=pump, daemon=True).start()
+    return child
+
+
+@dataclass(frozen=True)
+class SimEndpoints:
+    program: str
+    payload: str
+    ground: str
+
+
+def parse_sim_line(line: str) -> tuple[int, SimEndpoints]:
+    words = line.split()
+    fields = dict(word.split("=", 1) for word in words[2:])
+    return int(words[1]), SimEndpoints(fields["program"], fields["payload"], fields["ground"])
+
+
+class Fleet:
+    """Children of one test: stopped together, in reverse order, whatever happens."""
+
+    def __init__(self) -> None:
+        self.children: list[Child] = []
+
+    def sim(
+        self, scenario: str, speedup: float = 10.0, telemetry_hz: float = 5.0, *extra: str
+    ) -> dict[int, SimEndpoints]:
+        child = start(
+            "fleet sim",
+            [
+                sys.executable, "-m", "fleet.sim_command", scenario,
+                "--program-port", "0", "--payload-port", "0", "--ground-port", "0",
+                "--speedup", str(speedup), "--telemetry-hz", str(telemetry_hz), *extra,
+            ],
+        )  # fmt: skip
+        self.children.append(child)
+        endpoints: dict[int, SimEndpoints] = {}
+        while True:
+            line = child.wait_for_line(lambda s: s.startswith(("uav ", "ready")), 30.0)
+            if line == "ready":
+                return endpoints
+            uav, where = parse_sim_line(line)
+            endpoints[uav] = where
+
+    def onboard(self, uav: int, where: SimEndpoints, router: str, *extra: str) -> Child:
+        child = start(
+            f"onboard {uav}",
+            [
+                sys.executable, "-m", "onboard.main", "--id", str(uav),
+                "--program", where.program, "--payload", where.payload,
+                "--connect", router, *extra,
+            ],
+        )  # fmt: skip
+        self.children.append(child)
+        return child
+
+    def stop_all(self) -> None:
+        for child in reversed(self.children):
+            child.stop()
+
+
+@contextlib.contextmanager
+def router_session(port: int) -> Iterator[zenoh.Session]:
+    """An embedded router on 127.0.0.1:port, open for the duration of a test."""
+    session = zenoh.open(make_config("router", listen=[f"tcp/127.0.0.1:{port}"]))
+    try:
+        yield session
+    finally:
+        session.close()
+
+
+@contextlib.contextmanager
+def client_session(port: int) -> Iterator[zenoh.Session]:
+    session = zenoh.open(make_config("client", connect=[f"tcp/127.0.0.1:{port}"]))
+    try:
+        yield session
+    finally:
+        session.close()
+
+
+def wait_until(predicate: Callable[[], bool], timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
