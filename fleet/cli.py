@@ -8,7 +8,7 @@ import logging
 import sys
 
 #: Each subcommand lives in its own module with `add_parser(subparsers)`.
-SUBCOMMANDS = ("fleet.decode_command",)
+SUBCOMMANDS = ("fleet.decode_command", "fleet.sim_command", "fleet.up_command")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -27,7 +27,7 @@ def main(argv: list[str] | None = None) -> int:
         format="%(asctime)s %(name)s %(levelname)s %(message)s",
         stream=sys.stderr,
     )
-    status: int = args.run(args)
+    status: int = args.func(args)
     return status
 
 

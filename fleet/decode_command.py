@@ -38,7 +38,7 @@ def add_parser(subparsers: Any) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("capture", help="capture file, or - for standard input")
-    parser.set_defaults(run=run)
+    parser.set_defaults(func=run)
 
 
 def _header(header: StreamHeader) -> dict[str, int]:

@@ -194,17 +194,18 @@ def run(args: argparse.Namespace) -> int:
         print(f"fleet sim: {error}", file=sys.stderr)
         return EXIT_USAGE
     with server:
-        try:
-            endpoints = server.open()
-        except OSError as error:
-            print(f"fleet sim: {error.strerror or error}", file=sys.stderr)
-            return EXIT_RUNTIME
-        for endpoint in endpoints:
-            print(endpoint.line())
-        print("ready", flush=True)
-        logger.info("simulating at speedup %g", args.speedup)
+        # Handlers first: a launcher may send SIGTERM as soon as it has read `ready`.
         previous = _install_signal_handlers(server)
         try:
+            try:
+                endpoints = server.open()
+            except OSError as error:
+                print(f"fleet sim: {error.strerror or error}", file=sys.stderr)
+                return EXIT_RUNTIME
+            for endpoint in endpoints:
+                print(endpoint.line())
+            print("ready", flush=True)
+            logger.info("simulating at speedup %g", args.speedup)
             server.run()
         finally:
             _restore_signal_handlers(previous)

@@ -93,7 +93,13 @@ __all__ = [
 logger = logging.getLogger(__name__)
 
 _SIDES = 16
-_INRADIUS = math.cos(math.pi / _SIDES)
+_HALF_SIDE = math.pi / _SIDES
+# The 16-gon with a vertex on the circle of radius 1 has inradius cos(pi/16); the mean of
+# its radius over all directions is cos(pi/16) ln(sec + tan)(pi/16) / (pi/16).
+_MEAN_RADIUS = math.cos(_HALF_SIDE) * math.log(1 / math.cos(_HALF_SIDE) + math.tan(_HALF_SIDE)) / _HALF_SIDE
+SPEED_SCALE = 1.0 / _MEAN_RADIUS
+ACCEL_SCALE = 1.0
+_INRADIUS = math.cos(_HALF_SIDE)
 # Facet normals of a 16-gon with a vertex at angle 0 (dead ahead in the heading frame).
 _NORMALS = tuple(
     (math.cos((2 * i + 1) * math.pi / _SIDES), math.sin((2 * i + 1) * math.pi / _SIDES))
@@ -306,8 +312,8 @@ class ApproachTimeModel:
     def _build(self) -> pyo.ConcreteModel:
         steps = self._steps
         n = len(steps)
-        v_cap = self.limits.max_speed * _INRADIUS
-        a_cap = self.limits.max_accel * _INRADIUS
+        v_cap = self.limits.max_speed * _INRADIUS * SPEED_SCALE
+        a_cap = self.limits.max_accel * _INRADIUS * ACCEL_SCALE
         m = pyo.ConcreteModel(name="approach_time")
         m.K = pyo.RangeSet(0, n)  # nodes
         m.S = pyo.RangeSet(0, n - 1)  # steps
@@ -422,7 +428,7 @@ class ApproachTimeModel:
     def _gauge_time(self, along: float, cross: float) -> float:
         """Time to cover (along, cross) at max speed inside the speed 16-gon."""
         reach = max(nx * along + ny * cross for nx, ny in _NORMALS)
-        return max(reach, 0.0) / (_INRADIUS * self.limits.max_speed)
+        return max(reach, 0.0) / (_INRADIUS * SPEED_SCALE * self.limits.max_speed)
 
     def _first_node_at_or_after(self, t: float) -> int:
         return bisect.bisect_left(self._times, t - 1e-9)
@@ -444,7 +450,7 @@ class ApproachTimeModel:
                 return True
             return deadline is not None and time.monotonic() >= deadline
 
-        speed_cap = _INRADIUS * self.limits.max_speed
+        speed_cap = _INRADIUS * SPEED_SCALE * self.limits.max_speed
         # Before any LP: node 0 is fixed, so its 16-gon distance is already a bound.
         bound = self._gauge_time(along, cross)
         if bound <= 0.0:

@@ -62,6 +62,7 @@ class Outputs(Protocol):
     def publish(self, key: str, message: msgspec.Struct) -> None: ...
     def send_ground(self, message: StatusText | UavResult) -> None: ...
     def fetch_results(self, mission: int) -> None: ...
+    def fetch_assignments(self, mission: int) -> None: ...
 
 
 @dataclass
@@ -149,6 +150,8 @@ class OnboardCore:
             self.status(f"error: mission {targets.mission} refused: {problem}", now)
             return
         self._start_round(targets, now)
+        # A UAV that joins late or restarts adopts what its teammates committed.
+        self.outputs.fetch_assignments(targets.mission)
         if self.telemetry is None or self.telemetry.gps is None:
             self.status(f"warning: mission {targets.mission}: no GPS telemetry yet", now)
             self._publish_result(tuple(None for _ in targets.targets), now)

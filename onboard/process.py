@@ -90,6 +90,9 @@ class _Outputs:
     def fetch_results(self, mission: int) -> None:
         self.process.node.fetch(keys.mission_results(mission), UavResult)
 
+    def fetch_assignments(self, mission: int) -> None:
+        self.process.node.fetch(keys.mission_assignments(mission), AssignmentReport)
+
 
 class OnboardProcess:
     def __init__(self, settings: OnboardSettings) -> None:

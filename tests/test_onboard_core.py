@@ -36,6 +36,7 @@ class Recorder:
     published: list[tuple[str, msgspec.Struct]] = field(default_factory=list)
     ground: list[msgspec.Struct] = field(default_factory=list)
     fetches: list[int] = field(default_factory=list)
+    assignment_fetches: list[int] = field(default_factory=list)
 
     def send_autopilot(self, command: AutopilotCommand) -> None:
         self.autopilot.append(command)
@@ -48,6 +49,9 @@ class Recorder:
 
     def fetch_results(self, mission: int) -> None:
         self.fetches.append(mission)
+
+    def fetch_assignments(self, mission: int) -> None:
+        self.assignment_fetches.append(mission)
 
     def statuses(self) -> list[str]:
         return [m.text for _, m in self.published if isinstance(m, StatusText)]
@@ -75,7 +79,9 @@ class ScriptedPlanner:
         return done
 
 
-def make_core(uav: int = 112, times: tuple[float | None, ...] = (80.0, 40.0, 60.0)) -> tuple[OnboardCore, Recorder]:
+def make_core(
+    uav: int = 112, times: tuple[float | None, ...] = (80.0, 40.0, 60.0)
+) -> tuple[OnboardCore, Recorder]:
     recorder = Recorder()
     core = OnboardCore(uav_id=uav, outputs=recorder, planner=ScriptedPlanner(times))
     core.on_telemetry(sample_telemetry())

@@ -190,6 +190,22 @@ def test_refused_and_misaddressed_commands_change_nothing() -> None:
     assert autopilot.counters["not_addressed_to_us"] == 1
 
 
+def test_a_waypoint_whose_next_is_missing_stays_tracked() -> None:
+    bench = Bench(autopilot_for(SINGLE))
+    autopilot = bench.autopilot
+    lat, lon = autopilot.projection.to_latlon(600.0, 300.0)
+    bench.send(Waypoint(index=50, next_index=51, lat=lat, lon=lon, alt=600.0))
+    bench.send(Track(50))
+    target = local(autopilot, lat, lon)
+    bench.step_until(lambda: math.dist((autopilot.state.x, autopilot.state.y), target) < 60, 120)
+    autopilot.advance_to(autopilot.time_ms + 60_000)
+    assert autopilot.tracked == 50
+    assert autopilot.counters["arrivals_without_next"] == 1
+    # Storing the missing next lets it go on at the next pass.
+    bench.send(Waypoint(index=51, next_index=0, lat=lat, lon=lon + 0.05, alt=600.0))
+    bench.step_until(lambda: autopilot.tracked == 51, 120)
+
+
 def dangerous_waypoint(autopilot: SimulatedAutopilot) -> Waypoint:
     """A valid WAYPOINT that would move the tracked waypoint far away if it got through."""
     lat, lon = autopilot.projection.to_latlon(-5000.0, 4000.0)

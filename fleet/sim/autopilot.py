@@ -172,6 +172,7 @@ class SimulatedAutopilot:
         self._telemetry_period_ms = 1000.0 / self.settings.telemetry_hz
         self._next_telemetry_ms = self._telemetry_period_ms
         self._next_track_report_ms = 0
+        self._dead_end: int | None = None
 
     # -- the aircraft -------------------------------------------------------------
 
@@ -225,7 +226,15 @@ class SimulatedAutopilot:
         reached = self.plan.get(self.tracked)
         if reached is None or reached.next_index not in self.plan:
             # Nothing to go on to: keep tracking it (the aircraft circles back over it).
-            self.counters["arrivals_without_next"] += 1
+            # Said once, not at every step spent within the acceptance radius.
+            if self._dead_end != self.tracked:
+                self._dead_end = self.tracked
+                self.counters["arrivals_without_next"] += 1
+                logger.warning(
+                    "uav %d: reached waypoint %d whose next is not stored; still tracking it",
+                    self.piccolo_id,
+                    self.tracked,
+                )
             return
         self.counters["arrivals"] += 1
         self._track(reached.next_index)
@@ -237,6 +246,7 @@ class SimulatedAutopilot:
             raise FlightPlanError(f"waypoint {index} is not stored")
         self.tracked = index
         self._target = self._local(waypoint)
+        self._dead_end = None
 
     def telemetry(self) -> Telemetry:
         """TELEMETRY_HI_RES of the current state at the current simulated time."""
@@ -347,6 +357,7 @@ class SimulatedAutopilot:
             )
             return
         self.plan.store(waypoint)
+        self._dead_end = None
         self.counters["waypoints_stored"] += 1
         if waypoint.index == self.tracked:
             self._target = self._local(waypoint)

@@ -24,6 +24,7 @@ import contextlib
 import enum
 import errno
 import logging
+import math
 import os
 import selectors
 import socket
@@ -138,8 +139,8 @@ class SimServer:
     ) -> None:
         if not autopilots:
             raise ValueError("no autopilot to serve")
-        if not speedup >= 0.0:
-            raise ValueError(f"speedup must be >= 0, got {speedup}")
+        if not (math.isfinite(speedup) and speedup >= 0.0):
+            raise ValueError(f"speedup must be a finite number >= 0, got {speedup}")
         for name, port in (
             ("program", program_port),
             ("payload", payload_port),

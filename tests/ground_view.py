@@ -1,0 +1,71 @@
+"""What the ground sees on Zenoh during an end-to-end test, decoded by key."""
+
+from __future__ import annotations
+
+import math
+import threading
+
+import msgspec
+import zenoh
+
+from fleet import keys
+from fleet.mercator import MercatorProjection
+from fleet.messages import AssignmentReport, StatusText, UavResult
+from fleet.telemetry import Telemetry
+from fleet.track import Track
+
+
+class GroundView:
+    """Everything the ground sees under fleet/**, decoded by key."""
+
+    def __init__(self, session: zenoh.Session) -> None:
+        self.lock = threading.Lock()
+        self.telemetry: dict[int, list[Telemetry]] = {}
+        self.tracks: dict[int, list[int]] = {}
+        self.assignments: dict[int, AssignmentReport] = {}
+        self.results: dict[int, UavResult] = {}
+        self.status: dict[int, list[str]] = {}
+        self.subscriber = session.declare_subscriber(f"{keys.PREFIX}/**", self.on_sample)
+
+    def on_sample(self, sample: zenoh.Sample) -> None:
+        key = str(sample.key_expr)
+        data = sample.payload.to_bytes()
+        with self.lock:
+            if key.endswith("/telemetry"):
+                uav = keys.uav_id_of(key)
+                self.telemetry.setdefault(uav, []).append(msgspec.json.decode(data, type=Telemetry))
+            elif key.endswith("/track"):
+                track = msgspec.json.decode(data, type=Track)
+                self.tracks.setdefault(keys.uav_id_of(key), []).append(track.waypoint)
+            elif "/assignment/" in key:
+                report = msgspec.json.decode(data, type=AssignmentReport)
+                self.assignments[report.uav] = report
+            elif "/result/" in key:
+                result = msgspec.json.decode(data, type=UavResult)
+                self.results[result.uav] = result
+            elif key.endswith("/status"):
+                text = msgspec.json.decode(data, type=StatusText).text
+                self.status.setdefault(keys.uav_id_of(key), []).append(text)
+
+    def latest_track(self, uav: int) -> int | None:
+        with self.lock:
+            tracks = self.tracks.get(uav)
+            return tracks[-1] if tracks else None
+
+    def closest_approach(self, uav: int, lat: float, lon: float) -> float:
+        projection = MercatorProjection(lat, lon)
+        with self.lock:
+            samples = list(self.telemetry.get(uav, []))
+        distances = [
+            math.hypot(*projection.to_xy(t.gps.lat, t.gps.lon))
+            for t in samples
+            if t.gps is not None
+        ]
+        return min(distances, default=math.inf)
+
+    def statuses(self, uav: int) -> list[str]:
+        with self.lock:
+            return list(self.status.get(uav, []))
+
+    def close(self) -> None:
+        self.subscriber.undeclare()
