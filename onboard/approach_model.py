@@ -2,66 +2,78 @@
 
 One Pyomo model per UAV is built once, handed to HiGHS once through Pyomo's persistent
 interface, and re-solved as the aircraft's state and the targets change by updating
-variable bounds only. No constraint is added, removed or rewritten after construction.
+variable bounds only: no constraint, coefficient or Param changes after construction.
 
-Model (all in the aircraft's heading frame, see below)
-------------------------------------------------------
-A point mass, double integrator in x/y metres, with piecewise-constant acceleration on
-a variable time grid (1 s steps for the first 20 s, where turning happens, then steps
-that grow to 20 s so that a 600 s horizon fits in ~75 steps). Speed at every node and
-acceleration in every step are held inside 16-gons: max airspeed, and
-a_max = g tan(bank_limit), the lateral acceleration of a coordinated turn at the bank
-limit. Both 16-gons are inscribed in their circles with a vertex dead ahead, so the
-point mass is never faster than the aircraft and flies straight ahead at exactly
-max speed.
+Model
+-----
+A point mass, double integrator in x/y metres with piecewise-constant acceleration, on
+a variable time grid (`default_steps`: 2 s steps for the first 20 s, where turning
+happens, then 5, 10, 20 and 30 s steps, so a 600 s horizon takes 43 steps). Speed at
+every node and acceleration in every step stay inside 16-gons with a vertex dead ahead:
+max airspeed, and a_max = g tan(bank_limit), the lateral acceleration of a coordinated
+turn at the bank limit. The acceleration 16-gon is inscribed in its circle. The speed
+16-gon is scaled to the circle's mean radius (x1.013): a 16-gon is 1.3 % slower than
+the circle on average, which, inscribed, showed up as a +1.3 % bias on every approach
+time; scaled, the bias is zero and the error is +/-1.3 % depending on the direction of
+the final leg (straight ahead it is 1.3 % fast).
+
+Everything is posed in the aircraft's heading frame (origin at the aircraft, x along its
+velocity, y to its left), so the state enters as bounds on node 0 and the turn
+constraint below as bounds on vx. The model is symmetric about the heading, so targets
+on the right are mirrored to the left.
+
+Turn-rate linearisation (why the model is not a pure point mass)
+---------------------------------------------------------------
+A free point mass brakes and reverses in a few seconds; the aircraft flies at constant
+airspeed V and turns at rate w = a_max / V. Against a flown bank-limited reference the
+pure point mass is up to 15 % optimistic for targets behind the aircraft at 1-3 km.
+The aircraft's heading after t seconds differs from its initial heading by at most
+theta(t) = w t, so its velocity lies on an arc of half-angle theta(t), whose convex hull
+is the circular segment {|v| <= V, v . h0 >= V cos theta}. The model therefore bounds
+the along-heading velocity from below: vx_k >= V cos(w t_k) while w t_k < pi. This is
+exact along track (the along-track velocity in a maximum-rate turn is exactly
+V cos(w t)) and relaxes only the lateral offset of the turn, which matters little
+beyond a few turn radii. Measured (docs/benchmarks-approach.md): worst error 15 % ->
+3-4 %, median ~0.5 %. A further bound tried, lateral offset >= r (1 - vx/V) (valid for
+a constant-speed aircraft turning toward the target), made arrival exactly at a node
+infeasible without weaving, up to 25 % pessimistic, and was dropped. Inside ~3 turn
+radii the relaxation stays optimistic (a point inside the turn circle needs a loop the
+point mass does not fly); see the benchmark figures.
 
 "LP scan" instead of arrival binaries
 -------------------------------------
 Richards and How minimise the arrival step with one binary per step. Here the same
-model has no binaries: for a candidate step k one LP minimises D, the 16-gon distance
-from the node-k position to the target. D = 0 means "can be on the target at step k";
+model has no binaries: for a candidate node k one LP minimises D, the 16-gon distance
+from the node-k position to the target. D = 0 means "can be on the target at node k";
 the first such k is exactly the MILP optimum. D > 0 also proves a lower bound: velocity
-stays inside the speed 16-gon, so any trajectory on the target at t' was within
-c * v_max * (t' - t_k) of it at t_k (c = cos(pi/16), the 16-gon's inradius), hence
-t' >= t_k + D / (c v_max). The scan jumps straight to the first step past that bound
-instead of trying every step, so it costs 1-3 LPs per target. The candidate step is
-chosen by the bounds of one slack pair per node (fixed at 0 on the selected node, free
-elsewhere), which keeps every change a bound change.
+stays inside the speed 16-gon (inradius c), so a trajectory on the target at t' was
+within c (t' - t_k) of it at t_k, hence t' >= t_k + D / c. The scan starts at the
+straight-line bound and jumps to the first node past each proven bound instead of
+trying every node, so a target costs 1-3 LPs. The node is selected through the bounds
+of one slack pair per node (fixed at 0 on the tested node, free elsewhere).
 
-Arrival time inside the step: the best lower bound collected by the scan (at least
-t_{k-1}, at most t_k). It is the exact continuous arrival time when the final leg is a
-straight line at max speed, which is how the aircraft ends every approach, and it
-removes the bias of rounding up to the grid (up to one long step, i.e. 10-20 %).
+Arrival time inside the last step: t_{k-1} + D_{k-1} / c (the LP at k-1 is solved if
+the scan jumped over it), capped at t_k. It is the exact continuous arrival when the
+final leg is straight at full speed, which is how the aircraft ends every approach, and
+it removes the rounding up to the grid (up to a whole 10-30 s step). The bound from
+further back is not used: it ignores the turn and was up to 7 % optimistic.
 
-Why the heading frame, and the turn-rate linearisation
-------------------------------------------------------
-A free point mass brakes and reverses in a few seconds, whereas the aircraft flies at
-constant airspeed and turns at rate w = a_max / v. Measured against a flown
-bank-limited reference over all bearings, the pure point mass is up to ~30 %
-optimistic for targets behind the aircraft. The aircraft's heading after t seconds
-differs from its initial heading by at most theta(t) = w t, so its velocity lies on an
-arc of half-angle theta(t); the convex hull of that arc is the circular segment
-{|v| <= V, v . h0 >= V cos(theta)}. The model therefore bounds the along-heading
-velocity component from below: vx_k >= V cos(w t_k) while w t_k < pi. In the heading
-frame (x along the current velocity) that is a variable bound, so it costs nothing per
-solve; the speed polygon gives |v| <= v_max. This linearisation is exact in the
-along-track direction (the aircraft's along-track velocity during a maximum-rate turn is
-exactly V cos(w t)) and relaxes only the lateral offset of the turn, which matters
-little at 1-3 km. The bench (bench/bench_approach.py) reports the error of the pure
-point mass, of this model and of the Dubins time against a flown reference.
+Targets are solved in nearest-neighbour order so that each LP warm-starts from the
+basis of a similar one (~25 % fewer simplex pivots).
 
-Speeds are clamped into [min_speed, max_speed]: the aircraft flies at constant airspeed
-and cannot be slower than its minimum speed (a reported speed below it, e.g. zero on
-the ground, is treated as min_speed along the reported direction, or east without one).
+Speeds are clamped into [min_speed, max_speed]: a reported speed below the minimum
+(e.g. zero on the ground) is treated as min_speed along the reported direction, or east
+without one. Times assume the aircraft may fly at max_speed; if the autopilot holds a
+lower commanded airspeed, build the model with that as max_speed.
 
 Pyomo overheads
 ---------------
-The persistent interface's `solve()` costs ~4 ms per call on top of a ~0.7 ms
+The persistent interface's `solve()` costs ~4 ms per call on top of a ~1-3 ms
 warm-started LP, and it redirects the process-wide stdout/stderr file descriptors while
 HiGHS runs, which would swallow other threads' log output in the onboard process. The
 model is therefore translated and updated through the persistent interface
-(`set_instance`, `update_variables`) and then run on the HiGHS instance that interface
-owns, read back through its objective value and model status (see `_PersistentHighs`).
+(`set_instance`, `update_variables`) and run on the HiGHS instance that interface owns
+(see `_PersistentHighs`).
 """
 
 from __future__ import annotations
@@ -76,8 +88,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import highspy
 import pyomo.environ as pyo
 from pyomo.contrib.solver.common.factory import SolverFactory
+from pyomo.contrib.solver.common.results import TerminationCondition
 
 from onboard.dubins import GRAVITY
 
@@ -87,6 +101,8 @@ __all__ = [
     "ApproachTimeModel",
     "TargetSolution",
     "TargetStatus",
+    "along_velocity_bounds",
+    "build_point_mass",
     "default_steps",
 ]
 
@@ -94,12 +110,11 @@ logger = logging.getLogger(__name__)
 
 _SIDES = 16
 _HALF_SIDE = math.pi / _SIDES
-# The 16-gon with a vertex on the circle of radius 1 has inradius cos(pi/16); the mean of
-# its radius over all directions is cos(pi/16) ln(sec + tan)(pi/16) / (pi/16).
-_MEAN_RADIUS = math.cos(_HALF_SIDE) * math.log(1 / math.cos(_HALF_SIDE) + math.tan(_HALF_SIDE)) / _HALF_SIDE
-SPEED_SCALE = 1.0 / _MEAN_RADIUS
-ACCEL_SCALE = 1.0
-_INRADIUS = math.cos(_HALF_SIDE)
+# Inradius of the acceleration 16-gon, inscribed in the unit circle.
+_ACCEL_INRADIUS = math.cos(_HALF_SIDE)
+# Inradius of the speed 16-gon scaled to a mean radius of 1: the inscribed 16-gon's mean
+# radius is cos(h) ln(sec h + tan h) / h with h = pi/16, so this is h / ln(sec h + tan h).
+_SPEED_INRADIUS = _HALF_SIDE / math.log(1.0 / math.cos(_HALF_SIDE) + math.tan(_HALF_SIDE))
 # Facet normals of a 16-gon with a vertex at angle 0 (dead ahead in the heading frame).
 _NORMALS = tuple(
     (math.cos((2 * i + 1) * math.pi / _SIDES), math.sin((2 * i + 1) * math.pi / _SIDES))
@@ -144,6 +159,7 @@ class TargetSolution:
     time: float | None
     status: TargetStatus
     lps: int  # LPs solved for this target
+    node: int | None = None  # first node on the target: the arrival-step MILP's optimum
 
 
 class ApproachModelError(RuntimeError):
@@ -151,26 +167,26 @@ class ApproachModelError(RuntimeError):
 
 
 def default_steps(horizon_s: float) -> tuple[float, ...]:
-    """Step durations (s): 1 s for the first 20 s, then growing to 20 s steps.
+    """Step durations (s): 2 s for the first 20 s, then 5, 10, 20 and 30 s steps.
 
     Turning happens in the first ~20 s (a 180 deg turn at 30 m/s and 30 deg bank takes
-    17 s), so that part is fine-grained. Later the aircraft flies straight and the
-    in-step interpolation makes long steps nearly free of error, so the steps grow
-    (2 s to 40 s, 4 s to 120 s, 10 s to 300 s, then 20 s) to keep the horizon long and
-    the LP small.
+    17 s), so that part is fine-grained; later the aircraft flies straight and the
+    in-step interpolation makes long steps nearly free of error. A 600 s horizon takes
+    43 steps. Measured against a flown reference (bench/bench_approach.py), 1 s steps in
+    the first 20 s and 2-4 s steps to 120 s (83 steps) were no more accurate, and the
+    simplex pivots per LP grow with the number of nodes before the arrival, so this
+    grid is ~2.5x faster.
     """
     if horizon_s <= 0.0:
         raise ValueError(f"horizon must be positive, got {horizon_s}")
-    schedule = ((20.0, 1.0), (40.0, 2.0), (120.0, 4.0), (300.0, 10.0), (math.inf, 20.0))
+    schedule = ((20.0, 2.0), (60.0, 5.0), (120.0, 10.0), (300.0, 20.0), (math.inf, 30.0))
     steps: list[float] = []
     t = 0.0
     for until, dt in schedule:
         while t < min(until, horizon_s) - 1e-9:
-            step = min(dt, horizon_s - t)
+            step = min(dt, until - t, horizon_s - t)
             steps.append(step)
             t += step
-        if t >= horizon_s - 1e-9:
-            break
     return tuple(steps)
 
 
@@ -224,14 +240,116 @@ class _PersistentHighs:
         """Solve the LP; the optimal objective, or None if it is not optimal."""
         if self._highs is None:
             res = self._opt.solve(self._model)
-            ok = str(res.termination_condition).endswith("convergenceCriteriaSatisfied")
+            ok = res.termination_condition == TerminationCondition.convergenceCriteriaSatisfied
             return float(res.incumbent_objective) if ok else None
-        import highspy
 
         self._highs.run()
         if self._highs.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+            # Drop the basis, so that the next LP does not warm-start from a failed one.
+            self._highs.clearSolver()
             return None
         return float(self._highs.getInfo().objective_function_value)
+
+
+def build_point_mass(limits: AircraftLimits, steps: Sequence[float]) -> pyo.ConcreteModel:
+    """The Pyomo point-mass model on the time grid `steps`, in the heading frame.
+
+    Variables x, y, vx, vy on nodes 0..n, ax, ay on steps 0..n-1; node 0 is fixed at the
+    origin flying along +x at max speed (change vx[0]'s bounds for another speed, and
+    see `along_velocity_bounds`). The selection part (slacks sx, sy, gap vector ex, ey,
+    target tx, ty and the objective `gap`) serves the LP scan; the bench's MILP
+    reference reuses the rest.
+    """
+    n = len(steps)
+    v_cap = limits.max_speed * _SPEED_INRADIUS
+    a_cap = limits.max_accel * _ACCEL_INRADIUS
+    m = pyo.ConcreteModel(name="approach_time")
+    m.K = pyo.RangeSet(0, n)  # nodes
+    m.S = pyo.RangeSet(0, n - 1)  # steps
+    m.F = pyo.RangeSet(0, _SIDES - 1)  # polygon facets
+    m.x = pyo.Var(m.K)
+    m.y = pyo.Var(m.K)
+    m.vx = pyo.Var(m.K)
+    m.vy = pyo.Var(m.K)
+    m.ax = pyo.Var(m.S)
+    m.ay = pyo.Var(m.S)
+    # Slack pair per node: fixed to 0 on the node being tested, free elsewhere.
+    m.sx = pyo.Var(m.K)
+    m.sy = pyo.Var(m.K)
+    m.ex = pyo.Var()  # target minus the tested node's position
+    m.ey = pyo.Var()
+    m.tx = pyo.Var()  # target, fixed through its bounds
+    m.ty = pyo.Var()
+    m.gap = pyo.Var(bounds=(0.0, None))
+
+    def pos_x(b: Any, k: int) -> Any:
+        dt = steps[k]
+        return b.x[k + 1] == b.x[k] + dt * b.vx[k] + 0.5 * dt * dt * b.ax[k]
+
+    def pos_y(b: Any, k: int) -> Any:
+        dt = steps[k]
+        return b.y[k + 1] == b.y[k] + dt * b.vy[k] + 0.5 * dt * dt * b.ay[k]
+
+    def vel_x(b: Any, k: int) -> Any:
+        return b.vx[k + 1] == b.vx[k] + steps[k] * b.ax[k]
+
+    def vel_y(b: Any, k: int) -> Any:
+        return b.vy[k + 1] == b.vy[k] + steps[k] * b.ay[k]
+
+    def speed(b: Any, k: int, f: int) -> Any:
+        nx, ny = _NORMALS[f]
+        return nx * b.vx[k] + ny * b.vy[k] <= v_cap
+
+    def accel(b: Any, k: int, f: int) -> Any:
+        nx, ny = _NORMALS[f]
+        return nx * b.ax[k] + ny * b.ay[k] <= a_cap
+
+    def select_x(b: Any, k: int) -> Any:
+        return b.ex == b.tx - b.x[k] + b.sx[k]
+
+    def select_y(b: Any, k: int) -> Any:
+        return b.ey == b.ty - b.y[k] + b.sy[k]
+
+    def gauge(b: Any, f: int) -> Any:
+        nx, ny = _NORMALS[f]
+        return b.gap >= nx * b.ex + ny * b.ey
+
+    m.pos_x = pyo.Constraint(m.S, rule=pos_x)
+    m.pos_y = pyo.Constraint(m.S, rule=pos_y)
+    m.vel_x = pyo.Constraint(m.S, rule=vel_x)
+    m.vel_y = pyo.Constraint(m.S, rule=vel_y)
+    # Node 0 is fixed by bounds, so its speed needs no polygon.
+    m.speed = pyo.Constraint(pyo.RangeSet(1, n), m.F, rule=speed)
+    m.accel = pyo.Constraint(m.S, m.F, rule=accel)
+    m.select_x = pyo.Constraint(m.K, rule=select_x)
+    m.select_y = pyo.Constraint(m.K, rule=select_y)
+    m.gauge = pyo.Constraint(m.F, rule=gauge)
+    m.objective = pyo.Objective(expr=m.gap, sense=pyo.minimize)
+
+    # The heading frame puts the aircraft at the origin flying along +x.
+    for var in (m.x[0], m.y[0], m.vy[0], m.tx, m.ty):
+        var.setlb(0.0)
+        var.setub(0.0)
+    m.vx[0].setlb(limits.max_speed)
+    m.vx[0].setub(limits.max_speed)
+    return m
+
+
+def along_velocity_bounds(
+    limits: AircraftLimits, node_times: Sequence[float], speed: float
+) -> list[float | None]:
+    """Lower bound on the along-heading velocity at every node (None: unbounded).
+
+    V cos(w t) while w t < pi, with w = a_max / V the turn rate at the bank limit: the
+    convex hull of the velocities reachable by turning at most w t (module docstring).
+    Node 0 is the current velocity itself.
+    """
+    rate = limits.max_accel / speed
+    bounds: list[float | None] = [speed]
+    for t in node_times[1:]:
+        angle = rate * t
+        bounds.append(speed * math.cos(angle) if angle < math.pi else None)
+    return bounds
 
 
 def _nearest_neighbour_order(points: Sequence[tuple[float, float]]) -> list[int]:
@@ -287,10 +405,10 @@ class ApproachTimeModel:
         for dt in self._steps:
             times.append(times[-1] + dt)
         self._times = tuple(times)
-        self._model = self._build()
+        self._model = build_point_mass(limits, self._steps)
         self._solver = _PersistentHighs(self._model)
         self._selected: int | None = None
-        self._state: tuple[float, float] | None = None
+        self._speed: float | None = None
         self.build_seconds = time.perf_counter() - started
         logger.debug(
             "approach model built: %d steps, horizon %.0f s, %.3f s",
@@ -305,102 +423,29 @@ class ApproachTimeModel:
         return self._times[-1]
 
     @property
+    def steps(self) -> tuple[float, ...]:
+        """Duration of every step of the grid, seconds."""
+        return self._steps
+
+    @property
     def node_times(self) -> tuple[float, ...]:
         """Time of every node of the grid, seconds from now."""
         return self._times
 
-    def _build(self) -> pyo.ConcreteModel:
-        steps = self._steps
-        n = len(steps)
-        v_cap = self.limits.max_speed * _INRADIUS * SPEED_SCALE
-        a_cap = self.limits.max_accel * _INRADIUS * ACCEL_SCALE
-        m = pyo.ConcreteModel(name="approach_time")
-        m.K = pyo.RangeSet(0, n)  # nodes
-        m.S = pyo.RangeSet(0, n - 1)  # steps
-        m.F = pyo.RangeSet(0, _SIDES - 1)  # polygon facets
-        m.x = pyo.Var(m.K)
-        m.y = pyo.Var(m.K)
-        m.vx = pyo.Var(m.K)
-        m.vy = pyo.Var(m.K)
-        m.ax = pyo.Var(m.S)
-        m.ay = pyo.Var(m.S)
-        # Slack pair per node: fixed to 0 on the node being tested, free elsewhere.
-        m.sx = pyo.Var(m.K)
-        m.sy = pyo.Var(m.K)
-        m.ex = pyo.Var()  # target minus the tested node's position
-        m.ey = pyo.Var()
-        m.tx = pyo.Var()  # target, fixed through its bounds
-        m.ty = pyo.Var()
-        m.gap = pyo.Var(bounds=(0.0, None))
-
-        def pos_x(b: Any, k: int) -> Any:
-            dt = steps[k]
-            return b.x[k + 1] == b.x[k] + dt * b.vx[k] + 0.5 * dt * dt * b.ax[k]
-
-        def pos_y(b: Any, k: int) -> Any:
-            dt = steps[k]
-            return b.y[k + 1] == b.y[k] + dt * b.vy[k] + 0.5 * dt * dt * b.ay[k]
-
-        def vel_x(b: Any, k: int) -> Any:
-            return b.vx[k + 1] == b.vx[k] + steps[k] * b.ax[k]
-
-        def vel_y(b: Any, k: int) -> Any:
-            return b.vy[k + 1] == b.vy[k] + steps[k] * b.ay[k]
-
-        def speed(b: Any, k: int, f: int) -> Any:
-            nx, ny = _NORMALS[f]
-            return nx * b.vx[k] + ny * b.vy[k] <= v_cap
-
-        def accel(b: Any, k: int, f: int) -> Any:
-            nx, ny = _NORMALS[f]
-            return nx * b.ax[k] + ny * b.ay[k] <= a_cap
-
-        def select_x(b: Any, k: int) -> Any:
-            return b.ex == b.tx - b.x[k] + b.sx[k]
-
-        def select_y(b: Any, k: int) -> Any:
-            return b.ey == b.ty - b.y[k] + b.sy[k]
-
-        def gauge(b: Any, f: int) -> Any:
-            nx, ny = _NORMALS[f]
-            return b.gap >= nx * b.ex + ny * b.ey
-
-        m.pos_x = pyo.Constraint(m.S, rule=pos_x)
-        m.pos_y = pyo.Constraint(m.S, rule=pos_y)
-        m.vel_x = pyo.Constraint(m.S, rule=vel_x)
-        m.vel_y = pyo.Constraint(m.S, rule=vel_y)
-        # Node 0 is fixed by bounds, so its speed needs no polygon.
-        m.speed = pyo.Constraint(pyo.RangeSet(1, n), m.F, rule=speed)
-        m.accel = pyo.Constraint(m.S, m.F, rule=accel)
-        m.select_x = pyo.Constraint(m.K, rule=select_x)
-        m.select_y = pyo.Constraint(m.K, rule=select_y)
-        m.gauge = pyo.Constraint(m.F, rule=gauge)
-        m.objective = pyo.Objective(expr=m.gap, sense=pyo.minimize)
-
-        # The heading frame puts the aircraft at the origin flying along +x.
-        for var in (m.x[0], m.y[0], m.vy[0], m.tx, m.ty):
-            var.setlb(0.0)
-            var.setub(0.0)
-        m.vx[0].setlb(self.limits.max_speed)
-        m.vx[0].setub(self.limits.max_speed)
-        return m
-
     def _set_state(self, speed: float) -> None:
         """Initial speed and the turn-rate bounds on the along-heading velocity."""
-        if self._state == (speed, float(self.turn_constraint)):
+        if self._speed == speed:
             return
         m = self._model
         m.vx[0].setlb(speed)
         m.vx[0].setub(speed)
         changed = [m.vx[0]]
-        rate = self.limits.max_accel / speed
+        lowers = along_velocity_bounds(self.limits, self._times, speed)
         for k in range(1, len(self._times)):
-            angle = rate * self._times[k]
-            lower = speed * math.cos(angle) if self.turn_constraint and angle < math.pi else None
-            m.vx[k].setlb(lower)
+            m.vx[k].setlb(lowers[k] if self.turn_constraint else None)
             changed.append(m.vx[k])
         self._solver.push_bounds(changed)
-        self._state = (speed, float(self.turn_constraint))
+        self._speed = speed
 
     def _set_target(self, along: float, cross: float) -> None:
         m = self._model
@@ -428,7 +473,7 @@ class ApproachTimeModel:
     def _gauge_time(self, along: float, cross: float) -> float:
         """Time to cover (along, cross) at max speed inside the speed 16-gon."""
         reach = max(nx * along + ny * cross for nx, ny in _NORMALS)
-        return max(reach, 0.0) / (_INRADIUS * SPEED_SCALE * self.limits.max_speed)
+        return max(reach, 0.0) / (_SPEED_INRADIUS * self.limits.max_speed)
 
     def _first_node_at_or_after(self, t: float) -> int:
         return bisect.bisect_left(self._times, t - 1e-9)
@@ -450,11 +495,11 @@ class ApproachTimeModel:
                 return True
             return deadline is not None and time.monotonic() >= deadline
 
-        speed_cap = _INRADIUS * SPEED_SCALE * self.limits.max_speed
+        speed_cap = _SPEED_INRADIUS * self.limits.max_speed
         # Before any LP: node 0 is fixed, so its 16-gon distance is already a bound.
         bound = self._gauge_time(along, cross)
         if bound <= 0.0:
-            return TargetSolution(0.0, TargetStatus.SOLVED, 0)
+            return TargetSolution(0.0, TargetStatus.SOLVED, 0, node=0)
         self._set_target(along, cross)
         node = self._first_node_at_or_after(bound)
         last_refuted: int | None = None
@@ -487,7 +532,7 @@ class ApproachTimeModel:
             lps += 1
             if gap is not None:
                 bound = max(bound, self._times[node - 1] + gap / speed_cap)
-        return TargetSolution(min(bound, self._times[node]), TargetStatus.SOLVED, lps)
+        return TargetSolution(min(bound, self._times[node]), TargetStatus.SOLVED, lps, node)
 
     def solve_detailed(
         self,
@@ -498,6 +543,9 @@ class ApproachTimeModel:
         cancel: threading.Event | None = None,
     ) -> list[TargetSolution]:
         """Like `solve`, with the status of every target; `cancel` acts as a deadline."""
+        values = (*position, *velocity, *(c for target in targets for c in target))
+        if not all(math.isfinite(v) for v in values):
+            raise ValueError("position, velocity and targets must be finite")
         vx, vy = velocity
         reported = math.hypot(vx, vy)
         # Unit heading; east when the aircraft reports no velocity at all.
@@ -529,6 +577,4 @@ class ApproachTimeModel:
         that cannot be reached within the horizon, or whose turn came after
         `deadline` (a time.monotonic() value) had passed.
         """
-        return [
-            sol.time for sol in self.solve_detailed(position, velocity, targets, deadline)
-        ]
+        return [sol.time for sol in self.solve_detailed(position, velocity, targets, deadline)]

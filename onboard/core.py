@@ -285,6 +285,8 @@ class OnboardCore:
         assert self.round is not None
         result = UavResult(mission=self.round.mission, uav=self.uav_id, times=times)
         self.round.add_result(result)
+        # Teammates are computing too: the first fetch waits one interval.
+        self.round.last_fetch = now
         self.phase = "waiting" if self.round.committed is None else self.phase
         self.outputs.publish(keys.mission_result(result.mission, self.uav_id), result)
         self.outputs.send_ground(result)

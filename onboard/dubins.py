@@ -40,10 +40,19 @@ def turn_radius(speed: float, bank_limit_deg: float) -> float:
     return speed * speed / (GRAVITY * tan_bank)
 
 
+_ARC_EPS = 1e-9
+
+
 def _ccw(angle: float) -> float:
-    """Angle wrapped into [0, 2*pi): the arc swept counter-clockwise."""
+    """Angle wrapped into [0, 2*pi): the arc swept counter-clockwise.
+
+    An arc within rounding of a full turn is a zero arc computed from two nearly equal
+    angles (a target dead ahead), not a loop.
+    """
     wrapped = math.fmod(angle, _TWO_PI)
-    return wrapped + _TWO_PI if wrapped < 0.0 else wrapped
+    if wrapped < 0.0:
+        wrapped += _TWO_PI
+    return 0.0 if wrapped > _TWO_PI - _ARC_EPS else wrapped
 
 
 def _turn_then_straight(

@@ -62,7 +62,7 @@ class Recorder:
 
 @dataclass
 class ScriptedPlanner:
-    times: tuple[float | None, ...]
+    times: tuple[float, ...]
     requests: list[PlanRequest] = field(default_factory=list)
     _done: PlanResult | None = None
 
@@ -70,7 +70,11 @@ class ScriptedPlanner:
         self.requests.append(request)
         n = len(request.targets)
         self._done = PlanResult(
-            times=self.times[:n], fallback=(False,) * n, solve_seconds=0.01, error=None
+            request=request,
+            times=self.times[:n],
+            fallback=(False,) * n,
+            solve_seconds=0.01,
+            error=None,
         )
         return True
 
@@ -80,7 +84,7 @@ class ScriptedPlanner:
 
 
 def make_core(
-    uav: int = 112, times: tuple[float | None, ...] = (80.0, 40.0, 60.0)
+    uav: int = 112, times: tuple[float, ...] = (80.0, 40.0, 60.0)
 ) -> tuple[OnboardCore, Recorder]:
     recorder = Recorder()
     core = OnboardCore(uav_id=uav, outputs=recorder, planner=ScriptedPlanner(times))

@@ -1,0 +1,274 @@
+"""Background approach-time planning: the thesis's RunMILP / IsMILPRunning / GetElapsedTime.
+
+The thesis's MILPHandler ran CPLEX in a pthread so that the serial loop kept talking to
+the autopilot while the optimisation ran; the loop polled IsMILPRunning() on every
+iteration and read the result when it turned false. `PlannerWorker` keeps that contract
+for the approach-time model:
+
+=====================  ======================================================
+thesis                 here
+=====================  ======================================================
+``RunMILP()``          ``run(request) -> bool`` (False if a run is under way)
+``IsMILPRunning()``    ``is_running()``
+``GetElapsedTime()``   ``elapsed()`` (float seconds, not whole ``time_t``)
+global output vars     ``result()`` (a `PlanResult`, handed out once)
+=====================  ======================================================
+
+None of these calls blocks on the solver. The model is built in the worker thread
+right after construction (~0.3 s), so the constructor does not block either.
+
+Every run ends with a time for every target. The model stops starting LPs once the
+request's budget has elapsed; targets it did not reach get the analytic Dubins time
+(`onboard.dubins`), as do targets beyond the model's horizon, and `PlanResult.fallback`
+says which. An exception inside the model is logged and turned into a result with the
+Dubins time for every target and the exception in `error`; the model is then rebuilt
+before the next run, because a failure half-way through a bound update could leave the
+solver and the Pyomo model out of step.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from onboard.approach_model import (
+    AircraftLimits,
+    ApproachTimeModel,
+    TargetSolution,
+    TargetStatus,
+)
+from onboard.dubins import dubins_time_to_point, turn_radius
+
+__all__ = ["PlanRequest", "PlanResult", "PlannerWorker", "fallback_time"]
+
+logger = logging.getLogger(__name__)
+
+_JOIN_TIMEOUT_S = 5.0
+_DEFAULT_LIMITS = AircraftLimits()
+
+
+@dataclass(frozen=True)
+class PlanRequest:
+    """One planning job: the aircraft's state and the targets, in local metres."""
+
+    position: tuple[float, float]
+    velocity: tuple[float, float]
+    targets: tuple[tuple[float, float], ...]
+    budget_s: float
+
+    def __post_init__(self) -> None:
+        # A list passed by the caller becomes a tuple, so the request stays immutable.
+        object.__setattr__(self, "position", (float(self.position[0]), float(self.position[1])))
+        object.__setattr__(self, "velocity", (float(self.velocity[0]), float(self.velocity[1])))
+        object.__setattr__(self, "targets", tuple((float(x), float(y)) for x, y in self.targets))
+        values = (*self.position, *self.velocity, *(c for t in self.targets for c in t))
+        if not all(math.isfinite(v) for v in values):
+            raise ValueError("position, velocity and targets must be finite")
+        if not self.budget_s >= 0.0:
+            raise ValueError(f"budget must be >= 0 s, got {self.budget_s}")
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    """Approach time (s) to every target of `request`, in the request's order."""
+
+    request: PlanRequest
+    times: tuple[float, ...]
+    fallback: tuple[bool, ...]  # True where times[i] is the Dubins time, not the model's
+    solve_seconds: float  # from run() to the result, build included if it happened then
+    error: str | None = None  # the exception that made every target fall back
+    lps: int = 0  # LPs solved for this result
+
+
+def fallback_time(
+    limits: AircraftLimits,
+    position: tuple[float, float],
+    velocity: tuple[float, float],
+    target: tuple[float, float],
+) -> float:
+    """Dubins time to `target` at the current airspeed, clamped to the flight envelope.
+
+    A reported speed outside [min_speed, max_speed] (zero on the ground, or a ground
+    speed with tailwind) is clamped like the model does; with no velocity at all the
+    heading is taken as east.
+    """
+    reported = math.hypot(velocity[0], velocity[1])
+    speed = limits.clamp_speed(reported)
+    if reported > 1e-9:
+        flown = (velocity[0] * speed / reported, velocity[1] * speed / reported)
+    else:
+        flown = (speed, 0.0)
+    return dubins_time_to_point(position, flown, target, turn_radius(speed, limits.bank_limit_deg))
+
+
+class PlannerWorker:
+    """Runs an `ApproachTimeModel` in a background thread; poll it from the link loop."""
+
+    def __init__(
+        self,
+        limits: AircraftLimits = _DEFAULT_LIMITS,
+        horizon_s: float = 600.0,
+        *,
+        model_factory: Callable[[], ApproachTimeModel] | None = None,
+    ) -> None:
+        """Start the worker thread, which builds the model at once.
+
+        `model_factory` replaces the default `ApproachTimeModel(limits, horizon_s)`
+        (tests use it to inject failures); `limits` also drive the Dubins fallback.
+        """
+        self._limits = limits
+        self._factory: Callable[[], ApproachTimeModel] = model_factory or (
+            lambda: ApproachTimeModel(limits, horizon_s)
+        )
+        self._lock = threading.Lock()
+        self._wake = threading.Condition(self._lock)
+        self._cancel = threading.Event()
+        self._pending: PlanRequest | None = None
+        self._running = False
+        self._closed = False
+        self._started: float | None = None
+        self._finished: float | None = None
+        self._result: PlanResult | None = None
+        self._model: ApproachTimeModel | None = None
+        self._thread = threading.Thread(target=self._loop, name="planner-worker", daemon=True)
+        self._thread.start()
+
+    # -- the thesis's interface -------------------------------------------------------
+
+    def run(self, request: PlanRequest) -> bool:
+        """Start planning `request`; False (and nothing started) if a run is under way.
+
+        A result not yet taken with `result()` is discarded.
+        """
+        with self._lock:
+            if self._closed:
+                raise RuntimeError("planner worker is closed")
+            if self._running:
+                return False
+            self._running = True
+            self._started = time.monotonic()
+            self._finished = None
+            self._result = None
+            self._pending = request
+            self._wake.notify()
+        return True
+
+    def is_running(self) -> bool:
+        """True from `run()` until the result is ready."""
+        with self._lock:
+            return self._running
+
+    def elapsed(self) -> float:
+        """Seconds since the current run started (its duration once done; 0 before any)."""
+        with self._lock:
+            if self._started is None:
+                return 0.0
+            end = self._finished if self._finished is not None else time.monotonic()
+            return end - self._started
+
+    def result(self) -> PlanResult | None:
+        """The finished run's result, once; None while running or if already taken."""
+        with self._lock:
+            result, self._result = self._result, None
+            return result
+
+    def close(self) -> None:
+        """Stop the thread, abandoning any run at its next LP. Idempotent."""
+        with self._lock:
+            self._closed = True
+            self._cancel.set()
+            self._wake.notify()
+        if threading.current_thread() is not self._thread:
+            self._thread.join(_JOIN_TIMEOUT_S)
+            if self._thread.is_alive():
+                logger.warning("planner worker did not stop within %.1f s", _JOIN_TIMEOUT_S)
+
+    def __enter__(self) -> PlannerWorker:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- the worker thread ------------------------------------------------------------
+
+    def _loop(self) -> None:
+        self._ensure_model()
+        while True:
+            with self._lock:
+                while self._pending is None and not self._closed:
+                    self._wake.wait()
+                if self._closed:
+                    self._running = False
+                    return
+                request, self._pending = self._pending, None
+                if request is None:
+                    continue
+                started = self._started if self._started is not None else time.monotonic()
+            result = self._plan(request, started)
+            with self._lock:
+                self._result = result
+                self._finished = time.monotonic()
+                self._running = False
+
+    def _ensure_model(self) -> ApproachTimeModel | None:
+        """Build the model if there is none; a failure is logged and retried next run."""
+        if self._model is None and not self._cancel.is_set():
+            try:
+                self._model = self._factory()
+            except Exception:
+                logger.exception("building the approach model failed")
+        return self._model
+
+    def _plan(self, request: PlanRequest, started: float) -> PlanResult:
+        deadline = started + request.budget_s
+        solutions: Sequence[TargetSolution] = ()
+        error: str | None = None
+        try:
+            model = self._ensure_model()
+            if model is None:
+                raise RuntimeError("approach model unavailable")
+            solutions = model.solve_detailed(
+                request.position,
+                request.velocity,
+                request.targets,
+                deadline=deadline,
+                cancel=self._cancel,
+            )
+        except Exception as exc:
+            logger.exception("approach model failed; Dubins fallback for every target")
+            error = f"{type(exc).__name__}: {exc}"
+            solutions = ()
+            self._model = None  # rebuilt before the next run
+        times: list[float] = []
+        fallback: list[bool] = []
+        lps = 0
+        for i, target in enumerate(request.targets):
+            sol = solutions[i] if i < len(solutions) else None
+            if sol is not None:
+                lps += sol.lps
+            if sol is not None and sol.status is TargetStatus.SOLVED and sol.time is not None:
+                times.append(sol.time)
+                fallback.append(False)
+            else:
+                times.append(
+                    fallback_time(self._limits, request.position, request.velocity, target)
+                )
+                fallback.append(True)
+        if any(fallback) and error is None:
+            logger.info(
+                "planner: %d of %d targets used the Dubins fallback",
+                sum(fallback),
+                len(fallback),
+            )
+        return PlanResult(
+            request=request,
+            times=tuple(times),
+            fallback=tuple(fallback),
+            solve_seconds=time.monotonic() - started,
+            error=error,
+            lps=lps,
+        )
