@@ -138,7 +138,7 @@ def milp_arrival_node(
     if res.incumbent_objective is None:
         return None
     res.solution_loader.load_vars()
-    return max(m.N, key=lambda k: pyo.value(m.arrive[k]))
+    return int(max(m.N, key=lambda k: pyo.value(m.arrive[k])))
 
 
 def _random_targets(rng: random.Random, count: int) -> list[Point]:
@@ -309,14 +309,20 @@ def _error_table() -> list[str]:
         shipped = ApproachTimeModel(limits)
         radius = turn_radius(speed, limits.bank_limit_deg)
 
-        def by_pure(cases: Sequence[Point], m: ApproachTimeModel = pure) -> list[float | None]:
-            return m.solve((0.0, 0.0), velocity, cases)
+        def by_pure(
+            cases: Sequence[Point], m: ApproachTimeModel = pure, v: Point = velocity
+        ) -> list[float | None]:
+            return m.solve((0.0, 0.0), v, cases)
 
-        def by_model(cases: Sequence[Point], m: ApproachTimeModel = shipped) -> list[float | None]:
-            return m.solve((0.0, 0.0), velocity, cases)
+        def by_model(
+            cases: Sequence[Point], m: ApproachTimeModel = shipped, v: Point = velocity
+        ) -> list[float | None]:
+            return m.solve((0.0, 0.0), v, cases)
 
-        def by_dubins(cases: Sequence[Point], r: float = radius) -> list[float | None]:
-            return [dubins_time_to_point((0.0, 0.0), velocity, c, r) for c in cases]
+        def by_dubins(
+            cases: Sequence[Point], r: float = radius, v: Point = velocity
+        ) -> list[float | None]:
+            return [dubins_time_to_point((0.0, 0.0), v, c, r) for c in cases]
 
         lines.append(_error_row("pure point mass", by_pure, limits, _RING_RANGES_M))
         lines.append(

@@ -69,7 +69,9 @@ def _turn_then_straight(
     dx = target[0] - centre[0]
     dy = target[1] - centre[1]
     dist = math.hypot(dx, dy)
-    if dist < radius:
+    # A target on the circle (the start point itself, say) may land a rounding error
+    # inside it.
+    if dist < radius * (1.0 - 1e-9):
         return math.inf
     straight = math.sqrt(max(dist * dist - radius * radius, 0.0))
     # The tangent point Q sees the target along the direction of travel, so the angle of
@@ -130,6 +132,11 @@ def dubins_path_length(
     dx = target[0] - position[0]
     dy = target[1] - position[1]
     if radius <= 0.0:
+        return math.hypot(dx, dy)
+    if math.hypot(dx, dy) <= 1e-6 * radius:
+        # Already there. Near the start the tangent construction takes the square root of
+        # a difference of nearly equal squares, and its rounding could turn a zero arc
+        # into a full loop.
         return math.hypot(dx, dy)
     if not math.isfinite(radius):
         # The aircraft cannot turn: only points dead ahead are reachable.
