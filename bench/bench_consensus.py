@@ -86,11 +86,11 @@ def measure(size: int, missions: int, workdir: Path) -> list[tuple[float, float,
                 message = MissionTargets(mission, team, ring_targets(10, seed=mission))
                 sent = time.perf_counter()
                 ground.put(keys.mission_targets(mission), encode(message), encoding=ENCODING)
-                wait_until(
-                    lambda m=mission: all((m, u) in arrivals.commits for u in team),
-                    60.0,
-                    f"mission {mission} committed",
-                )
+
+                def committed(mission: int = mission) -> bool:
+                    return all((mission, u) in arrivals.commits for u in team)
+
+                wait_until(committed, 60.0, f"mission {mission} committed")
                 with arrivals.lock:
                     last_result = max(arrivals.results.get((mission, u), sent) for u in team)
                     last_commit = max(arrivals.commits[(mission, u)] for u in team)

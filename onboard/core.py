@@ -105,7 +105,9 @@ class OnboardCore:
         if self.phase == "flying" and previous == TARGET_WAYPOINT:
             self.phase = "reached"
             target = self.round.committed.target if self.round and self.round.committed else None
-            self.status(f"reached target {target}; resuming course at waypoint {track.waypoint}", now)
+            self.status(
+                f"reached target {target}; resuming course at waypoint {track.waypoint}", now
+            )
         if self.phase != "flying":
             self.original_waypoint = track.waypoint  # the course to come back to
 

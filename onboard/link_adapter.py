@@ -116,7 +116,10 @@ class LinkAdapter:
             self._stop.wait(self.poll_interval)
 
     def _service(self, now: float) -> None:
-        for endpoint, link in ((self.program, self.program_link), (self.payload, self.payload_link)):
+        for endpoint, link in (
+            (self.program, self.program_link),
+            (self.payload, self.payload_link),
+        ):
             if not endpoint.ensure_open(now):
                 continue
             data = endpoint.read(now)

@@ -10,7 +10,7 @@ from types import FrameType
 
 import zenoh
 
-from fleet.zenoh_config import MODES, default_connect, make_config
+from fleet.zenoh_config import DEFAULT_ROUTER, MODES, default_connect, make_config
 from onboard.process import OnboardProcess, OnboardSettings
 
 log = logging.getLogger("onboard")
@@ -25,7 +25,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--connect",
         action="append",
-        help=f"zenoh endpoint to connect to (default ${'{'}FLEET_ZENOH_CONNECT{'}'} or {default_connect()})",
+        help=f"zenoh endpoint to connect to (default $FLEET_ZENOH_CONNECT or {DEFAULT_ROUTER})",
     )
     parser.add_argument("--listen", action="append", help="zenoh endpoint to listen on")
     parser.add_argument("--mode", choices=MODES, default="client", help="zenoh session mode")

@@ -75,11 +75,14 @@ class _Outputs:
 
     def publish(self, key: str, message: msgspec.Struct) -> None:
         settings = self.process.settings
-        if settings.drop_first_result and isinstance(message, UavResult):
-            if message.mission not in self.dropped_results:
-                self.dropped_results.add(message.mission)
-                log.warning("test hook: first publication of %s dropped", key)
-                return
+        if (
+            settings.drop_first_result
+            and isinstance(message, UavResult)
+            and message.mission not in self.dropped_results
+        ):
+            self.dropped_results.add(message.mission)
+            log.warning("test hook: first publication of %s dropped", key)
+            return
         self.process.node.publish(key, message)
 
     def send_ground(self, message: StatusText | UavResult) -> None:

@@ -59,7 +59,10 @@ class ZenohNode:
         self._declared.append(
             session.liveliness().declare_subscriber(keys.ALL_ALIVE, self._on_presence, history=True)
         )
-        subscriptions = ((keys.opm(self.uav_id), OpmCommand), *_SUBSCRIPTIONS)
+        subscriptions: tuple[tuple[str, type[msgspec.Struct]], ...] = (
+            (keys.opm(self.uav_id), OpmCommand),
+            *_SUBSCRIPTIONS,
+        )
         for key, kind in subscriptions:
             self._declared.append(session.declare_subscriber(key, self._decoder(kind)))
         self.state_queries = session.declare_queryable(keys.state(self.uav_id))

@@ -183,9 +183,7 @@ def test_dubins_straight_ahead_is_distance_over_speed() -> None:
 
 def test_dubins_far_side_of_turn_circle_is_half_a_turn() -> None:
     half_turn = math.pi * R / V
-    assert dubins_time_to_point((0.0, 0.0), (V, 0.0), (0.0, 2.0 * R), R) == pytest.approx(
-        half_turn
-    )
+    assert dubins_time_to_point((0.0, 0.0), (V, 0.0), (0.0, 2.0 * R), R) == pytest.approx(half_turn)
     assert dubins_time_to_point((0.0, 0.0), (V, 0.0), (0.0, -2.0 * R), R) == pytest.approx(
         half_turn
     )
@@ -209,9 +207,7 @@ def test_dubins_matches_flown_pure_pursuit(bearing: int) -> None:
     target = polar(1500.0, bearing)
     flown = fly_pure_pursuit((0.0, 0.0), (V, 0.0), target, LIMITS)
     assert flown is not None
-    assert dubins_time_to_point((0.0, 0.0), (V, 0.0), target, R) == pytest.approx(
-        flown, rel=2e-3
-    )
+    assert dubins_time_to_point((0.0, 0.0), (V, 0.0), target, R) == pytest.approx(flown, rel=2e-3)
 
 
 coord = st.floats(-5000.0, 5000.0)

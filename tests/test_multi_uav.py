@@ -136,11 +136,11 @@ def test_five_uavs_eight_targets_then_four_uavs_two_targets(fleet: Fleet, tmp_pa
         idle = [u for u, r in seen.assignments.items() if r.target is None]
         assert len(idle) == 2
         for uav in idle:
-            wait_until(
-                lambda uav=uav: any("keeping course" in s for s in seen.statuses(uav)),
-                10.0,
-                "idle UAVs saying so",
-            )
+
+            def says_so(uav: int = uav) -> bool:
+                return any("keeping course" in s for s in seen.statuses(uav))
+
+            wait_until(says_so, 10.0, "idle UAVs saying so")
         seen.close()
 
 

@@ -207,6 +207,10 @@ def test_stale_messages_are_ignored_and_a_new_mission_supersedes() -> None:
     core.on_result(UavResult(3, 74, (1.0,)), 0.2)
     core.on_targets(MissionTargets(mission=10, team=(112,), targets=TARGETS[:2]), 0.3)
     assert core.round.mission == 10
+    core.tick(0.4)
+    published = {key for key, _ in out.published}
+    assert keys.mission_result(8, 112) not in published
+    assert keys.mission_result(10, 112) in published
 
 
 def test_abort_returns_to_the_original_course() -> None:

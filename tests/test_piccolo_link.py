@@ -10,9 +10,10 @@ from bench.mixed_stream import mixed_stream
 from fleet.autopilot_messages import UnknownAutopilotMessage
 from fleet.messages import BROADCAST, MISSION_MANAGER, MissionTargets, StatusText, Target, UavResult
 from fleet.piccolo_link import AutopilotEvent, PiccoloLink, PlanningEvent
-from fleet.planning_protocol import encode_message
+from fleet.planning_protocol import PlanningMessage, encode_message
 from fleet.stream_packet import ALL_OPERATOR_INTERFACES, StreamDecoder
-from fleet.telemetry import decode_telemetry, encode_telemetry
+from fleet.telemetry import Telemetry, decode_telemetry, encode_telemetry
+from fleet.waypoint import Waypoint
 from tests.link_samples import sample_telemetry, sample_waypoint, tracks, waypoints
 
 FIXTURES = Path(__file__).parent / "fixtures"
@@ -20,12 +21,16 @@ FIXTURES = Path(__file__).parent / "fixtures"
 
 def test_autopilot_messages_round_trip_through_the_link() -> None:
     sender, receiver = PiccoloLink(112), PiccoloLink(0xFFFE)
-    sent = [sample_telemetry(), sample_waypoint(), sample_telemetry(2000)]
+    sent: list[Telemetry | Waypoint] = [
+        sample_telemetry(),
+        sample_waypoint(),
+        sample_telemetry(2000),
+    ]
     wire = b"".join(sender.encode_autopilot(m, ALL_OPERATOR_INTERFACES) for m in sent)
     events = receiver.feed(wire)
     assert all(isinstance(e, AutopilotEvent) for e in events)
     got = [e.message for e in events if isinstance(e, AutopilotEvent)]
-    assert got == [decode_telemetry(encode_telemetry(sent[0])), sent[1], got[2]]
+    assert got == [decode_telemetry(encode_telemetry(sample_telemetry())), sent[1], got[2]]
     assert events[0].header.source == 112 and events[0].header.stream == 3
 
 
@@ -65,7 +70,11 @@ def test_planning_messages_on_the_payload_stream() -> None:
         team=(74, 112),
         targets=tuple(Target(42.0 + i / 100, -71.0, 90.0) for i in range(30)),
     )
-    messages = [StatusText("OK"), targets, UavResult(3, 112, (1.5, None, 3.0))]
+    messages: list[PlanningMessage] = [
+        StatusText("OK"),
+        targets,
+        UavResult(3, 112, (1.5, None, 3.0)),
+    ]
     wire = b"".join(
         sender.encode_payload(encode_message(m, 112, BROADCAST if i else MISSION_MANAGER), 0)
         for i, m in enumerate(messages)

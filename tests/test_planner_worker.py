@@ -1,0 +1,215 @@
+"""Tests of the background planner (onboard.planner_worker): the RunMILP contract."""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
+
+import pytest
+
+from onboard.approach_model import (
+    AircraftLimits,
+    ApproachTimeModel,
+    TargetSolution,
+    TargetStatus,
+)
+from onboard.planner_worker import PlannerWorker, PlanRequest, PlanResult, fallback_time
+
+LIMITS = AircraftLimits()
+V = LIMITS.max_speed
+TARGETS = ((1500.0, 0.0), (-1000.0, 800.0), (0.0, -2500.0))
+WAIT_S = 30.0  # generous: a timeout here means a hang, not a slow machine
+
+
+def request(
+    budget_s: float = 10.0, targets: Sequence[tuple[float, float]] = TARGETS
+) -> PlanRequest:
+    return PlanRequest(
+        position=(0.0, 0.0), velocity=(V, 0.0), targets=tuple(targets), budget_s=budget_s
+    )
+
+
+def wait_result(worker: PlannerWorker) -> PlanResult:
+    give_up = time.monotonic() + WAIT_S
+    while worker.is_running():
+        assert time.monotonic() < give_up, "planner never finished"
+        time.sleep(0.005)
+    result = worker.result()
+    assert result is not None
+    return result
+
+
+class GatedModel(ApproachTimeModel):
+    """A stand-in model: waits for `gate`, then answers 10 s per target (no Pyomo)."""
+
+    def __init__(self, gate: threading.Event) -> None:  # no super(): nothing to build
+        self.gate = gate
+
+    def solve_detailed(
+        self,
+        position: tuple[float, float],
+        velocity: tuple[float, float],
+        targets: Sequence[tuple[float, float]],
+        deadline: float | None = None,
+        cancel: threading.Event | None = None,
+    ) -> list[TargetSolution]:
+        while not self.gate.wait(0.01):
+            if cancel is not None and cancel.is_set():
+                return [TargetSolution(None, TargetStatus.DEADLINE, 0) for _ in targets]
+        return [TargetSolution(10.0, TargetStatus.SOLVED, 1) for _ in targets]
+
+
+class FailingModel(ApproachTimeModel):
+    """A stand-in model whose solve raises."""
+
+    def __init__(self) -> None:  # no super(): nothing to build
+        pass
+
+    def solve_detailed(
+        self,
+        position: tuple[float, float],
+        velocity: tuple[float, float],
+        targets: Sequence[tuple[float, float]],
+        deadline: float | None = None,
+        cancel: threading.Event | None = None,
+    ) -> list[TargetSolution]:
+        raise RuntimeError("solver exploded")
+
+
+@pytest.fixture
+def make_worker() -> Iterator[Callable[..., PlannerWorker]]:
+    workers: list[PlannerWorker] = []
+
+    def make(factory: Callable[[], ApproachTimeModel] | None = None) -> PlannerWorker:
+        worker = PlannerWorker(LIMITS, model_factory=factory)
+        workers.append(worker)
+        return worker
+
+    yield make
+    for worker in workers:
+        worker.close()
+
+
+def test_run_does_not_block_and_reports_progress(
+    make_worker: Callable[..., PlannerWorker],
+) -> None:
+    gate = threading.Event()
+    worker = make_worker(lambda: GatedModel(gate))
+    assert worker.elapsed() == 0.0
+    assert worker.run(request())  # returns while the model is held at the gate
+    assert worker.is_running()
+    assert worker.result() is None
+    assert not worker.run(request())  # already running: refused
+    first = worker.elapsed()
+    time.sleep(0.02)
+    assert worker.elapsed() > first > 0.0
+    gate.set()
+    result = wait_result(worker)
+    assert result.times == (10.0, 10.0, 10.0)
+    assert result.fallback == (False, False, False)
+    assert result.error is None
+    assert result.request.targets == TARGETS
+    assert worker.result() is None  # handed out once
+    done = worker.elapsed()
+    time.sleep(0.01)
+    assert worker.elapsed() == done  # frozen once finished
+    assert worker.run(request())  # free again
+    wait_result(worker)
+
+
+def test_real_model_matches_direct_solve(make_worker: Callable[..., PlannerWorker]) -> None:
+    worker = make_worker()
+    assert worker.run(request(budget_s=30.0))
+    result = wait_result(worker)
+    direct = ApproachTimeModel(LIMITS).solve((0.0, 0.0), (V, 0.0), TARGETS)
+    assert result.fallback == (False, False, False)
+    assert result.times == pytest.approx(direct, rel=1e-6)
+    assert result.solve_seconds > 0.0 and result.lps >= len(TARGETS)
+
+
+def test_tiny_budget_falls_back_to_dubins_and_says_so(
+    make_worker: Callable[..., PlannerWorker],
+) -> None:
+    worker = make_worker()
+    assert worker.run(request(budget_s=0.0))
+    result = wait_result(worker)
+    assert result.fallback == (True, True, True)
+    assert result.error is None
+    for target, t in zip(TARGETS, result.times, strict=True):
+        assert t == pytest.approx(fallback_time(LIMITS, (0.0, 0.0), (V, 0.0), target))
+    assert result.times[0] == pytest.approx(1500.0 / V)
+
+
+def test_beyond_horizon_gets_dubins_time(make_worker: Callable[..., PlannerWorker]) -> None:
+    worker = make_worker()
+    far = (30_000.0, 0.0)  # 1000 s at 30 m/s: past the 600 s horizon
+    assert worker.run(request(targets=[(1500.0, 0.0), far]))
+    result = wait_result(worker)
+    assert result.fallback == (False, True)
+    assert result.times[1] == pytest.approx(1000.0)
+
+
+def test_solver_exception_is_survived(make_worker: Callable[..., PlannerWorker]) -> None:
+    builds: list[int] = []
+    gate = threading.Event()
+    gate.set()
+
+    def factory() -> ApproachTimeModel:
+        builds.append(1)
+        return FailingModel() if len(builds) == 1 else GatedModel(gate)
+
+    worker = make_worker(factory)
+    assert worker.run(request())
+    result = wait_result(worker)
+    assert result.error is not None and "solver exploded" in result.error
+    assert result.fallback == (True, True, True)
+    assert all(math.isfinite(t) for t in result.times)
+    # The thread is alive and rebuilt its model: the next run is answered by the model.
+    assert worker.run(request())
+    again = wait_result(worker)
+    assert again.error is None and again.fallback == (False, False, False)
+    assert len(builds) == 2
+
+
+def test_model_build_failure_is_survived(make_worker: Callable[..., PlannerWorker]) -> None:
+    def factory() -> ApproachTimeModel:
+        raise OSError("no solver here")
+
+    worker = make_worker(factory)
+    assert worker.run(request())
+    result = wait_result(worker)
+    assert result.error is not None
+    assert result.fallback == (True, True, True)
+
+
+def test_close_abandons_a_run_and_is_idempotent(
+    make_worker: Callable[..., PlannerWorker],
+) -> None:
+    gate = threading.Event()  # never opened: only close() can end the run
+    worker = make_worker(lambda: GatedModel(gate))
+    assert worker.run(request())
+    worker.close()
+    worker.close()
+    assert not worker.is_running()
+    with pytest.raises(RuntimeError):
+        worker.run(request())
+
+
+def test_request_validation() -> None:
+    with pytest.raises(ValueError):
+        request(budget_s=-1.0)
+    with pytest.raises(ValueError):
+        request(targets=[(math.nan, 0.0)])
+    listed = PlanRequest(position=(0, 0), velocity=(V, 0), targets=[(1, 2)], budget_s=1)  # type: ignore[arg-type]
+    assert listed.targets == ((1.0, 2.0),)
+
+
+def test_fallback_time_clamps_speed() -> None:
+    # Stationary: min speed, heading east.
+    t = fallback_time(LIMITS, (0.0, 0.0), (0.0, 0.0), (1500.0, 0.0))
+    assert t == pytest.approx(1500.0 / LIMITS.min_speed)
+    # Faster than max airspeed (tailwind): max speed.
+    t = fallback_time(LIMITS, (0.0, 0.0), (0.0, 45.0), (0.0, 3000.0))
+    assert t == pytest.approx(3000.0 / V)
