@@ -1,6 +1,6 @@
 """Benchmark of the onboard approach-time model: solve times and prediction error.
 
-Run: ``.venv/bin/python -m bench.bench_approach`` (about 30-60 s on 2 shared cores).
+Run: ``.venv/bin/python -m bench.bench_approach`` (about 10 s on 2 shared cores).
 Prints markdown tables:
 
 1. Model build time, then solve time for 1, 4, 10 and 50 targets (one UAV, the model

@@ -26,17 +26,18 @@ Turn-rate linearisation (why the model is not a pure point mass)
 ---------------------------------------------------------------
 A free point mass brakes and reverses in a few seconds; the aircraft flies at constant
 airspeed V and turns at rate w = a_max / V. Against a flown bank-limited reference the
-pure point mass is up to 15 % optimistic for targets behind the aircraft at 1-3 km.
+pure point mass is up to 16 % optimistic for targets behind the aircraft at 1-3 km.
 The aircraft's heading after t seconds differs from its initial heading by at most
 theta(t) = w t, so its velocity lies on an arc of half-angle theta(t), whose convex hull
 is the circular segment {|v| <= V, v . h0 >= V cos theta}. The model therefore bounds
 the along-heading velocity from below: vx_k >= V cos(w t_k) while w t_k < pi. This is
 exact along track (the along-track velocity in a maximum-rate turn is exactly
 V cos(w t)) and relaxes only the lateral offset of the turn, which matters little
-beyond a few turn radii. Measured (docs/benchmarks-approach.md): worst error 15 % ->
-3-4 %, median ~0.5 %. A further bound tried, lateral offset >= r (1 - vx/V) (valid for
-a constant-speed aircraft turning toward the target), made arrival exactly at a node
-infeasible without weaving, up to 25 % pessimistic, and was dropped. Inside ~3 turn
+beyond a few turn radii. Measured (docs/benchmarks-approach.md, 30 m/s, 1-3 km, all
+bearings): worst error 16 % -> 4 %, median 0.5 %. A further bound tried, lateral
+offset >= r (1 - vx/V) (valid for a constant-speed aircraft turning toward the target),
+made arrival exactly at a node infeasible without weaving, up to 25 % pessimistic, and
+was dropped. Inside ~3 turn
 radii the relaxation stays optimistic (a point inside the turn circle needs a loop the
 point mass does not fly); see the benchmark figures.
 
@@ -44,31 +45,34 @@ point mass does not fly); see the benchmark figures.
 -------------------------------------
 Richards and How minimise the arrival step with one binary per step. Here the same
 model has no binaries: for a candidate node k one LP minimises D, the 16-gon distance
-from the node-k position to the target. D = 0 means "can be on the target at node k";
-the first such k is exactly the MILP optimum. D > 0 also proves a lower bound: velocity
-stays inside the speed 16-gon (inradius c), so a trajectory on the target at t' was
-within c (t' - t_k) of it at t_k, hence t' >= t_k + D / c. The scan starts at the
-straight-line bound and jumps to the first node past each proven bound instead of
-trying every node, so a target costs 1-3 LPs. The node is selected through the bounds
+from the node-k position to the target. D = 0 (to 1 cm) means "can be on the target
+at node k"; the first such k is exactly the MILP optimum (the bench checks this against
+a MILP with arrival binaries). D > 0 also proves a lower bound: velocity stays inside
+the speed 16-gon, of inradius c, so a trajectory on the target at t' was within
+c (t' - t_k) of it (16-gon norm) at t_k, hence t' >= t_k + D / c. The scan starts at
+the straight-line bound and jumps to the first node past each proven bound instead of
+trying every node, so a target costs about 2 LPs. The node is selected through the bounds
 of one slack pair per node (fixed at 0 on the tested node, free elsewhere).
 
-Arrival time inside the last step: t_{k-1} + D_{k-1} / c (the LP at k-1 is solved if
-the scan jumped over it), capped at t_k. It is the exact continuous arrival when the
-final leg is straight at full speed, which is how the aircraft ends every approach, and
-it removes the rounding up to the grid (up to a whole 10-30 s step). The bound from
-further back is not used: it ignores the turn and was up to 7 % optimistic.
+Arrival time inside the last step: the best of those lower bounds, capped at t_k,
+always including t_{k-1} + D_{k-1} / c (the LP at k-1 is solved if the scan jumped over
+it). That bound is the exact continuous arrival when the final leg is straight at full
+speed, which is how the aircraft ends every approach, and it removes the rounding up
+to the grid (up to a whole 10-30 s step). Bounds proven further back are loose (the
+straight-line bound ignores the turn): used alone they were up to 7 % optimistic.
 
 Targets are solved in nearest-neighbour order so that each LP warm-starts from the
 basis of a similar one (~25 % fewer simplex pivots).
 
 Speeds are clamped into [min_speed, max_speed]: a reported speed below the minimum
 (e.g. zero on the ground) is treated as min_speed along the reported direction, or east
-without one. Times assume the aircraft may fly at max_speed; if the autopilot holds a
+without one; one above the maximum (a ground speed with tailwind) as max_speed. Wind is
+not modelled. Times assume the aircraft may fly at max_speed; if the autopilot holds a
 lower commanded airspeed, build the model with that as max_speed.
 
 Pyomo overheads
 ---------------
-The persistent interface's `solve()` costs ~4 ms per call on top of a ~1-3 ms
+The persistent interface's `solve()` costs ~3-4 ms per call on top of a ~2-3 ms
 warm-started LP, and it redirects the process-wide stdout/stderr file descriptors while
 HiGHS runs, which would swallow other threads' log output in the onboard process. The
 model is therefore translated and updated through the persistent interface
@@ -373,8 +377,8 @@ def _nearest_neighbour_order(points: Sequence[tuple[float, float]]) -> list[int]
 class ApproachTimeModel:
     """Minimum approach time from one aircraft to each target; not thread-safe.
 
-    Build once (~0.3 s), then call `solve` as often as needed: each call costs a few
-    warm-started LPs per target.
+    Build once (~0.1 s), then call `solve` as often as needed: each call costs about
+    two warm-started LPs per target.
     """
 
     def __init__(
