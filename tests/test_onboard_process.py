@@ -81,7 +81,9 @@ def get_one(session: zenoh.Session, key: str, payload: bytes | None = None) -> z
 def test_state_query_answers_with_telemetry_and_link_health(rig: Rig) -> None:
     reply = get_one(rig.ground, keys.state(UAV))
     assert reply.ok is not None and str(reply.ok.encoding).startswith("application/json")
-    state = msgspec.json.decode(reply.ok.payload.to_bytes(), type=UavState)
+    answer = get_one(rig.ground, keys.state(UAV)).ok
+    assert answer is not None
+    state = msgspec.json.decode(answer.payload.to_bytes(), type=UavState)
     assert state.uav == UAV and state.enabled
     assert state.telemetry is not None and state.telemetry.gps is not None
     assert abs(state.telemetry.gps.lat - 35.72) < 0.05
@@ -108,9 +110,9 @@ def test_bad_command_and_bad_messages_are_refused_and_the_module_keeps_serving(r
     rig.ground.put(keys.mission_targets(77), b'{"mission": 77}', encoding=ENCODING)
     time.sleep(0.5)
     assert rig.onboard.process.poll() is None
-    state = msgspec.json.decode(
-        get_one(rig.ground, keys.state(UAV)).ok.payload.to_bytes(), type=UavState
-    )  # type: ignore[union-attr]
+    answer = get_one(rig.ground, keys.state(UAV)).ok
+    assert answer is not None
+    state = msgspec.json.decode(answer.payload.to_bytes(), type=UavState)
     assert state.enabled and state.mission is None
     assert any("dropped" in line and "OpmCommand" in line for line in rig.onboard.history)
 
