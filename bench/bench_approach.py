@@ -309,10 +309,16 @@ def _error_table() -> list[str]:
         shipped = ApproachTimeModel(limits)
         radius = turn_radius(speed, limits.bank_limit_deg)
 
-        def by_pure(
-            cases: Sequence[Point], m: ApproachTimeModel = pure, v: Point = velocity
+        def lp_alone(
+            cases: Sequence[Point], m: ApproachTimeModel, v: Point = velocity
         ) -> list[float | None]:
-            return m.solve((0.0, 0.0), v, cases)
+            return [s.lp_time for s in m.solve_detailed((0.0, 0.0), v, cases)]
+
+        def by_pure(cases: Sequence[Point], m: ApproachTimeModel = pure) -> list[float | None]:
+            return lp_alone(cases, m)
+
+        def by_lp(cases: Sequence[Point], m: ApproachTimeModel = shipped) -> list[float | None]:
+            return lp_alone(cases, m)
 
         def by_model(
             cases: Sequence[Point], m: ApproachTimeModel = shipped, v: Point = velocity
@@ -324,14 +330,16 @@ def _error_table() -> list[str]:
         ) -> list[float | None]:
             return [dubins_time_to_point((0.0, 0.0), v, c, r) for c in cases]
 
-        lines.append(_error_row("pure point mass", by_pure, limits, _RING_RANGES_M))
-        lines.append(
-            _error_row("**point mass + turn bound (shipped)**", by_model, limits, _RING_RANGES_M)
+        rows = (
+            ("pure point mass (LP alone)", by_pure, _RING_RANGES_M),
+            ("point mass + turn bound (LP alone)", by_lp, _RING_RANGES_M),
+            ("**shipped: + turn bound, Dubins cap**", by_model, _RING_RANGES_M),
+            ("Dubins time (the fallback)", by_dubins, _RING_RANGES_M),
+            ("near field: + turn bound (LP alone)", by_lp, _NEAR_RANGES_M),
+            ("near field: shipped", by_model, _NEAR_RANGES_M),
         )
-        lines.append(_error_row("Dubins time (fallback)", by_dubins, limits, _RING_RANGES_M))
-        lines.append(
-            _error_row("point mass + turn bound, near field", by_model, limits, _NEAR_RANGES_M)
-        )
+        for label, predict, ranges in rows:
+            lines.append(_error_row(label, predict, limits, ranges))
     return lines
 
 

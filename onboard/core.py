@@ -198,6 +198,7 @@ class OnboardCore:
             velocity=(gps.vel_east, gps.vel_north),
             targets=self._plan_targets,
             budget_s=self.planning_budget_s,
+            cruise_speed=math.hypot(gps.vel_east, gps.vel_north),
         )
         if not self.planner.run(request):
             self.status("warning: planner still busy with the previous mission", now)

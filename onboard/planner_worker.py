@@ -15,7 +15,7 @@ global output vars     ``result()`` (a `PlanResult`, handed out once)
 =====================  ======================================================
 
 None of these calls blocks on the solver. The model is built in the worker thread
-right after construction (~0.3 s), so the constructor does not block either.
+right after construction (~0.1 s), so the constructor does not block either.
 
 Every run ends with a time for every target. The model stops starting LPs once the
 request's budget has elapsed; targets it did not reach get the analytic Dubins time
@@ -33,7 +33,7 @@ import math
 import threading
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from onboard.approach_model import (
     AircraftLimits,
@@ -49,6 +49,8 @@ logger = logging.getLogger(__name__)
 
 _JOIN_TIMEOUT_S = 5.0
 _DEFAULT_LIMITS = AircraftLimits()
+#: A cruise speed this close to the model's top speed reuses the model.
+CRUISE_SPEED_TOLERANCE = 0.5
 
 
 @dataclass(frozen=True)
@@ -59,6 +61,9 @@ class PlanRequest:
     velocity: tuple[float, float]
     targets: tuple[tuple[float, float], ...]
     budget_s: float
+    #: The speed the aircraft holds, m/s: the module never changes airspeed, so the
+    #: model's top speed is this one. None: the limits' `max_speed`.
+    cruise_speed: float | None = None
 
     def __post_init__(self) -> None:
         # A list passed by the caller becomes a tuple, so the request stays immutable.
@@ -121,8 +126,10 @@ class PlannerWorker:
         (tests use it to inject failures); `limits` also drive the Dubins fallback.
         """
         self._limits = limits
+        self._ceiling = limits.max_speed  # the airframe's, whatever the cruise speed
+        self._custom_factory = model_factory is not None
         self._factory: Callable[[], ApproachTimeModel] = model_factory or (
-            lambda: ApproachTimeModel(limits, horizon_s)
+            lambda: ApproachTimeModel(self._limits, horizon_s)
         )
         self._lock = threading.Lock()
         self._wake = threading.Condition(self._lock)
@@ -134,6 +141,7 @@ class PlannerWorker:
         self._finished: float | None = None
         self._result: PlanResult | None = None
         self._model: ApproachTimeModel | None = None
+        self._build_error: str | None = None
         self._thread = threading.Thread(target=self._loop, name="planner-worker", daemon=True)
         self._thread.start()
 
@@ -219,25 +227,39 @@ class PlannerWorker:
         if self._model is None and not self._cancel.is_set():
             try:
                 self._model = self._factory()
-            except Exception:
+                self._build_error = None
+            except Exception as exc:
                 logger.exception("building the approach model failed")
+                self._build_error = f"{type(exc).__name__}: {exc}"
         return self._model
 
+    def _adopt_cruise_speed(self, request: PlanRequest) -> None:
+        """Rebuild the model (about 50 ms) when the aircraft's speed has moved on."""
+        if request.cruise_speed is None or self._custom_factory:
+            return
+        speed = min(max(request.cruise_speed, self._limits.min_speed), self._ceiling)
+        if abs(speed - self._limits.max_speed) > CRUISE_SPEED_TOLERANCE:
+            logger.info("approach model rebuilt for a cruise speed of %.1f m/s", speed)
+            self._limits = replace(self._limits, max_speed=speed)
+            self._model = None
+
     def _plan(self, request: PlanRequest, started: float) -> PlanResult:
+        self._adopt_cruise_speed(request)
         deadline = started + request.budget_s
         solutions: Sequence[TargetSolution] = ()
         error: str | None = None
+        model = self._ensure_model()
+        if model is None:
+            error = f"approach model unavailable: {self._build_error or 'closing'}"
         try:
-            model = self._ensure_model()
-            if model is None:
-                raise RuntimeError("approach model unavailable")
-            solutions = model.solve_detailed(
-                request.position,
-                request.velocity,
-                request.targets,
-                deadline=deadline,
-                cancel=self._cancel,
-            )
+            if model is not None:
+                solutions = model.solve_detailed(
+                    request.position,
+                    request.velocity,
+                    request.targets,
+                    deadline=deadline,
+                    cancel=self._cancel,
+                )
         except Exception as exc:
             logger.exception("approach model failed; Dubins fallback for every target")
             error = f"{type(exc).__name__}: {exc}"
@@ -258,7 +280,7 @@ class PlannerWorker:
                     fallback_time(self._limits, request.position, request.velocity, target)
                 )
                 fallback.append(True)
-        if any(fallback) and error is None:
+        if any(fallback) and error is None and not self._cancel.is_set():
             logger.info(
                 "planner: %d of %d targets used the Dubins fallback",
                 sum(fallback),

@@ -92,8 +92,8 @@ def test_lp_scan_finds_the_first_feasible_node(model: ApproachTimeModel) -> None
     target = polar(1800.0, 150.0)
     (sol,) = model.solve_detailed((0.0, 0.0), (V, 0.0), [target])
     assert sol.status is TargetStatus.SOLVED and sol.node is not None
-    assert sol.time is not None
-    assert model.node_times[sol.node - 1] < sol.time <= model.node_times[sol.node]
+    assert sol.lp_time is not None
+    assert model.node_times[sol.node - 1] < sol.lp_time <= model.node_times[sol.node]
     # Exhaustive check through the model's own LP (private, on purpose).
     model._set_target(target[0], abs(target[1]))
     gaps = [model._gap_at(k) for k in range(sol.node + 1)]
@@ -103,7 +103,9 @@ def test_lp_scan_finds_the_first_feasible_node(model: ApproachTimeModel) -> None
 
 def test_turn_bound_tracks_flown_time_on_all_bearings(model: ApproachTimeModel) -> None:
     targets = [polar(2000.0, b) for b in range(0, 360, 30)]
-    predicted = model.solve((0.0, 0.0), (V, 0.0), targets)
+    # The LP's own estimate: the reported time is also capped by the Dubins time, which
+    # is this reference's time by construction.
+    predicted = [s.lp_time for s in model.solve_detailed((0.0, 0.0), (V, 0.0), targets)]
     for target, t in zip(targets, predicted, strict=True):
         flown = fly_pure_pursuit((0.0, 0.0), (V, 0.0), target, LIMITS)
         assert t is not None and flown is not None
@@ -113,10 +115,20 @@ def test_turn_bound_tracks_flown_time_on_all_bearings(model: ApproachTimeModel) 
 def test_turn_bound_beats_pure_point_mass_behind() -> None:
     target = (-1000.0, 0.0)
     flown = fly_pure_pursuit((0.0, 0.0), (V, 0.0), target, LIMITS)
-    (pure,) = ApproachTimeModel(LIMITS, turn_constraint=False).solve((0, 0), (V, 0), [target])
-    (turn,) = ApproachTimeModel(LIMITS).solve((0.0, 0.0), (V, 0.0), [target])
+    pure_model = ApproachTimeModel(LIMITS, turn_constraint=False)
+    (pure_sol,) = pure_model.solve_detailed((0.0, 0.0), (V, 0.0), [target])
+    (turn_sol,) = ApproachTimeModel(LIMITS).solve_detailed((0.0, 0.0), (V, 0.0), [target])
+    pure, turn = pure_sol.lp_time, turn_sol.lp_time
     assert flown is not None and pure is not None and turn is not None
     assert abs(turn - flown) < abs(pure - flown)
+
+
+def test_target_passed_between_nodes_is_capped_by_dubins(model: ApproachTimeModel) -> None:
+    # 3 m dead ahead: the aircraft is there in 0.1 s, but the LP can only place the
+    # arrival on a node (2 s), where the point mass cannot be without turning round.
+    (sol,) = model.solve_detailed((0.0, 0.0), (V, 0.0), [(3.0, 0.0)])
+    assert sol.lp_time is not None and sol.lp_time > 10.0
+    assert sol.time == pytest.approx(3.0 / V)
 
 
 def test_target_on_the_aircraft_takes_no_time(model: ApproachTimeModel) -> None:
@@ -152,6 +164,15 @@ def test_rejects_non_finite_input(model: ApproachTimeModel) -> None:
         model.solve((0.0, math.nan), (V, 0.0), [(1.0, 1.0)])
     with pytest.raises(ValueError):
         model.solve((0.0, 0.0), (V, 0.0), [(math.inf, 1.0)])
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [{"min_speed": 0.0}, {"min_speed": 31.0}, {"bank_limit_deg": 0.0}, {"bank_limit_deg": 90.0}],
+)
+def test_limits_are_validated(kwargs: dict[str, float]) -> None:
+    with pytest.raises(ValueError):
+        AircraftLimits(**kwargs)
 
 
 def test_default_steps_cover_the_horizon() -> None:
