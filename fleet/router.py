@@ -66,7 +66,7 @@ class Router:
     def close(self) -> None:
         session, self._session = self._session, None
         if session is not None:
-            session.close()  # type: ignore[no-untyped-call]  # zenoh's stub is untyped
+            session.close()
 
     def __enter__(self) -> Self:
         self.open()

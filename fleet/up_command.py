@@ -370,8 +370,13 @@ def _fly_demo(
 ) -> dict[str, Any]:
     team = tuple(sorted(fleet.uav_ids))
 
+    last_status: dict[int, str] = {}
+
     def on_status(uav: int, text: str) -> None:
-        say(f"  UAV {uav}: {text}")
+        # The modules repeat a summary every second; show only what changed.
+        if last_status.get(uav) != text:
+            last_status[uav] = text
+            say(f"  UAV {uav}: {text}")
 
     def on_message(kind: str, message: UavResult | AssignmentReport) -> None:
         if isinstance(message, AssignmentReport):

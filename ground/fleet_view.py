@@ -104,13 +104,19 @@ def with_telemetry(view: UavView, telemetry: Telemetry) -> UavView:
     return replace(view, **changes)
 
 
+def _age(seconds: float | None) -> float | None:
+    # Clocks sampled a hair apart can report a few milliseconds below zero; an age is
+    # never negative.
+    return None if seconds is None else max(0.0, seconds)
+
+
 def view_from_state(state: UavState) -> UavView:
     view = UavView(
         id=state.uav,
         tracked_waypoint=state.tracked_waypoint,
         enabled=state.enabled,
         status_rate_hz=state.status_rate_hz,
-        telemetry_age_s=state.link.telemetry_age_s if state.link is not None else None,
+        telemetry_age_s=_age(state.link.telemetry_age_s) if state.link is not None else None,
         last_status=state.last_status,
     )
     if state.telemetry is not None:

@@ -98,7 +98,7 @@ class LinkAdapter:
             payload_up=self.payload.up,
             packets=packets,
             drops=drops,
-            telemetry_age_s=None if last is None else round(now - last, 3),
+            telemetry_age_s=None if last is None else round(max(0.0, now - last), 3),
         )
 
     # ---- the loop -------------------------------------------------------------------

@@ -95,13 +95,13 @@ class FakeOnboard:
             self._thread = threading.Thread(target=self._publish_loop, daemon=True)
             self._thread.start()
         except BaseException:
-            self.session.close()  # type: ignore[no-untyped-call]
+            self.session.close()
             raise
 
     def close(self) -> None:
         self._stop.set()
         self._thread.join(timeout=5)
-        self.session.close()  # type: ignore[no-untyped-call]
+        self.session.close()
 
     def telemetry(self) -> Telemetry:
         return Telemetry(

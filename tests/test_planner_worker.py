@@ -218,7 +218,7 @@ def test_fallback_time_clamps_speed() -> None:
 def test_cruise_speed_rebuilds_the_model_for_the_speed_flown() -> None:
     ahead = ((2200.0, 0.0),)
     with PlannerWorker() as worker:
-        times = {}
+        times: dict[float, list[float]] = {}
         for speed in (22.0, 28.0, 22.0):
             request = PlanRequest((0.0, 0.0), (speed, 0.0), ahead, 30.0, cruise_speed=speed)
             assert worker.run(request)

@@ -293,4 +293,4 @@ def test_fleet_up_refuses_an_unknown_scenario_before_starting_anything(
     assert "no_such_scenario" in capsys.readouterr().err
     assert not (tmp_path / "pids").exists()
     with pytest.raises(zenoh.ZError):  # no router was left behind
-        zenoh.open(make_config("client", [endpoint])).close()  # type: ignore[no-untyped-call]
+        zenoh.open(make_config("client", [endpoint])).close()
