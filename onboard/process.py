@@ -252,25 +252,19 @@ class OnboardProcess:
 
     def _on_mission_query(self, query: zenoh.Query) -> None:
         """Serve the current mission's targets, our result and our assignment."""
-        parts = str(query.key_expr).split("/")
         targets = self.core.mission_targets()
-        if targets is None or len(parts) < 4:
+        if targets is None:
             return
         mission = targets.mission
-        if parts[2] not in ("*", "**", str(mission)):
-            return
-        uav = self.settings.uav_id
-        wanted = "/".join(parts[3:])
         answers: list[tuple[str, msgspec.Struct | None]] = [
-            ("targets", targets),
-            (f"result/{uav}", self.core.own_result(mission)),
-            (f"assignment/{uav}", self.core.own_assignment(mission)),
+            (keys.mission_targets(mission), targets),
+            (keys.mission_result(mission, self.settings.uav_id), self.core.own_result(mission)),
+            (
+                keys.mission_assignment(mission, self.settings.uav_id),
+                self.core.own_assignment(mission),
+            ),
         ]
-        for leaf, message in answers:
-            if message is not None and _matches(wanted, leaf):
-                reply(query, f"{keys.PREFIX}/mission/{mission}/{leaf}", message)
-
-
-def _matches(pattern: str, leaf: str) -> bool:
-    """Does a key-expression tail (`*`, `**`, literal chunks) match a concrete tail?"""
-    return bool(zenoh.KeyExpr(pattern).intersects(zenoh.KeyExpr(leaf)))
+        for key, message in answers:
+            # Reply with the concrete key, or consolidation would merge the replies.
+            if message is not None and query.key_expr.intersects(zenoh.KeyExpr(key)):
+                reply(query, key, message)
