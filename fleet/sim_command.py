@@ -20,6 +20,7 @@ from collections.abc import Callable, Sequence
 from types import FrameType
 from typing import Any
 
+from fleet.cli_types import non_negative_float, positive_float, tcp_port
 from fleet.sim.autopilot import (
     DEFAULT_TELEMETRY_HZ,
     MAX_TELEMETRY_HZ,
@@ -44,27 +45,6 @@ EXIT_USAGE = 2
 EXIT_RUNTIME = 1
 
 
-def _positive(text: str) -> float:
-    value = float(text)
-    if not value > 0.0:
-        raise argparse.ArgumentTypeError(f"must be positive, got {text}")
-    return value
-
-
-def _non_negative(text: str) -> float:
-    value = float(text)
-    if not value >= 0.0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
-    return value
-
-
-def _port(text: str) -> int:
-    value = int(text)
-    if not 0 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f"not a TCP port: {text}")
-    return value
-
-
 def configure_parser(parser: argparse.ArgumentParser) -> None:
     """Add the `fleet sim` arguments to `parser`."""
     parser.add_argument(
@@ -83,35 +63,35 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", default=DEFAULT_HOST, help="address to listen on (%(default)s)")
     parser.add_argument(
         "--program-port",
-        type=_port,
+        type=tcp_port,
         default=DEFAULT_PROGRAM_PORT,
         metavar="P",
         help="first program port; aircraft i gets P+i; 0 picks free ports (%(default)s)",
     )
     parser.add_argument(
         "--payload-port",
-        type=_port,
+        type=tcp_port,
         default=DEFAULT_PAYLOAD_PORT,
         metavar="P",
         help="first payload port, onboard side (%(default)s)",
     )
     parser.add_argument(
         "--ground-port",
-        type=_port,
+        type=tcp_port,
         default=DEFAULT_GROUND_PORT,
         metavar="P",
         help="first ground port, the ground side of the payload pipe (%(default)s)",
     )
     parser.add_argument(
         "--speedup",
-        type=_non_negative,
+        type=non_negative_float,
         default=DEFAULT_SPEEDUP,
         metavar="K",
         help="simulated seconds per wall second; 0 runs as fast as possible (%(default)s)",
     )
     parser.add_argument(
         "--telemetry-hz",
-        type=_positive,
+        type=positive_float,
         default=DEFAULT_TELEMETRY_HZ,
         metavar="F",
         help=f"telemetry rate in simulated Hz, at most {MAX_TELEMETRY_HZ:g} (%(default)s)",
@@ -124,7 +104,7 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--acceptance-radius",
-        type=_positive,
+        type=positive_float,
         default=DEFAULT_ACCEPTANCE_RADIUS,
         metavar="M",
         help="distance (m) at which a waypoint counts as reached (%(default)s)",

@@ -30,6 +30,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any, TextIO
 
+from fleet.cli_types import bounded_int, positive_float
 from fleet.launcher import (
     DEFAULT_START_TIMEOUT_S,
     Child,
@@ -72,30 +73,10 @@ DEMO_REACH_TIMEOUT_S = 300.0
 TARGET_WAYPOINT_MATCH_M = 30.0
 
 
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not math.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"{text!r} must be a positive number")
-    return value
-
-
-def _count(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if not 1 <= value <= 500:
-        raise argparse.ArgumentTypeError("the number of UAVs must be 1-500")
-    return value
-
-
 def _common_arguments(parser: argparse.ArgumentParser, speedup: float) -> None:
     parser.add_argument(
         "--speedup",
-        type=_positive,
+        type=positive_float,
         default=speedup,
         metavar="K",
         help="simulated seconds per wall second (default %(default)g)",
@@ -108,7 +89,7 @@ def _common_arguments(parser: argparse.ArgumentParser, speedup: float) -> None:
     )
     parser.add_argument(
         "--start-timeout",
-        type=_positive,
+        type=positive_float,
         default=DEFAULT_START_TIMEOUT_S,
         metavar="S",
         help="how long to wait for every UAV to come up (default %(default)g s)",
@@ -128,7 +109,10 @@ def add_up_parser(
         "scenario", nargs="?", metavar="SCENARIO", help="a shipped scenario name or a TOML file"
     )
     which.add_argument(
-        "--uavs", type=_count, metavar="N", help="N generated UAVs (ids 101..) on a ring"
+        "--uavs",
+        type=bounded_int(1, 500, "number of UAVs"),
+        metavar="N",
+        help="N generated UAVs (ids 101..) on a ring",
     )
     parser.add_argument(
         "--listen",
@@ -167,7 +151,7 @@ def add_demo_parser(
     )
     parser.add_argument(
         "--timeout",
-        type=_positive,
+        type=positive_float,
         default=DEMO_REACH_TIMEOUT_S,
         metavar="S",
         help="wall seconds to wait for the targets to be reached (default %(default)g)",

@@ -10,12 +10,12 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import math
 import sys
 import threading
 from typing import Any, TextIO
 
 from fleet import keys
+from fleet.cli_types import bounded_int, non_negative_float, positive_float
 from fleet.messages import AssignmentReport, MissionTargets, StatusText, Target, UavResult
 from fleet.targets_file import TargetsFileError, read_targets
 from fleet.zenoh_config import CONNECT_ENV, default_connect
@@ -62,26 +62,6 @@ DELIVERY_WAIT_S = 3.0
 
 
 # ---- argument types -------------------------------------------------------------------------
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not math.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"{text!r} must be a positive number")
-    return value
-
-
-def _non_negative_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not math.isfinite(value) or value < 0:
-        raise argparse.ArgumentTypeError(f"{text!r} must be a number >= 0")
-    return value
-
-
 def _piccolo_id(text: str) -> int:
     try:
         value = int(text)
@@ -111,16 +91,6 @@ def _mission_id(text: str) -> int:
     return value
 
 
-def _count(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError("the count must be at least 1")
-    return value
-
-
 # ---- the parser ---------------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
@@ -137,7 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--query-timeout",
-        type=_positive_float,
+        type=positive_float,
         default=1.0,
         metavar="S",
         help="how long each Zenoh query waits for answers (default 1 s)",
@@ -166,14 +136,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     send.add_argument(
         "--timeout",
-        type=_positive_float,
+        type=positive_float,
         default=60.0,
         metavar="S",
         help="how long --wait waits (default 60 s)",
     )
     send.add_argument(
         "--deadline",
-        type=_positive_float,
+        type=positive_float,
         default=DEFAULT_DEADLINE_S,
         metavar="S",
         help="how long each UAV waits for its teammates' results (default %(default)g s)",
@@ -188,12 +158,14 @@ def build_parser() -> argparse.ArgumentParser:
     send.set_defaults(handler=cmd_send_targets)
 
     watch_cmd = commands.add_parser("watch", help="live table of the fleet and its status box")
-    watch_cmd.add_argument("--count", type=_count, metavar="N", help="stop after N tables")
     watch_cmd.add_argument(
-        "--duration", type=_positive_float, metavar="S", help="stop after S seconds"
+        "--count", type=bounded_int(1, what="count"), metavar="N", help="stop after N tables"
     )
     watch_cmd.add_argument(
-        "--interval", type=_positive_float, default=1.0, metavar="S", help="table period (1 s)"
+        "--duration", type=positive_float, metavar="S", help="stop after S seconds"
+    )
+    watch_cmd.add_argument(
+        "--interval", type=positive_float, default=1.0, metavar="S", help="table period (1 s)"
     )
     watch_cmd.set_defaults(handler=cmd_watch)
 
@@ -202,7 +174,7 @@ def build_parser() -> argparse.ArgumentParser:
     opm.add_argument("state", choices=("on", "off"))
     opm.add_argument(
         "--status-rate",
-        type=_non_negative_float,
+        type=non_negative_float,
         default=1.0,
         metavar="HZ",
         help="status messages a second; 0: only on change (default 1)",
@@ -237,7 +209,7 @@ def build_parser() -> argparse.ArgumentParser:
     keys_cmd.add_argument("--admin", action="store_true", help="the router's admin space too")
     keys_cmd.add_argument(
         "--window",
-        type=_non_negative_float,
+        type=non_negative_float,
         default=1.0,
         metavar="S",
         help="how long to listen for published-only keys (default 1 s)",

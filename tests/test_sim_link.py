@@ -34,7 +34,6 @@ from fleet.piccolo_link import AutopilotEvent, PiccoloLink
 from fleet.sim.autopilot import (
     STEP_MS,
     AutopilotSettings,
-    BoundedBuffer,
     ProgramConnection,
     SimulatedAutopilot,
 )
@@ -267,16 +266,6 @@ def test_garbage_never_disturbs_the_aircraft(seed: int, when: list[int]) -> None
     # Afterwards the line still works.
     noisy.send(Track(2))
     assert Track(2) in [e.message for e in noisy.events()]
-
-
-def test_bounded_buffer_drops_its_oldest_bytes() -> None:
-    buffer = BoundedBuffer(capacity=8)
-    buffer.extend(b"0123456789")
-    assert buffer.peek() == b"23456789"
-    assert buffer.dropped == 2
-    buffer.consume(3)
-    assert buffer.take() == b"56789"
-    assert len(buffer) == 0
 
 
 # -- over real ports ----------------------------------------------------------------------

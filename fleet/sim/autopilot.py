@@ -42,6 +42,7 @@ from fleet.sim.flight_plan import FlightPlan, FlightPlanError, check_indices
 from fleet.sim.guidance import DEFAULT_ACCEPTANCE_RADIUS, GuidanceSettings, command_toward, wrap_pi
 from fleet.sim.scenario import UavSpec
 from fleet.stream_packet import ALL_OPERATOR_INTERFACES, BROADCAST_AVIONICS
+from fleet.stream_queue import StreamQueue
 from fleet.telemetry import GpsBlock, RawBlock, SensorBlock, Telemetry
 from fleet.track import Track
 from fleet.waypoint import Waypoint
@@ -65,36 +66,9 @@ _MS_PER_WEEK = 7 * 24 * 3600 * 1000
 _MAX_WAYPOINT_LAT = 85.0
 
 
-class BoundedBuffer:
-    """A byte FIFO of bounded size that drops its oldest bytes on overflow, counting them."""
-
-    def __init__(self, capacity: int = OUTPUT_CAPACITY) -> None:
-        if capacity <= 0:
-            raise ValueError(f"capacity must be positive, got {capacity}")
-        self.capacity = capacity
-        self.dropped = 0
-        self._data = bytearray()
-
-    def extend(self, data: bytes | bytearray | memoryview) -> None:
-        self._data += data
-        excess = len(self._data) - self.capacity
-        if excess > 0:
-            del self._data[:excess]
-            self.dropped += excess
-
-    def peek(self) -> bytes:
-        return bytes(self._data)
-
-    def consume(self, count: int) -> None:
-        del self._data[:count]
-
-    def take(self) -> bytes:
-        data = bytes(self._data)
-        self._data.clear()
-        return data
-
-    def __len__(self) -> int:
-        return len(self._data)
+def bounded_buffer() -> StreamQueue:
+    """An output FIFO that drops its oldest bytes when nobody reads (the link's own queue)."""
+    return StreamQueue(capacity=OUTPUT_CAPACITY)
 
 
 @dataclass
@@ -103,21 +77,21 @@ class ProgramConnection:
 
     name: str
     link: PiccoloLink
-    output: BoundedBuffer = field(default_factory=BoundedBuffer)
+    output: StreamQueue = field(default_factory=bounded_buffer)
 
 
 @dataclass
 class PayloadPipe:
     """The payload port's transparent pipe between the onboard and the ground side."""
 
-    to_ground: BoundedBuffer = field(default_factory=BoundedBuffer)
-    to_onboard: BoundedBuffer = field(default_factory=BoundedBuffer)
+    to_ground: StreamQueue = field(default_factory=bounded_buffer)
+    to_onboard: StreamQueue = field(default_factory=bounded_buffer)
 
     def from_onboard(self, data: bytes) -> None:
-        self.to_ground.extend(data)
+        self.to_ground.append(data)
 
     def from_ground(self, data: bytes) -> None:
-        self.to_onboard.extend(data)
+        self.to_onboard.append(data)
 
 
 @dataclass(frozen=True, slots=True)
@@ -307,7 +281,7 @@ class SimulatedAutopilot:
         if connection in self._connections:
             self._connections.remove(connection)
             self._closed_drops.update(connection.link.drop_counters())
-            self._closed_drops["output_overflow_bytes"] += connection.output.dropped
+            self._closed_drops["output_overflow_bytes"] += connection.output.overflow_bytes
 
     @property
     def connections(self) -> tuple[ProgramConnection, ...]:
@@ -318,7 +292,7 @@ class SimulatedAutopilot:
         totals = Counter(self._closed_drops)
         for connection in self._connections:
             totals.update(connection.link.drop_counters())
-            totals["output_overflow_bytes"] += connection.output.dropped
+            totals["output_overflow_bytes"] += connection.output.overflow_bytes
         return dict(totals)
 
     def receive(self, connection: ProgramConnection, data: bytes) -> None:
@@ -392,4 +366,4 @@ class SimulatedAutopilot:
 
     def _send(self, message: AutopilotMessage, destination: int) -> None:
         for connection in self._connections:
-            connection.output.extend(connection.link.encode_autopilot(message, destination))
+            connection.output.append(connection.link.encode_autopilot(message, destination))

@@ -34,7 +34,8 @@ import tty
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
-from fleet.sim.autopilot import STEP_MS, BoundedBuffer, ProgramConnection, SimulatedAutopilot
+from fleet.sim.autopilot import STEP_MS, ProgramConnection, SimulatedAutopilot, bounded_buffer
+from fleet.stream_queue import StreamQueue
 
 logger = logging.getLogger(__name__)
 
@@ -98,7 +99,7 @@ class _Channel:
     name: str
     sock: socket.socket | None = None
     fd: int = -1  #: a pty master, when `sock` is None
-    output: BoundedBuffer = field(default_factory=BoundedBuffer)
+    output: StreamQueue = field(default_factory=bounded_buffer)
     connection: ProgramConnection | None = None
     permanent: bool = False  #: a pty: never "disconnects"
 
@@ -398,13 +399,13 @@ class SimServer:
                 if readers and len(buffer):
                     data = buffer.take()
                     for reader in readers:
-                        reader.output.extend(data)
+                        reader.output.append(data)
             for channel in list(uav.channels):
                 if len(channel.output):
                     self._write(channel)
 
     def _write(self, channel: _Channel) -> None:
-        data = channel.output.peek()
+        data = bytes(channel.output.view())
         try:
             if channel.sock is not None:
                 sent = channel.sock.send(data)
