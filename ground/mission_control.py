@@ -241,26 +241,22 @@ class MissionFollower:
             self.add_assignment(report)
 
     def add_result(self, result: UavResult) -> None:
-        if result.mission != self.mission:
-            return
-        with self._changed:
-            if self.results.get(result.uav) == result:
-                return
-            self.results[result.uav] = result
-            self._changed.notify_all()
-        if self._listener is not None:
-            self._listener("result", result)
+        self._add("result", self.results, result)
 
     def add_assignment(self, report: AssignmentReport) -> None:
-        if report.mission != self.mission:
+        self._add("assignment", self.assignments, report)
+
+    def _add(self, kind: str, store: dict[int, Any], message: UavResult | AssignmentReport) -> None:
+        """Keep a UAV's message for this mission; wake waiters and the listener on news."""
+        if message.mission != self.mission:
             return
         with self._changed:
-            if self.assignments.get(report.uav) == report:
+            if store.get(message.uav) == message:
                 return
-            self.assignments[report.uav] = report
+            store[message.uav] = message
             self._changed.notify_all()
         if self._listener is not None:
-            self._listener("assignment", report)
+            self._listener(kind, message)
 
     def fetch(self, timeout_s: float) -> None:
         """Query what the UAVs serve, to catch anything the subscriptions missed."""

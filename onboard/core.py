@@ -84,7 +84,6 @@ class OnboardCore:
     _early_results: list[UavResult] = field(default_factory=list)
     _aborted: set[int] = field(default_factory=set)
     _last_status_at: float = -math.inf
-    _plan_targets: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
         self.commands = CommandTracker(send=self.outputs.send_autopilot)
@@ -190,13 +189,11 @@ class OnboardCore:
         gps = self.telemetry.gps
         assert gps is not None
         projection = MercatorProjection(gps.lat, gps.lon)
-        self._plan_targets = tuple(
-            projection.to_xy(t.lat, t.lon) for t in self.round.targets.targets
-        )
+        targets = tuple(projection.to_xy(t.lat, t.lon) for t in self.round.targets.targets)
         request = PlanRequest(
             position=(0.0, 0.0),
             velocity=(gps.vel_east, gps.vel_north),
-            targets=self._plan_targets,
+            targets=targets,
             budget_s=self.planning_budget_s,
             cruise_speed=math.hypot(gps.vel_east, gps.vel_north),
         )
@@ -204,8 +201,7 @@ class OnboardCore:
             self.status("warning: planner still busy with the previous mission", now)
             return
         self.status(
-            f"mission {self.round.mission}: computing approach times to "
-            f"{len(self._plan_targets)} targets",
+            f"mission {self.round.mission}: computing approach times to {len(targets)} targets",
             now,
         )
 
@@ -308,10 +304,8 @@ class OnboardCore:
             self.phase = "committed"
             return
         self.phase = "flying"
-        back_to = self.original_waypoint
-        if back_to is None or back_to == TARGET_WAYPOINT:
-            back_to = self.tracked_waypoint if self.tracked_waypoint != TARGET_WAYPOINT else 0
-            back_to = back_to or 0
+        # on_track never records the target waypoint as the course; 0 before any track.
+        back_to = 0 if self.original_waypoint is None else self.original_waypoint
         waypoint = Waypoint(
             index=TARGET_WAYPOINT,
             next_index=back_to,

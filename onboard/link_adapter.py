@@ -62,8 +62,6 @@ class LinkAdapter:
         self._thread = threading.Thread(target=self._run, name=f"link-{uav_id}", daemon=True)
         self._lock = threading.Lock()
         self._last_telemetry: float | None = None
-        self.loop_count = 0
-        self.max_loop_gap = 0.0
 
     def start(self) -> None:
         self._thread.start()
@@ -103,14 +101,9 @@ class LinkAdapter:
 
     # ---- the loop -------------------------------------------------------------------
     def _run(self) -> None:
-        previous = time.monotonic()
         while not self._stop.is_set():
-            now = time.monotonic()
-            self.max_loop_gap = max(self.max_loop_gap, now - previous)
-            previous = now
-            self.loop_count += 1
             try:
-                self._service(now)
+                self._service(time.monotonic())
             except Exception:  # one bad event must not stop the link
                 log.exception("link loop error")
             self._stop.wait(self.poll_interval)

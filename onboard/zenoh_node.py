@@ -44,7 +44,6 @@ class ZenohNode:
     def __init__(self, uav_id: int, config: zenoh.Config, sink: Sink) -> None:
         self.uav_id = uav_id
         self.sink = sink
-        self.bad_messages = 0
         self.session = zenoh.open(config)
         self._declared: list[Any] = []
         try:
@@ -83,7 +82,6 @@ class ZenohNode:
             try:
                 message = decode(sample.payload.to_bytes(), kind, key)
             except BadMessage as error:
-                self.bad_messages += 1
                 log.warning("dropped: %s", error)
                 return
             self.sink(BusEvent(key, message))
