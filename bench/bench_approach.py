@@ -31,13 +31,13 @@ from typing import Any
 import pyomo.environ as pyo
 from pyomo.contrib.solver.common.factory import SolverFactory
 
+from fleet.geo.dubins import dubins_time_to_point, turn_radius
 from onboard.approach_model import (
     AircraftLimits,
     ApproachTimeModel,
     along_velocity_bounds,
     build_point_mass,
 )
-from onboard.dubins import dubins_time_to_point, turn_radius
 
 logger = logging.getLogger(__name__)
 

@@ -4,7 +4,7 @@ Run:  .venv/bin/python -m bench.bench_assignment [--instances N] [--seed S]
 
 For each team shape (N UAVs x M targets) and each of two instance families, draws
 seeded random approach-time matrices and compares the total approach time of
-`fleet.assignment.greedy_assign` with the minimum total over all assignments of
+`fleet.consensus.assignment.greedy_assign` with the minimum total over all assignments of
 min(N, M) pairs (`scipy.optimize.linear_sum_assignment`, which accepts rectangular
 matrices). Prints a Markdown table: median and worst greedy/optimal ratio, how often the
 greedy is optimal, and the median time per call of each (same run, same machine, so the
@@ -28,7 +28,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import linear_sum_assignment
 
-from fleet.assignment import greedy_assign
+from fleet.consensus.assignment import greedy_assign
 
 Matrix = npt.NDArray[np.float64]
 SHAPES: tuple[tuple[int, int], ...] = ((2, 3), (5, 8), (10, 10), (20, 10), (20, 50))

@@ -23,12 +23,12 @@ from pathlib import Path
 import msgspec
 import zenoh
 
-from fleet import keys
-from fleet.bus_codec import ENCODING, encode
-from fleet.launcher import ring_scenario
-from fleet.messages import AssignmentReport, MissionTargets, UavResult
+from fleet.launch.launcher import ring_scenario
+from fleet.mission import keys
+from fleet.mission.messages import AssignmentReport, MissionTargets, UavResult
+from fleet.transport.bus_codec import ENCODING, encode
+from tests.onboard.test_multi_uav import ring_targets
 from tests.processes import Fleet, client_session, free_port, router_session, wait_until
-from tests.test_multi_uav import ring_targets
 
 
 class Arrivals:

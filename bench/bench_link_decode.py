@@ -9,7 +9,7 @@ import argparse
 import time
 
 from bench.mixed_stream import mixed_stream
-from fleet.piccolo_link import PiccoloLink
+from fleet.planning.link import PiccoloLink
 
 LINE_RATE_BYTES_PER_S = 57_600 / 10  # 8N1: ten bits a byte
 

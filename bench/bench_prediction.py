@@ -15,10 +15,10 @@ import math
 import statistics
 import time
 
+from fleet.geo.dubins import dubins_time_to_point, turn_radius
 from fleet.sim.aircraft import AircraftState
 from fleet.sim.guidance import fly_to_point
 from onboard.approach_model import AircraftLimits, ApproachTimeModel
-from onboard.dubins import dubins_time_to_point, turn_radius
 
 ARRIVAL_RADIUS_M = 10.0
 

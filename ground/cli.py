@@ -14,11 +14,11 @@ import sys
 import threading
 from typing import Any, TextIO
 
-from fleet import keys
-from fleet.cli_types import bounded_int, non_negative_float, positive_float
-from fleet.messages import AssignmentReport, MissionTargets, StatusText, Target, UavResult
-from fleet.targets_file import TargetsFileError, read_targets
-from fleet.zenoh_config import CONNECT_ENV, default_connect
+from fleet.mission import keys
+from fleet.mission.messages import AssignmentReport, MissionTargets, StatusText, Target, UavResult
+from fleet.mission.targets_file import TargetsFileError, read_targets
+from fleet.transport.cli_args import bounded_int, non_negative_float, positive_float
+from fleet.transport.zenoh_config import CONNECT_ENV, default_connect
 from ground import keyspace, targets_command
 from ground.fleet_view import fleet_snapshot, format_table, live_uav_ids
 from ground.mission_control import (

@@ -27,11 +27,11 @@ from typing import Any, Self
 
 import zenoh
 
-from fleet import keys
-from fleet.messages import StatusText, UavState
-from fleet.telemetry import Telemetry
-from fleet.track import Track
-from fleet.waypoint import Waypoint
+from fleet.mission import keys
+from fleet.mission.messages import StatusText, UavState
+from fleet.piccolo.telemetry import Telemetry
+from fleet.piccolo.track import Track
+from fleet.piccolo.waypoint import Waypoint
 from ground.session import decode_sample, live_tokens, query_messages
 
 log = logging.getLogger(__name__)

@@ -31,8 +31,8 @@ from typing import Any, Self
 import msgspec
 import zenoh
 
-from fleet import bus_codec, keys
-from fleet.messages import (
+from fleet.mission import keys
+from fleet.mission.messages import (
     AssignmentReport,
     MissionAbort,
     MissionTargets,
@@ -40,6 +40,7 @@ from fleet.messages import (
     Target,
     UavResult,
 )
+from fleet.transport import bus_codec
 from ground.fleet_view import query_states
 from ground.session import decode_sample, put_message, query, query_messages
 

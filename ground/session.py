@@ -6,7 +6,7 @@ clearly when nothing answers, never hangs: a refused connection fails at once, a
 endpoint that accepts TCP but never speaks Zenoh is given up after `open_timeout_s`
 (Zenoh's own handshake timeout, 10 s by default, is shortened here).
 
-Every message is a msgspec Struct in `fleet.bus_codec`'s wire format (JSON, encoding
+Every message is a msgspec Struct in `fleet.transport.bus_codec`'s wire format (JSON, encoding
 application/json), so a stock Zenoh tool reads the same values the ground does.
 """
 
@@ -23,8 +23,8 @@ from typing import Any, TypeVar
 import msgspec
 import zenoh
 
-from fleet import bus_codec
-from fleet.zenoh_config import CONNECT_ENV, make_config
+from fleet.transport import bus_codec
+from fleet.transport.zenoh_config import CONNECT_ENV, make_config
 
 log = logging.getLogger(__name__)
 

@@ -1,6 +1,6 @@
 """`ground-cli targets make|show`: the thesis's Save Targets / Load Targets (3.1.3).
 
-The file format and its validation are `fleet.targets_file`'s; this module only turns
+The file format and its validation are `fleet.mission.targets_file`'s; this module only turns
 command-line text into targets and targets into text.
 """
 
@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import json
 
-from fleet.messages import Target
-from fleet.targets_file import read_targets, write_targets
+from fleet.mission.messages import Target
+from fleet.mission.targets_file import read_targets, write_targets
 
 
 class TargetSyntaxError(ValueError):

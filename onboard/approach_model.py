@@ -110,7 +110,7 @@ import pyomo.environ as pyo
 from pyomo.contrib.solver.common.factory import SolverFactory
 from pyomo.contrib.solver.common.results import TerminationCondition
 
-from onboard.dubins import GRAVITY, dubins_path_length, turn_radius
+from fleet.geo.dubins import GRAVITY, dubins_path_length, turn_radius
 
 __all__ = [
     "AircraftLimits",

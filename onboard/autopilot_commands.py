@@ -12,9 +12,9 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from fleet.messages import CommandResult
-from fleet.track import Track
-from fleet.waypoint import Waypoint, encode_waypoint
+from fleet.mission.messages import CommandResult
+from fleet.piccolo.track import Track
+from fleet.piccolo.waypoint import Waypoint, encode_waypoint
 
 log = logging.getLogger(__name__)
 

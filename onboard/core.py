@@ -19,9 +19,10 @@ from typing import Protocol
 
 import msgspec
 
-from fleet import keys
-from fleet.mercator import MercatorProjection
-from fleet.messages import (
+from fleet.consensus.mission_round import MissionRound
+from fleet.geo.mercator import MercatorProjection
+from fleet.mission import keys
+from fleet.mission.messages import (
     AssignmentReport,
     CommandResult,
     MissionAbort,
@@ -32,12 +33,11 @@ from fleet.messages import (
     UavResult,
     UavState,
 )
-from fleet.targets_file import TargetsFileError, encode_targets
-from fleet.telemetry import Telemetry
-from fleet.track import Track
-from fleet.waypoint import Waypoint
+from fleet.mission.targets_file import TargetsFileError, encode_targets
+from fleet.piccolo.telemetry import Telemetry
+from fleet.piccolo.track import Track
+from fleet.piccolo.waypoint import Waypoint
 from onboard.autopilot_commands import AutopilotCommand, CommandTracker, Completion
-from onboard.mission_round import MissionRound
 from onboard.planner_worker import PlanRequest, PlanResult
 
 log = logging.getLogger(__name__)

@@ -16,11 +16,11 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from fleet.autopilot_messages import AutopilotMessage
-from fleet.messages import LinkHealth
-from fleet.piccolo_link import LinkEvent, PiccoloLink
-from fleet.stream_packet import ALL_OPERATOR_INTERFACES
-from onboard.serial_port import DEFAULT_BAUD, SerialEndpoint
+from fleet.mission.messages import LinkHealth
+from fleet.piccolo.autopilot_messages import AutopilotMessage
+from fleet.piccolo.stream_packet import ALL_OPERATOR_INTERFACES
+from fleet.planning.link import LinkEvent, PiccoloLink
+from fleet.transport.serial_port import DEFAULT_BAUD, SerialEndpoint
 
 log = logging.getLogger(__name__)
 

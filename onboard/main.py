@@ -10,7 +10,7 @@ from types import FrameType
 
 import zenoh
 
-from fleet.zenoh_config import DEFAULT_ROUTER, MODES, default_connect, make_config
+from fleet.transport.zenoh_config import DEFAULT_ROUTER, MODES, default_connect, make_config
 from onboard.process import OnboardProcess, OnboardSettings
 
 log = logging.getLogger("onboard")

@@ -19,7 +19,7 @@ right after construction (~0.1 s), so the constructor does not block either.
 
 Every run ends with a time for every target. The model stops starting LPs once the
 request's budget has elapsed; targets it did not reach get the analytic Dubins time
-(`onboard.dubins`), as do targets beyond the model's horizon, and `PlanResult.fallback`
+(`fleet.geo.dubins`), as do targets beyond the model's horizon, and `PlanResult.fallback`
 says which. An exception inside the model is logged and turned into a result with the
 Dubins time for every target and the exception in `error`; the model is then rebuilt
 before the next run, because a failure half-way through a bound update could leave the
@@ -35,13 +35,13 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
+from fleet.geo.dubins import dubins_time_to_point, turn_radius
 from onboard.approach_model import (
     AircraftLimits,
     ApproachTimeModel,
     TargetSolution,
     TargetStatus,
 )
-from onboard.dubins import dubins_time_to_point, turn_radius
 
 __all__ = ["PlanRequest", "PlanResult", "PlannerWorker", "fallback_time"]
 

@@ -17,9 +17,8 @@ from typing import Any
 import msgspec
 import zenoh
 
-from fleet import keys
-from fleet.bus_codec import BadMessage, decode
-from fleet.messages import (
+from fleet.mission import keys
+from fleet.mission.messages import (
     BROADCAST,
     MISSION_MANAGER,
     AssignmentReport,
@@ -30,12 +29,13 @@ from fleet.messages import (
     StatusText,
     UavResult,
 )
-from fleet.piccolo_link import AutopilotEvent, LinkEvent, PlanningEvent
-from fleet.planning_protocol import encode_message
-from fleet.stream_packet import ALL_GROUND_STATIONS
-from fleet.telemetry import Telemetry
-from fleet.track import Track
-from fleet.waypoint import Waypoint
+from fleet.piccolo.stream_packet import ALL_GROUND_STATIONS
+from fleet.piccolo.telemetry import Telemetry
+from fleet.piccolo.track import Track
+from fleet.piccolo.waypoint import Waypoint
+from fleet.planning.link import AutopilotEvent, LinkEvent, PlanningEvent
+from fleet.planning.protocol import encode_message
+from fleet.transport.bus_codec import BadMessage, decode
 from onboard.autopilot_commands import AutopilotCommand
 from onboard.core import OnboardCore
 from onboard.link_adapter import LinkAdapter

@@ -15,9 +15,15 @@ from typing import Any
 import msgspec
 import zenoh
 
-from fleet import keys
-from fleet.bus_codec import ENCODING, BadMessage, decode, encode
-from fleet.messages import AssignmentReport, MissionAbort, MissionTargets, OpmCommand, UavResult
+from fleet.mission import keys
+from fleet.mission.messages import (
+    AssignmentReport,
+    MissionAbort,
+    MissionTargets,
+    OpmCommand,
+    UavResult,
+)
+from fleet.transport.bus_codec import ENCODING, BadMessage, decode, encode
 
 log = logging.getLogger(__name__)
 
@@ -27,7 +33,7 @@ class BusEvent:
     """Something that arrived over Zenoh: a decoded message, or a presence change."""
 
     key: str
-    message: Any  # one of the messages in fleet.messages, or a bool for presence
+    message: Any  # one of the messages in fleet.mission.messages, or a bool for presence
 
 
 Sink = Callable[[BusEvent], None]

@@ -9,9 +9,9 @@ from dataclasses import dataclass
 import pytest
 import zenoh
 
-from fleet import keys
-from fleet.bus_codec import ENCODING, encode
-from fleet.messages import MissionTargets
+from fleet.mission import keys
+from fleet.mission.messages import MissionTargets
+from fleet.transport.bus_codec import ENCODING, encode
 from tests.ground_view import GroundView
 from tests.processes import Fleet, client_session, free_port, router_session
 

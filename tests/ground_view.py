@@ -8,11 +8,11 @@ import threading
 import msgspec
 import zenoh
 
-from fleet import keys
-from fleet.mercator import MercatorProjection
-from fleet.messages import AssignmentReport, StatusText, UavResult
-from fleet.telemetry import Telemetry
-from fleet.track import Track
+from fleet.geo.mercator import MercatorProjection
+from fleet.mission import keys
+from fleet.mission.messages import AssignmentReport, StatusText, UavResult
+from fleet.piccolo.telemetry import Telemetry
+from fleet.piccolo.track import Track
 
 
 class GroundView:

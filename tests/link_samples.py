@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from hypothesis import strategies as st
 
-from fleet.telemetry import GpsBlock, SensorBlock, Telemetry
-from fleet.track import Track
-from fleet.waypoint import Waypoint
+from fleet.piccolo.telemetry import GpsBlock, SensorBlock, Telemetry
+from fleet.piccolo.track import Track
+from fleet.piccolo.waypoint import Waypoint
 
 
 def sample_telemetry(time_ms: int = 1000) -> Telemetry:

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import zenoh
 
-from fleet.zenoh_config import make_config
+from fleet.transport.zenoh_config import make_config
 
 
 def free_port() -> int:
@@ -120,7 +120,7 @@ class Fleet:
         child = start(
             "fleet sim",
             [
-                sys.executable, "-m", "fleet.sim_command", scenario,
+                sys.executable, "-m", "fleet.sim.command", scenario,
                 "--program-port", "0", "--payload-port", "0", "--ground-port", "0",
                 "--speedup", str(speedup), "--telemetry-hz", str(telemetry_hz), *extra,
             ],

@@ -28,7 +28,7 @@ from typing import Any
 import pytest
 import yaml
 
-from fleet.zenoh_config import CONNECT_ENV, make_config
+from fleet.transport.zenoh_config import CONNECT_ENV, make_config
 
 REPO = Path(__file__).resolve().parent.parent
 COMPOSE = yaml.safe_load((REPO / "compose.yaml").read_text())
@@ -133,7 +133,7 @@ def _parser_for(script: str) -> Callable[[], argparse.ArgumentParser]:
         from ground.cli import build_parser as ground_parser
 
         return ground_parser
-    from fleet.cli import build_parser as fleet_parser
+    from ground.fleet_cli import build_parser as fleet_parser
 
     return fleet_parser
 

@@ -33,19 +33,19 @@ import math
 from collections import Counter
 from dataclasses import dataclass, field
 
-from fleet.autopilot_messages import AutopilotMessage, UnknownAutopilotMessage
-from fleet.mercator import MercatorProjection
-from fleet.piccolo_link import AutopilotEvent, PiccoloLink
+from fleet.geo.mercator import MercatorProjection
+from fleet.piccolo.autopilot_messages import AutopilotMessage, UnknownAutopilotMessage
+from fleet.piccolo.stream_packet import ALL_OPERATOR_INTERFACES, BROADCAST_AVIONICS
+from fleet.piccolo.stream_queue import StreamQueue
+from fleet.piccolo.telemetry import GpsBlock, RawBlock, SensorBlock, Telemetry
+from fleet.piccolo.track import Track
+from fleet.piccolo.waypoint import Waypoint
+from fleet.planning.link import AutopilotEvent, PiccoloLink
 from fleet.sim.aircraft import CALM, AircraftLimits, AircraftState, G, Wind
 from fleet.sim.aircraft import step as aircraft_step
 from fleet.sim.flight_plan import FlightPlan, FlightPlanError, check_indices
 from fleet.sim.guidance import DEFAULT_ACCEPTANCE_RADIUS, GuidanceSettings, command_toward, wrap_pi
 from fleet.sim.scenario import UavSpec
-from fleet.stream_packet import ALL_OPERATOR_INTERFACES, BROADCAST_AVIONICS
-from fleet.stream_queue import StreamQueue
-from fleet.telemetry import GpsBlock, RawBlock, SensorBlock, Telemetry
-from fleet.track import Track
-from fleet.waypoint import Waypoint
 
 logger = logging.getLogger(__name__)
 

@@ -13,8 +13,8 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 
-from fleet.mercator import MercatorProjection
-from fleet.waypoint import MAX_INDEX, Waypoint
+from fleet.geo.mercator import MercatorProjection
+from fleet.piccolo.waypoint import MAX_INDEX, Waypoint
 
 #: Default racetrack: length along the initial heading and width to its right (m).
 RACETRACK_LENGTH = 3000.0

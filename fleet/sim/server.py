@@ -34,8 +34,8 @@ import tty
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
+from fleet.piccolo.stream_queue import StreamQueue
 from fleet.sim.autopilot import STEP_MS, ProgramConnection, SimulatedAutopilot, bounded_buffer
-from fleet.stream_queue import StreamQueue
 
 logger = logging.getLogger(__name__)
 

@@ -1,0 +1,415 @@
+"""Start and stop a whole simulated fleet on one machine: router, simulator, onboards.
+
+What runs (one machine, the star of architecture.md):
+
+* the Zenoh router, embedded in this process (`fleet.transport.router`), listening on `listen`;
+* one `fleet sim SCENARIO` process simulating every aircraft of the scenario on free
+  ports (one process rather than one per UAV: the simulator serves many aircraft from
+  one selector loop, and one process is half the memory of N);
+* one `onboard` process per UAV, a Zenoh client of the router, on the program and
+  payload ports the simulator printed.
+
+Children are started with `sys.executable -m ...` (no dependence on console scripts
+being on PATH), in their own session (process group), so a Ctrl-C in the terminal
+reaches only the launcher, which then stops them in order (onboards, then simulator)
+by PID: SIGTERM, then SIGKILL after a grace period. Their output goes to one log file
+each in `log_dir`. A launcher killed with SIGKILL cannot stop its children; they are
+then stopped by PID from the log directory's `pids` file.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import TracebackType
+from typing import IO, Self
+
+import zenoh
+
+from fleet.geo.mercator import MercatorProjection
+from fleet.mission import keys
+from fleet.transport.router import Router
+from fleet.transport.zenoh_config import DEFAULT_ROUTER
+
+log = logging.getLogger(__name__)
+
+#: Seconds a child gets between SIGTERM and SIGKILL.
+STOP_GRACE_S = 5.0
+#: Seconds to wait for the simulator's ports and every UAV's liveliness token. Every
+#: onboard imports Pyomo and HiGHS at start, which takes seconds on a busy machine.
+DEFAULT_START_TIMEOUT_S = 120.0
+#: First Piccolo ID of a generated (--uavs N) fleet.
+FIRST_GENERATED_ID = 101
+#: Centre of a generated fleet: Camp Roberts, California, as in the shipped scenarios.
+GENERATED_CENTRE = (35.7200, -120.7650)
+
+_SIM_LINE = re.compile(r"^uav (?P<id>\d+) (?P<rest>.*)$")
+
+
+class LaunchError(RuntimeError):
+    """The fleet could not be started; the message says which part and why."""
+
+
+@dataclass(frozen=True)
+class SimEndpoints:
+    """One aircraft's ports, as `fleet sim` printed them."""
+
+    piccolo_id: int
+    program: str
+    payload: str
+    ground: str
+
+
+def parse_sim_line(line: str) -> SimEndpoints | None:
+    """`uav 112 program=URL payload=URL ground=URL` -> SimEndpoints; None for other lines."""
+    match = _SIM_LINE.match(line.strip())
+    if match is None:
+        return None
+    fields = dict(part.split("=", 1) for part in match["rest"].split() if "=" in part)
+    try:
+        return SimEndpoints(
+            int(match["id"]), fields["program"], fields["payload"], fields.get("ground", "")
+        )
+    except KeyError:
+        return None
+
+
+def client_endpoint(listen: str) -> str:
+    """Where a client on this machine reaches a router listening on `listen`."""
+    proto, _, address = listen.partition("/")
+    host, _, port = address.rpartition(":")
+    if host in ("0.0.0.0", ""):
+        host = "127.0.0.1"
+    elif host in ("[::]", "::"):
+        host = "[::1]"
+    return f"{proto}/{host}:{port}"
+
+
+def ring_scenario(count: int, name: str = "ring") -> str:
+    """A scenario TOML of `count` UAVs (ids 101, 102, ...) on a ring, all circling it.
+
+    The ring's radius grows with the count so neighbours start >= 1 km apart, each
+    flies tangent to the ring (counter-clockwise), and altitudes are staggered by 20 m
+    (cycling every 100 UAVs, which are then kilometres apart) so neighbours never share
+    a level.
+    """
+    if count < 1:
+        raise ValueError("a fleet needs at least one UAV")
+    radius = max(1500.0, 1000.0 * count / (2 * math.pi))
+    projection = MercatorProjection(*GENERATED_CENTRE)
+    lines = [
+        f'description = "{count} generated UAVs on a ring of radius {radius:.0f} m"',
+        "",
+    ]
+    for i in range(count):
+        bearing = 2 * math.pi * i / count
+        east, north = radius * math.sin(bearing), radius * math.cos(bearing)
+        lat, lon = projection.to_latlon(east, north)
+        heading = (math.degrees(bearing) - 90.0) % 360.0
+        lines += [
+            "[[uav]]",
+            f"id = {FIRST_GENERATED_ID + i}",
+            f"lat = {lat:.7f}",
+            f"lon = {lon:.7f}",
+            f"alt = {600.0 + 20.0 * (i % 100):.1f}",
+            f"heading = {heading:.1f}",
+            "airspeed = 22.0",
+            "",
+        ]
+    return "\n".join(lines)
+
+
+@dataclass
+class Child:
+    """A process the launcher started, and where its output goes."""
+
+    name: str
+    process: subprocess.Popen[bytes]
+    log_path: Path
+
+    @property
+    def pid(self) -> int:
+        return self.process.pid
+
+    def tail(self, lines: int = 15) -> str:
+        try:
+            text = self.log_path.read_text(errors="replace")
+        except OSError:
+            return ""
+        return "\n".join(text.splitlines()[-lines:])
+
+
+def stop_children(children: list[Child], grace_s: float = STOP_GRACE_S) -> None:
+    """SIGTERM each child by PID, wait up to `grace_s` in all, then SIGKILL the rest."""
+    for child in children:
+        if child.process.poll() is None:
+            log.debug("SIGTERM %s (pid %d)", child.name, child.pid)
+            child.process.send_signal(signal.SIGTERM)
+    deadline = time.monotonic() + grace_s
+    for child in children:
+        try:
+            child.process.wait(timeout=max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            log.warning("%s (pid %d) ignored SIGTERM: killing it", child.name, child.pid)
+            child.process.kill()
+            child.process.wait()
+
+
+@dataclass
+class FleetSpec:
+    """What to launch. `scenario` is a shipped scenario name or a TOML path."""
+
+    scenario: str
+    listen: str = DEFAULT_ROUTER
+    speedup: float = 1.0
+    telemetry_hz: float | None = None
+    log_dir: Path | None = None
+    start_timeout_s: float = DEFAULT_START_TIMEOUT_S
+    onboard_args: tuple[str, ...] = ()
+    python: str = sys.executable
+    #: How to run one UAV's onboard module after `python`; tests put a double here.
+    onboard_command: tuple[str, ...] = ("-m", "onboard.main")
+
+
+@dataclass
+class Fleet:
+    """A running fleet; a context manager that stops everything on exit.
+
+    `stop_requested` (an Event) aborts a start in progress, e.g. from a signal handler.
+    """
+
+    spec: FleetSpec
+    stop_requested: threading.Event = field(default_factory=threading.Event)
+    endpoints: list[SimEndpoints] = field(default_factory=list)
+    children: list[Child] = field(default_factory=list)
+    router: Router | None = None
+    log_dir: Path = field(init=False)
+    _sim_ready: threading.Event = field(default_factory=threading.Event)
+    _files: list[IO[bytes]] = field(default_factory=list)
+    _readers: list[threading.Thread] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        if self.spec.log_dir is not None:
+            self.spec.log_dir.mkdir(parents=True, exist_ok=True)
+            self.log_dir = self.spec.log_dir
+        else:
+            self.log_dir = Path(tempfile.mkdtemp(prefix="fleet-"))
+
+    @property
+    def connect(self) -> str:
+        """The endpoint a ground client on this machine connects to."""
+        return client_endpoint(self.spec.listen)
+
+    @property
+    def uav_ids(self) -> list[int]:
+        return [e.piccolo_id for e in self.endpoints]
+
+    def __enter__(self) -> Self:
+        try:
+            self.start()
+        except BaseException:
+            self.stop()
+            raise
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.stop()
+
+    # ---- starting -------------------------------------------------------------------
+    def start(self) -> None:
+        deadline = time.monotonic() + self.spec.start_timeout_s
+        self.router = Router([self.spec.listen])
+        try:
+            self.router.open()
+        except Exception as error:
+            raise LaunchError(str(error)) from error
+        self._start_sim(deadline)
+        for endpoints in self.endpoints:
+            self._start_onboard(endpoints)
+        self._write_pids()
+        self._wait_alive(deadline)
+
+    def _spawn(self, name: str, argv: list[str], stdout: int | IO[bytes] | None = None) -> Child:
+        log_path = self.log_dir / f"{name}.log"
+        log_file = open(log_path, "ab")  # noqa: SIM115  # closed in stop()
+        self._files.append(log_file)
+        process = subprocess.Popen(
+            argv,
+            stdin=subprocess.DEVNULL,
+            stdout=log_file if stdout is None else stdout,
+            stderr=log_file,
+            start_new_session=True,
+        )
+        child = Child(name, process, log_path)
+        self.children.append(child)
+        log.info("started %s (pid %d): %s", name, process.pid, " ".join(argv[1:]))
+        return child
+
+    def _start_sim(self, deadline: float) -> None:
+        argv = [
+            self.spec.python,
+            "-m",
+            "fleet.sim.command",
+            self.spec.scenario,
+            "--program-port",
+            "0",
+            "--payload-port",
+            "0",
+            "--ground-port",
+            "0",
+            "--speedup",
+            f"{self.spec.speedup:g}",
+        ]
+        if self.spec.telemetry_hz is not None:
+            argv += ["--telemetry-hz", f"{self.spec.telemetry_hz:g}"]
+        sim = self._spawn("sim", argv, stdout=subprocess.PIPE)
+        reader = threading.Thread(target=self._read_sim, args=(sim,), daemon=True)
+        self._readers.append(reader)
+        reader.start()
+        while not self._sim_ready.wait(0.2):
+            self._check_running(deadline, "the simulator's ports")
+        if not self.endpoints:
+            # The output ended before any aircraft: the simulator is exiting; let it
+            # finish so its status and last words can be reported.
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                sim.process.wait(timeout=STOP_GRACE_S)
+            raise LaunchError(
+                f"the simulator listed no aircraft (status {sim.process.returncode}); "
+                f"last lines of {sim.log_path}:\n{sim.tail()}"
+            )
+
+    def _read_sim(self, sim: Child) -> None:
+        # The simulator prints its ports, then `ready`, then nothing we need: everything
+        # is copied to its log, and the pipe is drained until it closes so the
+        # simulator can never block on a full pipe.
+        assert sim.process.stdout is not None
+        with open(sim.log_path, "ab") as copy:
+            for raw in sim.process.stdout:
+                copy.write(raw)
+                copy.flush()
+                line = raw.decode(errors="replace").strip()
+                endpoints = parse_sim_line(line)
+                if endpoints is not None and not self._sim_ready.is_set():
+                    self.endpoints.append(endpoints)
+                elif line == "ready":
+                    self._sim_ready.set()
+        self._sim_ready.set()  # the simulator exited: stop waiting, _check_running says why
+
+    def _start_onboard(self, endpoints: SimEndpoints) -> None:
+        self._spawn(
+            f"onboard-{endpoints.piccolo_id}",
+            [
+                self.spec.python,
+                *self.spec.onboard_command,
+                "--id",
+                str(endpoints.piccolo_id),
+                "--program",
+                endpoints.program,
+                "--payload",
+                endpoints.payload,
+                "--connect",
+                self.connect,
+                "--mode",
+                "client",
+                *self.spec.onboard_args,
+            ],
+        )
+
+    def _write_pids(self) -> None:
+        lines = [f"{child.pid} {child.name}" for child in self.children]
+        (self.log_dir / "pids").write_text("\n".join(lines) + "\n")
+
+    def _check_running(self, deadline: float, waiting_for: str) -> None:
+        dead = self.dead_children()
+        if dead:
+            child = dead[0]
+            raise LaunchError(
+                f"{child.name} exited with status {child.process.returncode} while waiting "
+                f"for {waiting_for}; last lines of {child.log_path}:\n{child.tail()}"
+            )
+        if self.stop_requested.is_set():
+            raise LaunchError("stopped on request while starting")
+        if time.monotonic() > deadline:
+            raise LaunchError(
+                f"timed out after {self.spec.start_timeout_s:g} s waiting for {waiting_for} "
+                f"(logs in {self.log_dir})"
+            )
+
+    def _wait_alive(self, deadline: float) -> None:
+        assert self.router is not None
+        expected = set(self.uav_ids)
+        seen: set[int] = set()
+        changed = threading.Event()
+
+        def on_token(sample: zenoh.Sample) -> None:
+            try:
+                uav = keys.uav_id_of(str(sample.key_expr))
+            except ValueError:
+                return
+            if sample.kind == zenoh.SampleKind.PUT:
+                seen.add(uav)
+            else:
+                seen.discard(uav)
+            changed.set()
+
+        liveliness = self.router.session.liveliness()
+        with liveliness.declare_subscriber(keys.ALL_ALIVE, on_token, history=True):
+            while not expected <= seen:
+                changed.wait(0.2)
+                changed.clear()
+                missing = ", ".join(map(str, sorted(expected - seen)))
+                self._check_running(deadline, f"the liveliness of UAV {missing}")
+        log.info("every UAV is alive: %s", ", ".join(map(str, sorted(expected))))
+
+    # ---- running and stopping ----------------------------------------------------------
+    def dead_children(self) -> list[Child]:
+        return [child for child in self.children if child.process.poll() is not None]
+
+    def stop(self) -> None:
+        """Stop every child (onboards first), then the router. Idempotent."""
+        onboards = [c for c in self.children if c.name.startswith("onboard-")]
+        others = [c for c in self.children if c not in onboards]
+        stop_children(onboards)
+        stop_children(others)
+        # The simulator's output reader ends at EOF, now that the simulator has exited.
+        for reader in self._readers:
+            reader.join(timeout=STOP_GRACE_S)
+        self._readers.clear()
+        for child in self.children:
+            if child.process.stdout is not None:
+                child.process.stdout.close()
+        for f in self._files:
+            f.close()
+        self._files.clear()
+        if self.router is not None:
+            self.router.close()
+            self.router = None
+
+
+def wait_until_stopped(
+    fleet: Fleet, stop: threading.Event, on_death: Callable[[Child], None] | None = None
+) -> bool:
+    """Block until `stop` is set (True) or a child dies (False, after `on_death`)."""
+    while not stop.wait(0.5):
+        dead = fleet.dead_children()
+        if dead:
+            if on_death is not None:
+                on_death(dead[0])
+            return False
+    return True

@@ -1,0 +1,197 @@
+"""`fleet up`: a whole simulated fleet on this machine (docs/ground.md).
+
+`fleet up (SCENARIO | --uavs N)` starts the router, the simulator and one onboard per
+UAV (`fleet.launch.launcher`), waits until every UAV is ready, prints how to connect,
+and runs until Ctrl-C or SIGTERM, then stops everything. `fleet demo` (ground.demo)
+builds on it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import shlex
+import signal
+import sys
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from types import FrameType
+
+from fleet.launch.launcher import (
+    DEFAULT_START_TIMEOUT_S,
+    Child,
+    Fleet,
+    FleetSpec,
+    LaunchError,
+    ring_scenario,
+    wait_until_stopped,
+)
+from fleet.sim.scenario import ScenarioError, resolve_scenario
+from fleet.transport.cli_args import bounded_int, positive_float
+from fleet.transport.zenoh_config import CONNECT_ENV, DEFAULT_ROUTER
+
+log = logging.getLogger(__name__)
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+
+
+def common_arguments(parser: argparse.ArgumentParser, speedup: float) -> None:
+    parser.add_argument(
+        "--speedup",
+        type=positive_float,
+        default=speedup,
+        metavar="K",
+        help="simulated seconds per wall second (default %(default)g)",
+    )
+    parser.add_argument(
+        "--log-dir",
+        type=Path,
+        metavar="DIR",
+        help="where each process's log goes (default: a new temporary directory)",
+    )
+    parser.add_argument(
+        "--start-timeout",
+        type=positive_float,
+        default=DEFAULT_START_TIMEOUT_S,
+        metavar="S",
+        help="how long to wait for every UAV to come up (default %(default)g s)",
+    )
+
+
+def add_up_parser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+) -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        "up",
+        help="run a simulated fleet: router, simulator and one onboard per UAV",
+        description="Run a simulated fleet on this machine until Ctrl-C or SIGTERM.",
+    )
+    which = parser.add_mutually_exclusive_group(required=True)
+    which.add_argument(
+        "scenario", nargs="?", metavar="SCENARIO", help="a shipped scenario name or a TOML file"
+    )
+    which.add_argument(
+        "--uavs",
+        type=bounded_int(1, 500, "number of UAVs"),
+        metavar="N",
+        help="N generated UAVs (ids 101..) on a ring",
+    )
+    parser.add_argument(
+        "--listen",
+        default=DEFAULT_ROUTER,
+        metavar="ENDPOINT",
+        help="the router's endpoint (default %(default)s)",
+    )
+    common_arguments(parser, speedup=1.0)
+    parser.set_defaults(run=run_up, func=run_up)
+    # For tests: run this (shell-quoted, after the Python interpreter) instead of
+    # `-m onboard.main`, e.g. a liveliness-only double of the onboard process.
+    parser.add_argument("--onboard-command", help=argparse.SUPPRESS)
+    return parser
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Register `up`; it sets `run` (and `func`) to its handler."""
+    add_up_parser(subparsers)
+
+
+# ---- signals ----------------------------------------------------------------------------------
+@contextmanager
+def stop_on_signals(stop: threading.Event) -> Iterator[None]:
+    """While inside, SIGTERM and SIGINT set `stop`; the previous handlers come back after."""
+    # Handlers can only be installed from the main thread; elsewhere (a test driving
+    # `run` from a thread) the caller sets `stop` itself.
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handle(signum: int, frame: FrameType | None) -> None:
+        log.info("%s: stopping the fleet", signal.Signals(signum).name)
+        stop.set()
+
+    previous = {sig: signal.signal(sig, handle) for sig in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def scenario_info(name: str) -> tuple[str, Path | None]:
+    """A scenario's description and targets file; raises ScenarioError if it is bad."""
+    scenario = resolve_scenario(name)
+    return scenario.description, scenario.targets_path
+
+
+# ---- fleet up ---------------------------------------------------------------------------------
+def run_up(args: argparse.Namespace) -> int:
+    stop = threading.Event()
+    with stop_on_signals(stop):
+        return _run_up(args, stop)
+
+
+def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
+    spec = FleetSpec(
+        scenario="",
+        listen=args.listen,
+        speedup=args.speedup,
+        log_dir=args.log_dir,
+        start_timeout_s=args.start_timeout,
+    )
+    if args.onboard_command:
+        spec.onboard_command = tuple(shlex.split(args.onboard_command))
+    fleet = Fleet(spec, stop_requested=stop)
+    if args.uavs is not None:
+        path = fleet.log_dir / f"ring-{args.uavs}.toml"
+        path.write_text(ring_scenario(args.uavs))
+        spec.scenario = str(path)
+    else:
+        spec.scenario = args.scenario
+    try:
+        description, targets_path = scenario_info(spec.scenario)
+    except ScenarioError as error:
+        print(f"fleet up: {error}", file=sys.stderr)
+        return EXIT_USAGE
+    print(f"fleet up: starting {description or spec.scenario} (logs in {fleet.log_dir})")
+    try:
+        with fleet:
+            _print_banner(fleet, targets_path)
+
+            def on_death(child: Child) -> None:
+                print(
+                    f"fleet up: {child.name} exited with status {child.process.returncode}; "
+                    f"stopping the fleet. Last lines of {child.log_path}:\n{child.tail()}",
+                    file=sys.stderr,
+                )
+
+            stopped_cleanly = wait_until_stopped(fleet, stop, on_death)
+            print("fleet up: stopping", flush=True)
+    except LaunchError as error:
+        if stop.is_set():
+            print("fleet up: stopped while starting", file=sys.stderr)
+            return EXIT_INTERRUPTED
+        print(f"fleet up: {error}", file=sys.stderr)
+        return EXIT_FAILED
+    print("fleet up: stopped")
+    return EXIT_OK if stopped_cleanly else EXIT_FAILED
+
+
+def _print_banner(fleet: Fleet, targets_path: Path | None) -> None:
+    ids = ", ".join(map(str, fleet.uav_ids))
+    targets = str(targets_path) if targets_path is not None else "TARGETS.bin"
+    lines = [
+        f"fleet up: {len(fleet.uav_ids)} UAV(s) alive ({ids}); router on {fleet.spec.listen}",
+        "Connect from another terminal:",
+        f"  export {CONNECT_ENV}={fleet.connect}",
+        "  ground-cli uavs",
+        "  ground-cli watch",
+        f"  ground-cli send-targets {targets} --wait",
+        "  ground-cli keys",
+        "Ctrl-C (or SIGTERM) stops the fleet.",
+    ]
+    print("\n".join(lines), flush=True)

@@ -1,0 +1,131 @@
+"""Typed planning-level messages, shared by the binary planning protocol and Zenoh.
+
+One struct per application message. The binary onboard planning protocol
+(`fleet.planning.protocol`) encodes these to the payload stream; the Zenoh layer
+publishes the very same structs as JSON. A command therefore has one type whichever
+path it travelled.
+"""
+
+from __future__ import annotations
+
+import msgspec
+
+from fleet.piccolo.telemetry import Telemetry
+
+#: Planning-protocol address of every UAV (thesis 2.9).
+BROADCAST = 0xFFFF
+#: Planning-protocol address of the Mission Manager (thesis 2.9).
+MISSION_MANAGER = 0xFFFE
+
+
+class Target(msgspec.Struct, frozen=True):
+    """One target: degrees and metres (altitude travels as f32 on the payload link)."""
+
+    lat: float
+    lon: float
+    alt: float
+
+
+class OpmCommand(msgspec.Struct, frozen=True):
+    """PAYLOAD_OPM: the ground turns the onboard planning module on or off.
+
+    `status_rate_hz` is how often the module sends a status message; 0 means only on
+    change.
+    """
+
+    enabled: bool
+    status_rate_hz: float = 1.0
+
+
+class StatusText(msgspec.Struct, frozen=True):
+    """PAYLOAD_STATUS: a text status message from a UAV to the Mission Manager."""
+
+    text: str
+
+
+class MissionTargets(msgspec.Struct, frozen=True):
+    """PAYLOAD_TARGETS: a mission's team (Piccolo IDs) and its targets.
+
+    `mission` is a u32 mission id; a higher id supersedes a lower one.
+    `deadline_s` is how long after receipt a UAV waits for its teammates' results.
+    """
+
+    mission: int
+    team: tuple[int, ...]
+    targets: tuple[Target, ...]
+    deadline_s: float = 10.0
+
+
+class UavResult(msgspec.Struct, frozen=True):
+    """PAYLOAD_UAVRESULT: one UAV's approach time (s) to each target of a mission.
+
+    `times[i]` is the time to `targets[i]`; None where the UAV has no answer.
+    """
+
+    mission: int
+    uav: int
+    times: tuple[float | None, ...]
+
+
+class MissionAbort(msgspec.Struct, frozen=True):
+    """PAYLOAD_ABORT: the ground aborts a mission; every UAV resumes its course."""
+
+    mission: int
+
+
+class LinkHealth(msgspec.Struct, frozen=True):
+    """The serial link as the onboard adapter sees it."""
+
+    program_up: bool
+    payload_up: bool
+    packets: int
+    drops: dict[str, int]
+    telemetry_age_s: float | None  #: seconds since the last telemetry; None before any
+
+
+class CommandResult(msgspec.Struct, frozen=True):
+    """Answer to a waypoint or track command: confirmed by the autopilot's echo, or not."""
+
+    ok: bool
+    detail: str
+    attempts: int = 0
+
+
+class AssignmentReport(msgspec.Struct, frozen=True):
+    """A UAV's committed outcome of a mission's consensus.
+
+    `digest` identifies the exact set of results the greedy was fed; every UAV that
+    used the same results reports the same digest and the same `pairs`.
+    """
+
+    mission: int
+    uav: int
+    target: int | None  #: index of this UAV's target in the mission, None if idle
+    pairs: dict[str, int]  #: every UAV's target index, keyed by Piccolo ID as a string
+    unassigned: tuple[int, ...]
+    team: tuple[int, ...]  #: the UAVs whose results were used
+    digest: str
+    eta_s: float | None = None
+
+
+class MissionProgress(msgspec.Struct, frozen=True):
+    """Where a UAV stands in its current mission (part of UavState)."""
+
+    mission: int
+    phase: str  #: computing | waiting | committed | reached | aborted | idle
+    targets: int
+    result: UavResult | None = None
+    assignment: AssignmentReport | None = None
+
+
+class UavState(msgspec.Struct, frozen=True):
+    """A UAV's answer to a state query: all a ground station needs at a glance."""
+
+    uav: int
+    enabled: bool
+    status_rate_hz: float
+    tracked_waypoint: int | None
+    telemetry: Telemetry | None  #: the latest telemetry
+    link: LinkHealth | None
+    mission: MissionProgress | None
+    last_status: str | None = None

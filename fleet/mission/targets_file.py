@@ -1,0 +1,165 @@
+"""`targets.bin`: the Mission Manager's saved targets (thesis 3.1.3).
+
+Format, as the thesis's GUI wrote it: for each target, latitude (degrees), longitude
+(degrees) and altitude (metres), each an IEEE-754 double, little-endian, no header, so
+24 bytes a target and the target count is the file length / 24.
+
+With no header and no checksum, the only defence against a truncated or foreign file is
+validation, so reading refuses anything that is not a whole, non-empty sequence of
+finite, in-range targets, and every refusal says which file, which target, at which
+byte offset, and what was expected. Writing validates the same way *before* touching the
+disk and replaces the file atomically, so a reader never sees a half-written file and a
+bad target list never destroys a good file.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import stat
+import struct
+import tempfile
+from collections.abc import Iterable
+
+from fleet.mission.messages import Target
+
+__all__ = [
+    "TARGET_SIZE",
+    "TargetsFileError",
+    "decode_targets",
+    "encode_targets",
+    "read_targets",
+    "write_targets",
+]
+
+_RECORD = struct.Struct("<3d")
+#: Bytes a target: three little-endian f64.
+TARGET_SIZE = _RECORD.size
+# Mode of a newly created file: mkstemp makes 0600, but targets.bin is an ordinary
+# shared data file.
+_NEW_FILE_MODE = 0o644
+
+
+class TargetsFileError(ValueError):
+    """A targets file, or a target list about to be written, is malformed.
+
+    The message names the file, the target index, its byte offset and what was expected;
+    the same facts are kept as attributes for callers that want them.
+    """
+
+    def __init__(self, source: str, index: int, offset: int, problem: str) -> None:
+        super().__init__(f"{source}: target {index} at byte offset {offset}: {problem}")
+        self.source = source
+        self.index = index
+        self.offset = offset
+        self.problem = problem
+
+
+def _validate(target: Target, index: int, source: str) -> None:
+    offset = index * TARGET_SIZE
+    fields = (("latitude", target.lat), ("longitude", target.lon), ("altitude", target.alt))
+    for name, value in fields:
+        if not math.isfinite(value):
+            raise TargetsFileError(
+                source, index, offset, f"{name} is {value!r}, expected a finite number"
+            )
+    if not -90.0 <= target.lat <= 90.0:
+        raise TargetsFileError(
+            source, index, offset, f"latitude {target.lat!r} is outside [-90, 90] degrees"
+        )
+    if not -180.0 <= target.lon <= 180.0:
+        raise TargetsFileError(
+            source, index, offset, f"longitude {target.lon!r} is outside [-180, 180] degrees"
+        )
+
+
+def _refuse_empty(source: str) -> None:
+    raise TargetsFileError(
+        source, 0, 0, f"no targets: expected at least one target of {TARGET_SIZE} bytes"
+    )
+
+
+def decode_targets(data: bytes, source: str) -> list[Target]:
+    """Targets from the bytes of a targets file; `source` names it in errors."""
+    if not data:
+        _refuse_empty(source)
+    whole, leftover = divmod(len(data), TARGET_SIZE)
+    if leftover:
+        offset = whole * TARGET_SIZE
+        raise TargetsFileError(
+            source,
+            whole,
+            offset,
+            f"length {len(data)} is not a multiple of {TARGET_SIZE}: {leftover} leftover "
+            f"bytes at offset {offset}, expected {TARGET_SIZE} bytes a target "
+            "(truncated or not a targets file?)",
+        )
+    targets = []
+    for index, (lat, lon, alt) in enumerate(_RECORD.iter_unpack(data)):
+        target = Target(lat=lat, lon=lon, alt=alt)
+        _validate(target, index, source)
+        targets.append(target)
+    return targets
+
+
+def encode_targets(targets: Iterable[Target], *, source: str = "<targets>") -> bytes:
+    """The bytes of a targets file; refuses what `decode_targets` would refuse."""
+    chunks = []
+    for index, target in enumerate(targets):
+        _validate(target, index, source)
+        chunks.append(_RECORD.pack(target.lat, target.lon, target.alt))
+    if not chunks:
+        _refuse_empty(source)
+    return b"".join(chunks)
+
+
+def read_targets(path: str | os.PathLike[str]) -> list[Target]:
+    """Read and validate a targets file."""
+    with open(path, "rb") as f:
+        data = f.read()
+    return decode_targets(data, os.fspath(path))
+
+
+def write_targets(path: str | os.PathLike[str], targets: Iterable[Target]) -> None:
+    """Validate, then atomically replace `path` with these targets.
+
+    Written to a temporary file in the same directory (so `os.replace` is a rename
+    within one filesystem, atomic on POSIX and Windows), fsynced before the rename so a
+    crash cannot leave the new name pointing at unwritten blocks, and the directory is
+    fsynced after it so the rename itself survives a crash. On any failure the old file,
+    if any, is untouched and the temporary file is removed.
+    """
+    name = os.fspath(path)
+    data = encode_targets(targets, source=name)
+    directory = os.path.dirname(os.path.abspath(name))
+    try:
+        mode = stat.S_IMODE(os.stat(name).st_mode)
+    except FileNotFoundError:
+        mode = _NEW_FILE_MODE
+    fd, tmp = tempfile.mkstemp(dir=directory, prefix=f".{os.path.basename(name)}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            # Before the fsync, so the mode is as durable as the data.
+            os.chmod(tmp, mode)
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, name)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+    _fsync_directory(directory)
+
+
+def _fsync_directory(directory: str) -> None:
+    # Directories cannot be opened for fsync on Windows; there the rename is already
+    # as durable as the platform offers.
+    if os.name != "posix":
+        return
+    fd = os.open(directory, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)

@@ -1,0 +1,165 @@
+"""Piccolo stream (transport) packets: encoder and incremental decoder (piccolo-link.md 1).
+
+A stream packet is 0x5A 0xA5, a 12-byte big-endian header closed by the XOR of bytes
+0-12, up to 255 data bytes, and a CRC-16/ARC (high byte first) over everything before
+it. The decoder is fed arbitrary chunks and resynchronises on the next 0x5A 0xA5 after
+anything it rejects; it never raises on input bytes.
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass, field
+
+from fleet.piccolo.crc import crc16_arc, crc16_arc_bytes
+
+SYNC = b"\x5a\xa5"
+HEADER_SIZE = 14
+OVERHEAD = HEADER_SIZE + 2
+MAX_DATA = 255
+MAX_PACKET = OVERHEAD + MAX_DATA
+
+#: Addresses (piccolo-link.md 1).
+BROADCAST_AVIONICS = 0xFFFF
+ALL_OPERATOR_INTERFACES = 0xFFFE
+ALL_GROUND_STATIONS = 0x0000
+
+#: Stream ids (piccolo-link.md 2).
+STREAM_AUTOPILOT = 3
+STREAM_PAYLOAD = 6
+
+_HEADER = struct.Struct(">2sHHHHBBB")
+
+
+class StreamPacketError(ValueError):
+    """A stream packet that cannot be encoded (a field out of range)."""
+
+
+@dataclass(frozen=True, slots=True)
+class StreamPacket:
+    """One stream packet as it travels on the link."""
+
+    destination: int
+    source: int
+    sequence: int
+    acknowledge: int
+    stream: int
+    data: bytes
+    flags: int = 0
+
+
+def _xor(data: bytes | bytearray) -> int:
+    checksum = 0
+    for byte in data:
+        checksum ^= byte
+    return checksum
+
+
+def encode_stream_packet(packet: StreamPacket) -> bytes:
+    """Encode one stream packet; its data must fit in 255 bytes."""
+    if len(packet.data) > MAX_DATA:
+        raise StreamPacketError(
+            f"stream packet data is {len(packet.data)} bytes; at most {MAX_DATA} fit"
+        )
+    for name in ("destination", "source", "sequence", "acknowledge"):
+        value = getattr(packet, name)
+        if not 0 <= value <= 0xFFFF:
+            raise StreamPacketError(f"{name} {value} does not fit in 16 bits")
+    for name in ("stream", "flags"):
+        value = getattr(packet, name)
+        if not 0 <= value <= 0xFF:
+            raise StreamPacketError(f"{name} {value} does not fit in 8 bits")
+    head = _HEADER.pack(
+        SYNC,
+        packet.destination,
+        packet.source,
+        packet.sequence,
+        packet.acknowledge,
+        packet.stream,
+        packet.flags,
+        len(packet.data),
+    )
+    body = head + bytes((_xor(head),)) + packet.data
+    return body + crc16_arc_bytes(body)
+
+
+@dataclass(slots=True)
+class StreamDropCounters:
+    """What the stream decoder threw away, and why."""
+
+    bad_header_checksum: int = 0
+    bad_crc: int = 0
+    skipped_bytes: int = 0
+
+    def as_dict(self) -> dict[str, int]:
+        return {
+            "bad_header_checksum": self.bad_header_checksum,
+            "bad_crc": self.bad_crc,
+            "skipped_bytes": self.skipped_bytes,
+        }
+
+
+@dataclass
+class StreamDecoder:
+    """Incremental stream-packet decoder.
+
+    Keeps at most one partial packet (271 bytes) between calls: garbage before a sync
+    is discarded at once and counted in `drops.skipped_bytes`. A candidate rejected
+    for its header checksum or CRC costs one byte (its 0x5A), then the hunt resumes,
+    so a real packet hidden inside a corrupt one is still found.
+    """
+
+    drops: StreamDropCounters = field(default_factory=StreamDropCounters)
+    packets: int = 0
+    _buffer: bytearray = field(default_factory=bytearray)
+
+    def feed(self, chunk: bytes | bytearray | memoryview) -> list[StreamPacket]:
+        buffer = self._buffer
+        buffer += chunk
+        found: list[StreamPacket] = []
+        position = 0
+        end = len(buffer)
+        while True:
+            start = buffer.find(SYNC, position)
+            if start < 0:
+                # Keep a trailing 0x5A: it may be the first half of a sync.
+                keep_from = end - 1 if end > position and buffer[end - 1] == 0x5A else end
+                self.drops.skipped_bytes += keep_from - position
+                position = keep_from
+                break
+            self.drops.skipped_bytes += start - position
+            position = start
+            if end - start < HEADER_SIZE:
+                break
+            if _xor(buffer[start : start + 13]) != buffer[start + 13]:
+                self.drops.bad_header_checksum += 1
+                self.drops.skipped_bytes += 1
+                position = start + 1
+                continue
+            size = buffer[start + 12]
+            stop = start + HEADER_SIZE + size
+            if end < stop + 2:
+                break
+            if crc16_arc(buffer[start:stop]) != (buffer[stop] << 8 | buffer[stop + 1]):
+                self.drops.bad_crc += 1
+                self.drops.skipped_bytes += 1
+                position = start + 1
+                continue
+            _, destination, source, sequence, acknowledge, stream, flags, _ = _HEADER.unpack_from(
+                buffer, start
+            )
+            found.append(
+                StreamPacket(
+                    destination=destination,
+                    source=source,
+                    sequence=sequence,
+                    acknowledge=acknowledge,
+                    stream=stream,
+                    flags=flags,
+                    data=bytes(buffer[start + HEADER_SIZE : stop]),
+                )
+            )
+            position = stop + 2
+        del buffer[:position]
+        self.packets += len(found)
+        return found

@@ -1,0 +1,226 @@
+"""`fleet sim`: run simulated Piccolo autopilots for a scenario (docs/simulator.md).
+
+Prints one line per aircraft once every port is listening, then ``ready``::
+
+    uav 112 program=socket://127.0.0.1:5760 payload=socket://127.0.0.1:5860 ground=socket://127.0.0.1:5960
+    ready
+
+then serves until SIGTERM or SIGINT, and exits 0 after closing every socket.
+Runnable on its own as ``python -m fleet.sim.command``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+from collections.abc import Callable, Sequence
+from types import FrameType
+from typing import Any
+
+from fleet.sim.autopilot import (
+    DEFAULT_TELEMETRY_HZ,
+    MAX_TELEMETRY_HZ,
+    AutopilotSettings,
+    SimulatedAutopilot,
+)
+from fleet.sim.guidance import DEFAULT_ACCEPTANCE_RADIUS
+from fleet.sim.scenario import ScenarioError, resolve_scenario, shipped_scenario_names
+from fleet.sim.server import (
+    DEFAULT_GROUND_PORT,
+    DEFAULT_HOST,
+    DEFAULT_PAYLOAD_PORT,
+    DEFAULT_PROGRAM_PORT,
+    DEFAULT_SPEEDUP,
+    SimServer,
+)
+from fleet.transport.cli_args import non_negative_float, positive_float, tcp_port
+
+logger = logging.getLogger(__name__)
+
+EXIT_OK = 0
+EXIT_USAGE = 2
+EXIT_RUNTIME = 1
+
+
+def configure_parser(parser: argparse.ArgumentParser) -> None:
+    """Add the `fleet sim` arguments to `parser`."""
+    parser.add_argument(
+        "scenario",
+        metavar="SCENARIO",
+        help="a scenario TOML file, or the name of a shipped scenario "
+        f"({', '.join(_shipped_names())})",
+    )
+    parser.add_argument(
+        "--uav",
+        type=int,
+        metavar="ID",
+        help="simulate only this Piccolo ID (one aircraft, e.g. a container per UAV); "
+        "default: every aircraft of the scenario",
+    )
+    parser.add_argument("--host", default=DEFAULT_HOST, help="address to listen on (%(default)s)")
+    parser.add_argument(
+        "--program-port",
+        type=tcp_port,
+        default=DEFAULT_PROGRAM_PORT,
+        metavar="P",
+        help="first program port; aircraft i gets P+i; 0 picks free ports (%(default)s)",
+    )
+    parser.add_argument(
+        "--payload-port",
+        type=tcp_port,
+        default=DEFAULT_PAYLOAD_PORT,
+        metavar="P",
+        help="first payload port, onboard side (%(default)s)",
+    )
+    parser.add_argument(
+        "--ground-port",
+        type=tcp_port,
+        default=DEFAULT_GROUND_PORT,
+        metavar="P",
+        help="first ground port, the ground side of the payload pipe (%(default)s)",
+    )
+    parser.add_argument(
+        "--speedup",
+        type=non_negative_float,
+        default=DEFAULT_SPEEDUP,
+        metavar="K",
+        help="simulated seconds per wall second; 0 runs as fast as possible (%(default)s)",
+    )
+    parser.add_argument(
+        "--telemetry-hz",
+        type=positive_float,
+        default=DEFAULT_TELEMETRY_HZ,
+        metavar="F",
+        help=f"telemetry rate in simulated Hz, at most {MAX_TELEMETRY_HZ:g} (%(default)s)",
+    )
+    parser.add_argument(
+        "--pty",
+        action="store_true",
+        help="serve the program and payload ports on pseudo-terminals (paths printed) "
+        "instead of TCP",
+    )
+    parser.add_argument(
+        "--acceptance-radius",
+        type=positive_float,
+        default=DEFAULT_ACCEPTANCE_RADIUS,
+        metavar="M",
+        help="distance (m) at which a waypoint counts as reached (%(default)s)",
+    )
+
+
+def _shipped_names() -> list[str]:
+    try:
+        return shipped_scenario_names()
+    except ScenarioError:
+        return []
+
+
+def add_parser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+) -> argparse.ArgumentParser:
+    """Register the `sim` subcommand; its handler is `run` (also set as `func`)."""
+    parser = subparsers.add_parser(
+        "sim",
+        help="simulated Piccolo autopilots (hardware-in-the-loop stand-in)",
+        description="Run simulated Piccolo autopilots for a scenario, serving each "
+        "aircraft's program, payload and ground ports.",
+    )
+    configure_parser(parser)
+    parser.set_defaults(func=run)
+    return parser
+
+
+def _build(args: argparse.Namespace) -> list[SimulatedAutopilot]:
+    scenario = resolve_scenario(args.scenario)
+    uavs = scenario.uavs if args.uav is None else (scenario.uav(args.uav),)
+    settings = AutopilotSettings(
+        telemetry_hz=args.telemetry_hz,
+        acceptance_radius=args.acceptance_radius,
+        limits=scenario.limits,
+        wind=scenario.wind,
+    )
+    logger.info(
+        "scenario %s (%s): %d aircraft, wind north %.1f east %.1f m/s",
+        scenario.name,
+        scenario.source,
+        len(uavs),
+        scenario.wind.north,
+        scenario.wind.east,
+    )
+    return [SimulatedAutopilot(uav, settings) for uav in uavs]
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the simulator until SIGTERM or SIGINT; return the exit status."""
+    if not logging.getLogger().handlers:
+        logging.basicConfig(
+            level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s"
+        )
+    try:
+        autopilots = _build(args)
+        server = SimServer(
+            autopilots,
+            host=args.host,
+            program_port=args.program_port,
+            payload_port=args.payload_port,
+            ground_port=args.ground_port,
+            speedup=args.speedup,
+            use_pty=args.pty,
+        )
+    except (ScenarioError, ValueError) as error:
+        print(f"fleet sim: {error}", file=sys.stderr)
+        return EXIT_USAGE
+    with server:
+        # Handlers first: a launcher may send SIGTERM as soon as it has read `ready`.
+        previous = _install_signal_handlers(server)
+        try:
+            try:
+                endpoints = server.open()
+            except OSError as error:
+                print(f"fleet sim: {error.strerror or error}", file=sys.stderr)
+                return EXIT_RUNTIME
+            for endpoint in endpoints:
+                print(endpoint.line())
+            print("ready", flush=True)
+            logger.info("simulating at speedup %g", args.speedup)
+            server.run()
+        finally:
+            _restore_signal_handlers(previous)
+    logger.info("stopped at simulated time %.1f s", server.time_ms / 1000.0)
+    return EXIT_OK
+
+
+_Handler = Callable[[int, FrameType | None], Any] | int | signal.Handlers | None
+
+
+def _install_signal_handlers(server: SimServer) -> dict[int, _Handler]:
+    # Signal handlers can only be set from the main thread; a server run from a test
+    # thread is stopped by calling `stop()` instead.
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+
+    def handle(signum: int, frame: FrameType | None) -> None:
+        logger.info("%s: stopping", signal.Signals(signum).name)
+        server.stop()
+
+    return {sig: signal.signal(sig, handle) for sig in (signal.SIGTERM, signal.SIGINT)}
+
+
+def _restore_signal_handlers(previous: dict[int, _Handler]) -> None:
+    for sig, handler in previous.items():
+        signal.signal(sig, handler)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="fleet sim", description="Run simulated Piccolo autopilots for a scenario."
+    )
+    configure_parser(parser)
+    return run(parser.parse_args(argv))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,118 @@
+"""An embedded Zenoh router: a router-mode session in this Python process.
+
+No `zenohd` binary is on PyPI, but a Python session can run in router mode
+(architecture.md), so `fleet up` and the tests need nothing but the wheel. The router
+routes between client-mode sessions (the star every fleet process joins by default) and
+serves its admin space (`@/**`) to stock tools.
+
+`python -m fleet.transport.router --listen tcp/127.0.0.1:7447` runs one until SIGTERM or Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+from types import FrameType, TracebackType
+from typing import Self
+
+import zenoh
+
+from fleet.transport.zenoh_config import DEFAULT_ROUTER, make_config
+
+log = logging.getLogger(__name__)
+
+
+class RouterError(RuntimeError):
+    """The router could not open (typically: its listen endpoint is taken or malformed)."""
+
+
+class Router:
+    """A router-mode Zenoh session listening on `listen`, optionally meshed via `connect`.
+
+    Use as a context manager; the session is closed on exit whatever happened inside.
+    """
+
+    def __init__(self, listen: list[str], connect: list[str] | None = None) -> None:
+        if not listen:
+            raise ValueError("a router needs at least one listen endpoint")
+        self.listen = list(listen)
+        self.connect = list(connect or [])
+        self._session: zenoh.Session | None = None
+
+    @property
+    def session(self) -> zenoh.Session:
+        if self._session is None:
+            raise RuntimeError("the router is not open")
+        return self._session
+
+    @property
+    def zid(self) -> str:
+        return str(self.session.zid())
+
+    def open(self) -> None:
+        if self._session is not None:
+            return
+        try:
+            self._session = zenoh.open(make_config("router", self.connect, self.listen))
+        except zenoh.ZError as error:
+            raise RouterError(
+                f"cannot start a Zenoh router on {', '.join(self.listen)}: {error}"
+            ) from error
+        log.info("zenoh router %s listening on %s", self.zid, ", ".join(self.listen))
+
+    def close(self) -> None:
+        session, self._session = self._session, None
+        if session is not None:
+            session.close()
+
+    def __enter__(self) -> Self:
+        self.open()
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m fleet.transport.router", description="Run an embedded Zenoh router."
+    )
+    parser.add_argument(
+        "--listen",
+        action="append",
+        metavar="ENDPOINT",
+        help=f"endpoint to listen on (repeatable; default {DEFAULT_ROUTER})",
+    )
+    parser.add_argument(
+        "--connect", action="append", metavar="ENDPOINT", help="another router to mesh with"
+    )
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
+    try:
+        with Router(args.listen or [DEFAULT_ROUTER], args.connect):
+            # A bounded wait in a loop, so the signal handler runs promptly.
+            while not stop.wait(0.5):
+                pass
+    except RouterError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,349 @@
+"""`fleet demo`: the thesis's multi-UAV scenario end to end, driven as the ground drives it.
+
+It runs a local fleet (`fleet.launch`) on free ports, sends the scenario's targets to the
+team, waits for the consensus and checks that every UAV committed the same assignment,
+then watches until every assigned UAV has reached its target, prints who got which
+target, and stops everything. Exit 0 when the team agreed and every assigned UAV reached
+its target. It lives in `ground` because it is a ground station: it uses the mission
+manager's own code.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import math
+import socket
+import sys
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, TextIO
+
+from fleet.geo.mercator import MercatorProjection
+from fleet.launch.launcher import (
+    Fleet,
+    FleetSpec,
+    LaunchError,
+)
+from fleet.launch.up_command import (
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_USAGE,
+    common_arguments,
+    stop_on_signals,
+)
+from fleet.mission.messages import AssignmentReport, MissionTargets, Target, UavResult
+from fleet.sim.scenario import ScenarioError, resolve_scenario
+from fleet.transport.cli_args import positive_float
+
+# The demo is a ground station: it uses the mission manager's own code.
+from ground.fleet_view import FleetView
+from ground.mission_control import (
+    MissionFollower,
+    MissionOutcome,
+    TargetsServer,
+    next_mission_id,
+    publish_targets,
+)
+from ground.session import ground_session
+
+log = logging.getLogger(__name__)
+
+DEMO_SCENARIO = "head_on"
+DEMO_SPEEDUP = 10.0
+#: Wall seconds the demo waits for every UAV to commit its assignment.
+DEMO_COMMIT_TIMEOUT_S = 60.0
+#: Wall seconds the demo waits for every assigned UAV to reach its target.
+DEMO_REACH_TIMEOUT_S = 300.0
+#: A waypoint echo this close to a target (m) is the waypoint the UAV wrote for it.
+TARGET_WAYPOINT_MATCH_M = 30.0
+
+
+def add_demo_parser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+) -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(
+        "demo",
+        help="the thesis's multi-UAV scenario end to end (head_on)",
+        description="Run a scenario end to end on free ports: up, send its targets, "
+        "check the consensus, watch every UAV reach its target, stop.",
+    )
+    parser.add_argument(
+        "scenario",
+        nargs="?",
+        default=DEMO_SCENARIO,
+        metavar="SCENARIO",
+        help="a scenario with a targets file (default %(default)s)",
+    )
+    parser.add_argument(
+        "--listen",
+        metavar="ENDPOINT",
+        help="the router's endpoint (default: a free port on 127.0.0.1)",
+    )
+    parser.add_argument(
+        "--timeout",
+        type=positive_float,
+        default=DEMO_REACH_TIMEOUT_S,
+        metavar="S",
+        help="wall seconds to wait for the targets to be reached (default %(default)g)",
+    )
+    parser.add_argument("--json", action="store_true", help="print the outcome as JSON")
+    common_arguments(parser, speedup=DEMO_SPEEDUP)
+    parser.set_defaults(run=run_demo, func=run_demo)
+    return parser
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Register `demo`; it sets `run` (and `func`) to its handler."""
+    add_demo_parser(subparsers)
+
+
+# ---- fleet demo -----------------------------------------------------------------------------
+def free_tcp_endpoint(host: str = "127.0.0.1") -> str:
+    """A tcp endpoint on a port free right now (the OS picks it)."""
+    with socket.socket() as s:
+        s.bind((host, 0))
+        return f"tcp/{host}:{s.getsockname()[1]}"
+
+
+@dataclass
+class Arrival:
+    """How a UAV was seen to reach its target."""
+
+    how: str  #: status | phase | track
+    after_s: float  #: wall seconds from the commitment
+
+
+def _distance_m(a: tuple[float, float], b: tuple[float, float]) -> float:
+    x, y = MercatorProjection(*a).to_xy(*b)
+    return math.hypot(x, y)
+
+
+def run_demo(args: argparse.Namespace) -> int:
+    stop = threading.Event()
+    with stop_on_signals(stop):
+        return _run_demo(args, stop)
+
+
+def _run_demo(args: argparse.Namespace, stop: threading.Event) -> int:
+    try:
+        scenario = resolve_scenario(args.scenario)
+        targets = tuple(scenario.targets())
+    except (ScenarioError, OSError, ValueError) as error:
+        print(f"fleet demo: {error}", file=sys.stderr)
+        return EXIT_USAGE
+    if not targets:
+        print(f"fleet demo: scenario {args.scenario} has no targets file", file=sys.stderr)
+        return EXIT_USAGE
+    spec = FleetSpec(
+        scenario=args.scenario,
+        listen=args.listen or free_tcp_endpoint(),
+        speedup=args.speedup,
+        log_dir=args.log_dir,
+        start_timeout_s=args.start_timeout,
+    )
+    say = _sayer(sys.stderr if args.json else sys.stdout)
+    fleet = Fleet(spec, stop_requested=stop)
+    say(f"demo: {scenario.description or scenario.name} at speedup {args.speedup:g}")
+    say(f"demo: logs in {fleet.log_dir}")
+    try:
+        with fleet:
+            say(f"demo: UAVs {', '.join(map(str, fleet.uav_ids))} alive; router {spec.listen}")
+            report = _fly_demo(fleet, targets, args, stop, say)
+    except LaunchError as error:
+        if stop.is_set():
+            print("fleet demo: stopped while starting", file=sys.stderr)
+            return EXIT_INTERRUPTED
+        print(f"fleet demo: {error}", file=sys.stderr)
+        return EXIT_FAILED
+    if args.json:
+        print(json.dumps(report))
+    else:
+        print("\n".join(_demo_summary(report)))
+    return EXIT_OK if report["success"] else EXIT_FAILED
+
+
+def _sayer(out: TextIO) -> Callable[[str], None]:
+    lock = threading.Lock()
+
+    def say(text: str) -> None:
+        with lock:
+            print(text, file=out, flush=True)
+
+    return say
+
+
+def _fly_demo(
+    fleet: Fleet,
+    targets: tuple[Target, ...],
+    args: argparse.Namespace,
+    stop: threading.Event,
+    say: Callable[[str], None],
+) -> dict[str, Any]:
+    team = tuple(sorted(fleet.uav_ids))
+
+    last_status: dict[int, str] = {}
+
+    def on_status(uav: int, text: str) -> None:
+        # The modules repeat a summary every second; show only what changed.
+        if last_status.get(uav) != text:
+            last_status[uav] = text
+            say(f"  UAV {uav}: {text}")
+
+    def on_message(kind: str, message: UavResult | AssignmentReport) -> None:
+        if isinstance(message, AssignmentReport):
+            say(f"demo: UAV {message.uav} committed target {message.target}")
+
+    with ground_session(fleet.connect) as session, FleetView(session, on_status) as view:
+        # A UAV refuses a mission before its first GPS fix, so wait for telemetry.
+        deadline = time.monotonic() + args.start_timeout
+        while not stop.is_set() and time.monotonic() < deadline:
+            if all(v.lat is not None for v in view.snapshot()) and view.live_ids() == list(team):
+                break
+            view.wait_changed(0.5)
+        mission = next_mission_id(session, 1.0)
+        message = MissionTargets(mission=mission, team=team, targets=targets)
+        outcome = MissionOutcome(mission=mission, team=team, targets=targets)
+        arrivals: dict[int, Arrival] = {}
+        with (
+            MissionFollower(session, mission, on_message) as follower,
+            TargetsServer(session, message),
+        ):
+            sent_wall = time.time()
+            publish_targets(session, message)
+            say(f"demo: mission {mission}: {len(targets)} targets sent to the team")
+            committed = follower.wait_committed(
+                team, min(DEMO_COMMIT_TIMEOUT_S, args.timeout), fetch_every_s=1.0
+            )
+            follower.fetch(1.0)
+            outcome.results, outcome.assignments = follower.snapshot()
+            outcome.timed_out = not committed
+            committed_at = time.monotonic()
+            agreement = outcome.agreement
+            say(f"demo: committed: {committed}; agreed: {agreement.agreed}")
+            if committed and agreement.agreed:
+                arrivals = _watch_arrivals(
+                    view, outcome, sent_wall, committed_at, args.timeout, stop, say
+                )
+    return _demo_report(args, fleet, outcome, arrivals)
+
+
+def _watch_arrivals(
+    view: FleetView,
+    outcome: MissionOutcome,
+    sent_wall: float,
+    committed_at: float,
+    timeout_s: float,
+    stop: threading.Event,
+    say: Callable[[str], None],
+) -> dict[int, Arrival]:
+    """Wait until every assigned UAV reached its target; returns who did, and how.
+
+    Three signs, any of which counts: a status message of that UAV saying "reached"
+    (sent after the mission went out), its state's mission phase "reached", or its
+    track leaving the waypoint it wrote at the target (the waypoint echo within
+    TARGET_WAYPOINT_MATCH_M of the target).
+    """
+    assigned: dict[int, Target] = {}
+    for uav in outcome.team:
+        index = outcome.target_of(uav)
+        if index is not None:
+            assigned[uav] = outcome.targets[index]
+    arrivals: dict[int, Arrival] = {}
+    deadline = time.monotonic() + timeout_s
+    next_state = 0.0
+    while set(assigned) - set(arrivals) and not stop.is_set() and time.monotonic() < deadline:
+        now = time.monotonic()
+        if now >= next_state:
+            view.refresh_states(1.0)
+            next_state = now + 2.0
+        states = {v.id: v for v in view.snapshot(include_gone=True)}
+        for uav, place in assigned.items():
+            if uav in arrivals:
+                continue
+            how = None
+            if any(
+                who == uav and when >= sent_wall and "reached" in text.lower()
+                for when, who, text in view.recent_statuses()
+            ):
+                how = "status"
+            elif (
+                (state := states.get(uav)) is not None
+                and state.mission == outcome.mission
+                and state.phase == "reached"
+            ):
+                how = "phase"
+            elif _left_target_waypoint(view, uav, place):
+                how = "track"
+            if how is not None:
+                arrivals[uav] = Arrival(how, time.monotonic() - committed_at)
+                say(f"demo: UAV {uav} reached its target ({how})")
+        view.wait_changed(0.5)
+    return arrivals
+
+
+def _left_target_waypoint(view: FleetView, uav: int, target: Target) -> bool:
+    indices = [
+        index
+        for index, waypoint in view.waypoints(uav).items()
+        if _distance_m((target.lat, target.lon), (waypoint.lat, waypoint.lon))
+        <= TARGET_WAYPOINT_MATCH_M
+    ]
+    history = view.track_history(uav)
+    for index in indices:
+        if index in history:
+            last = len(history) - 1 - history[::-1].index(index)
+            if last < len(history) - 1:
+                return True
+    return False
+
+
+def _demo_report(
+    args: argparse.Namespace, fleet: Fleet, outcome: MissionOutcome, arrivals: dict[int, Arrival]
+) -> dict[str, Any]:
+    report: dict[str, Any] = outcome.to_json()
+    assigned = [uav for uav in outcome.team if outcome.target_of(uav) is not None]
+    report.update(
+        scenario=args.scenario,
+        speedup=args.speedup,
+        reached={str(uav): uav in arrivals for uav in outcome.team},
+        reached_how={str(uav): a.how for uav, a in arrivals.items()},
+        # Wall time x speedup: the simulated flight time, as far as the simulator kept up.
+        flown_s={str(uav): round(a.after_s * args.speedup, 1) for uav, a in arrivals.items()},
+        log_dir=str(fleet.log_dir),
+    )
+    report["success"] = bool(
+        report["complete"]
+        and report["agreed"]
+        and assigned
+        and all(u in arrivals for u in assigned)
+    )
+    return report
+
+
+def _demo_summary(report: dict[str, Any]) -> list[str]:
+    lines = [f"demo outcome: mission {report['mission']}, team {report['team']}"]
+    for uav in report["team"]:
+        key = str(uav)
+        target = report["assignment"].get(key)
+        eta = report["eta"].get(key)
+        flown = report["flown_s"].get(key)
+        parts = [f"UAV {uav}: target {target if target is not None else 'none'}"]
+        if eta is not None:
+            parts.append(f"predicted {eta:.0f} s")
+        if target is not None:
+            parts.append(
+                f"reached after ~{flown:.0f} s simulated" if flown is not None else "NOT reached"
+            )
+        lines.append("  " + ", ".join(parts))
+    lines.append(f"  unassigned targets: {report['unassigned'] or 'none'}")
+    lines.append(
+        f"  agreed: {'yes' if report['agreed'] else 'no'}"
+        + (f" (disagreed: {report['disagreed']})" if report["disagreed"] else "")
+    )
+    lines.append("demo: success" if report["success"] else "demo: FAILED")
+    return lines

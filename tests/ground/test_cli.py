@@ -1,0 +1,505 @@
+"""`ground-cli` end to end: the real CLI in a subprocess, a real Zenoh router on loopback,
+and `FakeOnboard`, a test double of the onboard process, in the test process.
+
+FakeOnboard does what the ground relies on and nothing more: it declares its liveliness
+token, publishes telemetry and status, answers state queries with a UavState, records
+what the ground sends it (MissionTargets, OpmCommand, MissionAbort), and answers a
+mission by publishing a UavResult and an AssignmentReport (and serving both by query).
+Its approach times are a fixed function of (Piccolo ID, target index), so every fake
+computes every teammate's row itself and the consensus is the real greedy.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import msgspec
+import pytest
+import zenoh
+
+from fleet.consensus.assignment import greedy_assign, results_digest
+from fleet.mission import keys
+from fleet.mission.messages import (
+    AssignmentReport,
+    MissionAbort,
+    MissionProgress,
+    MissionTargets,
+    OpmCommand,
+    StatusText,
+    Target,
+    UavResult,
+    UavState,
+)
+from fleet.mission.targets_file import write_targets
+from fleet.piccolo.telemetry import GpsBlock, SensorBlock, Telemetry
+from fleet.transport import bus_codec
+from fleet.transport.router import Router
+from fleet.transport.zenoh_config import CONNECT_ENV, make_config
+from ground.mission_control import MissionOutcome, check_agreement
+
+REPO = Path(__file__).resolve().parents[2]
+CLI_TIMEOUT_S = 30.0
+TARGETS = (
+    Target(42.3601, -71.0900, 120.0),
+    Target(42.3650, -71.1000, 110.0),
+    Target(42.3550, -71.0950, 130.0),
+)
+
+
+def free_endpoint() -> str:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return f"tcp/127.0.0.1:{s.getsockname()[1]}"
+
+
+def approach_time(uav: int, target: int) -> float:
+    """The fake's approach-time model: arbitrary, but the same on every fake."""
+    return 20.0 + float((uav * 7 + target * 13) % 41)
+
+
+class FakeOnboard:
+    """Test double of the `onboard` process, as seen from Zenoh."""
+
+    def __init__(self, endpoint: str, uav_id: int, lat: float, lon: float, alt: float) -> None:
+        self.uav_id = uav_id
+        self.lat, self.lon, self.alt = lat, lon, alt
+        self.targets: list[MissionTargets] = []
+        self.opms: list[OpmCommand] = []
+        self.aborts: list[MissionAbort] = []
+        self.publish_assignment = True  #: False: serve it by query only
+        self.disagree = False  #: True: commit a different assignment from the others
+        self.enabled = True
+        self.mission: MissionProgress | None = None
+        self._served: dict[str, bytes] = {}
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self.session = zenoh.open(make_config("client", [endpoint]))
+        try:
+            self._declared = [
+                self.session.liveliness().declare_token(keys.alive(uav_id)),
+                self.session.declare_queryable(keys.state(uav_id), self._on_state_query),
+                self.session.declare_queryable(
+                    f"{keys.PREFIX}/mission/*/**", self._on_mission_query
+                ),
+                self.session.declare_subscriber(keys.ALL_MISSION_TARGETS, self._on_targets),
+                self.session.declare_subscriber(keys.ALL_MISSION_ABORTS, self._on_abort),
+                self.session.declare_subscriber(keys.opm(uav_id), self._on_opm),
+            ]
+            self._thread = threading.Thread(target=self._publish_loop, daemon=True)
+            self._thread.start()
+        except BaseException:
+            self.session.close()
+            raise
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=5)
+        self.session.close()
+
+    def telemetry(self) -> Telemetry:
+        return Telemetry(
+            system_time_ms=int(time.monotonic() * 1000) % 2**32,
+            gps=GpsBlock(self.lat, self.lon, self.alt, vel_north=0.0, vel_east=20.0, vel_down=0.0),
+            sensor=SensorBlock(roll=0.0, pitch=0.0, yaw=90.0, indicated_airspeed=21.0),
+        )
+
+    def put(self, key: str, message: msgspec.Struct) -> None:
+        self.session.put(key, bus_codec.encode(message), encoding=bus_codec.ENCODING)
+
+    def _publish_loop(self) -> None:
+        ticks = 0
+        while not self._stop.wait(0.1):
+            self.put(keys.telemetry(self.uav_id), self.telemetry())
+            ticks += 1
+            if ticks % 5 == 0:
+                self.put(keys.status(self.uav_id), StatusText(f"fake {self.uav_id} tick {ticks}"))
+
+    def state(self) -> UavState:
+        return UavState(
+            uav=self.uav_id,
+            enabled=self.enabled,
+            status_rate_hz=1.0,
+            tracked_waypoint=3,
+            telemetry=self.telemetry(),
+            link=None,
+            mission=self.mission,
+        )
+
+    def _on_state_query(self, query: zenoh.Query) -> None:
+        query.reply(
+            keys.state(self.uav_id), bus_codec.encode(self.state()), encoding=bus_codec.ENCODING
+        )
+
+    def _on_mission_query(self, query: zenoh.Query) -> None:
+        with self._lock:
+            served = dict(self._served)
+        for key, payload in served.items():
+            if query.key_expr.intersects(key):
+                query.reply(key, payload, encoding=bus_codec.ENCODING)
+
+    def _on_targets(self, sample: zenoh.Sample) -> None:
+        targets = msgspec.json.decode(sample.payload.to_bytes(), type=MissionTargets)
+        with self._lock:
+            self.targets.append(targets)
+        if self.uav_id not in targets.team:
+            return
+        m, n = targets.mission, len(targets.targets)
+        rows = {u: [approach_time(u, i) for i in range(n)] for u in targets.team}
+        result = UavResult(mission=m, uav=self.uav_id, times=tuple(rows[self.uav_id]))
+        assignment = greedy_assign(rows, n)
+        pairs = {str(u): t for u, t in assignment.pairs.items()}
+        digest = results_digest(rows)
+        if self.disagree:
+            pairs = {u: (t + 1) % n for u, t in pairs.items()}
+            digest = "0" * 16
+        report = AssignmentReport(
+            mission=m,
+            uav=self.uav_id,
+            target=pairs.get(str(self.uav_id)),
+            pairs=pairs,
+            unassigned=assignment.unassigned_targets,
+            team=targets.team,
+            digest=digest,
+            eta_s=rows[self.uav_id][t] if (t := pairs.get(str(self.uav_id))) is not None else None,
+        )
+        with self._lock:
+            self._served[keys.mission_result(m, self.uav_id)] = bus_codec.encode(result)
+            self._served[keys.mission_assignment(m, self.uav_id)] = bus_codec.encode(report)
+            self.mission = MissionProgress(m, "committed", n, result, report)
+        self.put(keys.mission_result(m, self.uav_id), result)
+        if self.publish_assignment:
+            self.put(keys.mission_assignment(m, self.uav_id), report)
+
+    def _on_abort(self, sample: zenoh.Sample) -> None:
+        with self._lock:
+            self.aborts.append(msgspec.json.decode(sample.payload.to_bytes(), type=MissionAbort))
+
+    def _on_opm(self, sample: zenoh.Sample) -> None:
+        command = msgspec.json.decode(sample.payload.to_bytes(), type=OpmCommand)
+        with self._lock:
+            self.opms.append(command)
+        self.enabled = command.enabled
+        self.put(
+            keys.status(self.uav_id),
+            StatusText(f"module {'on' if command.enabled else 'off'}, status every 1 s"),
+        )
+
+
+@pytest.fixture(scope="module")
+def router() -> Iterator[str]:
+    endpoint = free_endpoint()
+    with Router([endpoint]):
+        yield endpoint
+
+
+@pytest.fixture(scope="module")
+def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
+    opened: dict[int, FakeOnboard] = {}
+    try:
+        opened[74] = FakeOnboard(router, 74, 42.3500, -71.1000, 150.0)
+        opened[112] = FakeOnboard(router, 112, 42.3700, -71.0800, 160.0)
+        yield opened
+    finally:
+        for fake in opened.values():
+            fake.close()
+
+
+def run_cli(*args: str, endpoint: str | None) -> subprocess.CompletedProcess[str]:
+    env = {k: v for k, v in os.environ.items() if k != CONNECT_ENV}
+    command = [sys.executable, "-m", "ground.cli"]
+    if endpoint is not None:
+        command += ["--connect", endpoint]
+    return subprocess.run(
+        [*command, *args],
+        cwd=REPO,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=CLI_TIMEOUT_S,
+        check=False,
+    )
+
+
+def wait_until(condition: object, timeout_s: float = 5.0) -> bool:
+    assert callable(condition)
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.05)
+    return bool(condition())
+
+
+# ---- against a router with two fake UAVs --------------------------------------------------------
+def test_uavs_json_lists_the_live_uavs(router: str, fakes: dict[int, FakeOnboard]) -> None:
+    done = run_cli("uavs", "--json", endpoint=router)
+    assert done.returncode == 0, done.stderr
+    rows = {row["id"]: row for row in json.loads(done.stdout)}
+    assert sorted(rows) == [74, 112]
+    for uav, fake in fakes.items():
+        assert rows[uav]["lat"] == pytest.approx(fake.lat)
+        assert rows[uav]["lon"] == pytest.approx(fake.lon)
+        assert rows[uav]["alt"] == pytest.approx(fake.alt)
+        assert rows[uav]["heading"] == pytest.approx(90.0)
+        assert rows[uav]["ground_speed"] == pytest.approx(20.0)
+        assert rows[uav]["tracked_waypoint"] == 3
+        assert rows[uav]["enabled"] is True
+
+
+def test_uavs_table(router: str, fakes: dict[int, FakeOnboard]) -> None:
+    done = run_cli("uavs", endpoint=router)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    assert lines[0].split()[:3] == ["ID", "LAT", "LON"]
+    assert [line.split()[0] for line in lines[1:]] == ["74", "112"]
+
+
+def test_send_targets_wait_json(router: str, fakes: dict[int, FakeOnboard], tmp_path: Path) -> None:
+    path = tmp_path / "targets.bin"
+    write_targets(path, TARGETS)
+    # 112 only serves its report by query: the ground's fetch must still find it.
+    fakes[112].publish_assignment = False
+    try:
+        done = run_cli(
+            "send-targets", str(path), "--wait", "--json", "--timeout", "15", endpoint=router
+        )
+    finally:
+        fakes[112].publish_assignment = True
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout)
+    mission = out["mission"]
+    assert isinstance(mission, int) and mission >= 1
+    assert out["team"] == [74, 112]
+    assert out["results"] == {
+        str(u): [approach_time(u, i) for i in range(len(TARGETS))] for u in (74, 112)
+    }
+    expected = greedy_assign(
+        {u: [approach_time(u, i) for i in range(len(TARGETS))] for u in (74, 112)}, len(TARGETS)
+    )
+    assert out["assignment"] == {str(u): t for u, t in expected.pairs.items()}
+    assert out["unassigned"] == list(expected.unassigned_targets)
+    assert out["agreed"] is True
+    assert out["disagreed"] == []
+    assert out["complete"] is True
+    assert out["timed_out"] is False
+    # Progress went to stderr, so stdout is exactly one JSON object.
+    assert "committed target" in done.stderr
+    for fake in fakes.values():
+        got = [t for t in fake.targets if t.mission == mission]
+        assert got and got[0].team == (74, 112)
+        assert got[0].targets == TARGETS
+
+    # The next mission gets a higher id: the fakes still answer for this one.
+    again = run_cli("send-targets", str(path), "--team", "74", "--json", endpoint=router)
+    assert again.returncode == 0, again.stderr
+    second = json.loads(again.stdout)
+    assert second["mission"] == mission + 1
+    assert second["team"] == [74]
+    assert wait_until(lambda: any(t.mission == mission + 1 for t in fakes[74].targets))
+
+
+def test_send_targets_names_who_disagreed(
+    router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
+) -> None:
+    path = tmp_path / "targets.bin"
+    write_targets(path, TARGETS)
+    fakes[112].disagree = True
+    try:
+        done = run_cli("send-targets", str(path), "--wait", "--json", endpoint=router)
+    finally:
+        fakes[112].disagree = False
+    assert done.returncode == 1, done.stderr
+    out = json.loads(done.stdout)
+    assert out["agreed"] is False
+    # A tie of two single-member groups: the lower Piccolo ID is the reference.
+    assert out["disagreed"] == [112]
+    assert out["complete"] is True
+
+
+@pytest.mark.parametrize(
+    ("data", "where"),
+    [
+        (b"\x00" * 30, "target 1 at byte offset 24"),
+        (b"\x00" * 24 + b"\xff" * 24, "target 1 at byte offset 24: latitude is nan"),
+    ],
+)
+def test_bad_targets_file_is_refused_and_nothing_sent(
+    router: str, fakes: dict[int, FakeOnboard], tmp_path: Path, data: bytes, where: str
+) -> None:
+    path = tmp_path / "bad.bin"
+    path.write_bytes(data)
+    before = {uav: len(fake.targets) for uav, fake in fakes.items()}
+    done = run_cli("send-targets", str(path), "--wait", "--timeout", "2", endpoint=router)
+    assert done.returncode == 1
+    assert str(path) in done.stderr
+    assert where in done.stderr
+    assert "nothing sent" in done.stderr
+    time.sleep(0.3)  # a put, had there been one, would have arrived by now
+    assert {uav: len(fake.targets) for uav, fake in fakes.items()} == before
+
+
+def test_keys_shows_telemetry_state_and_token(router: str, fakes: dict[int, FakeOnboard]) -> None:
+    done = run_cli(
+        "keys", "fleet/uav/74/**", "--json", "--window", "0.5", "--admin", endpoint=router
+    )
+    assert done.returncode == 0, done.stderr
+    found = {item["key"]: item for item in json.loads(done.stdout)}
+    telemetry = found["fleet/uav/74/telemetry"]
+    assert telemetry["via"] == "subscription"
+    assert telemetry["encoding"].startswith("application/json")
+    assert telemetry["value"]["gps"]["lat"] == pytest.approx(fakes[74].lat)
+    assert found["fleet/uav/74/state"]["value"]["uav"] == 74
+    assert found["fleet/uav/74/alive"]["via"] == "liveliness"
+    assert not any(key.startswith("fleet/uav/112") for key in found)
+    admin = [key for key in found if key.startswith("@/")]
+    assert any("/router" in key for key in admin), admin
+
+    text = run_cli("keys", "--window", "0.3", endpoint=router)
+    assert text.returncode == 0, text.stderr
+    assert any(line.startswith("fleet/uav/112/telemetry = {") for line in text.stdout.splitlines())
+
+
+def test_opm_arrives_with_its_payload(router: str, fakes: dict[int, FakeOnboard]) -> None:
+    done = run_cli("opm", "74", "off", "--status-rate", "2.5", endpoint=router)
+    assert done.returncode == 0, done.stderr
+    assert wait_until(lambda: OpmCommand(enabled=False, status_rate_hz=2.5) in fakes[74].opms)
+    assert "module off" in done.stdout  # the UAV's confirming status message
+    assert not fakes[112].opms
+
+    done = run_cli("opm", "74", "on", endpoint=router)
+    assert done.returncode == 0, done.stderr
+    assert wait_until(lambda: fakes[74].opms[-1:] == [OpmCommand(True, 1.0)])
+
+    absent = run_cli("opm", "999", "on", endpoint=router)
+    assert absent.returncode == 1
+    assert "999 is not live" in absent.stderr
+
+
+def test_abort_arrives_for_the_current_or_named_mission(
+    router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
+) -> None:
+    path = tmp_path / "targets.bin"
+    write_targets(path, TARGETS)
+    sent = run_cli("send-targets", str(path), "--json", endpoint=router)
+    assert sent.returncode == 0, sent.stderr
+    mission = json.loads(sent.stdout)["mission"]
+    assert wait_until(
+        lambda: all(f.mission and f.mission.mission == mission for f in fakes.values())
+    )
+
+    done = run_cli("abort", endpoint=router)
+    assert done.returncode == 0, done.stderr
+    assert f"mission {mission}" in done.stdout
+    for fake in fakes.values():
+        assert wait_until(lambda fake=fake: MissionAbort(mission) in fake.aborts)
+
+    done = run_cli("abort", "--mission", "4242", endpoint=router)
+    assert done.returncode == 0, done.stderr
+    assert wait_until(lambda: MissionAbort(4242) in fakes[112].aborts)
+
+
+def test_watch_shows_the_table_and_status_messages(
+    router: str, fakes: dict[int, FakeOnboard]
+) -> None:
+    done = run_cli("watch", "--count", "3", "--interval", "0.4", endpoint=router)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    assert sum(line.startswith("-- ") for line in lines) == 3
+    rows = [line.split()[0] for line in lines if line.split() and line.split()[0].isdigit()]
+    assert "74" in rows and "112" in rows
+    assert any("UAV 74: fake 74 tick" in line for line in lines), done.stdout
+
+
+# ---- without a router ---------------------------------------------------------------------
+def test_no_router_is_a_clear_error_not_a_hang() -> None:
+    endpoint = free_endpoint()
+    for command in (["uavs"], ["keys"], ["abort", "--mission", "1"]):
+        done = run_cli(*command, endpoint=endpoint)
+        assert done.returncode == 2
+        assert f"no Zenoh router answers at {endpoint}" in done.stderr
+        assert "Traceback" not in done.stderr
+
+
+def test_connect_comes_from_the_environment() -> None:
+    endpoint = free_endpoint()
+    env = {**os.environ, CONNECT_ENV: endpoint}
+    done = subprocess.run(
+        [sys.executable, "-m", "ground.cli", "uavs"],
+        cwd=REPO,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=CLI_TIMEOUT_S,
+        check=False,
+    )
+    assert done.returncode == 2
+    assert endpoint in done.stderr
+
+
+# ---- targets files (no network) -----------------------------------------------------------
+def test_targets_make_and_show(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from ground.cli import main
+
+    path = tmp_path / "t.bin"
+    assert (
+        main(["targets", "make", "--out", str(path), "42.36,-71.09,120", "--", "-33.9,151.2,80"])
+        == 0
+    )
+    assert path.stat().st_size == 48
+    capsys.readouterr()
+    assert main(["targets", "show", str(path), "--json"]) == 0
+    shown = json.loads(capsys.readouterr().out)
+    assert shown == [
+        {"index": 0, "lat": 42.36, "lon": -71.09, "alt": 120.0},
+        {"index": 1, "lat": -33.9, "lon": 151.2, "alt": 80.0},
+    ]
+    assert main(["targets", "make", "--out", str(path), "91,0,10"]) == 1
+    err = capsys.readouterr().err
+    assert "target 0" in err and "latitude" in err
+    assert path.stat().st_size == 48  # the good file is untouched
+    assert main(["targets", "make", "--out", str(path), "1,2"]) == 1
+    assert "LAT,LON,ALT" in capsys.readouterr().err
+
+
+# ---- agreement (pure) ------------------------------------------------------------------------
+def _report(uav: int, digest: str, pairs: dict[str, int]) -> AssignmentReport:
+    return AssignmentReport(
+        mission=1,
+        uav=uav,
+        target=pairs.get(str(uav)),
+        pairs=pairs,
+        unassigned=(),
+        team=(1, 2, 3),
+        digest=digest,
+    )
+
+
+def test_agreement_names_the_minority_and_the_missing() -> None:
+    pairs = {"1": 0, "2": 1, "3": 2}
+    reports = {1: _report(1, "a", pairs), 2: _report(2, "a", pairs), 3: _report(3, "b", pairs)}
+    agreement = check_agreement((1, 2, 3), reports)
+    assert not agreement.agreed
+    assert agreement.disagreed == (3,)
+    assert agreement.reference is reports[1]
+    partial = check_agreement((1, 2, 3, 4), {1: reports[1], 2: reports[2]})
+    assert not partial.agreed and partial.missing == (3, 4) and partial.disagreed == ()
+    assert check_agreement((1, 2, 3), reports | {3: _report(3, "a", pairs)}).agreed
+
+
+def test_outcome_json_fills_nulls_for_silent_uavs() -> None:
+    outcome = MissionOutcome(mission=9, team=(1, 2), targets=TARGETS[:2])
+    outcome.results[1] = UavResult(9, 1, (5.0, None))
+    out = outcome.to_json()
+    assert out["results"] == {"1": [5.0, None], "2": [None, None]}
+    assert out["assignment"] == {"1": None, "2": None}
+    assert out["unassigned"] == [0, 1]
+    assert out["agreed"] is False
+    assert out["missing_results"] == [2]

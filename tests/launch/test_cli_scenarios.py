@@ -1,0 +1,83 @@
+"""The fleet as a user runs it: `fleet demo`, `fleet up` and `ground-cli`, each a real
+subprocess (console scripts' modules), checked from outside: exit codes, JSON output
+and the Zenoh key space.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+from importlib.resources import files
+from pathlib import Path
+
+from tests.processes import free_port, start
+
+TIMEOUT_S = 120
+
+
+def run(*argv: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, *argv], capture_output=True, text=True, timeout=TIMEOUT_S, check=False
+    )
+
+
+def test_fleet_demo_runs_the_thesis_multi_uav_scenario(tmp_path: Path) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    done = run(
+        "-m", "ground.fleet_cli", "demo", "--json", "--listen", endpoint,
+        "--log-dir", str(tmp_path),
+        "--timeout", "100",
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    outcome = json.loads(done.stdout)
+    assert outcome["agreed"] is True and outcome["success"] is True
+    assert outcome["assignment"] == {"74": 0, "112": 1}
+    assert outcome["unassigned"] == [2]
+    assert set(outcome["reached"]) == {"74", "112"} and all(outcome["reached"].values())
+    # Every process it started is gone.
+    pids = [int(line.split()[0]) for line in (tmp_path / "pids").read_text().splitlines()]
+    assert pids and not any(Path(f"/proc/{pid}").exists() for pid in pids)
+
+
+def test_fleet_up_then_ground_cli_single_uav(tmp_path: Path) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    up = start(
+        "fleet up",
+        [sys.executable, "-m", "ground.fleet_cli", "up", "single_uav", "--listen", endpoint,
+         "--speedup", "5", "--log-dir", str(tmp_path)],
+    )  # fmt: skip
+    try:
+        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+        ground = ("-m", "ground.cli", "--connect", endpoint)
+        listed = run(*ground, "uavs", "--json")
+        assert listed.returncode == 0, listed.stderr
+        (uav,) = json.loads(listed.stdout)
+        assert uav["id"] == 112 and abs(uav["lat"] - 35.72) < 0.05
+
+        targets = str(files("fleet") / "scenarios" / "single_uav_targets.bin")
+        sent = run(*ground, "send-targets", targets, "--wait", "--json", "--timeout", "60")
+        assert sent.returncode == 0, sent.stderr
+        outcome = json.loads(sent.stdout)
+        assert outcome["team"] == [112]
+        assert outcome["assignment"] == {"112": 1}  # the target ahead, 15 degrees right
+        assert outcome["unassigned"] == [0, 2] and outcome["agreed"] is True
+        assert all(isinstance(t, float) for t in outcome["results"]["112"])
+
+        keys = run(*ground, "keys", "fleet/mission/**", "--json", "--window", "0.5")
+        assert keys.returncode == 0, keys.stderr
+        found = {item["key"]: item["value"] for item in json.loads(keys.stdout)}
+        mission = outcome["mission"]
+        assert found[f"fleet/mission/{mission}/assignment/112"]["target"] == 1
+        assert len(found[f"fleet/mission/{mission}/targets"]["targets"]) == 3
+
+        bad = tmp_path / "bad.bin"
+        bad.write_bytes(b"\x00" * 25)
+        refused = run(*ground, "send-targets", str(bad))
+        assert refused.returncode != 0 and str(bad) in refused.stderr
+    finally:
+        up.process.send_signal(signal.SIGTERM)
+        assert up.process.wait(30) == 0
+    pids = [int(line.split()[0]) for line in (tmp_path / "pids").read_text().splitlines()]
+    assert pids and not any(Path(f"/proc/{pid}").exists() for pid in pids)

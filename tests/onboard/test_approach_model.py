@@ -1,0 +1,264 @@
+"""Tests of the approach-time model (onboard.approach_model) and the Dubins fallback."""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from bench.bench_approach import fly_pure_pursuit
+from fleet.geo.dubins import dubins_path_length, dubins_time_to_point, turn_radius
+from onboard.approach_model import (
+    AircraftLimits,
+    ApproachTimeModel,
+    TargetStatus,
+    default_steps,
+)
+
+LIMITS = AircraftLimits()
+V = LIMITS.max_speed
+R = turn_radius(V, LIMITS.bank_limit_deg)
+
+
+@pytest.fixture(scope="module")
+def model() -> ApproachTimeModel:
+    return ApproachTimeModel(LIMITS)
+
+
+def polar(dist: float, bearing_deg: float) -> tuple[float, float]:
+    b = math.radians(bearing_deg)
+    return dist * math.cos(b), dist * math.sin(b)
+
+
+# -- approach-time model ---------------------------------------------------------------
+
+
+def test_straight_ahead_at_max_speed_is_distance_over_speed(model: ApproachTimeModel) -> None:
+    for d in (150.0, 1000.0, 4000.0):
+        (t,) = model.solve((0.0, 0.0), (V, 0.0), [(d, 0.0)])
+        assert t is not None
+        # The speed 16-gon is scaled to the circle's mean radius: 1.3 % fast dead ahead.
+        assert t == pytest.approx(d / V, rel=0.015)
+
+
+def test_heading_and_position_are_respected(model: ApproachTimeModel) -> None:
+    # Flying north from (500, -200): a target 2 km north is straight ahead.
+    (t,) = model.solve((500.0, -200.0), (0.0, V), [(500.0, 1800.0)])
+    assert t == pytest.approx(2000.0 / V, rel=0.015)
+
+
+def test_target_behind_takes_longer_than_ahead(model: ApproachTimeModel) -> None:
+    ahead, behind, abeam = model.solve(
+        (0.0, 0.0), (V, 0.0), [(1500.0, 0.0), (-1500.0, 0.0), (0.0, 1500.0)]
+    )
+    assert ahead is not None and behind is not None and abeam is not None
+    assert ahead < abeam < behind
+    # Turning round takes about half a turn circle's circumference.
+    assert behind - ahead > 0.8 * math.pi * R / V
+
+
+def test_left_and_right_are_symmetric(model: ApproachTimeModel) -> None:
+    left, right = model.solve((0.0, 0.0), (V, 0.0), [(-800.0, 900.0), (-800.0, -900.0)])
+    assert left == pytest.approx(right, rel=1e-6)
+
+
+@pytest.mark.parametrize("bearing", [0.0, 45.0, 135.0, 180.0])
+def test_times_are_monotone_in_distance(model: ApproachTimeModel, bearing: float) -> None:
+    targets = [polar(d, bearing) for d in (600.0, 1000.0, 1500.0, 2500.0, 4000.0, 8000.0)]
+    times = [t for t in model.solve((0.0, 0.0), (V, 0.0), targets) if t is not None]
+    assert len(times) == len(targets)
+    assert all(a < b for a, b in itertools.pairwise(times))
+
+
+def test_reused_model_matches_fresh_model(model: ApproachTimeModel) -> None:
+    targets = [polar(1200.0, 30.0), polar(2500.0, 200.0), polar(800.0, 110.0), (10.0, 5.0)]
+    states = [
+        ((0.0, 0.0), (V, 0.0)),
+        ((300.0, -50.0), (-12.0, 20.0)),
+        ((-1000.0, 700.0), (0.0, -25.0)),
+    ]
+    for position, velocity in states:
+        reused = model.solve(position, velocity, targets)
+        fresh = ApproachTimeModel(LIMITS).solve(position, velocity, targets)
+        assert reused == pytest.approx(fresh, rel=1e-6, abs=1e-6)
+
+
+def test_lp_scan_finds_the_first_feasible_node(model: ApproachTimeModel) -> None:
+    """The scan's node is the arrival-step MILP optimum: every earlier node is refuted."""
+    target = polar(1800.0, 150.0)
+    (sol,) = model.solve_detailed((0.0, 0.0), (V, 0.0), [target])
+    assert sol.status is TargetStatus.SOLVED and sol.node is not None
+    assert sol.lp_time is not None
+    assert model.node_times[sol.node - 1] < sol.lp_time <= model.node_times[sol.node]
+    # Exhaustive check through the model's own LP (private, on purpose).
+    model._set_target(target[0], abs(target[1]))
+    gaps = [model._gap_at(k) for k in range(sol.node + 1)]
+    assert all(g is not None and g > 1e-2 for g in gaps[:-1])
+    assert gaps[-1] is not None and gaps[-1] <= 1e-2
+
+
+def test_turn_bound_tracks_flown_time_on_all_bearings(model: ApproachTimeModel) -> None:
+    targets = [polar(2000.0, b) for b in range(0, 360, 30)]
+    # The LP's own estimate: the reported time is also capped by the Dubins time, which
+    # is this reference's time by construction.
+    predicted = [s.lp_time for s in model.solve_detailed((0.0, 0.0), (V, 0.0), targets)]
+    for target, t in zip(targets, predicted, strict=True):
+        flown = fly_pure_pursuit((0.0, 0.0), (V, 0.0), target, LIMITS)
+        assert t is not None and flown is not None
+        assert t == pytest.approx(flown, rel=0.05), target
+
+
+def test_turn_bound_beats_pure_point_mass_behind() -> None:
+    target = (-1000.0, 0.0)
+    flown = fly_pure_pursuit((0.0, 0.0), (V, 0.0), target, LIMITS)
+    pure_model = ApproachTimeModel(LIMITS, turn_constraint=False)
+    (pure_sol,) = pure_model.solve_detailed((0.0, 0.0), (V, 0.0), [target])
+    (turn_sol,) = ApproachTimeModel(LIMITS).solve_detailed((0.0, 0.0), (V, 0.0), [target])
+    pure, turn = pure_sol.lp_time, turn_sol.lp_time
+    assert flown is not None and pure is not None and turn is not None
+    assert abs(turn - flown) < abs(pure - flown)
+
+
+def test_target_passed_between_nodes_is_capped_by_dubins(model: ApproachTimeModel) -> None:
+    # 3 m dead ahead: the aircraft is there in 0.1 s, but the LP can only place the
+    # arrival on a node (2 s), where the point mass cannot be without turning round.
+    (sol,) = model.solve_detailed((0.0, 0.0), (V, 0.0), [(3.0, 0.0)])
+    assert sol.lp_time is not None and sol.lp_time > 10.0
+    assert sol.time == pytest.approx(3.0 / V)
+
+
+def test_target_on_the_aircraft_takes_no_time(model: ApproachTimeModel) -> None:
+    assert model.solve((5.0, 5.0), (V, 0.0), [(5.0, 5.0)]) == [0.0]
+
+
+def test_unreachable_within_horizon_is_none() -> None:
+    short = ApproachTimeModel(LIMITS, horizon_s=60.0)
+    near, far = short.solve((0.0, 0.0), (V, 0.0), [(1000.0, 0.0), (5000.0, 0.0)])
+    assert near is not None and far is None
+    (sol,) = short.solve_detailed((0.0, 0.0), (V, 0.0), [(-1700.0, 0.0)])
+    assert sol.status is TargetStatus.UNREACHABLE and sol.time is None
+
+
+def test_passed_deadline_gives_none(model: ApproachTimeModel) -> None:
+    past = time.monotonic() - 1.0
+    out = model.solve_detailed((0.0, 0.0), (V, 0.0), [(1000.0, 0.0), (0.0, 2000.0)], past)
+    assert [s.time for s in out] == [None, None]
+    assert all(s.status is TargetStatus.DEADLINE for s in out)
+    # The model still works afterwards.
+    assert model.solve((0.0, 0.0), (V, 0.0), [(1000.0, 0.0)])[0] is not None
+
+
+def test_speed_below_minimum_is_clamped(model: ApproachTimeModel) -> None:
+    stopped, slow = model.solve((0.0, 0.0), (0.0, 0.0), [(1000.0, 0.0), (1000.0, 0.0)])
+    assert stopped is not None and slow is not None
+    (at_min,) = model.solve((0.0, 0.0), (LIMITS.min_speed, 0.0), [(1000.0, 0.0)])
+    assert stopped == pytest.approx(at_min, rel=1e-6)
+
+
+def test_rejects_non_finite_input(model: ApproachTimeModel) -> None:
+    with pytest.raises(ValueError):
+        model.solve((0.0, math.nan), (V, 0.0), [(1.0, 1.0)])
+    with pytest.raises(ValueError):
+        model.solve((0.0, 0.0), (V, 0.0), [(math.inf, 1.0)])
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [{"min_speed": 0.0}, {"min_speed": 31.0}, {"bank_limit_deg": 0.0}, {"bank_limit_deg": 90.0}],
+)
+def test_limits_are_validated(kwargs: dict[str, float]) -> None:
+    with pytest.raises(ValueError):
+        AircraftLimits(**kwargs)
+
+
+def test_default_steps_cover_the_horizon() -> None:
+    for horizon in (7.0, 100.0, 600.0, 1000.0):
+        steps = default_steps(horizon)
+        assert sum(steps) == pytest.approx(horizon)
+        assert all(s > 0.0 for s in steps)
+    assert default_steps(600.0)[:10] == (2.0,) * 10
+    with pytest.raises(ValueError):
+        default_steps(0.0)
+
+
+# -- Dubins fallback -------------------------------------------------------------------
+
+
+def test_turn_radius_formula() -> None:
+    assert turn_radius(30.0, 30.0) == pytest.approx(30.0**2 / (9.80665 * math.tan(math.pi / 6)))
+    assert turn_radius(30.0, 0.0) == math.inf
+
+
+def test_dubins_straight_ahead_is_distance_over_speed() -> None:
+    for d in (1.0, 500.0, 3000.0):
+        assert dubins_time_to_point((0.0, 0.0), (V, 0.0), (d, 0.0), R) == pytest.approx(d / V)
+    # Any heading: flying south-west.
+    v = (-V / math.sqrt(2.0), -V / math.sqrt(2.0))
+    assert dubins_time_to_point((10.0, 10.0), v, (-90.0, -90.0), R) == pytest.approx(
+        100.0 * math.sqrt(2.0) / V
+    )
+
+
+def test_dubins_far_side_of_turn_circle_is_half_a_turn() -> None:
+    half_turn = math.pi * R / V
+    assert dubins_time_to_point((0.0, 0.0), (V, 0.0), (0.0, 2.0 * R), R) == pytest.approx(half_turn)
+    assert dubins_time_to_point((0.0, 0.0), (V, 0.0), (0.0, -2.0 * R), R) == pytest.approx(
+        half_turn
+    )
+
+
+def test_dubins_inside_turn_circle_uses_two_turns() -> None:
+    # The centre of the left turn circle cannot be reached by turning left then going
+    # straight; the path must exist (two turns) and be longer than the straight line.
+    length = dubins_path_length((0.0, 0.0), 0.0, (0.0, R), R)
+    assert math.isfinite(length)
+    assert length > R
+
+
+def test_dubins_stationary_aircraft() -> None:
+    assert dubins_time_to_point((0.0, 0.0), (0.0, 0.0), (0.0, 0.0), R) == 0.0
+    assert dubins_time_to_point((0.0, 0.0), (0.0, 0.0), (1.0, 0.0), R) == math.inf
+
+
+@pytest.mark.parametrize("bearing", range(0, 360, 45))
+def test_dubins_matches_flown_pure_pursuit(bearing: int) -> None:
+    target = polar(1500.0, bearing)
+    flown = fly_pure_pursuit((0.0, 0.0), (V, 0.0), target, LIMITS)
+    assert flown is not None
+    assert dubins_time_to_point((0.0, 0.0), (V, 0.0), target, R) == pytest.approx(flown, rel=2e-3)
+
+
+coord = st.floats(-5000.0, 5000.0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    px=coord,
+    py=coord,
+    heading=st.floats(-math.pi, math.pi),
+    tx=coord,
+    ty=coord,
+    radius=st.floats(10.0, 500.0),
+)
+def test_dubins_bounds_and_invariance(
+    px: float, py: float, heading: float, tx: float, ty: float, radius: float
+) -> None:
+    length = dubins_path_length((px, py), heading, (tx, ty), radius)
+    dist = math.hypot(tx - px, ty - py)
+    # Never shorter than the straight line; never longer than a full loop plus the
+    # straight line from anywhere on the turn circle.
+    assert length >= dist - 1e-6
+    assert length <= dist + (2.0 * math.pi + 2.0) * radius + 1e-6
+    # Translating and rotating the whole picture changes nothing.
+    c, s = math.cos(0.7), math.sin(0.7)
+    moved = dubins_path_length(
+        (c * px - s * py + 100.0, s * px + c * py - 50.0),
+        heading + 0.7,
+        (c * tx - s * ty + 100.0, s * tx + c * ty - 50.0),
+        radius,
+    )
+    assert moved == pytest.approx(length, rel=1e-6, abs=1e-6)

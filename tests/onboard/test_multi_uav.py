@@ -1,0 +1,183 @@
+"""Thesis 4.4 and beyond, end to end: several onboard processes, real Zenoh, simulated
+autopilots over real serial links (socket://), the test as the ground station.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from pathlib import Path
+
+from fleet.geo.mercator import MercatorProjection
+from fleet.launch.launcher import GENERATED_CENTRE, ring_scenario
+from fleet.mission.messages import AssignmentReport, MissionTargets, Target
+from fleet.sim.scenario import shipped_scenario
+from onboard.core import TARGET_WAYPOINT
+from tests.conftest import Ground
+from tests.processes import Fleet, SimEndpoints, wait_until
+
+
+def ring_targets(count: int, seed: int) -> tuple[Target, ...]:
+    rng = random.Random(seed)
+    projection = MercatorProjection(*GENERATED_CENTRE)
+    points = []
+    for _ in range(count):
+        bearing, distance = rng.uniform(0, 2 * math.pi), rng.uniform(500.0, 2500.0)
+        lat, lon = projection.to_latlon(distance * math.sin(bearing), distance * math.cos(bearing))
+        points.append(Target(lat, lon, 600.0))
+    return tuple(points)
+
+
+def assert_agreed(reports: dict[int, AssignmentReport], team: set[int], n_targets: int) -> None:
+    assert set(reports) == team
+    first = next(iter(reports.values()))
+    for report in reports.values():
+        assert (report.pairs, report.digest, report.unassigned) == (
+            first.pairs,
+            first.digest,
+            first.unassigned,
+        ), f"UAV {report.uav} disagrees"
+        assert report.target == first.pairs.get(str(report.uav))
+    targets = list(first.pairs.values())
+    assert len(targets) == len(set(targets)) == min(len(team), n_targets)
+    assert sorted([*targets, *first.unassigned]) == list(range(n_targets))
+
+
+def ring_sim(fleet: Fleet, tmp_path: Path, count: int) -> dict[int, SimEndpoints]:
+    """Simulated autopilots for `count` UAVs on a ring; no onboard modules yet."""
+    scenario = tmp_path / "ring.toml"
+    scenario.write_text(ring_scenario(count))
+    return fleet.sim(str(scenario), 10.0, 2.0)
+
+
+def start_ring(fleet: Fleet, tmp_path: Path, count: int, router: str) -> dict[int, SimEndpoints]:
+    endpoints = ring_sim(fleet, tmp_path, count)
+    for uav, where in endpoints.items():
+        fleet.onboard(uav, where, router)
+    return endpoints
+
+
+def test_head_on_two_uavs_take_distinct_targets_reach_them_and_resume(
+    fleet: Fleet, ground: Ground
+) -> None:
+    scenario = shipped_scenario("head_on")
+    targets = tuple(scenario.targets())
+    seen, router = ground.seen, ground.router
+    endpoints = fleet.sim("head_on", speedup=10.0, telemetry_hz=5.0)
+    for uav, where in endpoints.items():
+        fleet.onboard(uav, where, router)
+    wait_until(lambda: all(seen.latest_track(u) is not None for u in (74, 112)), 30.0, "tracks")
+    original = {uav: seen.latest_track(uav) for uav in (74, 112)}
+    ground.send(MissionTargets(mission=1, team=(74, 112), targets=targets))
+    wait_until(lambda: len(seen.assignments) == 2, 30.0, "both assignments")
+    assert_agreed(dict(seen.assignments), {74, 112}, len(targets))
+    pairs = seen.assignments[74].pairs
+    assert pairs == {"74": 0, "112": 1}  # the contested target goes to the faster UAV
+
+    def back_on_course(uav: int) -> bool:
+        tracks = seen.tracks.get(uav, [])
+        if TARGET_WAYPOINT not in tracks:
+            return False
+        after = tracks[tracks.index(TARGET_WAYPOINT) :]
+        return any(t != TARGET_WAYPOINT for t in after)
+
+    wait_until(lambda: back_on_course(74) and back_on_course(112), 90.0, "both resumed")
+    for uav in (74, 112):
+        target = targets[pairs[str(uav)]]
+        assert seen.closest_approach(uav, target.lat, target.lon) <= 75.0
+        tracks = seen.tracks[uav]
+        assert tracks[tracks.index(TARGET_WAYPOINT) + 1] == original[uav]
+
+
+def test_five_uavs_eight_targets_then_four_uavs_two_targets(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    seen, router = ground.seen, ground.router
+    endpoints = start_ring(fleet, tmp_path, 5, router)
+    team = set(endpoints)
+    wait_until(lambda: team <= set(seen.telemetry), 60.0, "telemetry from all five")
+    targets = ring_targets(8, seed=5)
+    ground.send(MissionTargets(mission=1, team=tuple(sorted(team)), targets=targets))
+    wait_until(lambda: len(seen.assignments) == 5, 60.0, "five assignments")
+    assert_agreed(dict(seen.assignments), team, 8)
+    assert len(seen.assignments[min(team)].unassigned) == 3
+
+    # A new mission supersedes the first: four of them, two targets.
+    four = sorted(team)[:4]
+    seen.assignments.clear()
+    ground.send(MissionTargets(mission=2, team=tuple(four), targets=ring_targets(2, seed=6)))
+    wait_until(
+        lambda: (
+            {r.mission for r in seen.assignments.values()} == {2} and len(seen.assignments) == 4
+        ),
+        60.0,
+        "four assignments",
+    )
+    assert_agreed(dict(seen.assignments), set(four), 2)
+    idle = [u for u, r in seen.assignments.items() if r.target is None]
+    assert len(idle) == 2
+    for uav in idle:
+
+        def says_so(uav: int = uav) -> bool:
+            return any("keeping course" in s for s in seen.statuses(uav))
+
+        wait_until(says_so, 10.0, "idle UAVs saying so")
+
+
+def test_uav_killed_during_the_exchange_is_left_out(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    seen, router = ground.seen, ground.router
+    endpoints = start_ring(fleet, tmp_path, 3, router)
+    team = sorted(endpoints)
+    wait_until(lambda: set(team) <= set(seen.telemetry), 60.0, "telemetry from all three")
+    victim = fleet.children[-1]  # the onboard process of the last UAV
+    assert victim.name == f"onboard {team[-1]}"
+    ground.send(MissionTargets(mission=1, team=tuple(team), targets=ring_targets(3, seed=7)))
+    victim.kill()  # SIGKILL, while the others compute
+    survivors = set(team[:-1])
+    wait_until(lambda: survivors <= set(seen.assignments), 30.0, "the survivors' assignments")
+    reports = {u: seen.assignments[u] for u in survivors}
+    if team[-1] in seen.assignments:  # it managed to commit before dying
+        reports[team[-1]] = seen.assignments[team[-1]]
+    first = next(iter(reports.values()))
+    assert all(r.digest == first.digest and r.pairs == first.pairs for r in reports.values())
+    assert set(map(int, first.pairs)) >= survivors
+
+
+def test_lost_result_is_recovered_by_query(fleet: Fleet, ground: Ground, tmp_path: Path) -> None:
+    seen, router = ground.seen, ground.router
+    endpoints = ring_sim(fleet, tmp_path, 2)
+    (first, second) = sorted(endpoints)
+    fleet.onboard(first, endpoints[first], router, "--drop-first-result")
+    fleet.onboard(second, endpoints[second], router)
+    wait_until(lambda: {first, second} <= set(seen.telemetry), 60.0, "telemetry")
+    mission = MissionTargets(
+        mission=1, team=(first, second), targets=ring_targets(3, seed=8), deadline_s=20.0
+    )
+    ground.send(mission)
+    wait_until(lambda: len(seen.assignments) == 2, 30.0, "both assignments")
+    assert first not in seen.results  # its result was never published...
+    # ...yet its teammate used it: fetched by query well before the deadline.
+    assert seen.assignments[second].team == (first, second)
+    assert_agreed(dict(seen.assignments), {first, second}, 3)
+
+
+def test_late_joiner_catches_up_with_the_current_mission(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    seen, router = ground.seen, ground.router
+    endpoints = ring_sim(fleet, tmp_path, 3)
+    team = sorted(endpoints)
+    for uav in team[:2]:
+        fleet.onboard(uav, endpoints[uav], router)
+    wait_until(lambda: set(team[:2]) <= set(seen.telemetry), 60.0, "telemetry")
+    ground.send(MissionTargets(mission=1, team=tuple(team), targets=ring_targets(4, seed=9)))
+    wait_until(lambda: set(team[:2]) <= set(seen.assignments), 30.0, "two assignments")
+    # The third starts only now: it must learn the mission and fall in line.
+    fleet.onboard(team[2], endpoints[team[2]], router)
+    wait_until(lambda: team[2] in seen.assignments, 60.0, "the late joiner's assignment")
+    late = seen.assignments[team[2]]
+    assert late.mission == 1
+    assert late.digest == seen.assignments[team[0]].digest
+    assert late.target is None  # the others had committed without it

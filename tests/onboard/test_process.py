@@ -1,0 +1,196 @@
+"""The onboard process on its own against the simulator: the adapter's Zenoh face,
+its commands, the payload-port ground path, bad input, and the link dropping.
+"""
+
+from __future__ import annotations
+
+import socket
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import msgspec
+import pytest
+import zenoh
+
+from fleet.mission import keys
+from fleet.mission.messages import (
+    MISSION_MANAGER,
+    AssignmentReport,
+    CommandResult,
+    LinkHealth,
+    MissionTargets,
+    OpmCommand,
+    StatusText,
+    Target,
+    UavResult,
+    UavState,
+)
+from fleet.piccolo.track import Track
+from fleet.piccolo.waypoint import Waypoint
+from fleet.planning.link import PiccoloLink, PlanningEvent
+from fleet.planning.protocol import encode_message
+from fleet.transport.bus_codec import ENCODING, encode
+from tests.ground_view import GroundView
+from tests.processes import (
+    Child,
+    Fleet,
+    SimEndpoints,
+    client_session,
+    free_port,
+    router_session,
+    wait_until,
+)
+
+UAV = 112
+
+
+@dataclass
+class Rig:
+    fleet: Fleet
+    ground: zenoh.Session
+    seen: GroundView
+    sim: SimEndpoints
+    onboard: Child
+    router: str
+
+
+@pytest.fixture
+def rig() -> Iterator[Rig]:
+    fleet = Fleet()
+    port = free_port()
+    router = f"tcp/127.0.0.1:{port}"
+    try:
+        with router_session(port), client_session(port) as ground:
+            seen = GroundView(ground)
+            endpoints = fleet.sim("single_uav", 5.0, 5.0)
+            onboard = fleet.onboard(UAV, endpoints[UAV], router, "--payload-ground")
+            wait_until(lambda: seen.latest_track(UAV) is not None, 30.0, "telemetry and track")
+            yield Rig(fleet, ground, seen, endpoints[UAV], onboard, router)
+            seen.close()
+    finally:
+        fleet.stop_all()
+
+
+def get_one(session: zenoh.Session, key: str, payload: bytes | None = None) -> zenoh.Reply:
+    replies = list(session.get(key, payload=payload, timeout=5.0))
+    assert len(replies) == 1, f"{key}: {len(replies)} replies"
+    return replies[0]
+
+
+def test_state_query_answers_with_telemetry_and_link_health(rig: Rig) -> None:
+    reply = get_one(rig.ground, keys.state(UAV))
+    assert reply.ok is not None and str(reply.ok.encoding).startswith("application/json")
+    answer = get_one(rig.ground, keys.state(UAV)).ok
+    assert answer is not None
+    state = msgspec.json.decode(answer.payload.to_bytes(), type=UavState)
+    assert state.uav == UAV and state.enabled
+    assert state.telemetry is not None and state.telemetry.gps is not None
+    assert abs(state.telemetry.gps.lat - 35.72) < 0.05
+    assert state.link is not None and state.link.program_up and state.link.packets > 0
+    assert state.tracked_waypoint == rig.seen.latest_track(UAV)
+
+
+def test_commands_are_confirmed_by_the_autopilot_echo(rig: Rig) -> None:
+    waypoint = Waypoint(index=42, next_index=0, lat=35.73, lon=-120.77, alt=650.0)
+    reply = get_one(rig.ground, keys.command(UAV, "waypoint"), encode(waypoint))
+    assert reply.ok is not None
+    result = msgspec.json.decode(reply.ok.payload.to_bytes(), type=CommandResult)
+    assert result.ok and result.attempts >= 1
+    reply = get_one(rig.ground, keys.command(UAV, "track"), encode(Track(42)))
+    assert reply.ok is not None
+    assert msgspec.json.decode(reply.ok.payload.to_bytes(), type=CommandResult).ok
+    wait_until(lambda: rig.seen.latest_track(UAV) == 42, 10.0, "tracking waypoint 42")
+
+
+def test_bad_command_and_bad_messages_are_refused_and_the_module_keeps_serving(rig: Rig) -> None:
+    reply = get_one(rig.ground, keys.command(UAV, "track"), b'{"waypoint": "north"}')
+    assert reply.err is not None and b"not a valid Track" in reply.err.payload.to_bytes()
+    rig.ground.put(keys.opm(UAV), b"\xff not json", encoding=ENCODING)
+    rig.ground.put(keys.mission_targets(77), b'{"mission": 77}', encoding=ENCODING)
+    time.sleep(0.5)
+    assert rig.onboard.process.poll() is None
+    answer = get_one(rig.ground, keys.state(UAV)).ok
+    assert answer is not None
+    state = msgspec.json.decode(answer.payload.to_bytes(), type=UavState)
+    assert state.enabled and state.mission is None
+    assert any("dropped" in line and "OpmCommand" in line for line in rig.onboard.history)
+
+
+def test_module_off_refuses_to_write_and_says_so(rig: Rig) -> None:
+    rig.ground.put(keys.opm(UAV), encode(OpmCommand(False, 2.0)), encoding=ENCODING)
+    wait_until(
+        lambda: any("module off" in s for s in rig.seen.statuses(UAV)), 10.0, "the off status"
+    )
+    reply = get_one(rig.ground, keys.command(UAV, "track"), encode(Track(1)))
+    assert reply.ok is not None
+    result = msgspec.json.decode(reply.ok.payload.to_bytes(), type=CommandResult)
+    assert not result.ok and "off" in result.detail
+
+
+def test_malformed_targets_give_a_status_error_naming_the_problem(rig: Rig) -> None:
+    bad = MissionTargets(mission=5, team=(UAV,), targets=(Target(35.7, 200.0, 600.0),))
+    rig.ground.put(keys.mission_targets(5), encode(bad), encoding=ENCODING)
+    wait_until(
+        lambda: any("longitude 200.0" in s for s in rig.seen.statuses(UAV)), 10.0, "the error"
+    )
+    assert UAV not in rig.seen.assignments
+
+
+def test_targets_from_a_radio_only_ground_station_on_the_payload_port(rig: Rig) -> None:
+    """The thesis's path: PAYLOAD_TARGETS in through the Piccolo payload stream."""
+    host, port = rig.sim.ground.removeprefix("socket://").split(":")
+    station = PiccoloLink(local_address=0)
+    mission = MissionTargets(
+        mission=9, team=(UAV,), targets=(Target(35.7153345, -120.7657532, 600.0),)
+    )
+    with socket.create_connection((host, int(port)), timeout=5.0) as radio:
+        radio.sendall(station.encode_payload(encode_message(mission, MISSION_MANAGER, UAV), UAV))
+        wait_until(lambda: UAV in rig.seen.assignments, 30.0, "the assignment on Zenoh")
+        assert rig.seen.assignments[UAV].mission == 9 and rig.seen.assignments[UAV].target == 0
+        # Status and the result come back down the same radio path.
+        radio.settimeout(0.2)
+        heard: list[object] = []
+        deadline = time.monotonic() + 10.0
+        while time.monotonic() < deadline and not any(isinstance(m, UavResult) for m in heard):
+            try:
+                data = radio.recv(65536)
+            except TimeoutError:
+                continue
+            events = station.feed(data, time.monotonic())
+            heard += [e.envelope.message for e in events if isinstance(e, PlanningEvent)]
+        assert UavResult(9, UAV, rig.seen.results[UAV].times) in heard
+        assert any(isinstance(m, StatusText) for m in heard)
+    # ...and the mission was published on its key for Zenoh observers.
+    reply = get_one(rig.ground, keys.mission_targets(9))
+    assert reply.ok is not None
+    assert msgspec.json.decode(reply.ok.payload.to_bytes(), type=MissionTargets) == mission
+    assigned = get_one(rig.ground, keys.mission_assignment(9, UAV))
+    assert assigned.ok is not None
+    assert msgspec.json.decode(assigned.ok.payload.to_bytes(), type=AssignmentReport).target == 0
+
+
+def test_link_drop_is_reported_and_the_adapter_reconnects(rig: Rig) -> None:
+    health: list[LinkHealth] = []
+    subscriber = rig.ground.declare_subscriber(
+        keys.link(UAV),
+        lambda s: health.append(msgspec.json.decode(s.payload.to_bytes(), type=LinkHealth)),
+    )
+    try:
+        sim = rig.fleet.children[0]
+        assert sim.name == "fleet sim"
+        assert sim.stop() == 0
+        wait_until(lambda: bool(health) and not health[-1].program_up, 10.0, "link down")
+        alive = list(rig.ground.liveliness().get(keys.alive(UAV), timeout=2.0))
+        assert len(alive) == 1  # still present on Zenoh meanwhile
+        program_port = int(rig.sim.program.rsplit(":", 1)[1])
+        payload_port = int(rig.sim.payload.rsplit(":", 1)[1])
+        rig.fleet.sim(
+            "single_uav", 5.0, 5.0,
+            "--program-port", str(program_port), "--payload-port", str(payload_port),
+        )  # fmt: skip
+        wait_until(lambda: health[-1].program_up and health[-1].payload_up, 15.0, "link back")
+        count = len(rig.seen.telemetry[UAV])
+        wait_until(lambda: len(rig.seen.telemetry[UAV]) > count + 5, 10.0, "telemetry again")
+    finally:
+        subscriber.undeclare()

@@ -1,0 +1,296 @@
+"""The embedded Zenoh router (`fleet.transport.router`) and the fleet launcher built around it.
+
+Real sessions on loopback, free ports. The launcher tests replace the onboard process
+with a liveliness-only test double (`FAKE_ONBOARD`): the simulator is real, the planning
+module is not (the lead's end-to-end tests run the real one).
+"""
+
+from __future__ import annotations
+
+import os
+import shlex
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from fleet.launch.launcher import (
+    Fleet,
+    FleetSpec,
+    LaunchError,
+    client_endpoint,
+    parse_sim_line,
+    ring_scenario,
+)
+from fleet.mission import keys
+from fleet.transport.router import Router, RouterError
+from fleet.transport.zenoh_config import make_config
+
+REPO = Path(__file__).resolve().parents[2]
+
+#: A test double of `onboard`: joins Zenoh, declares its liveliness token, and exits
+#: cleanly on SIGTERM. Nothing else.
+FAKE_ONBOARD = """
+import argparse, signal, threading, zenoh
+from fleet.transport.zenoh_config import make_config
+parser = argparse.ArgumentParser()
+parser.add_argument("--id", type=int, required=True)
+parser.add_argument("--connect", required=True)
+args, _ = parser.parse_known_args()
+stop = threading.Event()
+signal.signal(signal.SIGTERM, lambda *_: stop.set())
+with zenoh.open(make_config("client", [args.connect])) as session:
+    token = session.liveliness().declare_token(f"fleet/uav/{args.id}/alive")
+    while not stop.wait(0.1):
+        pass
+"""
+
+
+def free_endpoint() -> str:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return f"tcp/127.0.0.1:{s.getsockname()[1]}"
+
+
+def alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(")")[-1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def kill_if_alive(pid: int) -> None:
+    if alive(pid):
+        os.kill(pid, signal.SIGKILL)
+
+
+@pytest.fixture
+def router() -> Iterator[str]:
+    endpoint = free_endpoint()
+    with Router([endpoint]):
+        yield endpoint
+
+
+# ---- the router ---------------------------------------------------------------------------
+def test_router_relays_between_clients_and_serves_its_admin_space(router: str) -> None:
+    received = threading.Event()
+    got: list[bytes] = []
+
+    def on_sample(sample: zenoh.Sample) -> None:
+        got.append(sample.payload.to_bytes())
+        received.set()
+
+    with (
+        zenoh.open(make_config("client", [router])) as a,
+        zenoh.open(make_config("client", [router])) as b,
+        b.declare_subscriber("fleet/test/**", on_sample),
+    ):
+        for _ in range(50):  # until the subscription has reached the router
+            a.put("fleet/test/x", b"hello")
+            if received.wait(0.1):
+                break
+        assert got and got[0] == b"hello"
+        admin = [str(r.ok.key_expr) for r in b.get("@/**", timeout=2.0) if r.ok is not None]
+        assert any(key.endswith("/router") for key in admin), admin
+
+
+def test_router_on_a_taken_port_is_a_clear_error(router: str) -> None:
+    with pytest.raises(RouterError, match=router), Router([router]):
+        pass
+
+
+def test_router_needs_an_endpoint() -> None:
+    with pytest.raises(ValueError):
+        Router([])
+
+
+def test_router_process_stops_on_sigterm() -> None:
+    endpoint = free_endpoint()
+    process = subprocess.Popen(
+        [sys.executable, "-m", "fleet.transport.router", "--listen", endpoint],
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
+    try:
+        deadline = time.monotonic() + 15
+        while True:
+            try:
+                with zenoh.open(make_config("client", [endpoint])):
+                    break
+            except zenoh.ZError:
+                assert time.monotonic() < deadline, "the router never listened"
+                time.sleep(0.1)
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(timeout=10) == 0
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        assert process.stderr is not None
+        process.stderr.close()
+
+
+# ---- the launcher ---------------------------------------------------------------------------
+def test_parse_sim_line() -> None:
+    line = "uav 112 program=socket://127.0.0.1:5760 payload=socket://127.0.0.1:5860 ground=socket://127.0.0.1:5960"
+    endpoints = parse_sim_line(line)
+    assert endpoints is not None
+    assert endpoints.piccolo_id == 112
+    assert endpoints.program == "socket://127.0.0.1:5760"
+    assert endpoints.payload == "socket://127.0.0.1:5860"
+    assert endpoints.ground == "socket://127.0.0.1:5960"
+    assert parse_sim_line("ready") is None
+    assert parse_sim_line("uav 7 nothing") is None
+
+
+def test_client_endpoint_of_a_wildcard_listen() -> None:
+    assert client_endpoint("tcp/0.0.0.0:7447") == "tcp/127.0.0.1:7447"
+    assert client_endpoint("tcp/[::]:7447") == "tcp/[::1]:7447"
+    assert client_endpoint("tcp/10.0.0.2:7447") == "tcp/10.0.0.2:7447"
+
+
+def test_ring_scenario_is_a_valid_scenario() -> None:
+    import tomllib
+
+    from fleet.sim.scenario import parse_scenario
+
+    scenario = parse_scenario(tomllib.loads(ring_scenario(5)), "ring")
+    assert [u.piccolo_id for u in scenario.uavs] == [101, 102, 103, 104, 105]
+    assert len({u.alt for u in scenario.uavs}) == 5
+
+
+def test_fleet_starts_waits_for_liveliness_and_stops_everything(tmp_path: Path) -> None:
+    spec = FleetSpec(
+        scenario="head_on",
+        listen=free_endpoint(),
+        speedup=5.0,
+        log_dir=tmp_path,
+        start_timeout_s=30.0,
+        onboard_command=("-c", FAKE_ONBOARD),
+    )
+    fleet = Fleet(spec)
+    try:
+        with fleet:
+            assert sorted(fleet.uav_ids) == [74, 112]
+            assert all(e.program.startswith("socket://127.0.0.1:") for e in fleet.endpoints)
+            with zenoh.open(make_config("client", [fleet.connect])) as session:
+                tokens = [
+                    str(r.ok.key_expr)
+                    for r in session.liveliness().get(keys.ALL_ALIVE, timeout=2.0)
+                    if r.ok is not None
+                ]
+            assert sorted(tokens) == ["fleet/uav/112/alive", "fleet/uav/74/alive"]
+            pids = [c.pid for c in fleet.children]
+            assert len(pids) == 3
+        assert all(c.process.returncode is not None for c in fleet.children)
+        assert not any(alive(pid) for pid in pids)
+        assert "ready" in (tmp_path / "sim.log").read_text()
+    finally:
+        for child in fleet.children:
+            kill_if_alive(child.pid)
+
+
+def test_fleet_reports_an_onboard_that_dies_at_start(tmp_path: Path) -> None:
+    spec = FleetSpec(
+        scenario="single_uav",
+        listen=free_endpoint(),
+        log_dir=tmp_path,
+        start_timeout_s=30.0,
+        onboard_command=(
+            "-c",
+            "import sys; print('no autopilot here', file=sys.stderr); sys.exit(3)",
+        ),
+    )
+    fleet = Fleet(spec)
+    try:
+        with pytest.raises(LaunchError, match="exited with status 3") as caught, fleet:
+            pass
+        assert "no autopilot here" in str(caught.value)
+        assert all(c.process.returncode is not None for c in fleet.children)
+    finally:
+        for child in fleet.children:
+            kill_if_alive(child.pid)
+
+
+def test_fleet_up_command_stops_every_child_on_sigterm(tmp_path: Path) -> None:
+    endpoint = free_endpoint()
+    errors = (tmp_path / "up.stderr").open("w")
+    process = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "ground.fleet_cli",
+            "up",
+            "--uavs",
+            "2",
+            "--listen",
+            endpoint,
+            "--log-dir",
+            str(tmp_path),
+            "--start-timeout",
+            "30",
+            "--onboard-command",
+            shlex.join(["-c", FAKE_ONBOARD]),
+        ],
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=errors,
+        text=True,
+    )
+    lines: list[str] = []
+    banner = threading.Event()
+
+    def read() -> None:
+        assert process.stdout is not None
+        for line in process.stdout:
+            lines.append(line)
+            if "stops the fleet" in line:
+                banner.set()
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    pids: list[int] = []
+    try:
+        assert banner.wait(40), "".join(lines) + (tmp_path / "up.stderr").read_text()
+        pids = [int(line.split()[0]) for line in (tmp_path / "pids").read_text().splitlines()]
+        assert len(pids) == 3  # the simulator and two onboards
+        text = "".join(lines)
+        assert f"export FLEET_ZENOH_CONNECT={endpoint}" in text
+        assert "101, 102" in text
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(timeout=20) == 0
+        reader.join(timeout=5)
+        assert "fleet up: stopped" in "".join(lines)
+        assert not any(alive(pid) for pid in pids)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        for pid in pids:
+            kill_if_alive(pid)
+        if process.stdout is not None:
+            process.stdout.close()
+        errors.close()
+
+
+def test_fleet_up_refuses_an_unknown_scenario_before_starting_anything(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from ground.fleet_cli import main
+
+    endpoint = free_endpoint()
+    status = main(["up", "no_such_scenario", "--listen", endpoint, "--log-dir", str(tmp_path)])
+    assert status == 2
+    assert "no_such_scenario" in capsys.readouterr().err
+    assert not (tmp_path / "pids").exists()
+    with pytest.raises(zenoh.ZError):  # no router was left behind
+        zenoh.open(make_config("client", [endpoint])).close()
