@@ -1,8 +1,10 @@
 """`ground-cli`: the mission manager (thesis chapter 3) on the command line.
 
 Connects as a Zenoh client to the fleet's router (--connect, else $FLEET_ZENOH_CONNECT,
-else tcp/127.0.0.1:7447). Exit status: 0 success; 1 the operation failed (bad targets
-file, no UAV, mission not committed or not agreed in time); 2 usage error or no router.
+else tcp/127.0.0.1:7447), or as a Zenoh config file says (--zenoh-config FILE or
+$FLEET_ZENOH_CONFIG). Exit status: 0 success; 1 the operation failed (bad targets
+file, no UAV, mission not committed or not agreed in time); 2 usage error, bad Zenoh
+config or no router.
 """
 
 from __future__ import annotations
@@ -17,14 +19,23 @@ from typing import Any, TextIO
 from fleet.mission import keys
 from fleet.mission.messages import AssignmentReport, MissionTargets, StatusText, Target, UavResult
 from fleet.mission.targets_file import TargetsFileError, read_targets
-from fleet.transport.cli_args import bounded_int, non_negative_float, positive_float
-from fleet.transport.zenoh_config import CONNECT_ENV, default_connect
+from fleet.transport.cli import (
+    ExitCode,
+    ZenohConfigError,
+    add_verbose_argument,
+    add_zenoh_arguments,
+    bounded_int,
+    fail,
+    non_negative_float,
+    piccolo_id,
+    positive_float,
+    setup_logging,
+    zenoh_config,
+)
 from ground import keyspace, targets_command
 from ground.fleet_view import fleet_snapshot, format_table, live_uav_ids
 from ground.mission_control import (
     MAX_MISSION_ID,
-    MAX_PICCOLO_ID,
-    MIN_PICCOLO_ID,
     Listener,
     MissionError,
     MissionFollower,
@@ -39,7 +50,6 @@ from ground.mission_control import (
     wait_delivered,
 )
 from ground.session import (
-    EXIT_NO_ROUTER,
     GroundConnectError,
     decode_sample,
     ground_session,
@@ -48,10 +58,6 @@ from ground.session import (
 from ground.watch import watch
 
 log = logging.getLogger("ground")
-
-EXIT_OK = 0
-EXIT_FAILED = 1
-EXIT_USAGE = 2
 
 #: MissionTargets' own default: how long a UAV waits for its teammates' results.
 DEFAULT_DEADLINE_S = 10.0
@@ -62,33 +68,14 @@ DELIVERY_WAIT_S = 3.0
 
 
 # ---- argument types -------------------------------------------------------------------------
-def _piccolo_id(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a Piccolo ID") from None
-    if not MIN_PICCOLO_ID <= value <= MAX_PICCOLO_ID:
-        raise argparse.ArgumentTypeError(
-            f"Piccolo ID {value} outside {MIN_PICCOLO_ID}-{MAX_PICCOLO_ID}"
-        )
-    return value
-
-
 def _team(text: str) -> tuple[int, ...]:
-    ids = [_piccolo_id(part.strip()) for part in text.split(",") if part.strip()]
+    ids = [piccolo_id(part.strip()) for part in text.split(",") if part.strip()]
     if not ids:
         raise argparse.ArgumentTypeError("an empty team")
     return tuple(sorted(set(ids)))
 
 
-def _mission_id(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a mission id") from None
-    if not 0 <= value <= MAX_MISSION_ID:
-        raise argparse.ArgumentTypeError(f"mission id {value} does not fit in 32 bits")
-    return value
+_mission_id = bounded_int(0, MAX_MISSION_ID, "mission id")
 
 
 # ---- the parser ---------------------------------------------------------------------------------
@@ -99,12 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=__doc__.split("\n", 2)[2] if __doc__ else None,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument(
-        "--connect",
-        metavar="ENDPOINT",
-        default=None,
-        help=f"Zenoh router endpoint (default ${CONNECT_ENV} or {default_connect()})",
-    )
+    add_zenoh_arguments(parser)
     parser.add_argument(
         "--query-timeout",
         type=positive_float,
@@ -112,9 +94,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="S",
         help="how long each Zenoh query waits for answers (default 1 s)",
     )
-    parser.add_argument(
-        "-v", "--verbose", action="count", default=0, help="log more (-v info, -vv debug)"
-    )
+    add_verbose_argument(parser)
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     uavs = commands.add_parser("uavs", help="list the live UAVs")
@@ -170,7 +150,7 @@ def build_parser() -> argparse.ArgumentParser:
     watch_cmd.set_defaults(handler=cmd_watch)
 
     opm = commands.add_parser("opm", help="turn a UAV's onboard planning module on or off")
-    opm.add_argument("uav", type=_piccolo_id, metavar="ID")
+    opm.add_argument("uav", type=piccolo_id, metavar="ID")
     opm.add_argument("state", choices=("on", "off"))
     opm.add_argument(
         "--status-rate",
@@ -222,7 +202,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 # ---- commands ---------------------------------------------------------------------------------
 def cmd_uavs(args: argparse.Namespace) -> int:
-    with ground_session(args.connect) as session:
+    with ground_session(args.zenoh) as session:
         views = fleet_snapshot(session, args.query_timeout)
     if args.json:
         print(json.dumps([v.to_json() for v in views]))
@@ -230,7 +210,7 @@ def cmd_uavs(args: argparse.Namespace) -> int:
         print(format_table(views))
     else:
         print("no live UAV")
-    return EXIT_OK
+    return ExitCode.OK
 
 
 def _progress_printer(out: TextIO, team: tuple[int, ...]) -> Listener:
@@ -314,16 +294,16 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
         targets = tuple(read_targets(args.file))
     except TargetsFileError as error:
         print(f"error: {error}; nothing sent", file=sys.stderr)
-        return EXIT_FAILED
+        return ExitCode.FAILED
     except OSError as error:
         print(f"error: cannot read {args.file}: {error.strerror}; nothing sent", file=sys.stderr)
-        return EXIT_FAILED
+        return ExitCode.FAILED
     progress = sys.stderr if args.json else sys.stdout
-    with ground_session(args.connect) as session:
+    with ground_session(args.zenoh) as session:
         team: tuple[int, ...] = args.team or tuple(live_uav_ids(session, args.query_timeout))
         if not team:
             print("error: no live UAV to send to (name the team with --team)", file=sys.stderr)
-            return EXIT_FAILED
+            return ExitCode.FAILED
         if args.team:
             live = set(live_uav_ids(session, args.query_timeout))
             absent = [uav for uav in team if uav not in live]
@@ -341,7 +321,7 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
             )
         except MissionError as error:
             print(f"error: {error}", file=sys.stderr)
-            return EXIT_FAILED
+            return ExitCode.FAILED
         message = MissionTargets(
             mission=mission, team=team, targets=targets, deadline_s=args.deadline
         )
@@ -377,12 +357,12 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
     elif args.wait:
         print("\n".join(_summary(outcome)))
     if not args.wait:
-        return EXIT_OK
-    return EXIT_OK if outcome.committed and outcome.agreement.agreed else EXIT_FAILED
+        return ExitCode.OK
+    return ExitCode.OK if outcome.committed and outcome.agreement.agreed else ExitCode.FAILED
 
 
 def cmd_watch(args: argparse.Namespace) -> int:
-    with ground_session(args.connect) as session:
+    with ground_session(args.zenoh) as session:
         watch(
             session,
             sys.stdout,
@@ -391,19 +371,19 @@ def cmd_watch(args: argparse.Namespace) -> int:
             interval_s=args.interval,
             query_timeout_s=min(args.query_timeout, args.interval),
         )
-    return EXIT_OK
+    return ExitCode.OK
 
 
 def cmd_opm(args: argparse.Namespace) -> int:
     enabled = args.state == "on"
-    with ground_session(args.connect) as session:
+    with ground_session(args.zenoh) as session:
         if not live_tokens(session, keys.alive(args.uav), args.query_timeout):
             print(
                 f"error: UAV {args.uav} is not live (no {keys.alive(args.uav)} token); "
                 "nothing sent",
                 file=sys.stderr,
             )
-            return EXIT_FAILED
+            return ExitCode.FAILED
         confirmed = threading.Event()
         answer: list[str] = []
 
@@ -421,21 +401,21 @@ def cmd_opm(args: argparse.Namespace) -> int:
                 print(f"UAV {args.uav}: {answer[0]}")
             else:
                 print(f"UAV {args.uav}: no confirmation within {OPM_CONFIRM_S:g} s")
-    return EXIT_OK
+    return ExitCode.OK
 
 
 def cmd_abort(args: argparse.Namespace) -> int:
-    with ground_session(args.connect) as session:
+    with ground_session(args.zenoh) as session:
         mission = args.mission
         if mission is None:
             mission = current_mission_id(session, args.query_timeout)
             if mission is None:
                 print("error: no mission to abort (none seen; give --mission)", file=sys.stderr)
-                return EXIT_FAILED
+                return ExitCode.FAILED
         # Closing the session right after is safe: close flushes what was put (measured).
         send_abort(session, mission)
         print(f"mission {mission}: abort sent")
-    return EXIT_OK
+    return ExitCode.OK
 
 
 def cmd_targets_make(args: argparse.Namespace) -> int:
@@ -443,12 +423,12 @@ def cmd_targets_make(args: argparse.Namespace) -> int:
         targets = targets_command.make(args.out, args.targets)
     except (targets_command.TargetSyntaxError, TargetsFileError) as error:
         print(f"error: {error}; {args.out} not written", file=sys.stderr)
-        return EXIT_FAILED
+        return ExitCode.FAILED
     except OSError as error:
         print(f"error: cannot write {args.out}: {error.strerror}", file=sys.stderr)
-        return EXIT_FAILED
+        return ExitCode.FAILED
     print(f"{args.out}: {len(targets)} targets written")
-    return EXIT_OK
+    return ExitCode.OK
 
 
 def cmd_targets_show(args: argparse.Namespace) -> int:
@@ -456,19 +436,19 @@ def cmd_targets_show(args: argparse.Namespace) -> int:
         targets: list[Target] = targets_command.show(args.file)
     except TargetsFileError as error:
         print(f"error: {error}", file=sys.stderr)
-        return EXIT_FAILED
+        return ExitCode.FAILED
     except OSError as error:
         print(f"error: cannot read {args.file}: {error.strerror}", file=sys.stderr)
-        return EXIT_FAILED
+        return ExitCode.FAILED
     if args.json:
         print(targets_command.targets_json(targets))
     else:
         print(targets_command.targets_table(targets))
-    return EXIT_OK
+    return ExitCode.OK
 
 
 def cmd_keys(args: argparse.Namespace) -> int:
-    with ground_session(args.connect) as session:
+    with ground_session(args.zenoh) as session:
         values = keyspace.collect(
             session,
             args.expr,
@@ -481,25 +461,25 @@ def cmd_keys(args: argparse.Namespace) -> int:
     else:
         for line in keyspace.format_lines(values, full=args.full):
             print(line)
-    return EXIT_OK
+    return ExitCode.OK
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    level = (logging.WARNING, logging.INFO, logging.DEBUG)[min(args.verbose, 2)]
-    logging.basicConfig(
-        level=level, format="%(asctime)s %(name)s %(levelname)s %(message)s", stream=sys.stderr
-    )
-    if args.connect is None:
-        args.connect = default_connect()
+    setup_logging(args.verbose, base=logging.WARNING)
+    # Making and showing targets files is offline: a Zenoh config cannot stop it.
+    if args.command != "targets":
+        try:
+            args.zenoh = zenoh_config(args)
+        except ZenohConfigError as error:
+            return fail("ground-cli: error", str(error))
     try:
         status: int = args.handler(args)
     except GroundConnectError as error:
-        print(f"ground-cli: error: {error}", file=sys.stderr)
-        return EXIT_NO_ROUTER
+        return fail("ground-cli: error", str(error))
     except KeyboardInterrupt:
-        return 130
+        return ExitCode.INTERRUPTED
     return status
 
 

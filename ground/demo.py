@@ -28,17 +28,10 @@ from fleet.launch.launcher import (
     FleetSpec,
     LaunchError,
 )
-from fleet.launch.up_command import (
-    EXIT_FAILED,
-    EXIT_INTERRUPTED,
-    EXIT_OK,
-    EXIT_USAGE,
-    common_arguments,
-    stop_on_signals,
-)
+from fleet.launch.up_command import common_arguments
 from fleet.mission.messages import AssignmentReport, MissionTargets, Target, UavResult
 from fleet.sim.scenario import ScenarioError, resolve_scenario
-from fleet.transport.cli_args import positive_float
+from fleet.transport.cli import ExitCode, fail, positive_float, stop_on_signals
 
 # The demo is a ground station: it uses the mission manager's own code.
 from ground.fleet_view import FleetView
@@ -125,7 +118,7 @@ def _distance_m(a: tuple[float, float], b: tuple[float, float]) -> float:
 
 def run_demo(args: argparse.Namespace) -> int:
     stop = threading.Event()
-    with stop_on_signals(stop):
+    with stop_on_signals(stop.set):
         return _run_demo(args, stop)
 
 
@@ -134,11 +127,9 @@ def _run_demo(args: argparse.Namespace, stop: threading.Event) -> int:
         scenario = resolve_scenario(args.scenario)
         targets = tuple(scenario.targets())
     except (ScenarioError, OSError, ValueError) as error:
-        print(f"fleet demo: {error}", file=sys.stderr)
-        return EXIT_USAGE
+        return fail("fleet demo", str(error))
     if not targets:
-        print(f"fleet demo: scenario {args.scenario} has no targets file", file=sys.stderr)
-        return EXIT_USAGE
+        return fail("fleet demo", f"scenario {args.scenario} has no targets file")
     spec = FleetSpec(
         scenario=args.scenario,
         listen=args.listen or free_tcp_endpoint(),
@@ -156,15 +147,13 @@ def _run_demo(args: argparse.Namespace, stop: threading.Event) -> int:
             report = _fly_demo(fleet, targets, args, stop, say)
     except LaunchError as error:
         if stop.is_set():
-            print("fleet demo: stopped while starting", file=sys.stderr)
-            return EXIT_INTERRUPTED
-        print(f"fleet demo: {error}", file=sys.stderr)
-        return EXIT_FAILED
+            return fail("fleet demo", "stopped while starting", ExitCode.INTERRUPTED)
+        return fail("fleet demo", str(error), ExitCode.FAILED)
     if args.json:
         print(json.dumps(report))
     else:
         print("\n".join(_demo_summary(report)))
-    return EXIT_OK if report["success"] else EXIT_FAILED
+    return ExitCode.OK if report["success"] else ExitCode.FAILED
 
 
 def _sayer(out: TextIO) -> Callable[[str], None]:

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import logging
 import sys
+
+from fleet.transport.cli import add_verbose_argument, setup_logging
 
 #: Each subcommand lives in its own module with `add_parser(subparsers)`.
 SUBCOMMANDS = (
@@ -18,7 +19,7 @@ SUBCOMMANDS = (
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="fleet", description=__doc__)
-    parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    add_verbose_argument(parser)
     subparsers = parser.add_subparsers(dest="command", required=True)
     for module in SUBCOMMANDS:
         importlib.import_module(module).add_parser(subparsers)
@@ -27,11 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    logging.basicConfig(
-        level=logging.DEBUG if args.verbose else logging.INFO,
-        format="%(asctime)s %(name)s %(levelname)s %(message)s",
-        stream=sys.stderr,
-    )
+    setup_logging(args.verbose)
     status: int = args.func(args)
     return status
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import logging
-import re
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -24,18 +23,20 @@ import msgspec
 import zenoh
 
 from fleet.transport import bus_codec
-from fleet.transport.zenoh_config import CONNECT_ENV, make_config
+from fleet.transport.zenoh_config import (
+    CONNECT_ENV,
+    ZenohConfigError,
+    check_endpoint,
+    endpoints,
+    error_text,
+    make_config,
+)
 
 log = logging.getLogger(__name__)
 
 JSON_ENCODING = str(bus_codec.ENCODING)
-#: Exit status of a ground command that could not reach the Zenoh router.
-EXIT_NO_ROUTER = 2
 #: How long opening may take against an endpoint that accepts but does not answer.
 DEFAULT_OPEN_TIMEOUT_S = 3.0
-
-# `proto/address`, e.g. tcp/127.0.0.1:7447 or tcp/[::1]:7447; Zenoh checks the rest.
-_ENDPOINT = re.compile(r"^[a-z0-9]+/\S+$")
 
 T = TypeVar("T")
 
@@ -44,40 +45,40 @@ class GroundConnectError(RuntimeError):
     """No Zenoh router could be reached at the endpoint (or the endpoint is malformed)."""
 
 
-def open_session(connect: str, *, open_timeout_s: float = DEFAULT_OPEN_TIMEOUT_S) -> zenoh.Session:
-    """A client session to the router at `connect`; raises GroundConnectError if none answers."""
-    if not _ENDPOINT.match(connect):
-        raise GroundConnectError(
-            f"malformed Zenoh endpoint {connect!r}: expected PROTO/ADDRESS, e.g. tcp/127.0.0.1:7447"
+def open_session(
+    target: str | zenoh.Config, *, open_timeout_s: float = DEFAULT_OPEN_TIMEOUT_S
+) -> zenoh.Session:
+    """A session to the router at `target` (an endpoint, or a whole config).
+
+    An endpoint gives a client session to it. Raises GroundConnectError if none answers.
+    """
+    try:
+        config = (
+            make_config("client", [check_endpoint(target)]) if isinstance(target, str) else target
         )
-    config = make_config("client", [connect])
+    except ZenohConfigError as error:
+        raise GroundConnectError(str(error)) from None
+    where = ", ".join(endpoints(config)) or "the configured endpoints"
     config.insert_json5("transport/unicast/open_timeout", json.dumps(round(open_timeout_s * 1000)))
     try:
         session = zenoh.open(config)
     except zenoh.ZError as error:
         raise GroundConnectError(
-            f"no Zenoh router answers at {connect} ({_first_line(error)}). "
+            f"no Zenoh router answers at {where} ({error_text(error)}). "
             f"Start one with `fleet up`, or point --connect / ${CONNECT_ENV} at it."
         ) from error
-    log.debug("connected to %s as %s", connect, session.zid())
+    log.debug("connected to %s as %s", where, session.zid())
     return session
 
 
 @contextmanager
 def ground_session(
-    connect: str, *, open_timeout_s: float = DEFAULT_OPEN_TIMEOUT_S
+    target: str | zenoh.Config, *, open_timeout_s: float = DEFAULT_OPEN_TIMEOUT_S
 ) -> Iterator[zenoh.Session]:
     """`open_session` as a context manager: the session is always closed."""
-    session = open_session(connect, open_timeout_s=open_timeout_s)
+    session = open_session(target, open_timeout_s=open_timeout_s)
     with session:
         yield session
-
-
-def _first_line(error: BaseException) -> str:
-    # Zenoh appends the Rust source location ("at .../orchestrator.rs:447."): noise for
-    # an operator.
-    text = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
-    return text.split("  at ")[0].strip()
 
 
 def encode(message: msgspec.Struct) -> bytes:

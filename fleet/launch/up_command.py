@@ -11,13 +11,9 @@ from __future__ import annotations
 import argparse
 import logging
 import shlex
-import signal
 import sys
 import threading
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
-from types import FrameType
 
 from fleet.launch.launcher import (
     DEFAULT_START_TIMEOUT_S,
@@ -29,15 +25,10 @@ from fleet.launch.launcher import (
     wait_until_stopped,
 )
 from fleet.sim.scenario import ScenarioError, resolve_scenario
-from fleet.transport.cli_args import bounded_int, positive_float
+from fleet.transport.cli import ExitCode, bounded_int, fail, positive_float, stop_on_signals
 from fleet.transport.zenoh_config import CONNECT_ENV, DEFAULT_ROUTER
 
 log = logging.getLogger(__name__)
-
-EXIT_OK = 0
-EXIT_FAILED = 1
-EXIT_USAGE = 2
-EXIT_INTERRUPTED = 130
 
 
 def common_arguments(parser: argparse.ArgumentParser, speedup: float) -> None:
@@ -100,28 +91,6 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     add_up_parser(subparsers)
 
 
-# ---- signals ----------------------------------------------------------------------------------
-@contextmanager
-def stop_on_signals(stop: threading.Event) -> Iterator[None]:
-    """While inside, SIGTERM and SIGINT set `stop`; the previous handlers come back after."""
-    # Handlers can only be installed from the main thread; elsewhere (a test driving
-    # `run` from a thread) the caller sets `stop` itself.
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def handle(signum: int, frame: FrameType | None) -> None:
-        log.info("%s: stopping the fleet", signal.Signals(signum).name)
-        stop.set()
-
-    previous = {sig: signal.signal(sig, handle) for sig in (signal.SIGTERM, signal.SIGINT)}
-    try:
-        yield
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-
-
 def scenario_info(name: str) -> tuple[str, Path | None]:
     """A scenario's description and targets file; raises ScenarioError if it is bad."""
     scenario = resolve_scenario(name)
@@ -131,7 +100,7 @@ def scenario_info(name: str) -> tuple[str, Path | None]:
 # ---- fleet up ---------------------------------------------------------------------------------
 def run_up(args: argparse.Namespace) -> int:
     stop = threading.Event()
-    with stop_on_signals(stop):
+    with stop_on_signals(stop.set):
         return _run_up(args, stop)
 
 
@@ -155,8 +124,7 @@ def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
     try:
         description, targets_path = scenario_info(spec.scenario)
     except ScenarioError as error:
-        print(f"fleet up: {error}", file=sys.stderr)
-        return EXIT_USAGE
+        return fail("fleet up", str(error))
     print(f"fleet up: starting {description or spec.scenario} (logs in {fleet.log_dir})")
     try:
         with fleet:
@@ -173,12 +141,10 @@ def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
             print("fleet up: stopping", flush=True)
     except LaunchError as error:
         if stop.is_set():
-            print("fleet up: stopped while starting", file=sys.stderr)
-            return EXIT_INTERRUPTED
-        print(f"fleet up: {error}", file=sys.stderr)
-        return EXIT_FAILED
+            return fail("fleet up", "stopped while starting", ExitCode.INTERRUPTED)
+        return fail("fleet up", str(error), ExitCode.FAILED)
     print("fleet up: stopped")
-    return EXIT_OK if stopped_cleanly else EXIT_FAILED
+    return ExitCode.OK if stopped_cleanly else ExitCode.FAILED
 
 
 def _print_banner(fleet: Fleet, targets_path: Path | None) -> None:

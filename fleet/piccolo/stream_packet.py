@@ -23,6 +23,9 @@ MAX_PACKET = OVERHEAD + MAX_DATA
 BROADCAST_AVIONICS = 0xFFFF
 ALL_OPERATOR_INTERFACES = 0xFFFE
 ALL_GROUND_STATIONS = 0x0000
+#: The addresses an aircraft's avionics (its Piccolo ID) may take.
+MIN_PICCOLO_ID = 0x0001
+MAX_PICCOLO_ID = 0xFFF0
 
 #: Stream ids (piccolo-link.md 2).
 STREAM_AUTOPILOT = 3

@@ -13,12 +13,8 @@ from __future__ import annotations
 
 import argparse
 import logging
-import signal
 import sys
-import threading
-from collections.abc import Callable, Sequence
-from types import FrameType
-from typing import Any
+from collections.abc import Sequence
 
 from fleet.sim.autopilot import (
     DEFAULT_TELEMETRY_HZ,
@@ -36,13 +32,18 @@ from fleet.sim.server import (
     DEFAULT_SPEEDUP,
     SimServer,
 )
-from fleet.transport.cli_args import non_negative_float, positive_float, tcp_port
+from fleet.transport.cli import (
+    ExitCode,
+    add_verbose_argument,
+    fail,
+    non_negative_float,
+    positive_float,
+    setup_logging,
+    stop_on_signals,
+    tcp_port,
+)
 
 logger = logging.getLogger(__name__)
-
-EXIT_OK = 0
-EXIT_USAGE = 2
-EXIT_RUNTIME = 1
 
 
 def configure_parser(parser: argparse.ArgumentParser) -> None:
@@ -155,10 +156,6 @@ def _build(args: argparse.Namespace) -> list[SimulatedAutopilot]:
 
 def run(args: argparse.Namespace) -> int:
     """Run the simulator until SIGTERM or SIGINT; return the exit status."""
-    if not logging.getLogger().handlers:
-        logging.basicConfig(
-            level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s"
-        )
     try:
         autopilots = _build(args)
         server = SimServer(
@@ -171,47 +168,20 @@ def run(args: argparse.Namespace) -> int:
             use_pty=args.pty,
         )
     except (ScenarioError, ValueError) as error:
-        print(f"fleet sim: {error}", file=sys.stderr)
-        return EXIT_USAGE
-    with server:
-        # Handlers first: a launcher may send SIGTERM as soon as it has read `ready`.
-        previous = _install_signal_handlers(server)
+        return fail("fleet sim", str(error))
+    # Handlers first: a launcher may send SIGTERM as soon as it has read `ready`.
+    with server, stop_on_signals(server.stop):
         try:
-            try:
-                endpoints = server.open()
-            except OSError as error:
-                print(f"fleet sim: {error.strerror or error}", file=sys.stderr)
-                return EXIT_RUNTIME
-            for endpoint in endpoints:
-                print(endpoint.line())
-            print("ready", flush=True)
-            logger.info("simulating at speedup %g", args.speedup)
-            server.run()
-        finally:
-            _restore_signal_handlers(previous)
+            endpoints = server.open()
+        except OSError as error:
+            return fail("fleet sim", str(error.strerror or error), ExitCode.FAILED)
+        for endpoint in endpoints:
+            print(endpoint.line())
+        print("ready", flush=True)
+        logger.info("simulating at speedup %g", args.speedup)
+        server.run()
     logger.info("stopped at simulated time %.1f s", server.time_ms / 1000.0)
-    return EXIT_OK
-
-
-_Handler = Callable[[int, FrameType | None], Any] | int | signal.Handlers | None
-
-
-def _install_signal_handlers(server: SimServer) -> dict[int, _Handler]:
-    # Signal handlers can only be set from the main thread; a server run from a test
-    # thread is stopped by calling `stop()` instead.
-    if threading.current_thread() is not threading.main_thread():
-        return {}
-
-    def handle(signum: int, frame: FrameType | None) -> None:
-        logger.info("%s: stopping", signal.Signals(signum).name)
-        server.stop()
-
-    return {sig: signal.signal(sig, handle) for sig in (signal.SIGTERM, signal.SIGINT)}
-
-
-def _restore_signal_handlers(previous: dict[int, _Handler]) -> None:
-    for sig, handler in previous.items():
-        signal.signal(sig, handler)
+    return ExitCode.OK
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -219,7 +189,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         prog="fleet sim", description="Run simulated Piccolo autopilots for a scenario."
     )
     configure_parser(parser)
-    return run(parser.parse_args(argv))
+    add_verbose_argument(parser)
+    args = parser.parse_args(argv)
+    setup_logging(args.verbose)
+    return run(args)
 
 
 if __name__ == "__main__":

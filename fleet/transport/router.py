@@ -12,14 +12,14 @@ from __future__ import annotations
 
 import argparse
 import logging
-import signal
 import sys
 import threading
-from types import FrameType, TracebackType
+from types import TracebackType
 from typing import Self
 
 import zenoh
 
+from fleet.transport.cli import ExitCode, add_verbose_argument, fail, setup_logging, stop_on_signals
 from fleet.transport.zenoh_config import DEFAULT_ROUTER, make_config
 
 log = logging.getLogger(__name__)
@@ -94,24 +94,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--connect", action="append", metavar="ENDPOINT", help="another router to mesh with"
     )
+    add_verbose_argument(parser)
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
+    setup_logging(args.verbose)
     stop = threading.Event()
-
-    def on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    signal.signal(signal.SIGTERM, on_signal)
-    signal.signal(signal.SIGINT, on_signal)
     try:
-        with Router(args.listen or [DEFAULT_ROUTER], args.connect):
+        with stop_on_signals(stop.set), Router(args.listen or [DEFAULT_ROUTER], args.connect):
             # A bounded wait in a loop, so the signal handler runs promptly.
             while not stop.wait(0.5):
                 pass
     except RouterError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
-    return 0
+        return fail("error", str(error))
+    return ExitCode.OK
 
 
 if __name__ == "__main__":

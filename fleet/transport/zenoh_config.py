@@ -1,20 +1,34 @@
 """Zenoh session configuration shared by every fleet process.
 
-Multicast scouting is off everywhere: it is slow or broken in containers and CI
-(architecture.md), so peers are always named by explicit tcp endpoints. The scouting
-delay is 0 so a router-mode session opens in milliseconds rather than 500 ms.
+Multicast scouting is off everywhere: it is slow or broken in containers and CI, so
+peers are always named by explicit tcp endpoints. The scouting delay is 0 so a
+router-mode session opens in milliseconds rather than 500 ms.
+
+A deployment that needs more (TLS, access control, shared memory, timeouts) gives a full
+Zenoh JSON5 config file instead, as zenoh's own tools and rmw_zenoh do: `build_config`
+loads it and lays only the endpoints and mode named on the command line over it.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
 
 import zenoh
 
 DEFAULT_ROUTER = "tcp/127.0.0.1:7447"
 CONNECT_ENV = "FLEET_ZENOH_CONNECT"
+#: A full Zenoh config file (JSON5, JSON or YAML) to use instead of the built-in one.
+CONFIG_ENV = "FLEET_ZENOH_CONFIG"
 MODES = ("client", "peer", "router")
+
+# `proto/address`, e.g. tcp/127.0.0.1:7447 or tcp/[::1]:7447; Zenoh checks the rest.
+_ENDPOINT = re.compile(r"^[a-z0-9]+/\S+$")
+
+
+class ZenohConfigError(ValueError):
+    """A Zenoh config file, endpoint or mode is unusable; the message says which and why."""
 
 
 def default_connect() -> str:
@@ -22,22 +36,105 @@ def default_connect() -> str:
     return os.environ.get(CONNECT_ENV, DEFAULT_ROUTER)
 
 
+def error_text(error: BaseException) -> str:
+    """A Zenoh error's first line, without the Rust source location Zenoh appends."""
+    text = str(error).strip()
+    first = text.splitlines()[0] if text else type(error).__name__
+    return first.split("  at ")[0].split(" at /")[0].strip()
+
+
+def check_endpoint(endpoint: str) -> str:
+    """`endpoint` if it reads PROTO/ADDRESS; raises ZenohConfigError otherwise."""
+    if not _ENDPOINT.match(endpoint):
+        raise ZenohConfigError(
+            f"malformed Zenoh endpoint {endpoint!r}: expected PROTO/ADDRESS, "
+            "e.g. tcp/127.0.0.1:7447"
+        )
+    return endpoint
+
+
 def make_config(
     mode: str = "client",
     connect: list[str] | None = None,
     listen: list[str] | None = None,
 ) -> zenoh.Config:
+    """The built-in configuration: `mode`, explicit endpoints, no multicast scouting."""
     if mode not in MODES:
-        raise ValueError(f"zenoh mode {mode!r}: expected one of {', '.join(MODES)}")
+        raise ZenohConfigError(f"zenoh mode {mode!r}: expected one of {', '.join(MODES)}")
     config = zenoh.Config()
     config.insert_json5("mode", json.dumps(mode))
     config.insert_json5("scouting/multicast/enabled", "false")
     config.insert_json5("scouting/delay", "0")
-    if connect:
-        config.insert_json5("connect/endpoints", json.dumps(connect))
-    if listen:
-        config.insert_json5("listen/endpoints", json.dumps(listen))
+    _set_endpoints(config, connect, listen)
     if mode == "router":
         # Let stock tools read the router's admin space (`@/**`).
         config.insert_json5("adminspace/enabled", "true")
     return config
+
+
+def load_config(path: str) -> zenoh.Config:
+    """A full Zenoh config from `path`; raises ZenohConfigError naming the file and the fault."""
+    try:
+        with open(path, "rb"):
+            pass
+    except OSError as error:
+        raise ZenohConfigError(
+            f"cannot read Zenoh config {path}: {error.strerror or error}"
+        ) from None
+    try:
+        return zenoh.Config.from_file(path)
+    except zenoh.ZError as error:
+        raise ZenohConfigError(f"Zenoh config {path} is not valid: {error_text(error)}") from None
+
+
+def build_config(
+    mode: str | None = None,
+    connect: list[str] | None = None,
+    listen: list[str] | None = None,
+    config_file: str | None = None,
+) -> zenoh.Config:
+    """The session configuration a command line asks for.
+
+    Without `config_file`: `make_config` in `mode` (client by default), a client
+    connecting to `default_connect()` unless `connect` names endpoints. With it: the
+    file, with `mode`, `connect` and `listen` (when given) replacing the file's values.
+    """
+    for endpoint in (*(connect or ()), *(listen or ())):
+        check_endpoint(endpoint)
+    if config_file is None:
+        mode = mode or "client"
+        if not connect and mode == "client":
+            connect = [check_endpoint(default_connect())]
+        return make_config(mode, connect, listen)
+    config = load_config(config_file)
+    if mode is not None:
+        if mode not in MODES:
+            raise ZenohConfigError(f"zenoh mode {mode!r}: expected one of {', '.join(MODES)}")
+        config.insert_json5("mode", json.dumps(mode))
+    _set_endpoints(config, connect, listen)
+    return config
+
+
+def endpoints(config: zenoh.Config, which: str = "connect") -> list[str]:
+    """The `connect` (or `listen`) endpoints a config names (for messages)."""
+    try:
+        value = json.loads(config.get_json(f"{which}/endpoints"))
+    except (zenoh.ZError, ValueError):
+        return []
+    # A mode-dependent value is a {router: [...], peer: [...], client: [...]} table.
+    if isinstance(value, dict):
+        mode = json.loads(config.get_json("mode") or '"peer"')
+        value = value.get(mode, [])
+    return [str(endpoint) for endpoint in value] if isinstance(value, list) else []
+
+
+def _set_endpoints(
+    config: zenoh.Config, connect: list[str] | None, listen: list[str] | None
+) -> None:
+    try:
+        if connect:
+            config.insert_json5("connect/endpoints", json.dumps(connect))
+        if listen:
+            config.insert_json5("listen/endpoints", json.dumps(listen))
+    except zenoh.ZError as error:
+        raise ZenohConfigError(f"bad Zenoh endpoint: {error_text(error)}") from None

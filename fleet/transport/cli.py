@@ -1,0 +1,189 @@
+"""Command-line plumbing shared by `fleet`, `onboard` and `ground-cli`.
+
+One place for what every program of the project does the same way: argparse value
+types, the Zenoh flags (``--connect``, ``--listen``, ``--mode``, ``--zenoh-config`` /
+$FLEET_ZENOH_CONFIG), ``-v`` and logging set-up, SIGTERM/SIGINT handling, and exit codes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import math
+import os
+import signal
+import sys
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from enum import IntEnum
+from types import FrameType
+
+import zenoh
+
+from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
+from fleet.transport.zenoh_config import (
+    CONFIG_ENV,
+    CONNECT_ENV,
+    DEFAULT_ROUTER,
+    MODES,
+    ZenohConfigError,
+    build_config,
+)
+
+log = logging.getLogger(__name__)
+
+
+class ExitCode(IntEnum):
+    """Exit status of every program of the project."""
+
+    OK = 0
+    #: The operation ran and failed (bad input file, not agreed in time, a child died).
+    FAILED = 1
+    #: Bad command line or configuration, or no Zenoh router to talk to.
+    USAGE = 2
+    #: Stopped by SIGINT/SIGTERM before it could finish (128 + SIGINT).
+    INTERRUPTED = 130
+
+
+# ---- argparse value types ---------------------------------------------------------------------
+def _number(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
+    return value
+
+
+def positive_float(text: str) -> float:
+    value = _number(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r} must be a positive number")
+    return value
+
+
+def non_negative_float(text: str) -> float:
+    value = _number(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{text!r} must be a number >= 0")
+    return value
+
+
+def bounded_int(low: int, high: int | None = None, what: str = "value") -> Callable[[str], int]:
+    """An int type accepting low..high (inclusive; no upper bound when high is None)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+        if value < low or (high is not None and value > high):
+            span = f"{low}-{high}" if high is not None else f"at least {low}"
+            raise argparse.ArgumentTypeError(f"the {what} must be {span}, got {value}")
+        return value
+
+    return parse
+
+
+tcp_port = bounded_int(0, 65535, "TCP port")
+piccolo_id = bounded_int(MIN_PICCOLO_ID, MAX_PICCOLO_ID, "Piccolo ID")
+
+
+# ---- Zenoh flags --------------------------------------------------------------------------------
+def add_zenoh_arguments(parser: argparse.ArgumentParser) -> None:
+    """The Zenoh session flags; `zenoh_config(args)` turns them into a config."""
+    group = parser.add_argument_group("zenoh")
+    group.add_argument(
+        "--connect",
+        action="append",
+        metavar="ENDPOINT",
+        help=f"endpoint to connect to; repeatable (default ${CONNECT_ENV} or {DEFAULT_ROUTER}, "
+        "or the config file's)",
+    )
+    group.add_argument(
+        "--listen", action="append", metavar="ENDPOINT", help="endpoint to listen on; repeatable"
+    )
+    group.add_argument(
+        "--mode", choices=MODES, help="session mode (default client, or the config file's)"
+    )
+    group.add_argument(
+        "--zenoh-config",
+        metavar="FILE",
+        default=os.environ.get(CONFIG_ENV) or None,
+        help=f"a full Zenoh config file (JSON5); --connect, --listen and --mode override "
+        f"its values (default ${CONFIG_ENV})",
+    )
+
+
+def zenoh_config(args: argparse.Namespace) -> zenoh.Config:
+    """The config the Zenoh flags ask for; raises ZenohConfigError with the reason."""
+    return build_config(
+        mode=args.mode, connect=args.connect, listen=args.listen, config_file=args.zenoh_config
+    )
+
+
+# ---- logging ------------------------------------------------------------------------------------
+def add_verbose_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "-v", "--verbose", action="count", default=0, help="log more; repeat for even more"
+    )
+
+
+def setup_logging(verbose: int, *, base: int = logging.INFO, name: str = "") -> None:
+    """Log to stderr at `base`, one level lower per `-v` (DEBUG at most)."""
+    level = max(logging.DEBUG, base - 10 * verbose)
+    tag = f"{name} " if name else ""
+    logging.basicConfig(
+        level=level,
+        format=f"%(asctime)s {tag}%(name)s %(levelname)s %(message)s",
+        stream=sys.stderr,
+    )
+
+
+# ---- signals ------------------------------------------------------------------------------------
+@contextmanager
+def stop_on_signals(on_stop: Callable[[], None]) -> Iterator[None]:
+    """While inside, SIGTERM and SIGINT call `on_stop`; the previous handlers come back after.
+
+    Handlers can only be installed from the main thread; elsewhere (a test driving a
+    command from a thread) the caller stops it itself.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handle(signum: int, frame: FrameType | None) -> None:
+        log.info("%s: stopping", signal.Signals(signum).name)
+        on_stop()
+
+    previous = {sig: signal.signal(sig, handle) for sig in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def fail(prog: str, message: str, code: ExitCode = ExitCode.USAGE) -> ExitCode:
+    """Print `prog: message` on stderr and return `code`, for `return fail(...)`."""
+    print(f"{prog}: {message}", file=sys.stderr)
+    return code
+
+
+__all__ = [
+    "ExitCode",
+    "ZenohConfigError",
+    "add_verbose_argument",
+    "add_zenoh_arguments",
+    "bounded_int",
+    "fail",
+    "non_negative_float",
+    "piccolo_id",
+    "positive_float",
+    "setup_logging",
+    "stop_on_signals",
+    "tcp_port",
+    "zenoh_config",
+]
