@@ -31,9 +31,10 @@ from typing import Any
 import pyomo.environ as pyo
 from pyomo.contrib.solver.common.factory import SolverFactory
 
-from fleet.geo.dubins import dubins_time_to_point, turn_radius
+from fleet.geo.aircraft import AircraftLimits, turn_radius
+from fleet.geo.angles import wrap_pi
+from fleet.geo.dubins import dubins_time_to_point
 from onboard.approach_model import (
-    AircraftLimits,
     ApproachTimeModel,
     along_velocity_bounds,
     build_point_mass,
@@ -66,7 +67,7 @@ def fly_pure_pursuit(
     arrival is interpolated inside the last step. None if the target is not reached
     within `max_time_s` (e.g. inside the turn circle, where pure pursuit orbits).
     """
-    speed = limits.clamp_speed(math.hypot(velocity[0], velocity[1]))
+    speed = limits.clamp_airspeed(math.hypot(velocity[0], velocity[1]))
     heading = math.atan2(velocity[1], velocity[0])
     rate = limits.max_accel / speed
     x, y = position
@@ -77,7 +78,7 @@ def fly_pure_pursuit(
         dist = math.hypot(dx, dy)
         if dist <= speed * dt:
             return t + dist / speed
-        error = math.remainder(math.atan2(dy, dx) - heading, math.tau)
+        error = wrap_pi(math.atan2(dy, dx) - heading)
         turn = max(-rate * dt, min(rate * dt, error))
         mid = heading + 0.5 * turn  # midpoint heading: second-order accurate arcs
         heading += turn
@@ -111,7 +112,9 @@ def milp_arrival_node(
     m.N = pyo.RangeSet(1, n)
     m.arrive = pyo.Var(m.N, domain=pyo.Binary)
     # Big-M per node: no position can be further from the target than this.
-    reach = [1.05 * limits.max_speed * t + max(abs(target[0]), abs(target[1])) + 1.0 for t in times]
+    reach = [
+        1.05 * limits.max_airspeed * t + max(abs(target[0]), abs(target[1])) + 1.0 for t in times
+    ]
 
     def x_hi(b: Any, k: int) -> Any:
         return b.x[k] - target[0] <= reach[k] * (1 - b.arrive[k])
@@ -173,7 +176,7 @@ class _Timing:
 def _time_solves(model: ApproachTimeModel, count: int, rng: random.Random) -> _Timing:
     samples = []
     lps = 0
-    speed = model.limits.max_speed
+    speed = model.limits.max_airspeed
     for _ in range(_REPEATS):
         targets = _random_targets(rng, count)
         position, velocity = _random_state(rng, speed)
@@ -190,7 +193,7 @@ def _timing_table(limits: AircraftLimits) -> list[str]:
     model = ApproachTimeModel(limits)
     build = time.perf_counter() - started
     # One throw-away solve: the first LP starts without a basis.
-    model.solve((0.0, 0.0), (limits.max_speed, 0.0), [(1000.0, 0.0)])
+    model.solve((0.0, 0.0), (limits.max_airspeed, 0.0), [(1000.0, 0.0)])
     lines = [
         f"Model build (Pyomo model + persistent HiGHS `set_instance`): {build:.3f} s, "
         f"{len(model.steps)} steps, horizon {model.horizon_s:.0f} s.",
@@ -211,7 +214,7 @@ def _timing_table(limits: AircraftLimits) -> list[str]:
 
     # References on one 4-target case.
     targets = _random_targets(rng, 4)
-    position, velocity = _random_state(rng, limits.max_speed)
+    position, velocity = _random_state(rng, limits.max_airspeed)
     started = time.perf_counter()
     sols = model.solve_detailed(position, velocity, targets)
     scan_s = time.perf_counter() - started
@@ -220,7 +223,7 @@ def _timing_table(limits: AircraftLimits) -> list[str]:
         milp_arrival_node(
             limits,
             model.steps,
-            limits.max_speed,
+            limits.max_airspeed,
             _to_heading_frame(position, velocity, t),
         )
         for t in targets
@@ -230,7 +233,7 @@ def _timing_table(limits: AircraftLimits) -> list[str]:
 
     public = ApproachTimeModel(limits)
     public._solver._highs = None  # force the public persistent solve() path
-    public.solve((0.0, 0.0), (limits.max_speed, 0.0), [(1000.0, 0.0)])
+    public.solve((0.0, 0.0), (limits.max_airspeed, 0.0), [(1000.0, 0.0)])
     started = time.perf_counter()
     public.solve(position, velocity, targets)
     public_s = time.perf_counter() - started
@@ -285,7 +288,7 @@ def _error_row(
     limits: AircraftLimits,
     ranges: Sequence[float],
 ) -> str:
-    speed = limits.max_speed
+    speed = limits.max_airspeed
     cases = _ring(ranges)
     flown = [fly_pure_pursuit((0.0, 0.0), (speed, 0.0), c, limits) for c in cases]
     stats = _errors(predict(cases), flown)
@@ -303,7 +306,7 @@ def _error_table() -> list[str]:
         "|---|---:|---|---:|---:|---:|---:|",
     ]
     for speed in (30.0, 20.0):
-        limits = AircraftLimits(max_speed=speed)
+        limits = AircraftLimits(max_airspeed=speed)
         velocity = (speed, 0.0)
         pure = ApproachTimeModel(limits, turn_constraint=False)
         shipped = ApproachTimeModel(limits)

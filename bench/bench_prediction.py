@@ -15,10 +15,11 @@ import math
 import statistics
 import time
 
-from fleet.geo.dubins import dubins_time_to_point, turn_radius
+from fleet.geo.aircraft import AircraftLimits, turn_radius
+from fleet.geo.dubins import dubins_time_to_point
 from fleet.sim.aircraft import AircraftState
 from fleet.sim.guidance import fly_to_point
-from onboard.approach_model import AircraftLimits, ApproachTimeModel
+from onboard.approach_model import ApproachTimeModel
 
 ARRIVAL_RADIUS_M = 10.0
 
@@ -33,7 +34,7 @@ def main() -> None:
         f"{'bias':>7}"
     )
     for speed in (22.0, 28.0):
-        model = ApproachTimeModel(AircraftLimits(max_speed=speed))
+        model = ApproachTimeModel(AircraftLimits(max_airspeed=speed))
         radius = turn_radius(speed, 30.0)
         rows: dict[str, list[float]] = {"onboard model (published)": [], "Dubins alone": []}
         started = time.perf_counter()

@@ -70,17 +70,17 @@ current speed is flyable, so the true minimum time cannot exceed it: the reporte
 is min(LP, Dubins) (`TargetSolution.lp_time` keeps the LP's own). Beyond a few turn
 radii the cap binds only where the 16-gon makes the LP up to 1.3 % slow (about half the
 bearings); it never binds where the LP is below the Dubins time (the turn relaxation,
-or an aircraft that can speed up to max_speed). The bench's flown reference is a Dubins
+or an aircraft that can speed up to max_airspeed). The bench's flown reference is a Dubins
 path by construction, so its "LP alone" rows are the figures that judge the model.
 
 Targets are solved in nearest-neighbour order so that each LP warm-starts from the
 basis of a similar one (20-30 % fewer simplex pivots).
 
-Speeds are clamped into [min_speed, max_speed]: a reported speed below the minimum
-(e.g. zero on the ground) is treated as min_speed along the reported direction, or east
-without one; one above the maximum (a ground speed with tailwind) as max_speed. Wind is
-not modelled. Times assume the aircraft may fly at max_speed; if the autopilot holds a
-lower commanded airspeed, build the model with that as max_speed.
+Speeds are clamped into [min_airspeed, max_airspeed]: a reported speed below the minimum
+(e.g. zero on the ground) is treated as min_airspeed along the reported direction, or east
+without one; one above the maximum (a ground speed with tailwind) as max_airspeed. Wind is
+not modelled. Times assume the aircraft may fly at max_airspeed; if the autopilot holds a
+lower commanded airspeed, build the model with that as max_airspeed.
 
 Pyomo overheads
 ---------------
@@ -110,10 +110,10 @@ import pyomo.environ as pyo
 from pyomo.contrib.solver.common.factory import SolverFactory
 from pyomo.contrib.solver.common.results import TerminationCondition
 
-from fleet.geo.dubins import GRAVITY, dubins_path_length, turn_radius
+from fleet.geo.aircraft import AircraftLimits
+from fleet.geo.dubins import dubins_path_length
 
 __all__ = [
-    "AircraftLimits",
     "ApproachModelError",
     "ApproachTimeModel",
     "TargetSolution",
@@ -140,32 +140,7 @@ _NORMALS = tuple(
 # Distance (metres, 16-gon norm) below which the target counts as reached; HiGHS's
 # primal feasibility tolerance on a km-scale model leaves residuals far below this.
 _ARRIVAL_TOLERANCE_M = 1e-2
-
-
-@dataclass(frozen=True)
-class AircraftLimits:
-    """Flight envelope used by the model, SI units."""
-
-    min_speed: float = 15.0
-    max_speed: float = 30.0
-    bank_limit_deg: float = 30.0
-
-    def __post_init__(self) -> None:
-        # A fixed-wing aircraft always flies and always can turn; the model divides by
-        # the speed (turn rate a_max / V) and needs a positive a_max.
-        if not 0.0 < self.min_speed <= self.max_speed < math.inf:
-            raise ValueError(f"need 0 < min_speed <= max_speed: {self}")
-        if not 0.0 < self.bank_limit_deg < 90.0:
-            raise ValueError(f"bank limit must be in (0, 90) degrees: {self}")
-
-    @property
-    def max_accel(self) -> float:
-        """Lateral acceleration of a coordinated turn at the bank limit, m/s^2."""
-        return GRAVITY * math.tan(math.radians(self.bank_limit_deg))
-
-    def clamp_speed(self, speed: float) -> float:
-        """The airspeed the aircraft can actually be flying at."""
-        return min(max(speed, self.min_speed), self.max_speed)
+_DEFAULT_LIMITS = AircraftLimits()
 
 
 class TargetStatus(enum.Enum):
@@ -287,7 +262,7 @@ def build_point_mass(limits: AircraftLimits, steps: Sequence[float]) -> pyo.Conc
     reference reuses the rest.
     """
     n = len(steps)
-    v_cap = limits.max_speed * _SPEED_INRADIUS
+    v_cap = limits.max_airspeed * _SPEED_INRADIUS
     a_cap = limits.max_accel * _ACCEL_INRADIUS
     m = pyo.ConcreteModel(name="approach_time")
     m.K = pyo.RangeSet(0, n)  # nodes
@@ -356,8 +331,8 @@ def build_point_mass(limits: AircraftLimits, steps: Sequence[float]) -> pyo.Conc
     for var in (m.x[0], m.y[0], m.vy[0], m.tx, m.ty):
         var.setlb(0.0)
         var.setub(0.0)
-    m.vx[0].setlb(limits.max_speed)
-    m.vx[0].setub(limits.max_speed)
+    m.vx[0].setlb(limits.max_airspeed)
+    m.vx[0].setub(limits.max_airspeed)
     return m
 
 
@@ -405,7 +380,7 @@ class ApproachTimeModel:
 
     def __init__(
         self,
-        limits: AircraftLimits = AircraftLimits(),
+        limits: AircraftLimits = _DEFAULT_LIMITS,
         horizon_s: float = 600.0,
         *,
         steps: Sequence[float] | None = None,
@@ -495,7 +470,7 @@ class ApproachTimeModel:
     def _gauge_time(self, along: float, cross: float) -> float:
         """Time to cover (along, cross) at max speed inside the speed 16-gon."""
         reach = max(nx * along + ny * cross for nx, ny in _NORMALS)
-        return max(reach, 0.0) / (_SPEED_INRADIUS * self.limits.max_speed)
+        return max(reach, 0.0) / (_SPEED_INRADIUS * self.limits.max_airspeed)
 
     def _first_node_at_or_after(self, t: float) -> int:
         return bisect.bisect_left(self._times, t - 1e-9)
@@ -517,7 +492,7 @@ class ApproachTimeModel:
                 return True
             return deadline is not None and time.monotonic() >= deadline
 
-        speed_cap = _SPEED_INRADIUS * self.limits.max_speed
+        speed_cap = _SPEED_INRADIUS * self.limits.max_airspeed
         # Before any LP: node 0 is fixed, so its 16-gon distance is already a bound.
         bound = self._gauge_time(along, cross)
         if bound <= 0.0:
@@ -573,8 +548,8 @@ class ApproachTimeModel:
         reported = math.hypot(vx, vy)
         # Unit heading; east when the aircraft reports no velocity at all.
         hx, hy = (vx / reported, vy / reported) if reported > 1e-9 else (1.0, 0.0)
-        speed = self.limits.clamp_speed(reported)
-        radius = turn_radius(speed, self.limits.bank_limit_deg)
+        speed = self.limits.clamp_airspeed(reported)
+        radius = self.limits.turn_radius(speed)
         self._set_state(speed)
         local: list[tuple[float, float]] = []
         for tx, ty in targets:

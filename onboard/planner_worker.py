@@ -35,9 +35,9 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
-from fleet.geo.dubins import dubins_time_to_point, turn_radius
+from fleet.geo.aircraft import AircraftLimits
+from fleet.geo.dubins import dubins_time_to_point
 from onboard.approach_model import (
-    AircraftLimits,
     ApproachTimeModel,
     TargetSolution,
     TargetStatus,
@@ -62,7 +62,7 @@ class PlanRequest:
     targets: tuple[tuple[float, float], ...]
     budget_s: float
     #: The speed the aircraft holds, m/s: the module never changes airspeed, so the
-    #: model's top speed is this one. None: the limits' `max_speed`.
+    #: model's top speed is this one. None: the limits' `max_airspeed`.
     cruise_speed: float | None = None
 
     def __post_init__(self) -> None:
@@ -97,17 +97,17 @@ def fallback_time(
 ) -> float:
     """Dubins time to `target` at the current airspeed, clamped to the flight envelope.
 
-    A reported speed outside [min_speed, max_speed] (zero on the ground, or a ground
+    A reported speed outside [min_airspeed, max_airspeed] (zero on the ground, or a ground
     speed with tailwind) is clamped like the model does; with no velocity at all the
     heading is taken as east.
     """
     reported = math.hypot(velocity[0], velocity[1])
-    speed = limits.clamp_speed(reported)
+    speed = limits.clamp_airspeed(reported)
     if reported > 1e-9:
         flown = (velocity[0] * speed / reported, velocity[1] * speed / reported)
     else:
         flown = (speed, 0.0)
-    return dubins_time_to_point(position, flown, target, turn_radius(speed, limits.bank_limit_deg))
+    return dubins_time_to_point(position, flown, target, limits.turn_radius(speed))
 
 
 class PlannerWorker:
@@ -126,7 +126,7 @@ class PlannerWorker:
         (tests use it to inject failures); `limits` also drive the Dubins fallback.
         """
         self._limits = limits
-        self._ceiling = limits.max_speed  # the airframe's, whatever the cruise speed
+        self._ceiling = limits.max_airspeed  # the airframe's, whatever the cruise speed
         self._custom_factory = model_factory is not None
         self._factory: Callable[[], ApproachTimeModel] = model_factory or (
             lambda: ApproachTimeModel(self._limits, horizon_s)
@@ -237,10 +237,10 @@ class PlannerWorker:
         """Rebuild the model (about 50 ms) when the aircraft's speed has moved on."""
         if request.cruise_speed is None or self._custom_factory:
             return
-        speed = min(max(request.cruise_speed, self._limits.min_speed), self._ceiling)
-        if abs(speed - self._limits.max_speed) > CRUISE_SPEED_TOLERANCE:
+        speed = min(max(request.cruise_speed, self._limits.min_airspeed), self._ceiling)
+        if abs(speed - self._limits.max_airspeed) > CRUISE_SPEED_TOLERANCE:
             logger.info("approach model rebuilt for a cruise speed of %.1f m/s", speed)
-            self._limits = replace(self._limits, max_speed=speed)
+            self._limits = replace(self._limits, max_airspeed=speed)
             self._model = None
 
     def _plan(self, request: PlanRequest, started: float) -> PlanResult:

@@ -20,25 +20,9 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["GRAVITY", "dubins_path_length", "dubins_time_to_point", "turn_radius"]
+from fleet.geo.angles import TWO_PI, wrap_two_pi
 
-GRAVITY = 9.80665
-"""Standard gravity, m/s^2."""
-
-_TWO_PI = 2.0 * math.pi
-
-
-def turn_radius(speed: float, bank_limit_deg: float) -> float:
-    """Radius in metres of a coordinated level turn at `speed` (m/s) and the bank limit.
-
-    r = v^2 / (g tan(bank)); a bank limit at or below zero means the aircraft cannot
-    turn, which is reported as an infinite radius.
-    """
-    tan_bank = math.tan(math.radians(bank_limit_deg))
-    if tan_bank <= 0.0:
-        return math.inf
-    return speed * speed / (GRAVITY * tan_bank)
-
+__all__ = ["dubins_path_length", "dubins_time_to_point"]
 
 _ARC_EPS = 1e-9
 
@@ -49,10 +33,8 @@ def _ccw(angle: float) -> float:
     An arc within rounding of a full turn is a zero arc computed from two nearly equal
     angles (a target dead ahead), not a loop.
     """
-    wrapped = math.fmod(angle, _TWO_PI)
-    if wrapped < 0.0:
-        wrapped += _TWO_PI
-    return 0.0 if wrapped > _TWO_PI - _ARC_EPS else wrapped
+    wrapped = wrap_two_pi(angle)
+    return 0.0 if wrapped > TWO_PI - _ARC_EPS else wrapped
 
 
 def _turn_then_straight(

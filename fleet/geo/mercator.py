@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import math
 
+from fleet.geo.angles import wrap_degrees
+
 __all__ = ["WGS84_A", "WGS84_F", "MercatorProjection"]
 
 #: WGS-84 semi-major axis (m).
@@ -48,11 +50,6 @@ def _isometric_latitude(phi: float) -> float:
     return math.atanh(sin_phi) - _E * math.atanh(_E * sin_phi)
 
 
-def _wrap_deg(angle: float) -> float:
-    """Wrap to [-180, 180)."""
-    return (angle + 180.0) % 360.0 - 180.0
-
-
 class MercatorProjection:
     """Ellipsoidal (WGS-84) Mercator with its standard parallel at the reference.
 
@@ -71,7 +68,7 @@ class MercatorProjection:
                 "Mercator degenerates near the poles"
             )
         self.ref_lat_deg = ref_lat_deg
-        self.ref_lon_deg = _wrap_deg(ref_lon_deg)
+        self.ref_lon_deg = wrap_degrees(ref_lon_deg)
         phi0 = math.radians(ref_lat_deg)
         sin_phi0 = math.sin(phi0)
         k0 = math.cos(phi0) / math.sqrt(1.0 - _E2 * sin_phi0 * sin_phi0)
@@ -87,7 +84,7 @@ class MercatorProjection:
             raise ValueError(f"position must be finite, got ({lat_deg}, {lon_deg})")
         if not -90.0 < lat_deg < 90.0:
             raise ValueError(f"latitude {lat_deg} is outside (-90, 90): no Mercator image")
-        x = self._k_a * math.radians(_wrap_deg(lon_deg - self.ref_lon_deg))
+        x = self._k_a * math.radians(wrap_degrees(lon_deg - self.ref_lon_deg))
         y = self._k_a * (_isometric_latitude(math.radians(lat_deg)) - self._psi0)
         return x, y
 
@@ -107,5 +104,5 @@ class MercatorProjection:
             phi -= step
             if abs(step) < _INVERSE_TOL_RAD:
                 break
-        lon = _wrap_deg(self.ref_lon_deg + math.degrees(x / self._k_a))
+        lon = wrap_degrees(self.ref_lon_deg + math.degrees(x / self._k_a))
         return math.degrees(phi), lon

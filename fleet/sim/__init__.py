@@ -6,7 +6,7 @@ bytes out, stepped by simulated time; `scenario` loads scenario files; `server` 
 I/O edge (sockets, ptys, the clock).
 """
 
-from fleet.sim.aircraft import AircraftLimits, AircraftState, Command, Wind, turn_radius
+from fleet.sim.aircraft import AircraftState, Command, Wind
 from fleet.sim.autopilot import AutopilotSettings, SimulatedAutopilot
 from fleet.sim.guidance import UnreachedError, fly_to_point, fly_until_arrival
 from fleet.sim.scenario import (
@@ -21,7 +21,6 @@ from fleet.sim.scenario import (
 )
 
 __all__ = [
-    "AircraftLimits",
     "AircraftState",
     "AutopilotSettings",
     "Command",
@@ -38,5 +37,4 @@ __all__ = [
     "shipped_scenario",
     "shipped_scenario_names",
     "shipped_scenario_path",
-    "turn_radius",
 ]

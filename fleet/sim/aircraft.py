@@ -25,43 +25,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-#: Standard gravity (m/s^2).
-G = 9.80665
-TWO_PI = 2.0 * math.pi
+from fleet.geo.aircraft import GRAVITY, AircraftLimits
+from fleet.geo.angles import wrap_two_pi
 
-
-@dataclass(frozen=True, slots=True)
-class AircraftLimits:
-    """The flight envelope and the response of the inner loops."""
-
-    min_airspeed: float = 15.0  #: m/s, true airspeed
-    max_airspeed: float = 30.0  #: m/s
-    airspeed_rate: float = 1.0  #: m/s^2, how fast the airspeed follows its command
-    bank_limit_deg: float = 30.0  #: degrees
-    roll_rate_deg: float = 45.0  #: degrees per second
-    climb_rate: float = 3.0  #: m/s, the limit both up and down
-    altitude_gain: float = 0.25  #: 1/s, climb command per metre of altitude error
-
-    def __post_init__(self) -> None:
-        if not 0.0 < self.min_airspeed <= self.max_airspeed:
-            raise ValueError(
-                f"airspeed limits must satisfy 0 < min <= max, got "
-                f"{self.min_airspeed}, {self.max_airspeed}"
-            )
-        if not 0.0 < self.bank_limit_deg < 90.0:
-            raise ValueError(f"bank limit must be in (0, 90) degrees, got {self.bank_limit_deg}")
-        for name in ("airspeed_rate", "roll_rate_deg", "climb_rate", "altitude_gain"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f"{name} must be a positive number, got {value}")
-
-    @property
-    def bank_limit(self) -> float:
-        """The bank limit in radians."""
-        return math.radians(self.bank_limit_deg)
-
-    def clamp_airspeed(self, airspeed: float) -> float:
-        return min(max(airspeed, self.min_airspeed), self.max_airspeed)
+__all__ = ["CALM", "AircraftState", "Command", "Wind", "step"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -96,7 +63,7 @@ class AircraftState:
     @property
     def heading_rate(self) -> float:
         """rad/s of a coordinated turn at this bank and airspeed."""
-        return G * math.tan(self.bank) / self.airspeed
+        return GRAVITY * math.tan(self.bank) / self.airspeed
 
     @property
     def pitch(self) -> float:
@@ -122,18 +89,6 @@ class Command:
     bank: float  #: radians
     airspeed: float  #: m/s
     altitude: float  #: metres
-
-
-def turn_radius(airspeed: float, bank: float) -> float:
-    """Radius (m) of a steady coordinated turn, air-relative: v^2 / (g tan(bank))."""
-    return airspeed * airspeed / (G * math.tan(abs(bank)))
-
-
-def wrap_two_pi(angle: float) -> float:
-    """Wrap an angle to [0, 2 pi)."""
-    wrapped = angle % TWO_PI
-    # `%` can return 2 pi itself for tiny negative inputs.
-    return 0.0 if wrapped >= TWO_PI else wrapped
 
 
 def _limit(value: float, low: float, high: float) -> float:
@@ -166,7 +121,7 @@ def step(
     # The climb can never exceed the airspeed: the flight-path angle stays below 90 degrees.
     climb = _limit(climb, -0.5 * airspeed, 0.5 * airspeed)
 
-    heading_rate = G * math.tan(bank) / airspeed
+    heading_rate = GRAVITY * math.tan(bank) / airspeed
     mid_heading = state.heading + 0.5 * heading_rate * dt
     horizontal = math.sqrt(airspeed * airspeed - climb * climb)
     return AircraftState(

@@ -33,6 +33,8 @@ import math
 from collections import Counter
 from dataclasses import dataclass, field
 
+from fleet.geo.aircraft import GRAVITY, AircraftLimits
+from fleet.geo.angles import wrap_pi
 from fleet.geo.mercator import MercatorProjection
 from fleet.piccolo.autopilot_messages import AutopilotMessage, UnknownAutopilotMessage
 from fleet.piccolo.stream_packet import ALL_OPERATOR_INTERFACES, BROADCAST_AVIONICS
@@ -41,10 +43,10 @@ from fleet.piccolo.telemetry import GpsBlock, RawBlock, SensorBlock, Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from fleet.planning.link import AutopilotEvent, PiccoloLink
-from fleet.sim.aircraft import CALM, AircraftLimits, AircraftState, G, Wind
+from fleet.sim.aircraft import CALM, AircraftState, Wind
 from fleet.sim.aircraft import step as aircraft_step
 from fleet.sim.flight_plan import FlightPlan, FlightPlanError, check_indices
-from fleet.sim.guidance import DEFAULT_ACCEPTANCE_RADIUS, GuidanceSettings, command_toward, wrap_pi
+from fleet.sim.guidance import DEFAULT_ACCEPTANCE_RADIUS, GuidanceSettings, command_toward
 from fleet.sim.scenario import UavSpec
 
 logger = logging.getLogger(__name__)
@@ -265,7 +267,7 @@ class SimulatedAutopilot:
                 accel_x=state.acceleration,
                 accel_y=0.0,
                 # Specific force of level coordinated flight: the load factor, body down.
-                accel_z=-G / math.cos(state.bank),
+                accel_z=-GRAVITY / math.cos(state.bank),
             ),
         )
 

@@ -29,15 +29,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from fleet.sim.aircraft import (
-    CALM,
-    AircraftLimits,
-    AircraftState,
-    Command,
-    G,
-    Wind,
-    step,
-)
+from fleet.geo.aircraft import GRAVITY, AircraftLimits, turn_radius
+from fleet.geo.angles import wrap_pi
+from fleet.sim.aircraft import CALM, AircraftState, Command, Wind, step
 
 #: Simulated integration step of the simulator (s).
 STEP_S = 0.02
@@ -65,11 +59,6 @@ DEFAULT_GUIDANCE = GuidanceSettings()
 
 class UnreachedError(RuntimeError):
     """The aircraft did not reach the point within the time allowed."""
-
-
-def wrap_pi(angle: float) -> float:
-    """Wrap an angle to [-pi, pi)."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def distance_to(state: AircraftState, target_xy: tuple[float, float]) -> float:
@@ -104,7 +93,7 @@ def bank_command(
     # larger of air and ground speed: in wind the ground track of a turn is stretched
     # downwind, and a circle too large only costs a little straight flight.
     speed = max(state.airspeed, ground_speed)
-    radius = speed * speed / (G * math.tan(bank_limit))
+    radius = turn_radius(speed, limits.bank_limit_deg)
     side = 1.0 if error >= 0.0 else -1.0
     centre_x = state.x + side * radius * math.cos(course)
     centre_y = state.y - side * radius * math.sin(course)
@@ -114,7 +103,7 @@ def bank_command(
         return 0.0
 
     turn_rate = settings.course_gain * error
-    bank = math.atan(turn_rate * state.airspeed / G)
+    bank = math.atan(turn_rate * state.airspeed / GRAVITY)
     return max(-bank_limit, min(bank_limit, bank))
 
 

@@ -40,10 +40,11 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from fleet.geo.aircraft import AircraftLimits
 from fleet.mission.messages import Target
 from fleet.mission.targets_file import TargetsFileError, read_targets
 from fleet.piccolo.waypoint import MAX_INDEX, Waypoint
-from fleet.sim.aircraft import AircraftLimits, Wind
+from fleet.sim.aircraft import Wind
 from fleet.sim.flight_plan import closed_chain, racetrack
 
 __all__ = [

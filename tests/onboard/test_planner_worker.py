@@ -9,8 +9,8 @@ from collections.abc import Callable, Iterator, Sequence
 
 import pytest
 
+from fleet.geo.aircraft import AircraftLimits
 from onboard.approach_model import (
-    AircraftLimits,
     ApproachTimeModel,
     TargetSolution,
     TargetStatus,
@@ -18,7 +18,7 @@ from onboard.approach_model import (
 from onboard.planner_worker import PlannerWorker, PlanRequest, PlanResult, fallback_time
 
 LIMITS = AircraftLimits()
-V = LIMITS.max_speed
+V = LIMITS.max_airspeed
 TARGETS = ((1500.0, 0.0), (-1000.0, 800.0), (0.0, -2500.0))
 WAIT_S = 30.0  # generous: a timeout here means a hang, not a slow machine
 
@@ -209,7 +209,7 @@ def test_request_validation() -> None:
 def test_fallback_time_clamps_speed() -> None:
     # Stationary: min speed, heading east.
     t = fallback_time(LIMITS, (0.0, 0.0), (0.0, 0.0), (1500.0, 0.0))
-    assert t == pytest.approx(1500.0 / LIMITS.min_speed)
+    assert t == pytest.approx(1500.0 / LIMITS.min_airspeed)
     # Faster than max airspeed (tailwind): max speed.
     t = fallback_time(LIMITS, (0.0, 0.0), (0.0, 45.0), (0.0, 3000.0))
     assert t == pytest.approx(3000.0 / V)

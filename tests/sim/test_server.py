@@ -28,6 +28,7 @@ import serial
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from fleet.geo.angles import wrap_pi
 from fleet.geo.mercator import MercatorProjection
 from fleet.piccolo.autopilot_packet import encode_autopilot_packet
 from fleet.piccolo.stream_packet import STREAM_AUTOPILOT, StreamPacket, encode_stream_packet
@@ -164,7 +165,7 @@ def test_waypoint_then_track_flies_to_it_then_on_to_its_next() -> None:
     autopilot.advance_to(autopilot.time_ms + 40_000)
     north, east = autopilot.state.ground_velocity()
     bearing = math.atan2(x2 - autopilot.state.x, y2 - autopilot.state.y)
-    error = (math.atan2(east, north) - bearing + math.pi) % (2 * math.pi) - math.pi
+    error = wrap_pi(math.atan2(east, north) - bearing)
     assert abs(math.degrees(error)) < 10.0
 
 

@@ -1,0 +1,93 @@
+"""Tests of the analytic Dubins time to a point (fleet.geo.dubins)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from bench.bench_approach import fly_pure_pursuit
+from fleet.geo.aircraft import AircraftLimits, turn_radius
+from fleet.geo.dubins import dubins_path_length, dubins_time_to_point
+
+LIMITS = AircraftLimits()
+V = LIMITS.max_airspeed
+R = turn_radius(V, LIMITS.bank_limit_deg)
+
+
+def polar(dist: float, bearing_deg: float) -> tuple[float, float]:
+    b = math.radians(bearing_deg)
+    return dist * math.cos(b), dist * math.sin(b)
+
+
+def test_dubins_straight_ahead_is_distance_over_speed() -> None:
+    for d in (1.0, 500.0, 3000.0):
+        assert dubins_time_to_point((0.0, 0.0), (V, 0.0), (d, 0.0), R) == pytest.approx(d / V)
+    # Any heading: flying south-west.
+    v = (-V / math.sqrt(2.0), -V / math.sqrt(2.0))
+    assert dubins_time_to_point((10.0, 10.0), v, (-90.0, -90.0), R) == pytest.approx(
+        100.0 * math.sqrt(2.0) / V
+    )
+
+
+def test_dubins_far_side_of_turn_circle_is_half_a_turn() -> None:
+    half_turn = math.pi * R / V
+    assert dubins_time_to_point((0.0, 0.0), (V, 0.0), (0.0, 2.0 * R), R) == pytest.approx(half_turn)
+    assert dubins_time_to_point((0.0, 0.0), (V, 0.0), (0.0, -2.0 * R), R) == pytest.approx(
+        half_turn
+    )
+
+
+def test_dubins_inside_turn_circle_uses_two_turns() -> None:
+    # The centre of the left turn circle cannot be reached by turning left then going
+    # straight; the path must exist (two turns) and be longer than the straight line.
+    length = dubins_path_length((0.0, 0.0), 0.0, (0.0, R), R)
+    assert math.isfinite(length)
+    assert length > R
+
+
+def test_dubins_stationary_aircraft() -> None:
+    assert dubins_time_to_point((0.0, 0.0), (0.0, 0.0), (0.0, 0.0), R) == 0.0
+    assert dubins_time_to_point((0.0, 0.0), (0.0, 0.0), (1.0, 0.0), R) == math.inf
+
+
+@pytest.mark.parametrize("bearing", range(0, 360, 45))
+def test_dubins_matches_flown_pure_pursuit(bearing: int) -> None:
+    target = polar(1500.0, bearing)
+    flown = fly_pure_pursuit((0.0, 0.0), (V, 0.0), target, LIMITS)
+    assert flown is not None
+    assert dubins_time_to_point((0.0, 0.0), (V, 0.0), target, R) == pytest.approx(flown, rel=2e-3)
+
+
+coord = st.floats(-5000.0, 5000.0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    px=coord,
+    py=coord,
+    heading=st.floats(-math.pi, math.pi),
+    tx=coord,
+    ty=coord,
+    radius=st.floats(10.0, 500.0),
+)
+def test_dubins_bounds_and_invariance(
+    px: float, py: float, heading: float, tx: float, ty: float, radius: float
+) -> None:
+    length = dubins_path_length((px, py), heading, (tx, ty), radius)
+    dist = math.hypot(tx - px, ty - py)
+    # Never shorter than the straight line; never longer than a full loop plus the
+    # straight line from anywhere on the turn circle.
+    assert length >= dist - 1e-6
+    assert length <= dist + (2.0 * math.pi + 2.0) * radius + 1e-6
+    # Translating and rotating the whole picture changes nothing.
+    c, s = math.cos(0.7), math.sin(0.7)
+    moved = dubins_path_length(
+        (c * px - s * py + 100.0, s * px + c * py - 50.0),
+        heading + 0.7,
+        (c * tx - s * ty + 100.0, s * tx + c * ty - 50.0),
+        radius,
+    )
+    assert moved == pytest.approx(length, rel=1e-6, abs=1e-6)
