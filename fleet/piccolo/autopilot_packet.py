@@ -1,21 +1,22 @@
 """Autopilot-stream "simple packets" (piccolo-link.md 3): framing only.
 
 0xA0 0x05, packet type, data size N, N data bytes, CRC-16/ARC (high byte first) over
-everything before it. Parsed out of the autopilot stream queue, whether a packet spans
-several stream packets or shares one with others.
+everything before it. Decoded out of the autopilot stream's bytes, whether a packet
+spans several stream packets or shares one with others.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from fleet.piccolo.crc import crc16_arc, crc16_arc_bytes
-from fleet.piccolo.stream_queue import StreamQueue
+from fleet.piccolo.decoder import Reject, ResyncDecoder
 
 SYNC = b"\xa0\x05"
 HEADER_SIZE = 4
 OVERHEAD = HEADER_SIZE + 2
 MAX_DATA = 255
+_BAD_CRC = Reject("bad_crc")
 
 
 class AutopilotPacketError(ValueError):
@@ -41,48 +42,23 @@ def encode_autopilot_packet(packet_type: int, data: bytes) -> bytes:
     return body + crc16_arc_bytes(body)
 
 
-@dataclass(slots=True)
-class AutopilotDropCounters:
-    bad_crc: int = 0
-    skipped_bytes: int = 0
+class AutopilotPacketDecoder(ResyncDecoder[AutopilotPacket]):
+    """Pulls complete autopilot packets out of the autopilot stream's bytes.
 
-    def as_dict(self) -> dict[str, int]:
-        return {"bad_crc": self.bad_crc, "skipped_bytes": self.skipped_bytes}
+    A candidate whose CRC fails (`bad_crc`) costs one byte, then the hunt resumes.
+    """
 
+    SYNC = SYNC
+    REASONS = ("bad_crc",)
 
-@dataclass
-class AutopilotPacketParser:
-    """Pulls complete autopilot packets out of the autopilot stream queue."""
-
-    drops: AutopilotDropCounters = field(default_factory=AutopilotDropCounters)
-
-    def parse(self, queue: StreamQueue) -> list[AutopilotPacket]:
-        buffer = queue.view()
-        found: list[AutopilotPacket] = []
-        position = 0
+    def _frame(self, buffer: bytearray, start: int) -> tuple[AutopilotPacket, int] | Reject | None:
         end = len(buffer)
-        while True:
-            start = buffer.find(SYNC, position)
-            if start < 0:
-                keep_from = end - 1 if end > position and buffer[end - 1] == 0xA0 else end
-                self.drops.skipped_bytes += keep_from - position
-                position = keep_from
-                break
-            self.drops.skipped_bytes += start - position
-            position = start
-            if end - start < HEADER_SIZE:
-                break
-            stop = start + HEADER_SIZE + buffer[start + 3]
-            if end < stop + 2:
-                break
-            if crc16_arc(buffer[start:stop]) != (buffer[stop] << 8 | buffer[stop + 1]):
-                self.drops.bad_crc += 1
-                self.drops.skipped_bytes += 1
-                position = start + 1
-                continue
-            found.append(
-                AutopilotPacket(buffer[start + 2], bytes(buffer[start + HEADER_SIZE : stop]))
-            )
-            position = stop + 2
-        queue.consume(position)
-        return found
+        if end - start < HEADER_SIZE:
+            return None
+        stop = start + HEADER_SIZE + buffer[start + 3]
+        if end < stop + 2:
+            return None
+        if crc16_arc(buffer[start:stop]) != (buffer[stop] << 8 | buffer[stop + 1]):
+            return _BAD_CRC
+        packet = AutopilotPacket(buffer[start + 2], bytes(buffer[start + HEADER_SIZE : stop]))
+        return packet, stop + 2

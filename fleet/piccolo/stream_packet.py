@@ -9,9 +9,10 @@ anything it rejects; it never raises on input bytes.
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from fleet.piccolo.crc import crc16_arc, crc16_arc_bytes
+from fleet.piccolo.decoder import Reject, ResyncDecoder
 
 SYNC = b"\x5a\xa5"
 HEADER_SIZE = 14
@@ -32,6 +33,8 @@ STREAM_AUTOPILOT = 3
 STREAM_PAYLOAD = 6
 
 _HEADER = struct.Struct(">2sHHHHBBB")
+_BAD_HEADER_CHECKSUM = Reject("bad_header_checksum")
+_BAD_CRC = Reject("bad_crc")
 
 
 class StreamPacketError(ValueError):
@@ -86,83 +89,40 @@ def encode_stream_packet(packet: StreamPacket) -> bytes:
     return body + crc16_arc_bytes(body)
 
 
-@dataclass(slots=True)
-class StreamDropCounters:
-    """What the stream decoder threw away, and why."""
-
-    bad_header_checksum: int = 0
-    bad_crc: int = 0
-    skipped_bytes: int = 0
-
-    def as_dict(self) -> dict[str, int]:
-        return {
-            "bad_header_checksum": self.bad_header_checksum,
-            "bad_crc": self.bad_crc,
-            "skipped_bytes": self.skipped_bytes,
-        }
-
-
-@dataclass
-class StreamDecoder:
+class StreamDecoder(ResyncDecoder[StreamPacket]):
     """Incremental stream-packet decoder.
 
     Keeps at most one partial packet (271 bytes) between calls: garbage before a sync
-    is discarded at once and counted in `drops.skipped_bytes`. A candidate rejected
-    for its header checksum or CRC costs one byte (its 0x5A), then the hunt resumes,
-    so a real packet hidden inside a corrupt one is still found.
+    is discarded at once and counted in `skipped_bytes`. A candidate rejected for its
+    header checksum (`bad_header_checksum`) or CRC (`bad_crc`) costs one byte (its
+    0x5A), then the hunt resumes, so a real packet hidden inside a corrupt one is still
+    found.
     """
 
-    drops: StreamDropCounters = field(default_factory=StreamDropCounters)
-    packets: int = 0
-    _buffer: bytearray = field(default_factory=bytearray)
+    SYNC = SYNC
+    REASONS = ("bad_header_checksum", "bad_crc")
 
-    def feed(self, chunk: bytes | bytearray | memoryview) -> list[StreamPacket]:
-        buffer = self._buffer
-        buffer += chunk
-        found: list[StreamPacket] = []
-        position = 0
+    def _frame(self, buffer: bytearray, start: int) -> tuple[StreamPacket, int] | Reject | None:
         end = len(buffer)
-        while True:
-            start = buffer.find(SYNC, position)
-            if start < 0:
-                # Keep a trailing 0x5A: it may be the first half of a sync.
-                keep_from = end - 1 if end > position and buffer[end - 1] == 0x5A else end
-                self.drops.skipped_bytes += keep_from - position
-                position = keep_from
-                break
-            self.drops.skipped_bytes += start - position
-            position = start
-            if end - start < HEADER_SIZE:
-                break
-            if _xor(buffer[start : start + 13]) != buffer[start + 13]:
-                self.drops.bad_header_checksum += 1
-                self.drops.skipped_bytes += 1
-                position = start + 1
-                continue
-            size = buffer[start + 12]
-            stop = start + HEADER_SIZE + size
-            if end < stop + 2:
-                break
-            if crc16_arc(buffer[start:stop]) != (buffer[stop] << 8 | buffer[stop + 1]):
-                self.drops.bad_crc += 1
-                self.drops.skipped_bytes += 1
-                position = start + 1
-                continue
-            _, destination, source, sequence, acknowledge, stream, flags, _ = _HEADER.unpack_from(
-                buffer, start
-            )
-            found.append(
-                StreamPacket(
-                    destination=destination,
-                    source=source,
-                    sequence=sequence,
-                    acknowledge=acknowledge,
-                    stream=stream,
-                    flags=flags,
-                    data=bytes(buffer[start + HEADER_SIZE : stop]),
-                )
-            )
-            position = stop + 2
-        del buffer[:position]
-        self.packets += len(found)
-        return found
+        if end - start < HEADER_SIZE:
+            return None
+        if _xor(buffer[start : start + 13]) != buffer[start + 13]:
+            return _BAD_HEADER_CHECKSUM
+        stop = start + HEADER_SIZE + buffer[start + 12]
+        if end < stop + 2:
+            return None
+        if crc16_arc(buffer[start:stop]) != (buffer[stop] << 8 | buffer[stop + 1]):
+            return _BAD_CRC
+        _, destination, source, sequence, acknowledge, stream, flags, _ = _HEADER.unpack_from(
+            buffer, start
+        )
+        packet = StreamPacket(
+            destination=destination,
+            source=source,
+            sequence=sequence,
+            acknowledge=acknowledge,
+            stream=stream,
+            flags=flags,
+            data=bytes(buffer[start + HEADER_SIZE : stop]),
+        )
+        return packet, stop + 2

@@ -1,8 +1,9 @@
 """One end of a Piccolo serial link, pure: bytes in, typed events out, and back.
 
-Stacks the stream-packet decoder, the per-stream queues, the autopilot packet parser
-and the planning-protocol decoder (payload stream). No I/O: the onboard adapter, the
-simulator and `fleet decode` feed it the bytes they read and write what it encodes.
+Stacks the stream-packet decoder, the autopilot packet decoder (autopilot stream) and
+the planning-protocol decoder (payload stream); other streams' bytes wait in bounded
+queues. No I/O: the onboard adapter, the simulator and `fleet decode` feed it the bytes
+they read and write what it encodes.
 
 Sequence and acknowledge numbers (piccolo-link.md 1, ASSUMPTION): each stream's
 sequence number is the cumulative count of data bytes sent on it, including the
@@ -20,7 +21,8 @@ from fleet.piccolo.autopilot_messages import (
     decode_autopilot_message,
     encode_autopilot_message,
 )
-from fleet.piccolo.autopilot_packet import AutopilotPacketParser
+from fleet.piccolo.autopilot_packet import AutopilotPacketDecoder
+from fleet.piccolo.decoder import Decoder
 from fleet.piccolo.stream_packet import (
     MAX_DATA,
     STREAM_AUTOPILOT,
@@ -65,7 +67,7 @@ class PiccoloLink:
 
     local_address: int
     stream_decoder: StreamDecoder = field(default_factory=StreamDecoder)
-    autopilot_parser: AutopilotPacketParser = field(default_factory=AutopilotPacketParser)
+    autopilot_decoder: AutopilotPacketDecoder = field(default_factory=AutopilotPacketDecoder)
     planning_decoder: PlanningDecoder = field(default_factory=PlanningDecoder)
     queues: dict[int, StreamQueue] = field(default_factory=dict)
     _sent: dict[int, int] = field(default_factory=dict)
@@ -82,8 +84,6 @@ class PiccoloLink:
         events: list[LinkEvent] = []
         for packet in self.stream_decoder.feed(chunk):
             self._received[packet.stream] = packet.sequence
-            queue = self.queue(packet.stream)
-            queue.append(packet.data)
             header = StreamHeader(
                 packet.source,
                 packet.destination,
@@ -94,13 +94,15 @@ class PiccoloLink:
             if packet.stream == STREAM_AUTOPILOT:
                 events.extend(
                     AutopilotEvent(header, decode_autopilot_message(autopilot))
-                    for autopilot in self.autopilot_parser.parse(queue)
+                    for autopilot in self.autopilot_decoder.feed(packet.data)
                 )
             elif packet.stream == STREAM_PAYLOAD:
                 events.extend(
                     PlanningEvent(header, envelope)
-                    for envelope in self.planning_decoder.feed(queue.take(), now)
+                    for envelope in self.planning_decoder.feed(packet.data, now)
                 )
+            else:
+                self.queue(packet.stream).append(packet.data)
         return events
 
     def encode_stream(self, stream: int, data: bytes, destination: int) -> bytes:
@@ -133,10 +135,15 @@ class PiccoloLink:
 
     def drop_counters(self) -> dict[str, int]:
         """Everything dropped so far, by layer and reason."""
-        counters = {f"stream_{k}": v for k, v in self.stream_decoder.drops.as_dict().items()}
-        counters.update(
-            {f"autopilot_{k}": v for k, v in self.autopilot_parser.drops.as_dict().items()}
-        )
-        counters.update({f"planning_{k}": v for k, v in self.planning_decoder.drops.items()})
+        decoders: dict[str, Decoder[object]] = {
+            "stream": self.stream_decoder,
+            "autopilot": self.autopilot_decoder,
+            "planning": self.planning_decoder,
+        }
+        counters = {
+            f"{layer}_{reason}": count
+            for layer, decoder in decoders.items()
+            for reason, count in decoder.drops.items()
+        }
         counters["queue_overflow_bytes"] = sum(q.overflow_bytes for q in self.queues.values())
         return counters

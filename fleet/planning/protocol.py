@@ -40,6 +40,7 @@ from fleet.mission.messages import (
     Target,
     UavResult,
 )
+from fleet.piccolo.decoder import Chunk, Decoder, Reject, ResyncDecoder
 
 #: First byte of every packet. 0xB5 is not ASCII (so it never occurs in an English
 #: status text), is neither byte of the common addresses 0xFFFF/0xFFFE/0x0000, and is
@@ -88,6 +89,10 @@ _NONE_TIME: Final = bytes.fromhex("000000000000f87f")
 assert _OPM.size == OPM_BODY_SIZE
 assert _TARGET.size == TARGET_SIZE
 assert _SEGMENT.size == SEGMENT_HEADER_SIZE
+
+_BAD_TYPE = Reject("bad_type")
+_BAD_SIZE = Reject("bad_size")
+_BAD_BODY = Reject("bad_body")
 
 
 class PlanningProtocolError(ValueError):
@@ -429,8 +434,7 @@ def _size_fits_type(ptype: int, size: int) -> bool:
     return True
 
 
-@dataclass
-class PlanningStreamDecoder:
+class PlanningStreamDecoder(ResyncDecoder[PlanningPacket]):
     """Incremental packet decoder for the payload byte stream.
 
     Fed arbitrary chunks, it hunts for SYNC, checks the header (known type, a size the
@@ -441,64 +445,30 @@ class PlanningStreamDecoder:
     found. Between calls it holds at most one partial packet (263 bytes).
 
     Drop counters: `bad_type`, `bad_size` (header rejected), `bad_body` (payload does
-    not decode), and `bytes_skipped`: every byte discarded outside a delivered packet,
+    not decode), and `skipped_bytes`: every byte discarded outside a delivered packet,
     each rejected candidate's sync byte included.
     """
 
-    _buffer: bytearray = field(default_factory=bytearray)
-    _drops: dict[str, int] = field(
-        default_factory=lambda: {"bytes_skipped": 0, "bad_type": 0, "bad_size": 0, "bad_body": 0}
-    )
+    SYNC = bytes((SYNC,))
+    REASONS = ("bad_type", "bad_size", "bad_body")
 
-    @property
-    def drops(self) -> dict[str, int]:
-        return dict(self._drops)
-
-    @property
-    def buffered(self) -> int:
-        """Bytes held for a packet not yet complete (at most MAX_PACKET_SIZE - 1)."""
-        return len(self._buffer)
-
-    def feed(self, data: bytes | bytearray | memoryview) -> list[PlanningPacket]:
-        buffer = self._buffer
-        buffer += data
-        drops = self._drops
-        found: list[PlanningPacket] = []
-        position = 0
-        end = len(buffer)
-        while True:
-            start = buffer.find(SYNC, position)
-            if start < 0:
-                drops["bytes_skipped"] += end - position
-                position = end
-                break
-            drops["bytes_skipped"] += start - position
-            position = start
-            if end - start < HEADER_SIZE:
-                break
-            _, size, ptype, user, destination, source = _HEADER.unpack_from(buffer, start)
-            if ptype not in PACKET_TYPES:
-                reason = "bad_type"
-            elif not _size_fits_type(ptype, size):
-                reason = "bad_size"
-            else:
-                stop = start + HEADER_SIZE + size
-                if end < stop:
-                    break
-                body = bytes(buffer[start + HEADER_SIZE : stop])
-                try:
-                    _check_body(ptype, user, body)
-                except (_Malformed, struct.error):
-                    reason = "bad_body"
-                else:
-                    found.append(PlanningPacket(ptype, user, destination, source, body))
-                    position = stop
-                    continue
-            drops[reason] += 1
-            drops["bytes_skipped"] += 1
-            position = start + 1
-        del buffer[:position]
-        return found
+    def _frame(self, buffer: bytearray, start: int) -> tuple[PlanningPacket, int] | Reject | None:
+        if len(buffer) - start < HEADER_SIZE:
+            return None
+        _, size, ptype, user, destination, source = _HEADER.unpack_from(buffer, start)
+        if ptype not in PACKET_TYPES:
+            return _BAD_TYPE
+        if not _size_fits_type(ptype, size):
+            return _BAD_SIZE
+        stop = start + HEADER_SIZE + size
+        if len(buffer) < stop:
+            return None
+        body = bytes(buffer[start + HEADER_SIZE : stop])
+        try:
+            _check_body(ptype, user, body)
+        except (_Malformed, struct.error):
+            return _BAD_BODY
+        return PlanningPacket(ptype, user, destination, source, body), stop
 
 
 @dataclass
@@ -615,7 +585,7 @@ class SegmentReassembler:
         return None
 
 
-class PlanningDecoder:
+class PlanningDecoder(Decoder[Envelope]):
     """Payload byte stream in, typed messages out: stream decoder + reassembler.
 
     `feed(data, now)` returns an `Envelope` per complete message. Known `user` codes
@@ -639,7 +609,7 @@ class PlanningDecoder:
             "bad_message": self._bad_message,
         }
 
-    def feed(self, data: bytes | bytearray | memoryview, now: float) -> list[Envelope]:
+    def feed(self, data: Chunk, now: float = 0.0) -> list[Envelope]:
         # Age out stale partial messages even when this chunk carries none of their bytes.
         self.reassembler.expire(now)
         envelopes = []

@@ -11,10 +11,9 @@ from fleet.piccolo.autopilot_messages import (
 )
 from fleet.piccolo.autopilot_packet import (
     AutopilotPacket,
-    AutopilotPacketParser,
+    AutopilotPacketDecoder,
     encode_autopilot_packet,
 )
-from fleet.piccolo.stream_queue import StreamQueue
 from fleet.piccolo.telemetry import (
     FLAG_AGL,
     FLAG_FUEL,
@@ -150,41 +149,25 @@ def test_track_round_trip(track: Track) -> None:
 def test_unknown_type_passes_through() -> None:
     message = UnknownAutopilotMessage(58, b"\x01\x02\x03")
     wire = encode_autopilot_message(message)
-    queue = StreamQueue()
-    queue.append(wire)
-    (packet,) = AutopilotPacketParser().parse(queue)
+    (packet,) = AutopilotPacketDecoder().feed(wire)
     assert decode_autopilot_message(packet) == message
 
 
-def test_parser_handles_packets_spanning_and_sharing_chunks() -> None:
+def test_decoder_handles_packets_spanning_and_sharing_chunks() -> None:
     sent = [sample_telemetry(i) for i in range(5)]
     wire = b"".join(encode_autopilot_message(m) for m in sent)
-    queue = StreamQueue()
-    parser = AutopilotPacketParser()
+    decoder = AutopilotPacketDecoder()
     got: list[object] = []
     for start in range(0, len(wire), 37):
-        queue.append(wire[start : start + 37])
-        got.extend(decode_autopilot_message(p) for p in parser.parse(queue))
+        got.extend(decode_autopilot_message(p) for p in decoder.feed(wire[start : start + 37]))
     assert got == [decode_telemetry(encode_telemetry(m)) for m in sent]
-    assert len(queue) == 0
+    assert decoder.buffered == 0
 
 
-def test_parser_drops_bad_crc_and_resynchronises() -> None:
+def test_decoder_drops_bad_crc_and_resynchronises() -> None:
     good = encode_autopilot_packet(10, b"\x04\x00")
     bad = bytearray(good)
     bad[4] ^= 0x01
-    queue = StreamQueue()
-    queue.append(b"junk" + bytes(bad) + good)
-    parser = AutopilotPacketParser()
-    assert parser.parse(queue) == [AutopilotPacket(10, b"\x04\x00")]
-    assert parser.drops.bad_crc == 1
-    assert parser.drops.skipped_bytes == 4 + len(bad)
-
-
-def test_queue_overflow_drops_oldest_and_counts() -> None:
-    queue = StreamQueue()
-    queue.append(bytes(4000))
-    queue.append(b"\x01" * 200)
-    assert len(queue) == 4096
-    assert queue.overflow_bytes == 104
-    assert queue.take().endswith(b"\x01" * 200)
+    decoder = AutopilotPacketDecoder()
+    assert decoder.feed(b"junk" + bytes(bad) + good) == [AutopilotPacket(10, b"\x04\x00")]
+    assert decoder.drops == {"bad_crc": 1, "skipped_bytes": 4 + len(bad)}

@@ -341,7 +341,7 @@ def test_false_sync_with_bad_body_costs_one_byte() -> None:
         Envelope(MISSION_MANAGER, BROADCAST, MissionAbort(7))
     ]
     drops = decoder.drops
-    assert (drops["bad_body"], drops["bytes_skipped"]) == (1, 4)
+    assert (drops["bad_body"], drops["skipped_bytes"]) == (1, 4)
 
 
 def test_bad_type_and_bad_size_are_skipped() -> None:
@@ -353,7 +353,7 @@ def test_bad_type_and_bad_size_are_skipped() -> None:
     assert [p.body for p in packets] == [b"OK"]
     drops = decoder.drops
     assert (drops["bad_type"], drops["bad_size"], drops["bad_body"]) == (1, 2, 0)
-    assert drops["bytes_skipped"] == len(bad_type + bad_size + short_uav)
+    assert drops["skipped_bytes"] == len(bad_type + bad_size + short_uav)
 
 
 def test_invalid_utf8_status_is_a_bad_body() -> None:
@@ -370,7 +370,7 @@ def test_invalid_utf8_status_is_a_bad_body() -> None:
 def test_garbage_without_sync_is_skipped_and_counted(garbage: bytes, msg: PlanningMessage) -> None:
     decoder = PlanningDecoder()
     assert decoder.feed(garbage + encode_message(msg, 1, 2), now=0.0) == [Envelope(1, 2, msg)]
-    assert decoder.drops["bytes_skipped"] == len(garbage)
+    assert decoder.drops["skipped_bytes"] == len(garbage)
 
 
 # Bytes biased towards what makes plausible headers: sync, the three types, sizes.
@@ -393,7 +393,7 @@ def test_random_bytes_never_raise_and_every_byte_is_accounted(
             delivered += HEADER_SIZE + len(packet.body)
         position += size
     assert decoder.buffered < MAX_PACKET_SIZE
-    assert decoder.drops["bytes_skipped"] + delivered + decoder.buffered == len(data)
+    assert decoder.drops["skipped_bytes"] + delivered + decoder.buffered == len(data)
 
 
 @given(noisy_bytes, st.lists(st.floats() | st.integers(-(10**6), 10**6), max_size=4))
