@@ -9,7 +9,8 @@ from hypothesis import strategies as st
 from fleet.piccolo.autopilot_packet import AutopilotPacketDecoder
 from fleet.piccolo.decoder import Decoder, Reject, ResyncDecoder
 from fleet.piccolo.stream_packet import StreamDecoder
-from fleet.planning.protocol import PlanningDecoder, PlanningStreamDecoder
+from fleet.planning.protocol import PlanningDecoder
+from fleet.planning.resync import PlanningStreamDecoder
 
 
 class LengthPrefixed(ResyncDecoder[bytes]):

@@ -15,31 +15,33 @@ from fleet.mission.messages import (
     Target,
     UavResult,
 )
-from fleet.planning.protocol import (
+from fleet.planning.bodies import (
+    PAYLOAD_ABORT,
+    PAYLOAD_TARGETS,
+    PAYLOAD_UAVRESULT,
+    PlanningMessage,
+    UnknownPlanningMessage,
+)
+from fleet.planning.framing import (
     HEADER_SIZE,
-    MAX_FRAGMENT_SIZE,
-    MAX_MESSAGE_SIZE,
     MAX_PACKET_SIZE,
     MAX_PAYLOAD_SIZE,
-    PAYLOAD_ABORT,
     PAYLOAD_OPM,
     PAYLOAD_STATUS,
-    PAYLOAD_TARGETS,
     PAYLOAD_UAV,
-    PAYLOAD_UAVRESULT,
     SYNC,
-    Envelope,
-    PlanningDecoder,
-    PlanningMessage,
     PlanningPacket,
     PlanningProtocolError,
-    PlanningStreamDecoder,
-    SegmentReassembler,
-    UnknownPlanningMessage,
-    encode_message,
     encode_packet,
+)
+from fleet.planning.protocol import (
+    Envelope,
+    PlanningDecoder,
+    encode_message,
     encode_packets,
 )
+from fleet.planning.reassembly import MAX_FRAGMENT_SIZE, MAX_MESSAGE_SIZE, SegmentReassembler
+from fleet.planning.resync import PlanningStreamDecoder
 
 # Thesis 2.9's own example: a PAYLOAD_STATUS "OK" has size two. From Piccolo 112 to
 # the Mission Manager, written out byte by byte.
