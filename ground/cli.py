@@ -18,7 +18,7 @@ from typing import Any, TextIO
 
 from fleet.mission import keys
 from fleet.mission.messages import AssignmentReport, MissionTargets, StatusText, Target, UavResult
-from fleet.mission.targets_file import TargetsFileError, read_targets
+from fleet.mission.targets_file import TargetsFileError
 from fleet.transport.cli import (
     ExitCode,
     ZenohConfigError,
@@ -32,6 +32,7 @@ from fleet.transport.cli import (
     setup_logging,
     zenoh_config,
 )
+from fleet.transport.targets_io import read_targets
 from ground import keyspace, targets_command
 from ground.fleet_view import fleet_snapshot, format_table, live_uav_ids
 from ground.mission_control import (

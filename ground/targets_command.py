@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 
 from fleet.mission.messages import Target
-from fleet.mission.targets_file import read_targets, write_targets
+from fleet.transport.targets_io import read_targets, write_targets
 
 
 class TargetSyntaxError(ValueError):

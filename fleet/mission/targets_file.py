@@ -1,4 +1,4 @@
-"""`targets.bin`: the Mission Manager's saved targets (thesis 3.1.3).
+"""`targets.bin`: the Mission Manager's saved targets (thesis 3.1.3), bytes <-> targets.
 
 Format, as the thesis's GUI wrote it: for each target, latitude (degrees), longitude
 (degrees) and altitude (metres), each an IEEE-754 double, little-endian, no header, so
@@ -7,19 +7,17 @@ Format, as the thesis's GUI wrote it: for each target, latitude (degrees), longi
 With no header and no checksum, the only defence against a truncated or foreign file is
 validation, so reading refuses anything that is not a whole, non-empty sequence of
 finite, in-range targets, and every refusal says which file, which target, at which
-byte offset, and what was expected. Writing validates the same way *before* touching the
-disk and replaces the file atomically, so a reader never sees a half-written file and a
-bad target list never destroys a good file.
+byte offset, and what was expected. Encoding validates the same way, so a bad target list
+is refused before anything is written.
+
+This is the pure codec; reading and atomically writing the file are
+`fleet.transport.targets_io`'s.
 """
 
 from __future__ import annotations
 
-import contextlib
 import math
-import os
-import stat
 import struct
-import tempfile
 from collections.abc import Iterable
 
 from fleet.mission.messages import Target
@@ -29,16 +27,11 @@ __all__ = [
     "TargetsFileError",
     "decode_targets",
     "encode_targets",
-    "read_targets",
-    "write_targets",
 ]
 
 _RECORD = struct.Struct("<3d")
 #: Bytes a target: three little-endian f64.
 TARGET_SIZE = _RECORD.size
-# Mode of a newly created file: mkstemp makes 0600, but targets.bin is an ordinary
-# shared data file.
-_NEW_FILE_MODE = 0o644
 
 
 class TargetsFileError(ValueError):
@@ -112,54 +105,3 @@ def encode_targets(targets: Iterable[Target], *, source: str = "<targets>") -> b
     if not chunks:
         _refuse_empty(source)
     return b"".join(chunks)
-
-
-def read_targets(path: str | os.PathLike[str]) -> list[Target]:
-    """Read and validate a targets file."""
-    with open(path, "rb") as f:
-        data = f.read()
-    return decode_targets(data, os.fspath(path))
-
-
-def write_targets(path: str | os.PathLike[str], targets: Iterable[Target]) -> None:
-    """Validate, then atomically replace `path` with these targets.
-
-    Written to a temporary file in the same directory (so `os.replace` is a rename
-    within one filesystem, atomic on POSIX and Windows), fsynced before the rename so a
-    crash cannot leave the new name pointing at unwritten blocks, and the directory is
-    fsynced after it so the rename itself survives a crash. On any failure the old file,
-    if any, is untouched and the temporary file is removed.
-    """
-    name = os.fspath(path)
-    data = encode_targets(targets, source=name)
-    directory = os.path.dirname(os.path.abspath(name))
-    try:
-        mode = stat.S_IMODE(os.stat(name).st_mode)
-    except FileNotFoundError:
-        mode = _NEW_FILE_MODE
-    fd, tmp = tempfile.mkstemp(dir=directory, prefix=f".{os.path.basename(name)}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            # Before the fsync, so the mode is as durable as the data.
-            os.chmod(tmp, mode)
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, name)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
-    _fsync_directory(directory)
-
-
-def _fsync_directory(directory: str) -> None:
-    # Directories cannot be opened for fsync on Windows; there the rename is already
-    # as durable as the platform offers.
-    if os.name != "posix":
-        return
-    fd = os.open(directory, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)

@@ -12,13 +12,13 @@ from fleet.sim.guidance import UnreachedError, fly_to_point, fly_until_arrival
 from fleet.sim.scenario import (
     Scenario,
     ScenarioError,
-    UavSpec,
     load_scenario,
     resolve_scenario,
     shipped_scenario,
     shipped_scenario_names,
     shipped_scenario_path,
 )
+from fleet.sim.uav_spec import UavSpec
 
 __all__ = [
     "AircraftState",

@@ -47,7 +47,7 @@ from fleet.sim.aircraft import CALM, AircraftState, Wind
 from fleet.sim.aircraft import step as aircraft_step
 from fleet.sim.flight_plan import FlightPlan, FlightPlanError, check_indices
 from fleet.sim.guidance import DEFAULT_ACCEPTANCE_RADIUS, GuidanceSettings, command_toward
-from fleet.sim.scenario import UavSpec
+from fleet.sim.uav_spec import UavSpec
 
 logger = logging.getLogger(__name__)
 

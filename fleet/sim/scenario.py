@@ -42,15 +42,15 @@ from typing import Any
 
 from fleet.geo.aircraft import AircraftLimits
 from fleet.mission.messages import Target
-from fleet.mission.targets_file import TargetsFileError, read_targets
-from fleet.piccolo.waypoint import MAX_INDEX, Waypoint
+from fleet.mission.targets_file import TargetsFileError
+from fleet.piccolo.waypoint import MAX_INDEX
 from fleet.sim.aircraft import Wind
-from fleet.sim.flight_plan import closed_chain, racetrack
+from fleet.sim.uav_spec import UavSpec
+from fleet.transport.targets_io import read_targets
 
 __all__ = [
     "Scenario",
     "ScenarioError",
-    "UavSpec",
     "load_scenario",
     "parse_scenario",
     "resolve_scenario",
@@ -82,29 +82,6 @@ _UAV_KEYS = frozenset({"id", "lat", "lon", "alt", "heading", "airspeed", "plan"}
 
 class ScenarioError(ValueError):
     """A scenario file that cannot be read or does not validate; names file and field."""
-
-
-@dataclass(frozen=True, slots=True)
-class UavSpec:
-    """One aircraft of a scenario: its Piccolo ID, start state and flight plan."""
-
-    piccolo_id: int
-    lat: float  #: degrees
-    lon: float  #: degrees
-    alt: float  #: metres
-    heading: float  #: degrees true, [0, 360)
-    airspeed: float  #: m/s
-    plan: tuple[tuple[float, float, float], ...] | None = None  #: (lat, lon, alt) points
-
-    def plan_points(self) -> list[tuple[float, float, float]]:
-        """The plan's points, or the default racetrack ahead of the start."""
-        if self.plan is not None:
-            return list(self.plan)
-        return racetrack(self.lat, self.lon, self.alt, self.heading)
-
-    def waypoints(self) -> list[Waypoint]:
-        """The flight plan as waypoints 0, 1, ..., the last linked back to 0."""
-        return closed_chain(self.plan_points())
 
 
 @dataclass(frozen=True, slots=True)

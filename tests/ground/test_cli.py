@@ -38,10 +38,10 @@ from fleet.mission.messages import (
     UavResult,
     UavState,
 )
-from fleet.mission.targets_file import write_targets
 from fleet.piccolo.telemetry import GpsBlock, SensorBlock, Telemetry
 from fleet.transport import bus_codec
 from fleet.transport.router import Router
+from fleet.transport.targets_io import write_targets
 from fleet.transport.zenoh_config import CONNECT_ENV, make_config
 from ground.mission_control import MissionOutcome, check_agreement
 

@@ -8,7 +8,7 @@ import math
 from importlib.resources import files
 
 from fleet.mission.messages import MissionTargets
-from fleet.mission.targets_file import read_targets
+from fleet.transport.targets_io import read_targets
 from onboard.core import TARGET_WAYPOINT
 from tests.conftest import Ground
 from tests.processes import Fleet, wait_until

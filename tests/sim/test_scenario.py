@@ -14,13 +14,13 @@ from fleet.sim.guidance import fly_to_point
 from fleet.sim.scenario import (
     Scenario,
     ScenarioError,
-    UavSpec,
     load_scenario,
     resolve_scenario,
     shipped_scenario,
     shipped_scenario_names,
     shipped_scenario_path,
 )
+from fleet.sim.uav_spec import UavSpec
 
 VALID = """\
 description = "test"
