@@ -31,6 +31,7 @@ from typing import Any, Self
 import msgspec
 import zenoh
 
+from fleet.errors import FleetError
 from fleet.mission import keys
 from fleet.mission.messages import (
     AssignmentReport,
@@ -54,7 +55,7 @@ MAX_PICCOLO_ID = 0xFFF0
 ALL_MISSION_KEYS = f"{keys.PREFIX}/mission/**"
 
 
-class MissionError(RuntimeError):
+class MissionError(FleetError, RuntimeError):
     """A mission operation that cannot go ahead (no team, no mission to abort, ...)."""
 
 

@@ -22,6 +22,7 @@ from typing import Any, TypeVar
 import msgspec
 import zenoh
 
+from fleet.errors import FleetError
 from fleet.transport import bus_codec
 from fleet.transport.zenoh_config import (
     CONNECT_ENV,
@@ -41,7 +42,7 @@ DEFAULT_OPEN_TIMEOUT_S = 3.0
 T = TypeVar("T")
 
 
-class GroundConnectError(RuntimeError):
+class GroundConnectError(FleetError, RuntimeError):
     """No Zenoh router could be reached at the endpoint (or the endpoint is malformed)."""
 
 

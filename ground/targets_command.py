@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import json
 
+from fleet.errors import FleetError
 from fleet.mission.messages import Target
 from fleet.transport.targets_io import read_targets, write_targets
 
 
-class TargetSyntaxError(ValueError):
+class TargetSyntaxError(FleetError, ValueError):
     """A LAT,LON,ALT argument that is not three numbers."""
 
 

@@ -110,6 +110,7 @@ import pyomo.environ as pyo
 from pyomo.contrib.solver.common.factory import SolverFactory
 from pyomo.contrib.solver.common.results import TerminationCondition
 
+from fleet.errors import FleetError
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.dubins import dubins_path_length
 
@@ -163,7 +164,7 @@ class TargetSolution:
     lp_time: float | None = None  # the LP scan's own estimate, before the Dubins cap
 
 
-class ApproachModelError(RuntimeError):
+class ApproachModelError(FleetError, RuntimeError):
     """The model could not be built or handed to the solver."""
 
 

@@ -37,6 +37,7 @@ from typing import IO, Self
 
 import zenoh
 
+from fleet.errors import FleetError
 from fleet.geo.mercator import MercatorProjection
 from fleet.mission import keys
 from fleet.transport.router import Router
@@ -57,7 +58,7 @@ GENERATED_CENTRE = (35.7200, -120.7650)
 _SIM_LINE = re.compile(r"^uav (?P<id>\d+) (?P<rest>.*)$")
 
 
-class LaunchError(RuntimeError):
+class LaunchError(FleetError, RuntimeError):
     """The fleet could not be started; the message says which part and why."""
 
 

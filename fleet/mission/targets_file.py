@@ -20,6 +20,7 @@ import math
 import struct
 from collections.abc import Iterable
 
+from fleet.errors import CodecError
 from fleet.mission.messages import Target
 
 __all__ = [
@@ -34,7 +35,7 @@ _RECORD = struct.Struct("<3d")
 TARGET_SIZE = _RECORD.size
 
 
-class TargetsFileError(ValueError):
+class TargetsFileError(CodecError):
     """A targets file, or a target list about to be written, is malformed.
 
     The message names the file, the target index, its byte offset and what was expected;

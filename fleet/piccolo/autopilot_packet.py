@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from fleet.errors import CodecError
 from fleet.piccolo.crc import crc16_arc, crc16_arc_bytes
 from fleet.piccolo.decoder import Reject, ResyncDecoder
 
@@ -19,7 +20,7 @@ MAX_DATA = 255
 _BAD_CRC = Reject("bad_crc")
 
 
-class AutopilotPacketError(ValueError):
+class AutopilotPacketError(CodecError):
     """An autopilot packet that cannot be encoded."""
 
 

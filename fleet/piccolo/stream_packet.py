@@ -11,6 +11,7 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass
 
+from fleet.errors import CodecError
 from fleet.piccolo.crc import crc16_arc, crc16_arc_bytes
 from fleet.piccolo.decoder import Reject, ResyncDecoder
 
@@ -37,7 +38,7 @@ _BAD_HEADER_CHECKSUM = Reject("bad_header_checksum")
 _BAD_CRC = Reject("bad_crc")
 
 
-class StreamPacketError(ValueError):
+class StreamPacketError(CodecError):
     """A stream packet that cannot be encoded (a field out of range)."""
 
 

@@ -15,6 +15,8 @@ import struct
 
 import msgspec
 
+from fleet.errors import CodecError
+
 PACKET_TYPE = 69
 
 FLAG_GPS = 0x8000
@@ -40,7 +42,7 @@ _AGL = struct.Struct(">H")
 _FUEL = struct.Struct(">e")
 
 
-class TelemetryError(ValueError):
+class TelemetryError(CodecError):
     """Telemetry bytes too short for their flags, or a value that does not fit."""
 
 

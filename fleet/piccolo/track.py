@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import msgspec
 
+from fleet.errors import CodecError
 from fleet.piccolo.waypoint import MAX_INDEX
 
 PACKET_TYPE = 10
 DATA_SIZE = 2
 
 
-class TrackError(ValueError):
+class TrackError(CodecError):
     """Track bytes of the wrong size, or a waypoint index out of range."""
 
 

@@ -10,6 +10,7 @@ import struct
 
 import msgspec
 
+from fleet.errors import CodecError
 from fleet.piccolo.telemetry import MAS_PER_DEGREE
 
 PACKET_TYPE = 8
@@ -21,7 +22,7 @@ FLAG2_RADIUS_X50 = 0x08
 _WAYPOINT = struct.Struct(">iiBBhBBBBBB")
 
 
-class WaypointError(ValueError):
+class WaypointError(CodecError):
     """Waypoint bytes of the wrong size, or a value that does not fit."""
 
 

@@ -15,6 +15,8 @@ import struct
 from dataclasses import dataclass
 from typing import Final
 
+from fleet.errors import CodecError
+
 __all__ = [
     "HEADER",
     "HEADER_SIZE",
@@ -52,11 +54,11 @@ HEADER: Final = struct.Struct("<BBBBHH")
 assert HEADER.size == HEADER_SIZE
 
 
-class PlanningProtocolError(ValueError):
+class PlanningProtocolError(CodecError):
     """A message that the planning protocol cannot represent; the text names the limit."""
 
 
-class Malformed(Exception):
+class Malformed(CodecError):
     """Bytes that do not decode. Internal to the decoders: never escapes a public one."""
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 
+from fleet.errors import FleetError
 from fleet.geo.mercator import MercatorProjection
 from fleet.piccolo.waypoint import MAX_INDEX, Waypoint
 
@@ -21,7 +22,7 @@ RACETRACK_LENGTH = 3000.0
 RACETRACK_WIDTH = 1000.0
 
 
-class FlightPlanError(ValueError):
+class FlightPlanError(FleetError, ValueError):
     """A waypoint index outside 0-99, or a plan that is not a closed chain."""
 
 

@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from fleet.errors import FleetError
 from fleet.geo.aircraft import GRAVITY, AircraftLimits, turn_radius
 from fleet.geo.angles import wrap_pi
 from fleet.sim.aircraft import CALM, AircraftState, Command, Wind, step
@@ -57,7 +58,7 @@ class GuidanceSettings:
 DEFAULT_GUIDANCE = GuidanceSettings()
 
 
-class UnreachedError(RuntimeError):
+class UnreachedError(FleetError, RuntimeError):
     """The aircraft did not reach the point within the time allowed."""
 
 

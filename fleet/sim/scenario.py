@@ -40,6 +40,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from fleet.errors import FleetError
 from fleet.geo.aircraft import AircraftLimits
 from fleet.mission.messages import Target
 from fleet.mission.targets_file import TargetsFileError
@@ -80,7 +81,7 @@ _AIRCRAFT_KEYS = {
 _UAV_KEYS = frozenset({"id", "lat", "lon", "alt", "heading", "airspeed", "plan"})
 
 
-class ScenarioError(ValueError):
+class ScenarioError(FleetError, ValueError):
     """A scenario file that cannot be read or does not validate; names file and field."""
 
 

@@ -11,13 +11,15 @@ from typing import Any, TypeVar
 import msgspec
 import zenoh
 
+from fleet.errors import CodecError
+
 ENCODING = zenoh.Encoding.APPLICATION_JSON
 
 _encoder = msgspec.json.Encoder()
 T = TypeVar("T")
 
 
-class BadMessage(ValueError):
+class BadMessage(CodecError):
     """A Zenoh value that is not valid JSON for the type its key carries."""
 
 

@@ -19,13 +19,14 @@ from typing import Self
 
 import zenoh
 
+from fleet.errors import FleetError
 from fleet.transport.cli import ExitCode, add_verbose_argument, fail, setup_logging, stop_on_signals
 from fleet.transport.zenoh_config import DEFAULT_ROUTER, make_config
 
 log = logging.getLogger(__name__)
 
 
-class RouterError(RuntimeError):
+class RouterError(FleetError, RuntimeError):
     """The router could not open (typically: its listen endpoint is taken or malformed)."""
 
 
