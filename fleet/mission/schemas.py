@@ -1,13 +1,17 @@
 """JSON Schemas of every message on the fleet's Zenoh keys, generated from the structs.
 
-`python -m fleet.mission.schemas [DIR]` writes one file per message type into `schemas/`;
-a test regenerates them and fails when the committed files have drifted.
+`python -m fleet.mission.schemas [DIR]` writes one file per message type into DIR
+(default: `schemas` in the current directory, the repository's `schemas/` when run from
+its root); `--check` writes nothing and exits 1 if a file is missing, drifted or stray.
+A test does the same check on the committed files.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 import msgspec
@@ -46,7 +50,9 @@ MESSAGES: dict[str, tuple[type[msgspec.Struct], tuple[str, ...]]] = {
     "mission_abort": (MissionAbort, ("fleet/mission/{m}/abort",)),
 }
 
-SCHEMA_DIR = Path(__file__).resolve().parents[2] / "schemas"
+#: Where the schemas go by default, relative to the current directory.
+DEFAULT_DIR = Path("schemas")
+_SUFFIX = ".schema.json"
 
 
 def render(name: str) -> str:
@@ -58,19 +64,66 @@ def render(name: str) -> str:
 
 
 def write_all(directory: Path) -> list[Path]:
+    """Write every schema into `directory` (created if needed); return the paths."""
     directory.mkdir(parents=True, exist_ok=True)
     written = []
     for name in MESSAGES:
-        path = directory / f"{name}.schema.json"
+        path = directory / f"{name}{_SUFFIX}"
         path.write_text(render(name))
         written.append(path)
     return written
 
 
-def main() -> int:
-    directory = Path(sys.argv[1]) if len(sys.argv) > 1 else SCHEMA_DIR
-    for path in write_all(directory):
-        print(path)
+def check_all(directory: Path) -> list[str]:
+    """What differs between `directory` and the structs: one line per file, [] if none."""
+    problems = []
+    for name in MESSAGES:
+        path = directory / f"{name}{_SUFFIX}"
+        if not path.is_file():
+            problems.append(f"{path}: missing")
+        elif path.read_text() != render(name):
+            problems.append(f"{path}: drifted from {MESSAGES[name][0].__name__}")
+    for path in sorted(directory.glob(f"*{_SUFFIX}")):
+        if path.name.removesuffix(_SUFFIX) not in MESSAGES:
+            problems.append(f"{path}: stray (no message of that name)")
+    return problems
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m fleet.mission.schemas",
+        description="Write (or check) the JSON Schema of every message on the Zenoh keys.",
+    )
+    parser.add_argument(
+        "directory",
+        nargs="?",
+        type=Path,
+        default=DEFAULT_DIR,
+        help=f"output directory (default: {DEFAULT_DIR}/ in the current directory)",
+    )
+    parser.add_argument(
+        "--check",
+        action="store_true",
+        help="write nothing; exit 1 if a schema file is missing, drifted or stray",
+    )
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Exit codes: 0 written or up to date, 1 --check found differences, 2 bad usage/I-O."""
+    args = _parser().parse_args(argv)
+    directory: Path = args.directory
+    try:
+        if args.check:
+            problems = check_all(directory)
+            for problem in problems:
+                print(problem, file=sys.stderr)
+            return 1 if problems else 0
+        for path in write_all(directory):
+            print(path)
+    except OSError as error:
+        print(f"schemas: {directory}: {error.strerror or error}", file=sys.stderr)
+        return 2
     return 0
 
 

@@ -4,8 +4,11 @@ from pathlib import Path
 import msgspec
 import pytest
 
-from fleet.mission.schemas import MESSAGES, SCHEMA_DIR, render
+from fleet.mission.schemas import MESSAGES, check_all, main, render
 from tests.link_samples import sample_telemetry
+
+#: The committed schemas, beside the tests in the repository.
+SCHEMA_DIR = Path(__file__).resolve().parents[2] / "schemas"
 
 
 @pytest.mark.parametrize("name", sorted(MESSAGES))
@@ -18,6 +21,60 @@ def test_committed_schema_matches_the_struct(name: str) -> None:
 def test_no_stray_schema_files() -> None:
     names = {p.name.removesuffix(".schema.json") for p in Path(SCHEMA_DIR).glob("*.json")}
     assert names == set(MESSAGES)
+
+
+def test_check_mode_passes_on_the_committed_schemas() -> None:
+    assert check_all(SCHEMA_DIR) == []
+    assert main(["--check", str(SCHEMA_DIR)]) == 0
+
+
+def test_written_schemas_pass_the_check(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    assert main([str(out)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == sorted(f"{n}.schema.json" for n in MESSAGES)
+    assert main(["--check", str(out)]) == 0
+
+
+def test_check_mode_reports_missing_drifted_and_stray_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    main([str(tmp_path)])
+    (tmp_path / "telemetry.schema.json").unlink()
+    (tmp_path / "track.schema.json").write_text("{}\n")
+    (tmp_path / "old.schema.json").write_text("{}\n")
+    assert main(["--check", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert "telemetry.schema.json: missing" in err
+    assert "track.schema.json: drifted from Track" in err
+    assert "old.schema.json: stray" in err
+    assert not (tmp_path / "telemetry.schema.json").exists()
+
+
+def test_default_directory_is_relative_to_the_current_one(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    assert main([]) == 0
+    assert (tmp_path / "schemas" / "telemetry.schema.json").is_file()
+
+
+def test_help_prints_usage_and_writes_no_files(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit, match="0"):
+        main(["--help"])
+    assert "--check" in capsys.readouterr().out
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unwritable_directory_is_a_clear_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert main([str(blocker / "schemas")]) == 2
+    assert str(blocker / "schemas") in capsys.readouterr().err
 
 
 def test_published_telemetry_validates_against_its_schema() -> None:
