@@ -1,0 +1,150 @@
+"""Tests of one UAV's round of a mission (fleet.consensus.mission_round), pure and in-process."""
+
+from __future__ import annotations
+
+from fleet.consensus.assignment import results_digest
+from fleet.consensus.mission_round import FETCH_INTERVAL, MissionRound
+from fleet.mission.messages import MissionTargets, Target, UavResult
+
+TARGETS = MissionTargets(
+    mission=7,
+    team=(74, 112, 200),
+    targets=(Target(35.7, -120.8, 600.0), Target(35.8, -120.7, 600.0)),
+    deadline_s=10.0,
+)
+ALL = {74, 112, 200}
+# 74 is fastest to target 0, 112 to target 1; 200 is slow to both.
+TIMES = {74: (10.0, 50.0), 112: (40.0, 20.0), 200: (90.0, 95.0)}
+
+
+def result(uav: int, mission: int = 7) -> UavResult:
+    return UavResult(mission=mission, uav=uav, times=TIMES[uav])
+
+
+def round_of(uav: int = 74, started: float = 100.0) -> MissionRound:
+    return MissionRound(targets=TARGETS, own_id=uav, started=started)
+
+
+def test_results_for_another_mission_or_stranger_or_wrong_length_are_refused() -> None:
+    mission_round = round_of()
+    assert not mission_round.add_result(result(112, mission=8))
+    assert not mission_round.add_result(UavResult(mission=7, uav=999, times=(1.0, 2.0)))
+    assert not mission_round.add_result(UavResult(mission=7, uav=112, times=(1.0,)))
+    assert mission_round.results == {}
+    assert mission_round.add_result(result(112))
+    assert set(mission_round.results) == {112}
+
+
+def test_not_ready_without_its_own_result_even_past_the_deadline() -> None:
+    mission_round = round_of()
+    mission_round.add_result(result(112))
+    mission_round.add_result(result(200))
+    assert not mission_round.ready(now=1e9, alive=ALL)
+    assert not mission_round.should_fetch(now=1e9, alive=ALL)
+
+
+def test_ready_once_every_live_teammate_answered() -> None:
+    mission_round = round_of()
+    mission_round.add_result(result(74))
+    mission_round.add_result(result(112))
+    assert mission_round.missing(ALL) == {200}
+    assert not mission_round.ready(now=101.0, alive=ALL)
+    # 200 is no longer alive: nothing is missing, no need to wait for the deadline.
+    assert mission_round.expected({74, 112}) == {74, 112}
+    assert mission_round.ready(now=101.0, alive={74, 112})
+
+
+def test_the_own_uav_is_always_expected_even_when_not_seen_alive() -> None:
+    assert round_of(74).expected(alive={112}) == {74, 112}
+
+
+def test_ready_at_the_deadline_with_what_it_holds() -> None:
+    mission_round = round_of(started=100.0)
+    mission_round.add_result(result(74))
+    assert not mission_round.ready(now=109.9, alive=ALL)
+    assert mission_round.ready(now=110.0, alive=ALL)
+
+
+def test_fetches_missing_results_at_most_every_interval() -> None:
+    mission_round = round_of()
+    mission_round.add_result(result(74))
+    assert mission_round.should_fetch(now=100.0, alive=ALL)
+    mission_round.last_fetch = 100.0
+    assert not mission_round.should_fetch(now=100.0 + FETCH_INTERVAL / 2, alive=ALL)
+    assert mission_round.should_fetch(now=100.0 + FETCH_INTERVAL, alive=ALL)
+    mission_round.add_result(result(112))
+    mission_round.add_result(result(200))
+    assert not mission_round.should_fetch(now=200.0, alive=ALL)
+
+
+def test_decide_runs_the_greedy_on_the_live_results_and_commits() -> None:
+    mission_round = round_of(112)
+    for uav in ALL:
+        mission_round.add_result(result(uav))
+    report = mission_round.decide(alive={74, 112})  # 200 died after answering
+    assert mission_round.committed == report
+    assert report.mission == 7
+    assert report.uav == 112
+    assert report.target == 1
+    assert report.pairs == {"74": 0, "112": 1}
+    assert report.unassigned == ()
+    assert report.team == (74, 112)
+    assert report.digest == results_digest({74: TIMES[74], 112: TIMES[112]})
+    assert report.eta_s == 20.0
+    # Committed: never ready or fetching again, and a teammate's report is not adopted.
+    assert not mission_round.ready(now=1e9, alive=ALL)
+    assert not mission_round.should_fetch(now=1e9, alive=ALL)
+    assert mission_round.adopt(report) is None
+
+
+def test_an_idle_uav_commits_to_no_target() -> None:
+    mission_round = round_of(200)
+    for uav in ALL:
+        mission_round.add_result(result(uav))
+    report = mission_round.decide(alive=ALL)
+    assert report.target is None
+    assert report.eta_s is None
+
+
+def test_adopting_a_teammates_commitment_takes_its_pairs_and_own_eta() -> None:
+    deciding = round_of(74)
+    for uav in ALL:
+        deciding.add_result(result(uav))
+    theirs = deciding.decide(alive=ALL)
+
+    late = round_of(112)
+    late.add_result(result(112))
+    adopted = late.adopt(theirs)
+    assert adopted is not None
+    assert late.committed == adopted
+    assert adopted.uav == 112
+    assert adopted.target == 1
+    assert (adopted.pairs, adopted.team, adopted.digest) == (
+        theirs.pairs,
+        theirs.team,
+        theirs.digest,
+    )
+    assert adopted.eta_s == TIMES[112][1]
+
+
+def test_adopting_without_its_own_result_has_no_eta() -> None:
+    deciding = round_of(74)
+    for uav in ALL:
+        deciding.add_result(result(uav))
+    adopted = round_of(112).adopt(deciding.decide(alive=ALL))
+    assert adopted is not None
+    assert adopted.target == 1
+    assert adopted.eta_s is None
+
+
+def test_a_commitment_for_another_mission_is_not_adopted() -> None:
+    other = MissionRound(
+        targets=MissionTargets(mission=8, team=TARGETS.team, targets=TARGETS.targets),
+        own_id=74,
+        started=0.0,
+    )
+    for uav in ALL:
+        other.add_result(result(uav, mission=8))
+    mission_round = round_of(112)
+    assert mission_round.adopt(other.decide(alive=ALL)) is None
+    assert mission_round.committed is None
