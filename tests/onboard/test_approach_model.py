@@ -157,9 +157,9 @@ def test_speed_below_minimum_is_clamped(model: ApproachTimeModel) -> None:
 
 
 def test_rejects_non_finite_input(model: ApproachTimeModel) -> None:
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="must be finite"):
         model.solve((0.0, math.nan), (V, 0.0), [(1.0, 1.0)])
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="must be finite"):
         model.solve((0.0, 0.0), (V, 0.0), [(math.inf, 1.0)])
 
 
@@ -169,5 +169,5 @@ def test_default_steps_cover_the_horizon() -> None:
         assert sum(steps) == pytest.approx(horizon)
         assert all(s > 0.0 for s in steps)
     assert default_steps(600.0)[:10] == (2.0,) * 10
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="horizon must be positive"):
         default_steps(0.0)

@@ -193,14 +193,14 @@ def test_close_abandons_a_run_and_is_idempotent(
     worker.close()
     worker.close()
     assert not worker.is_running()
-    with pytest.raises(RuntimeError):
+    with pytest.raises(RuntimeError, match="closed"):
         worker.run(request())
 
 
 def test_request_validation() -> None:
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="budget must be >= 0"):
         request(budget_s=-1.0)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="must be finite"):
         request(targets=[(math.nan, 0.0)])
     listed = PlanRequest(position=(0, 0), velocity=(V, 0), targets=[(1, 2)], budget_s=1)  # type: ignore[arg-type]
     assert listed.targets == ((1.0, 2.0),)
