@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from fleet.errors import CodecError
-from fleet.piccolo.crc import crc16_arc, crc16_arc_bytes
+from fleet.piccolo.crc import crc16_arc_bytes, crc16_arc_follows
 from fleet.piccolo.decoder import Reject, ResyncDecoder
 
 SYNC = b"\xa0\x05"
@@ -59,7 +59,7 @@ class AutopilotPacketDecoder(ResyncDecoder[AutopilotPacket]):
         stop = start + HEADER_SIZE + buffer[start + 3]
         if end < stop + 2:
             return None
-        if crc16_arc(buffer[start:stop]) != (buffer[stop] << 8 | buffer[stop + 1]):
+        if not crc16_arc_follows(buffer, start, stop):
             return _BAD_CRC
         packet = AutopilotPacket(buffer[start + 2], bytes(buffer[start + HEADER_SIZE : stop]))
         return packet, stop + 2

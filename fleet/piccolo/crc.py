@@ -19,3 +19,9 @@ def crc16_arc(data: bytes | bytearray | memoryview) -> int:
 def crc16_arc_bytes(data: bytes | bytearray | memoryview) -> bytes:
     """Return the CRC-16/ARC of `data` as the link sends it: high byte first."""
     return crc16_arc(data).to_bytes(2, "big")
+
+
+def crc16_arc_follows(buffer: bytes | bytearray, start: int, stop: int) -> bool:
+    """True if `buffer[stop:stop + 2]` is the CRC-16/ARC of `buffer[start:stop]`, high
+    byte first: the trailer of a stream or autopilot packet spanning `start` to `stop`."""
+    return crc16_arc(buffer[start:stop]) == (buffer[stop] << 8 | buffer[stop + 1])

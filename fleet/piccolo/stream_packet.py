@@ -12,7 +12,7 @@ import struct
 from dataclasses import dataclass
 
 from fleet.errors import CodecError
-from fleet.piccolo.crc import crc16_arc, crc16_arc_bytes
+from fleet.piccolo.crc import crc16_arc_bytes, crc16_arc_follows
 from fleet.piccolo.decoder import Reject, ResyncDecoder
 
 SYNC = b"\x5a\xa5"
@@ -112,7 +112,7 @@ class StreamDecoder(ResyncDecoder[StreamPacket]):
         stop = start + HEADER_SIZE + buffer[start + 12]
         if end < stop + 2:
             return None
-        if crc16_arc(buffer[start:stop]) != (buffer[stop] << 8 | buffer[stop + 1]):
+        if not crc16_arc_follows(buffer, start, stop):
             return _BAD_CRC
         _, destination, source, sequence, acknowledge, stream, flags, _ = _HEADER.unpack_from(
             buffer, start

@@ -1,7 +1,7 @@
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fleet.piccolo.crc import crc16_arc, crc16_arc_bytes
+from fleet.piccolo.crc import crc16_arc, crc16_arc_bytes, crc16_arc_follows
 
 
 def bitwise_crc16_arc(data: bytes) -> int:
@@ -27,3 +27,12 @@ def test_empty_is_initial_value_zero() -> None:
 def test_matches_bitwise_reference(data: bytes) -> None:
     assert crc16_arc(data) == bitwise_crc16_arc(data)
     assert crc16_arc(bytearray(data)) == crc16_arc(memoryview(data))
+
+
+@given(st.binary(max_size=8), st.binary(max_size=300), st.binary(max_size=8))
+def test_a_trailer_is_found_in_place(before: bytes, data: bytes, after: bytes) -> None:
+    buffer = bytearray(before + data + crc16_arc_bytes(data) + after)
+    start, stop = len(before), len(before) + len(data)
+    assert crc16_arc_follows(buffer, start, stop)
+    buffer[stop + 1] ^= 0x01
+    assert not crc16_arc_follows(buffer, start, stop)
