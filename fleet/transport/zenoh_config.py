@@ -17,6 +17,8 @@ import re
 
 import zenoh
 
+from fleet.errors import FleetError
+
 DEFAULT_ROUTER = "tcp/127.0.0.1:7447"
 CONNECT_ENV = "FLEET_ZENOH_CONNECT"
 #: A full Zenoh config file (JSON5, JSON or YAML) to use instead of the built-in one.
@@ -27,7 +29,7 @@ MODES = ("client", "peer", "router")
 _ENDPOINT = re.compile(r"^[a-z0-9]+/\S+$")
 
 
-class ZenohConfigError(ValueError):
+class ZenohConfigError(FleetError, ValueError):
     """A Zenoh config file, endpoint or mode is unusable; the message says which and why."""
 
 
