@@ -49,9 +49,6 @@ log = logging.getLogger(__name__)
 
 #: Mission ids are u32 on the planning protocol.
 MAX_MISSION_ID = 0xFFFF_FFFF
-#: The Piccolo IDs `onboard` accepts (planning-protocol addresses below the reserved ones).
-MIN_PICCOLO_ID = 1
-MAX_PICCOLO_ID = 0xFFF0
 ALL_MISSION_KEYS = f"{keys.PREFIX}/mission/**"
 
 

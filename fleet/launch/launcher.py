@@ -40,6 +40,8 @@ import zenoh
 from fleet.errors import FleetError
 from fleet.geo.mercator import MercatorProjection
 from fleet.mission import keys
+from fleet.piccolo.telemetry import Telemetry
+from fleet.transport import bus_codec
 from fleet.transport.router import Router
 from fleet.transport.zenoh_config import DEFAULT_ROUTER
 
@@ -47,7 +49,7 @@ log = logging.getLogger(__name__)
 
 #: Seconds a child gets between SIGTERM and SIGKILL.
 STOP_GRACE_S = 5.0
-#: Seconds to wait for the simulator's ports and every UAV's liveliness token. Every
+#: Seconds to wait for the simulator's ports and every UAV's token and telemetry. Every
 #: onboard imports Pyomo and HiGHS at start, which takes seconds on a busy machine.
 DEFAULT_START_TIMEOUT_S = 120.0
 #: First Piccolo ID of a generated (--uavs N) fleet.
@@ -244,7 +246,7 @@ class Fleet:
         for endpoints in self.endpoints:
             self._start_onboard(endpoints)
         self._write_pids()
-        self._wait_alive(deadline)
+        self._wait_ready(deadline)
 
     def _spawn(self, name: str, argv: list[str], stdout: int | IO[bytes] | None = None) -> Child:
         log_path = self.log_dir / f"{name}.log"
@@ -352,31 +354,54 @@ class Fleet:
                 f"(logs in {self.log_dir})"
             )
 
-    def _wait_alive(self, deadline: float) -> None:
+    def _wait_ready(self, deadline: float) -> None:
+        """Wait until every UAV is alive and its telemetry flows.
+
+        A liveliness token only says the onboard process joined Zenoh; its serial link
+        may not be up yet. A telemetry sample with a GPS fix on its telemetry key means
+        the link is up and the autopilot talks, so its state already holds a position.
+        """
         assert self.router is not None
         expected = set(self.uav_ids)
-        seen: set[int] = set()
+        alive: set[int] = set()
+        flowing: set[int] = set()
         changed = threading.Event()
 
         def on_token(sample: zenoh.Sample) -> None:
-            try:
-                uav = keys.uav_id_of(str(sample.key_expr))
-            except ValueError:
+            uav = _uav_of(sample)
+            if uav is None:
                 return
             if sample.kind == zenoh.SampleKind.PUT:
-                seen.add(uav)
+                alive.add(uav)
             else:
-                seen.discard(uav)
+                alive.discard(uav)
             changed.set()
 
-        liveliness = self.router.session.liveliness()
-        with liveliness.declare_subscriber(keys.ALL_ALIVE, on_token, history=True):
-            while not expected <= seen:
+        def on_telemetry(sample: zenoh.Sample) -> None:
+            uav = _uav_of(sample)
+            if uav is None or uav in flowing:
+                return
+            try:
+                telemetry = bus_codec.decode(
+                    sample.payload.to_bytes(), Telemetry, str(sample.key_expr)
+                )
+            except bus_codec.BadMessage as error:
+                log.warning("ignored %s", error)
+                return
+            if telemetry.gps is not None:
+                flowing.add(uav)
+                changed.set()
+
+        session = self.router.session
+        with (
+            session.liveliness().declare_subscriber(keys.ALL_ALIVE, on_token, history=True),
+            session.declare_subscriber(keys.ALL_TELEMETRY, on_telemetry),
+        ):
+            while not expected <= alive & flowing:
                 changed.wait(0.2)
                 changed.clear()
-                missing = ", ".join(map(str, sorted(expected - seen)))
-                self._check_running(deadline, f"the liveliness of UAV {missing}")
-        log.info("every UAV is alive: %s", ", ".join(map(str, sorted(expected))))
+                self._check_running(deadline, _waiting_for(expected, alive, flowing))
+        log.info("every UAV is alive with telemetry: %s", ", ".join(map(str, sorted(expected))))
 
     # ---- running and stopping ----------------------------------------------------------
     def dead_children(self) -> list[Child]:
@@ -401,6 +426,24 @@ class Fleet:
         if self.router is not None:
             self.router.close()
             self.router = None
+
+
+def _uav_of(sample: zenoh.Sample) -> int | None:
+    try:
+        return keys.uav_id_of(str(sample.key_expr))
+    except ValueError:
+        return None
+
+
+def _waiting_for(expected: set[int], alive: set[int], flowing: set[int]) -> str:
+    """What a start still waits for, for a timeout message."""
+    parts = []
+    if expected - alive:
+        parts.append(f"the liveliness of UAV {', '.join(map(str, sorted(expected - alive)))}")
+    if expected - flowing:
+        quiet = ", ".join(map(str, sorted(expected - flowing)))
+        parts.append(f"telemetry with a GPS fix from UAV {quiet}")
+    return " and ".join(parts) or "nothing"
 
 
 def wait_until_stopped(

@@ -40,6 +40,9 @@ def telemetry(uav_id: int) -> str:
     return uav(uav_id, "telemetry")
 
 
+ALL_TELEMETRY = f"{PREFIX}/uav/*/telemetry"
+
+
 def track(uav_id: int) -> str:
     return uav(uav_id, "track")
 

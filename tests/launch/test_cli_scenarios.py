@@ -54,7 +54,10 @@ def test_fleet_up_then_ground_cli_single_uav(tmp_path: Path) -> None:
         listed = run(*ground, "uavs", "--json")
         assert listed.returncode == 0, listed.stderr
         (uav,) = json.loads(listed.stdout)
-        assert uav["id"] == 112 and abs(uav["lat"] - 35.72) < 0.05
+        # Ready means link up and telemetry flowing: the first listing has a position.
+        assert uav["id"] == 112
+        assert uav["lat"] is not None and abs(uav["lat"] - 35.72) < 0.05, uav
+        assert uav["lon"] is not None and abs(uav["lon"] + 120.76) < 0.05, uav
 
         targets = str(files("fleet") / "scenarios" / "single_uav_targets.bin")
         sent = run(*ground, "send-targets", targets, "--wait", "--json", "--timeout", "60")

@@ -35,21 +35,28 @@ from fleet.transport.zenoh_config import make_config
 
 REPO = Path(__file__).resolve().parents[2]
 
-#: A test double of `onboard`: joins Zenoh, declares its liveliness token, and exits
-#: cleanly on SIGTERM. Nothing else.
+#: A test double of `onboard`: joins Zenoh, declares its liveliness token, publishes a
+#: telemetry sample with a GPS fix five times a second (what the launcher waits for), and
+#: exits cleanly on SIGTERM. Nothing else. With --silent it publishes no telemetry.
 FAKE_ONBOARD = """
 import argparse, signal, threading, zenoh
+from fleet.mission import keys
+from fleet.piccolo.telemetry import GpsBlock, Telemetry
+from fleet.transport import bus_codec
 from fleet.transport.zenoh_config import make_config
 parser = argparse.ArgumentParser()
 parser.add_argument("--id", type=int, required=True)
 parser.add_argument("--connect", required=True)
+parser.add_argument("--silent", action="store_true")
 args, _ = parser.parse_known_args()
 stop = threading.Event()
 signal.signal(signal.SIGTERM, lambda *_: stop.set())
+fix = Telemetry(system_time_ms=0, gps=GpsBlock(35.72, -120.76, 600.0, 0.0, 22.0, 0.0))
 with zenoh.open(make_config("client", [args.connect])) as session:
-    token = session.liveliness().declare_token(f"fleet/uav/{args.id}/alive")
-    while not stop.wait(0.1):
-        pass
+    token = session.liveliness().declare_token(keys.alive(args.id))
+    while not stop.wait(0.2):
+        if not args.silent:
+            session.put(keys.telemetry(args.id), bus_codec.encode(fix))
 """
 
 
@@ -194,6 +201,28 @@ def test_fleet_starts_waits_for_liveliness_and_stops_everything(tmp_path: Path) 
         assert all(c.process.returncode is not None for c in fleet.children)
         assert not any(alive(pid) for pid in pids)
         assert "ready" in (tmp_path / "sim.log").read_text()
+    finally:
+        for child in fleet.children:
+            kill_if_alive(child.pid)
+
+
+def test_fleet_is_not_ready_until_telemetry_flows(tmp_path: Path) -> None:
+    # Alive but silent (no serial link, no telemetry): the start must not report it ready.
+    spec = FleetSpec(
+        scenario="single_uav",
+        listen=free_endpoint(),
+        log_dir=tmp_path,
+        start_timeout_s=15.0,
+        onboard_command=("-c", FAKE_ONBOARD, "--silent"),
+    )
+    fleet = Fleet(spec)
+    try:
+        with (
+            pytest.raises(LaunchError, match="telemetry with a GPS fix from UAV 112") as caught,
+            fleet,
+        ):
+            pass
+        assert "liveliness" not in str(caught.value)  # it was alive: only telemetry lacked
     finally:
         for child in fleet.children:
             kill_if_alive(child.pid)
