@@ -20,7 +20,7 @@ from fleet.mission.messages import LinkHealth
 from fleet.piccolo.autopilot_messages import AutopilotMessage
 from fleet.piccolo.stream_packet import ALL_OPERATOR_INTERFACES
 from fleet.planning.link import LinkEvent, PiccoloLink
-from fleet.transport.serial_port import DEFAULT_BAUD, SerialEndpoint
+from fleet.transport.link import Link
 
 log = logging.getLogger(__name__)
 
@@ -39,22 +39,25 @@ class _Outbound:
 
 
 class LinkAdapter:
-    """Owns the program and payload ports and their codecs; runs the link loop."""
+    """Owns the program and payload ports and their codecs; runs the link loop.
+
+    The ports are `Link`s: serial ports in flight (`fleet.transport.serial_port`),
+    in-memory pipes in unit tests (`fleet.transport.memory`).
+    """
 
     def __init__(
         self,
         uav_id: int,
-        program_url: str,
-        payload_url: str,
+        program: Link,
+        payload: Link,
         sink: Callable[[LinkEvent], None],
-        baud: int = DEFAULT_BAUD,
         poll_interval: float = POLL_INTERVAL,
     ) -> None:
         self.uav_id = uav_id
         self.sink = sink
         self.poll_interval = poll_interval
-        self.program = SerialEndpoint("program", program_url, baud)
-        self.payload = SerialEndpoint("payload", payload_url, baud)
+        self.program = program
+        self.payload = payload
         self.program_link = PiccoloLink(ONBOARD_ADDRESS)
         self.payload_link = PiccoloLink(ONBOARD_ADDRESS)
         self._outbound: queue.SimpleQueue[_Outbound] = queue.SimpleQueue()

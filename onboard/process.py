@@ -35,12 +35,16 @@ from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from fleet.planning.link import AutopilotEvent, LinkEvent, PlanningEvent
 from fleet.planning.protocol import encode_message
+from fleet.transport.bus import Bus, BusQuery
 from fleet.transport.bus_codec import BadMessage, decode
+from fleet.transport.link import Link
+from fleet.transport.serial_port import DEFAULT_BAUD, SerialLink
+from fleet.transport.zenoh_bus import ZenohBus
 from onboard.autopilot_commands import AutopilotCommand
 from onboard.core import OnboardCore
 from onboard.link_adapter import LinkAdapter
 from onboard.planner_worker import PlannerWorker
-from onboard.zenoh_node import BusEvent, ZenohNode, reply
+from onboard.zenoh_node import BusEvent, ZenohNode
 
 log = logging.getLogger(__name__)
 
@@ -53,8 +57,9 @@ class OnboardSettings:
     uav_id: int
     program_url: str
     payload_url: str
-    zenoh_config: zenoh.Config
-    baud: int = 57_600
+    #: The Zenoh session's config; None when the process is given its bus.
+    zenoh_config: zenoh.Config | None = None
+    baud: int = DEFAULT_BAUD
     payload_ground: bool = False
     status_rate_hz: float = 1.0
     planning_budget_s: float = 2.0
@@ -98,7 +103,19 @@ class _Outputs:
 
 
 class OnboardProcess:
-    def __init__(self, settings: OnboardSettings) -> None:
+    """One UAV's module. Its edges come from `settings` (serial ports by URL, a Zenoh
+    session) unless given: `links` (program, payload) and `bus`, e.g. in-memory ones.
+
+    Raises zenoh.ZError when it opens a Zenoh session and none can be opened.
+    """
+
+    def __init__(
+        self,
+        settings: OnboardSettings,
+        *,
+        links: tuple[Link, Link] | None = None,
+        bus: Bus | None = None,
+    ) -> None:
         self.settings = settings
         self.events: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
         self.stop_requested = threading.Event()
@@ -110,19 +127,25 @@ class OnboardProcess:
             planning_budget_s=settings.planning_budget_s,
             status_rate_hz=settings.status_rate_hz,
         )
+        program, payload = links or (
+            SerialLink("program", settings.program_url, settings.baud),
+            SerialLink("payload", settings.payload_url, settings.baud),
+        )
         self.link = LinkAdapter(
             settings.uav_id,
-            settings.program_url,
-            settings.payload_url,
+            program,
+            payload,
             sink=lambda event: self.events.put(("link", event)),
-            baud=settings.baud,
         )
+        if bus is None:
+            if settings.zenoh_config is None:
+                raise ValueError("an onboard process needs a bus or a Zenoh config")
+            bus = ZenohBus.open(settings.zenoh_config)
         self.node = ZenohNode(
             settings.uav_id,
-            settings.zenoh_config,
+            bus,
             sink=lambda event: self.events.put(("bus", event)),
         )
-        self._pending_queries: list[zenoh.Query] = []
 
     def run(self) -> None:
         self.link.start()
@@ -217,7 +240,7 @@ class OnboardProcess:
     def _serve_queries(self, now: float) -> None:
         while (query := self.node.state_queries.try_recv()) is not None:
             state = msgspec.structs.replace(self.core.state(), link=self.link.health(now))
-            reply(query, keys.state(self.settings.uav_id), state)
+            query.reply(keys.state(self.settings.uav_id), state)
             query.drop()
         while (query := self.node.command_queries.try_recv()) is not None:
             self._on_command_query(query, now)
@@ -225,32 +248,31 @@ class OnboardProcess:
             self._on_mission_query(query)
             query.drop()
 
-    def _on_command_query(self, query: zenoh.Query, now: float) -> None:
-        key = str(query.key_expr)
+    def _on_command_query(self, query: BusQuery, now: float) -> None:
+        key = query.key
         name = key.rsplit("/", 1)[-1]
         kinds: dict[str, type[Waypoint] | type[Track]] = {"waypoint": Waypoint, "track": Track}
         kind = kinds.get(name)
-        payload = query.payload.to_bytes() if query.payload is not None else b""
         if kind is None:
-            query.reply_err(f"unknown command {name!r}: expected waypoint or track".encode())
+            query.reply_err(f"unknown command {name!r}: expected waypoint or track")
             query.drop()
             return
         try:
-            command = decode(payload, kind, key)
+            command = decode(query.payload, kind, key)
         except BadMessage as error:
             log.warning("command refused: %s", error)
-            query.reply_err(str(error).encode())
+            query.reply_err(str(error))
             query.drop()
             return
         reply_key = keys.command(self.settings.uav_id, name)
 
         def done(result: CommandResult) -> None:
-            reply(query, reply_key, result)
+            query.reply(reply_key, result)
             query.drop()
 
         self.core.command_autopilot(command, now, done)
 
-    def _on_mission_query(self, query: zenoh.Query) -> None:
+    def _on_mission_query(self, query: BusQuery) -> None:
         """Serve the current mission's targets, our result and our assignment."""
         targets = self.core.mission_targets()
         if targets is None:
@@ -266,5 +288,5 @@ class OnboardProcess:
         ]
         for key, message in answers:
             # Reply with the concrete key, or consolidation would merge the replies.
-            if message is not None and query.key_expr.intersects(zenoh.KeyExpr(key)):
-                reply(query, key, message)
+            if message is not None and query.intersects(key):
+                query.reply(key, message)

@@ -1,8 +1,9 @@
-"""The onboard module's Zenoh edge: presence, subscriptions, queryables, publications.
+"""The onboard module's bus edge: presence, subscriptions, queryables, publications.
 
-Every callback only decodes and hands an event to `sink`; the main loop does the rest,
-so no Zenoh thread ever waits on the module. Queryables use channel handlers polled
-by the main loop, so a command's reply can wait for the autopilot's echo.
+The bus is Zenoh in flight (`fleet.transport.zenoh_bus`) and in-memory in unit tests
+(`fleet.transport.memory`). Every callback only decodes and hands an event to `sink`;
+the main loop does the rest, so no bus thread ever waits on the module. Queryables are
+polled by the main loop, so a command's reply can wait for the autopilot's echo.
 """
 
 from __future__ import annotations
@@ -13,7 +14,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import msgspec
-import zenoh
 
 from fleet.mission import keys
 from fleet.mission.messages import (
@@ -23,7 +23,8 @@ from fleet.mission.messages import (
     OpmCommand,
     UavResult,
 )
-from fleet.transport.bus_codec import ENCODING, BadMessage, decode, encode
+from fleet.transport.bus import Bus, BusSample, Declaration
+from fleet.transport.bus_codec import BadMessage, decode
 
 log = logging.getLogger(__name__)
 
@@ -47,65 +48,57 @@ _SUBSCRIPTIONS: tuple[tuple[str, type[msgspec.Struct]], ...] = (
 
 
 class ZenohNode:
-    def __init__(self, uav_id: int, config: zenoh.Config, sink: Sink) -> None:
+    """The onboard's declarations on its bus, which it owns (closed by `close`)."""
+
+    def __init__(self, uav_id: int, bus: Bus, sink: Sink) -> None:
         self.uav_id = uav_id
         self.sink = sink
-        self.session = zenoh.open(config)
-        self._declared: list[Any] = []
+        self.bus = bus
+        self._declared: list[Declaration] = []
         try:
             self._declare()
         except Exception:
-            self.session.close()
+            bus.close()
             raise
 
     def _declare(self) -> None:
-        session = self.session
-        self.token = session.liveliness().declare_token(keys.alive(self.uav_id))
-        self._declared.append(
-            session.liveliness().declare_subscriber(keys.ALL_ALIVE, self._on_presence, history=True)
-        )
+        bus = self.bus
+        self.token = bus.declare_token(keys.alive(self.uav_id))
+        self._declared.append(bus.subscribe_presence(keys.ALL_ALIVE, self._on_presence))
         subscriptions: tuple[tuple[str, type[msgspec.Struct]], ...] = (
             (keys.opm(self.uav_id), OpmCommand),
             *_SUBSCRIPTIONS,
         )
         for key, kind in subscriptions:
-            self._declared.append(session.declare_subscriber(key, self._decoder(kind)))
-        self.state_queries = session.declare_queryable(keys.state(self.uav_id))
-        self.command_queries = session.declare_queryable(keys.command(self.uav_id, "*"))
-        self.mission_queries = session.declare_queryable(f"{keys.PREFIX}/mission/*/**")
+            self._declared.append(bus.subscribe(key, self._decoder(kind)))
+        self.state_queries = bus.declare_queryable(keys.state(self.uav_id))
+        self.command_queries = bus.declare_queryable(keys.command(self.uav_id, "*"))
+        self.mission_queries = bus.declare_queryable(f"{keys.PREFIX}/mission/*/**")
 
-    def _on_presence(self, sample: zenoh.Sample) -> None:
-        key = str(sample.key_expr)
+    def _on_presence(self, key: str, alive: bool) -> None:
         try:
             uav = keys.uav_id_of(key)
         except ValueError:
             return
-        self.sink(BusEvent(key, (uav, sample.kind == zenoh.SampleKind.PUT)))
+        self.sink(BusEvent(key, (uav, alive)))
 
-    def _decoder(self, kind: type[msgspec.Struct]) -> Callable[[zenoh.Sample], None]:
-        def on_sample(sample: zenoh.Sample) -> None:
-            key = str(sample.key_expr)
+    def _decoder(self, kind: type[msgspec.Struct]) -> Callable[[BusSample], None]:
+        def on_sample(sample: BusSample) -> None:
             try:
-                message = decode(sample.payload.to_bytes(), kind, key)
+                message = decode(sample.payload, kind, sample.key)
             except BadMessage as error:
                 log.warning("dropped: %s", error)
                 return
-            self.sink(BusEvent(key, message))
+            self.sink(BusEvent(sample.key, message))
 
         return on_sample
 
     def publish(self, key: str, message: msgspec.Struct) -> None:
-        self.session.put(key, encode(message), encoding=ENCODING)
+        self.bus.publish(key, message)
 
     def fetch(self, selector: str, kind: type[msgspec.Struct], timeout: float = 1.0) -> None:
         """Query `selector`; replies come back through the sink like publications."""
-        decoder = self._decoder(kind)
-
-        def on_reply(reply: zenoh.Reply) -> None:
-            if reply.ok is not None:
-                decoder(reply.ok)
-
-        self.session.get(selector, on_reply, timeout=timeout)
+        self.bus.get(selector, self._decoder(kind), timeout)
 
     def close(self) -> None:
         for declared in self._declared:
@@ -113,8 +106,4 @@ class ZenohNode:
         for queryable in (self.state_queries, self.command_queries, self.mission_queries):
             queryable.undeclare()
         self.token.undeclare()
-        self.session.close()
-
-
-def reply(query: zenoh.Query, key: str, message: msgspec.Struct) -> None:
-    query.reply(key, encode(message), encoding=ENCODING)
+        self.bus.close()

@@ -1,5 +1,7 @@
 """One serial port of the Piccolo link, opened by pyserial URL, reopened after a drop.
 
+The real backend of `fleet.transport.link.Link`.
+
 Accepts anything `serial.serial_for_url` does: `/dev/ttyAMP0` (57,600 baud on the
 aircraft), `socket://host:port` (the simulator), a pty path. Reads never block: the
 link loop polls every port every few milliseconds (thesis 2.7.4).
@@ -11,6 +13,8 @@ import logging
 from dataclasses import dataclass, field
 
 import serial
+
+from fleet.transport.link import Link
 
 log = logging.getLogger(__name__)
 
@@ -35,7 +39,7 @@ class Backoff:
 
 
 @dataclass
-class SerialEndpoint:
+class SerialLink(Link):
     """A reconnecting, non-blocking serial port."""
 
     name: str

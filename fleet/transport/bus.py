@@ -1,0 +1,110 @@
+"""The message-bus interface: what a fleet process needs from Zenoh.
+
+Shaped like python-can's `BusABC`: one abstract base with the four things the fleet
+does on its bus (publish, subscribe, query and answer, liveliness), a real backend
+(`fleet.transport.zenoh_bus.ZenohBus`) and an in-memory one
+(`fleet.transport.memory.MemoryBus`), so an onboard process can be tested in one
+process without sockets. Payloads are bytes; `publish` and `reply` put msgspec
+messages in the bus codec's format (`fleet.transport.bus_codec`).
+
+Callbacks run on the backend's threads (Zenoh's, or the caller's for the in-memory
+bus): they must only hand work on, never wait.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
+
+import msgspec
+
+from fleet.transport import bus_codec
+
+
+@dataclass(frozen=True)
+class BusSample:
+    """A value seen on the bus: a publication, or a successful reply to a query."""
+
+    key: str
+    payload: bytes
+
+
+#: Called with each sample a subscription or a query receives.
+SampleCallback = Callable[[BusSample], None]
+#: Called with (token key, alive) when a liveliness token appears or goes.
+PresenceCallback = Callable[[str, bool], None]
+
+
+class Declaration(Protocol):
+    """Something declared on the bus (a subscription, a token); undeclared when done."""
+
+    def undeclare(self) -> None: ...
+
+
+class BusQuery(ABC):
+    """A query to one of our queryables; answer with `reply`/`reply_err`, then `drop`."""
+
+    key: str
+    payload: bytes
+
+    @abstractmethod
+    def intersects(self, key: str) -> bool:
+        """Whether `key` falls within what the query asked for."""
+
+    @abstractmethod
+    def reply_bytes(self, key: str, payload: bytes) -> None: ...
+
+    @abstractmethod
+    def reply_err(self, text: str) -> None: ...
+
+    @abstractmethod
+    def drop(self) -> None:
+        """Finish the query: the querier gets no more replies from us."""
+
+    def reply(self, key: str, message: msgspec.Struct) -> None:
+        self.reply_bytes(key, bus_codec.encode(message))
+
+
+class Queryable(ABC):
+    """Queries arriving on a key expression, polled by the owner's loop."""
+
+    @abstractmethod
+    def try_recv(self) -> BusQuery | None:
+        """The next waiting query, or None."""
+
+    @abstractmethod
+    def undeclare(self) -> None: ...
+
+
+class Bus(ABC):
+    """One participant's view of the fleet's key space."""
+
+    @abstractmethod
+    def put(self, key: str, payload: bytes) -> None: ...
+
+    @abstractmethod
+    def subscribe(self, key_expr: str, callback: SampleCallback) -> Declaration: ...
+
+    @abstractmethod
+    def get(self, selector: str, callback: SampleCallback, timeout: float) -> None:
+        """Query `selector`; each successful reply goes to `callback`, as it arrives."""
+
+    @abstractmethod
+    def declare_queryable(self, key_expr: str) -> Queryable: ...
+
+    @abstractmethod
+    def declare_token(self, key: str) -> Declaration:
+        """A liveliness token: present while declared and while this bus is open."""
+
+    @abstractmethod
+    def subscribe_presence(self, key_expr: str, callback: PresenceCallback) -> Declaration:
+        """Token changes under `key_expr`, starting with the tokens present now."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Leave the bus: every declaration, and every token, goes."""
+
+    def publish(self, key: str, message: msgspec.Struct) -> None:
+        self.put(key, bus_codec.encode(message))

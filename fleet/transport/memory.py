@@ -1,0 +1,264 @@
+"""In-memory backends of `Link` and `Bus`, for tests in one process without sockets.
+
+Like python-can's `interfaces/virtual.py`: every `MemoryBus` made on one `MemoryNetwork`
+sees the others' publications, queryables and liveliness tokens, with Zenoh's key
+expression matching; `memory_link_pair` gives the two ends of a byte pipe (an
+onboard's port and a simulated autopilot's). Delivery is synchronous, on the caller's
+thread, never under a lock, so a callback may publish in turn. End-to-end tests keep
+using real processes, real Zenoh and real serial links: these are for unit tests.
+"""
+
+from __future__ import annotations
+
+import itertools
+import threading
+from collections import deque
+from dataclasses import dataclass, field
+
+import zenoh
+
+from fleet.transport.bus import (
+    Bus,
+    BusQuery,
+    BusSample,
+    Declaration,
+    PresenceCallback,
+    Queryable,
+    SampleCallback,
+)
+from fleet.transport.link import Link
+
+
+# ---- links --------------------------------------------------------------------------------------
+@dataclass
+class _Pipe:
+    lock: threading.Lock = field(default_factory=threading.Lock)
+    buffers: tuple[bytearray, bytearray] = field(default_factory=lambda: (bytearray(), bytearray()))
+    connected: bool = True
+
+
+class MemoryLink(Link):
+    """One end of an in-memory byte pipe; `_Pipe.connected` False is a dropped link."""
+
+    def __init__(self, name: str, pipe: _Pipe, side: int) -> None:
+        self.name = name
+        self._pipe = pipe
+        self._side = side
+
+    @property
+    def up(self) -> bool:
+        return self._pipe.connected
+
+    def ensure_open(self, now: float) -> bool:
+        return self._pipe.connected
+
+    def read(self, now: float) -> bytes:
+        with self._pipe.lock:
+            inbox = self._pipe.buffers[self._side]
+            data = bytes(inbox)
+            inbox.clear()
+        return data if self._pipe.connected else b""
+
+    def write(self, data: bytes, now: float) -> bool:
+        if not self._pipe.connected:
+            return False
+        with self._pipe.lock:
+            self._pipe.buffers[1 - self._side].extend(data)
+        return True
+
+    def close(self) -> None:
+        """Closing an end leaves the pipe as it is: the other end may still be read."""
+
+    def disconnect(self) -> None:
+        """Drop the link (both ends see it down) until `reconnect`; bytes in flight are lost."""
+        with self._pipe.lock:
+            self._pipe.connected = False
+            for buffer in self._pipe.buffers:
+                buffer.clear()
+
+    def reconnect(self) -> None:
+        self._pipe.connected = True
+
+
+def memory_link_pair(name: str) -> tuple[MemoryLink, MemoryLink]:
+    """The two ends of one pipe: what one writes, the other reads."""
+    pipe = _Pipe()
+    return MemoryLink(name, pipe, 0), MemoryLink(name, pipe, 1)
+
+
+# ---- the bus ------------------------------------------------------------------------------------
+def _intersects(a: str, b: str) -> bool:
+    return bool(zenoh.KeyExpr(a).intersects(zenoh.KeyExpr(b)))
+
+
+@dataclass
+class _Subscription:
+    key_expr: str
+    callback: SampleCallback
+    owner: MemoryBus
+
+
+@dataclass
+class _Presence:
+    key_expr: str
+    callback: PresenceCallback
+    owner: MemoryBus
+
+
+class MemoryNetwork:
+    """What every MemoryBus made on it shares: subscriptions, queryables, tokens."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.subscriptions: list[_Subscription] = []
+        self.presence: list[_Presence] = []
+        self.queryables: list[MemoryQueryable] = []
+        #: Token id -> (key, owner).
+        self.tokens: dict[int, tuple[str, MemoryBus]] = {}
+        self._ids = itertools.count()
+
+    def bus(self) -> MemoryBus:
+        return MemoryBus(self)
+
+    def next_id(self) -> int:
+        return next(self._ids)
+
+    def token_change(self, key: str, alive: bool) -> None:
+        with self.lock:
+            watchers = [p.callback for p in self.presence if _intersects(p.key_expr, key)]
+        for callback in watchers:
+            callback(key, alive)
+
+
+class _Undeclare:
+    def __init__(self, action: object) -> None:
+        self._action = action
+        self._done = False
+
+    def undeclare(self) -> None:
+        if not self._done:
+            self._done = True
+            assert callable(self._action)
+            self._action()
+
+
+class MemoryQuery(BusQuery):
+    def __init__(self, key: str, payload: bytes, callback: SampleCallback) -> None:
+        self.key = key
+        self.payload = payload
+        self._callback = callback
+        self._dropped = False
+        #: Error replies, for tests to read.
+        self.errors: list[str] = []
+
+    def intersects(self, key: str) -> bool:
+        return _intersects(self.key, key)
+
+    def reply_bytes(self, key: str, payload: bytes) -> None:
+        if not self._dropped:
+            self._callback(BusSample(key, payload))
+
+    def reply_err(self, text: str) -> None:
+        self.errors.append(text)
+
+    def drop(self) -> None:
+        self._dropped = True
+
+
+class MemoryQueryable(Queryable):
+    def __init__(self, network: MemoryNetwork, key_expr: str, owner: MemoryBus) -> None:
+        self.key_expr = key_expr
+        self.owner = owner
+        self._network = network
+        self._waiting: deque[MemoryQuery] = deque()
+
+    def deliver(self, query: MemoryQuery) -> None:
+        self._waiting.append(query)
+
+    def try_recv(self) -> BusQuery | None:
+        try:
+            return self._waiting.popleft()
+        except IndexError:
+            return None
+
+    def undeclare(self) -> None:
+        with self._network.lock:
+            if self in self._network.queryables:
+                self._network.queryables.remove(self)
+
+
+class MemoryBus(Bus):
+    """One participant of a MemoryNetwork (an onboard, a ground, a test)."""
+
+    def __init__(self, network: MemoryNetwork) -> None:
+        self.network = network
+        self.closed = False
+
+    def put(self, key: str, payload: bytes) -> None:
+        with self.network.lock:
+            callbacks = [
+                s.callback for s in self.network.subscriptions if _intersects(s.key_expr, key)
+            ]
+        sample = BusSample(key, payload)
+        for callback in callbacks:
+            callback(sample)
+
+    def subscribe(self, key_expr: str, callback: SampleCallback) -> Declaration:
+        entry = _Subscription(key_expr, callback, self)
+        with self.network.lock:
+            self.network.subscriptions.append(entry)
+        return _Undeclare(lambda: self._remove(self.network.subscriptions, entry))
+
+    def get(self, selector: str, callback: SampleCallback, timeout: float) -> None:
+        key, _, parameters = selector.partition("?")
+        with self.network.lock:
+            targets = [q for q in self.network.queryables if _intersects(q.key_expr, key)]
+        for queryable in targets:
+            queryable.deliver(MemoryQuery(key, parameters.encode(), callback))
+
+    def declare_queryable(self, key_expr: str) -> Queryable:
+        queryable = MemoryQueryable(self.network, key_expr, self)
+        with self.network.lock:
+            self.network.queryables.append(queryable)
+        return queryable
+
+    def declare_token(self, key: str) -> Declaration:
+        token = self.network.next_id()
+        with self.network.lock:
+            self.network.tokens[token] = (key, self)
+        self.network.token_change(key, True)
+        return _Undeclare(lambda: self._drop_token(token))
+
+    def subscribe_presence(self, key_expr: str, callback: PresenceCallback) -> Declaration:
+        entry = _Presence(key_expr, callback, self)
+        with self.network.lock:
+            self.network.presence.append(entry)
+            present = [k for k, _ in self.network.tokens.values() if _intersects(key_expr, k)]
+        for key in present:  # history: the tokens already there
+            callback(key, True)
+        return _Undeclare(lambda: self._remove(self.network.presence, entry))
+
+    def close(self) -> None:
+        """Leave: our declarations go, and our tokens vanish for everyone else."""
+        if self.closed:
+            return
+        self.closed = True
+        network = self.network
+        with network.lock:
+            network.subscriptions = [s for s in network.subscriptions if s.owner is not self]
+            network.presence = [p for p in network.presence if p.owner is not self]
+            network.queryables = [q for q in network.queryables if q.owner is not self]
+            ours = [token for token, (_, owner) in network.tokens.items() if owner is self]
+        for token in ours:
+            self._drop_token(token)
+
+    def _drop_token(self, token: int) -> None:
+        with self.network.lock:
+            entry = self.network.tokens.pop(token, None)
+        if entry is not None:
+            self.network.token_change(entry[0], False)
+
+    def _remove(self, entries: list[_Subscription] | list[_Presence], entry: object) -> None:
+        with self.network.lock:
+            if entry in entries:
+                entries.remove(entry)  # type: ignore[arg-type]

@@ -1,0 +1,101 @@
+"""The Zenoh backend of `fleet.transport.bus.Bus`: one Zenoh session."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import zenoh
+
+from fleet.transport import bus_codec
+from fleet.transport.bus import (
+    Bus,
+    BusQuery,
+    BusSample,
+    Declaration,
+    PresenceCallback,
+    Queryable,
+    SampleCallback,
+)
+
+
+def _sample(sample: zenoh.Sample) -> BusSample:
+    return BusSample(str(sample.key_expr), sample.payload.to_bytes())
+
+
+class ZenohQuery(BusQuery):
+    def __init__(self, query: zenoh.Query) -> None:
+        self._query = query
+        self.key = str(query.key_expr)
+        self.payload = query.payload.to_bytes() if query.payload is not None else b""
+
+    def intersects(self, key: str) -> bool:
+        return bool(self._query.key_expr.intersects(zenoh.KeyExpr(key)))
+
+    def reply_bytes(self, key: str, payload: bytes) -> None:
+        self._query.reply(key, payload, encoding=bus_codec.ENCODING)
+
+    def reply_err(self, text: str) -> None:
+        self._query.reply_err(text.encode())
+
+    def drop(self) -> None:
+        self._query.drop()
+
+
+class ZenohQueryable(Queryable):
+    def __init__(self, queryable: Any) -> None:
+        self._queryable = queryable
+
+    def try_recv(self) -> BusQuery | None:
+        query = self._queryable.try_recv()
+        return None if query is None else ZenohQuery(query)
+
+    def undeclare(self) -> None:
+        self._queryable.undeclare()
+
+
+class ZenohBus(Bus):
+    """A Bus over a Zenoh session, which it owns (closed by `close`)."""
+
+    def __init__(self, session: zenoh.Session) -> None:
+        self.session = session
+
+    @classmethod
+    def open(cls, config: zenoh.Config) -> ZenohBus:
+        """Open a session; raises zenoh.ZError if the config's router cannot be reached."""
+        return cls(zenoh.open(config))
+
+    def put(self, key: str, payload: bytes) -> None:
+        self.session.put(key, payload, encoding=bus_codec.ENCODING)
+
+    def subscribe(self, key_expr: str, callback: SampleCallback) -> Declaration:
+        subscriber: Declaration = self.session.declare_subscriber(
+            key_expr, lambda sample: callback(_sample(sample))
+        )
+        return subscriber
+
+    def get(self, selector: str, callback: SampleCallback, timeout: float) -> None:
+        def on_reply(reply: zenoh.Reply) -> None:
+            if reply.ok is not None:
+                callback(_sample(reply.ok))
+
+        self.session.get(selector, on_reply, timeout=timeout)
+
+    def declare_queryable(self, key_expr: str) -> Queryable:
+        # A channel handler (the default): the owner's loop polls it with try_recv.
+        return ZenohQueryable(self.session.declare_queryable(key_expr))
+
+    def declare_token(self, key: str) -> Declaration:
+        token: Declaration = self.session.liveliness().declare_token(key)
+        return token
+
+    def subscribe_presence(self, key_expr: str, callback: PresenceCallback) -> Declaration:
+        def on_token(sample: zenoh.Sample) -> None:
+            callback(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
+
+        subscriber: Declaration = self.session.liveliness().declare_subscriber(
+            key_expr, on_token, history=True
+        )
+        return subscriber
+
+    def close(self) -> None:
+        self.session.close()

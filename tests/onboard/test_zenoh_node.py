@@ -1,0 +1,116 @@
+"""The onboard's bus edge over the in-memory bus: what it declares, what it hands on,
+and what it drops."""
+
+from __future__ import annotations
+
+import logging
+import queue
+from collections.abc import Iterator
+
+import pytest
+
+from fleet.mission import keys
+from fleet.mission.messages import MissionTargets, OpmCommand, Target, UavResult
+from fleet.transport.memory import MemoryBus, MemoryNetwork
+from onboard.zenoh_node import BusEvent, ZenohNode
+
+UAV = 112
+MISSION = MissionTargets(mission=3, team=(UAV, 74), targets=(Target(35.7, -120.7, 600.0),))
+
+
+class Harness:
+    def __init__(self) -> None:
+        self.network = MemoryNetwork()
+        self.events: queue.SimpleQueue[BusEvent] = queue.SimpleQueue()
+        self.node = ZenohNode(UAV, self.network.bus(), self.events.put)
+        self.ground = self.network.bus()
+
+    def next_event(self) -> BusEvent:
+        return self.events.get(timeout=5.0)
+
+    def drain(self) -> list[BusEvent]:
+        found = []
+        while not self.events.empty():
+            found.append(self.events.get_nowait())
+        return found
+
+
+@pytest.fixture
+def harness() -> Iterator[Harness]:
+    h = Harness()
+    try:
+        yield h
+    finally:
+        h.node.close()
+        h.ground.close()
+
+
+def test_it_is_alive_and_sees_itself(harness: Harness) -> None:
+    assert harness.next_event() == BusEvent(keys.alive(UAV), (UAV, True))
+    seen: list[tuple[str, bool]] = []
+    harness.ground.subscribe_presence(keys.ALL_ALIVE, lambda key, alive: seen.append((key, alive)))
+    assert seen == [(keys.alive(UAV), True)]
+
+
+def test_teammates_coming_and_going_are_events(harness: Harness) -> None:
+    harness.drain()
+    teammate = MemoryBus(harness.network)
+    token = teammate.declare_token(keys.alive(74))
+    assert harness.next_event() == BusEvent(keys.alive(74), (74, True))
+    token.undeclare()
+    assert harness.next_event() == BusEvent(keys.alive(74), (74, False))
+    teammate.declare_token(keys.alive(75))
+    teammate.close()  # a crashed teammate: its token goes with its session
+    assert [e.message for e in harness.drain()] == [(75, True), (75, False)]
+
+
+def test_messages_are_decoded_for_the_main_loop(harness: Harness) -> None:
+    harness.drain()
+    harness.ground.publish(keys.mission_targets(3), MISSION)
+    harness.ground.publish(keys.opm(UAV), OpmCommand(enabled=False, status_rate_hz=0.0))
+    harness.ground.publish(keys.opm(74), OpmCommand(enabled=False))  # not ours
+    assert harness.drain() == [
+        BusEvent(keys.mission_targets(3), MISSION),
+        BusEvent(keys.opm(UAV), OpmCommand(enabled=False, status_rate_hz=0.0)),
+    ]
+
+
+def test_a_bad_message_is_dropped_and_logged(
+    harness: Harness, caplog: pytest.LogCaptureFixture
+) -> None:
+    harness.drain()
+    with caplog.at_level(logging.WARNING, logger="onboard.zenoh_node"):
+        harness.ground.put(keys.mission_targets(4), b'{"mission": "four"}')
+        harness.ground.put(keys.mission_result(4, 74), b"\xff not json")
+    assert harness.drain() == []
+    assert "fleet/mission/4/targets: not a valid MissionTargets" in caplog.text
+    assert "fleet/mission/4/result/74: not a valid UavResult" in caplog.text
+
+
+def test_fetch_replies_arrive_like_publications(harness: Harness) -> None:
+    harness.drain()
+    result = UavResult(mission=3, uav=74, times=(12.5,))
+    answers = harness.ground.declare_queryable(keys.mission_result(3, 74))
+    harness.node.fetch(keys.mission_results(3), UavResult)
+    query = answers.try_recv()
+    assert query is not None and query.intersects(keys.mission_result(3, 74))
+    query.reply(keys.mission_result(3, 74), result)
+    query.drop()
+    assert harness.drain() == [BusEvent(keys.mission_result(3, 74), result)]
+
+
+def test_queries_to_it_wait_for_its_loop(harness: Harness) -> None:
+    answers: list[str] = []
+    harness.ground.get(keys.state(UAV), lambda sample: answers.append(sample.key), timeout=1.0)
+    query = harness.node.state_queries.try_recv()
+    assert query is not None and query.key == keys.state(UAV)
+    assert harness.node.state_queries.try_recv() is None
+    query.reply_bytes(keys.state(UAV), b"{}")
+    assert answers == [keys.state(UAV)]
+
+
+def test_close_withdraws_the_token(harness: Harness) -> None:
+    seen: list[tuple[str, bool]] = []
+    harness.ground.subscribe_presence(keys.ALL_ALIVE, lambda key, alive: seen.append((key, alive)))
+    harness.node.close()
+    assert seen == [(keys.alive(UAV), True), (keys.alive(UAV), False)]

@@ -1,0 +1,71 @@
+"""The serial port edge: backoff between reconnection attempts, and a real reconnect over
+socket:// (pyserial's TCP URL, as the simulator serves it)."""
+
+from __future__ import annotations
+
+import socket
+from collections.abc import Iterator
+
+import pytest
+
+from fleet.transport.serial_port import Backoff, SerialLink
+from tests.processes import free_port, wait_until
+
+
+def test_backoff_doubles_up_to_its_maximum_and_resets() -> None:
+    backoff = Backoff(initial=0.1, maximum=0.5)
+    assert [backoff.next_delay() for _ in range(5)] == [0.1, 0.2, 0.4, 0.5, 0.5]
+    backoff.reset()
+    assert backoff.next_delay() == 0.1
+
+
+def test_a_bad_url_is_down_and_retried_only_after_the_backoff() -> None:
+    link = SerialLink("program", "nosuchscheme://x", backoff=Backoff(initial=1.0, maximum=4.0))
+    assert not link.ensure_open(0.0) and not link.up
+    assert link.read(0.0) == b"" and not link.write(b"x", 0.0)
+    assert not link.ensure_open(0.5)  # within the backoff: not even tried
+    assert link.backoff.current == 1.0
+    assert not link.ensure_open(1.0)  # tried again, failed again: the delay doubles
+    assert link.backoff.current == 2.0
+    assert link.reconnects == 0  # never up, so never lost
+
+
+@pytest.fixture
+def listener() -> Iterator[tuple[socket.socket, int]]:
+    port = free_port()
+    server = socket.socket()
+    server.bind(("127.0.0.1", port))
+    server.listen()
+    server.settimeout(10.0)
+    try:
+        yield server, port
+    finally:
+        server.close()
+
+
+def test_a_dropped_socket_is_counted_and_reopened(listener: tuple[socket.socket, int]) -> None:
+    server, port = listener
+    link = SerialLink("program", f"socket://127.0.0.1:{port}", backoff=Backoff(0.05, 0.1))
+    assert link.ensure_open(0.0)
+    peer, _ = server.accept()
+    with peer:
+        peer.sendall(b"hello")
+        received = bytearray()
+
+        def got_hello() -> bool:
+            received.extend(link.read(0.0))
+            return len(received) >= 5
+
+        wait_until(got_hello, 5.0, "the bytes sent")
+        assert bytes(received) == b"hello"
+        assert link.write(b"back", 0.0)
+        assert peer.recv(16) == b"back"
+    # The far end closed: the next read notices, closes the port and schedules a retry.
+    wait_until(lambda: link.read(1.0) == b"" and not link.up, 5.0, "the drop to be seen")
+    assert link.reconnects == 1
+    assert not link.ensure_open(1.0)  # within the backoff
+    assert link.ensure_open(2.0)
+    again, _ = server.accept()
+    again.close()
+    link.close()
+    assert not link.up
