@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 
 import msgspec
 import zenoh
@@ -23,6 +24,8 @@ class GroundView:
         self.telemetry: dict[int, list[Telemetry]] = {}
         self.tracks: dict[int, list[int]] = {}
         self.assignments: dict[int, AssignmentReport] = {}
+        #: When (monotonic s) each UAV's latest assignment arrived.
+        self.assigned_at: dict[int, float] = {}
         self.results: dict[int, UavResult] = {}
         self.status: dict[int, list[str]] = {}
         self.subscriber = session.declare_subscriber(f"{keys.PREFIX}/**", self.on_sample)
@@ -40,6 +43,7 @@ class GroundView:
             elif "/assignment/" in key:
                 report = msgspec.json.decode(data, type=AssignmentReport)
                 self.assignments[report.uav] = report
+                self.assigned_at[report.uav] = time.monotonic()
             elif "/result/" in key:
                 result = msgspec.json.decode(data, type=UavResult)
                 self.results[result.uav] = result

@@ -342,8 +342,20 @@ def test_bad_targets_file_is_refused_and_nothing_sent(
     assert str(path) in done.stderr
     assert where in done.stderr
     assert "nothing sent" in done.stderr
-    time.sleep(0.3)  # a put, had there been one, would have arrived by now
-    assert {uav: len(fake.targets) for uav, fake in fakes.items()} == before
+    # A marker sent now through the same router arrives after anything the command put
+    # before it exited (its session's close flushes): once every fake has the marker,
+    # a put from the command would have been seen.
+    marker = MissionTargets(mission=0xFFFF_FFFF, team=(1,), targets=())
+    with zenoh.open(make_config("client", [router])) as session:
+        session.put(
+            keys.mission_targets(marker.mission),
+            bus_codec.encode(marker),
+            encoding=bus_codec.ENCODING,
+        )
+        assert wait_until(lambda: all(marker in fake.targets for fake in fakes.values()))
+    assert {uav: len(fake.targets) for uav, fake in fakes.items()} == {
+        uav: count + 1 for uav, count in before.items()
+    }
 
 
 def test_keys_shows_telemetry_state_and_token(router: str, fakes: dict[int, FakeOnboard]) -> None:

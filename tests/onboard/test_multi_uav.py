@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import random
+import time
 from pathlib import Path
 
 from fleet.geo.mercator import MercatorProjection
@@ -15,6 +16,10 @@ from fleet.sim.scenario import shipped_scenario
 from onboard.core import TARGET_WAYPOINT
 from tests.conftest import Ground
 from tests.processes import Fleet, SimEndpoints, wait_until
+
+#: The killed-UAV mission's deadline: long, so that committing early is clearly the
+#: liveliness exclusion and not the deadline.
+KILLED_DEADLINE_S = 30.0
 
 
 def ring_targets(count: int, seed: int) -> tuple[Target, ...]:
@@ -133,10 +138,23 @@ def test_uav_killed_during_the_exchange_is_left_out(
     wait_until(lambda: set(team) <= set(seen.telemetry), 60.0, "telemetry from all three")
     victim = fleet.children[-1]  # the onboard process of the last UAV
     assert victim.name == f"onboard {team[-1]}"
-    ground.send(MissionTargets(mission=1, team=tuple(team), targets=ring_targets(3, seed=7)))
+    mission = MissionTargets(
+        mission=1, team=tuple(team), targets=ring_targets(3, seed=7), deadline_s=KILLED_DEADLINE_S
+    )
+    sent_at = time.monotonic()
+    ground.send(mission)
     victim.kill()  # SIGKILL, while the others compute
     survivors = set(team[:-1])
-    wait_until(lambda: survivors <= set(seen.assignments), 30.0, "the survivors' assignments")
+    wait_until(
+        lambda: survivors <= set(seen.assignments),
+        2 * KILLED_DEADLINE_S,
+        "the survivors' assignments",
+    )
+    # Its result never came, so only the liveliness exclusion can let the survivors commit
+    # before the deadline; without it they would wait the whole deadline out.
+    assert team[-1] not in seen.results, "the victim published before dying: nothing tested"
+    took = max(seen.assigned_at[u] for u in survivors) - sent_at
+    assert took < KILLED_DEADLINE_S / 2, f"committed {took:.1f} s after sending"
     reports = {u: seen.assignments[u] for u in survivors}
     if team[-1] in seen.assignments:  # it managed to commit before dying
         reports[team[-1]] = seen.assignments[team[-1]]

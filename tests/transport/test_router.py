@@ -115,7 +115,7 @@ def test_router_on_a_taken_port_is_a_clear_error(router: str) -> None:
 
 
 def test_router_needs_an_endpoint() -> None:
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="a router needs at least one listen endpoint"):
         Router([])
 
 
@@ -321,5 +321,5 @@ def test_fleet_up_refuses_an_unknown_scenario_before_starting_anything(
     assert status == 2
     assert "no_such_scenario" in capsys.readouterr().err
     assert not (tmp_path / "pids").exists()
-    with pytest.raises(zenoh.ZError):  # no router was left behind
+    with pytest.raises(zenoh.ZError, match="Unable to connect"):  # no router was left behind
         zenoh.open(make_config("client", [endpoint])).close()
