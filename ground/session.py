@@ -1,6 +1,6 @@
 """The ground's Zenoh session, and the wire format of what it sends and reads.
 
-The ground is a Zenoh *client* of one router (the star of architecture.md): a client
+The ground is a Zenoh *client* of one router (the star of docs/architecture.md): a client
 needs no listen port and is relayed by the router to every UAV. Opening fails fast and
 clearly when nothing answers, never hangs: a refused connection fails at once, and an
 endpoint that accepts TCP but never speaks Zenoh is given up after `open_timeout_s`

@@ -33,7 +33,7 @@ is the circular segment {|v| <= V, v . h0 >= V cos theta}. The model therefore b
 the along-heading velocity from below: vx_k >= V cos(w t_k) while w t_k < pi. This is
 exact along track (the along-track velocity in a maximum-rate turn is exactly
 V cos(w t)) and relaxes only the lateral offset of the turn, which matters little
-beyond a few turn radii. Measured (docs/benchmarks-approach.md, 30 m/s, 1-3 km, all
+beyond a few turn radii. Measured (docs/benchmarks.md, approach-time model, 30 m/s, 1-3 km, all
 bearings): worst error 16 % -> 4 %, median 0.5 %. A further bound tried, lateral
 offset >= r (1 - vx/V) (valid for a constant-speed aircraft turning toward the target),
 made arrival exactly at a node infeasible without weaving, up to 25 % pessimistic, and

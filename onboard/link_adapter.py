@@ -24,7 +24,7 @@ from fleet.transport.link import Link
 
 log = logging.getLogger(__name__)
 
-#: The module's own address on the link (piccolo-link.md 1: 0xFFFE is "all operator
+#: The module's own address on the link (docs/protocol.md §1: 0xFFFE is "all operator
 #: interfaces"; the module listens in multi-homed mode like one, so it sends as one).
 ONBOARD_ADDRESS = ALL_OPERATOR_INTERFACES
 POLL_INTERVAL = 0.01

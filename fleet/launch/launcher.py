@@ -1,6 +1,6 @@
 """Start and stop a whole simulated fleet on one machine: router, simulator, onboards.
 
-What runs (one machine, the star of architecture.md):
+What runs (one machine, the star of docs/architecture.md):
 
 * the Zenoh router, embedded in this process (`fleet.transport.router`), listening on `listen`;
 * one `fleet sim SCENARIO` process simulating every aircraft of the scenario on free

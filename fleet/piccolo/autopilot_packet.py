@@ -1,4 +1,4 @@
-"""Autopilot-stream "simple packets" (piccolo-link.md 3): framing only.
+"""Autopilot-stream "simple packets" (docs/protocol.md §3): framing only.
 
 0xA0 0x05, packet type, data size N, N data bytes, CRC-16/ARC (high byte first) over
 everything before it. Decoded out of the autopilot stream's bytes, whether a packet

@@ -1,4 +1,4 @@
-"""CRC-16/ARC, the checksum of Piccolo stream and autopilot packets (piccolo-link.md 1).
+"""CRC-16/ARC, the checksum of Piccolo stream and autopilot packets (docs/protocol.md §1).
 
 Polynomial 0x8005 reflected, initial value 0, no final XOR; check value 0xBB3D for
 b"123456789". Python's `binascii.crc_hqx` is CRC-16/CCITT, a different CRC, so the

@@ -1,4 +1,4 @@
-"""Piccolo stream (transport) packets: encoder and incremental decoder (piccolo-link.md 1).
+"""Piccolo stream (transport) packets: encoder and incremental decoder (docs/protocol.md §1).
 
 A stream packet is 0x5A 0xA5, a 12-byte big-endian header closed by the XOR of bytes
 0-12, up to 255 data bytes, and a CRC-16/ARC (high byte first) over everything before
@@ -21,7 +21,7 @@ OVERHEAD = HEADER_SIZE + 2
 MAX_DATA = 255
 MAX_PACKET = OVERHEAD + MAX_DATA
 
-#: Addresses (piccolo-link.md 1).
+#: Addresses (docs/protocol.md §1).
 BROADCAST_AVIONICS = 0xFFFF
 ALL_OPERATOR_INTERFACES = 0xFFFE
 ALL_GROUND_STATIONS = 0x0000
@@ -29,7 +29,7 @@ ALL_GROUND_STATIONS = 0x0000
 MIN_PICCOLO_ID = 0x0001
 MAX_PICCOLO_ID = 0xFFF0
 
-#: Stream ids (piccolo-link.md 2).
+#: Stream ids (docs/protocol.md §1).
 STREAM_AUTOPILOT = 3
 STREAM_PAYLOAD = 6
 

@@ -1,8 +1,8 @@
 """TELEMETRY_HI_RES (autopilot packet type 69), typed in SI units and degrees.
 
-Layout and units: piccolo-link.md 3. Blocks after offset 8 are present only when their
+Layout and units: docs/protocol.md §3. Blocks after offset 8 are present only when their
 bit in `data_flags` is set; a clear block is omitted and later blocks move up
-(ASSUMPTION of piccolo-link.md). Order: GPS, sensor, raw (inertial), magnetometer
+(ASSUMPTION, docs/protocol.md §3). Order: GPS, sensor, raw (inertial), magnetometer
 (with the compass heading: ASSUMPTION, docs/protocol.md), AGL, actuators (u16 each,
 count in data_flags & 0x3F), fuel (IEEE half: ASSUMPTION). Bytes past what this
 decoder knows are kept verbatim in `tail`, so nothing is misread or lost.

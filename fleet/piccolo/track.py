@@ -1,4 +1,4 @@
-"""TRACK (autopilot packet type 10, 2 data bytes) (piccolo-link.md 3).
+"""TRACK (autopilot packet type 10, 2 data bytes) (docs/protocol.md §3).
 
 Sent to the autopilot it says which waypoint to track; the autopilot reports the
 waypoint it tracks with the same packet.

@@ -1,4 +1,4 @@
-"""Legacy WAYPOINT (autopilot packet type 8, 18 data bytes), typed (piccolo-link.md 3).
+"""Legacy WAYPOINT (autopilot packet type 8, 18 data bytes), typed (docs/protocol.md §3).
 
 Sent to the autopilot it creates or moves waypoint `index`; the autopilot echoes what it
 stored. A flight plan is the closed chain of waypoints linked by `next_index`.

@@ -5,7 +5,7 @@ the planning-protocol decoder (payload stream); other streams' bytes wait in bou
 queues. No I/O: the onboard adapter, the simulator and `fleet decode` feed it the bytes
 they read and write what it encodes.
 
-Sequence and acknowledge numbers (piccolo-link.md 1, ASSUMPTION): each stream's
+Sequence and acknowledge numbers (docs/protocol.md §1, ASSUMPTION): each stream's
 sequence number is the cumulative count of data bytes sent on it, including the
 packet's own, modulo 2^16; the acknowledge number echoes the last sequence number
 received from the peer on that stream. Received numbers are recorded, never enforced:

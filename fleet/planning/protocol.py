@@ -1,7 +1,7 @@
 """Onboard planning protocol: typed messages <-> payload-stream bytes, the public face.
 
 The protocol rides inside the Piccolo payload stream (thesis 2.9 and 4.2;
-piccolo-link.md 4). Every packet is an 8-byte little-endian header
+docs/protocol.md §6). Every packet is an 8-byte little-endian header
 
     sync u8 | size u8 | type u8 | user u8 | destination u16 | source u16
 

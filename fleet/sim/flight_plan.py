@@ -1,7 +1,7 @@
 """The autopilot's flight plan: waypoints 0-99 linked by `next`, pure.
 
 A Piccolo tracks one waypoint at a time; on reaching it, it goes on to that waypoint's
-`next` (thesis 1.4.1, piccolo-link.md 3). A flight plan is therefore just the table of
+`next` (thesis 1.4.1, docs/protocol.md §3). A flight plan is therefore just the table of
 stored waypoints: a closed chain is what following `next` from a waypoint gives when it
 comes back to where it started. The table accepts any waypoint with valid indices, even
 one whose `next` is not (yet) stored, because a sender uploads a plan one waypoint at a

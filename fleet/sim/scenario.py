@@ -60,7 +60,7 @@ __all__ = [
     "shipped_scenario_path",
 ]
 
-#: Piccolo IDs are avionics addresses 0x0001-0xFFF0 (piccolo-link.md 1).
+#: Piccolo IDs are avionics addresses 0x0001-0xFFF0 (docs/protocol.md §1).
 MIN_PICCOLO_ID = 0x0001
 MAX_PICCOLO_ID = 0xFFF0
 # Mercator degenerates toward the poles; the WAYPOINT packet holds whole metres in an

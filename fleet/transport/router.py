@@ -1,7 +1,7 @@
 """An embedded Zenoh router: a router-mode session in this Python process.
 
 No `zenohd` binary is on PyPI, but a Python session can run in router mode
-(architecture.md), so `fleet up` and the tests need nothing but the wheel. The router
+(docs/architecture.md), so `fleet up` and the tests need nothing but the wheel. The router
 routes between client-mode sessions (the star every fleet process joins by default) and
 serves its admin space (`@/**`) to stock tools.
 
