@@ -31,6 +31,12 @@ def request(
     )
 
 
+def wait_for_clock_past(instant: float) -> None:
+    """Return once the monotonic clock reads later than `instant` (an observable tick)."""
+    while time.monotonic() <= instant:
+        time.sleep(0.001)
+
+
 def wait_result(worker: PlannerWorker) -> PlanResult:
     give_up = time.monotonic() + WAIT_S
     while worker.is_running():
@@ -103,8 +109,9 @@ def test_run_does_not_block_and_reports_progress(
     assert worker.result() is None
     assert not worker.run(request())  # already running: refused
     first = worker.elapsed()
-    time.sleep(0.02)
-    assert worker.elapsed() > first > 0.0
+    assert first > 0.0
+    wait_for_clock_past(time.monotonic())
+    assert worker.elapsed() > first  # counting while it runs
     gate.set()
     result = wait_result(worker)
     assert result.times == (10.0, 10.0, 10.0)
@@ -113,8 +120,8 @@ def test_run_does_not_block_and_reports_progress(
     assert result.request.targets == TARGETS
     assert worker.result() is None  # handed out once
     done = worker.elapsed()
-    time.sleep(0.01)
-    assert worker.elapsed() == done  # frozen once finished
+    wait_for_clock_past(time.monotonic())
+    assert worker.elapsed() == done  # frozen once finished, though the clock moved on
     assert worker.run(request())  # free again
     wait_result(worker)
 
