@@ -88,8 +88,11 @@ class Bus(ABC):
     def subscribe(self, key_expr: str, callback: SampleCallback) -> Declaration: ...
 
     @abstractmethod
-    def get(self, selector: str, callback: SampleCallback, timeout: float) -> None:
-        """Query `selector`; each successful reply goes to `callback`, as it arrives."""
+    def get(
+        self, selector: str, callback: SampleCallback, timeout: float, payload: bytes = b""
+    ) -> None:
+        """Query `selector` (with `payload`, e.g. a command); each successful reply goes
+        to `callback` as it arrives, until `timeout` seconds have passed."""
 
     @abstractmethod
     def declare_queryable(self, key_expr: str) -> Queryable: ...

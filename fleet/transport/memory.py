@@ -209,12 +209,16 @@ class MemoryBus(Bus):
             self.network.subscriptions.append(entry)
         return _Undeclare(lambda: self._remove(self.network.subscriptions, entry))
 
-    def get(self, selector: str, callback: SampleCallback, timeout: float) -> None:
-        key, _, parameters = selector.partition("?")
+    def get(
+        self, selector: str, callback: SampleCallback, timeout: float, payload: bytes = b""
+    ) -> None:
+        """Queue the query at every intersecting queryable; replies reach `callback` when
+        their owners answer. The timeout is not enforced: a test bounds its own waits."""
+        key = selector.partition("?")[0]  # selector parameters are not used by the fleet
         with self.network.lock:
             targets = [q for q in self.network.queryables if _intersects(q.key_expr, key)]
         for queryable in targets:
-            queryable.deliver(MemoryQuery(key, parameters.encode(), callback))
+            queryable.deliver(MemoryQuery(key, payload, callback))
 
     def declare_queryable(self, key_expr: str) -> Queryable:
         queryable = MemoryQueryable(self.network, key_expr, self)

@@ -73,12 +73,17 @@ class ZenohBus(Bus):
         )
         return subscriber
 
-    def get(self, selector: str, callback: SampleCallback, timeout: float) -> None:
+    def get(
+        self, selector: str, callback: SampleCallback, timeout: float, payload: bytes = b""
+    ) -> None:
         def on_reply(reply: zenoh.Reply) -> None:
             if reply.ok is not None:
                 callback(_sample(reply.ok))
 
-        self.session.get(selector, on_reply, timeout=timeout)
+        if payload:
+            self.session.get(selector, on_reply, payload=payload, timeout=timeout)
+        else:
+            self.session.get(selector, on_reply, timeout=timeout)
 
     def declare_queryable(self, key_expr: str) -> Queryable:
         # A channel handler (the default): the owner's loop polls it with try_recv.

@@ -17,11 +17,19 @@ import msgspec
 import pytest
 
 from fleet.mission import keys
-from fleet.mission.messages import AssignmentReport, MissionTargets, UavResult, UavState
+from fleet.mission.messages import (
+    AssignmentReport,
+    CommandResult,
+    MissionTargets,
+    UavResult,
+    UavState,
+)
 from fleet.piccolo.telemetry import Telemetry
+from fleet.piccolo.track import Track
 from fleet.sim.autopilot import AutopilotSettings, SimulatedAutopilot
 from fleet.sim.linked import LinkedAutopilot
 from fleet.sim.scenario import resolve_scenario
+from fleet.transport import bus_codec
 from fleet.transport.bus import BusSample
 from fleet.transport.memory import MemoryBus, MemoryNetwork, memory_link_pair
 from fleet.transport.targets_io import read_targets
@@ -152,3 +160,17 @@ def test_closing_the_uav_bus_withdraws_its_token(world: World) -> None:
     wait_until(lambda: seen.tokens.get(keys.alive(UAV)) is True, 10.0, "the UAV's token")
     world.process.stop_requested.set()
     wait_until(lambda: seen.tokens.get(keys.alive(UAV)) is False, 10.0, "the token to go")
+
+
+def test_a_command_query_is_answered_after_the_autopilot_echo(world: World) -> None:
+    wait_until(lambda: len(world.seen.telemetry) >= 1, 30.0, "telemetry (the link is up)")
+    answers: list[CommandResult] = []
+    world.ground.get(
+        keys.command(UAV, "track"),
+        lambda sample: answers.append(msgspec.json.decode(sample.payload, type=CommandResult)),
+        timeout=5.0,
+        payload=bus_codec.encode(Track(2)),
+    )
+    wait_until(lambda: bool(answers), 10.0, "the command's answer")
+    assert answers[0].ok and answers[0].detail == "confirmed by the autopilot"
+    assert world.aircraft.autopilot.tracked == 2
