@@ -11,6 +11,7 @@ computes every teammate's row itself and the consensus is the real greedy.
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import socket
@@ -212,6 +213,10 @@ def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
             fake.close()
 
 
+#: Mission ids of markers no command uses, a new one each time.
+MARKER_MISSIONS = itertools.count(0xFFFF_0000)
+
+
 def run_cli(*args: str, endpoint: str | None) -> subprocess.CompletedProcess[str]:
     env = {k: v for k, v in os.environ.items() if k != CONNECT_ENV}
     command = [sys.executable, "-m", "ground.cli"]
@@ -345,7 +350,7 @@ def test_bad_targets_file_is_refused_and_nothing_sent(
     # A marker sent now through the same router arrives after anything the command put
     # before it exited (its session's close flushes): once every fake has the marker,
     # a put from the command would have been seen.
-    marker = MissionTargets(mission=0xFFFF_FFFF, team=(1,), targets=())
+    marker = MissionTargets(mission=next(MARKER_MISSIONS), team=(1,), targets=())
     with zenoh.open(make_config("client", [router])) as session:
         session.put(
             keys.mission_targets(marker.mission),
