@@ -18,11 +18,33 @@ Layout (all under the prefix `fleet`):
     fleet/mission/{m}/abort            MissionAbort, ground -> team
 
 {id} is the Piccolo ID in decimal; {m} the mission id in decimal.
+
+The prefix is one setting for every tool: $FLEET_KEY_PREFIX (one key chunk, default
+`fleet`), read once when this module is first imported. A replay (`fleet replay`)
+publishes under another prefix (`replay` by default) so it is never mistaken for the
+live fleet; point any tool at it with `FLEET_KEY_PREFIX=replay`.
 """
 
 from __future__ import annotations
 
-PREFIX = "fleet"
+import os
+import re
+
+PREFIX_ENV = "FLEET_KEY_PREFIX"
+DEFAULT_PREFIX = "fleet"
+_CHUNK = re.compile(r"^[A-Za-z0-9_-]+$")
+
+
+def checked_prefix(text: str) -> str:
+    """`text` if it is one key chunk (letters, digits, _ and -); ValueError says why not."""
+    if not _CHUNK.match(text):
+        raise ValueError(
+            f"key prefix {text!r}: expected one key chunk of letters, digits, '_' or '-'"
+        )
+    return text
+
+
+PREFIX = checked_prefix(os.environ.get(PREFIX_ENV, DEFAULT_PREFIX))
 
 
 def uav(uav_id: int, leaf: str) -> str:
