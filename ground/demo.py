@@ -20,6 +20,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, TextIO
 
 from fleet.geo.mercator import MercatorProjection
@@ -28,8 +29,11 @@ from fleet.launch.launcher import (
     FleetSpec,
     LaunchError,
 )
-from fleet.launch.up_command import common_arguments
+from fleet.launch.up_command import common_arguments, recording_path
 from fleet.mission.messages import AssignmentReport, MissionTargets, Target, UavResult
+from fleet.recording.mission_log import build_timeline
+from fleet.recording.plot import PlotError, render
+from fleet.recording.reader import RecordingError, read_recording
 from fleet.sim.scenario import ScenarioError, resolve_scenario
 from fleet.transport.cli import ExitCode, fail, positive_float, stop_on_signals
 
@@ -54,6 +58,8 @@ DEMO_COMMIT_TIMEOUT_S = 60.0
 DEMO_REACH_TIMEOUT_S = 300.0
 #: A waypoint echo this close to a target (m) is the waypoint the UAV wrote for it.
 TARGET_WAYPOINT_MATCH_M = 30.0
+#: The mission's picture, drawn from the recording into the log folder.
+PLOT_NAME = "mission.png"
 
 
 def add_demo_parser(
@@ -141,6 +147,9 @@ def _run_demo(args: argparse.Namespace, stop: threading.Event) -> int:
     fleet = Fleet(spec, stop_requested=stop)
     say(f"demo: {scenario.description or scenario.name} at speedup {args.speedup:g}")
     say(f"demo: logs in {fleet.log_dir}")
+    spec.record = recording_path(fleet, args)
+    if spec.record is not None:
+        say(f"demo: recording to {spec.record}")
     try:
         with fleet:
             say(f"demo: UAVs {', '.join(map(str, fleet.uav_ids))} alive; router {spec.listen}")
@@ -149,11 +158,26 @@ def _run_demo(args: argparse.Namespace, stop: threading.Event) -> int:
         if stop.is_set():
             return fail("fleet demo", "stopped while starting", ExitCode.INTERRUPTED)
         return fail("fleet demo", str(error), ExitCode.FAILED)
+    # The recorder finished its file when the fleet stopped: draw the mission from it.
+    report["plot"] = _plot(spec.record, fleet.log_dir / PLOT_NAME, say)
     if args.json:
         print(json.dumps(report))
     else:
         print("\n".join(_demo_summary(report)))
     return ExitCode.OK if report["success"] else ExitCode.FAILED
+
+
+def _plot(recording: Path | None, out: Path, say: Callable[[str], None]) -> str | None:
+    """Draw the recorded mission into `out`; its path, or None (and why) if it could not."""
+    if recording is None:
+        return None
+    try:
+        render(build_timeline(read_recording(recording).messages), out)
+    except (RecordingError, PlotError, OSError) as error:
+        say(f"demo: no plot: {error}")
+        return None
+    say(f"demo: plot of the mission in {out}")
+    return str(out)
 
 
 def _sayer(out: TextIO) -> Callable[[str], None]:

@@ -1,4 +1,5 @@
-"""`fleet`: the shared command line: decode a capture, simulate autopilots, run a fleet."""
+"""`fleet`: the shared command line: decode a capture, simulate autopilots, run a fleet,
+record, replay, plot and report on it."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ SUBCOMMANDS = (
     "fleet.sim.command",
     "fleet.launch.up_command",
     "ground.demo",
+    "fleet.recording.commands",
 )
 
 

@@ -7,7 +7,9 @@ What runs (one machine, the star of docs/architecture.md):
   ports (one process rather than one per UAV: the simulator serves many aircraft from
   one selector loop, and one process is half the memory of N);
 * one `onboard` process per UAV, a Zenoh client of the router, on the program and
-  payload ports the simulator printed.
+  payload ports the simulator printed;
+* unless told not to, one `fleet record` process (`fleet.recording`), started first
+  and waited for, so the whole run is recorded into `record` (an MCAP file).
 
 Children are started with `sys.executable -m ...` (no dependence on console scripts
 being on PATH), in their own session (process group), so a Ctrl-C in the terminal
@@ -41,6 +43,7 @@ from fleet.errors import FleetError
 from fleet.geo.mercator import MercatorProjection
 from fleet.mission import keys
 from fleet.piccolo.telemetry import Telemetry
+from fleet.recording.recorder import READY_LINE
 from fleet.transport import bus_codec
 from fleet.transport.router import Router
 from fleet.transport.zenoh_config import DEFAULT_ROUTER
@@ -183,6 +186,8 @@ class FleetSpec:
     python: str = sys.executable
     #: How to run one UAV's onboard module after `python`; tests put a double here.
     onboard_command: tuple[str, ...] = ("-m", "onboard.main")
+    #: Where `fleet record` writes the run's recording; None: not recorded.
+    record: Path | None = None
 
 
 @dataclass
@@ -242,6 +247,8 @@ class Fleet:
             self.router.open()
         except Exception as error:
             raise LaunchError(str(error)) from error
+        if self.spec.record is not None:
+            self._start_recorder(self.spec.record, deadline)
         self._start_sim(deadline)
         for endpoints in self.endpoints:
             self._start_onboard(endpoints)
@@ -263,6 +270,24 @@ class Fleet:
         self.children.append(child)
         log.info("started %s (pid %d): %s", name, process.pid, " ".join(argv[1:]))
         return child
+
+    def _start_recorder(self, path: Path, deadline: float) -> None:
+        recorder = self._spawn(
+            "record",
+            [
+                self.spec.python,
+                "-m",
+                "fleet.recording.commands",
+                "record",
+                str(path),
+                "--connect",
+                self.connect,
+            ],
+        )
+        # Its first line says it listens; what the fleet says before would be lost.
+        while READY_LINE not in recorder.tail():
+            self._check_running(deadline, "the recorder")
+            time.sleep(0.1)
 
     def _start_sim(self, deadline: float) -> None:
         argv = [

@@ -30,6 +30,9 @@ from fleet.transport.zenoh_config import CONNECT_ENV, DEFAULT_ROUTER
 
 log = logging.getLogger(__name__)
 
+#: The recording's file name in the run's log folder.
+RECORDING_NAME = "fleet.mcap"
+
 
 def common_arguments(parser: argparse.ArgumentParser, speedup: float) -> None:
     parser.add_argument(
@@ -52,6 +55,17 @@ def common_arguments(parser: argparse.ArgumentParser, speedup: float) -> None:
         metavar="S",
         help="how long to wait for every UAV to come up (default %(default)g s)",
     )
+    parser.add_argument(
+        "--no-record",
+        dest="record",
+        action="store_false",
+        help=f"do not record the run (default: record it to {RECORDING_NAME} in the log folder)",
+    )
+
+
+def recording_path(fleet: Fleet, args: argparse.Namespace) -> Path | None:
+    """Where the run is recorded (in its log folder), or None with --no-record."""
+    return fleet.log_dir / RECORDING_NAME if args.record else None
 
 
 def add_up_parser(
@@ -121,11 +135,14 @@ def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
         spec.scenario = str(path)
     else:
         spec.scenario = args.scenario
+    spec.record = recording_path(fleet, args)
     try:
         description, targets_path = scenario_info(spec.scenario)
     except ScenarioError as error:
         return fail("fleet up", str(error))
     print(f"fleet up: starting {description or spec.scenario} (logs in {fleet.log_dir})")
+    if spec.record is not None:
+        print(f"fleet up: recording to {spec.record} (fleet replay/plot/report read it)")
     try:
         with fleet:
             _print_banner(fleet, targets_path)
@@ -144,6 +161,8 @@ def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
             return fail("fleet up", "stopped while starting", ExitCode.INTERRUPTED)
         return fail("fleet up", str(error), ExitCode.FAILED)
     print("fleet up: stopped")
+    if spec.record is not None:
+        print(f"fleet up: recorded to {spec.record}")
     return ExitCode.OK if stopped_cleanly else ExitCode.FAILED
 
 

@@ -36,6 +36,10 @@ def test_fleet_demo_runs_the_thesis_multi_uav_scenario(tmp_path: Path) -> None:
     assert outcome["assignment"] == {"74": 0, "112": 1}
     assert outcome["unassigned"] == [2]
     assert set(outcome["reached"]) == {"74", "112"} and all(outcome["reached"].values())
+    # It recorded the run and drew the mission from the recording.
+    assert outcome["plot"] == str(tmp_path / "mission.png")
+    assert (tmp_path / "mission.png").read_bytes()[:4] == b"\x89PNG"
+    assert (tmp_path / "fleet.mcap").stat().st_size > 0
     # Every process it started is gone.
     pids = [int(line.split()[0]) for line in (tmp_path / "pids").read_text().splitlines()]
     assert pids and not any(Path(f"/proc/{pid}").exists() for pid in pids)

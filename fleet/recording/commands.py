@@ -1,0 +1,305 @@
+"""`fleet record`, `fleet replay`, `fleet plot`, `fleet report` (docs/recording.md).
+
+Exit status: 0 done; 1 the file could not be read or written; 2 usage error or no
+Zenoh router; 130 interrupted while replaying.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import sys
+import threading
+from pathlib import Path
+
+import zenoh
+
+from fleet.mission import keys
+from fleet.recording.mission_log import build_timeline
+from fleet.recording.plot import PlotError, parse_at, render
+from fleet.recording.reader import Recording, RecordingError, read_recording, recover
+from fleet.recording.recorder import DEFAULT_STATE_EVERY_S, READY_LINE, Recorder
+from fleet.recording.replay import DEFAULT_REPLAY_PREFIX, Replayer
+from fleet.recording.report import report_json, report_lines
+from fleet.recording.writer import McapSink, Rotation
+from fleet.transport.cli import (
+    ExitCode,
+    add_verbose_argument,
+    add_zenoh_arguments,
+    fail,
+    non_negative_float,
+    positive_float,
+    setup_logging,
+    stop_on_signals,
+    zenoh_config,
+)
+from fleet.transport.zenoh_config import ZenohConfigError, endpoints, error_text
+
+log = logging.getLogger(__name__)
+
+
+def _key_prefix(text: str) -> str:
+    try:
+        return keys.checked_prefix(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Register `record`, `replay`, `plot` and `report`."""
+    _record_parser(subparsers.add_parser("record", help="record the fleet's key space to MCAP"))
+    _replay_parser(subparsers.add_parser("replay", help="replay a recording onto Zenoh"))
+    _plot_parser(subparsers.add_parser("plot", help="draw a recorded mission as a PNG"))
+    _report_parser(subparsers.add_parser("report", help="each recorded mission, summed up"))
+
+
+def _record_parser(parser: argparse.ArgumentParser) -> None:
+    parser.description = "Record the fleet's key space into an MCAP file until Ctrl-C/SIGTERM."
+    parser.add_argument("out", type=Path, metavar="OUT.mcap")
+    parser.add_argument("expr", nargs="?", metavar="KEYEXPR", help="what to record ({PREFIX}/**)")
+    parser.add_argument("--duration", type=positive_float, metavar="S", help="stop after S s")
+    add_zenoh_arguments(parser)
+    parser.add_argument(
+        "--key-prefix",
+        type=_key_prefix,
+        default=keys.PREFIX,
+        metavar="P",
+        help=f"the fleet's key prefix (default ${keys.PREFIX_ENV} or {keys.DEFAULT_PREFIX})",
+    )
+    parser.add_argument(
+        "--state-every",
+        type=non_negative_float,
+        default=DEFAULT_STATE_EVERY_S,
+        metavar="S",
+        help="query every UAV's state this often; 0: never (default %(default)g s)",
+    )
+    parser.add_argument(
+        "--rotate-size", type=positive_float, metavar="MB", help="new file past MB megabytes"
+    )
+    parser.add_argument(
+        "--rotate-every", type=positive_float, metavar="S", help="new file every S seconds"
+    )
+    parser.add_argument(
+        "--recover",
+        action="store_true",
+        help="do not record: rewrite OUT.mcap, left unfinished by a killed recorder, "
+        "into a finished file",
+    )
+    parser.set_defaults(func=run_record)
+
+
+def _replay_parser(parser: argparse.ArgumentParser) -> None:
+    parser.description = (
+        "Publish a recording's state (never its commands) again, under another key prefix."
+    )
+    parser.add_argument("file", type=Path, nargs="+", metavar="FILE.mcap")
+    parser.add_argument(
+        "--rate", type=positive_float, default=1.0, metavar="K", help="K x real time (1)"
+    )
+    parser.add_argument(
+        "--prefix",
+        type=_key_prefix,
+        default=DEFAULT_REPLAY_PREFIX,
+        metavar="P",
+        help="key prefix to replay under (default %(default)s; the live fleet's is "
+        f"{keys.DEFAULT_PREFIX})",
+    )
+    parser.add_argument(
+        "--hold",
+        type=non_negative_float,
+        default=0.0,
+        metavar="S",
+        help="keep the UAVs' last state served S seconds after the end (default 0)",
+    )
+    add_zenoh_arguments(parser)
+    parser.set_defaults(func=run_replay)
+
+
+def _plot_parser(parser: argparse.ArgumentParser) -> None:
+    parser.description = "Draw a recorded mission: tracks, targets, assignment, arrivals."
+    parser.add_argument("file", type=Path, nargs="+", metavar="FILE.mcap")
+    parser.add_argument("--out", type=Path, required=True, metavar="PNG")
+    parser.add_argument(
+        "--at",
+        type=parse_at,
+        default=[],
+        metavar="EVENTS",
+        help="panels: events (sent,committed,course change,reached,resumed) or seconds, "
+        "comma-separated (default: every event seen)",
+    )
+    parser.add_argument("--mission", type=int, metavar="M", help="which mission (the last)")
+    parser.set_defaults(func=run_plot)
+
+
+def _report_parser(parser: argparse.ArgumentParser) -> None:
+    parser.description = "Per mission: team, targets, assignment, agreement, arrivals, faults."
+    parser.add_argument("file", type=Path, nargs="+", metavar="FILE.mcap")
+    parser.add_argument("--json", action="store_true", help="one JSON object")
+    parser.set_defaults(func=run_report)
+
+
+# ---- sessions -----------------------------------------------------------------
+def _open(args: argparse.Namespace, prog: str) -> zenoh.Session | None:
+    """A session as the Zenoh flags ask; None (said on stderr) if there is none."""
+    try:
+        config = zenoh_config(args)
+    except ZenohConfigError as error:
+        fail(prog, str(error))
+        return None
+    try:
+        return zenoh.open(config)
+    except zenoh.ZError as error:
+        where = ", ".join(endpoints(config)) or "the configured endpoints"
+        fail(prog, f"no Zenoh router answers at {where} ({error_text(error)})")
+        return None
+
+
+def _read(paths: list[Path], command: str) -> Recording | None:
+    try:
+        recording = read_recording(paths)
+    except RecordingError as error:
+        fail(f"fleet {command}", str(error), ExitCode.FAILED)
+        return None
+    for path, why in recording.truncated.items():
+        print(f"fleet {command}: {path} ends early ({why}); read up to there", file=sys.stderr)
+    return recording
+
+
+# ---- fleet record ---------------------------------------------------------------------------
+def run_record(args: argparse.Namespace) -> int:
+    if args.recover:
+        return _recover(args.out)
+    rotation = Rotation(
+        max_bytes=round((args.rotate_size or 0) * 1_000_000),
+        max_seconds=args.rotate_every or 0.0,
+    )
+    session = _open(args, "fleet record")
+    if session is None:
+        return ExitCode.USAGE
+    stop = threading.Event()
+    with session, stop_on_signals(stop.set):
+        recorder = Recorder(
+            session,
+            McapSink(args.out, rotation),
+            expr=args.expr,
+            prefix=args.key_prefix,
+            state_every_s=args.state_every,
+            on_failure=stop,
+        )
+        try:
+            recorder.start()
+        except OSError as error:
+            return fail(
+                "fleet record", f"cannot write {args.out}: {error.strerror}", ExitCode.FAILED
+            )
+        except zenoh.ZError as error:
+            recorder.stop()
+            return fail("fleet record", f"cannot subscribe to {recorder.expr}: {error_text(error)}")
+        print(f"{READY_LINE} {recorder.expr} to {args.out} (pid {os.getpid()})", flush=True)
+        try:
+            stop.wait(args.duration)
+        finally:
+            recorder.stop()
+    if recorder.failure is not None:
+        return fail("fleet record", f"{recorder.failure}; recording stopped", ExitCode.FAILED)
+    files = ", ".join(map(str, recorder.sink.files))
+    dropped = sum(recorder.stats.dropped.values())
+    print(
+        f"fleet record: {recorder.sink.messages} messages in {files}"
+        + (f"; {dropped} dropped: {dict(recorder.stats.dropped)}" if dropped else ""),
+        flush=True,
+    )
+    return ExitCode.OK
+
+
+def _recover(path: Path) -> int:
+    temporary = path.with_name(path.name + ".recovering")
+    try:
+        recording = recover(path, temporary)
+    except RecordingError as error:
+        return fail("fleet record --recover", str(error), ExitCode.FAILED)
+    if not recording.messages:
+        temporary.unlink(missing_ok=True)
+        return fail(
+            "fleet record --recover", f"{path} holds no message; left as it is", ExitCode.FAILED
+        )
+    os.replace(temporary, path)
+    why = recording.truncated.get(str(path))
+    state = f"it had ended early ({why})" if why else "it was already complete"
+    print(f"fleet record --recover: {path}: {len(recording.messages)} messages kept; {state}")
+    return ExitCode.OK
+
+
+# ---- fleet replay ---------------------------------------------------------------------------
+def run_replay(args: argparse.Namespace) -> int:
+    recording = _read(args.file, "replay")
+    if recording is None:
+        return ExitCode.FAILED
+    session = _open(args, "fleet replay")
+    if session is None:
+        return ExitCode.USAGE
+    stop = threading.Event()
+    with session, stop_on_signals(stop.set):
+        replayer = Replayer(session, recording, prefix=args.prefix, rate=args.rate, stop=stop)
+        print(
+            f"fleet replay: {len(recording.messages)} messages at {args.rate:g}x under "
+            f"{args.prefix}/** (see it with {keys.PREFIX_ENV}={args.prefix} ground-cli watch)",
+            flush=True,
+        )
+        try:
+            finished = replayer.run()
+            if finished and args.hold > 0:
+                print(f"fleet replay: end reached; holding {args.hold:g} s", flush=True)
+                replayer.hold(args.hold)
+        finally:
+            replayer.close()
+    stats = replayer.stats
+    print(
+        f"fleet replay: {'done' if finished else 'stopped'}: {stats.published} published, "
+        f"{stats.skipped} commands and map fixes not replayed, {stats.bad} undecodable"
+    )
+    return ExitCode.OK if finished else ExitCode.INTERRUPTED
+
+
+# ---- fleet plot, fleet report ---------------------------------------------------------------
+def run_plot(args: argparse.Namespace) -> int:
+    recording = _read(args.file, "plot")
+    if recording is None:
+        return ExitCode.FAILED
+    try:
+        out = render(build_timeline(recording.messages), args.out, mission=args.mission, at=args.at)
+    except PlotError as error:
+        return fail("fleet plot", str(error))
+    except OSError as error:
+        return fail("fleet plot", f"cannot write {args.out}: {error.strerror}", ExitCode.FAILED)
+    print(f"fleet plot: {out}")
+    return ExitCode.OK
+
+
+def run_report(args: argparse.Namespace) -> int:
+    recording = _read(args.file, "report")
+    if recording is None:
+        return ExitCode.FAILED
+    timeline = build_timeline(recording.messages)
+    if args.json:
+        print(json.dumps(report_json(timeline)))
+    else:
+        print("\n".join(report_lines(timeline)))
+    return ExitCode.OK
+
+
+def main(argv: list[str] | None = None) -> int:
+    """`python -m fleet.recording.commands record ...`: how the launcher starts it."""
+    parser = argparse.ArgumentParser(prog="fleet")
+    add_verbose_argument(parser)
+    add_parser(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(argv)
+    setup_logging(args.verbose)
+    status: int = args.func(args)
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())

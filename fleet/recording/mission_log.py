@@ -1,0 +1,297 @@
+"""What a recording says about each mission (pure): who, where, when, and what went wrong.
+
+Every event is one observed in the recording, never inferred from a plan:
+
+* sent: the mission's targets message was heard;
+* committed: a UAV's assignment report was heard (the mission's: the last team UAV's);
+* course change: the UAV's first track change after its commitment (it turned to its
+  target waypoint, as its autopilot echoed);
+* reached: the UAV said so (status "reached", or state phase "reached"), or its track
+  left the target waypoint (the autopilot passed it), whichever was heard first;
+* resumed: that track change back to its own course.
+
+Flown time is measured on the aircraft's own clock (telemetry `system_time_ms`) from
+the UAV's commitment to its arrival, so it compares with the predicted ETA whatever
+the simulator's speedup. Times are seconds since the recording's first message.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import msgspec
+
+from fleet.mission.messages import AssignmentReport, MissionTargets, Target, UavResult
+from fleet.recording.reader import RecordedMessage
+
+NS = 1_000_000_000
+#: Tokens that go in the recording's last seconds are the fleet being stopped, not a fault.
+SHUTDOWN_S = 2.0
+
+
+@dataclass
+class Track:
+    """A UAV's flown positions: (t, lat, lon), and its clock: (t, aircraft seconds)."""
+
+    uav: int
+    times: list[float] = field(default_factory=list)
+    lat: list[float] = field(default_factory=list)
+    lon: list[float] = field(default_factory=list)
+    clock: list[float] = field(default_factory=list)
+
+    def until(self, t: float) -> int:
+        """How many points were flown by time t."""
+        return bisect.bisect_right(self.times, t)
+
+    def aircraft_time(self, t: float) -> float | None:
+        """The aircraft's clock (s) at the last telemetry at or before t."""
+        i = self.until(t)
+        return self.clock[i - 1] if i else None
+
+    def position(self, t: float) -> tuple[float, float] | None:
+        i = self.until(t)
+        return (self.lat[i - 1], self.lon[i - 1]) if i else None
+
+
+@dataclass
+class MissionLog:
+    mission: int
+    team: tuple[int, ...]
+    targets: tuple[Target, ...]
+    sent: float
+    end: float  #: the next mission's start, or the recording's end
+    results: dict[int, UavResult] = field(default_factory=dict)
+    assignments: dict[int, AssignmentReport] = field(default_factory=dict)
+    committed: dict[int, float] = field(default_factory=dict)
+    course_change: dict[int, float] = field(default_factory=dict)
+    reached: dict[int, float] = field(default_factory=dict)
+    reached_how: dict[int, str] = field(default_factory=dict)
+    resumed: dict[int, float] = field(default_factory=dict)
+    flown_s: dict[int, float] = field(default_factory=dict)
+    faults: list[tuple[float, str]] = field(default_factory=list)
+
+    def target_of(self, uav: int) -> int | None:
+        report = self.assignments.get(uav)
+        return report.target if report is not None else None
+
+    def predicted_s(self, uav: int) -> float | None:
+        report = self.assignments.get(uav)
+        return report.eta_s if report is not None else None
+
+    @property
+    def agreed(self) -> bool:
+        reports = [self.assignments.get(uav) for uav in self.team]
+        if any(r is None for r in reports):
+            return False
+        return len({(r.digest, tuple(sorted(r.pairs.items()))) for r in reports if r}) == 1
+
+    @property
+    def all_committed(self) -> float | None:
+        """When the last team UAV committed; None if one never did."""
+        if any(uav not in self.committed for uav in self.team):
+            return None
+        return max(self.committed[uav] for uav in self.team)
+
+    def events(self) -> dict[str, float]:
+        """The mission's moments for the figure's panels (those that happened)."""
+        found = {"sent": self.sent}
+        if self.committed:
+            found["committed"] = max(self.committed.values())
+        for name, times in (
+            ("course change", self.course_change),
+            ("reached", self.reached),
+        ):
+            if times:
+                found[name] = max(times.values())
+        if self.resumed:
+            # Some way past the last turn back, so the resumed courses show.
+            last = max(self.resumed.values())
+            found["resumed"] = min(self.end, last + max(5.0, 0.25 * (last - self.sent)))
+        return found
+
+
+@dataclass
+class Timeline:
+    """Everything the figures and the report need from a recording."""
+
+    start_ns: int
+    end: float
+    tracks: dict[int, Track]
+    missions: list[MissionLog]
+    undecodable: int = 0
+
+
+# ---- reading the messages ----------------------------------------------------------------------
+def _leaf(topic: str) -> list[str]:
+    return topic.split("/")[1:]
+
+
+def build_timeline(messages: Iterable[RecordedMessage]) -> Timeline:
+    ordered = sorted(messages, key=lambda m: m.log_time_ns)
+    start = ordered[0].log_time_ns if ordered else 0
+    builder = _Builder(start)
+    for message in ordered:
+        builder.add(message)
+    end = (ordered[-1].log_time_ns - start) / NS if ordered else 0.0
+    return builder.finish(end)
+
+
+@dataclass
+class _Builder:
+    start_ns: int
+    tracks: dict[int, Track] = field(default_factory=dict)
+    missions: dict[int, MissionLog] = field(default_factory=dict)
+    track_changes: dict[int, list[tuple[float, int]]] = field(default_factory=dict)
+    statuses: list[tuple[float, int, str]] = field(default_factory=list)
+    phases: list[tuple[float, int, int, str]] = field(default_factory=list)
+    gone: list[tuple[float, int]] = field(default_factory=list)
+    link_down: list[tuple[float, int, str]] = field(default_factory=list)
+    link_was_down: dict[int, bool] = field(default_factory=dict)
+    end: float = 0.0
+    undecodable: int = 0
+
+    def add(self, message: RecordedMessage) -> None:
+        parts = _leaf(message.topic)
+        value = message.value()
+        if not isinstance(value, dict):
+            self.undecodable += 1
+            return
+        t = (message.log_time_ns - self.start_ns) / NS
+        try:
+            if parts[:1] == ["uav"] and len(parts) >= 3:
+                self._add_uav(t, int(parts[1]), parts[2], value)
+            elif parts[:1] == ["mission"] and len(parts) >= 3:
+                self._add_mission(t, parts[2], value)
+        except (msgspec.ValidationError, ValueError, TypeError, KeyError):
+            self.undecodable += 1
+
+    def _add_uav(self, t: float, uav: int, leaf: str, value: Any) -> None:
+        if leaf == "telemetry":
+            gps = value.get("gps")
+            if isinstance(gps, dict):
+                # Every field parsed before any is kept: the lists stay the same length.
+                lat, lon = float(gps["lat"]), float(gps["lon"])
+                clock = float(value["system_time_ms"]) / 1000.0
+                if not (math.isfinite(clock) and _on_earth(lat, lon)):
+                    raise ValueError("not a position on Earth")
+                track = self.tracks.setdefault(uav, Track(uav))
+                track.times.append(t)
+                track.lat.append(lat)
+                track.lon.append(lon)
+                track.clock.append(clock)
+        elif leaf == "track":
+            self.track_changes.setdefault(uav, []).append((t, int(value["waypoint"])))
+        elif leaf == "status":
+            self.statuses.append((t, uav, str(value["text"])))
+        elif leaf == "state":
+            mission = value.get("mission")
+            if isinstance(mission, dict):
+                self.phases.append((t, uav, int(mission["mission"]), str(mission["phase"])))
+        elif leaf == "alive" and value.get("alive") is False:
+            self.gone.append((t, uav))
+        elif leaf == "link":
+            down = [port for port in ("program", "payload") if not value.get(f"{port}_up")]
+            if down and not self.link_was_down.get(uav):
+                self.link_down.append((t, uav, " and ".join(down)))  # only when it goes down
+            self.link_was_down[uav] = bool(down)
+
+    def _add_mission(self, t: float, kind: str, value: Any) -> None:
+        if kind == "targets":
+            targets = msgspec.convert(value, MissionTargets)
+            if not all(_on_earth(p.lat, p.lon) for p in targets.targets):
+                raise ValueError("a target not on Earth")
+            if targets.mission not in self.missions:
+                self.missions[targets.mission] = MissionLog(
+                    targets.mission, targets.team, targets.targets, sent=t, end=t
+                )
+        elif kind == "result":
+            result = msgspec.convert(value, UavResult)
+            if (log := self.missions.get(result.mission)) is not None:
+                log.results.setdefault(result.uav, result)
+        elif kind == "assignment":
+            report = msgspec.convert(value, AssignmentReport)
+            if (log := self.missions.get(report.mission)) is not None:
+                if report.target is not None and not 0 <= report.target < len(log.targets):
+                    raise ValueError(f"target {report.target} is not one of the mission's")
+                log.assignments.setdefault(report.uav, report)
+                log.committed.setdefault(report.uav, t)
+        elif kind == "abort" and (log := self.missions.get(int(value["mission"]))) is not None:
+            log.faults.append((t, f"mission {log.mission} aborted by the ground"))
+
+    def finish(self, end: float) -> Timeline:
+        self.end = end
+        ordered = sorted(self.missions.values(), key=lambda m: m.sent)
+        for i, log in enumerate(ordered):
+            log.end = ordered[i + 1].sent if i + 1 < len(ordered) else end
+            self._arrivals(log)
+            self._faults(log)
+        return Timeline(self.start_ns, end, self.tracks, ordered, self.undecodable)
+
+    def _arrivals(self, log: MissionLog) -> None:
+        for uav, committed in log.committed.items():
+            if log.target_of(uav) is None:
+                continue
+            changes = [c for c in self.track_changes.get(uav, []) if log.sent <= c[0] <= log.end]
+            after = [c for c in changes if c[0] >= committed]
+            if after:
+                log.course_change[uav] = after[0][0]
+                back = [c for c in after[1:] if c[1] != after[0][1]]
+                if back:
+                    log.resumed[uav] = back[0][0]
+            said = [
+                (t, "status")
+                for t, who, text in self.statuses
+                if who == uav and committed <= t <= log.end and "reached" in text.lower()
+            ]
+            said += [
+                (t, "phase")
+                for t, who, mission, phase in self.phases
+                if who == uav and mission == log.mission and phase == "reached" and t <= log.end
+            ]
+            if uav in log.resumed:
+                said.append((log.resumed[uav], "track"))
+            if said:
+                when, how = min(said)
+                log.reached[uav], log.reached_how[uav] = when, how
+                self._flown(log, uav, committed, when)
+
+    def _flown(self, log: MissionLog, uav: int, committed: float, reached: float) -> None:
+        track = self.tracks.get(uav)
+        if track is None:
+            return
+        start, stop = track.aircraft_time(committed), track.aircraft_time(reached)
+        if start is not None and stop is not None:
+            log.flown_s[uav] = stop - start
+
+    def _faults(self, log: MissionLog) -> None:
+        team = set(log.team)
+        window = (log.sent, log.end)
+        for t, uav, text in self.statuses:
+            if uav in team and _within(t, window) and text.lower().startswith(("error", "warn")):
+                log.faults.append((t, f"UAV {uav}: {text}"))
+        for t, uav in self.gone:
+            if uav in team and _within(t, window) and t < self.end - SHUTDOWN_S:
+                log.faults.append((t, f"UAV {uav} left (liveliness token gone)"))
+        for t, uav, ports in self.link_down:
+            if uav in team and _within(t, window):
+                log.faults.append((t, f"UAV {uav}: {ports} link down"))
+        for uav in log.team:
+            if uav not in log.committed:
+                log.faults.append((log.end, f"UAV {uav} never committed"))
+            elif log.target_of(uav) is not None and uav not in log.reached:
+                log.faults.append((log.end, f"UAV {uav} not seen to reach its target"))
+        if log.committed and all(u in log.committed for u in log.team) and not log.agreed:
+            log.faults.append((max(log.committed.values()), "the team's assignments disagree"))
+        log.faults.sort()
+
+
+def _on_earth(lat: float, lon: float) -> bool:
+    return abs(lat) < 90 and abs(lon) <= 360
+
+
+def _within(t: float, window: tuple[float, float]) -> bool:
+    return window[0] <= t <= window[1]

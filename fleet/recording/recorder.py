@@ -1,0 +1,230 @@
+"""Record the fleet's key space from Zenoh into MCAP (`fleet record`).
+
+What is recorded:
+
+* every sample put under the expression (default `{prefix}/**`), on a channel per key;
+* each UAV's state (`{prefix}/uav/*/state`, a queryable that is never published), by a
+  query every `state_every_s`, so the mission phases are in the recording;
+* each UAV's liveliness token appearing or going (`.../alive`, `{"alive": bool}`);
+* a `foxglove.LocationFix` per telemetry, for Foxglove's map.
+
+Log time is the Zenoh timestamp the router stamped on the sample where there is one,
+else the time it was received. Zenoh delivers samples on its own threads; they are
+queued and one writer thread owns the file, so a slow disk never blocks Zenoh.
+A payload that is not JSON is dropped, counted and logged (once per key).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import queue
+import threading
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from datetime import datetime
+
+import msgspec
+import zenoh
+
+from fleet.mission import keys
+from fleet.recording import channels
+from fleet.recording.writer import McapSink
+
+log = logging.getLogger(__name__)
+
+DEFAULT_STATE_EVERY_S = 1.0
+#: The line `fleet record` prints once it listens (the launcher waits for it).
+READY_LINE = "fleet record: recording"
+#: Samples waiting for the writer beyond this are dropped (and counted), not queued.
+QUEUE_LIMIT = 100_000
+
+
+@dataclass(frozen=True)
+class Heard:
+    """One thing heard on the bus, waiting to be written."""
+
+    key: str
+    payload: bytes
+    time_ns: int
+
+
+def sample_time_ns(timestamp: zenoh.Timestamp | None) -> int:
+    """The Zenoh timestamp in ns since the epoch, or now when the sample has none."""
+    if timestamp is None:
+        return time.time_ns()
+    moment: datetime = timestamp.get_time()
+    return int(moment.timestamp()) * 1_000_000_000 + moment.microsecond * 1000
+
+
+@dataclass
+class RecorderStats:
+    recorded: Counter[str] = field(default_factory=Counter)  #: per pattern
+    dropped: Counter[str] = field(default_factory=Counter)  #: per reason
+
+
+class Recorder:
+    """Subscribes to `expr` (and queries states) on `session`, writing into `sink`.
+
+    `start()` returns once every subscription is declared; `stop()` undeclares them,
+    writes what is queued and finishes the file.
+    """
+
+    def __init__(
+        self,
+        session: zenoh.Session,
+        sink: McapSink,
+        *,
+        expr: str | None = None,
+        prefix: str = keys.PREFIX,
+        state_every_s: float = DEFAULT_STATE_EVERY_S,
+        on_failure: threading.Event | None = None,
+    ) -> None:
+        self._session = session
+        self.sink = sink
+        self.prefix = prefix
+        self.expr = expr or f"{prefix}/**"
+        self._state_every_s = state_every_s
+        self._queue: queue.Queue[Heard | None] = queue.Queue()
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._declared: list[zenoh.Subscriber[None]] = []
+        self._bad_keys: set[str] = set()
+        self._uavs_with_fix: set[int] = set()
+        self.stats = RecorderStats()
+        #: Why writing stopped (the disk is full, ...); `on_failure` is set then.
+        self.failure: str | None = None
+        self._on_failure = on_failure
+
+    # ---- life cycle ----------------------------------------------------------------------
+    def start(self) -> None:
+        """Open the file, then subscribe; OSError or zenoh.ZError (a bad expression) if not."""
+        self.sink.open()
+        self._declared.append(self._session.declare_subscriber(self.expr, self._on_sample))
+        alive = f"{self.prefix}/uav/*/{channels.ALIVE_LEAF}"
+        self._declared.append(
+            self._session.liveliness().declare_subscriber(alive, self._on_alive, history=True)
+        )
+        self._threads = [threading.Thread(target=self._write_loop, name="mcap-writer")]
+        if self._state_every_s > 0 and self._covers_state():
+            self._threads.append(threading.Thread(target=self._poll_states, name="state-poll"))
+        for thread in self._threads:
+            thread.start()
+
+    def stop(self) -> None:
+        for declared in self._declared:
+            declared.undeclare()
+        self._declared.clear()
+        self._stop.set()
+        self._queue.put(None)
+        for thread in self._threads:
+            thread.join()
+        self._threads.clear()
+        with contextlib.suppress(OSError):  # already reported as the failure
+            self.sink.close()
+
+    def _covers_state(self) -> bool:
+        probe = f"{self.prefix}/uav/0/{channels.STATE_LEAF}"
+        return channels.matches(self.expr, probe)
+
+    # ---- Zenoh threads -------------------------------------------------------------------
+    def _enqueue(self, heard: Heard) -> None:
+        if self._queue.qsize() >= QUEUE_LIMIT:
+            self.stats.dropped["writer behind"] += 1
+            return
+        self._queue.put(heard)
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        if sample.kind != zenoh.SampleKind.PUT:
+            self.stats.dropped["delete"] += 1
+            return
+        self._enqueue(
+            Heard(str(sample.key_expr), sample.payload.to_bytes(), sample_time_ns(sample.timestamp))
+        )
+
+    def _on_alive(self, sample: zenoh.Sample) -> None:
+        alive = sample.kind == zenoh.SampleKind.PUT
+        payload = b'{"alive":true}' if alive else b'{"alive":false}'
+        self._enqueue(Heard(str(sample.key_expr), payload, sample_time_ns(sample.timestamp)))
+
+    def _poll_states(self) -> None:
+        selector = f"{self.prefix}/uav/*/{channels.STATE_LEAF}"
+        while not self._stop.wait(self._state_every_s):
+            try:
+                replies = list(self._session.get(selector, timeout=self._state_every_s))
+            except zenoh.ZError as error:
+                log.warning("state query failed: %s", error)
+                continue
+            for reply in replies:
+                if reply.ok is not None:
+                    sample = reply.ok
+                    self._enqueue(
+                        Heard(
+                            str(sample.key_expr),
+                            sample.payload.to_bytes(),
+                            sample_time_ns(sample.timestamp),
+                        )
+                    )
+
+    # ---- the writer thread ---------------------------------------------------------------
+    def _write_loop(self) -> None:
+        try:
+            self._drain()
+        except OSError as error:
+            self.failure = f"cannot write {self.sink.path}: {error.strerror or error}"
+            log.error("%s; recording stopped", self.failure)
+            if self._on_failure is not None:
+                self._on_failure.set()
+
+    def _drain(self) -> None:
+        while True:
+            try:
+                heard = self._queue.get(timeout=self.sink.flush_every_s / 2)
+            except queue.Empty:
+                self.sink.flush_if_due()
+                continue
+            if heard is None:
+                break
+            self._write(heard)
+        # Whatever arrived before the subscriptions went is written too.
+        while True:
+            try:
+                rest = self._queue.get_nowait()
+            except queue.Empty:
+                break
+            if rest is not None:
+                self._write(rest)
+
+    def _write(self, heard: Heard) -> None:
+        try:
+            value = msgspec.json.decode(heard.payload)
+        except (msgspec.DecodeError, UnicodeDecodeError) as error:
+            self.stats.dropped["not JSON"] += 1
+            if heard.key not in self._bad_keys:
+                self._bad_keys.add(heard.key)
+                log.warning(
+                    "not recorded: %s is not JSON (%s); further ones counted", heard.key, error
+                )
+            return
+        spec = channels.channel_for(heard.key)
+        if spec.topic.endswith(f"/{channels.ALIVE_LEAF}"):
+            # Not a UAV's token: recorded as it is, without a schema.
+            with contextlib.suppress(ValueError, IndexError):
+                spec = channels.alive_channel(self.prefix, keys.uav_id_of(heard.key))
+        self.sink.write(spec, heard.payload, heard.time_ns, heard.time_ns)
+        self.stats.recorded[spec.pattern] += 1
+        if spec.pattern.endswith("/telemetry") and isinstance(value, dict):
+            self._write_fix(heard, value)
+
+    def _write_fix(self, heard: Heard, telemetry: dict[str, object]) -> None:
+        try:
+            uav = keys.uav_id_of(heard.key)
+        except (ValueError, IndexError):
+            return
+        fix = channels.location_fix(telemetry, uav, heard.time_ns)
+        if fix is None:
+            return
+        spec = channels.location_channel(self.prefix, uav)
+        self.sink.write(spec, msgspec.json.encode(fix), heard.time_ns, heard.time_ns)
+        self.stats.recorded[spec.pattern] += 1

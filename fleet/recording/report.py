@@ -1,0 +1,99 @@
+"""`fleet report`: each mission of a recording, as text or JSON (pure)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fleet.recording.mission_log import MissionLog, Timeline
+
+
+def _round(value: float | None, digits: int = 1) -> float | None:
+    return None if value is None else round(value, digits)
+
+
+def mission_json(log: MissionLog) -> dict[str, Any]:
+    committed = log.all_committed
+    return {
+        "mission": log.mission,
+        "team": list(log.team),
+        "targets": [{"lat": t.lat, "lon": t.lon, "alt": t.alt} for t in log.targets],
+        "approach_times_s": {
+            str(uav): [_round(t) for t in result.times] for uav, result in log.results.items()
+        },
+        "assignment": {str(uav): log.target_of(uav) for uav in log.team},
+        "agreed": log.agreed,
+        "digests": {str(uav): report.digest for uav, report in log.assignments.items()},
+        "predicted_s": {str(uav): _round(log.predicted_s(uav)) for uav in log.team},
+        "flown_s": {str(uav): _round(log.flown_s.get(uav)) for uav in log.team},
+        "reached": {str(uav): uav in log.reached for uav in log.team},
+        "reached_how": {str(uav): how for uav, how in log.reached_how.items()},
+        "sent_at_s": round(log.sent, 3),
+        "send_to_commit_s": None if committed is None else round(committed - log.sent, 3),
+        "faults": [{"at_s": round(t, 3), "what": what} for t, what in log.faults],
+    }
+
+
+def report_json(timeline: Timeline) -> dict[str, Any]:
+    return {
+        "duration_s": round(timeline.end, 3),
+        "uavs": sorted(timeline.tracks),
+        "undecodable_messages": timeline.undecodable,
+        "missions": [mission_json(log) for log in timeline.missions],
+    }
+
+
+def _seconds(value: float | None) -> str:
+    return "-" if value is None else f"{value:.1f} s"
+
+
+def report_lines(timeline: Timeline) -> list[str]:
+    uavs = ", ".join(map(str, sorted(timeline.tracks))) or "none"
+    lines = [f"recording: {timeline.end:.1f} s; UAVs with telemetry: {uavs}"]
+    if not timeline.missions:
+        lines.append("no mission in this recording")
+    for log in timeline.missions:
+        lines += _mission_lines(log)
+    return lines
+
+
+def _mission_lines(log: MissionLog) -> list[str]:
+    committed = log.all_committed
+    lines = [
+        f"mission {log.mission}: team {', '.join(map(str, log.team))}; "
+        f"{len(log.targets)} targets; sent at {log.sent:.1f} s",
+    ]
+    for index, place in enumerate(log.targets):
+        lines.append(f"  target {index}: {place.lat:.6f}, {place.lon:.6f}, {place.alt:.0f} m")
+    for uav in log.team:
+        result = log.results.get(uav)
+        times = (
+            "no result"
+            if result is None
+            else "approach " + ", ".join("-" if t is None else f"{t:.1f}" for t in result.times)
+        )
+        target = log.target_of(uav)
+        choice = (
+            "not committed"
+            if uav not in log.assignments
+            else ("no target" if target is None else f"target {target}")
+        )
+        arrival = ""
+        if target is not None:
+            flown = log.flown_s.get(uav)
+            arrival = f"; predicted {_seconds(log.predicted_s(uav))}, " + (
+                f"flown {_seconds(flown)} ({log.reached_how[uav]})"
+                if uav in log.reached
+                else "NOT reached"
+            )
+        lines.append(f"  UAV {uav}: {choice}; {times}{arrival}")
+    lines.append(f"  agreed: {'yes' if log.agreed else 'no'}")
+    lines.append(
+        "  send -> commit: "
+        + ("not every UAV committed" if committed is None else f"{committed - log.sent:.2f} s")
+    )
+    if log.faults:
+        lines.append("  faults:")
+        lines += [f"    {t:.1f} s: {what}" for t, what in log.faults]
+    else:
+        lines.append("  faults: none seen")
+    return lines

@@ -1,0 +1,141 @@
+"""What a recording says about a mission, the report and the figure (from made-up messages)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import msgspec
+import pytest
+
+from fleet.mission.messages import (
+    AssignmentReport,
+    LinkHealth,
+    MissionTargets,
+    StatusText,
+    Target,
+    UavResult,
+)
+from fleet.piccolo.telemetry import GpsBlock, Telemetry
+from fleet.piccolo.track import Track
+from fleet.recording import channels
+from fleet.recording.mission_log import build_timeline
+from fleet.recording.plot import PlotError, parse_at, render
+from fleet.recording.reader import RecordedMessage
+from fleet.recording.report import report_json, report_lines
+
+NS = 1_000_000_000
+TARGETS = (Target(35.72, -120.76, 600.0), Target(35.70, -120.74, 600.0))
+TEAM = (1, 2)
+
+
+def message(t: float, key: str, value: msgspec.Struct) -> RecordedMessage:
+    spec = channels.channel_for(key)
+    return RecordedMessage(
+        key,
+        spec.pattern,
+        spec.schema_name,
+        round(t * NS),
+        round(t * NS),
+        msgspec.json.encode(value),
+    )
+
+
+def telemetry(t: float, uav: int, lat: float, lon: float, clock_s: float) -> RecordedMessage:
+    gps = GpsBlock(lat=lat, lon=lon, alt=600.0, vel_north=0.0, vel_east=20.0, vel_down=0.0)
+    return message(t, f"fleet/uav/{uav}/telemetry", Telemetry(round(clock_s * 1000), gps=gps))
+
+
+def report(uav: int, target: int, eta: float, digest: str = "d1") -> AssignmentReport:
+    return AssignmentReport(
+        mission=5,
+        uav=uav,
+        target=target,
+        pairs={"1": 0, "2": 1},
+        unassigned=(),
+        team=TEAM,
+        digest=digest,
+        eta_s=eta,
+    )
+
+
+def mission_messages(digest_2: str = "d1") -> list[RecordedMessage]:
+    """UAV 1 flies to target 0 and reaches it; UAV 2 commits to target 1, never arrives."""
+    found = [
+        # Aircraft clocks run 10x the wall clock (a speedup 10 simulation).
+        *(telemetry(t, 1, 35.72, -120.80 + 0.004 * t, 100 + 10 * t) for t in range(0, 12)),
+        *(telemetry(t, 2, 35.68, -120.70 - 0.001 * t, 500 + 10 * t) for t in range(0, 12)),
+        message(1.0, "fleet/mission/5/targets", MissionTargets(5, TEAM, TARGETS)),
+        message(1.5, "fleet/mission/5/result/1", UavResult(5, 1, (40.0, 90.0))),
+        message(1.6, "fleet/mission/5/result/2", UavResult(5, 2, (80.0, 30.0))),
+        message(2.0, "fleet/mission/5/assignment/1", report(1, 0, 45.0)),
+        message(2.5, "fleet/mission/5/assignment/2", report(2, 1, 30.0, digest_2)),
+        message(3.0, "fleet/uav/1/track", Track(90)),
+        message(3.2, "fleet/uav/2/track", Track(90)),
+        message(6.0, "fleet/uav/2/link", LinkHealth(False, True, 3, {}, None)),
+        message(6.5, "fleet/uav/2/link", LinkHealth(False, True, 3, {}, None)),
+        message(7.0, "fleet/uav/1/track", Track(0)),
+        message(7.1, "fleet/uav/1/status", StatusText("reached target 0; resuming course")),
+    ]
+    return found
+
+
+def test_the_mission_events_come_from_what_was_heard() -> None:
+    timeline = build_timeline(mission_messages())
+    (log,) = timeline.missions
+    assert (log.mission, log.team, log.sent) == (5, TEAM, 1.0)
+    assert log.committed == {1: 2.0, 2: 2.5} and log.all_committed == 2.5
+    assert log.course_change == {1: 3.0, 2: 3.2}
+    assert log.reached == {1: 7.0} and log.reached_how == {1: "track"}
+    assert log.resumed == {1: 7.0}
+    # Flown on the aircraft's clock: commit at wall 2 s (aircraft 120 s), reach at
+    # wall 7 s (aircraft 170 s).
+    assert log.flown_s == {1: pytest.approx(50.0)}
+    assert log.agreed
+    assert list(log.events()) == ["sent", "committed", "course change", "reached", "resumed"]
+    faults = [what for _, what in log.faults]
+    assert faults == ["UAV 2: program link down", "UAV 2 not seen to reach its target"]
+
+
+def test_disagreeing_digests_are_a_fault() -> None:
+    (log,) = build_timeline(mission_messages(digest_2="other")).missions
+    assert not log.agreed
+    assert "the team's assignments disagree" in [what for _, what in log.faults]
+
+
+def test_undecodable_messages_are_counted_not_fatal() -> None:
+    bad = RecordedMessage("fleet/mission/5/targets", "", "", 0, 0, b'{"mission": "x"}')
+    timeline = build_timeline([bad, *mission_messages()])
+    assert timeline.undecodable == 1 and len(timeline.missions) == 1
+
+
+def test_the_report_per_mission() -> None:
+    timeline = build_timeline(mission_messages())
+    data = report_json(timeline)
+    (mission,) = data["missions"]
+    assert mission["assignment"] == {"1": 0, "2": 1}
+    assert mission["predicted_s"] == {"1": 45.0, "2": 30.0}
+    assert mission["flown_s"] == {"1": 50.0, "2": None}
+    assert mission["send_to_commit_s"] == 1.5
+    assert mission["approach_times_s"]["2"] == [80.0, 30.0]
+    text = "\n".join(report_lines(timeline))
+    assert "UAV 1: target 0; approach 40.0, 90.0; predicted 45.0 s, flown 50.0 s" in text
+    assert "UAV 2: target 1" in text and "NOT reached" in text
+    assert "send -> commit: 1.50 s" in text
+
+
+def test_the_figure_is_a_png(tmp_path: Path) -> None:
+    out = render(build_timeline(mission_messages()), tmp_path / "m.png")
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    only = render(build_timeline(mission_messages()), tmp_path / "a.png", at=["sent", 4.0])
+    assert only.stat().st_size > 0
+
+
+def test_panels_asked_for_wrongly_say_why(tmp_path: Path) -> None:
+    with pytest.raises(PlotError, match="neither an event"):
+        parse_at("sent,lunch")
+    assert parse_at("sent, 12.5") == ["sent", 12.5]
+    timeline = build_timeline(mission_messages()[:30])  # no arrival yet
+    with pytest.raises(PlotError, match="not in this mission"):
+        render(timeline, tmp_path / "x.png", at=["reached"])
+    with pytest.raises(PlotError, match="mission 9 is not in the recording"):
+        render(timeline, tmp_path / "x.png", mission=9)

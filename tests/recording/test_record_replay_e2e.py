@@ -1,0 +1,191 @@
+"""Record a 2-UAV mission through `fleet up`, kill a second recorder, replay, plot, report.
+
+Real processes throughout: `fleet up` (router, simulator, two onboards, its recorder),
+a second `fleet record` killed with SIGKILL mid-mission, `ground-cli`, `fleet replay`
+on a router of its own, `fleet plot` and `fleet report`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+from collections import Counter
+from importlib.resources import files
+from pathlib import Path
+
+import zenoh
+from mcap.reader import make_reader
+
+from fleet.mission import keys
+from fleet.recording import channels
+from fleet.recording.reader import read_recording
+from fleet.sim.autopilot import DEFAULT_TELEMETRY_HZ
+from tests.processes import Child, client_session, free_port, start, wait_until
+
+TIMEOUT_S = 120
+FLEET = ("-m", "ground.fleet_cli")
+TEAM = {74, 112}
+
+
+def run(*argv: str, prefix: str | None = None) -> subprocess.CompletedProcess[str]:
+    env = None if prefix is None else {**os.environ, keys.PREFIX_ENV: prefix}
+    return subprocess.run(
+        [sys.executable, *argv],
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT_S,
+        check=False,
+        env=env,
+    )
+
+
+def uavs(endpoint: str, prefix: str) -> list[dict[str, object]]:
+    done = run("-m", "ground.cli", "--connect", endpoint, "uavs", "--json", prefix=prefix)
+    assert done.returncode == 0, done.stderr
+    listed: list[dict[str, object]] = json.loads(done.stdout)
+    return listed
+
+
+def check_telemetry_counts(path: Path, killed: bool = False) -> None:
+    """One telemetry per 1/hz of the aircraft's own clock, one map fix per telemetry.
+
+    A killed recorder may have written a telemetry and not yet its map fix.
+    """
+    recording = read_recording(path)
+    counts = recording.counts()
+    for uav in TEAM:
+        telemetry = [m for m in recording.messages if m.topic == f"fleet/uav/{uav}/telemetry"]
+        clocks = [m.value()["system_time_ms"] for m in telemetry]
+        expected = (clocks[-1] - clocks[0]) / 1000.0 * DEFAULT_TELEMETRY_HZ + 1
+        assert abs(len(telemetry) - expected) <= 0.02 * expected + 2, (len(telemetry), expected)
+        fixes = counts[f"fleet/uav/{uav}/location_fix"]
+        assert len(telemetry) - (1 if killed else 0) <= fixes <= len(telemetry)
+
+
+def check_schemas(path: Path) -> None:
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    names = {schema.name for schema in summary.schemas.values()}
+    assert {"Telemetry", "UavState", "MissionTargets", "AssignmentReport", "UavResult"} <= names
+    assert channels.LOCATION_FIX in names
+    assert all(s.encoding == "jsonschema" and s.data for s in summary.schemas.values())
+    for channel in summary.channels.values():
+        assert channel.message_encoding == "json"
+        assert channel.schema_id != 0, f"{channel.topic} has no schema"
+    fixes = [c for c in summary.channels.values() if c.topic.endswith("/location_fix")]
+    assert {c.topic for c in fixes} == {f"fleet/uav/{u}/location_fix" for u in TEAM}
+
+
+def wait_reached(endpoint: str) -> None:
+    def every_uav_reached() -> bool:
+        phases = {view["id"]: view["phase"] for view in uavs(endpoint, "fleet")}
+        return set(phases) == TEAM and all(p == "reached" for p in phases.values())
+
+    wait_until(every_uav_reached, 150.0, "both UAVs to reach their targets")
+
+
+def test_record_a_mission_kill_a_recorder_replay_and_plot(tmp_path: Path) -> None:
+    port = free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    up = start(
+        "fleet up",
+        [sys.executable, *FLEET, "up", "head_on", "--listen", endpoint, "--speedup", "10",
+         "--log-dir", str(tmp_path / "run")],
+    )  # fmt: skip
+    second: Child | None = None
+    try:
+        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+        assert any("recording to" in line for line in up.history)
+        second = start(
+            "fleet record",
+            [sys.executable, *FLEET, "record", str(tmp_path / "second.mcap"),
+             "--connect", endpoint],
+        )  # fmt: skip
+        second.wait_for_line(lambda line: line.startswith("fleet record: recording"), 30.0)
+        targets = str(files("fleet") / "scenarios" / "head_on_targets.bin")
+        sent = run("-m", "ground.cli", "--connect", endpoint, "send-targets", targets, "--wait")
+        assert sent.returncode == 0, sent.stdout + sent.stderr
+        wait_reached(endpoint)
+        second.process.send_signal(signal.SIGKILL)
+        second.process.wait(10)
+    finally:
+        if second is not None:
+            second.kill()
+        assert up.stop() == 0, "\n".join(up.history[-20:])
+
+    # The killed recorder's file reads back, up to where it was killed.
+    killed = read_recording(tmp_path / "second.mcap")
+    assert str(tmp_path / "second.mcap") in killed.truncated
+    assert killed.counts()["fleet/mission/1/assignment/74"] == 1
+    check_telemetry_counts(tmp_path / "second.mcap", killed=True)
+
+    recorded = tmp_path / "run" / "fleet.mcap"
+    check_schemas(recorded)
+    check_telemetry_counts(recorded)
+    _replay_and_see_it(recorded, tmp_path)
+
+    plotted = run(*FLEET, "plot", str(recorded), "--out", str(tmp_path / "mission.png"))
+    assert plotted.returncode == 0, plotted.stderr
+    assert (tmp_path / "mission.png").read_bytes()[:4] == b"\x89PNG"
+    reported = run(*FLEET, "report", str(recorded), "--json")
+    assert reported.returncode == 0, reported.stderr
+    (mission,) = json.loads(reported.stdout)["missions"]
+    assert mission["agreed"] is True
+    assert mission["assignment"] == {"74": 0, "112": 1}
+    assert mission["reached"] == {"74": True, "112": True}
+    assert all(mission["flown_s"][u] > 0 for u in ("74", "112"))
+
+
+def _replay_and_see_it(recorded: Path, tmp_path: Path) -> None:
+    """Replay at 10x on a router of its own; the ground sees the UAVs under `replay`."""
+    port = free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    router = start("router", [sys.executable, "-m", "fleet.transport.router", "--listen", endpoint])
+    replay: Child | None = None
+    heard: Counter[str] = Counter()
+    lock = threading.Lock()
+
+    def on_sample(sample: zenoh.Sample) -> None:
+        with lock:
+            heard[str(sample.key_expr)] += 1
+
+    try:
+        router.wait_for_line(lambda line: "listening" in line, 30.0)
+        with client_session(port) as session, session.declare_subscriber("**", on_sample):
+            replay = start(
+                "fleet replay",
+                [sys.executable, *FLEET, "replay", str(recorded), "--rate", "10",
+                 "--connect", endpoint, "--hold", "60"],
+            )  # fmt: skip
+            seen: list[dict[str, object]] = []
+
+            def replayed_positions() -> bool:
+                seen[:] = uavs(endpoint, "replay")
+                return {v["id"] for v in seen} == TEAM and all(v["lat"] is not None for v in seen)
+
+            wait_until(replayed_positions, 60.0, "ground-cli uavs to list the replayed UAVs")
+            tracks = read_recording(recorded)
+            for view in seen:
+                lats = [
+                    m.value()["gps"]["lat"]
+                    for m in tracks.messages
+                    if m.topic == f"fleet/uav/{view['id']}/telemetry"
+                ]
+                assert min(lats) <= float(str(view["lat"])) <= max(lats)
+            # Under the live prefix there is nothing: a replay is never the live fleet.
+            assert uavs(endpoint, "fleet") == []
+            replay.wait_for_line(lambda line: "end reached" in line, 60.0)
+        with lock:
+            keys_heard = set(heard)
+        assert keys_heard and all(key.startswith("replay/") for key in keys_heard)
+        assert not [key for key in keys_heard if channels.is_command(key)]
+        assert "replay/uav/74/telemetry" in keys_heard
+    finally:
+        if replay is not None:
+            replay.stop()
+        router.stop()

@@ -1,0 +1,127 @@
+"""`fleet record` on a real router: what it records, what it drops, how it recovers."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+from fleet.mission import keys
+from fleet.mission.messages import StatusText
+from fleet.recording.reader import read_recording
+from fleet.recording.recorder import Recorder
+from fleet.recording.replay import replayable
+from fleet.recording.writer import McapSink
+from fleet.transport.bus_codec import ENCODING, encode
+from tests.processes import client_session, free_port, router_session, wait_until
+
+
+def test_records_puts_and_tokens_and_drops_what_is_not_json(tmp_path: Path) -> None:
+    port = free_port()
+    with router_session(port), client_session(port) as fleet, client_session(port) as ground:
+        recorder = Recorder(ground, McapSink(tmp_path / "r.mcap"), state_every_s=0)
+        recorder.start()
+        try:
+            token = fleet.liveliness().declare_token(keys.alive(7))
+            fleet.put(keys.status(7), encode(StatusText("hello")), encoding=ENCODING)
+            fleet.put(keys.status(7), b"\xff\x00 not json")
+            wait_until(
+                lambda: (
+                    recorder.stats.dropped["not JSON"] == 1
+                    and recorder.stats.recorded["fleet/uav/*/status"] == 1
+                ),
+                10.0,
+                "the recorder to hear both puts",
+            )
+            token.undeclare()
+            wait_until(
+                lambda: recorder.stats.recorded["fleet/uav/*/alive"] == 2,
+                10.0,
+                "the token to come and go",
+            )
+        finally:
+            recorder.stop()
+    recording = read_recording(tmp_path / "r.mcap")
+    values = [(m.topic, m.value()) for m in recording.messages]
+    assert ("fleet/uav/7/status", {"text": "hello"}) in values
+    alive = [value for topic, value in values if topic == "fleet/uav/7/alive"]
+    assert alive == [{"alive": True}, {"alive": False}] and len(values) == 3
+    assert recording.channels["fleet/uav/7/alive"].schema_name == "fleet.Liveliness"
+
+
+def _fleet(*argv: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "ground.fleet_cli", *argv],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+
+
+def test_record_without_a_router_says_so(tmp_path: Path) -> None:
+    done = _fleet("record", str(tmp_path / "x.mcap"), "--connect", f"tcp/127.0.0.1:{free_port()}")
+    assert done.returncode == 2
+    assert "no Zenoh router answers" in done.stderr
+    assert not (tmp_path / "x.mcap").exists()
+
+
+def test_record_for_a_duration_then_recover_a_killed_copy(tmp_path: Path) -> None:
+    port = free_port()
+    out = tmp_path / "d.mcap"
+    with router_session(port):
+        done = _fleet("record", str(out), "--duration", "0.5", "--connect", f"tcp/127.0.0.1:{port}")
+    assert done.returncode == 0, done.stderr
+    assert "fleet record: 0 messages" in done.stdout
+    assert read_recording(out).messages == []  # nothing heard: a valid, empty recording
+    # A recording cut short is repaired in place:
+    from tests.recording.test_writer_reader import _write
+
+    sink = McapSink(tmp_path / "live.mcap")
+    _write(sink, 5)
+    sink.flush()
+    shutil.copy(tmp_path / "live.mcap", out)
+    sink.close()
+    fixed = _fleet("record", "--recover", str(out))
+    assert fixed.returncode == 0, fixed.stderr
+    assert "5 messages kept; it had ended early" in fixed.stdout
+    assert read_recording(out).truncated == {}
+    (tmp_path / "junk.mcap").write_bytes(b"junk")
+    refused = _fleet("record", "--recover", str(tmp_path / "junk.mcap"))
+    assert refused.returncode == 1 and "not an MCAP recording" in refused.stderr
+
+
+def test_record_refuses_a_path_it_cannot_write_and_a_bad_expression(tmp_path: Path) -> None:
+    port = free_port()
+    (tmp_path / "file").write_text("")
+    with router_session(port):
+        connect = ("--connect", f"tcp/127.0.0.1:{port}")
+        unwritable = _fleet("record", str(tmp_path / "file" / "x.mcap"), *connect)
+        bad_expr = _fleet("record", str(tmp_path / "y.mcap"), "fleet//x", *connect)
+    assert unwritable.returncode == 1
+    assert "fleet record: cannot write" in unwritable.stderr and "x.mcap" in unwritable.stderr
+    assert bad_expr.returncode == 2, bad_expr.stderr
+    assert "cannot subscribe to fleet//x" in bad_expr.stderr
+
+
+def test_a_full_disk_stops_the_recorder_with_the_reason(tmp_path: Path) -> None:
+    port = free_port()
+    with router_session(port):
+        done = _fleet("record", "/dev/full", "--connect", f"tcp/127.0.0.1:{port}")
+    assert done.returncode == 1
+    assert "cannot write /dev/full: No space left on device" in done.stderr
+
+
+def test_commands_and_map_fixes_are_never_replayed() -> None:
+    from fleet.recording.reader import RecordedMessage
+
+    def message(topic: str, schema: str = "") -> RecordedMessage:
+        return RecordedMessage(topic, "", schema, 0, 0, b"{}")
+
+    assert replayable(message("fleet/uav/1/telemetry", "Telemetry"))
+    assert replayable(message("fleet/mission/3/assignment/1", "AssignmentReport"))
+    assert not replayable(message("fleet/mission/3/targets", "MissionTargets"))
+    assert not replayable(message("fleet/mission/3/abort", "MissionAbort"))
+    assert not replayable(message("fleet/uav/1/opm", "OpmCommand"))
+    assert not replayable(message("fleet/uav/1/location_fix", "foxglove.LocationFix"))
