@@ -185,7 +185,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     keys_cmd = commands.add_parser("keys", help="the key space and each key's latest value")
     keys_cmd.add_argument(
-        "expr", nargs="?", default=keyspace.DEFAULT_EXPR, metavar="EXPR", help="(fleet/**)"
+        "expr",
+        nargs="?",
+        default=keyspace.DEFAULT_EXPR,
+        metavar="EXPR",
+        help=f"({keyspace.DEFAULT_EXPR})",
     )
     keys_cmd.add_argument("--admin", action="store_true", help="the router's admin space too")
     keys_cmd.add_argument(

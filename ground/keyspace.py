@@ -23,11 +23,12 @@ from typing import Any
 import msgspec
 import zenoh
 
+from fleet.mission import keys
 from ground.session import decode_value, live_tokens, query
 
 log = logging.getLogger(__name__)
 
-DEFAULT_EXPR = "fleet/**"
+DEFAULT_EXPR = f"{keys.PREFIX}/**"
 ADMIN_EXPR = "@/**"
 #: The longest a value is shown in text mode before it is cut (--full shows all).
 TEXT_WIDTH = 160
