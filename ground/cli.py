@@ -187,9 +187,9 @@ def build_parser() -> argparse.ArgumentParser:
     keys_cmd.add_argument(
         "expr",
         nargs="?",
-        default=keyspace.DEFAULT_EXPR,
+        default=None,
         metavar="EXPR",
-        help=f"({keyspace.DEFAULT_EXPR})",
+        help="(everything under the key prefix: fleet/**)",
     )
     keys_cmd.add_argument("--admin", action="store_true", help="the router's admin space too")
     keys_cmd.add_argument(
@@ -456,7 +456,7 @@ def cmd_keys(args: argparse.Namespace) -> int:
     with ground_session(args.zenoh) as session:
         values = keyspace.collect(
             session,
-            args.expr,
+            args.expr or keyspace.default_expr(),
             window_s=args.window,
             timeout_s=args.query_timeout,
             admin=args.admin,

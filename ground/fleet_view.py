@@ -36,9 +36,6 @@ from ground.session import decode_sample, live_tokens, query_messages
 
 log = logging.getLogger(__name__)
 
-# fleet/keys.py names only the wildcards other modules needed so far.
-ALL_TRACK = f"{keys.PREFIX}/uav/*/track"
-ALL_WAYPOINTS = f"{keys.PREFIX}/uav/*/waypoint/*"
 
 #: How many status messages the live view keeps (the thesis's status box).
 STATUS_HISTORY = 200
@@ -209,8 +206,8 @@ class FleetView:
         enter = self._stack.enter_context
         enter(session.liveliness().declare_subscriber(keys.ALL_ALIVE, self._on_alive, history=True))
         enter(session.declare_subscriber(keys.ALL_TELEMETRY, self._on_telemetry))
-        enter(session.declare_subscriber(ALL_TRACK, self._on_track))
-        enter(session.declare_subscriber(ALL_WAYPOINTS, self._on_waypoint))
+        enter(session.declare_subscriber(keys.ALL_TRACK, self._on_track))
+        enter(session.declare_subscriber(keys.ALL_WAYPOINTS, self._on_waypoint))
         enter(session.declare_subscriber(keys.ALL_STATUS, self._on_status_sample))
 
     # ---- callbacks (Zenoh threads) ------------------------------------------------

@@ -28,7 +28,12 @@ from ground.session import decode_value, live_tokens, query
 
 log = logging.getLogger(__name__)
 
-DEFAULT_EXPR = f"{keys.PREFIX}/**"
+
+def default_expr() -> str:
+    """Everything under the key prefix."""
+    return f"{keys.PREFIX}/**"
+
+
 ADMIN_EXPR = "@/**"
 #: The longest a value is shown in text mode before it is cut (--full shows all).
 TEXT_WIDTH = 160

@@ -49,7 +49,6 @@ log = logging.getLogger(__name__)
 
 #: Mission ids are u32 on the planning protocol.
 MAX_MISSION_ID = 0xFFFF_FFFF
-ALL_MISSION_KEYS = f"{keys.PREFIX}/mission/**"
 
 
 class MissionError(FleetError, RuntimeError):
@@ -65,7 +64,7 @@ def missions_seen(session: zenoh.Session, timeout_s: float) -> set[int]:
     that sent it has gone.
     """
     seen: set[int] = set()
-    for reply in query(session, ALL_MISSION_KEYS, timeout_s):
+    for reply in query(session, keys.ALL_MISSION_KEYS, timeout_s):
         try:
             seen.add(keys.mission_of(reply.key))
         except (ValueError, IndexError):

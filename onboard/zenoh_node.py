@@ -39,12 +39,15 @@ class BusEvent:
 
 Sink = Callable[[BusEvent], None]
 
-_SUBSCRIPTIONS: tuple[tuple[str, type[msgspec.Struct]], ...] = (
-    (keys.ALL_MISSION_TARGETS, MissionTargets),
-    (keys.ALL_MISSION_RESULTS, UavResult),
-    (f"{keys.PREFIX}/mission/*/assignment/*", AssignmentReport),
-    (keys.ALL_MISSION_ABORTS, MissionAbort),
-)
+
+def _mission_subscriptions() -> tuple[tuple[str, type[msgspec.Struct]], ...]:
+    # Built when used: the key prefix is a setting (`--key-prefix`), read at use.
+    return (
+        (keys.ALL_MISSION_TARGETS, MissionTargets),
+        (keys.ALL_MISSION_RESULTS, UavResult),
+        (keys.ALL_MISSION_ASSIGNMENTS, AssignmentReport),
+        (keys.ALL_MISSION_ABORTS, MissionAbort),
+    )
 
 
 class ZenohNode:
@@ -67,7 +70,7 @@ class ZenohNode:
         self._declared.append(bus.subscribe_presence(keys.ALL_ALIVE, self._on_presence))
         subscriptions: tuple[tuple[str, type[msgspec.Struct]], ...] = (
             (keys.opm(self.uav_id), OpmCommand),
-            *_SUBSCRIPTIONS,
+            *_mission_subscriptions(),
         )
         for key, kind in subscriptions:
             self._declared.append(bus.subscribe(key, self._decoder(kind)))

@@ -24,8 +24,16 @@ from fleet.launch.launcher import (
     ring_scenario,
     wait_until_stopped,
 )
+from fleet.mission import keys
 from fleet.sim.scenario import ScenarioError, resolve_scenario
-from fleet.transport.cli import ExitCode, bounded_int, fail, positive_float, stop_on_signals
+from fleet.transport.cli import (
+    ExitCode,
+    add_key_prefix_argument,
+    bounded_int,
+    fail,
+    positive_float,
+    stop_on_signals,
+)
 from fleet.transport.zenoh_config import CONNECT_ENV, DEFAULT_ROUTER
 
 log = logging.getLogger(__name__)
@@ -35,6 +43,7 @@ RECORDING_NAME = "fleet.mcap"
 
 
 def common_arguments(parser: argparse.ArgumentParser, speedup: float) -> None:
+    add_key_prefix_argument(parser)
     parser.add_argument(
         "--speedup",
         type=positive_float,
@@ -169,10 +178,14 @@ def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
 def _print_banner(fleet: Fleet, targets_path: Path | None) -> None:
     ids = ", ".join(map(str, fleet.uav_ids))
     targets = str(targets_path) if targets_path is not None else "TARGETS.bin"
+    prefix = (
+        [f"  export {keys.PREFIX_ENV}={keys.PREFIX}"] if keys.PREFIX != keys.DEFAULT_PREFIX else []
+    )
     lines = [
         f"fleet up: {len(fleet.uav_ids)} UAV(s) alive ({ids}); router on {fleet.spec.listen}",
         "Connect from another terminal:",
         f"  export {CONNECT_ENV}={fleet.connect}",
+        *prefix,
         "  ground-cli uavs",
         "  ground-cli watch",
         f"  ground-cli send-targets {targets} --wait",

@@ -20,9 +20,12 @@ Layout (all under the prefix `fleet`):
 {id} is the Piccolo ID in decimal; {m} the mission id in decimal.
 
 The prefix is one setting for every tool: $FLEET_KEY_PREFIX (one key chunk, default
-`fleet`), read once when this module is first imported. A replay (`fleet replay`)
-publishes under another prefix (`replay` by default) so it is never mistaken for the
-live fleet; point any tool at it with `FLEET_KEY_PREFIX=replay`.
+`fleet`), read when this module is first imported, or `--key-prefix` on a command line
+(`use_prefix`, which every command calls before it opens a session). A replay
+(`fleet replay`) publishes under another prefix (`replay` by default) so it is never
+mistaken for the live fleet; point any tool at it with `--key-prefix replay`. Code
+reads the prefix when it uses a key (`keys.telemetry(7)`, `keys.ALL_ALIVE`), never
+copies it at import.
 """
 
 from __future__ import annotations
@@ -46,6 +49,33 @@ def checked_prefix(text: str) -> str:
 
 PREFIX = checked_prefix(os.environ.get(PREFIX_ENV, DEFAULT_PREFIX))
 
+# The wildcards over every UAV or mission; `use_prefix` re-derives them.
+ALL_ALIVE = ALL_TELEMETRY = ALL_TRACK = ALL_WAYPOINTS = ALL_STATUS = ALL_STATE = ""
+ALL_MISSION_KEYS = ALL_MISSION_TARGETS = ALL_MISSION_RESULTS = ALL_MISSION_ASSIGNMENTS = ""
+ALL_MISSION_ABORTS = ""
+
+
+def use_prefix(prefix: str) -> None:
+    """Make `prefix` the key prefix of this process (ValueError if it is not one chunk)."""
+    global PREFIX, ALL_ALIVE, ALL_TELEMETRY, ALL_TRACK, ALL_WAYPOINTS, ALL_STATUS, ALL_STATE
+    global ALL_MISSION_KEYS, ALL_MISSION_TARGETS, ALL_MISSION_RESULTS, ALL_MISSION_ASSIGNMENTS
+    global ALL_MISSION_ABORTS
+    PREFIX = checked_prefix(prefix)
+    ALL_ALIVE = f"{PREFIX}/uav/*/alive"
+    ALL_TELEMETRY = f"{PREFIX}/uav/*/telemetry"
+    ALL_TRACK = f"{PREFIX}/uav/*/track"
+    ALL_WAYPOINTS = f"{PREFIX}/uav/*/waypoint/*"
+    ALL_STATUS = f"{PREFIX}/uav/*/status"
+    ALL_STATE = f"{PREFIX}/uav/*/state"
+    ALL_MISSION_KEYS = f"{PREFIX}/mission/**"
+    ALL_MISSION_TARGETS = f"{PREFIX}/mission/*/targets"
+    ALL_MISSION_RESULTS = f"{PREFIX}/mission/*/result/*"
+    ALL_MISSION_ASSIGNMENTS = f"{PREFIX}/mission/*/assignment/*"
+    ALL_MISSION_ABORTS = f"{PREFIX}/mission/*/abort"
+
+
+use_prefix(PREFIX)
+
 
 def uav(uav_id: int, leaf: str) -> str:
     return f"{PREFIX}/uav/{uav_id}/{leaf}"
@@ -55,14 +85,8 @@ def alive(uav_id: int) -> str:
     return uav(uav_id, "alive")
 
 
-ALL_ALIVE = f"{PREFIX}/uav/*/alive"
-
-
 def telemetry(uav_id: int) -> str:
     return uav(uav_id, "telemetry")
-
-
-ALL_TELEMETRY = f"{PREFIX}/uav/*/telemetry"
 
 
 def track(uav_id: int) -> str:
@@ -77,18 +101,12 @@ def status(uav_id: int) -> str:
     return uav(uav_id, "status")
 
 
-ALL_STATUS = f"{PREFIX}/uav/*/status"
-
-
 def link(uav_id: int) -> str:
     return uav(uav_id, "link")
 
 
 def state(uav_id: int) -> str:
     return uav(uav_id, "state")
-
-
-ALL_STATE = f"{PREFIX}/uav/*/state"
 
 
 def opm(uav_id: int) -> str:
@@ -103,18 +121,12 @@ def mission_targets(mission: int) -> str:
     return f"{PREFIX}/mission/{mission}/targets"
 
 
-ALL_MISSION_TARGETS = f"{PREFIX}/mission/*/targets"
-
-
 def mission_result(mission: int, uav_id: int) -> str:
     return f"{PREFIX}/mission/{mission}/result/{uav_id}"
 
 
 def mission_results(mission: int) -> str:
     return f"{PREFIX}/mission/{mission}/result/*"
-
-
-ALL_MISSION_RESULTS = f"{PREFIX}/mission/*/result/*"
 
 
 def mission_assignment(mission: int, uav_id: int) -> str:
@@ -127,9 +139,6 @@ def mission_assignments(mission: int) -> str:
 
 def mission_abort(mission: int) -> str:
     return f"{PREFIX}/mission/{mission}/abort"
-
-
-ALL_MISSION_ABORTS = f"{PREFIX}/mission/*/abort"
 
 
 def uav_id_of(key: str) -> int:

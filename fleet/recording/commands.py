@@ -40,7 +40,7 @@ from fleet.transport.zenoh_config import ZenohConfigError, endpoints, error_text
 log = logging.getLogger(__name__)
 
 
-def _key_prefix(text: str) -> str:
+def _replay_prefix(text: str) -> str:
     try:
         return keys.checked_prefix(text)
     except ValueError as error:
@@ -61,13 +61,6 @@ def _record_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("expr", nargs="?", metavar="KEYEXPR", help="what to record ({PREFIX}/**)")
     parser.add_argument("--duration", type=positive_float, metavar="S", help="stop after S s")
     add_zenoh_arguments(parser)
-    parser.add_argument(
-        "--key-prefix",
-        type=_key_prefix,
-        default=keys.PREFIX,
-        metavar="P",
-        help=f"the fleet's key prefix (default ${keys.PREFIX_ENV} or {keys.DEFAULT_PREFIX})",
-    )
     parser.add_argument(
         "--state-every",
         type=non_negative_float,
@@ -100,7 +93,7 @@ def _replay_parser(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--prefix",
-        type=_key_prefix,
+        type=_replay_prefix,
         default=DEFAULT_REPLAY_PREFIX,
         metavar="P",
         help="key prefix to replay under (default %(default)s; the live fleet's is "
@@ -184,7 +177,6 @@ def run_record(args: argparse.Namespace) -> int:
             session,
             McapSink(args.out, rotation),
             expr=args.expr,
-            prefix=args.key_prefix,
             state_every_s=args.state_every,
             on_failure=stop,
         )

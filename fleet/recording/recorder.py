@@ -77,14 +77,14 @@ class Recorder:
         sink: McapSink,
         *,
         expr: str | None = None,
-        prefix: str = keys.PREFIX,
+        prefix: str | None = None,
         state_every_s: float = DEFAULT_STATE_EVERY_S,
         on_failure: threading.Event | None = None,
     ) -> None:
         self._session = session
         self.sink = sink
-        self.prefix = prefix
-        self.expr = expr or f"{prefix}/**"
+        self.prefix = prefix or keys.PREFIX
+        self.expr = expr or f"{self.prefix}/**"
         self._state_every_s = state_every_s
         self._queue: queue.Queue[Heard | None] = queue.Queue()
         self._stop = threading.Event()

@@ -2,7 +2,8 @@
 
 One place for what every program of the project does the same way: argparse value
 types, the Zenoh flags (``--connect``, ``--listen``, ``--mode``, ``--zenoh-config`` /
-$FLEET_ZENOH_CONFIG), ``-v`` and logging set-up, SIGTERM/SIGINT handling, and exit codes.
+$FLEET_ZENOH_CONFIG), ``--key-prefix``, ``-v`` and logging set-up, SIGTERM/SIGINT
+handling, and exit codes.
 """
 
 from __future__ import annotations
@@ -14,13 +15,15 @@ import os
 import signal
 import sys
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from enum import IntEnum
 from types import FrameType
+from typing import Any
 
 import zenoh
 
+from fleet.mission import keys
 from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
 from fleet.transport.zenoh_config import (
     CONFIG_ENV,
@@ -92,8 +95,38 @@ piccolo_id = bounded_int(MIN_PICCOLO_ID, MAX_PICCOLO_ID, "Piccolo ID")
 
 
 # ---- Zenoh flags --------------------------------------------------------------------------------
+class _UseKeyPrefix(argparse.Action):
+    """`--key-prefix P`: the key prefix of this process and of the processes it starts."""
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: str | Sequence[Any] | None,
+        option_string: str | None = None,
+    ) -> None:
+        try:
+            keys.use_prefix(str(values))
+        except ValueError as error:
+            parser.error(str(error))
+        os.environ[keys.PREFIX_ENV] = keys.PREFIX  # inherited by child processes
+
+
+def add_key_prefix_argument(parser: argparse.ArgumentParser) -> None:
+    """`--key-prefix P`, applied as soon as it is parsed (before any key is used)."""
+    parser.add_argument(
+        "--key-prefix",
+        action=_UseKeyPrefix,
+        default=argparse.SUPPRESS,
+        metavar="P",
+        help=f"the fleet's key prefix, one key chunk (default ${keys.PREFIX_ENV} or "
+        f"{keys.DEFAULT_PREFIX}; e.g. replay, to see a `fleet replay`)",
+    )
+
+
 def add_zenoh_arguments(parser: argparse.ArgumentParser) -> None:
     """The Zenoh session flags; `zenoh_config(args)` turns them into a config."""
+    add_key_prefix_argument(parser)
     group = parser.add_argument_group("zenoh")
     group.add_argument(
         "--connect",
@@ -175,6 +208,7 @@ def fail(prog: str, message: str, code: ExitCode = ExitCode.USAGE) -> ExitCode:
 __all__ = [
     "ExitCode",
     "ZenohConfigError",
+    "add_key_prefix_argument",
     "add_verbose_argument",
     "add_zenoh_arguments",
     "bounded_int",

@@ -40,3 +40,16 @@ def test_a_bad_prefix_is_refused_with_the_reason() -> None:
 def test_checked_prefix_refuses_anything_but_one_chunk(bad: str) -> None:
     with pytest.raises(ValueError, match="one key chunk"):
         keys.checked_prefix(bad)
+
+
+def test_use_prefix_rederives_every_wildcard() -> None:
+    try:
+        keys.use_prefix("replay")
+        assert keys.ALL_ALIVE == "replay/uav/*/alive"
+        assert keys.ALL_MISSION_ASSIGNMENTS == "replay/mission/*/assignment/*"
+        assert keys.mission_targets(3) == "replay/mission/3/targets"
+        with pytest.raises(ValueError, match="one key chunk"):
+            keys.use_prefix("re/play")
+        assert keys.PREFIX == "replay"
+    finally:
+        keys.use_prefix(keys.DEFAULT_PREFIX)

@@ -44,7 +44,13 @@ def run(*argv: str, prefix: str | None = None) -> subprocess.CompletedProcess[st
 
 
 def uavs(endpoint: str, prefix: str) -> list[dict[str, object]]:
-    done = run("-m", "ground.cli", "--connect", endpoint, "uavs", "--json", prefix=prefix)
+    """`ground-cli uavs --json` under `prefix`: the flag for a replay, else the environment."""
+    if prefix == "replay":
+        done = run(
+            "-m", "ground.cli", "--key-prefix", prefix, "--connect", endpoint, "uavs", "--json"
+        )
+    else:
+        done = run("-m", "ground.cli", "--connect", endpoint, "uavs", "--json", prefix=prefix)
     assert done.returncode == 0, done.stderr
     listed: list[dict[str, object]] = json.loads(done.stdout)
     return listed

@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 import zenoh
 
+from fleet.mission import keys
 from fleet.transport.cli import (
     ExitCode,
     ZenohConfigError,
@@ -239,3 +240,27 @@ def test_each_v_lowers_the_level(monkeypatch: pytest.MonkeyPatch) -> None:
     root.handlers = []
     setup_logging(5)
     assert root.level == logging.DEBUG
+
+
+def test_key_prefix_flag_sets_the_prefix_for_this_process_and_its_children(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setenv(keys.PREFIX_ENV, keys.DEFAULT_PREFIX)  # restored after the test
+    parser = argparse.ArgumentParser()
+    add_zenoh_arguments(parser)
+    try:
+        args = parser.parse_args(["--key-prefix", "replay"])
+        assert "key_prefix" not in vars(args)  # applied, not stored
+        assert keys.ALL_STATE == "replay/uav/*/state"
+        assert os.environ[keys.PREFIX_ENV] == "replay"
+    finally:
+        keys.use_prefix(keys.DEFAULT_PREFIX)
+
+
+def test_a_bad_key_prefix_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    parser = argparse.ArgumentParser()
+    add_zenoh_arguments(parser)
+    with pytest.raises(SystemExit, match="2"):
+        parser.parse_args(["--key-prefix", "a/b"])
+    assert "one key chunk" in capsys.readouterr().err
+    assert keys.PREFIX == keys.DEFAULT_PREFIX
