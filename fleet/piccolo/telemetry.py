@@ -140,55 +140,14 @@ def _decode(data: bytes) -> Telemetry:
     gps = sensor = raw = magnetometer = None
     agl = fuel = None
     if flags & FLAG_GPS:
-        lat, lon, height, reserved, sats, vn, ve, vd, status, week, tow = _GPS.unpack_from(
-            data, offset
-        )
+        gps = _decode_gps(data, offset)
         offset += _GPS.size
-        gps = GpsBlock(
-            lat=lat / MAS_PER_DEGREE,
-            lon=lon / MAS_PER_DEGREE,
-            alt=int.from_bytes(height, "big") / 100 - HEIGHT_OFFSET_M,
-            vel_north=vn / 100,
-            vel_east=ve / 100,
-            vel_down=vd / 100,
-            dop=(sats >> 10) * 0.2,
-            sats_visible=(sats >> 5) & 0x1F,
-            sats_tracked=sats & 0x1F,
-            gps_status=status,
-            gps_week=week,
-            gps_time_of_week_ms=tow,
-            reserved=reserved,
-        )
     if flags & FLAG_SENSOR:
-        roll, pitch, yaw, baro, ws, ww, rpm_l, rpm_r, density, oat, ias, static = (
-            _SENSOR.unpack_from(data, offset)
-        )
+        sensor = _decode_sensor(data, offset)
         offset += _SENSOR.size
-        sensor = SensorBlock(
-            roll=_angle(roll),
-            pitch=_angle(pitch),
-            yaw=_angle(yaw),
-            indicated_airspeed=(ias - IAS_OFFSET) / 100,
-            wind_south=ws / 100,
-            wind_west=ww / 100,
-            baro_altitude_raw=baro,
-            rpm_left=rpm_l,
-            rpm_right=rpm_r,
-            density_ratio=density / 200,
-            outside_air_temp=oat,
-            static_pressure=static * 2.0,
-        )
     if flags & FLAG_RAW:
-        p, q, r, ax, ay, az = _RAW.unpack_from(data, offset)
+        raw = _decode_raw(data, offset)
         offset += _RAW.size
-        raw = RawBlock(
-            p=_angle(p),
-            q=_angle(q),
-            r=_angle(r),
-            accel_x=ax * ACCEL_PER_COUNT,
-            accel_y=ay * ACCEL_PER_COUNT,
-            accel_z=az * ACCEL_PER_COUNT,
-        )
     if flags & FLAG_MAGNETOMETER:
         mx, my, mz, compass = _MAGNETOMETER.unpack_from(data, offset)
         offset += _MAGNETOMETER.size
@@ -217,6 +176,57 @@ def _decode(data: bytes) -> Telemetry:
     )
 
 
+def _decode_gps(data: bytes, offset: int) -> GpsBlock:
+    lat, lon, height, reserved, sats, vn, ve, vd, status, week, tow = _GPS.unpack_from(data, offset)
+    return GpsBlock(
+        lat=lat / MAS_PER_DEGREE,
+        lon=lon / MAS_PER_DEGREE,
+        alt=int.from_bytes(height, "big") / 100 - HEIGHT_OFFSET_M,
+        vel_north=vn / 100,
+        vel_east=ve / 100,
+        vel_down=vd / 100,
+        dop=(sats >> 10) * 0.2,
+        sats_visible=(sats >> 5) & 0x1F,
+        sats_tracked=sats & 0x1F,
+        gps_status=status,
+        gps_week=week,
+        gps_time_of_week_ms=tow,
+        reserved=reserved,
+    )
+
+
+def _decode_sensor(data: bytes, offset: int) -> SensorBlock:
+    roll, pitch, yaw, baro, ws, ww, rpm_l, rpm_r, density, oat, ias, static = _SENSOR.unpack_from(
+        data, offset
+    )
+    return SensorBlock(
+        roll=_angle(roll),
+        pitch=_angle(pitch),
+        yaw=_angle(yaw),
+        indicated_airspeed=(ias - IAS_OFFSET) / 100,
+        wind_south=ws / 100,
+        wind_west=ww / 100,
+        baro_altitude_raw=baro,
+        rpm_left=rpm_l,
+        rpm_right=rpm_r,
+        density_ratio=density / 200,
+        outside_air_temp=oat,
+        static_pressure=static * 2.0,
+    )
+
+
+def _decode_raw(data: bytes, offset: int) -> RawBlock:
+    p, q, r, ax, ay, az = _RAW.unpack_from(data, offset)
+    return RawBlock(
+        p=_angle(p),
+        q=_angle(q),
+        r=_angle(r),
+        accel_x=ax * ACCEL_PER_COUNT,
+        accel_y=ay * ACCEL_PER_COUNT,
+        accel_z=az * ACCEL_PER_COUNT,
+    )
+
+
 def encode_telemetry(message: Telemetry) -> bytes:
     """Encode a Telemetry to type-69 data bytes; raises TelemetryError if a value doesn't fit."""
     try:
@@ -230,55 +240,15 @@ def _encode(message: Telemetry) -> bytes:
         raise TelemetryError(f"{len(message.actuators)} actuators; at most {ACTUATOR_COUNT_MASK}")
     flags = len(message.actuators)
     parts: list[bytes] = []
-    if (gps := message.gps) is not None:
+    if message.gps is not None:
         flags |= FLAG_GPS
-        height = round((gps.alt + HEIGHT_OFFSET_M) * 100)
-        sats = (round(gps.dop / 0.2) << 10) | (gps.sats_visible << 5) | gps.sats_tracked
-        parts.append(
-            _GPS.pack(
-                round(gps.lat * MAS_PER_DEGREE),
-                round(gps.lon * MAS_PER_DEGREE),
-                height.to_bytes(3, "big"),
-                gps.reserved,
-                sats,
-                round(gps.vel_north * 100),
-                round(gps.vel_east * 100),
-                round(gps.vel_down * 100),
-                gps.gps_status,
-                gps.gps_week,
-                gps.gps_time_of_week_ms,
-            )
-        )
-    if (sensor := message.sensor) is not None:
+        parts.append(_encode_gps(message.gps))
+    if message.sensor is not None:
         flags |= FLAG_SENSOR
-        parts.append(
-            _SENSOR.pack(
-                _angle_raw(sensor.roll),
-                _angle_raw(sensor.pitch),
-                _heading_raw(sensor.yaw),
-                sensor.baro_altitude_raw,
-                round(sensor.wind_south * 100),
-                round(sensor.wind_west * 100),
-                sensor.rpm_left,
-                sensor.rpm_right,
-                round(sensor.density_ratio * 200),
-                sensor.outside_air_temp,
-                round(sensor.indicated_airspeed * 100) + IAS_OFFSET,
-                round(sensor.static_pressure / 2),
-            )
-        )
-    if (raw := message.raw) is not None:
+        parts.append(_encode_sensor(message.sensor))
+    if message.raw is not None:
         flags |= FLAG_RAW
-        parts.append(
-            _RAW.pack(
-                _angle_raw(raw.p),
-                _angle_raw(raw.q),
-                _angle_raw(raw.r),
-                round(raw.accel_x / ACCEL_PER_COUNT),
-                round(raw.accel_y / ACCEL_PER_COUNT),
-                round(raw.accel_z / ACCEL_PER_COUNT),
-            )
-        )
+        parts.append(_encode_raw(message.raw))
     if (mag := message.magnetometer) is not None:
         flags |= FLAG_MAGNETOMETER
         parts.append(
@@ -295,3 +265,49 @@ def _encode(message: Telemetry) -> bytes:
         parts.append(_FUEL.pack(message.fuel))
     parts.append(message.tail)
     return _HEAD.pack(flags, message.limit_flags, message.system_time_ms) + b"".join(parts)
+
+
+def _encode_gps(gps: GpsBlock) -> bytes:
+    height = round((gps.alt + HEIGHT_OFFSET_M) * 100)
+    sats = (round(gps.dop / 0.2) << 10) | (gps.sats_visible << 5) | gps.sats_tracked
+    return _GPS.pack(
+        round(gps.lat * MAS_PER_DEGREE),
+        round(gps.lon * MAS_PER_DEGREE),
+        height.to_bytes(3, "big"),
+        gps.reserved,
+        sats,
+        round(gps.vel_north * 100),
+        round(gps.vel_east * 100),
+        round(gps.vel_down * 100),
+        gps.gps_status,
+        gps.gps_week,
+        gps.gps_time_of_week_ms,
+    )
+
+
+def _encode_sensor(sensor: SensorBlock) -> bytes:
+    return _SENSOR.pack(
+        _angle_raw(sensor.roll),
+        _angle_raw(sensor.pitch),
+        _heading_raw(sensor.yaw),
+        sensor.baro_altitude_raw,
+        round(sensor.wind_south * 100),
+        round(sensor.wind_west * 100),
+        sensor.rpm_left,
+        sensor.rpm_right,
+        round(sensor.density_ratio * 200),
+        sensor.outside_air_temp,
+        round(sensor.indicated_airspeed * 100) + IAS_OFFSET,
+        round(sensor.static_pressure / 2),
+    )
+
+
+def _encode_raw(raw: RawBlock) -> bytes:
+    return _RAW.pack(
+        _angle_raw(raw.p),
+        _angle_raw(raw.q),
+        _angle_raw(raw.r),
+        round(raw.accel_x / ACCEL_PER_COUNT),
+        round(raw.accel_y / ACCEL_PER_COUNT),
+        round(raw.accel_z / ACCEL_PER_COUNT),
+    )

@@ -61,28 +61,7 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
         help="simulate only this Piccolo ID (one aircraft, e.g. a container per UAV); "
         "default: every aircraft of the scenario",
     )
-    parser.add_argument("--host", default=DEFAULT_HOST, help="address to listen on (%(default)s)")
-    parser.add_argument(
-        "--program-port",
-        type=tcp_port,
-        default=DEFAULT_PROGRAM_PORT,
-        metavar="P",
-        help="first program port; aircraft i gets P+i; 0 picks free ports (%(default)s)",
-    )
-    parser.add_argument(
-        "--payload-port",
-        type=tcp_port,
-        default=DEFAULT_PAYLOAD_PORT,
-        metavar="P",
-        help="first payload port, onboard side (%(default)s)",
-    )
-    parser.add_argument(
-        "--ground-port",
-        type=tcp_port,
-        default=DEFAULT_GROUND_PORT,
-        metavar="P",
-        help="first ground port, the ground side of the payload pipe (%(default)s)",
-    )
+    _add_listen_arguments(parser)
     parser.add_argument(
         "--speedup",
         type=non_negative_float,
@@ -109,6 +88,32 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
         default=DEFAULT_ACCEPTANCE_RADIUS,
         metavar="M",
         help="distance (m) at which a waypoint counts as reached (%(default)s)",
+    )
+
+
+def _add_listen_arguments(parser: argparse.ArgumentParser) -> None:
+    """The address and the first TCP port of each of the three serial channels."""
+    parser.add_argument("--host", default=DEFAULT_HOST, help="address to listen on (%(default)s)")
+    parser.add_argument(
+        "--program-port",
+        type=tcp_port,
+        default=DEFAULT_PROGRAM_PORT,
+        metavar="P",
+        help="first program port; aircraft i gets P+i; 0 picks free ports (%(default)s)",
+    )
+    parser.add_argument(
+        "--payload-port",
+        type=tcp_port,
+        default=DEFAULT_PAYLOAD_PORT,
+        metavar="P",
+        help="first payload port, onboard side (%(default)s)",
+    )
+    parser.add_argument(
+        "--ground-port",
+        type=tcp_port,
+        default=DEFAULT_GROUND_PORT,
+        metavar="P",
+        help="first ground port, the ground side of the payload pipe (%(default)s)",
     )
 
 
