@@ -44,6 +44,7 @@ from fleet.errors import FleetError
 from fleet.geo.aircraft import AircraftLimits
 from fleet.mission.messages import Target
 from fleet.mission.targets_file import TargetsFileError
+from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
 from fleet.piccolo.waypoint import MAX_INDEX
 from fleet.sim.aircraft import Wind
 from fleet.sim.uav_spec import UavSpec
@@ -60,9 +61,6 @@ __all__ = [
     "shipped_scenario_path",
 ]
 
-#: Piccolo IDs are avionics addresses 0x0001-0xFFF0 (docs/protocol.md §1).
-MIN_PICCOLO_ID = 0x0001
-MAX_PICCOLO_ID = 0xFFF0
 # Mercator degenerates toward the poles; the WAYPOINT packet holds whole metres in an
 # i16, and telemetry height is u24 centimetres above -1000 m.
 _MAX_ABS_LAT = 85.0
