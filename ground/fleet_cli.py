@@ -11,7 +11,7 @@ from fleet.transport.cli import add_verbose_argument, setup_logging
 
 #: Each subcommand lives in its own module with `add_parser(subparsers)`.
 SUBCOMMANDS = (
-    "fleet.planning.decode_command",
+    "fleet.transport.decode_command",
     "fleet.sim.command",
     "fleet.launch.up_command",
     "ground.demo",

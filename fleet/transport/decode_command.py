@@ -3,14 +3,15 @@
 A diagnostic for a user with a serial capture: every decoded packet is printed with its
 stream header and its decoded autopilot or planning-protocol message (or the raw bytes
 of an unknown type); the last line holds the drop counters. Garbage is counted, never
-fatal: the exit code is 0 whatever the stream holds.
+fatal: the exit code is 0 whatever the stream holds; 2 if the capture cannot be read.
+Runnable on its own as ``python -m fleet.transport.decode_command``.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from typing import IO, Any
 
 import msgspec
@@ -18,6 +19,7 @@ import msgspec
 from fleet.piccolo.autopilot_messages import UnknownAutopilotMessage
 from fleet.planning.link import AutopilotEvent, LinkEvent, PiccoloLink, StreamHeader
 from fleet.planning.protocol import UnknownPlanningMessage
+from fleet.transport.cli import ExitCode, add_verbose_argument, fail, setup_logging
 
 CHUNK = 65536
 
@@ -30,14 +32,20 @@ _PLANNING_KINDS = {
 }
 
 
-def add_parser(subparsers: Any) -> None:
+def configure_parser(parser: argparse.ArgumentParser) -> None:
+    """Add the `fleet decode` arguments to `parser`."""
+    parser.add_argument("capture", help="capture file, or - for standard input")
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Register the `decode` subcommand; its handler is `run`."""
     parser = subparsers.add_parser(
         "decode",
         help="decode a captured Piccolo link byte stream to JSON lines",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("capture", help="capture file, or - for standard input")
+    configure_parser(parser)
     parser.set_defaults(func=run)
 
 
@@ -94,19 +102,34 @@ def decode_stream(source: IO[bytes]) -> Iterator[dict[str, Any]]:
 
 
 def run(args: argparse.Namespace) -> int:
-    encoder = msgspec.json.Encoder()
-    out = sys.stdout.buffer
+    """Print the records of the capture `args.capture` (a path, or - for stdin)."""
     try:
         if args.capture == "-":
-            records = decode_stream(sys.stdin.buffer)
-            for record in records:
-                out.write(encoder.encode(record) + b"\n")
+            _write_records(sys.stdin.buffer)
         else:
             with open(args.capture, "rb") as capture:
-                for record in decode_stream(capture):
-                    out.write(encoder.encode(record) + b"\n")
+                _write_records(capture)
     except OSError as error:
-        print(f"fleet decode: cannot read {args.capture}: {error.strerror}", file=sys.stderr)
-        return 2
+        return fail("fleet decode", f"cannot read {args.capture}: {error.strerror}")
+    return ExitCode.OK
+
+
+def _write_records(source: IO[bytes]) -> None:
+    encoder = msgspec.json.Encoder()
+    out = sys.stdout.buffer
+    for record in decode_stream(source):
+        out.write(encoder.encode(record) + b"\n")
     out.flush()
-    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="fleet decode", description=__doc__)
+    configure_parser(parser)
+    add_verbose_argument(parser)
+    args = parser.parse_args(argv)
+    setup_logging(args.verbose)
+    return run(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,6 +1,3 @@
-import json
-import subprocess
-import sys
 from pathlib import Path
 
 from hypothesis import given, settings
@@ -120,58 +117,3 @@ def test_mixed_stream_with_corruption_keeps_the_good_packets() -> None:
     kinds = {type(e.message).__name__ for e in events if isinstance(e, AutopilotEvent)}
     assert {"Telemetry", "Track", "Waypoint"} <= kinds
     assert len(events) >= stream.messages * 0.85
-
-
-def _decode_cli(data: bytes) -> list[dict[str, object]]:
-    done = subprocess.run(
-        [sys.executable, "-m", "ground.fleet_cli", "decode", "-"],
-        input=data,
-        capture_output=True,
-        check=True,
-        timeout=60,
-    )
-    return [json.loads(line) for line in done.stdout.splitlines()]
-
-
-def test_fleet_decode_prints_each_packet_then_the_drop_counters() -> None:
-    capture = (FIXTURES / "capture_track_report.bin").read_bytes()
-    records = _decode_cli(b"\x00garbage" + capture)
-    assert records[0] == {
-        "header": {
-            "source": 112,
-            "destination": 0xFFFE,
-            "stream": 3,
-            "sequence": 8,
-            "acknowledge": 0,
-        },
-        "layer": "autopilot",
-        "kind": "track",
-        "message": {"waypoint": 3, "go_to": 0},
-    }
-    assert records[-1]["drops"]["stream_skipped_bytes"] == 8  # type: ignore[index]
-
-
-def test_fleet_decode_names_kinds_in_si_units() -> None:
-    sender = PiccoloLink(112)
-    wire = sender.encode_autopilot(sample_telemetry(), 0xFFFE) + sender.encode_payload(
-        encode_message(StatusText("hello"), 112, MISSION_MANAGER), 0xFFFE
-    )
-    telemetry, status, drops = _decode_cli(wire)
-    assert telemetry["kind"] == "telemetry"
-    gps = telemetry["message"]["gps"]  # type: ignore[index]
-    assert abs(gps["lat"] - 42.36) < 1e-6 and gps["vel_east"] == 21.5
-    assert status["kind"] == "status" and status["message"] == {"text": "hello"}
-    assert drops["packets"] == 2
-
-
-def test_fleet_decode_survives_pure_garbage(tmp_path: Path) -> None:
-    path = tmp_path / "noise.bin"
-    path.write_bytes(bytes(range(256)) * 50)
-    done = subprocess.run(
-        [sys.executable, "-m", "ground.fleet_cli", "decode", str(path)],
-        capture_output=True,
-        timeout=60,
-    )
-    assert done.returncode == 0
-    (last,) = [json.loads(line) for line in done.stdout.splitlines()]
-    assert last["drops"]["stream_skipped_bytes"] > 0
