@@ -34,11 +34,10 @@ from fleet.sim.server import (
 )
 from fleet.transport.cli import (
     ExitCode,
-    add_verbose_argument,
     fail,
     non_negative_float,
     positive_float,
-    setup_logging,
+    run_standalone,
     stop_on_signals,
     tcp_port,
 )
@@ -190,14 +189,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="fleet sim", description="Run simulated Piccolo autopilots for a scenario."
+    return run_standalone(
+        "fleet sim", "Run simulated Piccolo autopilots for a scenario.", configure_parser, run, argv
     )
-    configure_parser(parser)
-    add_verbose_argument(parser)
-    args = parser.parse_args(argv)
-    setup_logging(args.verbose)
-    return run(args)
 
 
 if __name__ == "__main__":

@@ -175,6 +175,23 @@ def setup_logging(verbose: int, *, base: int = logging.INFO, name: str = "") -> 
     )
 
 
+def run_standalone(
+    prog: str,
+    description: str,
+    configure: Callable[[argparse.ArgumentParser], None],
+    run: Callable[[argparse.Namespace], int],
+    argv: Sequence[str] | None = None,
+) -> int:
+    """Run one `fleet` subcommand on its own (``python -m its.module``): its arguments
+    (`configure`), ``-v`` and logging, then `run`; returns its exit status."""
+    parser = argparse.ArgumentParser(prog=prog, description=description)
+    configure(parser)
+    add_verbose_argument(parser)
+    args = parser.parse_args(argv)
+    setup_logging(args.verbose)
+    return run(args)
+
+
 # ---- signals ------------------------------------------------------------------------------------
 @contextmanager
 def stop_on_signals(on_stop: Callable[[], None]) -> Iterator[None]:
@@ -216,6 +233,7 @@ __all__ = [
     "non_negative_float",
     "piccolo_id",
     "positive_float",
+    "run_standalone",
     "setup_logging",
     "stop_on_signals",
     "tcp_port",

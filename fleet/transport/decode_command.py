@@ -19,7 +19,7 @@ import msgspec
 from fleet.piccolo.autopilot_messages import UnknownAutopilotMessage
 from fleet.planning.link import AutopilotEvent, LinkEvent, PiccoloLink, StreamHeader
 from fleet.planning.protocol import UnknownPlanningMessage
-from fleet.transport.cli import ExitCode, add_verbose_argument, fail, setup_logging
+from fleet.transport.cli import ExitCode, fail, run_standalone
 
 CHUNK = 65536
 
@@ -123,12 +123,7 @@ def _write_records(source: IO[bytes]) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="fleet decode", description=__doc__)
-    configure_parser(parser)
-    add_verbose_argument(parser)
-    args = parser.parse_args(argv)
-    setup_logging(args.verbose)
-    return run(args)
+    return run_standalone("fleet decode", __doc__ or "", configure_parser, run, argv)
 
 
 if __name__ == "__main__":

@@ -25,6 +25,7 @@ from fleet.transport.cli import (
     non_negative_float,
     piccolo_id,
     positive_float,
+    run_standalone,
     setup_logging,
     stop_on_signals,
     tcp_port,
@@ -239,6 +240,27 @@ def test_each_v_lowers_the_level(monkeypatch: pytest.MonkeyPatch) -> None:
     assert root.level == logging.INFO
     root.handlers = []
     setup_logging(5)
+    assert root.level == logging.DEBUG
+
+
+def test_run_standalone_parses_the_command_and_v_then_returns_its_status(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    root = logging.getLogger()
+    monkeypatch.setattr(root, "handlers", [])
+    monkeypatch.setattr(root, "level", root.level)
+    seen: list[argparse.Namespace] = []
+
+    def configure(parser: argparse.ArgumentParser) -> None:
+        parser.add_argument("thing")
+
+    def run(args: argparse.Namespace) -> int:
+        seen.append(args)
+        return ExitCode.FAILED
+
+    status = run_standalone("fleet x", "a command", configure, run, ["-v", "a"])
+    assert status == ExitCode.FAILED
+    assert [(args.thing, args.verbose) for args in seen] == [("a", 1)]
     assert root.level == logging.DEBUG
 
 
