@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TypedDict, Unpack
 
 from fleet.errors import FleetError
 from fleet.geo.aircraft import GRAVITY, AircraftLimits, turn_radius
@@ -165,29 +166,22 @@ def fly_until_arrival(
     )
 
 
+class FlightOptions(TypedDict, total=False):
+    """The keyword options of `fly_until_arrival`, which holds their defaults."""
+
+    limits: AircraftLimits | None
+    wind: Wind
+    airspeed: float | None
+    altitude: float | None
+    acceptance_radius: float
+    max_time: float
+    dt: float
+
+
 def fly_to_point(
-    state: AircraftState,
-    target_xy: tuple[float, float],
-    *,
-    limits: AircraftLimits | None = None,
-    wind: Wind = CALM,
-    airspeed: float | None = None,
-    altitude: float | None = None,
-    acceptance_radius: float = DEFAULT_ACCEPTANCE_RADIUS,
-    max_time: float = 3600.0,
-    dt: float = STEP_S,
+    state: AircraftState, target_xy: tuple[float, float], **options: Unpack[FlightOptions]
 ) -> float:
     """Seconds the simulated aircraft takes from `state` to within `acceptance_radius`
     of `target_xy` (local metres, x east, y north). See `fly_until_arrival`."""
-    arrival, _ = fly_until_arrival(
-        state,
-        target_xy,
-        limits=limits,
-        wind=wind,
-        airspeed=airspeed,
-        altitude=altitude,
-        acceptance_radius=acceptance_radius,
-        max_time=max_time,
-        dt=dt,
-    )
+    arrival, _ = fly_until_arrival(state, target_xy, **options)
     return arrival
