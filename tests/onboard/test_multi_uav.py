@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import random
 import time
+from collections.abc import Iterable
 from pathlib import Path
 
 from fleet.geo.mercator import MercatorProjection
@@ -55,11 +56,25 @@ def ring_sim(fleet: Fleet, tmp_path: Path, count: int) -> dict[int, SimEndpoints
     return fleet.sim(str(scenario), 10.0, 2.0)
 
 
-def start_ring(fleet: Fleet, tmp_path: Path, count: int, router: str) -> dict[int, SimEndpoints]:
-    endpoints = ring_sim(fleet, tmp_path, count)
+def start_onboard(fleet: Fleet, endpoints: dict[int, SimEndpoints], router: str) -> None:
+    """An onboard module for each simulated autopilot of `endpoints`."""
     for uav, where in endpoints.items():
         fleet.onboard(uav, where, router)
-    return endpoints
+
+
+def wait_for_telemetry(ground: Ground, uavs: Iterable[int]) -> None:
+    team = set(uavs)
+    wait_until(lambda: team <= set(ground.seen.telemetry), 60.0, f"telemetry from {sorted(team)}")
+
+
+def start_ring(fleet: Fleet, ground: Ground, tmp_path: Path, count: int) -> list[int]:
+    """`count` UAVs on a ring, each with its onboard module; their IDs in order, once the
+    ground sees telemetry from every one."""
+    endpoints = ring_sim(fleet, tmp_path, count)
+    start_onboard(fleet, endpoints, ground.router)
+    team = sorted(endpoints)
+    wait_for_telemetry(ground, team)
+    return team
 
 
 def test_head_on_two_uavs_take_distinct_targets_reach_them_and_resume(
@@ -67,10 +82,8 @@ def test_head_on_two_uavs_take_distinct_targets_reach_them_and_resume(
 ) -> None:
     scenario = shipped_scenario("head_on")
     targets = tuple(scenario.targets())
-    seen, router = ground.seen, ground.router
-    endpoints = fleet.sim("head_on", speedup=10.0, telemetry_hz=5.0)
-    for uav, where in endpoints.items():
-        fleet.onboard(uav, where, router)
+    seen = ground.seen
+    start_onboard(fleet, fleet.sim("head_on", speedup=10.0, telemetry_hz=5.0), ground.router)
     wait_until(lambda: all(seen.latest_track(u) is not None for u in (74, 112)), 30.0, "tracks")
     original = {uav: seen.latest_track(uav) for uav in (74, 112)}
     ground.send(MissionTargets(mission=1, team=(74, 112), targets=targets))
@@ -97,10 +110,8 @@ def test_head_on_two_uavs_take_distinct_targets_reach_them_and_resume(
 def test_five_uavs_eight_targets_then_four_uavs_two_targets(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    seen, router = ground.seen, ground.router
-    endpoints = start_ring(fleet, tmp_path, 5, router)
-    team = set(endpoints)
-    wait_until(lambda: team <= set(seen.telemetry), 60.0, "telemetry from all five")
+    seen = ground.seen
+    team = set(start_ring(fleet, ground, tmp_path, 5))
     targets = ring_targets(8, seed=5)
     ground.send(MissionTargets(mission=1, team=tuple(sorted(team)), targets=targets))
     wait_until(lambda: len(seen.assignments) == 5, 60.0, "five assignments")
@@ -132,10 +143,8 @@ def test_five_uavs_eight_targets_then_four_uavs_two_targets(
 def test_uav_killed_during_the_exchange_is_left_out(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    seen, router = ground.seen, ground.router
-    endpoints = start_ring(fleet, tmp_path, 3, router)
-    team = sorted(endpoints)
-    wait_until(lambda: set(team) <= set(seen.telemetry), 60.0, "telemetry from all three")
+    seen = ground.seen
+    team = start_ring(fleet, ground, tmp_path, 3)
     victim = fleet.children[-1]  # the onboard process of the last UAV
     assert victim.name == f"onboard {team[-1]}"
     mission = MissionTargets(
@@ -169,7 +178,7 @@ def test_lost_result_is_recovered_by_query(fleet: Fleet, ground: Ground, tmp_pat
     (first, second) = sorted(endpoints)
     fleet.onboard(first, endpoints[first], router, "--drop-first-result")
     fleet.onboard(second, endpoints[second], router)
-    wait_until(lambda: {first, second} <= set(seen.telemetry), 60.0, "telemetry")
+    wait_for_telemetry(ground, (first, second))
     mission = MissionTargets(
         mission=1, team=(first, second), targets=ring_targets(3, seed=8), deadline_s=20.0
     )
@@ -189,7 +198,7 @@ def test_late_joiner_catches_up_with_the_current_mission(
     team = sorted(endpoints)
     for uav in team[:2]:
         fleet.onboard(uav, endpoints[uav], router)
-    wait_until(lambda: set(team[:2]) <= set(seen.telemetry), 60.0, "telemetry")
+    wait_for_telemetry(ground, team[:2])
     ground.send(MissionTargets(mission=1, team=tuple(team), targets=ring_targets(4, seed=9)))
     wait_until(lambda: set(team[:2]) <= set(seen.assignments), 30.0, "two assignments")
     # The third starts only now: it must learn the mission and fall in line.
