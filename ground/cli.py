@@ -35,6 +35,7 @@ from fleet.transport.cli import (
 from fleet.transport.targets_io import read_targets
 from ground import keyspace, targets_command
 from ground.fleet_view import fleet_snapshot, format_table, live_uav_ids
+from ground.gui import cli as gui_cli
 from ground.mission_control import (
     MAX_MISSION_ID,
     Listener,
@@ -202,6 +203,7 @@ def build_parser() -> argparse.ArgumentParser:
     keys_cmd.add_argument("--full", action="store_true", help="do not shorten long values")
     keys_cmd.add_argument("--json", action="store_true", help="a JSON list of objects")
     keys_cmd.set_defaults(handler=cmd_keys)
+    gui_cli.add_parser(commands)
     return parser
 
 

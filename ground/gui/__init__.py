@@ -1,0 +1,1 @@
+"""The Mission Manager in the browser: `ground-cli gui` (docs/gui.md)."""

@@ -1,0 +1,228 @@
+"""The operator's commands from the page, and the mission the page follows.
+
+A command arrives as one JSON object on the WebSocket, tagged by `cmd`:
+
+    {"cmd": "send", "id": 1, "team": [74, 112], "targets": [{"lat":..,"lon":..,"alt":..}]}
+    {"cmd": "abort", "id": 2}                 (the mission the page follows, else the latest)
+    {"cmd": "opm", "id": 3, "uav": 74, "enabled": false}
+
+Each gets one reply `{"type": "reply", "id", "ok", "message"}`. A malformed command is
+refused with the reason and nothing is sent. Sending reuses the mission manager's own
+code (`ground.mission_control`): the same mission ids, the same MissionTargets, the
+same follower, the same targets queryable as `ground-cli send-targets`. The calls here
+block on Zenoh queries: the server runs them off the event loop (`asyncio.to_thread`).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable
+from contextlib import ExitStack
+from dataclasses import dataclass
+from typing import Annotated, Any
+
+import msgspec
+import zenoh
+
+from fleet.mission import keys
+from fleet.mission.messages import MissionTargets, Target
+from fleet.mission.targets_file import TargetsFileError, encode_targets
+from ground.mission_control import (
+    MAX_MISSION_ID,
+    MAX_PICCOLO_ID,
+    MIN_PICCOLO_ID,
+    MissionError,
+    MissionFollower,
+    MissionOutcome,
+    TargetsServer,
+    current_mission_id,
+    next_mission_id,
+    publish_targets,
+    send_abort,
+    send_opm,
+)
+from ground.session import query_messages
+
+log = logging.getLogger(__name__)
+
+PiccoloId = Annotated[int, msgspec.Meta(ge=MIN_PICCOLO_ID, le=MAX_PICCOLO_ID)]
+MissionId = Annotated[int, msgspec.Meta(ge=0, le=MAX_MISSION_ID)]
+#: MissionTargets' own default.
+DEFAULT_DEADLINE_S = 10.0
+
+
+class SendCommand(msgspec.Struct, frozen=True, tag="send", tag_field="cmd"):
+    id: int
+    team: tuple[PiccoloId, ...]
+    targets: tuple[Target, ...]
+    deadline_s: Annotated[float, msgspec.Meta(gt=0, le=3600)] = DEFAULT_DEADLINE_S
+
+
+class AbortCommand(msgspec.Struct, frozen=True, tag="abort", tag_field="cmd"):
+    id: int
+    mission: MissionId | None = None
+
+
+class OpmRequest(msgspec.Struct, frozen=True, tag="opm", tag_field="cmd"):
+    id: int
+    uav: PiccoloId
+    enabled: bool
+    status_rate_hz: Annotated[float, msgspec.Meta(ge=0, le=100)] = 1.0
+
+
+Command = SendCommand | AbortCommand | OpmRequest
+_decoder: msgspec.json.Decoder[Command] = msgspec.json.Decoder(Command)
+
+
+class CommandError(ValueError):
+    """A command from the page that is not one; nothing was sent."""
+
+
+def decode_command(data: str | bytes) -> Command:
+    try:
+        return _decoder.decode(data)
+    except msgspec.DecodeError as error:
+        raise CommandError(f"malformed command ({error}); nothing sent") from None
+
+
+@dataclass(frozen=True)
+class Reply:
+    id: int | None
+    ok: bool
+    message: str
+    mission: int | None = None
+    aborted: bool = False
+
+    def to_json(self) -> dict[str, Any]:
+        return {"type": "reply", "id": self.id, "ok": self.ok, "message": self.message}
+
+
+class MissionDesk:
+    """The one mission the page follows: the last it sent, or the latest the fleet has.
+
+    While it follows a mission it sent, it serves that mission's targets by query, as
+    `send-targets` does, for UAVs that join late. `on_change` is called (on a Zenoh
+    thread) whenever a result or an assignment arrives.
+    """
+
+    def __init__(self, session: zenoh.Session, on_change: Callable[[], None]) -> None:
+        self._session = session
+        self._on_change = on_change
+        self._lock = threading.Lock()
+        self._stack = ExitStack()
+        self._follower: MissionFollower | None = None
+        self._targets: MissionTargets | None = None
+
+    def _follow(self, message: MissionTargets, serve: bool) -> None:
+        """Follow `message`'s mission from now on (caller holds the lock)."""
+        self._stack.close()
+        self._stack = ExitStack()
+        follower = MissionFollower(
+            self._session, message.mission, lambda kind, _: self._on_change()
+        )
+        self._follower = self._stack.enter_context(follower)
+        if serve:
+            self._stack.enter_context(TargetsServer(self._session, message))
+        self._targets = message
+
+    def send(self, team: tuple[int, ...], targets: tuple[Target, ...], deadline_s: float) -> int:
+        mission = next_mission_id(self._session, 1.0)
+        message = MissionTargets(mission=mission, team=team, targets=targets, deadline_s=deadline_s)
+        with self._lock:
+            self._follow(message, serve=True)
+            publish_targets(self._session, message)
+        self._on_change()
+        return mission
+
+    @property
+    def mission(self) -> int | None:
+        with self._lock:
+            return self._targets.mission if self._targets is not None else None
+
+    def adopt(self, mission: int, timeout_s: float) -> bool:
+        """Follow `mission` (sent by another ground), if some UAV serves its targets."""
+        found = query_messages(
+            self._session, keys.mission_targets(mission), MissionTargets, timeout_s
+        )
+        with self._lock:
+            if self._targets is not None and self._targets.mission >= mission:
+                return False
+            for _, message in found:
+                if message.mission == mission:
+                    self._follow(message, serve=False)
+                    break
+            else:
+                return False
+        assert self._follower is not None
+        self._follower.fetch(timeout_s)
+        self._on_change()
+        return True
+
+    def outcome(self) -> MissionOutcome | None:
+        with self._lock:
+            if self._targets is None or self._follower is None:
+                return None
+            message, follower = self._targets, self._follower
+        outcome = MissionOutcome(message.mission, message.team, message.targets)
+        outcome.results, outcome.assignments = follower.snapshot()
+        return outcome
+
+    def close(self) -> None:
+        with self._lock:
+            self._stack.close()
+            self._follower = None
+
+
+def _send(desk: MissionDesk, command: SendCommand, live: set[int]) -> Reply:
+    if not command.team:
+        return Reply(command.id, False, "no team: select at least one UAV; nothing sent")
+    try:
+        encode_targets(command.targets, source="the page's targets")
+    except TargetsFileError as error:
+        return Reply(command.id, False, f"target {error.index}: {error.problem}; nothing sent")
+    team = tuple(sorted(set(command.team)))
+    try:
+        mission = desk.send(team, command.targets, command.deadline_s)
+    except MissionError as error:
+        return Reply(command.id, False, f"{error}; nothing sent")
+    absent = [uav for uav in team if uav not in live]
+    note = f" (not live now: {', '.join(map(str, absent))})" if absent else ""
+    return Reply(
+        command.id,
+        True,
+        f"mission {mission}: {len(command.targets)} targets published to "
+        f"{', '.join(map(str, team))}{note}; waiting for their results",
+        mission=mission,
+    )
+
+
+def _abort(session: zenoh.Session, desk: MissionDesk, command: AbortCommand) -> Reply:
+    mission = command.mission
+    if mission is None:
+        mission = desk.mission
+    if mission is None:
+        mission = current_mission_id(session, 1.0)
+    if mission is None:
+        return Reply(command.id, False, "no mission to abort (none seen)")
+    send_abort(session, mission)
+    return Reply(
+        command.id, True, f"mission {mission}: abort sent to the team", mission, aborted=True
+    )
+
+
+def execute(session: zenoh.Session, desk: MissionDesk, command: Command, live: set[int]) -> Reply:
+    """Carry out one command (blocking); the reply says what was done, or why not."""
+    if isinstance(command, SendCommand):
+        return _send(desk, command, live)
+    if isinstance(command, AbortCommand):
+        return _abort(session, desk, command)
+    if command.uav not in live:
+        return Reply(command.id, False, f"UAV {command.uav} is not live; nothing sent")
+    send_opm(session, command.uav, command.enabled, command.status_rate_hz)
+    state = "on" if command.enabled else "off"
+    return Reply(
+        command.id,
+        True,
+        f"UAV {command.uav}: planning module {state} sent; its status message confirms it",
+    )

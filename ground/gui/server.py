@@ -1,0 +1,291 @@
+"""`ground-cli gui`: the Mission Manager's page, served from the ground process.
+
+One aiohttp application on one event loop:
+
+* `GET /` and `/static/...`: the page (plain HTML, CSS and JavaScript shipped in the
+  package: no CDN, no JavaScript library);
+* `GET /ws`: one WebSocket per page, pushed the fleet snapshot (`ground.gui.snapshot`)
+  at most `rate_hz` times a second, and taking the operator's commands
+  (`ground.gui.commands`);
+* `GET /api/fleet`: the same JSON as `ground-cli uavs --json` (`fleet_snapshot`);
+* `GET /api/mission`: the followed mission as `ground-cli send-targets --json` reports it;
+* `POST /api/targets/import?name=FILE` (the file's bytes) and
+  `POST /api/targets/export?format=bin|csv|geojson` (a JSON list of targets): Load and
+  Save Targets through `ground.targets_formats`.
+
+The Zenoh session and its callbacks live on Zenoh's threads; they reach the loop only
+through `loop.call_soon_threadsafe`. Blocking Zenoh queries run in worker threads.
+
+Access: the page can send missions and aborts to aircraft, so by default it listens on
+loopback only. Listening anywhere else requires `--allow-remote` and a token (given, or
+generated and printed): every request must carry it (`?token=` or an
+`Authorization: Bearer` header). WebSocket upgrades from another origin are refused in
+every case, so a web page in the operator's browser cannot drive the fleet.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import hmac
+import ipaddress
+import json
+import logging
+import time
+from collections.abc import AsyncIterator, Awaitable, Callable
+from dataclasses import dataclass
+from importlib.resources import files
+from pathlib import Path
+from typing import Any
+
+import msgspec
+import zenoh
+from aiohttp import WSMsgType, web
+
+from fleet.mission.messages import Target
+from ground import targets_formats
+from ground.fleet_view import FleetView, fleet_snapshot
+from ground.gui.commands import CommandError, MissionDesk, Reply, decode_command, execute
+from ground.gui.snapshot import Coalescer, GuiModel
+
+log = logging.getLogger(__name__)
+
+STATIC_DIR = Path(str(files("ground.gui") / "static"))
+#: How often the UAVs' states (module on/off, mission phase, target) are queried.
+STATE_PERIOD_S = 1.0
+#: Largest targets file accepted by Load (bytes): 100,000 targets.
+MAX_UPLOAD = 2_400_000
+TOKEN_COOKIE = "fleet_gui_token"
+_targets_decoder = msgspec.json.Decoder(list[Target])
+
+Handler = Callable[[web.Request], Awaitable[web.StreamResponse]]
+
+
+@dataclass(frozen=True)
+class GuiConfig:
+    host: str
+    port: int
+    token: str | None  #: required on every request when set
+    rate_hz: float
+    query_timeout_s: float
+
+
+def is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+class GuiServer:
+    """The page's server over one Zenoh session; `run` serves until cancelled."""
+
+    def __init__(self, session: zenoh.Session, config: GuiConfig) -> None:
+        self.session = session
+        self.config = config
+        self.model = GuiModel()
+        self.sockets: set[web.WebSocketResponse] = set()
+        self.commands_refused = 0
+        self._view: FleetView | None = None
+        self._desk: MissionDesk | None = None
+        self._coalescer: Coalescer | None = None
+
+    # ---- set-up ------------------------------------------------------------------------
+    def app(self) -> web.Application:
+        app = web.Application(middlewares=[self._guard], client_max_size=MAX_UPLOAD)
+        app.router.add_get("/", self._index)
+        app.router.add_static("/static", STATIC_DIR)
+        app.router.add_get("/ws", self._websocket)
+        app.router.add_get("/api/fleet", self._api_fleet)
+        app.router.add_get("/api/mission", self._api_mission)
+        app.router.add_post("/api/targets/import", self._api_import)
+        app.router.add_post("/api/targets/export", self._api_export)
+        app.cleanup_ctx.append(self._fleet_context)
+        return app
+
+    async def _fleet_context(self, app: web.Application) -> AsyncIterator[None]:
+        loop = asyncio.get_running_loop()
+        coalescer = self._coalescer = Coalescer(self._push, self.config.rate_hz)
+
+        def on_status(uav: int, text: str) -> None:  # a Zenoh thread
+            now = time.time()
+            loop.call_soon_threadsafe(self._on_status, uav, text, now)
+
+        with contextlib.ExitStack() as stack:
+            self._view = stack.enter_context(FleetView(self.session, on_status))
+            # Anything under fleet/ changing wakes the pusher; the coalescer bounds the rate.
+            stack.enter_context(
+                self.session.declare_subscriber("fleet/**", lambda _: coalescer.mark_threadsafe())
+            )
+            stack.enter_context(
+                self.session.liveliness().declare_subscriber(
+                    "fleet/**", lambda _: coalescer.mark_threadsafe()
+                )
+            )
+            self._desk = MissionDesk(self.session, coalescer.mark_threadsafe)
+            stack.callback(self._desk.close)
+            tasks = [
+                asyncio.create_task(coalescer.run()),
+                asyncio.create_task(self._poll_states()),
+            ]
+            try:
+                yield
+            finally:
+                for task in tasks:
+                    task.cancel()
+                await asyncio.gather(*tasks, return_exceptions=True)
+                for ws in list(self.sockets):
+                    await ws.close()
+
+    def _on_status(self, uav: int, text: str, wall_time: float) -> None:
+        self.model.add_status(uav, text, wall_time)
+        if self._coalescer is not None:
+            self._coalescer.mark()
+
+    async def _poll_states(self) -> None:
+        """Query the states now and then; follow a newer mission another ground sent."""
+        assert self._view is not None and self._desk is not None and self._coalescer
+        while True:
+            try:
+                await asyncio.to_thread(self._view.refresh_states, self.config.query_timeout_s)
+                missions = [v.mission for v in self._view.snapshot() if v.mission is not None]
+                followed = self._desk.mission
+                if missions and (followed is None or max(missions) > followed):
+                    await asyncio.to_thread(
+                        self._desk.adopt, max(missions), self.config.query_timeout_s
+                    )
+            except zenoh.ZError as error:
+                log.warning("state query failed: %s", error)
+            self._coalescer.mark()
+            await asyncio.sleep(STATE_PERIOD_S)
+
+    # ---- access ------------------------------------------------------------------------
+    @web.middleware
+    async def _guard(self, request: web.Request, handler: Handler) -> web.StreamResponse:
+        token = self.config.token
+        if token is not None:
+            # The page's own URL carries the token; its stylesheet and script, loaded by
+            # the browser, carry the cookie set then.
+            given = request.query.get("token") or request.cookies.get(TOKEN_COOKIE, "")
+            header = request.headers.get("Authorization", "")
+            if header.startswith("Bearer "):
+                given = header.removeprefix("Bearer ")
+            if not hmac.compare_digest(given.encode(), token.encode()):
+                return web.json_response({"error": "missing or wrong token"}, status=401)
+        if request.path == "/ws":
+            origin = request.headers.get("Origin")
+            if origin is not None and origin.split("://", 1)[-1] != request.host:
+                return web.json_response({"error": f"origin {origin} refused"}, status=403)
+        return await handler(request)
+
+    # ---- pages and API -----------------------------------------------------------------
+    async def _index(self, request: web.Request) -> web.StreamResponse:
+        response = web.FileResponse(STATIC_DIR / "index.html")
+        if self.config.token is not None:
+            response.set_cookie(TOKEN_COOKIE, self.config.token, httponly=True, samesite="Strict")
+        return response
+
+    async def _api_fleet(self, request: web.Request) -> web.Response:
+        views = await asyncio.to_thread(fleet_snapshot, self.session, self.config.query_timeout_s)
+        return web.json_response([v.to_json() for v in views])
+
+    async def _api_mission(self, request: web.Request) -> web.Response:
+        outcome = self._desk.outcome() if self._desk is not None else None
+        if outcome is None:
+            return web.json_response({"error": "no mission followed yet"}, status=404)
+        return web.json_response(outcome.to_json())
+
+    async def _api_import(self, request: web.Request) -> web.Response:
+        name = request.query.get("name", "targets.bin")
+        data = await request.read()
+        try:
+            targets = targets_formats.decode(data, name)
+        except targets_formats.TargetsFormatError as error:
+            return web.json_response({"error": f"{error}; nothing loaded"}, status=400)
+        return web.json_response({"targets": [msgspec.to_builtins(t) for t in targets]})
+
+    async def _api_export(self, request: web.Request) -> web.Response:
+        try:
+            fmt = targets_formats.TargetsFormat(request.query.get("format", "bin"))
+            targets = _targets_decoder.decode(await request.read())
+            data = targets_formats.encode(targets, fmt)
+        except (ValueError, msgspec.DecodeError) as error:
+            return web.json_response({"error": f"{error}; nothing saved"}, status=400)
+        return web.Response(
+            body=data,
+            content_type=targets_formats.MEDIA_TYPES[fmt],
+            headers={"Content-Disposition": f'attachment; filename="targets.{fmt}"'},
+        )
+
+    # ---- the WebSocket -----------------------------------------------------------------
+    def _snapshot(self, statuses: list[dict[str, Any]]) -> dict[str, Any]:
+        assert self._view is not None and self._desk is not None
+        views = self._view.snapshot()
+        self.model.note_views(views)
+        return {
+            "type": "snapshot",
+            "time": time.time(),
+            "uavs": [self.model.uav_json(view) for view in views],
+            "mission": self.model.mission_json(self._desk.outcome(), views),
+            "statuses": statuses,
+        }
+
+    async def _push(self) -> None:
+        snapshot = self._snapshot(self.model.new_statuses())
+        text = json.dumps(snapshot)
+        for ws in list(self.sockets):
+            with contextlib.suppress(ConnectionError, RuntimeError):
+                await ws.send_str(text)
+
+    async def _websocket(self, request: web.Request) -> web.WebSocketResponse:
+        ws = web.WebSocketResponse(heartbeat=10.0)
+        await ws.prepare(request)
+        # The whole status history first, then the live pushes.
+        await ws.send_json({**self._snapshot([]), "statuses": self.model.all_statuses()})
+        self.sockets.add(ws)
+        try:
+            async for message in ws:
+                if message.type == WSMsgType.TEXT:
+                    reply = await self._command(message.data)
+                    await ws.send_json(reply.to_json())
+        finally:
+            self.sockets.discard(ws)
+        return ws
+
+    async def _command(self, data: str) -> Reply:
+        assert self._view is not None and self._desk is not None and self._coalescer
+        try:
+            command = decode_command(data)
+        except CommandError as error:
+            self.commands_refused += 1
+            log.warning("refused a command from the page: %s", error)
+            return Reply(None, False, str(error))
+        reply = await asyncio.to_thread(
+            execute, self.session, self._desk, command, set(self._view.live_ids())
+        )
+        if reply.aborted and reply.mission is not None:
+            self.model.aborted.add(reply.mission)
+        self._coalescer.mark()
+        return reply
+
+
+async def serve(session: zenoh.Session, config: GuiConfig, on_ready: Callable[[str], None]) -> None:
+    """Serve the page until cancelled; `on_ready(url)` once it listens."""
+    server = GuiServer(session, config)
+    runner = web.AppRunner(server.app(), access_log=None)
+    await runner.setup()
+    try:
+        site = web.TCPSite(runner, config.host, config.port)
+        await site.start()
+        # The port the OS gave when asked for port 0.
+        port = runner.addresses[0][1] if runner.addresses else config.port
+        host = f"[{config.host}]" if ":" in config.host else config.host
+        url = f"http://{host}:{port}/"
+        if config.token is not None:
+            url += f"?token={config.token}"
+        on_ready(url)
+        await asyncio.Event().wait()
+    finally:
+        await runner.cleanup()

@@ -1,0 +1,227 @@
+"""What the page is pushed, and how often: the fleet snapshot and its coalescing.
+
+The page gets one JSON snapshot per push: every UAV as `ground-cli uavs --json` shows
+it (`UavView.to_json`) plus its recent track and its link/module flags, the current
+mission as `send-targets --json` reports it plus each target's state, and the status
+messages that arrived since the previous push.
+
+Telemetry arrives at any rate from any number of UAVs, on Zenoh's threads; the page
+must not be pushed at that rate. Zenoh callbacks only *mark* the snapshot dirty (on
+the event loop, through `loop.call_soon_threadsafe`), and one task pushes at most
+`rate_hz` snapshots a second however many marks arrived: the cost to the page is
+bounded by the rate and the fleet size, never by the telemetry rate.
+
+Everything here runs on the event loop's thread, except `Coalescer.mark_threadsafe`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from collections import deque
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Any
+
+from ground.fleet_view import UavView
+from ground.mission_control import MissionOutcome
+
+log = logging.getLogger(__name__)
+
+#: Pushes a second at most (the issue asks for 5-10 Hz).
+DEFAULT_RATE_HZ = 5.0
+#: Positions kept per UAV for its trail on the map.
+TRAIL_LENGTH = 150
+#: A trail point is added only when the UAV moved at least this far (degrees, ~10 m).
+TRAIL_STEP_DEG = 1e-4
+#: Telemetry older than this (s) shows the UAV's link as lost.
+LINK_LOST_AFTER_S = 3.0
+#: Status messages kept for a page that connects later.
+STATUS_HISTORY = 500
+
+
+class Severity(StrEnum):
+    INFO = "info"
+    WARNING = "warning"
+    ERROR = "error"
+
+
+class TargetState(StrEnum):
+    """A mission target as the page shows it."""
+
+    PENDING = "pending"  #: sent, the team has not committed yet
+    ASSIGNED = "assigned"
+    REACHED = "reached"
+    UNSERVED = "unserved"  #: every UAV committed and none took it
+    ABORTED = "aborted"
+
+
+def severity_of(text: str) -> Severity:
+    """The status text's own prefix ("error: ...", "warning: ..."), the onboard convention."""
+    lower = text.lower()
+    if lower.startswith("error"):
+        return Severity.ERROR
+    if lower.startswith("warning"):
+        return Severity.WARNING
+    return Severity.INFO
+
+
+@dataclass(frozen=True)
+class StatusEntry:
+    seq: int
+    time: float  #: wall clock, seconds since the epoch
+    uav: int
+    text: str
+    severity: Severity
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "seq": self.seq,
+            "time": self.time,
+            "uav": self.uav,
+            "text": self.text,
+            "severity": str(self.severity),
+        }
+
+
+def target_states(
+    outcome: MissionOutcome, views: dict[int, UavView], reached: set[int], aborted: bool
+) -> list[dict[str, Any]]:
+    """Each target's state, who it is assigned to and that UAV's ETA.
+
+    `reached` holds the UAVs seen to reach their target in this mission (sticky: a
+    UAV's phase moves on after it reached).
+    """
+    owner: dict[int, int] = {}
+    for member in outcome.team:
+        index = outcome.target_of(member)
+        if index is not None:
+            owner[index] = member
+    states = []
+    for index in range(len(outcome.targets)):
+        uav = owner.get(index)
+        if uav is not None and uav in reached:
+            state = TargetState.REACHED
+        elif aborted:
+            state = TargetState.ABORTED
+        elif uav is not None:
+            view = views.get(uav)
+            phase_reached = view is not None and view.mission == outcome.mission
+            state = (
+                TargetState.REACHED
+                if phase_reached and view is not None and view.phase == "reached"
+                else TargetState.ASSIGNED
+            )
+        elif outcome.committed:
+            state = TargetState.UNSERVED
+        else:
+            state = TargetState.PENDING
+        report = outcome.assignments.get(uav) if uav is not None else None
+        states.append(
+            {
+                "index": index,
+                "state": str(state),
+                "uav": uav,
+                "eta_s": report.eta_s if report is not None else None,
+            }
+        )
+    return states
+
+
+@dataclass
+class GuiModel:
+    """The page's picture between pushes: trails, status log, mission bookkeeping."""
+
+    trails: dict[int, deque[tuple[float, float]]] = field(default_factory=dict)
+    statuses: deque[StatusEntry] = field(default_factory=lambda: deque(maxlen=STATUS_HISTORY))
+    _seq: int = 0
+    _pushed_seq: int = 0
+    #: (mission, uav) pairs seen reached
+    reached: set[tuple[int, int]] = field(default_factory=set)
+    aborted: set[int] = field(default_factory=set)
+
+    def add_status(self, uav: int, text: str, wall_time: float | None = None) -> None:
+        self._seq += 1
+        when = time.time() if wall_time is None else wall_time
+        self.statuses.append(StatusEntry(self._seq, when, uav, text, severity_of(text)))
+
+    def note_views(self, views: list[UavView]) -> None:
+        """Extend the trails, and remember which UAVs reached their target."""
+        for view in views:
+            if view.lat is not None and view.lon is not None:
+                trail = self.trails.setdefault(view.id, deque(maxlen=TRAIL_LENGTH))
+                if (
+                    not trail
+                    or max(abs(trail[-1][0] - view.lat), abs(trail[-1][1] - view.lon))
+                    >= TRAIL_STEP_DEG
+                ):
+                    trail.append((view.lat, view.lon))
+            if view.mission is not None and view.phase == "reached":
+                self.reached.add((view.mission, view.id))
+
+    def uav_json(self, view: UavView) -> dict[str, Any]:
+        data = view.to_json()
+        age = view.telemetry_age_s
+        data["link_lost"] = age is not None and age > LINK_LOST_AFTER_S
+        data["trail"] = [list(point) for point in self.trails.get(view.id, ())]
+        return data
+
+    def mission_json(
+        self, outcome: MissionOutcome | None, views: list[UavView]
+    ) -> dict[str, Any] | None:
+        if outcome is None:
+            return None
+        data = outcome.to_json()
+        by_id = {view.id: view for view in views}
+        reached = {uav for mission, uav in self.reached if mission == outcome.mission}
+        aborted = outcome.mission in self.aborted
+        data["aborted"] = aborted
+        data["results_received"] = len(outcome.results.keys() & set(outcome.team))
+        data["target_states"] = target_states(outcome, by_id, reached, aborted)
+        return data
+
+    def new_statuses(self) -> list[dict[str, Any]]:
+        """The statuses since the previous call, oldest first."""
+        fresh = [s.to_json() for s in self.statuses if s.seq > self._pushed_seq]
+        self._pushed_seq = self._seq
+        return fresh
+
+    def all_statuses(self) -> list[dict[str, Any]]:
+        return [s.to_json() for s in self.statuses]
+
+
+class Coalescer:
+    """Runs `push` at most `rate_hz` times a second, and only after a `mark`."""
+
+    def __init__(self, push: Callable[[], Awaitable[None]], rate_hz: float) -> None:
+        self._push = push
+        self._period_s = 1.0 / rate_hz
+        self._dirty = asyncio.Event()
+        # Made on the loop that runs it: callbacks need it before the first push.
+        self._loop = asyncio.get_running_loop()
+        self.pushes = 0
+        self.marks = 0
+
+    def mark(self) -> None:
+        """Something changed (event loop thread)."""
+        self.marks += 1
+        self._dirty.set()
+
+    def mark_threadsafe(self) -> None:
+        """Something changed (any thread, e.g. a Zenoh callback)."""
+        if not self._loop.is_closed():
+            self._loop.call_soon_threadsafe(self.mark)
+
+    async def run(self) -> None:
+        while True:
+            await self._dirty.wait()
+            self._dirty.clear()
+            try:
+                await self._push()
+            except Exception:
+                # A push must never end the loop that feeds every page.
+                log.exception("pushing the snapshot failed")
+            self.pushes += 1
+            await asyncio.sleep(self._period_s)
