@@ -29,7 +29,7 @@ from fleet.launch.launcher import (
     FleetSpec,
     LaunchError,
 )
-from fleet.launch.up_command import common_arguments, recording_path
+from fleet.launch.up_command import common_arguments, recording_path, start_gui
 from fleet.mission.messages import AssignmentReport, MissionTargets, Target, UavResult
 from fleet.recording.mission_log import build_timeline
 from fleet.recording.plot import PlotError, render
@@ -153,7 +153,14 @@ def _run_demo(args: argparse.Namespace, stop: threading.Event) -> int:
     try:
         with fleet:
             say(f"demo: UAVs {', '.join(map(str, fleet.uav_ids))} alive; router {spec.listen}")
+            gui_line = start_gui(fleet, args.gui)
+            if gui_line is not None:
+                say(f"demo: {gui_line}")
             report = _fly_demo(fleet, targets, args, stop, say)
+            if gui_line is not None and not stop.is_set():
+                verdict = "success" if report["success"] else "FAILED"
+                say(f"demo: {verdict}; the fleet and its page stay up until Ctrl-C (or SIGTERM)")
+                stop.wait()
     except LaunchError as error:
         if stop.is_set():
             return fail("fleet demo", "stopped while starting", ExitCode.INTERRUPTED)

@@ -359,6 +359,17 @@ class Fleet:
             ],
         )
 
+    def start_gui(self, listen: str) -> Child:
+        """Serve the Mission Manager's page (`ground-cli gui`) on `listen` (HOST:PORT).
+
+        A child process like the others (stopped with them, in the pids file): fleet/
+        never imports the ground; it runs it.
+        """
+        argv = [self.spec.python, "-m", "ground.cli", "--connect", self.connect]
+        child = self._spawn("gui", [*argv, "gui", "--listen", listen])
+        self._write_pids()
+        return child
+
     def _write_pids(self) -> None:
         lines = [f"{child.pid} {child.name}" for child in self.children]
         (self.log_dir / "pids").write_text("\n".join(lines) + "\n")

@@ -41,6 +41,17 @@ log = logging.getLogger(__name__)
 #: The recording's file name in the run's log folder.
 RECORDING_NAME = "fleet.mcap"
 
+#: Where `--gui` serves the page unless told (`ground-cli gui`'s default).
+DEFAULT_GUI_LISTEN = "127.0.0.1:8321"
+
+
+def start_gui(fleet: Fleet, listen: str | None) -> str | None:
+    """Start the page's server if asked; the line that says where it is."""
+    if listen is None:
+        return None
+    child = fleet.start_gui(listen)
+    return f"Mission Manager page: http://{listen}/ (log {child.log_path})"
+
 
 def common_arguments(parser: argparse.ArgumentParser, speedup: float) -> None:
     add_key_prefix_argument(parser)
@@ -56,6 +67,14 @@ def common_arguments(parser: argparse.ArgumentParser, speedup: float) -> None:
         type=Path,
         metavar="DIR",
         help="where each process's log goes (default: a new temporary directory)",
+    )
+    parser.add_argument(
+        "--gui",
+        nargs="?",
+        const=DEFAULT_GUI_LISTEN,
+        metavar="HOST:PORT",
+        help=f"also serve the Mission Manager's page (`ground-cli gui`), on {DEFAULT_GUI_LISTEN} "
+        "unless given",
     )
     parser.add_argument(
         "--start-timeout",
@@ -154,7 +173,8 @@ def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
         print(f"fleet up: recording to {spec.record} (fleet replay/plot/report read it)")
     try:
         with fleet:
-            _print_banner(fleet, targets_path)
+            gui_line = start_gui(fleet, args.gui)
+            _print_banner(fleet, targets_path, gui_line)
 
             def on_death(child: Child) -> None:
                 print(
@@ -175,7 +195,7 @@ def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
     return ExitCode.OK if stopped_cleanly else ExitCode.FAILED
 
 
-def _print_banner(fleet: Fleet, targets_path: Path | None) -> None:
+def _print_banner(fleet: Fleet, targets_path: Path | None, gui_line: str | None) -> None:
     ids = ", ".join(map(str, fleet.uav_ids))
     targets = str(targets_path) if targets_path is not None else "TARGETS.bin"
     prefix = (
@@ -190,6 +210,7 @@ def _print_banner(fleet: Fleet, targets_path: Path | None) -> None:
         "  ground-cli watch",
         f"  ground-cli send-targets {targets} --wait",
         "  ground-cli keys",
+        *([gui_line] if gui_line else []),
         "Ctrl-C (or SIGTERM) stops the fleet.",
     ]
     print("\n".join(lines), flush=True)

@@ -102,22 +102,18 @@ def target_states(
     states = []
     for index in range(len(outcome.targets)):
         uav = owner.get(index)
-        if uav is not None and uav in reached:
+        view = views.get(uav) if uav is not None else None
+        says_reached = (
+            view is not None and view.mission == outcome.mission and view.phase == "reached"
+        )
+        if uav is not None and (uav in reached or says_reached):
             state = TargetState.REACHED
+        elif uav is None and outcome.committed:
+            state = TargetState.UNSERVED
         elif aborted:
             state = TargetState.ABORTED
-        elif uav is not None:
-            view = views.get(uav)
-            phase_reached = view is not None and view.mission == outcome.mission
-            state = (
-                TargetState.REACHED
-                if phase_reached and view is not None and view.phase == "reached"
-                else TargetState.ASSIGNED
-            )
-        elif outcome.committed:
-            state = TargetState.UNSERVED
         else:
-            state = TargetState.PENDING
+            state = TargetState.PENDING if uav is None else TargetState.ASSIGNED
         report = outcome.assignments.get(uav) if uav is not None else None
         states.append(
             {

@@ -1,0 +1,217 @@
+"""`ground-cli gui` as a real subprocess against a real router and two fake UAVs: the
+HTTP API, the WebSocket's snapshots and commands, and its access rules."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import sys
+import urllib.error
+import urllib.request
+from collections.abc import Iterator
+from typing import Any
+
+import aiohttp
+import pytest
+
+from fleet.mission.messages import Target
+from fleet.mission.targets_file import encode_targets
+from fleet.transport.router import Router
+from tests.ground.test_cli import FakeOnboard, free_endpoint, run_cli, wait_until
+from tests.processes import Child, free_port, start
+
+TARGETS = [Target(42.36, -71.09, 120.0), Target(42.365, -71.1, 110.0)]
+TOKEN = "s3cret-token"
+
+
+@pytest.fixture(scope="module")
+def router() -> Iterator[str]:
+    endpoint = free_endpoint()
+    with Router([endpoint]):
+        yield endpoint
+
+
+@pytest.fixture(scope="module")
+def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
+    opened: dict[int, FakeOnboard] = {}
+    try:
+        opened[74] = FakeOnboard(router, 74, 42.3500, -71.1000, 150.0)
+        opened[112] = FakeOnboard(router, 112, 42.3700, -71.0800, 160.0)
+        yield opened
+    finally:
+        for fake in opened.values():
+            fake.close()
+
+
+def start_gui(router: str, *extra: str) -> tuple[Child, str]:
+    port = free_port()
+    child = start(
+        "ground-cli gui",
+        [sys.executable, "-m", "ground.cli", "--connect", router, "gui",
+         "--listen", f"127.0.0.1:{port}", *extra],
+    )  # fmt: skip
+    child.wait_for_line(lambda line: line.startswith("gui: serving on"), 30.0)
+    return child, f"http://127.0.0.1:{port}"
+
+
+@pytest.fixture(scope="module")
+def gui(router: str, fakes: dict[int, FakeOnboard]) -> Iterator[str]:
+    child, url = start_gui(router)
+    try:
+        yield url
+    finally:
+        assert child.stop() == 0, "\n".join(child.history[-20:])
+
+
+def get(url: str, headers: dict[str, str] | None = None) -> tuple[int, Any]:
+    request = urllib.request.Request(url, headers=headers or {})
+    try:
+        with urllib.request.urlopen(request, timeout=10) as response:
+            return response.status, json.loads(response.read())
+    except urllib.error.HTTPError as error:
+        return error.code, json.loads(error.read())
+
+
+def post(url: str, body: bytes) -> tuple[int, bytes]:
+    request = urllib.request.Request(url, data=body, method="POST")
+    try:
+        with urllib.request.urlopen(request, timeout=10) as response:
+            return response.status, response.read()
+    except urllib.error.HTTPError as error:
+        return error.code, error.read()
+
+
+def test_api_fleet_is_what_uavs_json_says(gui: str, router: str) -> None:
+    status, page = get(f"{gui}/api/fleet")
+    assert status == 200
+    cli = run_cli("uavs", "--json", endpoint=router)
+    assert cli.returncode == 0, cli.stderr
+    expected = json.loads(cli.stdout)
+    assert [row["id"] for row in page] == [row["id"] for row in expected] == [74, 112]
+    for mine, theirs in zip(page, expected, strict=True):
+        assert mine.keys() == theirs.keys()
+        assert (mine["lat"], mine["lon"], mine["enabled"]) == (
+            theirs["lat"],
+            theirs["lon"],
+            theirs["enabled"],
+        )
+
+
+def test_load_refuses_a_malformed_file_and_save_writes_every_format(gui: str) -> None:
+    status, body = post(f"{gui}/api/targets/import?name=bad.bin", b"\x00" * 25)
+    assert status == 400
+    assert "bad.bin: target 1 at byte offset 24" in json.loads(body)["error"]
+    status, body = post(f"{gui}/api/targets/import?name=t.bin", encode_targets(TARGETS))
+    assert status == 200 and len(json.loads(body)["targets"]) == 2
+    targets = json.dumps([{"lat": t.lat, "lon": t.lon, "alt": t.alt} for t in TARGETS]).encode()
+    status, body = post(f"{gui}/api/targets/export?format=csv", targets)
+    assert status == 200 and body.decode().splitlines()[0] == "lat,lon,alt"
+    status, body = post(f"{gui}/api/targets/export?format=bin", targets)
+    assert status == 200 and body == encode_targets(TARGETS)
+    status, body = post(f"{gui}/api/targets/export?format=kml", targets)
+    assert status == 400 and b"kml" in body
+
+
+async def _session_with(url: str, commands: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Connects, sends each command and collects its reply; returns the replies."""
+    replies = []
+    async with aiohttp.ClientSession() as http, http.ws_connect(f"{url}/ws") as ws:
+        first = await ws.receive_json(timeout=10)
+        assert first["type"] == "snapshot"
+        assert [uav["id"] for uav in first["uavs"]] == [74, 112]
+        for command in commands:
+            await ws.send_str(json.dumps(command))
+            while (message := await ws.receive_json(timeout=20))["type"] != "reply":
+                pass
+            replies.append(message)
+    return replies
+
+
+def test_send_and_abort_from_the_websocket(
+    gui: str, fakes: dict[int, FakeOnboard], router: str
+) -> None:
+    targets = [{"lat": t.lat, "lon": t.lon, "alt": t.alt} for t in TARGETS]
+    before = len(fakes[74].targets)
+    malformed, empty_team, bad_target, sent = asyncio.run(
+        _session_with(
+            gui,
+            [
+                {"cmd": "send", "id": 1, "team": "74", "targets": targets},
+                {"cmd": "send", "id": 2, "team": [], "targets": targets},
+                {
+                    "cmd": "send",
+                    "id": 3,
+                    "team": [74],
+                    "targets": [{"lat": 91, "lon": 0, "alt": 0}],
+                },
+                {"cmd": "send", "id": 4, "team": [74, 112], "targets": targets},
+            ],
+        )
+    )
+    assert not malformed["ok"] and "malformed command" in malformed["message"]
+    assert not empty_team["ok"] and "no team" in empty_team["message"]
+    assert not bad_target["ok"] and "target 0: latitude 91" in bad_target["message"]
+    assert sent["ok"] and "2 targets published to 74, 112" in sent["message"]
+    assert wait_until(lambda: len(fakes[74].targets) == before + 1)
+    mission = fakes[74].targets[-1].mission
+    assert wait_until(lambda: get(f"{gui}/api/mission")[1].get("complete") is True, 10.0)
+    _, outcome = get(f"{gui}/api/mission")
+    assert outcome["mission"] == mission and outcome["team"] == [74, 112]
+    assert outcome["agreed"] is True and sorted(outcome["assignment"]) == ["112", "74"]
+
+    (aborted,) = asyncio.run(_session_with(gui, [{"cmd": "abort", "id": 5}]))
+    assert aborted["ok"] and f"mission {mission}: abort sent" in aborted["message"]
+    assert wait_until(lambda: any(a.mission == mission for a in fakes[112].aborts))
+
+
+def test_opm_from_the_websocket_and_its_confirmation_in_the_snapshot(
+    gui: str, fakes: dict[int, FakeOnboard]
+) -> None:
+    async def scenario() -> tuple[dict[str, Any], list[dict[str, Any]]]:
+        async with aiohttp.ClientSession() as http, http.ws_connect(f"{gui}/ws") as ws:
+            await ws.send_str(json.dumps({"cmd": "opm", "id": 9, "uav": 112, "enabled": False}))
+            reply = None
+            statuses: list[dict[str, Any]] = []
+            while reply is None or not any("module off" in s["text"] for s in statuses):
+                message = await ws.receive_json(timeout=10)
+                if message["type"] == "reply":
+                    reply = message
+                else:
+                    statuses += message["statuses"]
+            return reply, statuses
+
+    reply, statuses = asyncio.run(scenario())
+    assert reply["ok"] and "UAV 112: planning module off sent" in reply["message"]
+    status = next(s for s in statuses if "module off" in s["text"])
+    assert status["uav"] == 112 and status["severity"] == "info"
+    assert wait_until(lambda: fakes[112].opms and fakes[112].opms[-1].enabled is False)
+    fakes[112].enabled = True
+
+
+def test_a_websocket_from_another_origin_is_refused(gui: str) -> None:
+    async def scenario() -> int:
+        async with aiohttp.ClientSession() as http:
+            try:
+                async with http.ws_connect(f"{gui}/ws", origin="http://evil.example"):
+                    return 101
+            except aiohttp.WSServerHandshakeError as error:
+                return error.status
+
+    assert asyncio.run(scenario()) == 403
+
+
+def test_a_token_when_given_guards_every_request(router: str, fakes: object) -> None:
+    child, url = start_gui(router, "--token", TOKEN)
+    try:
+        assert get(f"{url}/api/fleet")[0] == 401
+        assert get(f"{url}/api/fleet?token=wrong")[0] == 401
+        assert get(f"{url}/api/fleet?token={TOKEN}")[0] == 200
+        assert get(f"{url}/api/fleet", {"Authorization": f"Bearer {TOKEN}"})[0] == 200
+    finally:
+        assert child.stop() == 0
+
+
+def test_listening_beyond_loopback_needs_allow_remote() -> None:
+    done = run_cli("gui", "--listen", "0.0.0.0:8321", endpoint=None)
+    assert done.returncode == 2
+    assert "not loopback" in done.stderr and "--allow-remote" in done.stderr
