@@ -165,6 +165,11 @@ function fitView() {
   let h = Math.max(Math.max(...ys) - Math.min(...ys), minSize) * 1.3;
   const cx = (Math.max(...xs) + Math.min(...xs)) / 2;
   const cy = (Math.max(...ys) + Math.min(...ys)) / 2;
+  const v = state.view;
+  // Refit only when something left the view or the view is far too large: a map that
+  // follows every telemetry step jitters under the operator's pointer.
+  const inside = v && points.every(([x, y]) => x > v.x && x < v.x + v.w && y > v.y && y < v.y + v.h);
+  if (inside && v.w < 3 * w && v.h < 3 * h) return;
   state.view = { x: cx - w / 2, y: cy - h / 2, w, h };
 }
 
@@ -287,12 +292,16 @@ function drawAssignments(scale) {
     }, layer);
     const togo = distance(a, b);
     const eta = u.ground_speed ? togo / u.ground_speed : Infinity;
+    // Beside the UAV, on the side away from its line (a label half-way along the line
+    // would cover a short line's target).
+    const east = b[0] > a[0];
     const label = el('text', {
-      class: 'assignment-label', fill: colourOf(u.id),
-      transform: `translate(${(a[0] + b[0]) / 2},${(a[1] + b[1]) / 2}) scale(${scale})`,
+      class: 'assignment-label', fill: colourOf(u.id), x: east ? -16 : 16, y: 24,
+      'text-anchor': east ? 'end' : 'start',
+      transform: `translate(${a[0]},${a[1]}) scale(${scale})`,
       'data-uav': u.id, 'data-phase': phaseOf(u),
     }, layer);
-    label.textContent = `${u.id} → ${t.index}: ${formatDistance(togo)}, ETA ${formatSeconds(eta)}`;
+    label.textContent = `→ ${t.index}: ${formatDistance(togo)}, ETA ${formatSeconds(eta)}`;
   }
 }
 
@@ -518,6 +527,7 @@ async function loadFile(file) {
   }
   state.targets = answer.targets;
   state.autoFit = true;
+  state.view = null;
   notice(`${file.name}: ${answer.targets.length} targets loaded (not sent)`, true);
   render();
 }
@@ -657,7 +667,7 @@ function setUpMap() {
 }
 
 function setUpPanel() {
-  $('#fit').addEventListener('click', () => { state.autoFit = true; render(); });
+  $('#fit').addEventListener('click', () => { state.autoFit = true; state.view = null; render(); });
   $('#send').addEventListener('click', sendTargets);
   $('#abort').addEventListener('click', abortTeam);
   $('#clear-targets').addEventListener('click', () => { state.targets = []; render(); });

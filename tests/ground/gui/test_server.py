@@ -130,7 +130,7 @@ async def _session_with(url: str, commands: list[dict[str, Any]]) -> list[dict[s
 def test_send_and_abort_from_the_websocket(
     gui: str, fakes: dict[int, FakeOnboard], router: str
 ) -> None:
-    targets = [{"lat": t.lat, "lon": t.lon, "alt": t.alt} for t in TARGETS]
+    targets: list[dict[str, float]] = [{"lat": t.lat, "lon": t.lon, "alt": t.alt} for t in TARGETS]
     before = len(fakes[74].targets)
     malformed, empty_team, bad_target, sent = asyncio.run(
         _session_with(

@@ -1,0 +1,302 @@
+"""The Mission Manager's page in a real browser against a real fleet.
+
+`fleet up head_on --gui` (router, simulator, two onboard processes and `ground-cli gui`,
+all real processes on loopback), and Debian's headless Chromium driven by Selenium
+through Debian's chromedriver (never a downloaded browser). The operator's thesis
+scenario from the page alone: a malformed file dropped on Load is refused and nothing
+is sent; every UAV is drawn where its telemetry says; targets are added by clicking the
+map; Send Targets; the assignment lines appear; the targets turn reached; Abort. The
+screenshot taken mid-mission is kept in the test's tmp dir (and shown in docs/gui.md).
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import sys
+import threading
+import time
+import urllib.request
+from collections.abc import Callable, Iterator
+from importlib.resources import files
+from pathlib import Path
+from typing import Any
+
+import msgspec
+import pytest
+import zenoh
+
+from fleet.geo.mercator import MercatorProjection
+from fleet.mission import keys
+from fleet.mission.messages import MissionTargets
+from fleet.mission.targets_file import read_targets
+from tests.ground_view import GroundView
+from tests.processes import Child, client_session, free_port, start, wait_until
+
+webdriver = pytest.importorskip("selenium.webdriver")
+from selenium.webdriver.chrome.service import Service  # noqa: E402
+from selenium.webdriver.common.action_chains import ActionChains  # noqa: E402
+from selenium.webdriver.common.actions.wheel_input import ScrollOrigin  # noqa: E402
+from selenium.webdriver.common.by import By  # noqa: E402
+
+CHROMIUM = "/usr/bin/chromium"
+CHROMEDRIVER = "/usr/bin/chromedriver"
+#: Where every UAV's icon must be: on the track its telemetry reported, within this (m).
+ON_TRACK_M = 60.0
+#: Wall seconds for the UAVs to reach their targets at speedup 10 (simulated ~170 s).
+REACH_TIMEOUT_S = 120.0
+
+pytestmark = pytest.mark.skipif(
+    not (Path(CHROMIUM).exists() and Path(CHROMEDRIVER).exists()),
+    reason=f"no {CHROMIUM} / {CHROMEDRIVER}: `apt-get install chromium chromium-driver` "
+    "(.ci/run does it when missing)",
+)
+
+#: The page's map elements, read in one script (the page redraws them at every push).
+READ_MAP = """
+return [...document.querySelectorAll('#map [data-uav], #map [data-target]')].map(e => {
+  const box = (e.querySelector('.body') || e).getBoundingClientRect();
+  return {tag: e.tagName, cls: e.getAttribute('class'), ...e.dataset,
+          x: box.x + box.width / 2, y: box.y + box.height / 2};
+});
+"""
+
+
+@pytest.fixture
+def fleet_with_gui(tmp_path: Path) -> Iterator[tuple[str, str]]:
+    """`fleet up head_on --gui`: (the page's URL, the router's endpoint)."""
+    router = f"tcp/127.0.0.1:{free_port()}"
+    page = f"127.0.0.1:{free_port()}"
+    up = start(
+        "fleet up",
+        [sys.executable, "-m", "ground.fleet_cli", "up", "head_on", "--listen", router,
+         "--speedup", "10", "--gui", page, "--log-dir", str(tmp_path / "logs")],
+    )  # fmt: skip
+    try:
+        up.wait_for_line(lambda line: "stops the fleet" in line, 120.0)
+        _wait_serving(f"http://{page}/", up)
+        yield f"http://{page}/", router
+    finally:
+        up.process.send_signal(signal.SIGTERM)
+        assert up.process.wait(30) == 0, "\n".join(up.history[-30:])
+
+
+def _wait_serving(url: str, up: Child) -> None:
+    deadline = time.monotonic() + 30.0
+    while time.monotonic() < deadline:
+        try:
+            with urllib.request.urlopen(url, timeout=2) as response:
+                if response.status == 200:
+                    return
+        except OSError:
+            time.sleep(0.2)
+    raise AssertionError("the page was never served:\n" + "\n".join(up.history[-30:]))
+
+
+@pytest.fixture
+def browser(tmp_path: Path) -> Iterator[Any]:
+    options = webdriver.ChromeOptions()
+    options.binary_location = CHROMIUM
+    for flag in (
+        "--headless=new", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+        "--disable-component-update", "--disable-sync", "--no-first-run",
+        "--window-size=1500,900", f"--user-data-dir={tmp_path / 'chromium-profile'}",
+    ):  # fmt: skip
+        options.add_argument(flag)
+    driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+    try:
+        yield driver
+    finally:
+        driver.quit()
+
+
+class TargetsSeen:
+    """Every MissionTargets put on the bus (to prove that nothing was sent)."""
+
+    def __init__(self, session: zenoh.Session) -> None:
+        self.lock = threading.Lock()
+        self.missions: list[MissionTargets] = []
+        self.subscriber = session.declare_subscriber(keys.ALL_MISSION_TARGETS, self.on_sample)
+
+    def on_sample(self, sample: zenoh.Sample) -> None:
+        message = msgspec.json.decode(sample.payload.to_bytes(), type=MissionTargets)
+        with self.lock:
+            self.missions.append(message)
+
+
+def wait_for(driver: Any, what: str, predicate: Callable[[list[dict[str, Any]]], bool],
+             timeout: float) -> list[dict[str, Any]]:  # fmt: skip
+    """Read the map until `predicate` holds; fails with what the map showed last."""
+    deadline = time.monotonic() + timeout
+    elements: list[dict[str, Any]] = []
+    while time.monotonic() < deadline:
+        elements = driver.execute_script(READ_MAP)
+        if predicate(elements):
+            return elements
+        time.sleep(0.2)
+    raise AssertionError(f"timed out after {timeout} s waiting for {what}; map: {elements}")
+
+
+def uav_icons(elements: list[dict[str, Any]]) -> dict[int, dict[str, Any]]:
+    return {int(e["uav"]): e for e in elements if e["cls"] == "uav"}
+
+
+def target_marks(elements: list[dict[str, Any]]) -> dict[int, dict[str, Any]]:
+    return {int(e["target"]): e for e in elements if e["cls"] == "target"}
+
+
+def assignment_lines(elements: list[dict[str, Any]]) -> dict[int, int]:
+    return {int(e["uav"]): int(e["targetIndex"]) for e in elements if e["cls"] == "assignment"}
+
+
+def drop_file(driver: Any, name: str, data: bytes) -> None:
+    """Drop a file on the Load zone, as a drag from the desktop does."""
+    driver.execute_script(
+        """
+        const [name, bytes] = arguments;
+        const transfer = new DataTransfer();
+        transfer.items.add(new File([new Uint8Array(bytes)], name));
+        document.querySelector('#targets-panel').dispatchEvent(
+            new DragEvent('drop', {dataTransfer: transfer, bubbles: true, cancelable: true}));
+        """,
+        name,
+        list(data),
+    )
+
+
+def zoom_out(driver: Any) -> None:
+    """One wheel step out; returns when the view stopped changing (wheel events can
+    arrive spread over time)."""
+    svg = driver.find_element(By.ID, "map")
+    ActionChains(driver).scroll_from_origin(ScrollOrigin.from_element(svg), 0, 200).perform()
+    read = "return document.querySelector('#map').getAttribute('viewBox')"
+    before = driver.execute_script(read)
+    while True:
+        time.sleep(0.3)
+        now = driver.execute_script(read)
+        if now == before:
+            return
+        before = now
+
+
+def click_at(driver: Any, lat: float, lon: float) -> None:
+    """Zoom out until (lat, lon) is on the map, then click it."""
+    svg = driver.find_element(By.ID, "map")
+    for _ in range(10):
+        point = driver.execute_script("return window.fleetMap.toClient(...arguments)", lat, lon)
+        box = driver.execute_script("return arguments[0].getBoundingClientRect()", svg)
+        x, y = point["x"] - box["x"], point["y"] - box["y"]
+        if 60 < x < box["width"] - 60 and 80 < y < box["height"] - 80:
+            break
+        zoom_out(driver)
+    else:
+        raise AssertionError(f"({lat}, {lon}) never came into view")
+    # Selenium offsets are from the element's centre.
+    ActionChains(driver).move_to_element_with_offset(
+        svg, round(x - box["width"] / 2), round(y - box["height"] / 2)
+    ).click().perform()
+
+
+def distance_m(a: tuple[float, float], b: tuple[float, float]) -> float:
+    return math.hypot(*MercatorProjection(*a).to_xy(*b))
+
+
+def test_the_thesis_scenario_from_the_page(
+    fleet_with_gui: tuple[str, str], browser: Any, tmp_path: Path
+) -> None:
+    url, router = fleet_with_gui
+    port = int(router.rsplit(":", 1)[1])
+    thesis_targets = read_targets(str(files("fleet") / "scenarios" / "head_on_targets.bin"))
+    with client_session(port) as session:
+        seen = GroundView(session)
+        sent = TargetsSeen(session)
+        try:
+            browser.get(url)
+            # Every UAV, drawn where its telemetry says.
+            elements = wait_for(
+                browser, "both UAVs on the map", lambda e: set(uav_icons(e)) == {74, 112}, 30.0
+            )
+            for uav, icon in uav_icons(elements).items():
+                where = browser.execute_script(
+                    "return window.fleetMap.toLatLon(...arguments)", icon["x"], icon["y"]
+                )
+                assert seen.closest_approach(uav, where["lat"], where["lon"]) < ON_TRACK_M
+                assert icon["link"] == "ok" and icon["module"] == "on"
+
+            # A malformed file dropped on Load: refused with its message, nothing sent.
+            drop_file(browser, "bad.bin", b"\x00" * 25)
+            error = browser.find_element(By.ID, "load-error")
+            deadline = time.monotonic() + 10
+            while not error.is_displayed() and time.monotonic() < deadline:
+                time.sleep(0.1)
+            assert "bad.bin: target 1 at byte offset 24" in error.text
+            assert "nothing loaded" in error.text
+            assert not target_marks(browser.execute_script(READ_MAP))
+
+            # The thesis's three targets, by clicking the map (zoomed out: a view that
+            # no longer follows the fleet, so the clicks land where they are aimed).
+            zoom_out(browser)
+            for target in thesis_targets:
+                click_at(browser, target.lat, target.lon)
+            marks = target_marks(
+                wait_for(browser, "3 targets", lambda e: len(target_marks(e)) == 3, 10.0)
+            )
+            for index, target in enumerate(thesis_targets):
+                mark = marks[index]
+                assert mark["state"] == "draft"
+                clicked = (float(mark["lat"]), float(mark["lon"]))
+                assert distance_m(clicked, (target.lat, target.lon)) < 50.0
+
+            # Send Targets, confirming the team and the count.
+            browser.find_element(By.ID, "send").click()
+            question = browser.find_element(By.ID, "confirm-text").text
+            assert "3 target(s)" in question and "74, 112" in question
+            assert not sent.missions, "sent before the operator confirmed"
+            browser.find_element(By.ID, "confirm-ok").click()
+
+            # The lines are what the UAVs committed on the bus (the thesis's greedy gives
+            # 74 target 0 and 112 target 1 when sent early; later, the aircraft have moved).
+            def committed_uavs() -> set[int]:
+                with seen.lock:
+                    return set(seen.assignments)
+
+            wait_until(lambda: committed_uavs() == {74, 112}, 60.0, "both commitments")
+            with seen.lock:
+                committed = {uav: r.target for uav, r in seen.assignments.items()}
+            assigned = {uav: t for uav, t in committed.items() if t is not None}
+            elements = wait_for(
+                browser, "the assignment lines", lambda e: assignment_lines(e) == assigned, 30.0
+            )
+            assert [m.team for m in sent.missions] == [(74, 112)]
+            states = {i: m["state"] for i, m in target_marks(elements).items()}
+            assert {i for i, state in states.items() if state == "unserved"} == set(range(3)) - set(
+                assigned.values()
+            )
+            assert "agreed" in browser.find_element(By.ID, "agreement").text
+            browser.save_screenshot(str(tmp_path / "gui.png"))
+
+            wait_for(
+                browser,
+                "every assigned target reached",
+                lambda e: all(target_marks(e)[i]["state"] == "reached" for i in assigned.values()),
+                REACH_TIMEOUT_S,
+            )
+            browser.save_screenshot(str(tmp_path / "gui-reached.png"))
+
+            # Abort the team, confirmed: every UAV reports the mission aborted.
+            browser.find_element(By.ID, "abort").click()
+            assert "Abort mission" in browser.find_element(By.ID, "confirm-text").text
+            browser.find_element(By.ID, "confirm-ok").click()
+            wait_for(
+                browser,
+                "both UAVs aborted",
+                lambda e: (
+                    {i: u["phase"] for i, u in uav_icons(e).items()}
+                    == {74: "aborted", 112: "aborted"}
+                ),
+                30.0,
+            )
+            assert "abort sent" in browser.find_element(By.ID, "notice").text
+        finally:
+            sent.subscriber.undeclare()
+            seen.close()
