@@ -28,10 +28,9 @@ import zenoh
 from fleet.mission import keys
 from fleet.mission.messages import MissionTargets, Target
 from fleet.mission.targets_file import TargetsFileError, encode_targets
+from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
 from ground.mission_control import (
     MAX_MISSION_ID,
-    MAX_PICCOLO_ID,
-    MIN_PICCOLO_ID,
     MissionError,
     MissionFollower,
     MissionOutcome,

@@ -19,7 +19,6 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import msgspec
@@ -41,7 +40,6 @@ from fleet.mission.messages import (
 )
 from fleet.piccolo.telemetry import GpsBlock, SensorBlock, Telemetry
 from fleet.transport import bus_codec
-from fleet.transport.router import Router
 from fleet.transport.targets_io import write_targets
 from fleet.transport.zenoh_config import CONNECT_ENV, make_config
 from ground.mission_control import MissionOutcome, check_agreement
@@ -192,25 +190,6 @@ class FakeOnboard:
             keys.status(self.uav_id),
             StatusText(f"module {'on' if command.enabled else 'off'}, status every 1 s"),
         )
-
-
-@pytest.fixture(scope="module")
-def router() -> Iterator[str]:
-    endpoint = free_endpoint()
-    with Router([endpoint]):
-        yield endpoint
-
-
-@pytest.fixture(scope="module")
-def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
-    opened: dict[int, FakeOnboard] = {}
-    try:
-        opened[74] = FakeOnboard(router, 74, 42.3500, -71.1000, 150.0)
-        opened[112] = FakeOnboard(router, 112, 42.3700, -71.0800, 160.0)
-        yield opened
-    finally:
-        for fake in opened.values():
-            fake.close()
 
 
 #: Mission ids of markers no command uses, a new one each time.

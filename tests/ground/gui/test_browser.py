@@ -29,7 +29,7 @@ import zenoh
 from fleet.geo.mercator import MercatorProjection
 from fleet.mission import keys
 from fleet.mission.messages import MissionTargets
-from fleet.mission.targets_file import read_targets
+from fleet.transport.targets_io import read_targets
 from tests.ground_view import GroundView
 from tests.processes import Child, client_session, free_port, start, wait_until
 

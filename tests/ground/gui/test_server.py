@@ -16,31 +16,11 @@ import pytest
 
 from fleet.mission.messages import Target
 from fleet.mission.targets_file import encode_targets
-from fleet.transport.router import Router
-from tests.ground.test_cli import FakeOnboard, free_endpoint, run_cli, wait_until
+from tests.ground.test_cli import FakeOnboard, run_cli, wait_until
 from tests.processes import Child, free_port, start
 
 TARGETS = [Target(42.36, -71.09, 120.0), Target(42.365, -71.1, 110.0)]
 TOKEN = "s3cret-token"
-
-
-@pytest.fixture(scope="module")
-def router() -> Iterator[str]:
-    endpoint = free_endpoint()
-    with Router([endpoint]):
-        yield endpoint
-
-
-@pytest.fixture(scope="module")
-def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
-    opened: dict[int, FakeOnboard] = {}
-    try:
-        opened[74] = FakeOnboard(router, 74, 42.3500, -71.1000, 150.0)
-        opened[112] = FakeOnboard(router, 112, 42.3700, -71.0800, 160.0)
-        yield opened
-    finally:
-        for fake in opened.values():
-            fake.close()
 
 
 def start_gui(router: str, *extra: str) -> tuple[Child, str]:

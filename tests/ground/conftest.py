@@ -1,0 +1,30 @@
+"""Fixtures of the ground's tests: a router on loopback with two fake UAVs on it
+(`FakeOnboard`), shared by the `ground-cli` and `ground-cli gui` tests of a module."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+
+from fleet.transport.router import Router
+from tests.ground.test_cli import FakeOnboard, free_endpoint
+
+
+@pytest.fixture(scope="module")
+def router() -> Iterator[str]:
+    endpoint = free_endpoint()
+    with Router([endpoint]):
+        yield endpoint
+
+
+@pytest.fixture(scope="module")
+def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
+    opened: dict[int, FakeOnboard] = {}
+    try:
+        opened[74] = FakeOnboard(router, 74, 42.3500, -71.1000, 150.0)
+        opened[112] = FakeOnboard(router, 112, 42.3700, -71.0800, 160.0)
+        yield opened
+    finally:
+        for fake in opened.values():
+            fake.close()
