@@ -17,6 +17,7 @@ import math
 from enum import StrEnum
 from typing import Any
 
+from fleet.errors import CodecError
 from fleet.mission.messages import Target
 from fleet.mission.targets_file import TargetsFileError, decode_targets, encode_targets
 
@@ -37,7 +38,7 @@ MEDIA_TYPES = {
 }
 
 
-class TargetsFormatError(ValueError):
+class TargetsFormatError(CodecError):
     """A targets file (or a target list to write) that is malformed; says where and why."""
 
 

@@ -25,6 +25,7 @@ from typing import Annotated, Any
 import msgspec
 import zenoh
 
+from fleet.errors import CodecError
 from fleet.mission import keys
 from fleet.mission.messages import MissionTargets, Target
 from fleet.mission.targets_file import TargetsFileError, encode_targets
@@ -74,7 +75,7 @@ Command = SendCommand | AbortCommand | OpmRequest
 _decoder: msgspec.json.Decoder[Command] = msgspec.json.Decoder(Command)
 
 
-class CommandError(ValueError):
+class CommandError(CodecError):
     """A command from the page that is not one; nothing was sent."""
 
 

@@ -156,8 +156,9 @@ class GuiServer:
                     await asyncio.to_thread(
                         self._desk.adopt, max(missions), self.config.query_timeout_s
                     )
-            except zenoh.ZError as error:
-                log.warning("state query failed: %s", error)
+            except Exception:
+                # The next round tries again; the page must keep being served.
+                log.exception("querying the UAVs' states failed")
             self._coalescer.mark()
             await asyncio.sleep(STATE_PERIOD_S)
 
@@ -249,7 +250,12 @@ class GuiServer:
             async for message in ws:
                 if message.type == WSMsgType.TEXT:
                     reply = await self._command(message.data)
-                    await ws.send_json(reply.to_json())
+                elif message.type == WSMsgType.BINARY:
+                    self.commands_refused += 1
+                    reply = Reply(None, False, "a binary message: commands are JSON text")
+                else:
+                    continue
+                await ws.send_json(reply.to_json())
         finally:
             self.sockets.discard(ws)
         return ws
@@ -262,9 +268,13 @@ class GuiServer:
             self.commands_refused += 1
             log.warning("refused a command from the page: %s", error)
             return Reply(None, False, str(error))
-        reply = await asyncio.to_thread(
-            execute, self.session, self._desk, command, set(self._view.live_ids())
-        )
+        try:
+            reply = await asyncio.to_thread(
+                execute, self.session, self._desk, command, set(self._view.live_ids())
+            )
+        except Exception as error:
+            log.exception("command %r failed", command)
+            return Reply(command.id, False, f"failed: {error}")
         if reply.aborted and reply.mission is not None:
             self.model.aborted.add(reply.mission)
         self._coalescer.mark()

@@ -17,6 +17,7 @@ Everything here runs on the event loop's thread, except `Coalescer.mark_threadsa
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import time
 from collections import deque
@@ -207,7 +208,8 @@ class Coalescer:
 
     def mark_threadsafe(self) -> None:
         """Something changed (any thread, e.g. a Zenoh callback)."""
-        if not self._loop.is_closed():
+        # A callback racing the loop's close at shutdown has nothing left to tell.
+        with contextlib.suppress(RuntimeError):
             self._loop.call_soon_threadsafe(self.mark)
 
     async def run(self) -> None:

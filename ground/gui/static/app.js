@@ -15,7 +15,8 @@ const state = {
   excluded: new Set(), // live UAVs the operator took out of the team
   statuses: [],        // {seq, time, uav, text, severity, count}
   alerts: [],
-  lastOf: new Map(),   // each UAV's latest status entry
+  lastOf: new Map(),
+  lastSeq: 0,   // each UAV's latest status entry
   origin: null,        // {lat, lon}: the local east-north frame's origin
   view: null,          // the SVG viewBox in metres {x, y, w, h}
   autoFit: true,
@@ -427,6 +428,9 @@ function drawMission() {
 // ---- the status box -------------------------------------------------------------------------
 function addStatuses(entries) {
   for (const entry of entries) {
+    // The first snapshot's history and the next push can overlap.
+    if (entry.seq <= state.lastSeq) continue;
+    state.lastSeq = entry.seq;
     const previous = state.lastOf.get(entry.uav);
     // The modules repeat their summary every second: count repeats instead of listing them.
     if (previous && previous.text === entry.text) {
@@ -609,7 +613,12 @@ function connect() {
   const ws = new WebSocket(url);
   state.ws = ws;
   const connection = $('#connection');
-  ws.onopen = () => { connection.dataset.state = 'open'; connection.textContent = 'connected'; };
+  ws.onopen = () => {
+    connection.dataset.state = 'open';
+    connection.textContent = 'connected';
+    // The server replays its status history to every new connection.
+    Object.assign(state, { statuses: [], alerts: [], lastOf: new Map(), lastSeq: 0 });
+  };
   ws.onclose = () => {
     connection.dataset.state = 'closed';
     connection.textContent = 'disconnected: retrying';

@@ -168,6 +168,22 @@ def test_opm_from_the_websocket_and_its_confirmation_in_the_snapshot(
     fakes[112].enabled = True
 
 
+def test_a_binary_message_is_refused_and_the_socket_kept(gui: str) -> None:
+    async def scenario() -> tuple[dict[str, Any], dict[str, Any]]:
+        async with aiohttp.ClientSession() as http, http.ws_connect(f"{gui}/ws") as ws:
+            await ws.send_bytes(b"\x00\x01")
+            while (refused := await ws.receive_json(timeout=10))["type"] != "reply":
+                pass
+            await ws.send_str("not json")
+            while (malformed := await ws.receive_json(timeout=10))["type"] != "reply":
+                pass
+            return refused, malformed
+
+    refused, malformed = asyncio.run(scenario())
+    assert not refused["ok"] and "commands are JSON text" in refused["message"]
+    assert not malformed["ok"] and "malformed command" in malformed["message"]
+
+
 def test_a_websocket_from_another_origin_is_refused(gui: str) -> None:
     async def scenario() -> int:
         async with aiohttp.ClientSession() as http:
