@@ -42,6 +42,7 @@ import msgspec
 import zenoh
 from aiohttp import WSMsgType, web
 
+from fleet.mission import keys
 from fleet.mission.messages import Target
 from ground import targets_formats
 from ground.fleet_view import FleetView, fleet_snapshot
@@ -115,13 +116,14 @@ class GuiServer:
 
         with contextlib.ExitStack() as stack:
             self._view = stack.enter_context(FleetView(self.session, on_status))
-            # Anything under fleet/ changing wakes the pusher; the coalescer bounds the rate.
+            # Anything of the fleet changing wakes the pusher; the coalescer bounds the rate.
+            everything = f"{keys.PREFIX}/**"
             stack.enter_context(
-                self.session.declare_subscriber("fleet/**", lambda _: coalescer.mark_threadsafe())
+                self.session.declare_subscriber(everything, lambda _: coalescer.mark_threadsafe())
             )
             stack.enter_context(
                 self.session.liveliness().declare_subscriber(
-                    "fleet/**", lambda _: coalescer.mark_threadsafe()
+                    everything, lambda _: coalescer.mark_threadsafe()
                 )
             )
             self._desk = MissionDesk(self.session, coalescer.mark_threadsafe)
