@@ -7,7 +7,8 @@ One aiohttp application on one event loop:
 * `GET /ws`: one WebSocket per page, pushed the fleet snapshot (`ground.gui.snapshot`)
   at most `rate_hz` times a second, and taking the operator's commands
   (`ground.gui.commands`);
-* `GET /api/fleet`: the same JSON as `ground-cli uavs --json` (`fleet_snapshot`);
+* `GET /api/fleet`: the live UAVs in the same JSON as `ground-cli uavs --json`
+  (`UavView.to_json`, from the page's live `FleetView`);
 * `GET /api/mission`: the followed mission as `ground-cli send-targets --json` reports it;
 * `POST /api/targets/import?name=FILE` (the file's bytes) and
   `POST /api/targets/export?format=bin|csv|geojson` (a JSON list of targets): Load and
@@ -45,7 +46,7 @@ from aiohttp import WSMsgType, web
 from fleet.mission import keys
 from fleet.mission.messages import Target
 from ground import targets_formats
-from ground.fleet_view import FleetView, fleet_snapshot
+from ground.fleet_view import FleetView
 from ground.gui.commands import CommandError, MissionDesk, Reply, decode_command, execute
 from ground.gui.snapshot import Coalescer, GuiModel
 
@@ -191,8 +192,10 @@ class GuiServer:
         return response
 
     async def _api_fleet(self, request: web.Request) -> web.Response:
-        views = await asyncio.to_thread(fleet_snapshot, self.session, self.config.query_timeout_s)
-        return web.json_response([v.to_json() for v in views])
+        # The page's own live view (liveliness, telemetry and state subscriptions), in
+        # `uavs --json`'s format: no query per request, and the same UAVs the map shows.
+        assert self._view is not None
+        return web.json_response([v.to_json() for v in self._view.snapshot()])
 
     async def _api_mission(self, request: web.Request) -> web.Response:
         outcome = self._desk.outcome() if self._desk is not None else None

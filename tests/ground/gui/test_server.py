@@ -62,8 +62,16 @@ def post(url: str, body: bytes) -> tuple[int, bytes]:
 
 
 def test_api_fleet_is_what_uavs_json_says(gui: str, router: str) -> None:
-    status, page = get(f"{gui}/api/fleet")
-    assert status == 200
+    def both_known() -> bool:
+        status, page = get(f"{gui}/api/fleet")
+        assert status == 200
+        return [row["id"] for row in page] == [74, 112] and all(
+            row["enabled"] is not None for row in page
+        )
+
+    # A live view: the UAVs' tokens, telemetry and first state answers fill it in.
+    assert wait_until(both_known, 10.0)
+    _, page = get(f"{gui}/api/fleet")
     cli = run_cli("uavs", "--json", endpoint=router)
     assert cli.returncode == 0, cli.stderr
     expected = json.loads(cli.stdout)
