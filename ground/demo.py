@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import math
 import socket
 import sys
 import threading
@@ -23,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
-from fleet.geo.mercator import MercatorProjection
+from fleet.geo.mercator import distance_m
 from fleet.launch.launcher import (
     Fleet,
     FleetSpec,
@@ -115,11 +114,6 @@ class Arrival:
 
     how: str  #: status | phase | track
     after_s: float  #: wall seconds from the commitment
-
-
-def _distance_m(a: tuple[float, float], b: tuple[float, float]) -> float:
-    x, y = MercatorProjection(*a).to_xy(*b)
-    return math.hypot(x, y)
 
 
 def run_demo(args: argparse.Namespace) -> int:
@@ -310,7 +304,7 @@ def _left_target_waypoint(view: FleetView, uav: int, target: Target) -> bool:
     indices = [
         index
         for index, waypoint in view.waypoints(uav).items()
-        if _distance_m((target.lat, target.lon), (waypoint.lat, waypoint.lon))
+        if distance_m((target.lat, target.lon), (waypoint.lat, waypoint.lon))
         <= TARGET_WAYPOINT_MATCH_M
     ]
     history = view.track_history(uav)

@@ -8,6 +8,11 @@ adapter and the Zenoh node, and which unit tests replace with a recorder. No I/O
 Flying to a target (thesis 4.3): write waypoint TARGET_WAYPOINT at the target with
 `next` = the waypoint the aircraft was tracking, then track it; when the autopilot
 moves on from it, the aircraft is back on its original course by itself.
+
+Every phase is what the module observed (docs/lifecycle.md): `flying` once the
+autopilot echoed the track command, `reached` once telemetry put the aircraft within
+REACHED_RADIUS_M of the target, `preempted` when the autopilot left the target route
+anywhere else, `link_lost` when telemetry stopped for LINK_LOST_S.
 """
 
 from __future__ import annotations
@@ -20,7 +25,7 @@ from typing import Protocol
 import msgspec
 
 from fleet.consensus.mission_round import MissionRound
-from fleet.geo.mercator import MercatorProjection
+from fleet.geo.mercator import MercatorProjection, distance_m
 from fleet.mission import keys
 from fleet.mission.messages import (
     AssignmentReport,
@@ -33,6 +38,7 @@ from fleet.mission.messages import (
     UavResult,
     UavState,
 )
+from fleet.mission.phase import Phase, Severity
 from fleet.mission.targets_file import TargetsFileError, encode_targets
 from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
@@ -46,6 +52,12 @@ log = logging.getLogger(__name__)
 TARGET_WAYPOINT = 90
 #: Results for missions not seen yet are kept, at most this many, for when they start.
 MAX_EARLY_RESULTS = 256
+#: Within this distance (m) of its target by telemetry, a UAV has reached it: the
+#: autopilot's own acceptance radius (60 m in the simulator) plus what the aircraft
+#: flies between two telemetry packets at top speed and 5 Hz.
+REACHED_RADIUS_M = 75.0
+#: With no telemetry for this long (wall seconds), the autopilot link counts as lost.
+LINK_LOST_S = 3.0
 
 
 class Planner(Protocol):
@@ -77,22 +89,53 @@ class OnboardCore:
     tracked_waypoint: int | None = None
     original_waypoint: int | None = None
     round: MissionRound | None = None
-    phase: str = "idle"
+    phase: Phase = Phase.IDLE
+    reason: str | None = None  #: why the phase is what it is, where that needs saying
     last_status: str | None = None
     alive: set[int] = field(default_factory=set)
     commands: CommandTracker = field(init=False)
     _early_results: list[UavResult] = field(default_factory=list)
     _aborted: set[int] = field(default_factory=set)
     _last_status_at: float = -math.inf
+    _telemetry_at: float | None = None
+    _link_lost: bool = False
+    _target_tracked: bool = False  #: the autopilot echoed the track to the target waypoint
 
     def __post_init__(self) -> None:
         self.commands = CommandTracker(send=self.outputs.send_autopilot)
         self.alive.add(self.uav_id)
 
     # ---- link events -------------------------------------------------------------
-    def on_telemetry(self, telemetry: Telemetry) -> None:
+    def on_telemetry(self, telemetry: Telemetry, now: float) -> None:
         self.telemetry = telemetry
+        self._telemetry_at = now
         self.outputs.publish(keys.telemetry(self.uav_id), telemetry)
+        if self._link_lost:
+            self._link_lost = False
+            self.status("autopilot link back: telemetry flowing again", now)
+        if self.phase in (Phase.COMMITTED, Phase.FLYING) and self._target_distance() is not None:
+            distance = self._target_distance()
+            if distance is not None and distance <= REACHED_RADIUS_M:
+                self._reached(distance, now)
+
+    def _target_distance(self) -> float | None:
+        """Metres from the latest GPS fix to the committed target; None if either is unknown."""
+        report = self.round.committed if self.round else None
+        gps = self.telemetry.gps if self.telemetry else None
+        if report is None or report.target is None or gps is None or self.round is None:
+            return None
+        target = self.round.targets.targets[report.target]
+        return distance_m((gps.lat, gps.lon), (target.lat, target.lon))
+
+    def _reached(self, distance: float, now: float) -> None:
+        self.phase = Phase.REACHED
+        self.reason = None
+        target = self.round.committed.target if self.round and self.round.committed else None
+        self.status(f"reached target {target} ({distance:.0f} m from it)", now)
+
+    def link_lost(self, now: float) -> bool:
+        """True while no telemetry has arrived for LINK_LOST_S (or none ever did)."""
+        return self._telemetry_at is None or now - self._telemetry_at > LINK_LOST_S
 
     def on_track(self, track: Track, now: float) -> None:
         self.commands.on_echo(track)
@@ -101,14 +144,21 @@ class OnboardCore:
             self.outputs.publish(keys.track(self.uav_id), track)
         if track.waypoint == TARGET_WAYPOINT:
             return
-        if self.phase == "flying" and previous == TARGET_WAYPOINT:
-            self.phase = "reached"
-            target = self.round.committed.target if self.round and self.round.committed else None
-            self.status(
-                f"reached target {target}; resuming course at waypoint {track.waypoint}", now
-            )
-        if self.phase != "flying":
+        if self.phase == Phase.FLYING and self._target_tracked and previous == TARGET_WAYPOINT:
+            self._left_target_route(track.waypoint, now)
+        if self.phase not in (Phase.COMMITTED, Phase.FLYING):
             self.original_waypoint = track.waypoint  # the course to come back to
+
+    def _left_target_route(self, waypoint: int, now: float) -> None:
+        """The autopilot stopped tracking the target: arrival if telemetry says so."""
+        distance = self._target_distance()
+        if distance is not None and distance <= REACHED_RADIUS_M:
+            self._reached(distance, now)
+            return
+        self.phase = Phase.PREEMPTED
+        where = "unknown distance" if distance is None else f"{distance:.0f} m"
+        self.reason = f"autopilot left the target route for waypoint {waypoint} at {where}"
+        self.status(f"warning: target not reached: {self.reason}", now)
 
     def on_waypoint(self, waypoint: Waypoint) -> None:
         self.commands.on_echo(waypoint)
@@ -154,13 +204,21 @@ class OnboardCore:
         # A UAV that joins late or restarts adopts what its teammates committed.
         self.outputs.fetch_assignments(targets.mission)
         if self.telemetry is None or self.telemetry.gps is None:
-            self.status(f"warning: mission {targets.mission}: no GPS telemetry yet", now)
-            self._publish_result(tuple(None for _ in targets.targets), now)
+            self._decline(f"mission {targets.mission}: no GPS telemetry yet", now)
+        elif self.link_lost(now):
+            self._decline(f"mission {targets.mission}: autopilot link lost", now)
         elif not self.enabled:
             self.status(f"mission {targets.mission}: module off, not taking part", now)
             self._publish_result(tuple(None for _ in targets.targets), now)
         else:
             self._start_planning(now)
+
+    def _decline(self, why: str, now: float) -> None:
+        """Take no part in the current mission: an all-None result says so to the team."""
+        assert self.round is not None
+        self.reason = why
+        self.status(f"warning: {why}: not taking part", now)
+        self._publish_result(tuple(None for _ in self.round.targets.targets), now)
 
     def _refusal(self, targets: MissionTargets) -> str | None:
         try:
@@ -172,11 +230,14 @@ class OnboardCore:
         return None
 
     def _start_round(self, targets: MissionTargets, now: float) -> None:
-        if self.phase == "flying":
-            self._resume_course(now)
+        # Cancel first: the resume submitted next must survive the new mission's start.
         self.commands.cancel_all(f"mission {targets.mission} started")
+        if self.phase in (Phase.COMMITTED, Phase.FLYING):
+            self._resume_course(now)
         self.round = MissionRound(targets, self.uav_id, now)
-        self.phase = "computing"
+        self.phase = Phase.COMPUTING
+        self.reason = None
+        self._target_tracked = False
         early, self._early_results = self._early_results, []
         for result in early:
             if result.mission == targets.mission:
@@ -217,6 +278,8 @@ class OnboardCore:
             return
         if report.mission != self.round.mission or self.round.committed is not None:
             return
+        if report.mission in self._aborted:
+            return
         adopted = self.round.adopt(report)
         if adopted is not None:
             self.status(
@@ -225,13 +288,20 @@ class OnboardCore:
             self._commit(adopted, now)
 
     def on_abort(self, abort: MissionAbort, now: float) -> None:
+        """Abort is final: mission m never commits or flies after this, whatever arrives."""
         self._aborted.add(abort.mission)
         if self.round is None or self.round.mission != abort.mission:
             return
-        if self.phase == "flying":
+        if self.phase == Phase.ABORTED:
+            return
+        self.commands.cancel_all(f"mission {abort.mission} aborted")
+        flying = self.phase in (Phase.COMMITTED, Phase.FLYING)
+        if flying:
             self._resume_course(now)
-        self.phase = "aborted"
-        self.status(f"mission {abort.mission} aborted; back on course", now)
+        self.phase = Phase.ABORTED
+        self.reason = None
+        course = "back on course" if flying else "it was not flying a target"
+        self.status(f"mission {abort.mission} aborted; {course}", now)
 
     def on_alive(self, uav: int, alive: bool) -> None:
         if alive:
@@ -243,8 +313,13 @@ class OnboardCore:
     def tick(self, now: float) -> None:
         self.commands.tick(now)
         self._collect_plan(now)
+        self._check_link(now)
         mission_round = self.round
-        if mission_round is not None and mission_round.committed is None:
+        if (
+            mission_round is not None
+            and mission_round.committed is None
+            and mission_round.mission not in self._aborted
+        ):
             if mission_round.should_fetch(now, self.alive):
                 mission_round.last_fetch = now
                 self.outputs.fetch_results(mission_round.mission)
@@ -261,9 +336,15 @@ class OnboardCore:
         if self.status_rate_hz > 0 and now - self._last_status_at >= 1 / self.status_rate_hz:
             self.status(self._summary(), now)
 
+    def _check_link(self, now: float) -> None:
+        if self._telemetry_at is None or self._link_lost or not self.link_lost(now):
+            return
+        self._link_lost = True
+        self.status(f"error: autopilot link lost: no telemetry for over {LINK_LOST_S:g} s", now)
+
     def _collect_plan(self, now: float) -> None:
         result = self.planner.result()
-        if result is None or self.round is None or self.phase != "computing":
+        if result is None or self.round is None or self.phase != Phase.COMPUTING:
             return
         if len(result.times) != len(self.round.targets.targets):
             return  # the answer to a superseded mission
@@ -286,24 +367,24 @@ class OnboardCore:
         self.round.add_result(result)
         # Teammates are computing too: the first fetch waits one interval.
         self.round.last_fetch = now
-        self.phase = "waiting" if self.round.committed is None else self.phase
+        if self.round.committed is None and self.phase == Phase.COMPUTING:
+            self.phase = Phase.WAITING
         self.outputs.publish(keys.mission_result(result.mission, self.uav_id), result)
         self.outputs.send_ground(result)
 
     def _commit(self, report: AssignmentReport, now: float) -> None:
         self.outputs.publish(keys.mission_assignment(report.mission, self.uav_id), report)
         if report.target is None:
-            self.phase = "committed"
+            self.phase = Phase.IDLE
             self.status(f"mission {report.mission}: no target assigned; keeping course", now)
             return
         assert self.round is not None
         target = self.round.targets.targets[report.target]
         eta = f"{report.eta_s:.0f} s" if report.eta_s is not None else "unknown"
         self.status(f"mission {report.mission}: target {report.target} chosen, ETA {eta}", now)
+        self.phase = Phase.COMMITTED
         if not self.enabled:
-            self.phase = "committed"
             return
-        self.phase = "flying"
         # on_track never records the target waypoint as the course; 0 before any track.
         back_to = 0 if self.original_waypoint is None else self.original_waypoint
         waypoint = Waypoint(
@@ -316,18 +397,35 @@ class OnboardCore:
         mission = report.mission
 
         def track_target(result: CommandResult) -> None:
+            if self._superseded(mission):
+                return
             if not result.ok:
-                self.status(
-                    f"error: mission {mission}: target waypoint not stored: {result.detail}", now
-                )
+                self._failed(f"target waypoint not stored: {result.detail}", now)
                 return
             self.commands.submit(Track(TARGET_WAYPOINT), now, tracked)
 
         def tracked(result: CommandResult) -> None:
+            if self._superseded(mission):
+                return
             if not result.ok:
-                self.status(f"error: mission {mission}: track not confirmed: {result.detail}", now)
+                self._failed(f"track to the target not confirmed: {result.detail}", now)
+                return
+            self._target_tracked = True
+            if self.phase == Phase.COMMITTED:
+                self.phase = Phase.FLYING
+                self.status(f"mission {mission}: flying to target {report.target}", now)
 
         self.commands.submit(waypoint, now, track_target)
+
+    def _superseded(self, mission: int) -> bool:
+        """A command's answer arrived after its mission was replaced or aborted."""
+        return self.round is None or self.round.mission != mission or mission in self._aborted
+
+    def _failed(self, why: str, now: float) -> None:
+        self.phase = Phase.FAILED
+        self.reason = why
+        mission = self.round.mission if self.round else "?"
+        self.status(f"error: mission {mission}: cannot fly the target: {why}", now)
 
     def _resume_course(self, now: float) -> None:
         if self.original_waypoint is None or not self.enabled:
@@ -338,16 +436,15 @@ class OnboardCore:
             if not result.ok:
                 self.status(f"error: could not resume waypoint {back}: {result.detail}", now)
 
-        self.commands.cancel_all("resuming course")
         self.commands.submit(Track(back), now, done)
-        self.phase = "idle"
 
     # ---- reporting -----------------------------------------------------------------
     def status(self, text: str, now: float) -> None:
         self._last_status_at = now
         self.last_status = text
-        (log.warning if text.startswith(("error", "warning")) else log.info)("%s", text)
-        message = StatusText(text)
+        severity = Severity.of_text(text)
+        (log.info if severity == Severity.INFO else log.warning)("%s", text)
+        message = StatusText(text, severity)
         self.outputs.publish(keys.status(self.uav_id), message)
         self.outputs.send_ground(message)
 
@@ -362,7 +459,18 @@ class OnboardCore:
                 parts.append(f"target {report.target}")
         return "; ".join(parts)
 
-    def state(self) -> UavState:
+    def overall_phase(self, now: float) -> tuple[Phase, str | None]:
+        """The phase the UAV shows: `off` and `link_lost` outrank the mission's phase."""
+        if not self.enabled:
+            return Phase.OFF, "the onboard planning module is turned off"
+        if self._telemetry_at is not None and self.link_lost(now):
+            age = now - self._telemetry_at
+            return Phase.LINK_LOST, f"no telemetry from the autopilot for {age:.1f} s"
+        if self.round is None:
+            return Phase.IDLE, None
+        return self.phase, self.reason
+
+    def state(self, now: float) -> UavState:
         progress = None
         if self.round is not None:
             progress = MissionProgress(
@@ -372,6 +480,7 @@ class OnboardCore:
                 result=self.round.results.get(self.uav_id),
                 assignment=self.round.committed,
             )
+        phase, reason = self.overall_phase(now)
         return UavState(
             uav=self.uav_id,
             enabled=self.enabled,
@@ -381,6 +490,8 @@ class OnboardCore:
             link=None,
             mission=progress,
             last_status=self.last_status,
+            phase=phase,
+            reason=reason,
         )
 
     def mission_targets(self) -> MissionTargets | None:

@@ -192,7 +192,7 @@ class OnboardProcess:
             message = event.message
             if isinstance(message, Telemetry):
                 self.link.note_telemetry(now)
-                self.core.on_telemetry(message)
+                self.core.on_telemetry(message, now)
             elif isinstance(message, Track):
                 self.core.on_track(message, now)
             elif isinstance(message, Waypoint):
@@ -239,7 +239,7 @@ class OnboardProcess:
     # ---- queries --------------------------------------------------------------------
     def _serve_queries(self, now: float) -> None:
         while (query := self.node.state_queries.try_recv()) is not None:
-            state = msgspec.structs.replace(self.core.state(), link=self.link.health(now))
+            state = msgspec.structs.replace(self.core.state(now), link=self.link.health(now))
             query.reply(keys.state(self.settings.uav_id), state)
             query.drop()
         while (query := self.node.command_queries.try_recv()) is not None:

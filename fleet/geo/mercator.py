@@ -106,3 +106,13 @@ class MercatorProjection:
                 break
         lon = wrap_degrees(self.ref_lon_deg + math.degrees(x / self._k_a))
         return math.degrees(phi), lon
+
+
+def distance_m(a: tuple[float, float], b: tuple[float, float]) -> float:
+    """Metres between two (lat, lon) points, in the local Mercator frame of `a`.
+
+    Exact enough for the short distances it serves (a target and an aircraft closing
+    on it: the scale error is under 0.1 % within 10 km).
+    """
+    x, y = MercatorProjection(*a).to_xy(*b)
+    return math.hypot(x, y)

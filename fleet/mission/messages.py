@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import msgspec
 
+from fleet.mission.phase import Phase, Severity
 from fleet.piccolo.telemetry import Telemetry
 
 #: Planning-protocol address of every UAV (thesis 2.9).
@@ -38,9 +39,14 @@ class OpmCommand(msgspec.Struct, frozen=True):
 
 
 class StatusText(msgspec.Struct, frozen=True):
-    """PAYLOAD_STATUS: a text status message from a UAV to the Mission Manager."""
+    """PAYLOAD_STATUS: a text status message from a UAV to the Mission Manager.
+
+    The binary payload link carries the text alone; its severity is then read from the
+    text's `error:` / `warning:` prefix (`Severity.of_text`).
+    """
 
     text: str
+    severity: Severity = Severity.INFO
 
 
 class MissionTargets(msgspec.Struct, frozen=True):
@@ -112,7 +118,7 @@ class MissionProgress(msgspec.Struct, frozen=True):
     """Where a UAV stands in its current mission (part of UavState)."""
 
     mission: int
-    phase: str  #: computing | waiting | committed | reached | aborted | idle
+    phase: Phase
     targets: int
     result: UavResult | None = None
     assignment: AssignmentReport | None = None
@@ -129,3 +135,6 @@ class UavState(msgspec.Struct, frozen=True):
     link: LinkHealth | None
     mission: MissionProgress | None
     last_status: str | None = None
+    #: The UAV's phase as a whole: `off` and `link_lost` override the mission's phase.
+    phase: Phase = Phase.IDLE
+    reason: str | None = None  #: why, for preempted, failed, link_lost and a declined mission

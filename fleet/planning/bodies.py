@@ -23,6 +23,7 @@ from fleet.mission.messages import (
     Target,
     UavResult,
 )
+from fleet.mission.phase import Severity
 from fleet.planning.framing import (
     MAX_PAYLOAD_SIZE,
     PAYLOAD_UAV,
@@ -213,7 +214,8 @@ def decode_opm(body: bytes) -> OpmCommand:
 
 def decode_status(body: bytes) -> StatusText:
     try:
-        return StatusText(text=body.decode("utf-8"))
+        text = body.decode("utf-8")
+        return StatusText(text=text, severity=Severity.of_text(text))
     except UnicodeDecodeError:
         raise Malformed("status text is not UTF-8") from None
 

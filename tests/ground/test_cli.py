@@ -38,6 +38,7 @@ from fleet.mission.messages import (
     UavResult,
     UavState,
 )
+from fleet.mission.phase import Phase
 from fleet.piccolo.telemetry import GpsBlock, SensorBlock, Telemetry
 from fleet.transport import bus_codec
 from fleet.transport.targets_io import write_targets
@@ -172,7 +173,7 @@ class FakeOnboard:
         with self._lock:
             self._served[keys.mission_result(m, self.uav_id)] = bus_codec.encode(result)
             self._served[keys.mission_assignment(m, self.uav_id)] = bus_codec.encode(report)
-            self.mission = MissionProgress(m, "committed", n, result, report)
+            self.mission = MissionProgress(m, Phase.COMMITTED, n, result, report)
         self.put(keys.mission_result(m, self.uav_id), result)
         if self.publish_assignment:
             self.put(keys.mission_assignment(m, self.uav_id), report)

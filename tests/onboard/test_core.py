@@ -20,10 +20,12 @@ from fleet.mission.messages import (
     Target,
     UavResult,
 )
+from fleet.mission.phase import Phase, Severity
+from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from onboard.autopilot_commands import AutopilotCommand
-from onboard.core import TARGET_WAYPOINT, OnboardCore
+from onboard.core import LINK_LOST_S, TARGET_WAYPOINT, OnboardCore
 from onboard.planner_worker import PlanRequest, PlanResult
 from tests.link_samples import sample_telemetry
 
@@ -88,7 +90,7 @@ def make_core(
 ) -> tuple[OnboardCore, Recorder]:
     recorder = Recorder()
     core = OnboardCore(uav_id=uav, outputs=recorder, planner=ScriptedPlanner(times))
-    core.on_telemetry(sample_telemetry())
+    core.on_telemetry(sample_telemetry(), 0.0)
     core.on_track(Track(2), 0.0)
     return core, recorder
 
@@ -104,12 +106,88 @@ def test_single_uav_flies_to_the_fastest_target_then_resumes() -> None:
     assert isinstance(waypoint, Waypoint)
     assert (waypoint.index, waypoint.next_index) == (TARGET_WAYPOINT, 2)
     assert (waypoint.lat, waypoint.lon) == (TARGETS[1].lat, TARGETS[1].lon)
+    assert core.state(1.5).phase == Phase.COMMITTED  # nothing echoed yet
     core.on_waypoint(waypoint)  # the autopilot's echo
     assert out.autopilot[-1] == Track(TARGET_WAYPOINT)
     core.on_track(Track(TARGET_WAYPOINT), 2.0)
-    core.on_track(Track(2), 60.0)
-    assert core.phase == "reached"
+    assert core.state(2.0).phase == Phase.FLYING
+    core.on_telemetry(telemetry_at(TARGETS[1].lat + 0.0005, TARGETS[1].lon), 59.0)  # ~56 m
+    assert core.state(59.0).phase == Phase.REACHED
+    core.on_track(Track(2), 60.0)  # the autopilot moves on: still reached
+    assert core.state(60.0).phase == Phase.REACHED
     assert any("reached target 1" in s for s in out.statuses())
+
+
+def telemetry_at(lat: float, lon: float) -> Telemetry:
+    sample = sample_telemetry()
+    assert sample.gps is not None
+    return msgspec.structs.replace(
+        sample, gps=msgspec.structs.replace(sample.gps, lat=lat, lon=lon)
+    )
+
+
+def fly_target_1(core: OnboardCore, out: Recorder) -> None:
+    core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 1.0)
+    core.tick(1.1)
+    (waypoint,) = out.autopilot
+    assert isinstance(waypoint, Waypoint)
+    core.on_waypoint(waypoint)
+    core.on_track(Track(TARGET_WAYPOINT), 2.0)
+
+
+def test_leaving_the_target_route_far_from_it_is_preempted_not_reached() -> None:
+    core, out = make_core()
+    fly_target_1(core, out)
+    core.on_telemetry(telemetry_at(42.36, -71.09), 10.0)  # kilometres from target 1
+    core.on_track(Track(5), 10.5)  # an operator re-tasks the aircraft
+    state = core.state(10.5)
+    assert state.phase == Phase.PREEMPTED
+    assert state.reason is not None and "waypoint 5" in state.reason
+    assert not any("reached" in s and "not reached" not in s for s in out.statuses())
+
+
+def test_a_stale_resume_echo_before_the_track_echo_is_not_an_arrival() -> None:
+    core, _ = make_core()
+    core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 1.0)
+    core.tick(1.1)
+    core.on_track(Track(TARGET_WAYPOINT), 1.2)
+    core.on_track(Track(2), 1.3)  # an echo from before the commitment
+    assert core.state(1.3).phase == Phase.COMMITTED
+
+
+def test_abort_while_waiting_for_a_teammate_is_final() -> None:
+    core, out = make_core()
+    core.on_alive(74, True)
+    core.on_targets(MissionTargets(mission=1, team=(74, 112), targets=TARGETS), 1.0)
+    core.tick(1.1)  # own result out; waiting for 74
+    core.on_abort(MissionAbort(1), 2.0)
+    core.on_result(UavResult(1, 74, (10.0, 20.0, 30.0)), 3.0)
+    for step in range(4, 30):
+        core.on_telemetry(sample_telemetry(), float(step))
+        core.tick(float(step))  # well past the 10 s deadline
+    assert out.on(keys.mission_assignment(1, 112)) == []
+    assert out.autopilot == []
+    assert core.state(30.0).phase == Phase.ABORTED
+
+
+def test_lost_telemetry_is_link_lost_and_declines_a_mission() -> None:
+    core, out = make_core()  # telemetry at t=0
+    core.tick(LINK_LOST_S + 1.0)
+    state = core.state(LINK_LOST_S + 1.0)
+    assert state.phase == Phase.LINK_LOST and state.reason is not None
+    assert any(s.startswith("error: autopilot link lost") for s in out.statuses())
+    core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), LINK_LOST_S + 2)
+    assert out.on(keys.mission_result(1, 112)) == [UavResult(1, 112, (None, None, None))]
+    assert out.autopilot == []
+    core.on_telemetry(sample_telemetry(), LINK_LOST_S + 3)
+    assert core.state(LINK_LOST_S + 3).phase != Phase.LINK_LOST
+
+
+def test_status_messages_carry_their_severity() -> None:
+    core, out = make_core()
+    core.tick(LINK_LOST_S + 1.0)
+    severities = {m.text: m.severity for _, m in out.published if isinstance(m, StatusText)}
+    assert Severity.ERROR in severities.values()
 
 
 def test_unconfirmed_waypoint_is_retried_then_reported_failed() -> None:
