@@ -14,10 +14,14 @@ import json
 import logging
 import sys
 import threading
+import time
 from typing import Any, TextIO
+
+import zenoh
 
 from fleet.mission import keys
 from fleet.mission.messages import AssignmentReport, MissionTargets, StatusText, Target, UavResult
+from fleet.mission.phase import Phase
 from fleet.mission.targets_file import TargetsFileError
 from fleet.transport.cli import (
     ExitCode,
@@ -34,7 +38,7 @@ from fleet.transport.cli import (
 )
 from fleet.transport.targets_io import read_targets
 from ground import keyspace, targets_command
-from ground.fleet_view import fleet_snapshot, format_table, live_uav_ids
+from ground.fleet_view import fleet_snapshot, format_table, live_uav_ids, query_states
 from ground.gui import cli as gui_cli
 from ground.mission_control import (
     MAX_MISSION_ID,
@@ -44,7 +48,7 @@ from ground.mission_control import (
     MissionOutcome,
     TargetsServer,
     check_agreement,
-    current_mission_id,
+    missions_seen,
     next_mission_id,
     publish_targets,
     send_abort,
@@ -67,6 +71,8 @@ DEFAULT_DEADLINE_S = 10.0
 OPM_CONFIRM_S = 2.0
 #: How long `send-targets` without --wait waits for the team to acknowledge receipt.
 DELIVERY_WAIT_S = 3.0
+#: How long `abort` waits for every UAV on the mission to report it aborted.
+ABORT_CONFIRM_S = 5.0
 
 
 # ---- argument types -------------------------------------------------------------------------
@@ -278,7 +284,17 @@ def _summary(outcome: MissionOutcome) -> list[str]:
         else:
             eta = "" if report.eta_s is None else f" ETA {report.eta_s:.0f} s"
             choice = f"target {report.target}{eta}"
-        lines.append(f"  UAV {uav}: {choice}; {times}")
+        if uav in outcome.lost:
+            choice = "LOST (liveliness gone) " + choice
+        elif uav in outcome.declined:
+            choice = "declined " + choice
+        phase = outcome.phases.get(uav)
+        reason = outcome.reasons.get(uav)
+        state = f"; phase {phase}" + (f" ({reason})" if reason else "") if phase else ""
+        lines.append(f"  UAV {uav}: {choice}; {times}{state}")
+    for target in outcome.target_states():
+        if target["state"] == "unserved":
+            lines.append(f"  target {target['index']}: unserved: {target['reason']}")
     unassigned = outcome.unassigned()
     lines.append(f"  unassigned targets: {', '.join(map(str, unassigned)) or 'none'}")
     if agreement.agreed:
@@ -359,13 +375,25 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
                     )
             follower.fetch(args.query_timeout)
             outcome.results, outcome.assignments = follower.snapshot()
+            outcome.lost = set(follower.lost) & set(team)
+            if args.wait:
+                _read_phases(session, outcome, args.query_timeout)
     if args.json:
         print(json.dumps(outcome.to_json()))
     elif args.wait:
         print("\n".join(_summary(outcome)))
     if not args.wait:
         return ExitCode.OK
-    return ExitCode.OK if outcome.committed and outcome.agreement.agreed else ExitCode.FAILED
+    return ExitCode.OK if outcome.succeeded else ExitCode.FAILED
+
+
+def _read_phases(session: zenoh.Session, outcome: MissionOutcome, timeout_s: float) -> None:
+    """Each team UAV's phase (and reason) as its own state query answers it."""
+    for uav, state in query_states(session, timeout_s).items():
+        if uav in outcome.team:
+            outcome.phases[uav] = str(state.phase)
+            if state.reason:
+                outcome.reasons[uav] = state.reason
 
 
 def cmd_watch(args: argparse.Namespace) -> int:
@@ -413,15 +441,51 @@ def cmd_opm(args: argparse.Namespace) -> int:
 
 def cmd_abort(args: argparse.Namespace) -> int:
     with ground_session(args.zenoh) as session:
+        seen = missions_seen(session, args.query_timeout)
         mission = args.mission
         if mission is None:
-            mission = current_mission_id(session, args.query_timeout)
+            mission = max(seen, default=None)
             if mission is None:
                 print("error: no mission to abort (none seen; give --mission)", file=sys.stderr)
                 return ExitCode.FAILED
-        # Closing the session right after is safe: close flushes what was put (measured).
+        elif mission not in seen:
+            known = ", ".join(map(str, sorted(seen))) or "none"
+            print(
+                f"error: mission {mission} is unknown to the fleet (missions seen: {known}); "
+                "nothing sent",
+                file=sys.stderr,
+            )
+            return ExitCode.FAILED
         send_abort(session, mission)
         print(f"mission {mission}: abort sent")
+        return _confirm_abort(session, mission, args.query_timeout)
+
+
+def _confirm_abort(session: zenoh.Session, mission: int, timeout_s: float) -> int:
+    """Wait until every UAV on `mission` reports it aborted; say who did and who did not."""
+    deadline = time.monotonic() + max(ABORT_CONFIRM_S, timeout_s)
+    pending: dict[int, str] = {}
+    while True:
+        states = query_states(session, timeout_s)
+        on_mission = {
+            uav: state
+            for uav, state in states.items()
+            if state.mission is not None and state.mission.mission == mission
+        }
+        pending = {
+            uav: str(state.mission.phase)
+            for uav, state in on_mission.items()
+            if state.mission is not None and state.mission.phase != Phase.ABORTED
+        }
+        if not pending or time.monotonic() >= deadline:
+            break
+        time.sleep(0.2)  # polling the UAVs' state: each query is itself an observation
+    confirmed = sorted(set(on_mission) - set(pending))
+    print(f"mission {mission}: aborted by {', '.join(map(str, confirmed)) or 'no UAV'}")
+    if pending:
+        still = ", ".join(f"{uav} ({phase})" for uav, phase in sorted(pending.items()))
+        print(f"error: mission {mission}: not confirmed by {still}", file=sys.stderr)
+        return ExitCode.FAILED
     return ExitCode.OK
 
 

@@ -57,7 +57,8 @@ class UavView:
     status_rate_hz: float | None = None
     telemetry_age_s: float | None = None
     mission: int | None = None
-    phase: str | None = None
+    phase: str | None = None  #: a `fleet.mission.phase.Phase` value, as the UAV reported it
+    reason: str | None = None  #: why the phase is what it is (preempted, failed, link_lost)
     target: int | None = None
     last_status: str | None = None
 
@@ -74,8 +75,12 @@ class UavView:
             "enabled": self.enabled,
             "status_rate_hz": self.status_rate_hz,
             "telemetry_age_s": self.telemetry_age_s,
+            # The autopilot link's age as the UAV measured it (same value, the name the
+            # operator's docs use).
+            "link_age_s": self.telemetry_age_s,
             "mission": self.mission,
             "phase": self.phase,
+            "reason": self.reason,
             "target": self.target,
             "last_status": self.last_status,
         }
@@ -114,6 +119,8 @@ def view_from_state(state: UavState) -> UavView:
         status_rate_hz=state.status_rate_hz,
         telemetry_age_s=_age(state.link.telemetry_age_s) if state.link is not None else None,
         last_status=state.last_status,
+        phase=str(state.phase),
+        reason=state.reason,
     )
     if state.telemetry is not None:
         view = with_telemetry(view, state.telemetry)
@@ -122,7 +129,6 @@ def view_from_state(state: UavState) -> UavView:
         view = replace(
             view,
             mission=state.mission.mission,
-            phase=state.mission.phase,
             target=assignment.target if assignment is not None else None,
         )
     return view

@@ -15,6 +15,11 @@ every report must carry the same `digest` (of the results used) and the same `pa
 When they do not, the largest group of identical reports is taken as the reference
 (ties: the group holding the lowest Piccolo ID) and everyone else is named as having
 disagreed.
+
+Taking part: a UAV whose liveliness token went away while the ground waited is *lost*;
+one that published a result with no time at all *declined* (module off, link lost, no
+GPS). Neither is waited for nor counted as agreeing; `agreed` is about the UAVs that
+took part, and every target gets a state: `assigned` (to whom) or `unserved` (why).
 """
 
 from __future__ import annotations
@@ -132,14 +137,62 @@ class MissionOutcome:
     results: dict[int, UavResult] = field(default_factory=dict)
     assignments: dict[int, AssignmentReport] = field(default_factory=dict)
     timed_out: bool = False
+    lost: set[int] = field(default_factory=set)  #: liveliness gone while the ground waited
+    phases: dict[int, str] = field(default_factory=dict)  #: each UAV's phase at the end
+    reasons: dict[int, str] = field(default_factory=dict)
+
+    @property
+    def declined(self) -> list[int]:
+        """Team UAVs whose result holds no time at all: they take no part."""
+        return [
+            uav
+            for uav in self.team
+            if (result := self.results.get(uav)) is not None
+            and all(time is None for time in result.times)
+        ]
+
+    @property
+    def taking_part(self) -> list[int]:
+        declined = set(self.declined)
+        return [uav for uav in self.team if uav not in self.lost and uav not in declined]
 
     @property
     def agreement(self) -> Agreement:
-        return check_agreement(self.team, self.assignments)
+        return check_agreement(self.taking_part, self.assignments)
 
     @property
     def committed(self) -> bool:
-        return all(uav in self.assignments for uav in self.team)
+        return bool(self.taking_part) and all(uav in self.assignments for uav in self.taking_part)
+
+    def target_states(self) -> list[dict[str, Any]]:
+        """Each target's state: assigned (to whom) or unserved (and why)."""
+        holders = {self.target_of(uav): uav for uav in self.taking_part}
+        idle = [uav for uav in self.taking_part if self.target_of(uav) is None]
+        states: list[dict[str, Any]] = []
+        for index in range(len(self.targets)):
+            holder = holders.get(index)
+            if holder is not None:
+                states.append({"index": index, "state": "assigned", "uav": holder})
+                continue
+            if not self.committed:
+                why = "the team did not commit"
+            elif idle:
+                why = f"not assigned although UAV {idle[0]} had no target"
+            else:
+                why = "more targets than UAVs taking part"
+            states.append({"index": index, "state": "unserved", "uav": None, "reason": why})
+        return states
+
+    @property
+    def succeeded(self) -> bool:
+        """The truth behind the exit code: the team agreed and no target was left unserved
+        while a UAV taking part had none."""
+        if not self.committed or not self.agreement.agreed:
+            return False
+        return not any(
+            s["state"] == "unserved" and "had no target" in s["reason"]
+            for s in self.target_states()
+        )
 
     def target_of(self, uav: int) -> int | None:
         report = self.assignments.get(uav)
@@ -177,6 +230,13 @@ class MissionOutcome:
             "digest": reference.digest if reference is not None else None,
             "complete": self.committed,
             "timed_out": self.timed_out,
+            "lost": sorted(self.lost),
+            "declined": self.declined,
+            "taking_part": self.taking_part,
+            "phases": {str(uav): self.phases.get(uav) for uav in self.team},
+            "reasons": {str(uav): reason for uav, reason in sorted(self.reasons.items())},
+            "target_states": self.target_states(),
+            "success": self.succeeded,
         }
 
 
@@ -200,6 +260,7 @@ class MissionFollower:
         self._changed = threading.Condition()
         self.results: dict[int, UavResult] = {}
         self.assignments: dict[int, AssignmentReport] = {}
+        self.lost: set[int] = set()  #: UAVs whose liveliness token went away
         self._stack = ExitStack()
 
     def __enter__(self) -> Self:
@@ -215,6 +276,7 @@ class MissionFollower:
                     keys.mission_assignments(self.mission), self._on_assignment_sample
                 )
             )
+            enter(self._session.liveliness().declare_subscriber(keys.ALL_ALIVE, self._on_alive))
         except BaseException:
             self._stack.close()
             raise
@@ -227,6 +289,18 @@ class MissionFollower:
         tb: TracebackType | None,
     ) -> None:
         self._stack.close()
+
+    def _on_alive(self, sample: zenoh.Sample) -> None:
+        try:
+            uav = keys.uav_id_of(str(sample.key_expr))
+        except (ValueError, IndexError):
+            return
+        with self._changed:
+            if sample.kind == zenoh.SampleKind.DELETE:
+                self.lost.add(uav)
+            else:
+                self.lost.discard(uav)
+            self._changed.notify_all()
 
     def _on_result_sample(self, sample: zenoh.Sample) -> None:
         result = decode_sample(sample, UavResult)
@@ -268,8 +342,9 @@ class MissionFollower:
             self.add_assignment(report)
 
     def wait_committed(self, team: Iterable[int], timeout_s: float, fetch_every_s: float) -> bool:
-        """Wait until every UAV of `team` has committed; True if they all did in time.
+        """Wait until every UAV of `team` still alive has committed; True if they did in time.
 
+        A UAV whose liveliness token goes away is not waited for (it is in `lost`).
         Queries every `fetch_every_s` as well, so a lost sample costs at most that long.
         """
         members = set(team)
@@ -277,7 +352,7 @@ class MissionFollower:
         next_fetch = time.monotonic() + fetch_every_s
         while True:
             with self._changed:
-                if members <= self.assignments.keys():
+                if members - self.lost <= self.assignments.keys():
                     return True
             now = time.monotonic()
             if now >= deadline:

@@ -179,8 +179,11 @@ class FakeOnboard:
             self.put(keys.mission_assignment(m, self.uav_id), report)
 
     def _on_abort(self, sample: zenoh.Sample) -> None:
+        abort = msgspec.json.decode(sample.payload.to_bytes(), type=MissionAbort)
         with self._lock:
-            self.aborts.append(msgspec.json.decode(sample.payload.to_bytes(), type=MissionAbort))
+            self.aborts.append(abort)
+            if self.mission is not None and self.mission.mission == abort.mission:
+                self.mission = msgspec.structs.replace(self.mission, phase=Phase.ABORTED)
 
     def _on_opm(self, sample: zenoh.Sample) -> None:
         command = msgspec.json.decode(sample.payload.to_bytes(), type=OpmCommand)
@@ -398,9 +401,16 @@ def test_abort_arrives_for_the_current_or_named_mission(
     for fake in fakes.values():
         assert wait_until(lambda fake=fake: MissionAbort(mission) in fake.aborts)
 
+    assert "aborted by 74, 112" in done.stdout  # every UAV confirmed with its phase
+
+    # A mission the fleet never saw is an error, and nothing is sent.
     done = run_cli("abort", "--mission", "4242", endpoint=router)
-    assert done.returncode == 0, done.stderr
-    assert wait_until(lambda: MissionAbort(4242) in fakes[112].aborts)
+    assert done.returncode == 1
+    assert "mission 4242 is unknown to the fleet" in done.stderr
+    marker = run_cli("abort", "--mission", str(mission), endpoint=router)
+    assert marker.returncode == 0, marker.stderr
+    assert wait_until(lambda: fakes[112].aborts.count(MissionAbort(mission)) == 2)
+    assert MissionAbort(4242) not in fakes[112].aborts
 
 
 def test_watch_shows_the_table_and_status_messages(
