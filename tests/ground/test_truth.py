@@ -1,0 +1,121 @@
+"""The ground tells the truth under faults, end to end: real simulator, onboard
+processes, router and `ground-cli`; the fault is injected at a chosen moment and the
+test asserts what the operator sees (output, exit code) and what the UAVs report.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from fleet.mission.messages import Target
+from fleet.transport.targets_io import write_targets
+from tests.conftest import Ground
+from tests.onboard.test_multi_uav import ring_sim, ring_targets, start_onboard, wait_for_telemetry
+from tests.processes import Fleet, wait_until
+
+#: A long consensus deadline and --wait timeout, so a prompt answer is the fault being
+#: noticed, not a timer running out.
+DEADLINE_S = 30.0
+WAIT_TIMEOUT_S = 90.0
+
+
+def ground_cli(router: str, *args: str) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [sys.executable, "-m", "ground.cli", "--connect", router, *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+
+
+def finish(process: subprocess.Popen[str], timeout: float) -> tuple[int, str, str]:
+    try:
+        out, err = process.communicate(timeout=timeout)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+    return process.returncode, out, err
+
+
+def targets_file(tmp_path: Path, targets: tuple[Target, ...]) -> Path:
+    path = tmp_path / "targets.bin"
+    write_targets(path, targets)
+    return path
+
+
+def test_a_uav_killed_before_its_result_is_reported_lost_without_waiting_for_it(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    endpoints = ring_sim(fleet, tmp_path, 3)
+    start_onboard(fleet, endpoints, ground.router)
+    team = sorted(endpoints)
+    wait_for_telemetry(ground, team)
+    victim = team[-1]
+    (child,) = [c for c in fleet.children if c.name == f"onboard {victim}"]
+    child.process.send_signal(signal.SIGSTOP)  # it will never publish a result
+    path = targets_file(tmp_path, ring_targets(2, seed=7))
+    started = time.monotonic()
+    send = ground_cli(
+        ground.router, "send-targets", str(path), "--wait", "--json",
+        "--team", ",".join(map(str, team)),
+        "--deadline", str(DEADLINE_S), "--timeout", str(WAIT_TIMEOUT_S),
+    )  # fmt: skip
+    assert send.stderr is not None
+    sent = send.stderr.readline()
+    assert "sent to" in sent, sent
+    child.process.kill()  # liveliness goes with the TCP connection
+    child.process.wait(10)
+    status, out, err = finish(send, WAIT_TIMEOUT_S + 30)
+    elapsed = time.monotonic() - started
+    report = json.loads(out)
+    assert report["lost"] == [victim], err
+    assert report["agreed"] is True
+    assert report["taking_part"] == team[:-1]
+    assert {s["state"] for s in report["target_states"]} == {"assigned"}
+    assert status == 0, err
+    # The survivors did not wait for the dead UAV's result until the deadline, and
+    # neither did the ground wait for it until its own timeout.
+    assert elapsed < DEADLINE_S / 2, f"took {elapsed:.1f} s"
+
+
+def test_a_dead_autopilot_link_is_link_lost_and_the_mission_is_not_reported_agreed(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    endpoints = ring_sim(fleet, tmp_path, 2)
+    start_onboard(fleet, endpoints, ground.router)
+    team = sorted(endpoints)
+    wait_for_telemetry(ground, team)
+    (sim,) = [c for c in fleet.children if c.name == "fleet sim"]
+    sim.process.send_signal(signal.SIGKILL)  # both autopilots go silent
+    sim.process.wait(10)
+
+    def all_link_lost() -> bool:
+        status, out, _ = finish(ground_cli(ground.router, "uavs", "--json"), 30)
+        rows = json.loads(out) if status == 0 else []
+        return len(rows) == 2 and all(r["phase"] == "link_lost" for r in rows)
+
+    wait_until(all_link_lost, 30.0, "both UAVs to report link_lost")
+    status, out, _ = finish(ground_cli(ground.router, "uavs", "--json"), 30)
+    for row in json.loads(out):
+        assert row["link_age_s"] is not None and row["link_age_s"] > 3.0
+        assert "no telemetry" in row["reason"]
+
+    path = targets_file(tmp_path, ring_targets(2, seed=3))
+    send = ground_cli(
+        ground.router, "send-targets", str(path), "--wait", "--json",
+        "--deadline", "5", "--timeout", "60",
+    )  # fmt: skip
+    status, out, err = finish(send, 90)
+    report = json.loads(out)
+    assert sorted(report["declined"]) == team
+    assert report["taking_part"] == []
+    assert report["agreed"] is False
+    assert {s["state"] for s in report["target_states"]} == {"unserved"}
+    assert status == 1, err
