@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import socket
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import msgspec
@@ -72,6 +72,16 @@ def rig() -> Iterator[Rig]:
         fleet.stop_all()
 
 
+def poll_until(predicate: Callable[[], bool], timeout: float) -> bool:
+    """True as soon as `predicate` holds, False if it did not within `timeout`."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.05)
+    return predicate()
+
+
 def get_one(session: zenoh.Session, key: str, payload: bytes | None = None) -> zenoh.Reply:
     replies = list(session.get(key, payload=payload, timeout=5.0))
     assert len(replies) == 1, f"{key}: {len(replies)} replies"
@@ -106,14 +116,22 @@ def test_commands_are_confirmed_by_the_autopilot_echo(rig: Rig) -> None:
 def test_bad_command_and_bad_messages_are_refused_and_the_module_keeps_serving(rig: Rig) -> None:
     reply = get_one(rig.ground, keys.command(UAV, "track"), b'{"waypoint": "north"}')
     assert reply.err is not None and b"not a valid Track" in reply.err.payload.to_bytes()
-    rig.ground.put(keys.opm(UAV), b"\xff not json", encoding=ENCODING)
-    rig.ground.put(keys.mission_targets(77), b'{"mission": 77}', encoding=ENCODING)
-    for kind in ("OpmCommand", "MissionTargets"):
+    bad = {
+        "OpmCommand": (keys.opm(UAV), b"\xff not json"),
+        "MissionTargets": (keys.mission_targets(77), b'{"mission": 77}'),
+    }
+    for kind, (key, payload) in bad.items():
 
         def dropped(kind: str = kind) -> bool:
             return any("dropped" in line and kind in line for line in rig.onboard.history)
 
-        wait_until(dropped, 10.0, f"the bad {kind} to be dropped")
+        # Put again until the drop is logged: a put races the subscription's routing
+        # on a loaded machine, and each repeat is as bad as the first.
+        for _ in range(10):
+            rig.ground.put(key, payload, encoding=ENCODING)
+            if poll_until(dropped, 2.0):
+                break
+        assert dropped(), f"the bad {kind} was never reported dropped"
     assert rig.onboard.process.poll() is None
     answer = get_one(rig.ground, keys.state(UAV)).ok
     assert answer is not None
