@@ -7,8 +7,11 @@ Format, as the thesis's GUI wrote it: for each target, latitude (degrees), longi
 With no header and no checksum, the only defence against a truncated or foreign file is
 validation, so reading refuses anything that is not a whole, non-empty sequence of
 finite, in-range targets, and every refusal says which file, which target, at which
-byte offset, and what was expected. Encoding validates the same way, so a bad target list
-is refused before anything is written.
+byte offset, and what was expected. The checks are a pilot's: latitude and longitude on
+the globe, altitude inside ALTITUDE_ENVELOPE_M, at most MAX_TARGETS targets (the planner
+answers every target within its budget only up to about that many), and a text file (a
+CSV, say) is named as such rather than read as numbers. Encoding validates the same
+way, so a bad target list is refused before anything is written.
 
 This is the pure codec; reading and atomically writing the file are
 `fleet.transport.targets_io`'s.
@@ -24,6 +27,8 @@ from fleet.errors import CodecError
 from fleet.mission.messages import Target
 
 __all__ = [
+    "ALTITUDE_ENVELOPE_M",
+    "MAX_TARGETS",
     "TARGET_SIZE",
     "TargetsFileError",
     "decode_targets",
@@ -33,6 +38,13 @@ __all__ = [
 _RECORD = struct.Struct("<3d")
 #: Bytes a target: three little-endian f64.
 TARGET_SIZE = _RECORD.size
+#: Target altitudes accepted, metres above mean sea level: from below sea level (Death
+#: Valley) to the ceiling of a Piccolo-class aircraft.
+ALTITUDE_ENVELOPE_M = (-100.0, 6000.0)
+#: Targets in one mission at most.
+MAX_TARGETS = 100
+#: Bytes of a text file: printable ASCII and the usual white space.
+_TEXT_BYTES = frozenset(range(0x20, 0x7F)) | {0x09, 0x0A, 0x0D}
 
 
 class TargetsFileError(CodecError):
@@ -66,6 +78,36 @@ def _validate(target: Target, index: int, source: str) -> None:
         raise TargetsFileError(
             source, index, offset, f"longitude {target.lon!r} is outside [-180, 180] degrees"
         )
+    low, high = ALTITUDE_ENVELOPE_M
+    if not low <= target.alt <= high:
+        raise TargetsFileError(
+            source,
+            index,
+            offset,
+            f"altitude {target.alt!r} m is outside the envelope [{low:g}, {high:g}] m",
+        )
+
+
+def _refuse_too_many(count: int, source: str) -> None:
+    raise TargetsFileError(
+        source,
+        MAX_TARGETS,
+        MAX_TARGETS * TARGET_SIZE,
+        f"{count} targets: at most {MAX_TARGETS} targets a mission",
+    )
+
+
+def _refuse_text(data: bytes, source: str) -> None:
+    """A file of nothing but printable text is a text file, not binary records."""
+    if all(byte in _TEXT_BYTES for byte in data[:4096]):
+        first = data.split(b"\n", 1)[0][:40].decode("ascii")
+        raise TargetsFileError(
+            source,
+            0,
+            0,
+            f"this is a text file (it starts {first!r}), expected binary records of three "
+            "little-endian f64 (lat, lon, alt); make one with `ground-cli targets make`",
+        )
 
 
 def _refuse_empty(source: str) -> None:
@@ -78,6 +120,7 @@ def decode_targets(data: bytes, source: str) -> list[Target]:
     """Targets from the bytes of a targets file; `source` names it in errors."""
     if not data:
         _refuse_empty(source)
+    _refuse_text(data, source)
     whole, leftover = divmod(len(data), TARGET_SIZE)
     if leftover:
         offset = whole * TARGET_SIZE
@@ -89,6 +132,8 @@ def decode_targets(data: bytes, source: str) -> list[Target]:
             f"bytes at offset {offset}, expected {TARGET_SIZE} bytes a target "
             "(truncated or not a targets file?)",
         )
+    if whole > MAX_TARGETS:
+        _refuse_too_many(whole, source)
     targets = []
     for index, (lat, lon, alt) in enumerate(_RECORD.iter_unpack(data)):
         target = Target(lat=lat, lon=lon, alt=alt)
@@ -105,4 +150,6 @@ def encode_targets(targets: Iterable[Target], *, source: str = "<targets>") -> b
         chunks.append(_RECORD.pack(target.lat, target.lon, target.alt))
     if not chunks:
         _refuse_empty(source)
+    if len(chunks) > MAX_TARGETS:
+        _refuse_too_many(len(chunks), source)
     return b"".join(chunks)

@@ -15,6 +15,7 @@ import itertools
 import json
 import os
 import socket
+import struct
 import subprocess
 import sys
 import threading
@@ -317,6 +318,11 @@ def test_send_targets_names_who_disagreed(
     [
         (b"\x00" * 30, "target 1 at byte offset 24"),
         (b"\x00" * 24 + b"\xff" * 24, "target 1 at byte offset 24: latitude is nan"),
+        (
+            b"lat,lon,alt\n35.72,-120.76,600\n35.68,-120.74,600\n35.7500,-120.8000,600.0\n",
+            "this is a text file",
+        ),
+        (struct.pack("<6d", 35.7, -120.7, 600.0, 35.7, -120.7, -1e9), "altitude -1000000000.0"),
     ],
 )
 def test_bad_targets_file_is_refused_and_nothing_sent(

@@ -8,14 +8,14 @@ import struct
 from hypothesis import strategies as st
 
 from fleet.mission.messages import Target
-from fleet.mission.targets_file import TARGET_SIZE, TargetsFileError
+from fleet.mission.targets_file import ALTITUDE_ENVELOPE_M, TARGET_SIZE, TargetsFileError
 
 targets_lists = st.lists(
     st.builds(
         Target,
         lat=st.floats(min_value=-90.0, max_value=90.0),
         lon=st.floats(min_value=-180.0, max_value=180.0),
-        alt=st.floats(allow_nan=False, allow_infinity=False),
+        alt=st.floats(min_value=ALTITUDE_ENVELOPE_M[0], max_value=ALTITUDE_ENVELOPE_M[1]),
     ),
     min_size=1,
     max_size=20,

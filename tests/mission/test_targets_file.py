@@ -10,6 +10,8 @@ from hypothesis import given
 
 from fleet.mission.messages import Target
 from fleet.mission.targets_file import (
+    ALTITUDE_ENVELOPE_M,
+    MAX_TARGETS,
     TARGET_SIZE,
     TargetsFileError,
     decode_targets,
@@ -47,7 +49,8 @@ def test_boundary_values_are_accepted() -> None:
     edges = [
         Target(90.0, 180.0, 0.0),
         Target(-90.0, -180.0, -0.0),
-        Target(0.0, 0.0, -400.0),
+        Target(0.0, 0.0, ALTITUDE_ENVELOPE_M[0]),
+        Target(0.0, 0.0, ALTITUDE_ENVELOPE_M[1]),
     ]
     assert decode_targets(encode_targets(edges), "mem") == edges
 
@@ -110,3 +113,31 @@ def test_encode_refuses_what_decode_refuses() -> None:
         encode_targets([])
     with pytest.raises(TargetsFileError, match=r"target 1 at byte offset 24: latitude 95\.0"):
         encode_targets([BOSTON, Target(95.0, 0.0, 0.0)], source="mem")
+
+
+# --- a pilot's checks ------------------------------------------------------------------
+
+
+def test_an_altitude_outside_the_envelope_is_refused_with_its_place() -> None:
+    data = raw((42.0, -71.0, 120.0), (42.0, -71.0, -1e9))
+    with pytest.raises(
+        TargetsFileError, match=r"target 1 at byte offset 24: altitude -1000000000\.0 m is outside"
+    ):
+        decode_targets(data, "t.bin")
+
+
+def test_a_text_file_is_named_as_such_not_read_as_targets() -> None:
+    csv = b"lat,lon,alt\n35.72,-120.76,600\n35.68,-120.74,600\n35.7500,-120.8000,600.0\n"
+    assert len(csv) % TARGET_SIZE == 0  # a whole number of records: only the text check stops it
+    with pytest.raises(TargetsFileError, match=r"t\.csv: .* this is a text file .*'lat,lon,alt'"):
+        decode_targets(csv, "t.csv")
+
+
+def test_more_than_the_maximum_targets_a_mission_is_refused() -> None:
+    data = raw(*[(42.0, -71.0, 100.0)] * (MAX_TARGETS + 1))
+    with pytest.raises(
+        TargetsFileError, match=rf"{MAX_TARGETS + 1} targets: at most {MAX_TARGETS}"
+    ):
+        decode_targets(data, "t.bin")
+    with pytest.raises(TargetsFileError, match=r"at most"):
+        encode_targets([BOSTON] * (MAX_TARGETS + 1))
