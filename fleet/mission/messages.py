@@ -66,11 +66,16 @@ class UavResult(msgspec.Struct, frozen=True):
     """PAYLOAD_UAVRESULT: one UAV's approach time (s) to each target of a mission.
 
     `times[i]` is the time to `targets[i]`; None where the UAV has no answer.
+    `model_times` and `fallback_times` say how many of the times came from the approach
+    model and how many from the Dubins fallback (optional: None from a UAV that does not
+    say, and over the payload link, whose binary message has no room for them).
     """
 
     mission: int
     uav: int
     times: tuple[float | None, ...]
+    model_times: int | None = None
+    fallback_times: int | None = None
 
 
 class MissionAbort(msgspec.Struct, frozen=True):

@@ -1,0 +1,456 @@
+"""A whole simulated fleet on this machine, N UAVs and M = N targets: what it costs.
+
+For each N and each configuration it starts the fleet the way `fleet up --uavs N` does
+(fleet.launch.launcher: embedded router, one simulator at 20 Hz telemetry, one onboard
+process per UAV), then measures:
+
+* ready: from the start to every UAV's liveliness token (what `fleet up` waits for);
+* CPU: the fleet's children (simulator + onboards), summed over their PIDs from
+  /proc/PID/stat during an idle window, in % of one core (the machine has `nproc` x 100 %);
+  the router and the ground subscriber run in this process and are shown apart;
+* RSS: the children's resident memory summed from /proc/PID/status, idle and after the
+  missions (Pyomo and HiGHS may load only when the model is built);
+* telemetry extra latency p99: for every telemetry sample seen on the bus, its arrival
+  minus the simulator time it carries, less the smallest such offset of that UAV;
+* per mission: send -> last commit and last result -> last commit, and how many
+  approach times came from the model and how many from the Dubins fallback (from the
+  results' `model_times`/`fallback_times`, or from the status text of a release that did
+  not report them).
+
+Configurations: `before` runs the onboard and the simulator of a previous revision
+(`--baseline REV`, extracted with `git archive`, default `main`) with its default
+settings; `after` runs this tree, with the planning budget following the team size
+(`--budget`, see `team_budget`) and the mission deadline after it. The same run prints
+after/before ratios.
+
+Run: .venv/bin/python -m bench.bench_fleet_scale [--sizes 2 10 20 50] [--configs before after]
+Bounded: every fleet start, idle window and mission has a timeout; every process this
+starts is stopped (Fleet.stop), whatever happens.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import math
+import os
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import msgspec
+import zenoh
+
+from fleet.launch.launcher import Fleet, FleetSpec, ring_scenario
+from fleet.mission import keys
+from fleet.mission.messages import AssignmentReport, MissionTargets, StatusText, UavResult
+from fleet.transport.bus_codec import ENCODING, encode
+from tests.onboard.test_multi_uav import ring_targets
+
+REPO = Path(__file__).resolve().parent.parent
+CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
+CORES = os.cpu_count() or 1
+TELEMETRY_HZ = 20.0
+_FALLBACK_STATUS = re.compile(
+    r"mission (\d+): approach times in [\d.]+ s(?:; (\d+) by the Dubins)?"
+)
+
+
+class _Stamp(msgspec.Struct):
+    system_time_ms: int
+
+
+@dataclass
+class Config:
+    name: str
+    pythonpath: Path | None = None  # a baseline tree, or None for this one
+    onboard_args: tuple[str, ...] = ()
+    env: dict[str, str] = field(default_factory=dict)
+    team_budget: bool = False  # planning budget and deadline follow the team size
+
+
+@dataclass
+class Mission:
+    send_to_commit: float | None
+    result_to_commit: float | None
+    model: int | None
+    fallback: int | None
+    agreed: bool
+
+
+@dataclass
+class Row:
+    n: int
+    config: str
+    ready_s: float
+    cpu_pct: float
+    ground_cpu_pct: float
+    rss_idle_mb: float
+    rss_after_mb: float
+    threads: float  # per onboard, mean
+    latency_p99_ms: float | None
+    missions: list[Mission]
+    solve_s: float  # one UAV's uncontended solve of M targets, in this process
+    budget_s: float | None
+
+
+# ---- /proc ----------------------------------------------------------------------------------
+def cpu_seconds(pid: int) -> float:
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS  # utime, stime
+
+
+def status_field(pid: int, name: str) -> int:
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith(name + ":"):
+                return int(line.split()[1])
+    except OSError:
+        pass
+    return 0
+
+
+# ---- what the ground sees -------------------------------------------------------------------
+class Observer:
+    """Telemetry offsets, results, commits and status texts, timed on arrival."""
+
+    def __init__(self, session: zenoh.Session) -> None:
+        self.lock = threading.Lock()
+        self.recording = False
+        self.offsets: dict[int, list[float]] = {}
+        self.results: dict[tuple[int, int], tuple[float, UavResult]] = {}
+        self.commits: dict[tuple[int, int], tuple[float, AssignmentReport]] = {}
+        self.fallbacks: dict[tuple[int, int], tuple[int, int]] = {}  # from status texts
+        self.started = time.monotonic()
+        self.subscribers = [
+            session.declare_subscriber(f"{keys.PREFIX}/uav/*/telemetry", self.on_telemetry),
+            session.declare_subscriber(keys.ALL_MISSION_RESULTS, self.on_result),
+            session.declare_subscriber(f"{keys.PREFIX}/mission/*/assignment/*", self.on_commit),
+            session.declare_subscriber(f"{keys.PREFIX}/uav/*/status", self.on_status),
+        ]
+
+    def on_telemetry(self, sample: zenoh.Sample) -> None:
+        now = time.monotonic()
+        if not self.recording:
+            return
+        stamp = msgspec.json.decode(sample.payload.to_bytes(), type=_Stamp)
+        uav = keys.uav_id_of(str(sample.key_expr))
+        with self.lock:
+            self.offsets.setdefault(uav, []).append(now - stamp.system_time_ms / 1000.0)
+
+    def on_result(self, sample: zenoh.Sample) -> None:
+        now = time.monotonic()
+        result = msgspec.json.decode(sample.payload.to_bytes(), type=UavResult)
+        with self.lock:
+            self.results.setdefault((result.mission, result.uav), (now, result))
+
+    def on_commit(self, sample: zenoh.Sample) -> None:
+        now = time.monotonic()
+        report = msgspec.json.decode(sample.payload.to_bytes(), type=AssignmentReport)
+        with self.lock:
+            self.commits.setdefault((report.mission, report.uav), (now, report))
+
+    def on_status(self, sample: zenoh.Sample) -> None:
+        text = msgspec.json.decode(sample.payload.to_bytes(), type=StatusText).text
+        match = _FALLBACK_STATUS.search(text)
+        if match is None:
+            return
+        uav = keys.uav_id_of(str(sample.key_expr))
+        with self.lock:
+            self.fallbacks[(int(match[1]), uav)] = (0, int(match[2] or 0))
+
+    def latency_p99_ms(self) -> float | None:
+        with self.lock:
+            extra = [o - min(offsets) for offsets in self.offsets.values() for o in offsets]
+        if len(extra) < 2:
+            return None
+        return 1000.0 * statistics.quantiles(extra, n=100)[98]
+
+    def close(self) -> None:
+        for subscriber in self.subscribers:
+            subscriber.undeclare()
+
+
+# ---- one fleet ------------------------------------------------------------------------------
+@contextlib.contextmanager
+def child_environment(config: Config) -> Iterator[None]:
+    """The children inherit this process's environment: set it for the time of the start."""
+    changes = dict(config.env)
+    if config.pythonpath is not None:
+        changes["PYTHONPATH"] = str(config.pythonpath)
+    saved = {name: os.environ.get(name) for name in changes}
+    os.environ.update(changes)
+    try:
+        yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+
+
+def uncontended_solve_s(n_targets: int) -> float:
+    """One UAV's solve of `n_targets` (ring targets, from the ring's centre) in this process."""
+    from fleet.geo.mercator import MercatorProjection
+    from fleet.launch.launcher import GENERATED_CENTRE
+    from onboard.approach_model import AircraftLimits, ApproachTimeModel
+
+    projection = MercatorProjection(*GENERATED_CENTRE)
+    targets = [projection.to_xy(t.lat, t.lon) for t in ring_targets(n_targets, seed=99)]
+    model = ApproachTimeModel(AircraftLimits(max_speed=22.0))
+    started = time.perf_counter()
+    model.solve((0.0, 0.0), (22.0, 0.0), targets)
+    return time.perf_counter() - started
+
+
+def team_budget(n: int, solve_s: float) -> float:
+    """A planning budget that follows the team size: every UAV solving on `CORES` cores,
+    with room for the machine's other load (x2), never under the default 2 s."""
+    return max(2.0, 2.0 * n * solve_s / CORES)
+
+
+def run_missions(
+    session: zenoh.Session,
+    observer: Observer,
+    team: tuple[int, ...],
+    count: int,
+    deadline_s: float,
+    log: list[str],
+) -> list[Mission]:
+    missions = []
+    for mission in range(1, count + 1):
+        message = MissionTargets(mission, team, ring_targets(len(team), seed=mission), deadline_s)
+        sent = time.monotonic()
+        session.put(keys.mission_targets(mission), encode(message), encoding=ENCODING)
+        limit = sent + deadline_s + 30.0
+        while time.monotonic() < limit:
+            with observer.lock:
+                if all((mission, uav) in observer.commits for uav in team):
+                    break
+            time.sleep(0.05)
+        missions.append(summarise(observer, mission, team, sent))
+        log.append(f"mission {mission}: {missions[-1]}")
+        time.sleep(1.0)
+    return missions
+
+
+def summarise(observer: Observer, mission: int, team: tuple[int, ...], sent: float) -> Mission:
+    with observer.lock:
+        commits = [observer.commits[(mission, u)] for u in team if (mission, u) in observer.commits]
+        results = [observer.results[(mission, u)] for u in team if (mission, u) in observer.results]
+        statuses = [observer.fallbacks.get((mission, u)) for u in team]
+    complete = len(commits) == len(team)
+    last_commit = max(t for t, _ in commits) if complete else None
+    last_result = max(t for t, _ in results) if len(results) == len(team) else None
+    model: int | None = 0
+    fallback: int | None = 0
+    for _, result in results:
+        if result.model_times is not None and result.fallback_times is not None:
+            model = None if model is None else model + result.model_times
+            fallback = None if fallback is None else fallback + result.fallback_times
+        else:
+            model = fallback = None
+    if model is None and all(s is not None for s in statuses):
+        fallback = sum(s[1] for s in statuses if s is not None)
+        model = len(team) * len(team) - fallback
+    return Mission(
+        send_to_commit=None if last_commit is None else last_commit - sent,
+        result_to_commit=(
+            None if last_commit is None or last_result is None else last_commit - last_result
+        ),
+        model=model,
+        fallback=fallback,
+        agreed=complete and len({r.digest for _, r in commits}) == 1,
+    )
+
+
+def measure(config: Config, n: int, args: argparse.Namespace, workdir: Path) -> Row:
+    scenario = workdir / f"ring-{n}.toml"
+    scenario.write_text(ring_scenario(n))
+    solve_s = uncontended_solve_s(n)
+    budget = team_budget(n, solve_s) if config.team_budget else None
+    onboard_args = config.onboard_args
+    if budget is not None:
+        onboard_args = (*onboard_args, "--budget", f"{budget:.2f}")
+    spec = FleetSpec(
+        scenario=str(scenario),
+        listen=f"tcp/127.0.0.1:{args.port}",
+        telemetry_hz=TELEMETRY_HZ,
+        log_dir=workdir / f"{config.name}-{n}",
+        start_timeout_s=args.start_timeout,
+        onboard_args=onboard_args,
+    )
+    fleet = Fleet(spec)
+    log: list[str] = []
+    started = time.monotonic()
+    with child_environment(config), fleet:
+        ready = time.monotonic() - started
+        assert fleet.router is not None
+        session = fleet.router.session
+        observer = Observer(session)
+        try:
+            time.sleep(args.settle)
+            pids = [child.pid for child in fleet.children]
+            onboards = [c.pid for c in fleet.children if c.name.startswith("onboard-")]
+            cpu0 = sum(cpu_seconds(pid) for pid in pids)
+            own0 = time.process_time()
+            observer.recording = True
+            window0 = time.monotonic()
+            time.sleep(args.idle)
+            observer.recording = False
+            window = time.monotonic() - window0
+            cpu = 100.0 * (sum(cpu_seconds(pid) for pid in pids) - cpu0) / window
+            own = 100.0 * (time.process_time() - own0) / window
+            rss_idle = sum(status_field(pid, "VmRSS") for pid in pids) / 1024.0
+            threads = statistics.mean(status_field(pid, "Threads") for pid in onboards)
+            team = tuple(sorted(fleet.uav_ids))
+            deadline_s = 10.0 if budget is None else budget + 10.0
+            missions = run_missions(session, observer, team, args.missions, deadline_s, log)
+            rss_after = sum(status_field(pid, "VmRSS") for pid in pids) / 1024.0
+        finally:
+            observer.close()
+    return Row(
+        n=n,
+        config=config.name,
+        ready_s=ready,
+        cpu_pct=cpu,
+        ground_cpu_pct=own,
+        rss_idle_mb=rss_idle,
+        rss_after_mb=rss_after,
+        threads=threads,
+        latency_p99_ms=observer.latency_p99_ms(),
+        missions=missions,
+        solve_s=solve_s,
+        budget_s=budget,
+    )
+
+
+# ---- configurations and the table -----------------------------------------------------------
+def baseline_tree(revision: str, workdir: Path) -> Path:
+    """`revision` of this repository, extracted (no checkout is touched)."""
+    target = workdir / "baseline"
+    target.mkdir()
+    archive = subprocess.run(
+        ["git", "-C", str(REPO), "archive", revision, "fleet", "onboard"],
+        check=True,
+        capture_output=True,
+    ).stdout
+    subprocess.run(["tar", "-x", "-C", str(target)], input=archive, check=True)
+    return target
+
+
+def configs(names: list[str], baseline: str, workdir: Path) -> list[Config]:
+    known = {
+        "before": lambda: Config("before", pythonpath=baseline_tree(baseline, workdir)),
+        "after": lambda: Config("after", team_budget=True),
+        "after-2s": lambda: Config("after-2s"),
+        "after-1hz": lambda: Config(
+            "after-1hz", onboard_args=("--telemetry-hz", "1"), team_budget=True
+        ),
+    }
+    unknown = [name for name in names if name not in known]
+    if unknown:
+        raise SystemExit(f"unknown configuration(s) {unknown}: expected {sorted(known)}")
+    return [known[name]() for name in names]
+
+
+def _range(values: list[float], scale: float, digits: int) -> str:
+    if not values:
+        return "-"
+    low, high = min(values) * scale, max(values) * scale
+    return f"{low:.{digits}f}" if math.isclose(low, high) else f"{low:.{digits}f}-{high:.{digits}f}"
+
+
+def format_row(row: Row) -> str:
+    sends = [m.send_to_commit for m in row.missions if m.send_to_commit is not None]
+    consensus = [m.result_to_commit for m in row.missions if m.result_to_commit is not None]
+    answers = "/".join("?" if m.model is None else f"{m.model}:{m.fallback}" for m in row.missions)
+    failed = sum(1 for m in row.missions if m.send_to_commit is None or not m.agreed)
+    bound = row.n * row.solve_s / CORES + 0.5
+    latency = "-" if row.latency_p99_ms is None else f"{row.latency_p99_ms:.0f}"
+    return (
+        f"{row.n:>3} {row.config:<9} {row.ready_s:>6.1f} {row.cpu_pct:>6.1f} "
+        f"{row.ground_cpu_pct:>6.1f} {row.rss_idle_mb / 1024:>6.2f} "
+        f"{row.rss_after_mb / 1024:>6.2f} "
+        f"{row.threads:>5.1f} {latency:>6} {_range(sends, 1.0, 2):>10} {bound:>6.2f} "
+        f"{_range(consensus, 1000.0, 0):>9} {answers:>12} {failed:>4}"
+    )
+
+
+HEADER = (
+    "  N config     ready    CPU ground  RSS-i  RSS-m  thr/ tel-p99  send->com  bound"
+    "  res->com  model:fallb fail\n"
+    "                  s  %core  %core     GB     GB   onb      ms          s      s"
+    "        ms   (per msn)     "
+)
+
+
+def ratios(before: Row, after: Row) -> str:
+    def ratio(a: float | None, b: float | None) -> str:
+        return "-" if a is None or b is None or b == 0 else f"{a / b:.2f}"
+
+    def median(row: Row, attr: str) -> float | None:
+        values = [getattr(m, attr) for m in row.missions if getattr(m, attr) is not None]
+        return statistics.median(values) if values else None
+
+    return (
+        f"N={after.n} {after.config}/{before.config}: ready {ratio(after.ready_s, before.ready_s)}"
+        f"  CPU {ratio(after.cpu_pct, before.cpu_pct)}"
+        f"  RSS idle {ratio(after.rss_idle_mb, before.rss_idle_mb)}"
+        f"  RSS after missions {ratio(after.rss_after_mb, before.rss_after_mb)}"
+        f"  telemetry p99 {ratio(after.latency_p99_ms, before.latency_p99_ms)}"
+        f"  send->commit {ratio(median(after, 'send_to_commit'), median(before, 'send_to_commit'))}"
+        "  result->commit "
+        + ratio(median(after, "result_to_commit"), median(before, "result_to_commit"))
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[2, 10, 20, 50])
+    parser.add_argument("--configs", nargs="+", default=["before", "after"])
+    parser.add_argument("--baseline", default="main", help="git revision run as `before`")
+    parser.add_argument("--missions", type=int, default=2, help="missions per fleet")
+    parser.add_argument("--idle", type=float, default=10.0, help="idle window, s")
+    parser.add_argument("--settle", type=float, default=3.0, help="wait after ready, s")
+    parser.add_argument("--start-timeout", type=float, default=180.0)
+    parser.add_argument("--port", type=int, default=7461, help="the router's port")
+    args = parser.parse_args()
+    print(
+        f"{CORES} cores; telemetry {TELEMETRY_HZ:g} Hz; M = N targets; bound = N x solve / "
+        "cores + 0.5 s",
+        flush=True,
+    )
+    rows: list[Row] = []
+    with tempfile.TemporaryDirectory(prefix="bench-fleet-") as tmp:
+        workdir = Path(tmp)
+        chosen = configs(args.configs, args.baseline, workdir)
+        print(HEADER, flush=True)
+        for n in args.sizes:
+            for config in chosen:
+                row = measure(config, n, args, workdir)
+                rows.append(row)
+                print(format_row(row), flush=True)
+    print()
+    for n in args.sizes:
+        of_n = {row.config: row for row in rows if row.n == n}
+        if "before" in of_n:
+            for name, row in of_n.items():
+                if name != "before":
+                    print(ratios(of_n["before"], row))
+    sys.stdout.flush()
+
+
+if __name__ == "__main__":
+    main()
