@@ -183,16 +183,23 @@ class Observer:
 
 # ---- one fleet ------------------------------------------------------------------------------
 @contextlib.contextmanager
-def child_environment(config: Config) -> Iterator[None]:
-    """The children inherit this process's environment: set it for the time of the start."""
+def child_environment(config: Config, workdir: Path) -> Iterator[None]:
+    """The children inherit this process's environment: set it for the time of the start.
+
+    They also inherit its working directory, which `python -m` puts first on the path:
+    they start in the work directory, so a baseline on PYTHONPATH is what they import.
+    """
     changes = dict(config.env)
     if config.pythonpath is not None:
         changes["PYTHONPATH"] = str(config.pythonpath)
     saved = {name: os.environ.get(name) for name in changes}
     os.environ.update(changes)
+    cwd = Path.cwd()
+    os.chdir(workdir)
     try:
         yield
     finally:
+        os.chdir(cwd)
         for name, value in saved.items():
             if value is None:
                 os.environ.pop(name, None)
@@ -202,13 +209,14 @@ def child_environment(config: Config) -> Iterator[None]:
 
 def uncontended_solve_s(n_targets: int) -> float:
     """One UAV's solve of `n_targets` (ring targets, from the ring's centre) in this process."""
+    from fleet.geo.aircraft import AircraftLimits
     from fleet.geo.mercator import MercatorProjection
     from fleet.launch.launcher import GENERATED_CENTRE
-    from onboard.approach_model import AircraftLimits, ApproachTimeModel
+    from onboard.approach_model import ApproachTimeModel
 
     projection = MercatorProjection(*GENERATED_CENTRE)
     targets = [projection.to_xy(t.lat, t.lon) for t in ring_targets(n_targets, seed=99)]
-    model = ApproachTimeModel(AircraftLimits(max_speed=22.0))
+    model = ApproachTimeModel(AircraftLimits(max_airspeed=22.0))
     started = time.perf_counter()
     model.solve((0.0, 0.0), (22.0, 0.0), targets)
     return time.perf_counter() - started
@@ -294,7 +302,7 @@ def measure(config: Config, n: int, args: argparse.Namespace, workdir: Path) -> 
     fleet = Fleet(spec)
     log: list[str] = []
     started = time.monotonic()
-    with child_environment(config), fleet:
+    with child_environment(config, workdir), fleet:
         ready = time.monotonic() - started
         assert fleet.router is not None
         session = fleet.router.session

@@ -1,6 +1,10 @@
-"""The Piccolo-serial adapter's link loop: both ports serviced every 10 ms, in a thread.
+"""The Piccolo-serial adapter's link loop: both ports serviced as bytes arrive, in a thread.
 
-The loop only moves bytes: it reads whatever each port holds, decodes it with the
+The loop sleeps in `select` on both ports and on a wake-up pipe, so an idle link costs
+nothing: it wakes when a port has bytes, when something is queued to send, when a
+dropped port's reconnection is due, or to stop (a port with no file descriptor, like an
+in-memory one, is polled every `poll_interval` instead). It only moves bytes: it reads
+whatever each port holds, decodes it with the
 link codec and hands the events to `sink`; it writes whatever was queued for it. It
 never waits on planning or on Zenoh (thesis 2.7.4, 3.2.2): those run elsewhere and
 talk to it through thread-safe queues. A dropped port is reopened with backoff while
@@ -9,8 +13,11 @@ the rest of the process carries on, reporting the link as down.
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import os
 import queue
+import select
 import threading
 import time
 from collections.abc import Callable
@@ -27,7 +34,10 @@ log = logging.getLogger(__name__)
 #: The module's own address on the link (docs/protocol.md §1: 0xFFFE is "all operator
 #: interfaces"; the module listens in multi-homed mode like one, so it sends as one).
 ONBOARD_ADDRESS = ALL_OPERATOR_INTERFACES
+#: How often a port without a file descriptor is polled, and the shortest reconnection wait.
 POLL_INTERVAL = 0.01
+#: The longest the loop sleeps with nothing to do (it wakes early for any work).
+IDLE_WAKE = 1.0
 
 
 @dataclass(frozen=True)
@@ -65,23 +75,38 @@ class LinkAdapter:
         self._thread = threading.Thread(target=self._run, name=f"link-{uav_id}", daemon=True)
         self._lock = threading.Lock()
         self._last_telemetry: float | None = None
+        self._wake_read, self._wake_write = os.pipe()
+        os.set_blocking(self._wake_read, False)
+        os.set_blocking(self._wake_write, False)
 
     def start(self) -> None:
         self._thread.start()
 
     def stop(self) -> None:
         self._stop.set()
+        self._wake()
         if self._thread.is_alive():
             self._thread.join(timeout=2.0)
         self.program.close()
         self.payload.close()
+        if not self._thread.is_alive() and self._wake_read >= 0:
+            os.close(self._wake_read)
+            os.close(self._wake_write)
+            self._wake_read = self._wake_write = -1  # never close a reused number twice
 
     # ---- thread-safe API ------------------------------------------------------------
     def send_autopilot(self, message: AutopilotMessage) -> None:
         self._outbound.put(_Outbound("program", autopilot=message, destination=self.uav_id))
+        self._wake()
 
     def send_payload(self, planning_bytes: bytes, destination: int) -> None:
         self._outbound.put(_Outbound("payload", payload=planning_bytes, destination=destination))
+        self._wake()
+
+    def _wake(self) -> None:
+        # A full pipe already holds a wake-up; a closed one means the loop is gone.
+        with contextlib.suppress(BlockingIOError, OSError):
+            os.write(self._wake_write, b"\0")
 
     def note_telemetry(self, at: float) -> None:
         with self._lock:
@@ -109,7 +134,27 @@ class LinkAdapter:
                 self._service(time.monotonic())
             except Exception:  # one bad event must not stop the link
                 log.exception("link loop error")
-            self._stop.wait(self.poll_interval)
+            self._wait(time.monotonic())
+
+    def _wait(self, now: float) -> None:
+        """Sleep until a port is readable, work is queued, a reconnection is due, or stop."""
+        timeout = IDLE_WAKE
+        waiting_on = [self._wake_read]
+        for endpoint in (self.program, self.payload):
+            fd = endpoint.fileno()
+            if fd is not None:
+                waiting_on.append(fd)
+            elif endpoint.up:
+                timeout = min(timeout, self.poll_interval)
+            else:
+                timeout = min(timeout, max(self.poll_interval, endpoint.retry_in(now)))
+        try:
+            readable, _, _ = select.select(waiting_on, [], [], timeout)
+        except (OSError, ValueError):  # a port closed under us: the next service says why
+            return
+        if self._wake_read in readable:
+            with contextlib.suppress(BlockingIOError, OSError):
+                os.read(self._wake_read, 4096)
 
     def _service(self, now: float) -> None:
         for endpoint, link in (

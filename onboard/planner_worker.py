@@ -119,13 +119,17 @@ class PlannerWorker:
         horizon_s: float = 600.0,
         *,
         model_factory: Callable[[], ApproachTimeModel] | None = None,
+        notify: Callable[[], None] | None = None,
     ) -> None:
         """Start the worker thread, which builds the model at once.
 
         `model_factory` replaces the default `ApproachTimeModel(limits, horizon_s)`
         (tests use it to inject failures); `limits` also drive the Dubins fallback.
+        `notify` is called from the worker thread when a result is ready, so a caller
+        that sleeps until something happens can wake up and take it.
         """
         self._limits = limits
+        self._notify = notify
         self._ceiling = limits.max_airspeed  # the airframe's, whatever the cruise speed
         self._custom_factory = model_factory is not None
         self._factory: Callable[[], ApproachTimeModel] = model_factory or (
@@ -221,6 +225,8 @@ class PlannerWorker:
                 self._result = result
                 self._finished = time.monotonic()
                 self._running = False
+            if self._notify is not None:
+                self._notify()
 
     def _ensure_model(self) -> ApproachTimeModel | None:
         """Build the model if there is none; a failure is logged and retried next run."""

@@ -3,6 +3,10 @@
 Threads: the link loop (onboard.link_adapter), the planner worker
 (onboard.planner_worker), Zenoh's own callback threads, and this main loop, which alone
 touches the module's state: every other thread hands it events through one queue.
+The main loop sleeps on that queue until an event comes (a query or a planner result
+too) or its next timer is due (the module's timers, command retries and status and
+result fetches, need no finer than `TICK_PERIOD`), so an idle module does not wake
+every few milliseconds.
 """
 
 from __future__ import annotations
@@ -49,7 +53,10 @@ from onboard.zenoh_node import BusEvent, ZenohNode
 log = logging.getLogger(__name__)
 
 LINK_HEALTH_PERIOD = 1.0
-MAIN_LOOP_PERIOD = 0.01
+#: The main loop runs the module's timers at least this often (events run them too).
+TICK_PERIOD = 0.1
+#: At most this many queued events are handled before the timers run again.
+MAX_EVENTS_PER_TICK = 200
 
 
 @dataclass
@@ -119,7 +126,7 @@ class OnboardProcess:
         self.settings = settings
         self.events: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
         self.stop_requested = threading.Event()
-        self.planner = PlannerWorker()
+        self.planner = PlannerWorker(notify=self._wake)
         self.core = OnboardCore(
             uav_id=settings.uav_id,
             outputs=_Outputs(self),
@@ -145,6 +152,7 @@ class OnboardProcess:
             settings.uav_id,
             bus,
             sink=lambda event: self.events.put(("bus", event)),
+            wake=self._wake,
         )
 
     def run(self) -> None:
@@ -156,12 +164,12 @@ class OnboardProcess:
         try:
             while not self.stop_requested.is_set():
                 now = time.monotonic()
-                self._drain_events(now)
                 self._serve_queries(now)
                 self.core.tick(now)
                 if now >= next_health:
                     next_health = now + LINK_HEALTH_PERIOD
                     self.node.publish(keys.link(self.settings.uav_id), self.link.health(now))
+                self._drain_events(min(now + TICK_PERIOD, next_health))
         finally:
             self.close()
 
@@ -172,17 +180,23 @@ class OnboardProcess:
         log.info("onboard module %d stopped", self.settings.uav_id)
 
     # ---- events ---------------------------------------------------------------------
-    def _drain_events(self, now: float) -> None:
-        deadline = now + MAIN_LOOP_PERIOD
-        while True:
+    def _wake(self) -> None:
+        """Wake the main loop (a query or a planner result waits for it)."""
+        self.events.put(("wake", None))
+
+    def _drain_events(self, until: float) -> None:
+        """Wait for an event until `until` (the next timer), then take what else is queued."""
+        timeout = max(0.0, until - time.monotonic())
+        for _ in range(MAX_EVENTS_PER_TICK):
             try:
-                kind, event = self.events.get(timeout=max(0.0, deadline - time.monotonic()))
+                kind, event = self.events.get(timeout=timeout)
             except queue.Empty:
                 return
+            timeout = 0.0
             try:
                 if kind == "link":
                     self._on_link(event, time.monotonic())
-                else:
+                elif kind == "bus":
                     self._on_bus(event, time.monotonic())
             except Exception:  # a bad event is logged; the module keeps serving
                 log.exception("error handling %s event %r", kind, event)

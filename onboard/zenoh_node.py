@@ -53,9 +53,13 @@ def _mission_subscriptions() -> tuple[tuple[str, type[msgspec.Struct]], ...]:
 class ZenohNode:
     """The onboard's declarations on its bus, which it owns (closed by `close`)."""
 
-    def __init__(self, uav_id: int, bus: Bus, sink: Sink) -> None:
+    def __init__(
+        self, uav_id: int, bus: Bus, sink: Sink, wake: Callable[[], None] | None = None
+    ) -> None:
+        """`sink` gets every event; `wake` is called when a query waits to be served."""
         self.uav_id = uav_id
         self.sink = sink
+        self.wake = wake
         self.bus = bus
         self._declared: list[Declaration] = []
         try:
@@ -74,9 +78,9 @@ class ZenohNode:
         )
         for key, kind in subscriptions:
             self._declared.append(bus.subscribe(key, self._decoder(kind)))
-        self.state_queries = bus.declare_queryable(keys.state(self.uav_id))
-        self.command_queries = bus.declare_queryable(keys.command(self.uav_id, "*"))
-        self.mission_queries = bus.declare_queryable(f"{keys.PREFIX}/mission/*/**")
+        self.state_queries = bus.declare_queryable(keys.state(self.uav_id), self.wake)
+        self.command_queries = bus.declare_queryable(keys.command(self.uav_id, "*"), self.wake)
+        self.mission_queries = bus.declare_queryable(f"{keys.PREFIX}/mission/*/**", self.wake)
 
     def _on_presence(self, key: str, alive: bool) -> None:
         try:

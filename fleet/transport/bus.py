@@ -67,6 +67,11 @@ class BusQuery(ABC):
         self.reply_bytes(key, bus_codec.encode(message))
 
 
+#: Called (on the backend's thread) when a query has arrived, so the owner's loop can
+#: wake up and take it with `try_recv` instead of polling on a timer.
+QueryNotify = Callable[[], None]
+
+
 class Queryable(ABC):
     """Queries arriving on a key expression, polled by the owner's loop."""
 
@@ -95,7 +100,8 @@ class Bus(ABC):
         to `callback` as it arrives, until `timeout` seconds have passed."""
 
     @abstractmethod
-    def declare_queryable(self, key_expr: str) -> Queryable: ...
+    def declare_queryable(self, key_expr: str, notify: QueryNotify | None = None) -> Queryable:
+        """Queries on `key_expr`, taken with `try_recv`; `notify` is called as each arrives."""
 
     @abstractmethod
     def declare_token(self, key: str) -> Declaration:

@@ -39,3 +39,12 @@ class Link(ABC):
     @abstractmethod
     def close(self) -> None:
         """Close the port; idempotent."""
+
+    def fileno(self) -> int | None:
+        """A file descriptor that turns readable when bytes arrive, to wait on; None when
+        the port is down or has none (the loop then polls it)."""
+        return None
+
+    def retry_in(self, now: float) -> float:
+        """Seconds until a port that is down may be reopened (0: now)."""
+        return 0.0

@@ -24,6 +24,7 @@ from fleet.transport.bus import (
     Declaration,
     PresenceCallback,
     Queryable,
+    QueryNotify,
     SampleCallback,
 )
 from fleet.transport.link import Link
@@ -166,14 +167,23 @@ class MemoryQuery(BusQuery):
 
 
 class MemoryQueryable(Queryable):
-    def __init__(self, network: MemoryNetwork, key_expr: str, owner: MemoryBus) -> None:
+    def __init__(
+        self,
+        network: MemoryNetwork,
+        key_expr: str,
+        owner: MemoryBus,
+        notify: QueryNotify | None = None,
+    ) -> None:
         self.key_expr = key_expr
+        self._notify = notify
         self.owner = owner
         self._network = network
         self._waiting: deque[MemoryQuery] = deque()
 
     def deliver(self, query: MemoryQuery) -> None:
         self._waiting.append(query)
+        if self._notify is not None:
+            self._notify()
 
     def try_recv(self) -> BusQuery | None:
         try:
@@ -220,8 +230,8 @@ class MemoryBus(Bus):
         for queryable in targets:
             queryable.deliver(MemoryQuery(key, payload, callback))
 
-    def declare_queryable(self, key_expr: str) -> Queryable:
-        queryable = MemoryQueryable(self.network, key_expr, self)
+    def declare_queryable(self, key_expr: str, notify: QueryNotify | None = None) -> Queryable:
+        queryable = MemoryQueryable(self.network, key_expr, self, notify)
         with self.network.lock:
             self.network.queryables.append(queryable)
         return queryable

@@ -71,6 +71,17 @@ class SerialLink(Link):
         self._last_error = None
         return True
 
+    def fileno(self) -> int | None:
+        if self.port is None:
+            return None
+        try:
+            return int(self.port.fileno())
+        except (serial.SerialException, OSError, AttributeError, ValueError):
+            return None  # e.g. loop://, which only polling can serve
+
+    def retry_in(self, now: float) -> float:
+        return max(0.0, self._retry_at - now)
+
     def read(self, now: float) -> bytes:
         """Whatever bytes are waiting; b'' when none or when the port is down."""
         if self.port is None:

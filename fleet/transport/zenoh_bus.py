@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from collections import deque
 
 import zenoh
 
@@ -14,6 +14,7 @@ from fleet.transport.bus import (
     Declaration,
     PresenceCallback,
     Queryable,
+    QueryNotify,
     SampleCallback,
 )
 
@@ -42,12 +43,23 @@ class ZenohQuery(BusQuery):
 
 
 class ZenohQueryable(Queryable):
-    def __init__(self, queryable: Any) -> None:
-        self._queryable = queryable
+    """Queries queued by a Zenoh callback, which then calls `notify`."""
+
+    def __init__(self, session: zenoh.Session, key_expr: str, notify: QueryNotify | None) -> None:
+        self._waiting: deque[ZenohQuery] = deque()
+        self._notify = notify
+        self._queryable = session.declare_queryable(key_expr, self._on_query)
+
+    def _on_query(self, query: zenoh.Query) -> None:
+        self._waiting.append(ZenohQuery(query))
+        if self._notify is not None:
+            self._notify()
 
     def try_recv(self) -> BusQuery | None:
-        query = self._queryable.try_recv()
-        return None if query is None else ZenohQuery(query)
+        try:
+            return self._waiting.popleft()
+        except IndexError:
+            return None
 
     def undeclare(self) -> None:
         self._queryable.undeclare()
@@ -85,9 +97,8 @@ class ZenohBus(Bus):
         else:
             self.session.get(selector, on_reply, timeout=timeout)
 
-    def declare_queryable(self, key_expr: str) -> Queryable:
-        # A channel handler (the default): the owner's loop polls it with try_recv.
-        return ZenohQueryable(self.session.declare_queryable(key_expr))
+    def declare_queryable(self, key_expr: str, notify: QueryNotify | None = None) -> Queryable:
+        return ZenohQueryable(self.session, key_expr, notify)
 
     def declare_token(self, key: str) -> Declaration:
         token: Declaration = self.session.liveliness().declare_token(key)
