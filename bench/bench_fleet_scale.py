@@ -50,7 +50,13 @@ import zenoh
 
 from fleet.launch.launcher import Fleet, FleetSpec, ring_scenario
 from fleet.mission import keys
-from fleet.mission.messages import AssignmentReport, MissionTargets, StatusText, UavResult
+from fleet.mission.messages import (
+    AssignmentReport,
+    MissionTargets,
+    StatusText,
+    UavResult,
+    UavState,
+)
 from fleet.transport.bus_codec import ENCODING, encode
 from tests.onboard.test_multi_uav import ring_targets
 
@@ -90,7 +96,9 @@ class Row:
     n: int
     config: str
     ready_s: float
+    models_s: float | None  # until every UAV says its model is built (None: cannot say)
     cpu_pct: float
+    sim_cpu_pct: float
     ground_cpu_pct: float
     rss_idle_mb: float
     rss_after_mb: float
@@ -99,6 +107,7 @@ class Row:
     missions: list[Mission]
     solve_s: float  # one UAV's uncontended solve of M targets, in this process
     budget_s: float | None
+    defects: int  # "approach model defect" lines in the onboards' logs
 
 
 # ---- /proc ----------------------------------------------------------------------------------
@@ -228,6 +237,22 @@ def team_budget(n: int, solve_s: float) -> float:
     return max(2.0, 2.0 * n * solve_s / CORES)
 
 
+def wait_models_built(session: zenoh.Session, team: set[int], limit_s: float) -> bool:
+    """Poll every UAV's state until each says its approach model is built."""
+    give_up = time.monotonic() + limit_s
+    while time.monotonic() < give_up:
+        built = set()
+        for reply in session.get(f"{keys.PREFIX}/uav/*/state", timeout=5.0):
+            if reply.ok is not None:
+                state = msgspec.json.decode(reply.ok.payload.to_bytes(), type=UavState)
+                if state.model_speed is not None:
+                    built.add(state.uav)
+        if team <= built:
+            return True
+        time.sleep(0.5)
+    return False
+
+
 def run_missions(
     session: zenoh.Session,
     observer: Observer,
@@ -308,10 +333,18 @@ def measure(config: Config, n: int, args: argparse.Namespace, workdir: Path) -> 
         session = fleet.router.session
         observer = Observer(session)
         try:
+            models: float | None = None
+            # A baseline cannot say (it imports Pyomo before it is alive, then builds).
+            if config.pythonpath is None and wait_models_built(
+                session, set(fleet.uav_ids), args.start_timeout
+            ):
+                models = time.monotonic() - started
             time.sleep(args.settle)
             pids = [child.pid for child in fleet.children]
             onboards = [c.pid for c in fleet.children if c.name.startswith("onboard-")]
+            sim = next(c.pid for c in fleet.children if c.name == "sim")
             cpu0 = sum(cpu_seconds(pid) for pid in pids)
+            sim0 = cpu_seconds(sim)
             own0 = time.process_time()
             observer.recording = True
             window0 = time.monotonic()
@@ -319,6 +352,7 @@ def measure(config: Config, n: int, args: argparse.Namespace, workdir: Path) -> 
             observer.recording = False
             window = time.monotonic() - window0
             cpu = 100.0 * (sum(cpu_seconds(pid) for pid in pids) - cpu0) / window
+            sim_cpu = 100.0 * (cpu_seconds(sim) - sim0) / window
             own = 100.0 * (time.process_time() - own0) / window
             rss_idle = sum(status_field(pid, "VmRSS") for pid in pids) / 1024.0
             threads = statistics.mean(status_field(pid, "Threads") for pid in onboards)
@@ -332,7 +366,9 @@ def measure(config: Config, n: int, args: argparse.Namespace, workdir: Path) -> 
         n=n,
         config=config.name,
         ready_s=ready,
+        models_s=models,
         cpu_pct=cpu,
+        sim_cpu_pct=sim_cpu,
         ground_cpu_pct=own,
         rss_idle_mb=rss_idle,
         rss_after_mb=rss_after,
@@ -341,6 +377,10 @@ def measure(config: Config, n: int, args: argparse.Namespace, workdir: Path) -> 
         missions=missions,
         solve_s=solve_s,
         budget_s=budget,
+        defects=sum(
+            path.read_text(errors="replace").count("approach model defect")
+            for path in fleet.log_dir.glob("onboard-*.log")
+        ),
     )
 
 
@@ -387,19 +427,21 @@ def format_row(row: Row) -> str:
     failed = sum(1 for m in row.missions if m.send_to_commit is None or not m.agreed)
     bound = row.n * row.solve_s / CORES + 0.5
     latency = "-" if row.latency_p99_ms is None else f"{row.latency_p99_ms:.0f}"
+    models = "-" if row.models_s is None else f"{row.models_s:.1f}"
     return (
-        f"{row.n:>3} {row.config:<9} {row.ready_s:>6.1f} {row.cpu_pct:>6.1f} "
+        f"{row.n:>3} {row.config:<9} {row.ready_s:>6.1f} {models:>6} {row.cpu_pct:>6.1f} "
+        f"{row.sim_cpu_pct:>5.1f} "
         f"{row.ground_cpu_pct:>6.1f} {row.rss_idle_mb / 1024:>6.2f} "
         f"{row.rss_after_mb / 1024:>6.2f} "
         f"{row.threads:>5.1f} {latency:>6} {_range(sends, 1.0, 2):>10} {bound:>6.2f} "
-        f"{_range(consensus, 1000.0, 0):>9} {answers:>12} {failed:>4}"
+        f"{_range(consensus, 1000.0, 0):>9} {answers:>12} {failed:>4} {row.defects:>4}"
     )
 
 
 HEADER = (
-    "  N config     ready    CPU ground  RSS-i  RSS-m  thr/ tel-p99  send->com  bound"
-    "  res->com  model:fallb fail\n"
-    "                  s  %core  %core     GB     GB   onb      ms          s      s"
+    "  N config     ready  model    CPU   sim ground  RSS-i  RSS-m  thr/ tel-p99  send->com  bound"
+    "  res->com  model:fallb fail  def\n"
+    "                  s      s  %core %core  %core     GB     GB   onb      ms          s      s"
     "        ms   (per msn)     "
 )
 

@@ -163,6 +163,10 @@ class TargetSolution:
     node: int | None = None  # first node on the target: the arrival-step MILP's optimum
     lp_time: float | None = None  # the LP scan's own estimate, before the Dubins cap
 
+    @property
+    def solved(self) -> bool:
+        return self.status is TargetStatus.SOLVED
+
 
 class ApproachModelError(FleetError, RuntimeError):
     """The model could not be built or handed to the solver."""

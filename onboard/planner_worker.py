@@ -14,8 +14,12 @@ thesis                 here
 global output vars     ``result()`` (a `PlanResult`, handed out once)
 =====================  ======================================================
 
-None of these calls blocks on the solver. The model is built in the worker thread
-right after construction (~0.1 s), so the constructor does not block either.
+None of these calls blocks on the solver. The model is built in the worker thread, so
+the constructor does not block either: right after construction (~0.1 s), or, with
+`build_at_start=False`, when `prepare(cruise_speed)` first names the speed the aircraft
+holds (the onboard process calls it on the first GPS telemetry), so the first mission
+does not rebuild it. Pyomo and HiGHS are imported there, in the worker thread, not
+when this module is: an onboard process comes up and joins the fleet without them.
 
 Every run ends with a time for every target. The model stops starting LPs once the
 request's budget has elapsed; targets it did not reach get the analytic Dubins time
@@ -34,14 +38,13 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.dubins import dubins_time_to_point
-from onboard.approach_model import (
-    ApproachTimeModel,
-    TargetSolution,
-    TargetStatus,
-)
+
+if TYPE_CHECKING:
+    from onboard.approach_model import ApproachTimeModel, TargetSolution
 
 __all__ = ["PlanRequest", "PlanResult", "PlannerWorker", "fallback_time"]
 
@@ -110,6 +113,12 @@ def fallback_time(
     return dubins_time_to_point(position, flown, target, limits.turn_radius(speed))
 
 
+def _default_model(limits: AircraftLimits, horizon_s: float) -> ApproachTimeModel:
+    from onboard.approach_model import ApproachTimeModel  # Pyomo and HiGHS: here only
+
+    return ApproachTimeModel(limits, horizon_s)
+
+
 class PlannerWorker:
     """Runs an `ApproachTimeModel` in a background thread; poll it from the link loop."""
 
@@ -120,6 +129,7 @@ class PlannerWorker:
         *,
         model_factory: Callable[[], ApproachTimeModel] | None = None,
         notify: Callable[[], None] | None = None,
+        build_at_start: bool = True,
     ) -> None:
         """Start the worker thread, which builds the model at once.
 
@@ -133,8 +143,10 @@ class PlannerWorker:
         self._ceiling = limits.max_airspeed  # the airframe's, whatever the cruise speed
         self._custom_factory = model_factory is not None
         self._factory: Callable[[], ApproachTimeModel] = model_factory or (
-            lambda: ApproachTimeModel(self._limits, horizon_s)
+            lambda: _default_model(self._limits, horizon_s)
         )
+        self._prepare: float | None = None  # a cruise speed to build the model at
+        self._build_at_start = build_at_start
         self._lock = threading.Lock()
         self._wake = threading.Condition(self._lock)
         self._cancel = threading.Event()
@@ -168,6 +180,18 @@ class PlannerWorker:
             self._pending = request
             self._wake.notify()
         return True
+
+    def prepare(self, cruise_speed: float) -> None:
+        """Build the model now, at `cruise_speed`, if it is not built yet (no-op after)."""
+        with self._lock:
+            if self._model is None and self._prepare is None and math.isfinite(cruise_speed):
+                self._prepare = cruise_speed
+                self._wake.notify()
+
+    def model_speed(self) -> float | None:
+        """The top speed (m/s) of the model built, None while none is built."""
+        with self._lock:
+            return None if self._model is None else self._limits.max_airspeed
 
     def is_running(self) -> bool:
         """True from `run()` until the result is ready."""
@@ -208,16 +232,21 @@ class PlannerWorker:
     # -- the worker thread ------------------------------------------------------------
 
     def _loop(self) -> None:
-        self._ensure_model()
+        if self._build_at_start:
+            self._ensure_model()
         while True:
             with self._lock:
-                while self._pending is None and not self._closed:
+                while self._pending is None and self._prepare is None and not self._closed:
                     self._wake.wait()
                 if self._closed:
                     self._running = False
                     return
                 request, self._pending = self._pending, None
+                prepare, self._prepare = self._prepare, None
                 if request is None:
+                    if prepare is not None and self._model is None:
+                        self._adopt_cruise_speed(prepare)
+                        self._ensure_model()
                     continue
                 started = self._started if self._started is not None else time.monotonic()
             result = self._plan(request, started)
@@ -239,18 +268,18 @@ class PlannerWorker:
                 self._build_error = f"{type(exc).__name__}: {exc}"
         return self._model
 
-    def _adopt_cruise_speed(self, request: PlanRequest) -> None:
+    def _adopt_cruise_speed(self, cruise_speed: float | None) -> None:
         """Rebuild the model (about 50 ms) when the aircraft's speed has moved on."""
-        if request.cruise_speed is None or self._custom_factory:
+        if cruise_speed is None or self._custom_factory:
             return
-        speed = min(max(request.cruise_speed, self._limits.min_airspeed), self._ceiling)
+        speed = min(max(cruise_speed, self._limits.min_airspeed), self._ceiling)
         if abs(speed - self._limits.max_airspeed) > CRUISE_SPEED_TOLERANCE:
             logger.info("approach model rebuilt for a cruise speed of %.1f m/s", speed)
             self._limits = replace(self._limits, max_airspeed=speed)
             self._model = None
 
     def _plan(self, request: PlanRequest, started: float) -> PlanResult:
-        self._adopt_cruise_speed(request)
+        self._adopt_cruise_speed(request.cruise_speed)
         deadline = started + request.budget_s
         solutions: Sequence[TargetSolution] = ()
         error: str | None = None
@@ -278,7 +307,7 @@ class PlannerWorker:
             sol = solutions[i] if i < len(solutions) else None
             if sol is not None:
                 lps += sol.lps
-            if sol is not None and sol.status is TargetStatus.SOLVED and sol.time is not None:
+            if sol is not None and sol.solved and sol.time is not None:
                 times.append(sol.time)
                 fallback.append(False)
             else:

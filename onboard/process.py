@@ -12,6 +12,7 @@ every few milliseconds.
 from __future__ import annotations
 
 import logging
+import math
 import queue
 import threading
 import time
@@ -126,7 +127,8 @@ class OnboardProcess:
         self.settings = settings
         self.events: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
         self.stop_requested = threading.Event()
-        self.planner = PlannerWorker(notify=self._wake)
+        # The model is built at the aircraft's cruise speed, on the first GPS telemetry.
+        self.planner = PlannerWorker(notify=self._wake, build_at_start=False)
         self.core = OnboardCore(
             uav_id=settings.uav_id,
             outputs=_Outputs(self),
@@ -206,6 +208,8 @@ class OnboardProcess:
             message = event.message
             if isinstance(message, Telemetry):
                 self.link.note_telemetry(now)
+                if message.gps is not None:
+                    self.planner.prepare(math.hypot(message.gps.vel_east, message.gps.vel_north))
                 self.core.on_telemetry(message, now)
             elif isinstance(message, Track):
                 self.core.on_track(message, now)
@@ -253,7 +257,11 @@ class OnboardProcess:
     # ---- queries --------------------------------------------------------------------
     def _serve_queries(self, now: float) -> None:
         while (query := self.node.state_queries.try_recv()) is not None:
-            state = msgspec.structs.replace(self.core.state(now), link=self.link.health(now))
+            state = msgspec.structs.replace(
+                self.core.state(now),
+                link=self.link.health(now),
+                model_speed=self.planner.model_speed(),
+            )
             query.reply(keys.state(self.settings.uav_id), state)
             query.drop()
         while (query := self.node.command_queries.try_recv()) is not None:

@@ -143,3 +143,6 @@ class UavState(msgspec.Struct, frozen=True):
     #: The UAV's phase as a whole: `off` and `link_lost` override the mission's phase.
     phase: Phase = Phase.IDLE
     reason: str | None = None  #: why, for preempted, failed, link_lost and a declined mission
+    #: The approach model's top speed (m/s) once it is built; None before (it is built
+    #: on the first GPS telemetry, at the cruise speed) or from a UAV that does not say.
+    model_speed: float | None = None

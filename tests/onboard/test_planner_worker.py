@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -238,3 +240,34 @@ def test_cruise_speed_rebuilds_the_model_for_the_speed_flown() -> None:
     assert times[22.0][0] == pytest.approx(100.0, rel=0.03)
     assert times[28.0][0] == pytest.approx(2200.0 / 28.0, rel=0.03)
     assert times[22.0][1] == pytest.approx(times[22.0][0])
+
+
+def test_prepare_builds_the_model_at_cruise_speed_before_the_first_run(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    with PlannerWorker(build_at_start=False) as worker:
+        assert worker.model_speed() is None  # nothing built before the speed is known
+        worker.prepare(22.0)
+        give_up = time.monotonic() + WAIT_S
+        while worker.model_speed() is None:
+            assert time.monotonic() < give_up, "model never built"
+            time.sleep(0.01)
+        assert worker.model_speed() == 22.0
+        worker.prepare(28.0)  # built already: the next run adopts a new speed, not this
+        caplog.set_level("INFO", logger="onboard.planner_worker")
+        run = PlanRequest((0.0, 0.0), (22.0, 0.0), ((2200.0, 0.0),), 30.0, cruise_speed=22.0)
+        assert worker.run(run)
+        result = wait_result(worker)
+    assert not any(result.fallback)
+    assert not [r for r in caplog.records if "rebuilt" in r.getMessage()]
+
+
+def test_an_idle_onboard_process_does_not_import_pyomo_or_highspy() -> None:
+    probe = (
+        "import sys, onboard.process, onboard.main;"
+        "print(sorted(m for m in ('pyomo', 'highspy', 'numpy') if m in sys.modules))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, check=True, timeout=60
+    )
+    assert out.stdout.strip() == "[]"

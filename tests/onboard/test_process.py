@@ -4,6 +4,7 @@ its commands, the payload-port ground path, bad input, and the link dropping.
 
 from __future__ import annotations
 
+import math
 import socket
 import time
 from collections.abc import Callable, Iterator
@@ -216,3 +217,16 @@ def test_link_drop_is_reported_and_the_adapter_reconnects(rig: Rig) -> None:
         wait_until(lambda: len(rig.seen.telemetry[UAV]) > count + 5, 10.0, "telemetry again")
     finally:
         subscriber.undeclare()
+
+
+def test_state_says_when_the_model_is_built_at_the_cruise_speed(rig: Rig) -> None:
+    def state() -> UavState:
+        answer = get_one(rig.ground, keys.state(UAV)).ok
+        assert answer is not None
+        return msgspec.json.decode(answer.payload.to_bytes(), type=UavState)
+
+    wait_until(lambda: state().model_speed is not None, 60.0, "the model built")
+    built = state()
+    assert built.telemetry is not None and built.telemetry.gps is not None
+    cruise = math.hypot(built.telemetry.gps.vel_east, built.telemetry.gps.vel_north)
+    assert built.model_speed == pytest.approx(cruise, abs=1.0)
