@@ -23,7 +23,7 @@ import msgspec
 import zenoh
 
 from fleet.errors import FleetError
-from fleet.transport import bus_codec
+from fleet.transport import bus_codec, bus_qos
 from fleet.transport.zenoh_config import (
     CONNECT_ENV,
     ZenohConfigError,
@@ -87,7 +87,8 @@ def encode(message: msgspec.Struct) -> bytes:
 
 
 def put_message(session: zenoh.Session, key: str, message: msgspec.Struct) -> None:
-    session.put(key, bus_codec.encode(message), encoding=bus_codec.ENCODING)
+    """Publish with the key's priority: mission messages never queue behind telemetry."""
+    bus_qos.put(session, key, bus_codec.encode(message))
 
 
 def decode_sample(sample: zenoh.Sample, kind: type[T]) -> T | None:

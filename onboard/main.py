@@ -47,6 +47,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--budget", type=positive_float, default=2.0, help="planning time budget, s (> 0)"
     )
+    parser.add_argument(
+        "--telemetry-hz",
+        type=positive_float,
+        metavar="HZ",
+        help="publish telemetry on the bus at most this often (default: every packet)",
+    )
     parser.add_argument("--drop-first-result", action="store_true", help=argparse.SUPPRESS)
     add_zenoh_arguments(parser)
     add_verbose_argument(parser)
@@ -69,6 +75,7 @@ def main(argv: list[str] | None = None) -> int:
         payload_ground=args.payload_ground,
         status_rate_hz=args.status_rate,
         planning_budget_s=args.budget,
+        telemetry_hz=args.telemetry_hz,
         drop_first_result=args.drop_first_result,
     )
     try:

@@ -71,6 +71,8 @@ class OnboardSettings:
     payload_ground: bool = False
     status_rate_hz: float = 1.0
     planning_budget_s: float = 2.0
+    #: Telemetry published on the bus at most this often; None: every packet relayed.
+    telemetry_hz: float | None = None
     #: Test hook: drop the first publication of our own mission result (the teammates
     #: must recover it by query).
     drop_first_result: bool = False
@@ -82,6 +84,7 @@ class _Outputs:
 
     process: OnboardProcess
     dropped_results: set[int] = field(default_factory=set)
+    last_telemetry_at: float = -math.inf
 
     def send_autopilot(self, command: AutopilotCommand) -> None:
         self.process.link.send_autopilot(command)
@@ -96,6 +99,11 @@ class _Outputs:
             self.dropped_results.add(message.mission)
             log.warning("test hook: first publication of %s dropped", key)
             return
+        if isinstance(message, Telemetry) and settings.telemetry_hz:
+            now = time.monotonic()
+            if now - self.last_telemetry_at < 1.0 / settings.telemetry_hz:
+                return  # the bus gets telemetry at its own rate, not the autopilot's
+            self.last_telemetry_at = now
         self.process.node.publish(key, message)
 
     def send_ground(self, message: StatusText | UavResult) -> None:
@@ -104,7 +112,14 @@ class _Outputs:
             self.process.link.send_payload(data, ALL_GROUND_STATIONS)
 
     def fetch_results(self, mission: int) -> None:
-        self.process.node.fetch(keys.mission_results(mission), UavResult)
+        """Ask for the missing results only, each from the teammate that owes it."""
+        core = self.process.core
+        node = self.process.node
+        if core.round is None or core.round.mission != mission:
+            node.fetch(keys.mission_results(mission), UavResult)
+            return
+        for uav in sorted(core.round.missing(core.alive) - {core.uav_id}):
+            node.fetch(keys.mission_result(mission, uav), UavResult)
 
     def fetch_assignments(self, mission: int) -> None:
         self.process.node.fetch(keys.mission_assignments(mission), AssignmentReport)
@@ -266,9 +281,10 @@ class OnboardProcess:
             query.drop()
         while (query := self.node.command_queries.try_recv()) is not None:
             self._on_command_query(query, now)
-        while (query := self.node.mission_queries.try_recv()) is not None:
-            self._on_mission_query(query)
-            query.drop()
+        for queryable in self.node.mission_queries:
+            while (query := queryable.try_recv()) is not None:
+                self._on_mission_query(query)
+                query.drop()
 
     def _on_command_query(self, query: BusQuery, now: float) -> None:
         key = query.key

@@ -80,7 +80,16 @@ class ZenohNode:
             self._declared.append(bus.subscribe(key, self._decoder(kind)))
         self.state_queries = bus.declare_queryable(keys.state(self.uav_id), self.wake)
         self.command_queries = bus.declare_queryable(keys.command(self.uav_id, "*"), self.wake)
-        self.mission_queries = bus.declare_queryable(f"{keys.PREFIX}/mission/*/**", self.wake)
+        # Each UAV answers for the targets and for its own result and assignment only, so
+        # a teammate's query for a missing result reaches the UAV that owes it.
+        self.mission_queries = [
+            bus.declare_queryable(key, self.wake)
+            for key in (
+                keys.ALL_MISSION_TARGETS,
+                f"{keys.PREFIX}/mission/*/result/{self.uav_id}",
+                f"{keys.PREFIX}/mission/*/assignment/{self.uav_id}",
+            )
+        ]
 
     def _on_presence(self, key: str, alive: bool) -> None:
         try:
@@ -110,7 +119,7 @@ class ZenohNode:
     def close(self) -> None:
         for declared in self._declared:
             declared.undeclare()
-        for queryable in (self.state_queries, self.command_queries, self.mission_queries):
+        for queryable in (self.state_queries, self.command_queries, *self.mission_queries):
             queryable.undeclare()
         self.token.undeclare()
         self.bus.close()

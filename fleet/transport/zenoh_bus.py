@@ -6,7 +6,7 @@ from collections import deque
 
 import zenoh
 
-from fleet.transport import bus_codec
+from fleet.transport import bus_codec, bus_qos
 from fleet.transport.bus import (
     Bus,
     BusQuery,
@@ -77,7 +77,8 @@ class ZenohBus(Bus):
         return cls(zenoh.open(config))
 
     def put(self, key: str, payload: bytes) -> None:
-        self.session.put(key, payload, encoding=bus_codec.ENCODING)
+        """Publish with the key's priority and congestion control (bus_qos)."""
+        bus_qos.put(self.session, key, payload)
 
     def subscribe(self, key_expr: str, callback: SampleCallback) -> Declaration:
         subscriber: Declaration = self.session.declare_subscriber(

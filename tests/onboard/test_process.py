@@ -230,3 +230,25 @@ def test_state_says_when_the_model_is_built_at_the_cruise_speed(rig: Rig) -> Non
     assert built.telemetry is not None and built.telemetry.gps is not None
     cruise = math.hypot(built.telemetry.gps.vel_east, built.telemetry.gps.vel_north)
     assert built.model_speed == pytest.approx(cruise, abs=1.0)
+
+
+def test_telemetry_reaches_the_bus_at_the_rate_asked_for() -> None:
+    """20 Hz from the autopilot, --telemetry-hz 2 on the bus: about one sample in ten."""
+    fleet = Fleet()
+    port = free_port()
+    try:
+        with router_session(port), client_session(port) as ground:
+            seen = GroundView(ground)
+            endpoints = fleet.sim("single_uav", 1.0, 20.0)
+            router = f"tcp/127.0.0.1:{port}"
+            fleet.onboard(UAV, endpoints[UAV], router, "--telemetry-hz", "2")
+            wait_until(lambda: len(seen.telemetry.get(UAV, [])) >= 6, 30.0, "6 samples")
+            samples = [t.system_time_ms for t in seen.telemetry[UAV]]
+            seen.close()
+    finally:
+        fleet.stop_all()
+    # Relayed at most every 500 ms of the module's clock. A busy machine can bunch the
+    # packets (two relayed samples closer in autopilot time), but over the whole span
+    # no more than one every 500 ms gets through, where 20 Hz would be ten.
+    span_ms = samples[-1] - samples[0]
+    assert len(samples) <= span_ms / 500 + 2, f"{len(samples)} samples in {span_ms} ms"

@@ -1,0 +1,53 @@
+"""How urgently each fleet message travels on Zenoh: priority and congestion control.
+
+Mission traffic (targets, results, assignments, aborts under `{prefix}/mission/`) and the
+ground's commands (`{prefix}/uav/{id}/opm`) must never queue behind telemetry: they go at
+INTERACTIVE_HIGH priority, express (sent at once, not batched), and BLOCK (never dropped
+when a queue is full). Telemetry goes at DATA_LOW and DROP: a stale sample is worth
+nothing when the next follows within a second. Everything else keeps Zenoh's defaults
+(DATA, DROP).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import zenoh
+
+from fleet.mission import keys
+from fleet.transport.bus_codec import ENCODING
+
+
+@dataclass(frozen=True)
+class Qos:
+    priority: zenoh.Priority
+    congestion_control: zenoh.CongestionControl
+    express: bool
+
+
+URGENT = Qos(zenoh.Priority.INTERACTIVE_HIGH, zenoh.CongestionControl.BLOCK, True)
+TELEMETRY = Qos(zenoh.Priority.DATA_LOW, zenoh.CongestionControl.DROP, False)
+ORDINARY = Qos(zenoh.Priority.DATA, zenoh.CongestionControl.DROP, False)
+
+
+def qos_for(key: str) -> Qos:
+    """The priority and congestion control of a publication on `key`."""
+    # keys.PREFIX is read at each call: a process may change it (keys.use_prefix).
+    if key.startswith(f"{keys.PREFIX}/mission/") or key.endswith("/opm"):
+        return URGENT
+    if key.endswith("/telemetry"):
+        return TELEMETRY
+    return ORDINARY
+
+
+def put(session: zenoh.Session, key: str, payload: bytes) -> None:
+    """Publish bus-codec `payload` on `key` with the key's priority and congestion control."""
+    qos = qos_for(key)
+    session.put(
+        key,
+        payload,
+        encoding=ENCODING,
+        priority=qos.priority,
+        congestion_control=qos.congestion_control,
+        express=qos.express,
+    )
