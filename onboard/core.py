@@ -359,11 +359,23 @@ class OnboardCore:
         if plan.error:
             text = f"warning: {text}; solver error: {plan.error}"
         self.status(text, now)
-        self._publish_result(tuple(plan.times), now)
+        self._publish_result(tuple(plan.times), now, plan.model_times, plan.fallback_times)
 
-    def _publish_result(self, times: tuple[float | None, ...], now: float) -> None:
+    def _publish_result(
+        self,
+        times: tuple[float | None, ...],
+        now: float,
+        model_times: int | None = None,
+        fallback_times: int | None = None,
+    ) -> None:
         assert self.round is not None
-        result = UavResult(mission=self.round.mission, uav=self.uav_id, times=times)
+        result = UavResult(
+            mission=self.round.mission,
+            uav=self.uav_id,
+            times=times,
+            model_times=model_times,
+            fallback_times=fallback_times,
+        )
         self.round.add_result(result)
         # Teammates are computing too: the first fetch waits one interval.
         self.round.last_fetch = now

@@ -52,6 +52,12 @@ logger = logging.getLogger(__name__)
 
 _JOIN_TIMEOUT_S = 5.0
 _DEFAULT_LIMITS = AircraftLimits()
+#: How much faster than the Dubins time at the same speed a model answer may honestly
+#: be, beyond `SANITY_MIN_TURN_RADII` turn radii: the turn relaxation's worst case (4 %)
+#: plus the speed 16-gon's (1.3 %), measured in docs/benchmarks.md. Faster is a defect.
+MODEL_STATED_ERROR = 0.055
+#: Inside this many turn radii the relaxation is knowingly optimistic: no sanity check.
+SANITY_MIN_TURN_RADII = 3.0
 #: A cruise speed this close to the model's top speed reuses the model.
 CRUISE_SPEED_TOLERANCE = 0.5
 
@@ -90,6 +96,15 @@ class PlanResult:
     solve_seconds: float  # from run() to the result, build included if it happened then
     error: str | None = None  # the exception that made every target fall back
     lps: int = 0  # LPs solved for this result
+    defects: int = 0  # model answers faster than the Dubins time allows (logged)
+
+    @property
+    def model_times(self) -> int:
+        return self.fallback.count(False)
+
+    @property
+    def fallback_times(self) -> int:
+        return self.fallback.count(True)
 
 
 def fallback_time(
@@ -328,4 +343,29 @@ class PlannerWorker:
             solve_seconds=time.monotonic() - started,
             error=error,
             lps=lps,
+            defects=self._sanity_check(request, solutions),
         )
+
+    def _sanity_check(self, request: PlanRequest, solutions: Sequence[TargetSolution]) -> int:
+        """Count (and log) model answers faster than the Dubins time by more than the
+        model's stated error, where the check holds (beyond a few turn radii)."""
+        speed = self._limits.clamp_airspeed(math.hypot(*request.velocity))
+        near = SANITY_MIN_TURN_RADII * self._limits.turn_radius(speed)
+        defects = []
+        for i, (sol, target) in enumerate(zip(solutions, request.targets, strict=False)):
+            if not sol.solved or sol.lp_time is None or sol.dubins_time is None:
+                continue
+            far = math.dist(target, request.position) > near
+            if far and sol.lp_time < sol.dubins_time * (1.0 - MODEL_STATED_ERROR):
+                defects.append(
+                    f"target {i}: model {sol.lp_time:.1f} s < Dubins {sol.dubins_time:.1f} s"
+                )
+        if defects:
+            logger.warning(
+                "approach model defect: %d answer(s) faster than the Dubins time by more "
+                "than %.1f %%: %s",
+                len(defects),
+                100 * MODEL_STATED_ERROR,
+                "; ".join(defects),
+            )
+        return len(defects)

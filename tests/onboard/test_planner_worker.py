@@ -271,3 +271,42 @@ def test_an_idle_onboard_process_does_not_import_pyomo_or_highspy() -> None:
         [sys.executable, "-c", probe], capture_output=True, text=True, check=True, timeout=60
     )
     assert out.stdout.strip() == "[]"
+
+
+class TooFastModel(ApproachTimeModel):
+    """A stand-in model that claims 1 s to a target whose Dubins time is 100 s."""
+
+    def __init__(self) -> None:  # no super(): nothing to build
+        pass
+
+    def solve_detailed(
+        self,
+        position: tuple[float, float],
+        velocity: tuple[float, float],
+        targets: Sequence[tuple[float, float]],
+        deadline: float | None = None,
+        cancel: threading.Event | None = None,
+    ) -> list[TargetSolution]:
+        return [
+            TargetSolution(1.0, TargetStatus.SOLVED, 1, lp_time=1.0, dubins_time=100.0)
+            for _ in targets
+        ]
+
+
+def test_a_model_time_below_the_dubins_time_is_a_logged_defect(
+    make_worker: Callable[..., PlannerWorker], caplog: pytest.LogCaptureFixture
+) -> None:
+    worker = make_worker(TooFastModel)
+    assert worker.run(request())
+    result = wait_result(worker)
+    assert result.defects == len(TARGETS)
+    assert "approach model defect: 3 answer(s)" in caplog.text
+
+
+def test_real_model_answers_pass_the_dubins_check_and_are_counted(
+    make_worker: Callable[..., PlannerWorker],
+) -> None:
+    worker = make_worker()
+    assert worker.run(request())
+    result = wait_result(worker)
+    assert (result.model_times, result.fallback_times, result.defects) == (len(TARGETS), 0, 0)
