@@ -55,6 +55,8 @@ STOP_GRACE_S = 5.0
 #: Seconds to wait for the simulator's ports and every UAV's token and telemetry. Every
 #: onboard imports Pyomo and HiGHS at start, which takes seconds on a busy machine.
 DEFAULT_START_TIMEOUT_S = 120.0
+#: At most one progress report this often while waiting for the UAVs, seconds.
+PROGRESS_PERIOD_S = 1.0
 #: First Piccolo ID of a generated (--uavs N) fleet.
 FIRST_GENERATED_ID = 101
 #: Centre of a generated fleet: Camp Roberts, California, as in the shipped scenarios.
@@ -199,6 +201,8 @@ class Fleet:
 
     spec: FleetSpec
     stop_requested: threading.Event = field(default_factory=threading.Event)
+    #: Told how the start is going ("12 of 50 UAVs ready"), from the starting thread.
+    progress: Callable[[str], None] | None = None
     endpoints: list[SimEndpoints] = field(default_factory=list)
     children: list[Child] = field(default_factory=list)
     router: Router | None = None
@@ -250,6 +254,7 @@ class Fleet:
         if self.spec.record is not None:
             self._start_recorder(self.spec.record, deadline)
         self._start_sim(deadline)
+        self._report(f"simulator up with {len(self.endpoints)} aircraft; starting their onboards")
         for endpoints in self.endpoints:
             self._start_onboard(endpoints)
         self._write_pids()
@@ -433,11 +438,23 @@ class Fleet:
             session.liveliness().declare_subscriber(keys.ALL_ALIVE, on_token, history=True),
             session.declare_subscriber(keys.ALL_TELEMETRY, on_telemetry),
         ):
+            reported, next_report = (-1, -1), 0.0
             while not expected <= alive & flowing:
                 changed.wait(0.2)
                 changed.clear()
+                counts = (len(expected & alive), len(expected & alive & flowing))
+                if counts != reported and time.monotonic() >= next_report:
+                    self._report(
+                        f"{counts[0]} of {len(expected)} UAVs alive, {counts[1]} with telemetry"
+                    )
+                    reported, next_report = counts, time.monotonic() + PROGRESS_PERIOD_S
                 self._check_running(deadline, _waiting_for(expected, alive, flowing))
         log.info("every UAV is alive with telemetry: %s", ", ".join(map(str, sorted(expected))))
+
+    def _report(self, text: str) -> None:
+        log.info("%s", text)
+        if self.progress is not None:
+            self.progress(text)
 
     # ---- running and stopping ----------------------------------------------------------
     def dead_children(self) -> list[Child]:

@@ -156,7 +156,7 @@ def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
     )
     if args.onboard_command:
         spec.onboard_command = tuple(shlex.split(args.onboard_command))
-    fleet = Fleet(spec, stop_requested=stop)
+    fleet = Fleet(spec, stop_requested=stop, progress=_print_progress)
     if args.uavs is not None:
         path = fleet.log_dir / f"ring-{args.uavs}.toml"
         path.write_text(ring_scenario(args.uavs))
@@ -193,6 +193,10 @@ def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
     if spec.record is not None:
         print(f"fleet up: recorded to {spec.record}")
     return ExitCode.OK if stopped_cleanly else ExitCode.FAILED
+
+
+def _print_progress(text: str) -> None:
+    print(f"fleet up: {text}", flush=True)
 
 
 def _print_banner(fleet: Fleet, targets_path: Path | None, gui_line: str | None) -> None:

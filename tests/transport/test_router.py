@@ -295,6 +295,9 @@ def test_fleet_up_command_stops_every_child_on_sigterm(tmp_path: Path) -> None:
         text = "".join(lines)
         assert f"export FLEET_ZENOH_CONNECT={endpoint}" in text
         assert "101, 102" in text
+        # Progress while starting: the simulator first, then the UAVs coming up.
+        assert "fleet up: simulator up with 2 aircraft" in text
+        assert text.index("simulator up") < text.index("stops the fleet")
         process.send_signal(signal.SIGTERM)
         assert process.wait(timeout=20) == 0
         reader.join(timeout=5)
