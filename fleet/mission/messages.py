@@ -8,7 +8,10 @@ path it travelled.
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import msgspec
+from msgspec import Meta
 
 from fleet.mission.phase import Phase, Severity
 from fleet.piccolo.telemetry import Telemetry
@@ -17,6 +20,21 @@ from fleet.piccolo.telemetry import Telemetry
 BROADCAST = 0xFFFF
 #: Planning-protocol address of the Mission Manager (thesis 2.9).
 MISSION_MANAGER = 0xFFFE
+
+#: Targets in one mission at most (fleet.mission.targets_file refuses a longer file).
+MAX_TARGETS = 100
+#: UAVs in one team at most.
+MAX_TEAM = 256
+
+# Bounds every message carries into its JSON Schema and msgspec enforces on decode, so
+# an out-of-range id or index from the bus is refused, never used as an index.
+#: Mission ids are u32 on the planning protocol.
+MissionId = Annotated[int, Meta(ge=0, le=0xFFFF_FFFF)]
+#: A Piccolo ID (fleet.piccolo.stream_packet: 0x0001-0xFFF0).
+PiccoloId = Annotated[int, Meta(ge=0x0001, le=0xFFF0)]
+#: A target's index in its mission.
+TargetIndex = Annotated[int, Meta(ge=0, le=MAX_TARGETS - 1)]
+Team = Annotated[tuple[PiccoloId, ...], Meta(max_length=MAX_TEAM)]
 
 
 class Target(msgspec.Struct, frozen=True):
@@ -56,9 +74,9 @@ class MissionTargets(msgspec.Struct, frozen=True):
     `deadline_s` is how long after receipt a UAV waits for its teammates' results.
     """
 
-    mission: int
-    team: tuple[int, ...]
-    targets: tuple[Target, ...]
+    mission: MissionId
+    team: Team
+    targets: Annotated[tuple[Target, ...], Meta(max_length=MAX_TARGETS)]
     deadline_s: float = 10.0
 
 
@@ -71,17 +89,17 @@ class UavResult(msgspec.Struct, frozen=True):
     say, and over the payload link, whose binary message has no room for them).
     """
 
-    mission: int
-    uav: int
-    times: tuple[float | None, ...]
-    model_times: int | None = None
-    fallback_times: int | None = None
+    mission: MissionId
+    uav: PiccoloId
+    times: Annotated[tuple[float | None, ...], Meta(max_length=MAX_TARGETS)]
+    model_times: Annotated[int, Meta(ge=0)] | None = None
+    fallback_times: Annotated[int, Meta(ge=0)] | None = None
 
 
 class MissionAbort(msgspec.Struct, frozen=True):
     """PAYLOAD_ABORT: the ground aborts a mission; every UAV resumes its course."""
 
-    mission: int
+    mission: MissionId
 
 
 class LinkHealth(msgspec.Struct, frozen=True):
@@ -109,12 +127,13 @@ class AssignmentReport(msgspec.Struct, frozen=True):
     used the same results reports the same digest and the same `pairs`.
     """
 
-    mission: int
-    uav: int
-    target: int | None  #: index of this UAV's target in the mission, None if idle
-    pairs: dict[str, int]  #: every UAV's target index, keyed by Piccolo ID as a string
-    unassigned: tuple[int, ...]
-    team: tuple[int, ...]  #: the UAVs whose results were used
+    mission: MissionId
+    uav: PiccoloId
+    target: TargetIndex | None  #: index of this UAV's target in the mission, None if idle
+    #: every UAV's target index, keyed by Piccolo ID as a string
+    pairs: Annotated[dict[str, TargetIndex], Meta(max_length=MAX_TEAM)]
+    unassigned: Annotated[tuple[TargetIndex, ...], Meta(max_length=MAX_TARGETS)]
+    team: Team  #: the UAVs whose results were used
     digest: str
     eta_s: float | None = None
 
@@ -122,9 +141,9 @@ class AssignmentReport(msgspec.Struct, frozen=True):
 class MissionProgress(msgspec.Struct, frozen=True):
     """Where a UAV stands in its current mission (part of UavState)."""
 
-    mission: int
+    mission: MissionId
     phase: Phase
-    targets: int
+    targets: Annotated[int, Meta(ge=0, le=MAX_TARGETS)]
     result: UavResult | None = None
     assignment: AssignmentReport | None = None
 

@@ -24,7 +24,7 @@ import struct
 from collections.abc import Iterable
 
 from fleet.errors import CodecError
-from fleet.mission.messages import Target
+from fleet.mission.messages import MAX_TARGETS, Target
 
 __all__ = [
     "ALTITUDE_ENVELOPE_M",
@@ -41,8 +41,6 @@ TARGET_SIZE = _RECORD.size
 #: Target altitudes accepted, metres above mean sea level: from below sea level (Death
 #: Valley) to the ceiling of a Piccolo-class aircraft.
 ALTITUDE_ENVELOPE_M = (-100.0, 6000.0)
-#: Targets in one mission at most.
-MAX_TARGETS = 100
 #: Bytes of a text file: printable ASCII and the usual white space.
 _TEXT_BYTES = frozenset(range(0x20, 0x7F)) | {0x09, 0x0A, 0x0D}
 

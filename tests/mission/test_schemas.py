@@ -4,6 +4,13 @@ from pathlib import Path
 import msgspec
 import pytest
 
+from fleet.mission.messages import (
+    MAX_TARGETS,
+    AssignmentReport,
+    MissionAbort,
+    MissionTargets,
+    UavResult,
+)
 from fleet.mission.schemas import MESSAGES, check_all, main, render
 from tests.link_samples import sample_telemetry
 
@@ -81,3 +88,26 @@ def test_published_telemetry_validates_against_its_schema() -> None:
     jsonschema = pytest.importorskip("jsonschema")
     schema = json.loads((SCHEMA_DIR / "telemetry.schema.json").read_text())
     jsonschema.validate(json.loads(msgspec.json.encode(sample_telemetry())), schema)
+
+
+def test_out_of_range_ids_and_indices_are_refused_on_decode() -> None:
+    """The bounds are in the schemas and enforced: never used as an index."""
+    bad_index = (
+        b'{"mission":1,"uav":74,"target":100,"pairs":{},"unassigned":[],"team":[],"digest":"x"}'
+    )
+    with pytest.raises(msgspec.ValidationError, match=r"Expected `int` <= 99 - at `\$.target`"):
+        msgspec.json.decode(bad_index, type=AssignmentReport)
+    with pytest.raises(msgspec.ValidationError, match=r"<= 4294967295 - at `\$.mission`"):
+        msgspec.json.decode(b'{"mission": 4294967296}', type=MissionAbort)
+    with pytest.raises(msgspec.ValidationError, match=r">= 1 - at `\$.uav`"):
+        msgspec.json.decode(b'{"mission": 1, "uav": 0, "times": []}', type=UavResult)
+    too_many = (
+        b'{"mission": 1, "team": [74], "targets": ['
+        + b",".join([b'{"lat": 1, "lon": 2, "alt": 3}'] * (MAX_TARGETS + 1))
+        + b"]}"
+    )
+    with pytest.raises(msgspec.ValidationError, match=r"length <= 100 - at `\$.targets`"):
+        msgspec.json.decode(too_many, type=MissionTargets)
+    schema = json.loads((SCHEMA_DIR / "assignment_report.schema.json").read_text())
+    report = schema["$defs"]["AssignmentReport"]["properties"]
+    assert report["mission"]["maximum"] == 0xFFFF_FFFF
