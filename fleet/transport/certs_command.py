@@ -8,20 +8,18 @@ Writes `DIR/ca.pem`, and per identity NAME (`router`, `ground`, `uav-74`, ...)
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from fleet.mission.access import GROUND, ROUTER, uav_identity
 from fleet.transport.certs import DEFAULT_VALID_DAYS, CertError, write_identities
-from fleet.transport.cli_args import bounded_int
+from fleet.transport.cli import ExitCode, bounded_int, fail, piccolo_id
 
 DEFAULT_SECURE_ROUTER = "tls/127.0.0.1:7447"
-_piccolo_id = bounded_int(1, 0xFFF0, "Piccolo ID")
 
 
 def uav_list(text: str) -> list[int]:
     """`74,112` -> [74, 112]."""
-    ids = [_piccolo_id(part.strip()) for part in text.split(",") if part.strip()]
+    ids = [piccolo_id(part.strip()) for part in text.split(",") if part.strip()]
     if not ids:
         raise argparse.ArgumentTypeError("no UAV ids")
     return sorted(set(ids))
@@ -73,17 +71,15 @@ def run_make(args: argparse.Namespace) -> int:
     connect = args.connect or [DEFAULT_SECURE_ROUTER]
     bad = [e for e in connect if not e.startswith("tls/")]
     if bad:
-        print(f"fleet certs: {bad[0]!r} is not a tls/ endpoint", file=sys.stderr)
-        return 2
+        return fail("fleet certs", f"{bad[0]!r} is not a tls/ endpoint")
     names = identity_names(args.uavs, args.ground)
     try:
         written = write_identities(args.directory, names, connect, args.days, args.seen_as)
     except CertError as error:
-        print(f"fleet certs: {error}", file=sys.stderr)
-        return 1
+        return fail("fleet certs", str(error), ExitCode.FAILED)
     directory = written[0].directory
     print(f"fleet certs: CA {directory / 'ca.pem'}")
     for files in written:
         made = (files.certificate, files.key, files.client_config)
         print(f"  {files.name}: {' '.join(path.name for path in made)}")
-    return 0
+    return ExitCode.OK
