@@ -45,7 +45,9 @@ from fleet.mission import keys
 from fleet.piccolo.telemetry import Telemetry
 from fleet.recording.recorder import READY_LINE
 from fleet.transport import bus_codec
+from fleet.transport.certs import CertError
 from fleet.transport.router import Router
+from fleet.transport.secure import SecureProfile
 from fleet.transport.zenoh_config import DEFAULT_ROUTER
 
 log = logging.getLogger(__name__)
@@ -184,6 +186,8 @@ class FleetSpec:
     start_timeout_s: float = DEFAULT_START_TIMEOUT_S
     onboard_args: tuple[str, ...] = ()
     python: str = sys.executable
+    #: The secure profile's identities (`fleet certs make`): mTLS and access control.
+    secure_dir: Path | None = None
     #: How to run one UAV's onboard module after `python`; tests put a double here.
     onboard_command: tuple[str, ...] = ("-m", "onboard.main")
     #: Where `fleet record` writes the run's recording; None: not recorded.
@@ -202,6 +206,7 @@ class Fleet:
     endpoints: list[SimEndpoints] = field(default_factory=list)
     children: list[Child] = field(default_factory=list)
     router: Router | None = None
+    secure: SecureProfile | None = None
     log_dir: Path = field(init=False)
     _sim_ready: threading.Event = field(default_factory=threading.Event)
     _files: list[IO[bytes]] = field(default_factory=list)
@@ -242,8 +247,9 @@ class Fleet:
     # ---- starting -------------------------------------------------------------------
     def start(self) -> None:
         deadline = time.monotonic() + self.spec.start_timeout_s
-        self.router = Router([self.spec.listen])
         try:
+            self.secure = self._secure_profile()
+            self.router = Router([self.spec.listen], secure=self.secure)
             self.router.open()
         except Exception as error:
             raise LaunchError(str(error)) from error
@@ -254,6 +260,15 @@ class Fleet:
             self._start_onboard(endpoints)
         self._write_pids()
         self._wait_ready(deadline)
+
+    def _secure_profile(self) -> SecureProfile | None:
+        if self.spec.secure_dir is None:
+            return None
+        if not self.spec.listen.startswith("tls/"):
+            raise LaunchError(
+                f"the secure profile listens on tls/ endpoints, not {self.spec.listen}"
+            )
+        return SecureProfile.load(self.spec.secure_dir)
 
     def _spawn(self, name: str, argv: list[str], stdout: int | IO[bytes] | None = None) -> Child:
         log_path = self.log_dir / f"{name}.log"
@@ -340,6 +355,12 @@ class Fleet:
         self._sim_ready.set()  # the simulator exited: stop waiting, _check_running says why
 
     def _start_onboard(self, endpoints: SimEndpoints) -> None:
+        identity: list[str] = []
+        if self.secure is not None:
+            try:
+                identity = ["--zenoh-config", str(self.secure.uav_config(endpoints.piccolo_id))]
+            except CertError as error:
+                raise LaunchError(f"UAV {endpoints.piccolo_id} has no identity: {error}") from None
         self._spawn(
             f"onboard-{endpoints.piccolo_id}",
             [
@@ -355,6 +376,7 @@ class Fleet:
                 self.connect,
                 "--mode",
                 "client",
+                *identity,
                 *self.spec.onboard_args,
             ],
         )

@@ -135,9 +135,15 @@ def _ground_grants() -> list[Grant]:
 
 
 def fleet_policy(uav_ids: list[int]) -> list[Grant]:
-    """Every grant of a fleet of `uav_ids` with one ground; everything else is denied."""
+    """Every grant of a fleet of `uav_ids` with one ground and its routers.
+
+    Everything else is denied.
+    """
     members = (GROUND, *(uav_identity(u) for u in uav_ids))
+    both = (Flow.INGRESS, Flow.EGRESS)
     grants = [
+        # Routers relay everything between their clients and each other.
+        Grant("router-relay", (ROUTER,), both, tuple(Message), ("**",)),
         Grant("fleet-receive", members, (Flow.EGRESS,), _RECEIVE, (ALL_FLEET,)),
         Grant("fleet-read", members, (Flow.INGRESS,), _READ, (ALL_FLEET,)),
         *_ground_grants(),
