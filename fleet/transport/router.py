@@ -97,7 +97,7 @@ class Router:
         self.close()
 
 
-def main(argv: list[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m fleet.transport.router", description="Run an embedded Zenoh router."
     )
@@ -117,7 +117,11 @@ def main(argv: list[str] | None = None) -> int:
         help="mutual TLS and access control with the identities in DIR (`fleet certs make`)",
     )
     add_verbose_argument(parser)
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
     setup_logging(args.verbose)
     stop = threading.Event()
     try:
