@@ -23,6 +23,7 @@ from fleet.mission import keys
 from fleet.mission.messages import AssignmentReport, MissionTargets, StatusText, Target, UavResult
 from fleet.mission.phase import Phase
 from fleet.mission.targets_file import TargetsFileError
+from fleet.transport import bus_codec
 from fleet.transport.cli import (
     ExitCode,
     ZenohConfigError,
@@ -551,7 +552,16 @@ def main(argv: list[str] | None = None) -> int:
         return fail("ground-cli: error", str(error))
     except KeyboardInterrupt:
         return ExitCode.INTERRUPTED
+    finally:
+        _report_drops()
     return status
+
+
+def _report_drops() -> None:
+    """Say how many bus messages were refused (each was logged when it arrived)."""
+    if bus_codec.DROPPED.total():
+        reasons = ", ".join(f"{n} {why}" for why, n in sorted(bus_codec.DROPPED.counts().items()))
+        log.warning("refused %d message(s) from the bus: %s", bus_codec.DROPPED.total(), reasons)
 
 
 if __name__ == "__main__":
