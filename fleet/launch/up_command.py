@@ -24,6 +24,7 @@ from fleet.launch.launcher import (
     ring_scenario,
     wait_until_stopped,
 )
+from fleet.launch.topology import Topology
 from fleet.mission import keys
 from fleet.mission.access import GROUND
 from fleet.sim.scenario import ScenarioError, resolve_scenario
@@ -128,6 +129,14 @@ def add_up_parser(
         help="the secure profile: mutual TLS and access control with the identities in DIR "
         "(`fleet certs make`); needs a tls/ --listen endpoint",
     )
+    parser.add_argument(
+        "--topology",
+        type=Topology,
+        choices=list(Topology),
+        default=Topology.STAR,
+        help="star: one router (default); router-per-uav: a router per UAV on a ring, "
+        "each also linked to the ground's router (docs/security.md)",
+    )
     common_arguments(parser, speedup=1.0)
     parser.set_defaults(run=run_up, func=run_up)
     # For tests: run this (shell-quoted, after the Python interpreter) instead of
@@ -162,6 +171,7 @@ def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
         log_dir=args.log_dir,
         start_timeout_s=args.start_timeout,
         secure_dir=args.secure,
+        topology=args.topology,
     )
     if args.onboard_command:
         spec.onboard_command = tuple(shlex.split(args.onboard_command))
@@ -215,6 +225,9 @@ def _print_banner(fleet: Fleet, targets_path: Path | None, gui_line: str | None)
         connect = [f"  export {CONFIG_ENV}={identity}", f"  export {CONNECT_ENV}={fleet.connect}"]
     else:
         connect = [f"  export {CONNECT_ENV}={fleet.connect}"]
+    if fleet.uav_routers:
+        routers = ", ".join(f"{uav} {where}" for uav, where in fleet.uav_routers.items())
+        connect.append(f"  (UAV routers: {routers}; any works as a fallback --connect)")
     lines = [
         f"fleet up: {len(fleet.uav_ids)} UAV(s) alive ({ids}); router on {fleet.spec.listen}",
         "Connect from another terminal:",
