@@ -432,12 +432,12 @@ class Fleet:
         self._sim_ready.set()  # the simulator exited: stop waiting, _check_running says why
 
     def _start_onboard(self, endpoints: SimEndpoints) -> None:
-        identity: list[str] = []
+        zenoh_args: list[str] = []
         for endpoint in self._onboard_connect(endpoints.piccolo_id):
-            identity += ["--connect", endpoint]
+            zenoh_args += ["--connect", endpoint]
         if self.secure is not None:
             try:
-                identity = ["--zenoh-config", str(self.secure.uav_config(endpoints.piccolo_id))]
+                zenoh_args += ["--zenoh-config", str(self.secure.uav_config(endpoints.piccolo_id))]
             except CertError as error:
                 raise LaunchError(f"UAV {endpoints.piccolo_id} has no identity: {error}") from None
         self._spawn(
@@ -453,7 +453,7 @@ class Fleet:
                 endpoints.payload,
                 "--mode",
                 "client",
-                *identity,
+                *zenoh_args,
                 *self.spec.onboard_args,
             ],
         )
