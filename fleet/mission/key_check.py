@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from fleet.errors import FleetError
 from fleet.mission import keys
 from fleet.mission.messages import (
     AssignmentReport,
@@ -27,7 +28,7 @@ MAX_MISSION_ID = 0xFFFF_FFFF
 MAX_TARGET_INDEX = 0xFFFF
 
 
-class WrongKey(ValueError):
+class WrongKey(FleetError, ValueError):
     """A message that its key does not vouch for (or a key that is not the fleet's)."""
 
 

@@ -25,13 +25,15 @@ from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
+from fleet.errors import FleetError
+
 #: Hosts every certificate names, so endpoints on this machine verify.
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
 DEFAULT_VALID_DAYS = 365
 CA_NAME = "ca"
 
 
-class CertError(RuntimeError):
+class CertError(FleetError, RuntimeError):
     """The identities could not be written or read; the message names the file."""
 
 
