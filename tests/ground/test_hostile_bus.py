@@ -19,10 +19,9 @@ import zenoh
 from fleet.mission import keys
 from fleet.mission.messages import MissionProgress, UavResult, UavState
 from fleet.transport.bus_codec import MAX_PAYLOAD_BYTES, encode
-from fleet.transport.router import Router
 from fleet.transport.targets_io import write_targets
 from fleet.transport.zenoh_config import make_config
-from tests.ground.test_cli import TARGETS, FakeOnboard, free_endpoint, run_cli
+from tests.ground.test_cli import TARGETS, FakeOnboard, run_cli
 
 DEPTH = 50_000  #: 300 kB: under the size limit, far over any nesting limit
 PAYLOADS = {
@@ -70,25 +69,6 @@ class Rogue:
         for declared in self.declared:
             declared.undeclare()
         self.session.close()
-
-
-@pytest.fixture(scope="module")
-def router() -> Iterator[str]:
-    endpoint = free_endpoint()
-    with Router([endpoint]):
-        yield endpoint
-
-
-@pytest.fixture(scope="module")
-def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
-    opened: dict[int, FakeOnboard] = {}
-    try:
-        opened[74] = FakeOnboard(router, 74, 42.3500, -71.1000, 150.0)
-        opened[112] = FakeOnboard(router, 112, 42.3700, -71.0800, 160.0)
-        yield opened
-    finally:
-        for fake in opened.values():
-            fake.close()
 
 
 @pytest.fixture(params=sorted(PAYLOADS))
