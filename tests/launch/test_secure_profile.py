@@ -259,3 +259,22 @@ def test_the_issues_attacks_are_refused_and_the_mission_completes_unchanged(
     states = {uav["id"]: uav for uav in json.loads(listed.stdout)}
     assert set(states) == {74, 112}  # no UAV 299
     assert states[112]["alt"] > 550.0  # not sent down toward the rogue's 368 m
+
+
+def test_the_grounds_abort_and_opm_commands_go_through(secure_fleet: SecureFleet) -> None:
+    targets = str(files("fleet") / "scenarios" / "head_on_targets.bin")
+    sent = secure_fleet.ground_cli("send-targets", targets, "--json")
+    assert sent.returncode == 0, sent.stderr
+    mission = json.loads(sent.stdout)["mission"]
+    aborted = secure_fleet.ground_cli("abort", "--mission", str(mission))
+    assert aborted.returncode == 0, aborted.stderr
+
+    def phases() -> dict[int, str]:
+        listed = secure_fleet.ground_cli("uavs", "--json")
+        assert listed.returncode == 0, listed.stderr
+        return {row["id"]: row["phase"] for row in json.loads(listed.stdout)}
+
+    wait_until(lambda: set(phases().values()) == {"aborted"}, 30.0, "both UAVs aborted")
+    for state in ("off", "on"):  # each waits for the UAV's status confirming it
+        switched = secure_fleet.ground_cli("opm", "112", state)
+        assert switched.returncode == 0, switched.stderr
