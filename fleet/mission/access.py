@@ -29,8 +29,12 @@ from fleet.mission import keys
 
 GROUND = "ground"
 ROUTER = "router"
-ALL_FLEET = f"{keys.PREFIX}/**"
 ADMIN_SPACE = "@/**"
+
+
+def all_fleet() -> str:
+    """Every key of the fleet (the prefix is read when used, never copied at import)."""
+    return f"{keys.PREFIX}/**"
 
 
 def uav_identity(uav_id: int) -> str:
@@ -96,7 +100,7 @@ def _uav_grants(uav_id: int) -> list[Grant]:
             me,
             ingress,
             (Message.DECLARE_QUERYABLE,),
-            (keys.uav(uav_id, "**"), f"{keys.PREFIX}/mission/**"),
+            (keys.uav(uav_id, "**"), keys.ALL_MISSION_KEYS),
         ),
         Grant(
             f"uav-{uav_id}-fetch",
@@ -106,7 +110,7 @@ def _uav_grants(uav_id: int) -> list[Grant]:
             (
                 keys.ALL_MISSION_TARGETS,
                 keys.ALL_MISSION_RESULTS,
-                f"{keys.PREFIX}/mission/*/assignment/*",
+                keys.ALL_MISSION_ASSIGNMENTS,
                 keys.ALL_STATE,
             ),
         ),
@@ -123,7 +127,7 @@ def _ground_grants() -> list[Grant]:
     )
     return [
         Grant("ground-command", me, ingress, (Message.PUT,), commands),
-        Grant("ground-query", me, ingress, (Message.QUERY,), (ALL_FLEET, ADMIN_SPACE)),
+        Grant("ground-query", me, ingress, (Message.QUERY,), (all_fleet(), ADMIN_SPACE)),
         Grant(
             "ground-serve-targets",
             me,
@@ -144,8 +148,8 @@ def fleet_policy(uav_ids: list[int]) -> list[Grant]:
     grants = [
         # Routers relay everything between their clients and each other.
         Grant("router-relay", (ROUTER,), both, tuple(Message), ("**",)),
-        Grant("fleet-receive", members, (Flow.EGRESS,), _RECEIVE, (ALL_FLEET,)),
-        Grant("fleet-read", members, (Flow.INGRESS,), _READ, (ALL_FLEET,)),
+        Grant("fleet-receive", members, (Flow.EGRESS,), _RECEIVE, (all_fleet(),)),
+        Grant("fleet-read", members, (Flow.INGRESS,), _READ, (all_fleet(),)),
         *_ground_grants(),
     ]
     for uav_id in uav_ids:
