@@ -33,6 +33,7 @@ from fleet.transport.cli import (
     fail,
     non_negative_float,
     piccolo_id,
+    piccolo_ids,
     positive_float,
     setup_logging,
     zenoh_config,
@@ -77,13 +78,6 @@ ABORT_CONFIRM_S = 5.0
 
 
 # ---- argument types -------------------------------------------------------------------------
-def _team(text: str) -> tuple[int, ...]:
-    ids = [piccolo_id(part.strip()) for part in text.split(",") if part.strip()]
-    if not ids:
-        raise argparse.ArgumentTypeError("an empty team")
-    return tuple(sorted(set(ids)))
-
-
 _mission_id = bounded_int(0, MAX_MISSION_ID, "mission id")
 
 
@@ -114,7 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
     send.add_argument("file", metavar="FILE", help="targets file (thesis format, 24 bytes each)")
     send.add_argument(
         "--team",
-        type=_team,
+        type=piccolo_ids,
         metavar="ID,ID,...",
         help="Piccolo IDs of the team (default: every live UAV)",
     )

@@ -12,20 +12,12 @@ from pathlib import Path
 
 from fleet.mission.access import GROUND, ROUTER, uav_identity
 from fleet.transport.certs import DEFAULT_VALID_DAYS, CertError, write_identities
-from fleet.transport.cli import ExitCode, bounded_int, fail, piccolo_id
+from fleet.transport.cli import ExitCode, bounded_int, fail, piccolo_ids
 
 DEFAULT_SECURE_ROUTER = "tls/127.0.0.1:7447"
 
 
-def uav_list(text: str) -> list[int]:
-    """`74,112` -> [74, 112]."""
-    ids = [piccolo_id(part.strip()) for part in text.split(",") if part.strip()]
-    if not ids:
-        raise argparse.ArgumentTypeError("no UAV ids")
-    return sorted(set(ids))
-
-
-def identity_names(uav_ids: list[int], ground: bool) -> list[str]:
+def identity_names(uav_ids: tuple[int, ...], ground: bool) -> list[str]:
     """The router always, the ground when asked, then one identity per UAV."""
     return [ROUTER, *([GROUND] if ground else []), *(uav_identity(u) for u in uav_ids)]
 
@@ -41,7 +33,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     make.add_argument("directory", type=Path, metavar="DIR")
     make.add_argument(
-        "--uavs", type=uav_list, default=[], metavar="ID,ID", help="the UAVs' Piccolo IDs"
+        "--uavs", type=piccolo_ids, default=(), metavar="ID,ID", help="the UAVs' Piccolo IDs"
     )
     make.add_argument("--ground", action="store_true", help="an identity for the ground")
     make.add_argument(
