@@ -51,7 +51,13 @@ class Rogue:
         self.thread.start()
 
     def _answer(self, query: zenoh.Query) -> None:
-        for key in (keys.state(999), "fleet/uav/abc/state", keys.mission_result(7, 74)):
+        answers = (
+            keys.state(999),
+            "fleet/uav/abc/state",
+            keys.mission_result(7, 74),
+            keys.mission_targets(2**32 - 1),  # would make the next mission id 2^32
+        )
+        for key in answers:
             if query.key_expr.intersects(zenoh.KeyExpr(key)):
                 query.reply(key, self.payload)
 
@@ -105,7 +111,7 @@ def test_every_ground_command_survives_and_counts_the_rogue(
                    "--timeout", "15", endpoint=router)  # fmt: skip
     survived(sent, 0)
     outcome = json.loads(sent.stdout)
-    assert outcome["agreed"] is True and outcome["mission"] < 2**32
+    assert outcome["agreed"] is True and outcome["mission"] < 2**32 - 1
 
     survived(run_cli("abort", endpoint=router), 0)
     watched = run_cli("watch", "--count", "2", "--interval", "0.3", endpoint=router)
