@@ -9,6 +9,7 @@ from __future__ import annotations
 from importlib.resources import files
 
 import msgspec
+import zenoh
 
 from fleet.mission import keys
 from fleet.mission.messages import MissionTargets, UavResult, UavState
@@ -44,8 +45,9 @@ def test_onboard_refuses_counts_and_keeps_flying(fleet: Fleet, ground: Ground) -
     token = session.liveliness().declare_token("fleet/uav/99999/alive")
     try:
         for key in (keys.mission_targets(5), keys.mission_abort(5), keys.opm(112)):
-            session.put(key, NESTED)
-            session.put(key, HUGE)
+            for payload in (NESTED, HUGE):
+                # Blocking: a large put may otherwise be dropped when the queue is full.
+                session.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK)
         session.put(keys.mission_result(5, 74), encode(UavResult(5, 112, (1.0,))))
         session.put(keys.mission_targets(6), b'{"mission": "six"}')
         for payload in (NESTED, HUGE):
