@@ -290,15 +290,17 @@ class Fleet:
                 self.router.open()
         except Exception as error:
             raise LaunchError(str(error)) from error
-        if self.spec.topology is Topology.ROUTER_PER_UAV:
+        # The recorder starts before the onboards, the first to put anything on the bus;
+        # in a mesh, once every router is up, so it can fall back to any of them.
+        if self.spec.topology is Topology.STAR:
+            self._start_recorder(deadline)
+        else:
             # Its own process, so it can die (or be killed) without the launcher.
             self._start_router("router-ground", self.spec.listen, [], deadline)
         self._start_sim(deadline)
         if self.spec.topology is Topology.ROUTER_PER_UAV:
             self._start_uav_routers(deadline)
-        # Before the onboards, the first to put anything on the bus.
-        if self.spec.record is not None:
-            self._start_recorder(self.spec.record, deadline)
+            self._start_recorder(deadline)
         for endpoints in self.endpoints:
             self._start_onboard(endpoints)
         self._write_pids()
@@ -357,7 +359,10 @@ class Fleet:
         log.info("started %s (pid %d): %s", name, process.pid, " ".join(argv[1:]))
         return child
 
-    def _start_recorder(self, path: Path, deadline: float) -> None:
+    def _start_recorder(self, deadline: float) -> None:
+        path = self.spec.record
+        if path is None:
+            return
         recorder = self._spawn(
             "record",
             [

@@ -1,8 +1,9 @@
 """Hosts that are really apart: each UAV (its simulated autopilot and its onboard) in its
 own network namespace, the ground (router and ground-cli) in another, joined by one veth
-pair per UAV with addresses inside the namespaces only. One UAV's veth is cut
-mid-mission (its link goes silent, as a radio out of range does): the survivors commit
-without it and fly to their targets, and the ground reports the partition.
+pair per UAV with addresses inside the namespaces only. With the fleet flying its first
+mission, one UAV's veth is cut (its link goes silent, as a radio out of range does);
+the next mission names it still (its token lives until its lease ends): the survivors
+commit without it and fly to their targets, and the ground reports the partition.
 
 Needs root and `ip netns` (iproute2); skipped with the reason where not allowed.
 """
@@ -126,6 +127,12 @@ def ground_cli(net: Network, *argv: str) -> list[str]:
                    "--connect", f"tcp/127.0.0.1:{ROUTER_PORT}", *argv)  # fmt: skip
 
 
+def run_mission(net: Network, targets: Path, *argv: str) -> subprocess.CompletedProcess[str]:
+    command = ground_cli(net, "send-targets", str(targets), "--wait", "--json",
+                         "--deadline", f"{DEADLINE_S:g}", "--timeout", "40", *argv)  # fmt: skip
+    return subprocess.run(command, capture_output=True, text=True, timeout=90, check=False)
+
+
 def live_uavs(net: Network) -> dict[int, dict[str, object]]:
     done = subprocess.run(ground_cli(net, "uavs", "--json"), capture_output=True, text=True,
                           timeout=60, check=False)  # fmt: skip
@@ -153,20 +160,23 @@ def test_cut_uav_the_survivors_complete_and_the_ground_reports_it(
         assert time.monotonic() < deadline, "the UAVs never all came up"
         time.sleep(0.5)
 
-    mission = start("send-targets", ground_cli(net, "send-targets", str(targets), "--wait",
-                    "--json", "--deadline", f"{DEADLINE_S:g}", "--timeout", "40"))  # fmt: skip
-    children.append(mission)
-    mission.wait_for_line(lambda line: "sent to" in line, 30.0)
-    # Mid-mission: the targets are out; cut the victim's only link, silently.
+    first = run_mission(net, targets, "--team", ",".join(map(str, UAVS)))
+    assert first.returncode == 0, first.stderr  # all three agree
+    # Mid-mission (the fleet flying mission 1): cut the victim's only link, silently, as
+    # a radio out of range. Its token lives on at the ground until its lease ends, so the
+    # next mission still names it; the survivors wait for it until the deadline.
     _check(ip("-n", net.ground, "link", "set", net.ground_side(VICTIM), "down"))
-    assert mission.process.wait(60) == 1  # not every UAV committed: a failure, said so
-    outcome = json.loads(next(line for line in mission.history if line.startswith("{")))
+    second = run_mission(net, targets, "--team", ",".join(map(str, UAVS)))
+    assert second.returncode == 1, second.stderr  # not every UAV committed: said so
+    outcome = json.loads(second.stdout)
     survivors = sorted(set(UAVS) - {VICTIM})
     assert outcome["agreed"] is False
+    assert outcome["missing_results"] == [VICTIM]
     assert outcome["missing_assignments"] == [VICTIM] and outcome["disagreed"] == []
-    # The survivors committed one assignment (the victim's result may have got out
-    # before the cut, so it may have a target it will never hear of): one target each.
+    # Committed without the victim: one target each, none for it.
     pairs = {int(uav): target for uav, target in outcome["assignment"].items()}
+    assert pairs[VICTIM] is None
+    assert None not in {pairs[u] for u in survivors}
     assert len({pairs[u] for u in survivors}) == len(survivors)
 
     # The survivors fly to their targets; the ground sees the victim gone (its lease).
