@@ -163,8 +163,9 @@ def test_cut_uav_the_survivors_complete_and_the_ground_reports_it(
     first = run_mission(net, targets, "--team", ",".join(map(str, UAVS)))
     assert first.returncode == 0, first.stderr  # all three agree
     # Mid-mission (the fleet flying mission 1): cut the victim's only link, silently, as
-    # a radio out of range. Its token lives on at the ground until its lease ends, so the
-    # next mission still names it; the survivors wait for it until the deadline.
+    # a radio out of range. The next mission names it, as the ground would by default
+    # (its token lives on until its lease ends); the survivors wait for it until the
+    # deadline, then commit without it.
     _check(ip("-n", net.ground, "link", "set", net.ground_side(VICTIM), "down"))
     second = run_mission(net, targets, "--team", ",".join(map(str, UAVS)))
     assert second.returncode == 1, second.stderr  # not every UAV committed: said so
