@@ -72,18 +72,24 @@ def endpoint() -> str:
     return f"tcp/127.0.0.1:{free_port()}"
 
 
+def start_mesh(ground: str, uav: dict[int, str], processes: list[subprocess.Popen[bytes]]) -> None:
+    """The ground's router (processes[0]), then the UAV routers on a ring, all listening."""
+    processes.append(router(ground, []))
+    wait_until(lambda: accepts(ground), 30.0, "the ground's router")
+    for u, neighbours in ring_links(list(uav)).items():
+        processes.append(router(uav[u], [ground, *(uav[n] for n in neighbours)]))
+    wait_until(lambda: all(accepts(e) for e in uav.values()), 30.0, "the UAV routers")
+
+
 def one_run(size: int, period_s: float) -> tuple[float, float, int, int]:
     """(mesh gap s, ground-client gap s, mesh lost, ground-client lost) for one kill."""
     ids = list(range(1, size + 1))
     ground = endpoint()
     uav = {u: endpoint() for u in ids}
-    processes = [router(ground, [])]
+    processes: list[subprocess.Popen[bytes]] = []
     sessions: list[zenoh.Session] = []
     try:
-        wait_until(lambda: accepts(ground), 30.0, "the ground's router")
-        for u, neighbours in ring_links(ids).items():
-            processes.append(router(uav[u], [ground, *(uav[n] for n in neighbours)]))
-        wait_until(lambda: all(accepts(e) for e in uav.values()), 30.0, "the UAV routers")
+        start_mesh(ground, uav, processes)
         far = ids[size // 2]
         publisher = zenoh.open(make_config("client", [uav[u] for u in fallbacks(ids, ids[0])]))
         subscriber = zenoh.open(make_config("client", [uav[u] for u in fallbacks(ids, far)]))
