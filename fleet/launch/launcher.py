@@ -469,7 +469,7 @@ class Fleet:
         A child process like the others (stopped with them, in the pids file): fleet/
         never imports the ground; it runs it.
         """
-        argv = [self.spec.python, "-m", "ground.cli", "--connect", self.connect]
+        argv = [self.spec.python, "-m", "ground.cli", *self._ground_zenoh_args()]
         child = self._spawn("gui", [*argv, "gui", "--listen", listen])
         self._write_pids()
         return child
