@@ -18,6 +18,7 @@ import zenoh
 
 from fleet.mission import keys
 from fleet.mission.messages import MissionProgress, UavResult, UavState
+from fleet.mission.phase import Phase
 from fleet.transport.bus_codec import MAX_PAYLOAD_BYTES, encode
 from fleet.transport.targets_io import write_targets
 from fleet.transport.zenoh_config import make_config
@@ -30,7 +31,9 @@ PAYLOADS = {
     "huge": b'"' + b"x" * (2 * MAX_PAYLOAD_BYTES) + b'"',
     "wrong-schema": b'{"uav": 999, "enabled": "yes"}',
     # Valid messages that their keys do not vouch for.
-    "wrong-key": encode(UavState(74, True, 1.0, None, None, None, MissionProgress(2**33, "x", 1))),
+    "wrong-key": encode(
+        UavState(74, True, 1.0, None, None, None, MissionProgress(2**33, Phase.IDLE, 1))
+    ),
 }
 
 

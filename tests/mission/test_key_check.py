@@ -15,6 +15,7 @@ from fleet.mission.messages import (
     UavResult,
     UavState,
 )
+from fleet.mission.phase import Phase
 from fleet.piccolo.waypoint import Waypoint
 
 TARGETS = (Target(35.7, -120.7, 600.0),)
@@ -40,7 +41,7 @@ def state(uav: int, mission: MissionProgress | None = None) -> UavState:
         (keys.mission_assignment(5, 74), report(74)),
         (keys.mission_targets(5), MissionTargets(5, (74, 112), TARGETS)),
         (keys.mission_abort(0xFFFF_FFFF), MissionAbort(0xFFFF_FFFF)),
-        (keys.state(74), state(74, MissionProgress(5, "committed", 1, None, report(74)))),
+        (keys.state(74), state(74, MissionProgress(5, Phase.COMMITTED, 1, None, report(74)))),
         (keys.waypoint(74, 3), Waypoint(3, 4, 35.7, -120.7, 600.0)),
     ],
 )
@@ -60,8 +61,12 @@ def test_a_message_on_its_own_key_passes(key: str, message: object) -> None:
         (keys.mission_assignment(5, 74), report(74, target=70000), "target index"),
         (keys.mission_assignment(5, 74), report(74, pairs={"x": 0}), "not a decimal"),
         (keys.state(999), state(74), "UAV 74, not the key's 999"),
-        (keys.state(74), state(74, MissionProgress(2**40, "idle", 0)), "not a u32"),
-        (keys.state(74), state(74, MissionProgress(5, "x", 1, UavResult(5, 112, ()))), "112"),
+        (keys.state(74), state(74, MissionProgress(2**40, Phase.IDLE, 0)), "not a u32"),
+        (
+            keys.state(74),
+            state(74, MissionProgress(5, Phase.WAITING, 1, UavResult(5, 112, ()))),
+            "112",
+        ),
         (keys.waypoint(74, 3), Waypoint(4, 5, 35.7, -120.7, 600.0), "index 4"),
         ("fleet/uav/abc/state", state(74), "'abc' is not a decimal"),
         ("fleet/uav/+74/state", state(74), "not a decimal"),
