@@ -23,6 +23,7 @@ from fleet.mission import keys
 from fleet.mission.messages import AssignmentReport, MissionTargets, StatusText, Target, UavResult
 from fleet.mission.phase import Phase
 from fleet.mission.targets_file import TargetsFileError
+from fleet.transport import bus_codec
 from fleet.transport.cli import (
     ExitCode,
     ZenohConfigError,
@@ -32,6 +33,7 @@ from fleet.transport.cli import (
     fail,
     non_negative_float,
     piccolo_id,
+    piccolo_ids,
     positive_float,
     setup_logging,
     zenoh_config,
@@ -76,13 +78,6 @@ ABORT_CONFIRM_S = 5.0
 
 
 # ---- argument types -------------------------------------------------------------------------
-def _team(text: str) -> tuple[int, ...]:
-    ids = [piccolo_id(part.strip()) for part in text.split(",") if part.strip()]
-    if not ids:
-        raise argparse.ArgumentTypeError("an empty team")
-    return tuple(sorted(set(ids)))
-
-
 _mission_id = bounded_int(0, MAX_MISSION_ID, "mission id")
 
 
@@ -113,7 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
     send.add_argument("file", metavar="FILE", help="targets file (thesis format, 24 bytes each)")
     send.add_argument(
         "--team",
-        type=_team,
+        type=piccolo_ids,
         metavar="ID,ID,...",
         help="Piccolo IDs of the team (default: every live UAV)",
     )
@@ -551,7 +546,16 @@ def main(argv: list[str] | None = None) -> int:
         return fail("ground-cli: error", str(error))
     except KeyboardInterrupt:
         return ExitCode.INTERRUPTED
+    finally:
+        _report_drops()
     return status
+
+
+def _report_drops() -> None:
+    """Say how many bus messages were refused (each was logged when it arrived)."""
+    if bus_codec.DROPPED.total():
+        reasons = ", ".join(f"{n} {why}" for why, n in sorted(bus_codec.DROPPED.counts().items()))
+        log.warning("refused %d message(s) from the bus: %s", bus_codec.DROPPED.total(), reasons)
 
 
 if __name__ == "__main__":

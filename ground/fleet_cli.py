@@ -14,6 +14,7 @@ SUBCOMMANDS = (
     "fleet.transport.decode_command",
     "fleet.sim.command",
     "fleet.launch.up_command",
+    "fleet.transport.certs_command",
     "ground.demo",
     "fleet.recording.commands",
 )

@@ -28,10 +28,12 @@ from typing import Any, Self
 import zenoh
 
 from fleet.mission import keys
+from fleet.mission.key_check import WrongKey, uav_of
 from fleet.mission.messages import StatusText, UavState
 from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
+from fleet.transport.bus_codec import DropReason, refuse
 from ground.session import decode_sample, live_tokens, query_messages
 
 log = logging.getLogger(__name__)
@@ -139,9 +141,9 @@ def live_uav_ids(session: zenoh.Session, timeout_s: float) -> list[int]:
     ids: set[int] = set()
     for key in live_tokens(session, keys.ALL_ALIVE, timeout_s):
         try:
-            ids.add(keys.uav_id_of(key))
-        except ValueError:
-            log.warning("ignored liveliness token %s: no Piccolo ID in it", key)
+            ids.add(uav_of(key))
+        except WrongKey as error:
+            log.warning("ignored liveliness token: %s", refuse(str(error), DropReason.WRONG_KEY))
     return sorted(ids)
 
 
@@ -357,9 +359,9 @@ class FleetView:
 
 def _uav_of(sample: zenoh.Sample) -> int | None:
     try:
-        return keys.uav_id_of(str(sample.key_expr))
-    except (ValueError, IndexError):
-        log.warning("ignored %s: no Piccolo ID in the key", sample.key_expr)
+        return uav_of(str(sample.key_expr))
+    except WrongKey as error:
+        log.warning("ignored: %s", refuse(str(error), DropReason.WRONG_KEY))
         return None
 
 

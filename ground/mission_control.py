@@ -61,6 +61,31 @@ class MissionError(FleetError, RuntimeError):
 
 
 # ---- mission ids ---------------------------------------------------------------------
+#: What each mission key carries, by its kind (`fleet/mission/{m}/KIND[/{id}]`).
+_MISSION_KINDS: dict[str, type[MissionTargets | UavResult | AssignmentReport | MissionAbort]] = {
+    "targets": MissionTargets,
+    "result": UavResult,
+    "assignment": AssignmentReport,
+    "abort": MissionAbort,
+}
+
+
+def _mission_message(
+    key: str, payload: bytes
+) -> MissionTargets | UavResult | AssignmentReport | MissionAbort | None:
+    """The message a mission reply carries, if it is one its key vouches for (else logged)."""
+    parts = key.split("/")
+    kind = _MISSION_KINDS.get(parts[3]) if len(parts) >= 4 else None
+    if kind is None:
+        log.debug("not a mission message: %s", key)
+        return None
+    try:
+        return bus_codec.decode(payload, kind, key)
+    except bus_codec.BadMessage as error:
+        log.warning("ignored reply %s", error)
+        return None
+
+
 def missions_seen(session: zenoh.Session, timeout_s: float) -> set[int]:
     """Every mission id anything in the key space still answers for.
 
@@ -70,10 +95,9 @@ def missions_seen(session: zenoh.Session, timeout_s: float) -> set[int]:
     """
     seen: set[int] = set()
     for reply in query(session, keys.ALL_MISSION_KEYS, timeout_s):
-        try:
-            seen.add(keys.mission_of(reply.key))
-        except (ValueError, IndexError):
-            log.debug("no mission id in %s", reply.key)
+        message = _mission_message(reply.key, reply.payload)
+        if message is not None:
+            seen.add(message.mission)
     for state in query_states(session, timeout_s).values():
         if state.mission is not None:
             seen.add(state.mission.mission)

@@ -147,12 +147,16 @@ def live_tokens(session: zenoh.Session, selector: str, timeout_s: float) -> list
 
 
 def decode_value(payload: bytes, encoding: str) -> Any:
-    """A payload for display: JSON decoded, text as text, anything else as hex."""
+    """A payload for display: JSON decoded, text as text, anything else as hex.
+
+    A payload too large or nested too deep to decode safely is shown as what it is.
+    """
+    if len(payload) > bus_codec.MAX_PAYLOAD_BYTES:
+        return {"refused": f"{len(payload)} bytes, too large to show", "bytes": len(payload)}
     if encoding.startswith(JSON_ENCODING):
-        try:
-            return msgspec.json.decode(payload)
-        except msgspec.DecodeError:
-            pass
+        value = _json_or_none(payload)
+        if value is not None:
+            return value
     if encoding.startswith(("text/", "application/json", "zenoh/string")):
         try:
             return payload.decode("utf-8")
@@ -163,7 +167,16 @@ def decode_value(payload: bytes, encoding: str) -> Any:
     except UnicodeDecodeError:
         return {"hex": payload.hex(), "bytes": len(payload)}
     # Undeclared encodings that happen to hold JSON are still shown decoded.
+    value = _json_or_none(payload)
+    return text if value is None else value
+
+
+def _json_or_none(payload: bytes) -> Any:
+    """The JSON value in `payload`; None if it is not JSON; a note if it is too deep."""
     try:
         return msgspec.json.decode(payload)
     except msgspec.DecodeError:
-        return text
+        return None
+    except RecursionError:
+        bus_codec.DROPPED.add(bus_codec.DropReason.TOO_DEEP)
+        return {"refused": "JSON nested too deep to show", "bytes": len(payload)}

@@ -28,6 +28,7 @@ from fleet.mission.messages import (
     MISSION_MANAGER,
     AssignmentReport,
     CommandResult,
+    LinkHealth,
     MissionAbort,
     MissionTargets,
     OpmCommand,
@@ -40,6 +41,7 @@ from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from fleet.planning.link import AutopilotEvent, LinkEvent, PlanningEvent
 from fleet.planning.protocol import encode_message
+from fleet.transport import bus_codec
 from fleet.transport.bus import Bus, BusQuery
 from fleet.transport.bus_codec import BadMessage, decode
 from fleet.transport.link import Link
@@ -185,7 +187,7 @@ class OnboardProcess:
                 self.core.tick(now)
                 if now >= next_health:
                     next_health = now + LINK_HEALTH_PERIOD
-                    self.node.publish(keys.link(self.settings.uav_id), self.link.health(now))
+                    self.node.publish(keys.link(self.settings.uav_id), self._link_health(now))
                 self._drain_events(min(now + TICK_PERIOD, next_health))
         finally:
             self.close()
@@ -274,7 +276,7 @@ class OnboardProcess:
         while (query := self.node.state_queries.try_recv()) is not None:
             state = msgspec.structs.replace(
                 self.core.state(now),
-                link=self.link.health(now),
+                link=self._link_health(now),
                 model_speed=self.planner.model_speed(),
             )
             query.reply(keys.state(self.settings.uav_id), state)
@@ -285,6 +287,12 @@ class OnboardProcess:
             while (query := queryable.try_recv()) is not None:
                 self._on_mission_query(query)
                 query.drop()
+
+    def _link_health(self, now: float) -> LinkHealth:
+        """The serial link's health, with the bus messages refused counted as drops too."""
+        health = self.link.health(now)
+        refused = {f"bus_{reason}": n for reason, n in bus_codec.DROPPED.counts().items()}
+        return msgspec.structs.replace(health, drops={**health.drops, **refused})
 
     def _on_command_query(self, query: BusQuery, now: float) -> None:
         key = query.key

@@ -16,6 +16,7 @@ from typing import Any
 import msgspec
 
 from fleet.mission import keys
+from fleet.mission.key_check import WrongKey, parse_key
 from fleet.mission.messages import (
     AssignmentReport,
     MissionAbort,
@@ -24,7 +25,7 @@ from fleet.mission.messages import (
     UavResult,
 )
 from fleet.transport.bus import Bus, BusSample, Declaration
-from fleet.transport.bus_codec import BadMessage, decode
+from fleet.transport.bus_codec import BadMessage, DropReason, decode, refuse
 
 log = logging.getLogger(__name__)
 
@@ -93,8 +94,11 @@ class ZenohNode:
 
     def _on_presence(self, key: str, alive: bool) -> None:
         try:
-            uav = keys.uav_id_of(key)
-        except ValueError:
+            uav = parse_key(key).uav
+        except WrongKey as error:
+            log.warning("dropped liveliness token: %s", refuse(str(error), DropReason.WRONG_KEY))
+            return
+        if uav is None:
             return
         self.sink(BusEvent(key, (uav, alive)))
 

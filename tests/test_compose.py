@@ -89,6 +89,11 @@ def test_router_listens_on_explicit_tcp_with_multicast_off() -> None:
     assert any(str(p).split(":")[-1] == str(port) for p in SERVICES[ROUTER].get("ports", []))
 
 
+def test_the_router_port_is_published_on_this_host_only() -> None:
+    for published in SERVICES[ROUTER].get("ports", []):
+        assert str(published).startswith("127.0.0.1:"), published
+
+
 def test_fleet_processes_have_multicast_off_in_code() -> None:
     # The fleet's services take no zenoh config file: make_config is their config.
     for mode in ("client", "peer", "router"):
@@ -274,3 +279,71 @@ def test_console_scripts_resolve_to_callables() -> None:
     for script, target in SCRIPTS.items():
         module, _, function = target.partition(":")
         assert callable(getattr(importlib.import_module(module), function)), script
+
+
+# ---- compose.secure.yaml: the secure profile as an override -------------------------------
+SECURE = yaml.safe_load((REPO / "compose.secure.yaml").read_text())["services"]
+CERTS = "/certs"
+
+
+def secure_command(name: str) -> list[str]:
+    return command_of(SECURE[name])
+
+
+def test_secure_override_names_only_existing_services_and_every_zenoh_client() -> None:
+    assert set(SECURE) <= set(SERVICES)
+    clients = {n for n, s in fleet_services().items() if command_of(s)[0] != "fleet"}
+    assert clients <= set(SECURE)  # no client left on the open tcp endpoint
+    for name, service in SECURE.items():
+        assert f"./certs:{CERTS}:ro" in service.get("volumes", []), name
+
+
+def test_secure_router_is_ours_with_mtls_and_acl_on_the_same_port() -> None:
+    from fleet.transport.router import build_parser as router_parser
+
+    argv = secure_command(ROUTER)
+    assert argv[:3] == ["python", "-m", "fleet.transport.router"]
+    assert SECURE[ROUTER]["image"].startswith("uav-fleet:")
+    args = router_parser().parse_args(argv[3:])
+    assert str(args.secure) == CERTS
+    _, port = router_listen()
+    assert args.listen == [f"tls/0.0.0.0:{port}"]
+    assert "ports" not in SECURE[ROUTER]  # compose.yaml's, on 127.0.0.1 only
+
+
+def test_each_secure_client_uses_its_own_identity_over_tls() -> None:
+    _, port = router_listen()
+    expected = f"tls/{ROUTER}:{port}"
+    for name in SECURE:
+        if name == ROUTER:
+            continue
+        argv = secure_command(name)
+        with accepted_by(_parser_for(argv[0])(), argv[1:], name):
+            pass
+        identity = f"uav-{option(argv, '--id')}" if argv[0] == "onboard" else "ground"
+        assert option(argv, "--zenoh-config") == f"{CERTS}/{identity}.json5", name
+        assert option(argv, "--connect") == expected, name
+        assert SECURE[name]["environment"][CONNECT_ENV] == expected, name
+        # Everything else is as in the open profile.
+        open_argv = command_of(SERVICES[name])
+        assert [a for a in argv if a not in (option(argv, "--zenoh-config"), "--zenoh-config")] == [
+            a if a != option(open_argv, "--connect") else expected for a in open_argv
+        ], name
+
+
+def test_the_documented_certs_command_makes_every_file_the_profile_names(
+    tmp_path: Path,
+) -> None:
+    from ground.fleet_cli import main as fleet_main
+
+    header = (REPO / "compose.secure.yaml").read_text()
+    line = next(line for line in header.splitlines() if "fleet certs make" in line)
+    argv = shlex.split(line.lstrip("# "))[1:]
+    argv[argv.index("certs", 2)] = str(tmp_path)  # DIR
+    assert fleet_main(argv) == 0
+    for name in SECURE:
+        for arg in secure_command(name):
+            if arg.startswith(CERTS + "/"):
+                assert (tmp_path / arg.removeprefix(CERTS + "/")).is_file(), arg
+    tls = yaml.safe_load((tmp_path / "uav-74.json5").read_text())["transport"]["link"]["tls"]
+    assert tls["connect_certificate"] == f"{CERTS}/uav-74.pem"

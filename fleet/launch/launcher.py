@@ -26,6 +26,7 @@ import logging
 import math
 import re
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
@@ -41,12 +42,15 @@ import zenoh
 
 from fleet.errors import FleetError
 from fleet.geo.mercator import MercatorProjection
+from fleet.launch.topology import Topology, fallbacks, ring_links
 from fleet.mission import keys
 from fleet.piccolo.telemetry import Telemetry
 from fleet.recording.recorder import READY_LINE
 from fleet.transport import bus_codec
+from fleet.transport.certs import CertError
 from fleet.transport.router import Router
-from fleet.transport.zenoh_config import DEFAULT_ROUTER
+from fleet.transport.secure import SecureProfile
+from fleet.transport.zenoh_config import DEFAULT_ROUTER, build_config, make_config
 
 log = logging.getLogger(__name__)
 
@@ -104,6 +108,29 @@ def client_endpoint(listen: str) -> str:
     return f"{proto}/{host}:{port}"
 
 
+def _host_port(endpoint: str) -> tuple[str, int]:
+    """`tcp/127.0.0.1:7447` -> ("127.0.0.1", 7447)."""
+    address = endpoint.partition("/")[2].split("#", 1)[0]
+    host, _, port = address.rpartition(":")
+    return host.strip("[]"), int(port)
+
+
+def _free_port(host: str) -> int:
+    with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as probe:
+        probe.bind((host, 0))
+        port: int = probe.getsockname()[1]
+        return port
+
+
+def _accepts(host: str, port: int) -> bool:
+    """Whether something accepts TCP connections on host:port."""
+    try:
+        with socket.create_connection((host, port), timeout=0.5):
+            return True
+    except OSError:
+        return False
+
+
 def ring_scenario(count: int, name: str = "ring") -> str:
     """A scenario TOML of `count` UAVs (ids 101, 102, ...) on a ring, all circling it.
 
@@ -145,6 +172,8 @@ class Child:
     name: str
     process: subprocess.Popen[bytes]
     log_path: Path
+    #: Whether the fleet stops when this child dies (a router of a mesh is not).
+    essential: bool = True
 
     @property
     def pid(self) -> int:
@@ -186,6 +215,10 @@ class FleetSpec:
     start_timeout_s: float = DEFAULT_START_TIMEOUT_S
     onboard_args: tuple[str, ...] = ()
     python: str = sys.executable
+    #: The secure profile's identities (`fleet certs make`): mTLS and access control.
+    secure_dir: Path | None = None
+    #: One router (the ground's) or a router per UAV (fleet.launch.topology).
+    topology: Topology = Topology.STAR
     #: How to run one UAV's onboard module after `python`; tests put a double here.
     onboard_command: tuple[str, ...] = ("-m", "onboard.main")
     #: Where `fleet record` writes the run's recording; None: not recorded.
@@ -206,6 +239,9 @@ class Fleet:
     endpoints: list[SimEndpoints] = field(default_factory=list)
     children: list[Child] = field(default_factory=list)
     router: Router | None = None
+    secure: SecureProfile | None = None
+    #: The routers of a router-per-uav mesh: UAV id -> the endpoint clients connect to.
+    uav_routers: dict[int, str] = field(default_factory=dict)
     log_dir: Path = field(init=False)
     _sim_ready: threading.Event = field(default_factory=threading.Event)
     _files: list[IO[bytes]] = field(default_factory=list)
@@ -222,6 +258,11 @@ class Fleet:
     def connect(self) -> str:
         """The endpoint a ground client on this machine connects to."""
         return client_endpoint(self.spec.listen)
+
+    @property
+    def fallback_connect(self) -> list[str]:
+        """Every router a ground client can use, the ground's first."""
+        return [self.connect, *self.uav_routers.values()]
 
     @property
     def uav_ids(self) -> list[int]:
@@ -246,19 +287,66 @@ class Fleet:
     # ---- starting -------------------------------------------------------------------
     def start(self) -> None:
         deadline = time.monotonic() + self.spec.start_timeout_s
-        self.router = Router([self.spec.listen])
         try:
-            self.router.open()
+            self.secure = self._secure_profile()
+            if self.spec.topology is Topology.STAR:
+                self.router = Router([self.spec.listen], secure=self.secure)
+                self.router.open()
         except Exception as error:
             raise LaunchError(str(error)) from error
-        if self.spec.record is not None:
-            self._start_recorder(self.spec.record, deadline)
+        # The recorder starts before the onboards, the first to put anything on the bus;
+        # in a mesh, once every router is up, so it can fall back to any of them.
+        if self.spec.topology is Topology.STAR:
+            self._start_recorder(deadline)
+        else:
+            # Its own process, so it can die (or be killed) without the launcher.
+            self._start_router("router-ground", self.spec.listen, [], deadline)
         self._start_sim(deadline)
         self._report(f"simulator up with {len(self.endpoints)} aircraft; starting their onboards")
+        if self.spec.topology is Topology.ROUTER_PER_UAV:
+            self._start_uav_routers(deadline)
+            self._start_recorder(deadline)
         for endpoints in self.endpoints:
             self._start_onboard(endpoints)
         self._write_pids()
         self._wait_ready(deadline)
+
+    def _start_router(self, name: str, listen: str, connect: list[str], deadline: float) -> None:
+        argv = [self.spec.python, "-m", "fleet.transport.router", "--listen", listen]
+        for endpoint in connect:
+            argv += ["--connect", endpoint]
+        if self.secure is not None:
+            argv += ["--secure", str(self.secure.directory)]
+        child = self._spawn(name, argv)
+        child.essential = False
+        host, port = _host_port(client_endpoint(listen))
+        while not _accepts(host, port):
+            self._check_running(deadline, f"{name} to listen on {listen}")
+            time.sleep(0.05)
+
+    def _start_uav_routers(self, deadline: float) -> None:
+        proto = self.spec.listen.partition("/")[0]
+        host = _host_port(self.connect)[0]
+        for uav in self.uav_ids:
+            self.uav_routers[uav] = f"{proto}/{host}:{_free_port(host)}"
+        for uav, neighbours in ring_links(self.uav_ids).items():
+            connect = [self.connect, *(self.uav_routers[n] for n in neighbours)]
+            self._start_router(f"router-{uav}", self.uav_routers[uav], connect, deadline)
+
+    def _onboard_connect(self, uav: int) -> list[str]:
+        if not self.uav_routers:
+            return [self.connect]
+        own_first = [self.uav_routers[u] for u in fallbacks(self.uav_ids, uav)]
+        return [*own_first, self.connect]
+
+    def _secure_profile(self) -> SecureProfile | None:
+        if self.spec.secure_dir is None:
+            return None
+        if not self.spec.listen.startswith("tls/"):
+            raise LaunchError(
+                f"the secure profile listens on tls/ endpoints, not {self.spec.listen}"
+            )
+        return SecureProfile.load(self.spec.secure_dir)
 
     def _spawn(self, name: str, argv: list[str], stdout: int | IO[bytes] | None = None) -> Child:
         log_path = self.log_dir / f"{name}.log"
@@ -276,7 +364,10 @@ class Fleet:
         log.info("started %s (pid %d): %s", name, process.pid, " ".join(argv[1:]))
         return child
 
-    def _start_recorder(self, path: Path, deadline: float) -> None:
+    def _start_recorder(self, deadline: float) -> None:
+        path = self.spec.record
+        if path is None:
+            return
         recorder = self._spawn(
             "record",
             [
@@ -285,14 +376,20 @@ class Fleet:
                 "fleet.recording.commands",
                 "record",
                 str(path),
-                "--connect",
-                self.connect,
+                *self._ground_zenoh_args(),
             ],
         )
         # Its first line says it listens; what the fleet says before would be lost.
         while READY_LINE not in recorder.tail():
             self._check_running(deadline, "the recorder")
             time.sleep(0.1)
+
+    def _ground_zenoh_args(self) -> list[str]:
+        """A ground-side client's Zenoh flags: every router, and the ground's identity."""
+        args = [arg for endpoint in self.fallback_connect for arg in ("--connect", endpoint)]
+        if self.secure is not None:
+            args += ["--zenoh-config", str(self.secure.ground_config())]
+        return args
 
     def _start_sim(self, deadline: float) -> None:
         argv = [
@@ -345,6 +442,14 @@ class Fleet:
         self._sim_ready.set()  # the simulator exited: stop waiting, _check_running says why
 
     def _start_onboard(self, endpoints: SimEndpoints) -> None:
+        zenoh_args: list[str] = []
+        for endpoint in self._onboard_connect(endpoints.piccolo_id):
+            zenoh_args += ["--connect", endpoint]
+        if self.secure is not None:
+            try:
+                zenoh_args += ["--zenoh-config", str(self.secure.uav_config(endpoints.piccolo_id))]
+            except CertError as error:
+                raise LaunchError(f"UAV {endpoints.piccolo_id} has no identity: {error}") from None
         self._spawn(
             f"onboard-{endpoints.piccolo_id}",
             [
@@ -356,10 +461,9 @@ class Fleet:
                 endpoints.program,
                 "--payload",
                 endpoints.payload,
-                "--connect",
-                self.connect,
                 "--mode",
                 "client",
+                *zenoh_args,
                 *self.spec.onboard_args,
             ],
         )
@@ -370,7 +474,7 @@ class Fleet:
         A child process like the others (stopped with them, in the pids file): fleet/
         never imports the ground; it runs it.
         """
-        argv = [self.spec.python, "-m", "ground.cli", "--connect", self.connect]
+        argv = [self.spec.python, "-m", "ground.cli", *self._ground_zenoh_args()]
         child = self._spawn("gui", [*argv, "gui", "--listen", listen])
         self._write_pids()
         return child
@@ -395,6 +499,17 @@ class Fleet:
                 f"(logs in {self.log_dir})"
             )
 
+    def _observer(self) -> zenoh.Session:
+        """A session that sees the fleet's key space: the embedded router's, or a client's."""
+        if self.router is not None:
+            return self.router.session
+        config = make_config("client", self.fallback_connect)
+        if self.secure is not None:
+            config = build_config(
+                config_file=str(self.secure.ground_config()), connect=self.fallback_connect
+            )
+        return zenoh.open(config)
+
     def _wait_ready(self, deadline: float) -> None:
         """Wait until every UAV is alive and its telemetry flows.
 
@@ -402,7 +517,14 @@ class Fleet:
         may not be up yet. A telemetry sample with a GPS fix on its telemetry key means
         the link is up and the autopilot talks, so its state already holds a position.
         """
-        assert self.router is not None
+        session = self._observer()
+        try:
+            self._wait_flowing(session, deadline)
+        finally:
+            if self.router is None:
+                session.close()
+
+    def _wait_flowing(self, session: zenoh.Session, deadline: float) -> None:
         expected = set(self.uav_ids)
         alive: set[int] = set()
         flowing: set[int] = set()
@@ -433,7 +555,6 @@ class Fleet:
                 flowing.add(uav)
                 changed.set()
 
-        session = self.router.session
         with (
             session.liveliness().declare_subscriber(keys.ALL_ALIVE, on_token, history=True),
             session.declare_subscriber(keys.ALL_TELEMETRY, on_telemetry),
@@ -457,8 +578,12 @@ class Fleet:
             self.progress(text)
 
     # ---- running and stopping ----------------------------------------------------------
-    def dead_children(self) -> list[Child]:
-        return [child for child in self.children if child.process.poll() is not None]
+    def dead_children(self, essential_only: bool = False) -> list[Child]:
+        return [
+            child
+            for child in self.children
+            if child.process.poll() is not None and (child.essential or not essential_only)
+        ]
 
     def stop(self) -> None:
         """Stop every child (onboards first), then the router. Idempotent."""
@@ -502,9 +627,21 @@ def _waiting_for(expected: set[int], alive: set[int], flowing: set[int]) -> str:
 def wait_until_stopped(
     fleet: Fleet, stop: threading.Event, on_death: Callable[[Child], None] | None = None
 ) -> bool:
-    """Block until `stop` is set (True) or a child dies (False, after `on_death`)."""
+    """Block until `stop` is set (True) or an essential child dies (False, after `on_death`).
+
+    A router of a mesh may die: the others route around it (logged once).
+    """
+    reported: set[str] = set()
     while not stop.wait(0.5):
-        dead = fleet.dead_children()
+        for child in fleet.dead_children():
+            if not child.essential and child.name not in reported:
+                reported.add(child.name)
+                log.warning(
+                    "%s exited with status %s; the mesh routes around it",
+                    child.name,
+                    child.process.returncode,
+                )
+        dead = fleet.dead_children(essential_only=True)
         if dead:
             if on_death is not None:
                 on_death(dead[0])

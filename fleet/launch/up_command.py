@@ -24,7 +24,9 @@ from fleet.launch.launcher import (
     ring_scenario,
     wait_until_stopped,
 )
+from fleet.launch.topology import Topology
 from fleet.mission import keys
+from fleet.mission.access import GROUND
 from fleet.sim.scenario import ScenarioError, resolve_scenario
 from fleet.transport.cli import (
     ExitCode,
@@ -34,7 +36,7 @@ from fleet.transport.cli import (
     positive_float,
     stop_on_signals,
 )
-from fleet.transport.zenoh_config import CONNECT_ENV, DEFAULT_ROUTER
+from fleet.transport.zenoh_config import CONFIG_ENV, CONNECT_ENV, DEFAULT_ROUTER
 
 log = logging.getLogger(__name__)
 
@@ -120,6 +122,21 @@ def add_up_parser(
         metavar="ENDPOINT",
         help="the router's endpoint (default %(default)s)",
     )
+    parser.add_argument(
+        "--secure",
+        type=Path,
+        metavar="DIR",
+        help="the secure profile: mutual TLS and access control with the identities in DIR "
+        "(`fleet certs make`); needs a tls/ --listen endpoint",
+    )
+    parser.add_argument(
+        "--topology",
+        type=Topology,
+        choices=list(Topology),
+        default=Topology.STAR,
+        help="star: one router (default); router-per-uav: a router per UAV on a ring, "
+        "each also linked to the ground's router (docs/security.md)",
+    )
     common_arguments(parser, speedup=1.0)
     parser.set_defaults(run=run_up, func=run_up)
     # For tests: run this (shell-quoted, after the Python interpreter) instead of
@@ -153,6 +170,8 @@ def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
         speedup=args.speedup,
         log_dir=args.log_dir,
         start_timeout_s=args.start_timeout,
+        secure_dir=args.secure,
+        topology=args.topology,
     )
     if args.onboard_command:
         spec.onboard_command = tuple(shlex.split(args.onboard_command))
@@ -205,10 +224,18 @@ def _print_banner(fleet: Fleet, targets_path: Path | None, gui_line: str | None)
     prefix = (
         [f"  export {keys.PREFIX_ENV}={keys.PREFIX}"] if keys.PREFIX != keys.DEFAULT_PREFIX else []
     )
+    if fleet.secure is not None:
+        identity = fleet.secure.identity(GROUND).client_config
+        connect = [f"  export {CONFIG_ENV}={identity}", f"  export {CONNECT_ENV}={fleet.connect}"]
+    else:
+        connect = [f"  export {CONNECT_ENV}={fleet.connect}"]
+    if fleet.uav_routers:
+        routers = ", ".join(f"{uav} {where}" for uav, where in fleet.uav_routers.items())
+        connect.append(f"  (UAV routers: {routers}; any works as a fallback --connect)")
     lines = [
         f"fleet up: {len(fleet.uav_ids)} UAV(s) alive ({ids}); router on {fleet.spec.listen}",
         "Connect from another terminal:",
-        f"  export {CONNECT_ENV}={fleet.connect}",
+        *connect,
         *prefix,
         "  ground-cli uavs",
         "  ground-cli watch",

@@ -11,7 +11,8 @@ What is recorded:
 Log time is the Zenoh timestamp the router stamped on the sample where there is one,
 else the time it was received. Zenoh delivers samples on its own threads; they are
 queued and one writer thread owns the file, so a slow disk never blocks Zenoh.
-A payload that is not JSON is dropped, counted and logged (once per key).
+A payload that is not JSON, or too large or nested too deep to decode safely, is
+dropped, counted and logged (once per key).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field
 from datetime import datetime
+from typing import Any
 
 import msgspec
 import zenoh
@@ -31,6 +33,8 @@ import zenoh
 from fleet.mission import keys
 from fleet.recording import channels
 from fleet.recording.writer import McapSink
+from fleet.transport import bus_codec
+from fleet.transport.bus_codec import DropReason
 
 log = logging.getLogger(__name__)
 
@@ -198,14 +202,14 @@ class Recorder:
 
     def _write(self, heard: Heard) -> None:
         try:
-            value = msgspec.json.decode(heard.payload)
-        except (msgspec.DecodeError, UnicodeDecodeError) as error:
-            self.stats.dropped["not JSON"] += 1
+            # Any JSON, but not too large or deep to decode safely (bus_codec's limits).
+            value = bus_codec.decode_json(heard.payload, Any, heard.key)
+        except bus_codec.BadMessage as error:
+            reason = error.reason
+            self.stats.dropped["not JSON" if reason is DropReason.INVALID else str(reason)] += 1
             if heard.key not in self._bad_keys:
                 self._bad_keys.add(heard.key)
-                log.warning(
-                    "not recorded: %s is not JSON (%s); further ones counted", heard.key, error
-                )
+                log.warning("not recorded: %s; further ones counted", error)
             return
         spec = channels.channel_for(heard.key)
         if spec.topic.endswith(f"/{channels.ALIVE_LEAF}"):

@@ -94,6 +94,14 @@ tcp_port = bounded_int(0, 65535, "TCP port")
 piccolo_id = bounded_int(MIN_PICCOLO_ID, MAX_PICCOLO_ID, "Piccolo ID")
 
 
+def piccolo_ids(text: str) -> tuple[int, ...]:
+    """`74,112` -> (74, 112): Piccolo IDs, sorted, each once; at least one."""
+    ids = [piccolo_id(part.strip()) for part in text.split(",") if part.strip()]
+    if not ids:
+        raise argparse.ArgumentTypeError("no Piccolo ID")
+    return tuple(sorted(set(ids)))
+
+
 # ---- Zenoh flags --------------------------------------------------------------------------------
 class _UseKeyPrefix(argparse.Action):
     """`--key-prefix P`: the key prefix of this process and of the processes it starts."""
@@ -232,6 +240,7 @@ __all__ = [
     "fail",
     "non_negative_float",
     "piccolo_id",
+    "piccolo_ids",
     "positive_float",
     "run_standalone",
     "setup_logging",

@@ -5,6 +5,9 @@ No `zenohd` binary is on PyPI, but a Python session can run in router mode
 routes between client-mode sessions (the star every fleet process joins by default) and
 serves its admin space (`@/**`) to stock tools.
 
+With a `SecureProfile` (`--secure DIR`) it listens with mutual TLS and enforces the
+fleet's access policy (docs/security.md).
+
 `python -m fleet.transport.router --listen tcp/127.0.0.1:7447` runs one until SIGTERM or Ctrl-C.
 """
 
@@ -14,13 +17,16 @@ import argparse
 import logging
 import sys
 import threading
+from pathlib import Path
 from types import TracebackType
 from typing import Self
 
 import zenoh
 
 from fleet.errors import FleetError
+from fleet.transport.certs import CertError
 from fleet.transport.cli import ExitCode, add_verbose_argument, fail, setup_logging, stop_on_signals
+from fleet.transport.secure import SecureProfile
 from fleet.transport.zenoh_config import DEFAULT_ROUTER, make_config
 
 log = logging.getLogger(__name__)
@@ -36,11 +42,17 @@ class Router:
     Use as a context manager; the session is closed on exit whatever happened inside.
     """
 
-    def __init__(self, listen: list[str], connect: list[str] | None = None) -> None:
+    def __init__(
+        self,
+        listen: list[str],
+        connect: list[str] | None = None,
+        secure: SecureProfile | None = None,
+    ) -> None:
         if not listen:
             raise ValueError("a router needs at least one listen endpoint")
         self.listen = list(listen)
         self.connect = list(connect or [])
+        self.secure = secure
         self._session: zenoh.Session | None = None
 
     @property
@@ -57,7 +69,10 @@ class Router:
         if self._session is not None:
             return
         try:
-            self._session = zenoh.open(make_config("router", self.connect, self.listen))
+            config = make_config("router", self.connect, self.listen)
+            if self.secure is not None:
+                self.secure.apply_to_router(config)
+            self._session = zenoh.open(config)
         except zenoh.ZError as error:
             raise RouterError(
                 f"cannot start a Zenoh router on {', '.join(self.listen)}: {error}"
@@ -82,7 +97,7 @@ class Router:
         self.close()
 
 
-def main(argv: list[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m fleet.transport.router", description="Run an embedded Zenoh router."
     )
@@ -95,16 +110,28 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--connect", action="append", metavar="ENDPOINT", help="another router to mesh with"
     )
+    parser.add_argument(
+        "--secure",
+        type=Path,
+        metavar="DIR",
+        help="mutual TLS and access control with the identities in DIR (`fleet certs make`)",
+    )
     add_verbose_argument(parser)
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
     setup_logging(args.verbose)
     stop = threading.Event()
     try:
-        with stop_on_signals(stop.set), Router(args.listen or [DEFAULT_ROUTER], args.connect):
+        secure = SecureProfile.load(args.secure) if args.secure is not None else None
+        router = Router(args.listen or [DEFAULT_ROUTER], args.connect, secure)
+        with stop_on_signals(stop.set), router:
             # A bounded wait in a loop, so the signal handler runs promptly.
             while not stop.wait(0.5):
                 pass
-    except RouterError as error:
+    except (RouterError, CertError) as error:
         return fail("error", str(error))
     return ExitCode.OK
 

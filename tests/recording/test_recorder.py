@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import zenoh
+
 from fleet.mission import keys
 from fleet.mission.messages import StatusText
 from fleet.recording.reader import read_recording
@@ -26,9 +28,13 @@ def test_records_puts_and_tokens_and_drops_what_is_not_json(tmp_path: Path) -> N
             token = fleet.liveliness().declare_token(keys.alive(7))
             fleet.put(keys.status(7), encode(StatusText("hello")), encoding=ENCODING)
             fleet.put(keys.status(7), b"\xff\x00 not json")
+            nested = b'{"a":' * 50_000 + b"1" + b"}" * 50_000
+            # Blocking: a large put may otherwise be dropped when the queue is full.
+            fleet.put(keys.status(7), nested, congestion_control=zenoh.CongestionControl.BLOCK)
             wait_until(
                 lambda: (
                     recorder.stats.dropped["not JSON"] == 1
+                    and recorder.stats.dropped["too_deep"] == 1
                     and recorder.stats.recorded["fleet/uav/*/status"] == 1
                 ),
                 10.0,

@@ -1,0 +1,122 @@
+"""Does a message fit the key it arrived on? The bus's first line of defence.
+
+Anyone who can publish on the bus can put anything under any key, so a message is
+believed only as far as its key vouches for it: a result or assignment of UAV n only on
+UAV n's key, a mission's messages only on that mission's keys, and every id in range
+(Piccolo IDs 1-65520, mission ids u32). `check_key` raises `WrongKey` with the reason;
+the transport drops and counts the message (`fleet.transport.bus_codec`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from fleet.errors import FleetError
+from fleet.mission import keys
+from fleet.mission.messages import (
+    AssignmentReport,
+    MissionAbort,
+    MissionTargets,
+    UavResult,
+    UavState,
+)
+from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
+from fleet.piccolo.waypoint import MAX_INDEX, Waypoint
+
+MAX_MISSION_ID = 0xFFFF_FFFF
+#: Target indices are u16 on the planning protocol.
+MAX_TARGET_INDEX = 0xFFFF
+
+
+class WrongKey(FleetError, ValueError):
+    """A message that its key does not vouch for (or a key that is not the fleet's)."""
+
+
+@dataclass(frozen=True)
+class KeyIds:
+    """The ids a fleet key names; None where it names none."""
+
+    uav: int | None
+    mission: int | None
+    index: int | None  #: a waypoint's index in `fleet/uav/{id}/waypoint/{index}`
+
+
+def _number(text: str, low: int, high: int, what: str, key: str) -> int:
+    # Digits only: int() would also take "+7", " 7" and "7_0".
+    if not text.isascii() or not text.isdigit() or len(text) > 10:
+        raise WrongKey(f"{key}: {what} {text!r} is not a decimal number")
+    value = int(text)
+    if not low <= value <= high:
+        raise WrongKey(f"{key}: {what} {value} outside {low}-{high}")
+    return value
+
+
+def _piccolo_id(text: str, key: str) -> int:
+    return _number(text, MIN_PICCOLO_ID, MAX_PICCOLO_ID, "Piccolo ID", key)
+
+
+def parse_key(key: str) -> KeyIds:
+    """The ids in a `fleet/uav/{id}/...` or `fleet/mission/{m}/...` key; WrongKey if bad."""
+    parts = key.split("/")
+    if len(parts) < 4 or parts[0] != keys.PREFIX:
+        raise WrongKey(f"{key}: not a fleet message key")
+    if parts[1] == "uav":
+        uav = _piccolo_id(parts[2], key)
+        index = None
+        if parts[3] == "waypoint" and len(parts) == 5:
+            index = _number(parts[4], 0, MAX_INDEX, "waypoint index", key)
+        return KeyIds(uav, None, index)
+    if parts[1] == "mission":
+        mission = _number(parts[2], 0, MAX_MISSION_ID, "mission id", key)
+        member = _piccolo_id(parts[4], key) if len(parts) == 5 else None
+        return KeyIds(member, mission, None)
+    raise WrongKey(f"{key}: not a fleet message key")
+
+
+def uav_of(key: str) -> int:
+    """The Piccolo ID a `fleet/uav/{id}/...` or `.../{id}` key names; WrongKey if none."""
+    uav = parse_key(key).uav
+    if uav is None:
+        raise WrongKey(f"{key}: names no UAV")
+    return uav
+
+
+def _same(key: str, what: str, in_key: int | None, in_message: int) -> None:
+    if in_key is not None and in_key != in_message:
+        raise WrongKey(f"{key}: carries {what} {in_message}, not the key's {in_key}")
+
+
+def _team(key: str, team: tuple[int, ...]) -> None:
+    for uav in team:
+        if not MIN_PICCOLO_ID <= uav <= MAX_PICCOLO_ID:
+            raise WrongKey(f"{key}: team member {uav} is not a Piccolo ID")
+
+
+def check_key(key: str, message: object) -> None:
+    """Raise WrongKey unless `message` may travel on `key`."""
+    ids = parse_key(key)
+    if isinstance(message, UavResult | AssignmentReport | UavState):
+        _same(key, "UAV", ids.uav, message.uav)
+    if isinstance(message, MissionTargets | MissionAbort | UavResult | AssignmentReport):
+        _same(key, "mission", ids.mission, message.mission)
+    if isinstance(message, MissionTargets):
+        _team(key, message.team)
+    if isinstance(message, AssignmentReport):
+        _team(key, message.team)
+        indices = [*message.pairs.values(), *message.unassigned]
+        if message.target is not None:
+            indices.append(message.target)
+        if any(not 0 <= i <= MAX_TARGET_INDEX for i in indices):
+            raise WrongKey(f"{key}: a target index outside 0-{MAX_TARGET_INDEX}")
+        for uav in message.pairs:
+            _piccolo_id(uav, key)
+    if isinstance(message, UavState) and message.mission is not None:
+        progress = message.mission
+        if not 0 <= progress.mission <= MAX_MISSION_ID:
+            raise WrongKey(f"{key}: mission id {progress.mission} is not a u32")
+        for own in (progress.result, progress.assignment):
+            if own is not None:
+                _same(key, "UAV", message.uav, own.uav)
+                _same(key, "mission", progress.mission, own.mission)
+    if isinstance(message, Waypoint) and ids.index is not None:
+        _same(key, "waypoint index", ids.index, message.index)

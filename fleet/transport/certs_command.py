@@ -1,0 +1,77 @@
+"""`fleet certs make DIR --uavs 74,112 --ground`: the fleet's identities for mutual TLS.
+
+Writes `DIR/ca.pem`, and per identity NAME (`router`, `ground`, `uav-74`, ...)
+`DIR/NAME.pem`, `DIR/NAME.key` and `DIR/NAME.json5` (a Zenoh client configuration for
+`--zenoh-config`); see `fleet.transport.certs` and docs/security.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from fleet.mission.access import GROUND, ROUTER, uav_identity
+from fleet.transport.certs import DEFAULT_VALID_DAYS, CertError, write_identities
+from fleet.transport.cli import ExitCode, bounded_int, fail, piccolo_ids
+
+DEFAULT_SECURE_ROUTER = "tls/127.0.0.1:7447"
+
+
+def identity_names(uav_ids: tuple[int, ...], ground: bool) -> list[str]:
+    """The router always, the ground when asked, then one identity per UAV."""
+    return [ROUTER, *([GROUND] if ground else []), *(uav_identity(u) for u in uav_ids)]
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    certs = subparsers.add_parser("certs", help="identities for the secure (mTLS) profile")
+    actions = certs.add_subparsers(dest="certs_command", required=True, metavar="ACTION")
+    make = actions.add_parser(
+        "make",
+        help="a CA, and a certificate, key and Zenoh client config per identity",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    make.add_argument("directory", type=Path, metavar="DIR")
+    make.add_argument(
+        "--uavs", type=piccolo_ids, default=(), metavar="ID,ID", help="the UAVs' Piccolo IDs"
+    )
+    make.add_argument("--ground", action="store_true", help="an identity for the ground")
+    make.add_argument(
+        "--connect",
+        action="append",
+        metavar="ENDPOINT",
+        help=f"the router endpoint(s) the client configs name; their hosts go in every "
+        f"certificate (default {DEFAULT_SECURE_ROUTER})",
+    )
+    make.add_argument(
+        "--days",
+        type=bounded_int(1, 3650, "validity"),
+        default=DEFAULT_VALID_DAYS,
+        help="validity in days (default %(default)s)",
+    )
+    make.add_argument(
+        "--seen-as",
+        type=Path,
+        metavar="PATH",
+        help="where DIR is on the machines that use the configs, e.g. /certs in a "
+        "container (default: DIR's absolute path)",
+    )
+    make.set_defaults(func=run_make)
+
+
+def run_make(args: argparse.Namespace) -> int:
+    connect = args.connect or [DEFAULT_SECURE_ROUTER]
+    bad = [e for e in connect if not e.startswith("tls/")]
+    if bad:
+        return fail("fleet certs", f"{bad[0]!r} is not a tls/ endpoint")
+    names = identity_names(args.uavs, args.ground)
+    try:
+        written = write_identities(args.directory, names, connect, args.days, args.seen_as)
+    except CertError as error:
+        return fail("fleet certs", str(error), ExitCode.FAILED)
+    directory = written[0].directory
+    print(f"fleet certs: CA {directory / 'ca.pem'}")
+    for files in written:
+        made = (files.certificate, files.key, files.client_config)
+        print(f"  {files.name}: {' '.join(path.name for path in made)}")
+    return ExitCode.OK

@@ -1,0 +1,62 @@
+"""The secure profile: a router on `tls/` endpoints with mutual TLS and access control.
+
+The fleet's identities (`fleet certs make DIR ...`) are the profile: the router presents
+`DIR/router.pem`, accepts only clients with a certificate signed by `DIR/ca.pem`, and
+enforces the access policy (`fleet.mission.access`) for exactly the UAVs that have an
+identity in DIR (`DIR/uav-N.pem`). Each client uses its own `DIR/NAME.json5`.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import zenoh
+
+from fleet.mission.access import GROUND, ROUTER, fleet_policy, uav_identity
+from fleet.transport.acl import access_control
+from fleet.transport.certs import CertError, IdentityFiles, tls_settings
+
+_UAV_CERT = re.compile(r"^uav-(\d+)\.pem$")
+
+
+@dataclass(frozen=True)
+class SecureProfile:
+    directory: Path
+    uav_ids: tuple[int, ...]
+
+    @classmethod
+    def load(cls, directory: Path) -> SecureProfile:
+        """The profile of the identities in `directory`; CertError names what is missing."""
+        directory = directory.resolve()
+        if not directory.is_dir():
+            raise CertError(f"{directory}: no such directory (make it with `fleet certs make`)")
+        uav_ids = sorted(
+            int(match[1]) for path in directory.iterdir() if (match := _UAV_CERT.match(path.name))
+        )
+        profile = cls(directory, tuple(uav_ids))
+        profile.identity(ROUTER).check()
+        return profile
+
+    def identity(self, name: str) -> IdentityFiles:
+        return IdentityFiles(self.directory, name)
+
+    def uav_config(self, uav_id: int) -> Path:
+        """UAV `uav_id`'s client config; CertError if it has no identity here."""
+        files = self.identity(uav_identity(uav_id))
+        files.check()
+        return files.client_config
+
+    def ground_config(self) -> Path:
+        files = self.identity(GROUND)
+        files.check()
+        return files.client_config
+
+    def apply_to_router(self, config: zenoh.Config) -> None:
+        """Make `config` a secure router's: mTLS with the router's identity, and the ACL."""
+        tls = tls_settings(self.identity(ROUTER))
+        config.insert_json5("transport/link/tls", json.dumps(tls))
+        policy = fleet_policy(list(self.uav_ids))
+        config.insert_json5("access_control", json.dumps(access_control(policy)))

@@ -1,0 +1,280 @@
+"""The secure profile end to end: `fleet up --secure` (real router, simulator and
+onboards on a tls/ endpoint with mTLS and access control), the ground as `ground-cli
+--zenoh-config`, and an attacker holding UAV 74's certificate (the strongest attacker
+short of stealing the ground's key) or none at all.
+
+Whether a denied message was dropped is observed, not waited for: the attacker sends
+it, then a marker on a key it may write; the ground sees the marker (messages of one
+session through one router arrive in order) and must not have seen the forged one.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import threading
+from collections.abc import Iterator
+from dataclasses import dataclass
+from importlib.resources import files
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from fleet.mission import keys
+from fleet.mission.messages import AssignmentReport, MissionAbort, MissionTargets, Target, UavResult
+from fleet.piccolo.track import Track
+from fleet.piccolo.waypoint import Waypoint
+from fleet.transport.bus_codec import ENCODING, encode
+from fleet.transport.certs import write_identities
+from fleet.transport.zenoh_config import build_config, make_config
+from tests.processes import Child, free_port, start, wait_until
+
+TIMEOUT_S = 120
+ROGUE_MISSION = 0xFFFF_FFFF
+
+
+@dataclass
+class SecureFleet:
+    endpoint: str
+    certs: Path
+    up: Child
+
+    def session(self, identity: str) -> zenoh.Session:
+        config = build_config(
+            config_file=str(self.certs / f"{identity}.json5"), connect=[self.endpoint]
+        )
+        return zenoh.open(config)
+
+    def ground_cli(self, *argv: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            [sys.executable, "-m", "ground.cli", "--zenoh-config",
+             str(self.certs / "ground.json5"), "--connect", self.endpoint, *argv],
+            capture_output=True, text=True, timeout=TIMEOUT_S, check=False,
+        )  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def secure_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureFleet]:
+    certs = tmp_path_factory.mktemp("certs")
+    endpoint = f"tls/127.0.0.1:{free_port()}"
+    write_identities(certs, ["router", "ground", "uav-74", "uav-112"], [endpoint])
+    up = start(
+        "fleet up --secure",
+        [sys.executable, "-m", "ground.fleet_cli", "up", "head_on", "--secure", str(certs),
+         "--listen", endpoint, "--speedup", "5", "--log-dir", str(certs / "logs")],
+    )  # fmt: skip
+    try:
+        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+        yield SecureFleet(endpoint, certs.resolve(), up)
+    finally:
+        up.process.send_signal(signal.SIGTERM)
+        assert up.process.wait(30) == 0
+
+
+class Seen:
+    """What a session subscribed to `fleet/**` received, by key."""
+
+    def __init__(self, session: zenoh.Session) -> None:
+        self.keys: dict[str, bytes] = {}
+        self.changed = threading.Condition()
+        self.subscriber = session.declare_subscriber("fleet/**", self._on_sample)
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        with self.changed:
+            self.keys[str(sample.key_expr)] = sample.payload.to_bytes()
+            self.changed.notify_all()
+
+    def wait_for(self, key: str, timeout: float = 10.0) -> bytes:
+        with self.changed:
+            if not self.changed.wait_for(lambda: key in self.keys, timeout):
+                raise AssertionError(f"{key} never arrived; saw {sorted(self.keys)}")
+            return self.keys[key]
+
+
+@pytest.fixture
+def ground(secure_fleet: SecureFleet) -> Iterator[tuple[zenoh.Session, Seen]]:
+    with secure_fleet.session("ground") as session:
+        seen = Seen(session)
+        yield session, seen
+        seen.subscriber.undeclare()
+
+
+@pytest.fixture
+def uav74(secure_fleet: SecureFleet) -> Iterator[zenoh.Session]:
+    with secure_fleet.session("uav-74") as session:
+        yield session
+
+
+def put(session: zenoh.Session, key: str, message: object) -> None:
+    session.put(key, encode(message), encoding=ENCODING)
+
+
+def marker(session: zenoh.Session, seen: Seen, text: str) -> None:
+    """A status from UAV 74's identity: everything it sent before has been routed."""
+    session.put(keys.status(74), text.encode())
+    wait_until(lambda: seen.keys.get(keys.status(74)) == text.encode(), 10.0, text)
+
+
+# ---- who can connect ----------------------------------------------------------------------
+def test_a_client_without_a_certificate_cannot_connect(secure_fleet: SecureFleet) -> None:
+    config = make_config("client", [secure_fleet.endpoint])
+    config.insert_json5(
+        "transport/link/tls/root_ca_certificate", json.dumps(str(secure_fleet.certs / "ca.pem"))
+    )
+    with pytest.raises(zenoh.ZError, match="Unable to connect"):
+        zenoh.open(config)
+
+
+def test_a_plain_tcp_client_cannot_connect(secure_fleet: SecureFleet) -> None:
+    plain = secure_fleet.endpoint.replace("tls/", "tcp/")
+    with pytest.raises(zenoh.ZError, match="Unable to connect"):
+        zenoh.open(make_config("client", [plain]))
+
+
+def test_a_certificate_from_another_ca_cannot_connect(
+    secure_fleet: SecureFleet, tmp_path: Path
+) -> None:
+    # A rogue CA issues itself a certificate named "ground".
+    write_identities(tmp_path, ["ground"], [secure_fleet.endpoint])
+    rogue = build_config(config_file=str(tmp_path / "ground.json5"))
+    rogue.insert_json5(
+        "transport/link/tls/root_ca_certificate", json.dumps(str(secure_fleet.certs / "ca.pem"))
+    )
+    with pytest.raises(zenoh.ZError, match="Unable to connect"):
+        zenoh.open(rogue)
+
+
+# ---- what UAV 74's certificate may do -------------------------------------------------------
+def test_uav_74_cannot_write_for_uav_112_or_command(
+    ground: tuple[zenoh.Session, Seen], uav74: zenoh.Session
+) -> None:
+    _, seen = ground
+    forged = {
+        keys.telemetry(112): b'{"forged": true}',
+        keys.status(112): b"forged status",
+        keys.mission_targets(90): encode(
+            MissionTargets(90, (74, 112), (Target(35.7, -120.7, 600),))
+        ),
+        keys.mission_abort(90): encode(MissionAbort(90)),
+        keys.opm(112): b'{"enabled": false}',
+        keys.mission_result(90, 112): encode(UavResult(90, 112, (1.0,))),
+    }
+    for key, payload in forged.items():
+        uav74.put(key, payload, encoding=ENCODING)
+    put(uav74, keys.mission_result(90, 74), UavResult(90, 74, (5.0,)))
+    marker(uav74, seen, "after the forgeries")
+    assert keys.mission_result(90, 74) in seen.keys  # its own result goes through
+    # UAV 112 publishes its own telemetry and status: compare what arrived, not keys.
+    assert not [key for key, payload in forged.items() if seen.keys.get(key) == payload]
+
+
+def test_uav_74_cannot_command_uav_112_but_the_ground_can(
+    ground: tuple[zenoh.Session, Seen], uav74: zenoh.Session
+) -> None:
+    session, _ = ground
+    selector = keys.command(112, "waypoint")
+    # Not a waypoint: the UAV refuses it with an error reply, which proves it arrived.
+    answers = [r for r in session.get(selector, payload=b"{}", timeout=5.0)]
+    assert answers and answers[0].err is not None
+    assert "not a valid Waypoint" in answers[0].err.payload.to_string()
+    assert list(uav74.get(selector, payload=b"{}", timeout=2.0)) == []
+
+
+def test_uav_74_cannot_declare_another_uavs_liveliness(
+    ground: tuple[zenoh.Session, Seen], uav74: zenoh.Session
+) -> None:
+    session, _ = ground
+    forged = uav74.liveliness().declare_token(keys.alive(299))
+    own = uav74.liveliness().declare_token(keys.alive(74))
+    try:
+        alive = {str(r.ok.key_expr) for r in session.liveliness().get(keys.ALL_ALIVE) if r.ok}
+        assert alive == {keys.alive(74), keys.alive(112)}
+    finally:
+        forged.undeclare()
+        own.undeclare()
+
+
+# ---- the attacks of the issue, replayed during a real mission ------------------------------
+def attack(uav74: zenoh.Session, mission: int) -> None:
+    everyone_to_2 = {"74": 2, "112": 2}
+    forged = AssignmentReport(mission, 112, 2, everyone_to_2, (0, 1), (74, 112), "rogue")
+    put(uav74, keys.mission_assignment(mission, 112), forged)
+    # Not forged: 74's own assignment. A holder of UAV 74's key speaks for UAV 74, and its
+    # teammates adopt a committed assignment (docs/security.md: what is not protected).
+    rogue_point = Waypoint(index=50, next_index=50, lat=35.75, lon=-120.80, alt=368.0)
+    for command in (rogue_point, Track(waypoint=50)):
+        for _ in uav74.get(keys.command(112, type(command).__name__.lower()),
+                           payload=encode(command), timeout=1.0):  # fmt: skip
+            raise AssertionError("UAV 112 answered a command from UAV 74's certificate")
+    put(uav74, keys.mission_targets(ROGUE_MISSION),
+        MissionTargets(ROGUE_MISSION, (74, 112), (Target(35.75, -120.80, 600.0),)))  # fmt: skip
+    put(uav74, keys.mission_abort(mission), MissionAbort(mission))
+
+
+def test_the_issues_attacks_are_refused_and_the_mission_completes_unchanged(
+    secure_fleet: SecureFleet, uav74: zenoh.Session
+) -> None:
+    attacked = threading.Event()
+    errors: list[BaseException] = []
+
+    def on_targets(sample: zenoh.Sample) -> None:
+        if attacked.is_set():
+            return
+        attacked.set()
+        mission = keys.mission_of(str(sample.key_expr))
+
+        def run() -> None:
+            try:
+                attack(uav74, mission)
+            except BaseException as error:  # reported by the test thread
+                errors.append(error)
+
+        threading.Thread(target=run, daemon=True).start()
+
+    token = uav74.liveliness().declare_token(keys.alive(299))
+    subscriber = uav74.declare_subscriber(keys.ALL_MISSION_TARGETS, on_targets)
+    try:
+        targets = str(files("fleet") / "scenarios" / "head_on_targets.bin")
+        sent = secure_fleet.ground_cli(
+            "send-targets", targets, "--wait", "--json", "--timeout", "60"
+        )
+    finally:
+        subscriber.undeclare()
+        token.undeclare()
+    assert attacked.is_set() and not errors, errors
+    assert sent.returncode == 0, sent.stderr[-3000:]
+    outcome = json.loads(sent.stdout)
+    assert outcome["mission"] < ROGUE_MISSION
+    assert outcome["agreed"] is True and outcome["complete"] is True
+    assert outcome["digest"] != "rogue"
+    # The attacker pushed everyone to target 2: the UAVs split targets 0 and 1 between
+    # them (which gets which depends on where they are by now), from their real results.
+    assert sorted(outcome["assignment"].values()) == [0, 1] and outcome["unassigned"] == [2]
+    assert all(None not in times for times in outcome["results"].values())
+    listed = secure_fleet.ground_cli("uavs", "--json")
+    assert listed.returncode == 0, listed.stderr
+    states = {uav["id"]: uav for uav in json.loads(listed.stdout)}
+    assert set(states) == {74, 112}  # no UAV 299
+    assert states[112]["alt"] > 550.0  # not sent down toward the rogue's 368 m
+
+
+def test_the_grounds_abort_and_opm_commands_go_through(secure_fleet: SecureFleet) -> None:
+    targets = str(files("fleet") / "scenarios" / "head_on_targets.bin")
+    sent = secure_fleet.ground_cli("send-targets", targets, "--json")
+    assert sent.returncode == 0, sent.stderr
+    mission = json.loads(sent.stdout)["mission"]
+    aborted = secure_fleet.ground_cli("abort", "--mission", str(mission))
+    assert aborted.returncode == 0, aborted.stderr
+
+    def phases() -> dict[int, str]:
+        listed = secure_fleet.ground_cli("uavs", "--json")
+        assert listed.returncode == 0, listed.stderr
+        return {row["id"]: row["phase"] for row in json.loads(listed.stdout)}
+
+    wait_until(lambda: set(phases().values()) == {"aborted"}, 30.0, "both UAVs aborted")
+    for state in ("off", "on"):  # each waits for the UAV's status confirming it
+        switched = secure_fleet.ground_cli("opm", "112", state)
+        assert switched.returncode == 0, switched.stderr

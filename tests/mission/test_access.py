@@ -1,0 +1,73 @@
+"""The secure profile's access policy: who may write which keys (Zenoh key-expression
+inclusion decides, as the router's access control does)."""
+
+from __future__ import annotations
+
+import pytest
+import zenoh
+
+from fleet.mission import keys
+from fleet.mission.access import GROUND, Flow, Message, fleet_policy, uav_identity
+
+POLICY = fleet_policy([74, 112])
+
+
+def allowed(identity: str, flow: Flow, message: Message, key: str) -> bool:
+    expr = zenoh.KeyExpr(key)
+    return any(
+        identity in grant.subjects
+        and flow in grant.flows
+        and message in grant.messages
+        and any(zenoh.KeyExpr(allow).includes(expr) for allow in grant.key_exprs)
+        for grant in POLICY
+    )
+
+
+def puts(identity: str, key: str) -> bool:
+    return allowed(identity, Flow.INGRESS, Message.PUT, key)
+
+
+@pytest.mark.parametrize(
+    "key",
+    [
+        keys.mission_targets(5),
+        keys.mission_abort(5),
+        keys.opm(112),
+        keys.telemetry(112),
+        keys.mission_result(5, 112),
+        keys.mission_assignment(5, 112),
+        "fleet/other",
+    ],
+)
+def test_uav_74_cannot_write_for_others_or_command(key: str) -> None:
+    assert not puts(uav_identity(74), key)
+
+
+@pytest.mark.parametrize(
+    "key", [keys.telemetry(74), keys.mission_result(5, 74), keys.mission_assignment(5, 74)]
+)
+def test_uav_74_writes_its_own_keys(key: str) -> None:
+    assert puts(uav_identity(74), key)
+
+
+def test_only_the_ground_commands() -> None:
+    for key in (keys.mission_targets(5), keys.mission_abort(5), keys.opm(74)):
+        assert puts(GROUND, key)
+    command = keys.command(112, "waypoint")
+    assert allowed(GROUND, Flow.INGRESS, Message.QUERY, command)
+    assert not allowed(uav_identity(74), Flow.INGRESS, Message.QUERY, command)
+    assert not puts(GROUND, keys.mission_result(5, 74))
+
+
+def test_liveliness_only_for_ones_own_token() -> None:
+    token = Message.LIVELINESS_TOKEN
+    assert allowed(uav_identity(74), Flow.INGRESS, token, keys.alive(74))
+    assert not allowed(uav_identity(74), Flow.INGRESS, token, keys.alive(299))
+    assert not allowed(GROUND, Flow.INGRESS, token, keys.alive(74))
+
+
+def test_everyone_reads_the_whole_tree_so_a_fleet_wide_subscription_is_allowed() -> None:
+    for identity in (GROUND, uav_identity(74), uav_identity(112)):
+        assert allowed(identity, Flow.INGRESS, Message.DECLARE_SUBSCRIBER, "fleet/**")
+        assert allowed(identity, Flow.EGRESS, Message.PUT, keys.telemetry(74))
+    assert not allowed("uav-999", Flow.EGRESS, Message.PUT, keys.telemetry(74))

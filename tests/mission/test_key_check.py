@@ -1,0 +1,89 @@
+"""A message is believed only as far as its key vouches for it."""
+
+from __future__ import annotations
+
+import pytest
+
+from fleet.mission import keys
+from fleet.mission.key_check import WrongKey, check_key, parse_key, uav_of
+from fleet.mission.messages import (
+    AssignmentReport,
+    MissionAbort,
+    MissionProgress,
+    MissionTargets,
+    Target,
+    UavResult,
+    UavState,
+)
+from fleet.mission.phase import Phase
+from fleet.piccolo.waypoint import Waypoint
+
+TARGETS = (Target(35.7, -120.7, 600.0),)
+
+
+def report(uav: int, mission: int = 5, **changes: object) -> AssignmentReport:
+    fields: dict[str, object] = {
+        "mission": mission, "uav": uav, "target": 0, "pairs": {str(uav): 0},
+        "unassigned": (), "team": (uav,), "digest": "d",
+    }  # fmt: skip
+    fields.update(changes)
+    return AssignmentReport(**fields)  # type: ignore[arg-type]
+
+
+def state(uav: int, mission: MissionProgress | None = None) -> UavState:
+    return UavState(uav, True, 1.0, None, None, None, mission)
+
+
+@pytest.mark.parametrize(
+    ("key", "message"),
+    [
+        (keys.mission_result(5, 74), UavResult(5, 74, (1.0,))),
+        (keys.mission_assignment(5, 74), report(74)),
+        (keys.mission_targets(5), MissionTargets(5, (74, 112), TARGETS)),
+        (keys.mission_abort(0xFFFF_FFFF), MissionAbort(0xFFFF_FFFF)),
+        (keys.state(74), state(74, MissionProgress(5, Phase.COMMITTED, 1, None, report(74)))),
+        (keys.waypoint(74, 3), Waypoint(3, 4, 35.7, -120.7, 600.0)),
+    ],
+)
+def test_a_message_on_its_own_key_passes(key: str, message: object) -> None:
+    check_key(key, message)
+
+
+@pytest.mark.parametrize(
+    ("key", "message", "why"),
+    [
+        (keys.mission_result(5, 74), UavResult(5, 112, (1.0,)), "UAV 112, not the key's 74"),
+        (keys.mission_assignment(5, 74), report(112), "UAV 112, not the key's 74"),
+        (keys.mission_result(6, 74), UavResult(5, 74, (1.0,)), "mission 5, not the key's 6"),
+        (keys.mission_abort(6), MissionAbort(7), "mission 7"),
+        (keys.mission_targets(5), MissionTargets(5, (74, 0), TARGETS), "member 0"),
+        (keys.mission_targets(2**32), MissionTargets(2**32, (74,), TARGETS), "outside"),
+        (keys.mission_assignment(5, 74), report(74, target=70000), "target index"),
+        (keys.mission_assignment(5, 74), report(74, pairs={"x": 0}), "not a decimal"),
+        (keys.state(999), state(74), "UAV 74, not the key's 999"),
+        (keys.state(74), state(74, MissionProgress(2**40, Phase.IDLE, 0)), "not a u32"),
+        (
+            keys.state(74),
+            state(74, MissionProgress(5, Phase.WAITING, 1, UavResult(5, 112, ()))),
+            "112",
+        ),
+        (keys.waypoint(74, 3), Waypoint(4, 5, 35.7, -120.7, 600.0), "index 4"),
+        ("fleet/uav/abc/state", state(74), "'abc' is not a decimal"),
+        ("fleet/uav/+74/state", state(74), "not a decimal"),
+        ("fleet/uav/70000/state", state(70000), "outside 1-65520"),
+        ("other/uav/74/state", state(74), "not a fleet message key"),
+    ],
+)
+def test_a_message_its_key_does_not_vouch_for_is_refused(
+    key: str, message: object, why: str
+) -> None:
+    with pytest.raises(WrongKey, match=why):
+        check_key(key, message)
+
+
+def test_uav_of_and_parse_key() -> None:
+    assert uav_of(keys.alive(299)) == 299
+    assert uav_of(keys.mission_result(5, 74)) == 74
+    assert parse_key(keys.mission_targets(9)).mission == 9
+    with pytest.raises(WrongKey, match="names no UAV"):
+        uav_of(keys.mission_targets(9))

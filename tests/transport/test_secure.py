@@ -1,0 +1,48 @@
+"""The secure profile's set-up errors: each names what is missing or wrong."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from fleet.launch.launcher import Fleet, FleetSpec, LaunchError
+from fleet.transport.certs import CertError, write_identities
+from fleet.transport.router import main as router_main
+from fleet.transport.secure import SecureProfile
+
+
+def test_the_profile_is_the_uavs_with_an_identity(tmp_path: Path) -> None:
+    write_identities(tmp_path, ["router", "ground", "uav-74", "uav-112"], [])
+    profile = SecureProfile.load(tmp_path)
+    assert profile.uav_ids == (74, 112)
+    assert profile.uav_config(74) == tmp_path.resolve() / "uav-74.json5"
+    with pytest.raises(CertError, match=r"uav-5\.pem: missing"):
+        profile.uav_config(5)
+
+
+def test_no_directory_or_no_router_identity_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(CertError, match="no such directory"):
+        SecureProfile.load(tmp_path / "nowhere")
+    write_identities(tmp_path, ["ground"], [])
+    with pytest.raises(CertError, match=r"router\.pem: missing"):
+        SecureProfile.load(tmp_path)
+
+
+def test_the_router_command_says_what_is_missing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert router_main(["--secure", str(tmp_path / "nowhere")]) == 2
+    assert "no such directory" in capsys.readouterr().err
+
+
+def test_fleet_up_secure_needs_a_tls_endpoint(tmp_path: Path) -> None:
+    write_identities(tmp_path, ["router", "ground", "uav-112"], [])
+    spec = FleetSpec(
+        "single_uav", listen="tcp/127.0.0.1:7447", secure_dir=tmp_path, log_dir=tmp_path / "logs"
+    )
+    with (
+        pytest.raises(LaunchError, match=r"tls/ endpoints, not tcp/127\.0\.0\.1:7447"),
+        Fleet(spec),
+    ):
+        pass
