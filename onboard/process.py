@@ -17,7 +17,6 @@ import queue
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any
 
 import msgspec
 import zenoh
@@ -51,9 +50,12 @@ from onboard.autopilot_commands import AutopilotCommand
 from onboard.core import OnboardCore
 from onboard.link_adapter import LinkAdapter
 from onboard.planner_worker import PlannerWorker
-from onboard.zenoh_node import BusEvent, ZenohNode
+from onboard.zenoh_node import BusEvent, PresenceEvent, ZenohNode
 
 log = logging.getLogger(__name__)
+
+#: What the link and bus threads hand the main loop.
+Event = LinkEvent | BusEvent | PresenceEvent
 
 LINK_HEALTH_PERIOD = 1.0
 #: The main loop runs the module's timers at least this often (events run them too).
@@ -142,7 +144,8 @@ class OnboardProcess:
         bus: Bus | None = None,
     ) -> None:
         self.settings = settings
-        self.events: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
+        #: None only wakes the loop (a query or a planner result waits for it).
+        self.events: queue.SimpleQueue[Event | None] = queue.SimpleQueue()
         self.stop_requested = threading.Event()
         # The model is built at the aircraft's cruise speed, on the first GPS telemetry.
         self.planner = PlannerWorker(notify=self._wake, build_at_start=False)
@@ -161,7 +164,7 @@ class OnboardProcess:
             settings.uav_id,
             program,
             payload,
-            sink=lambda event: self.events.put(("link", event)),
+            sink=self.events.put,
         )
         if bus is None:
             if settings.zenoh_config is None:
@@ -170,7 +173,7 @@ class OnboardProcess:
         self.node = ZenohNode(
             settings.uav_id,
             bus,
-            sink=lambda event: self.events.put(("bus", event)),
+            sink=self.events.put,
             wake=self._wake,
         )
 
@@ -201,24 +204,29 @@ class OnboardProcess:
     # ---- events ---------------------------------------------------------------------
     def _wake(self) -> None:
         """Wake the main loop (a query or a planner result waits for it)."""
-        self.events.put(("wake", None))
+        self.events.put(None)
 
     def _drain_events(self, until: float) -> None:
         """Wait for an event until `until` (the next timer), then take what else is queued."""
         timeout = max(0.0, until - time.monotonic())
         for _ in range(MAX_EVENTS_PER_TICK):
             try:
-                kind, event = self.events.get(timeout=timeout)
+                event = self.events.get(timeout=timeout)
             except queue.Empty:
                 return
             timeout = 0.0
             try:
-                if kind == "link":
-                    self._on_link(event, time.monotonic())
-                elif kind == "bus":
-                    self._on_bus(event, time.monotonic())
+                self._on_event(event, time.monotonic())
             except Exception:  # a bad event is logged; the module keeps serving
-                log.exception("error handling %s event %r", kind, event)
+                log.exception("error handling event %r", event)
+
+    def _on_event(self, event: Event | None, now: float) -> None:
+        if isinstance(event, PresenceEvent):
+            self.core.on_alive(event.uav, event.alive)
+        elif isinstance(event, BusEvent):
+            self._on_message(event.message, now, via_payload=False)
+        elif event is not None:
+            self._on_link(event, now)
 
     def _on_link(self, event: LinkEvent, now: float) -> None:
         if isinstance(event, AutopilotEvent):
@@ -238,13 +246,6 @@ class OnboardProcess:
             if envelope.destination not in (self.settings.uav_id, BROADCAST):
                 return
             self._on_message(envelope.message, now, via_payload=True)
-
-    def _on_bus(self, event: BusEvent, now: float) -> None:
-        if event.key.endswith("/alive"):
-            uav, alive = event.message
-            self.core.on_alive(uav, alive)
-            return
-        self._on_message(event.message, now, via_payload=False)
 
     def _on_message(self, message: object, now: float, via_payload: bool) -> None:
         """One path for a command, whether it came over Zenoh or the payload port."""

@@ -11,7 +11,6 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import msgspec
 
@@ -32,13 +31,21 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class BusEvent:
-    """Something that arrived over Zenoh: a decoded message, or a presence change."""
+    """A decoded message that arrived over Zenoh, with the key it arrived on."""
 
     key: str
-    message: Any  # one of the messages in fleet.mission.messages, or a bool for presence
+    message: msgspec.Struct  #: one of the messages in fleet.mission.messages
 
 
-Sink = Callable[[BusEvent], None]
+@dataclass(frozen=True)
+class PresenceEvent:
+    """A teammate's liveliness token appeared (alive) or went away."""
+
+    uav: int
+    alive: bool
+
+
+Sink = Callable[[BusEvent | PresenceEvent], None]
 
 
 def _mission_subscriptions() -> tuple[tuple[str, type[msgspec.Struct]], ...]:
@@ -100,7 +107,7 @@ class ZenohNode:
             return
         if uav is None:
             return
-        self.sink(BusEvent(key, (uav, alive)))
+        self.sink(PresenceEvent(uav, alive))
 
     def _decoder(self, kind: type[msgspec.Struct]) -> Callable[[BusSample], None]:
         def on_sample(sample: BusSample) -> None:

@@ -12,7 +12,7 @@ import pytest
 from fleet.mission import keys
 from fleet.mission.messages import MissionTargets, OpmCommand, Target, UavResult
 from fleet.transport.memory import MemoryBus, MemoryNetwork
-from onboard.zenoh_node import BusEvent, ZenohNode
+from onboard.zenoh_node import BusEvent, PresenceEvent, ZenohNode
 
 UAV = 112
 MISSION = MissionTargets(mission=3, team=(UAV, 74), targets=(Target(35.7, -120.7, 600.0),))
@@ -21,15 +21,15 @@ MISSION = MissionTargets(mission=3, team=(UAV, 74), targets=(Target(35.7, -120.7
 class Harness:
     def __init__(self) -> None:
         self.network = MemoryNetwork()
-        self.events: queue.SimpleQueue[BusEvent] = queue.SimpleQueue()
+        self.events: queue.SimpleQueue[BusEvent | PresenceEvent] = queue.SimpleQueue()
         self.node = ZenohNode(UAV, self.network.bus(), self.events.put)
         self.ground = self.network.bus()
 
-    def next_event(self) -> BusEvent:
+    def next_event(self) -> BusEvent | PresenceEvent:
         return self.events.get(timeout=5.0)
 
-    def drain(self) -> list[BusEvent]:
-        found = []
+    def drain(self) -> list[BusEvent | PresenceEvent]:
+        found: list[BusEvent | PresenceEvent] = []
         while not self.events.empty():
             found.append(self.events.get_nowait())
         return found
@@ -46,7 +46,7 @@ def harness() -> Iterator[Harness]:
 
 
 def test_it_is_alive_and_sees_itself(harness: Harness) -> None:
-    assert harness.next_event() == BusEvent(keys.alive(UAV), (UAV, True))
+    assert harness.next_event() == PresenceEvent(UAV, True)
     seen: list[tuple[str, bool]] = []
     harness.ground.subscribe_presence(keys.ALL_ALIVE, lambda key, alive: seen.append((key, alive)))
     assert seen == [(keys.alive(UAV), True)]
@@ -56,12 +56,12 @@ def test_teammates_coming_and_going_are_events(harness: Harness) -> None:
     harness.drain()
     teammate = MemoryBus(harness.network)
     token = teammate.declare_token(keys.alive(74))
-    assert harness.next_event() == BusEvent(keys.alive(74), (74, True))
+    assert harness.next_event() == PresenceEvent(74, True)
     token.undeclare()
-    assert harness.next_event() == BusEvent(keys.alive(74), (74, False))
+    assert harness.next_event() == PresenceEvent(74, False)
     teammate.declare_token(keys.alive(75))
     teammate.close()  # a crashed teammate: its token goes with its session
-    assert [e.message for e in harness.drain()] == [(75, True), (75, False)]
+    assert harness.drain() == [PresenceEvent(75, True), PresenceEvent(75, False)]
 
 
 def test_messages_are_decoded_for_the_main_loop(harness: Harness) -> None:
