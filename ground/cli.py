@@ -100,10 +100,26 @@ def build_parser() -> argparse.ArgumentParser:
     add_verbose_argument(parser)
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
+    _add_uavs(commands)
+    _add_send_targets(commands)
+    _add_watch(commands)
+    _add_opm(commands)
+    _add_abort(commands)
+    _add_targets(commands)
+    _add_keys(commands)
+    gui_cli.add_parser(commands)
+    return parser
+
+
+def _add_uavs(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`uavs`: the live UAVs."""
     uavs = commands.add_parser("uavs", help="list the live UAVs")
     uavs.add_argument("--json", action="store_true", help="a JSON list of objects")
     uavs.set_defaults(handler=cmd_uavs)
 
+
+def _add_send_targets(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`send-targets`: Send Targets (thesis 3.1.4)."""
     send = commands.add_parser("send-targets", help="send a targets file to the team")
     send.add_argument("file", metavar="FILE", help="targets file (thesis format, 24 bytes each)")
     send.add_argument(
@@ -140,6 +156,9 @@ def build_parser() -> argparse.ArgumentParser:
     send.add_argument("--json", action="store_true", help="print the outcome as one JSON object")
     send.set_defaults(handler=cmd_send_targets)
 
+
+def _add_watch(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`watch`: the table and the status box."""
     watch_cmd = commands.add_parser("watch", help="live table of the fleet and its status box")
     watch_cmd.add_argument(
         "--count", type=bounded_int(1, what="count"), metavar="N", help="stop after N tables"
@@ -152,6 +171,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     watch_cmd.set_defaults(handler=cmd_watch)
 
+
+def _add_opm(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`opm`: the onboard planning module on or off."""
     opm = commands.add_parser("opm", help="turn a UAV's onboard planning module on or off")
     opm.add_argument("uav", type=piccolo_id, metavar="ID")
     opm.add_argument("state", choices=("on", "off"))
@@ -164,12 +186,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     opm.set_defaults(handler=cmd_opm)
 
+
+def _add_abort(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`abort`: end a mission."""
     abort = commands.add_parser("abort", help="abort the current mission")
     abort.add_argument(
         "--mission", type=_mission_id, metavar="M", help="mission id (default: the latest seen)"
     )
     abort.set_defaults(handler=cmd_abort)
 
+
+def _add_targets(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`targets make|show`: Save and Load Targets."""
     targets = commands.add_parser("targets", help="make or show a targets file")
     targets_commands = targets.add_subparsers(dest="targets_command", required=True)
     make = targets_commands.add_parser(
@@ -185,6 +213,9 @@ def build_parser() -> argparse.ArgumentParser:
     show.add_argument("--json", action="store_true")
     show.set_defaults(handler=cmd_targets_show)
 
+
+def _add_keys(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`keys`: the key space."""
     keys_cmd = commands.add_parser("keys", help="the key space and each key's latest value")
     keys_cmd.add_argument(
         "expr",
@@ -204,8 +235,6 @@ def build_parser() -> argparse.ArgumentParser:
     keys_cmd.add_argument("--full", action="store_true", help="do not shorten long values")
     keys_cmd.add_argument("--json", action="store_true", help="a JSON list of objects")
     keys_cmd.set_defaults(handler=cmd_keys)
-    gui_cli.add_parser(commands)
-    return parser
 
 
 # ---- commands ---------------------------------------------------------------------------------
@@ -318,19 +347,10 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
         return ExitCode.FAILED
     progress = sys.stderr if args.json else sys.stdout
     with ground_session(args.zenoh) as session:
-        team: tuple[int, ...] = args.team or tuple(live_uav_ids(session, args.query_timeout))
+        team = _team(session, args)
         if not team:
             print("error: no live UAV to send to (name the team with --team)", file=sys.stderr)
             return ExitCode.FAILED
-        if args.team:
-            live = set(live_uav_ids(session, args.query_timeout))
-            absent = [uav for uav in team if uav not in live]
-            if absent:
-                print(
-                    f"warning: not live now: {', '.join(map(str, absent))}; they can fetch "
-                    "the mission while this command runs",
-                    file=sys.stderr,
-                )
         try:
             mission = (
                 args.mission
@@ -360,14 +380,7 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
                 committed = follower.wait_committed(team, args.timeout, fetch_every_s=1.0)
                 outcome.timed_out = not committed
             else:
-                got = wait_delivered(session, mission, team, min(DELIVERY_WAIT_S, args.timeout))
-                missing = [uav for uav in team if uav not in got]
-                if missing:
-                    print(
-                        f"mission {mission}: not yet acknowledged by "
-                        f"{', '.join(map(str, missing))}",
-                        file=progress,
-                    )
+                _report_delivery(session, message, min(DELIVERY_WAIT_S, args.timeout), progress)
             follower.fetch(args.query_timeout)
             outcome.results, outcome.assignments = follower.snapshot()
             outcome.lost = set(follower.lost) & set(team)
@@ -380,6 +393,34 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
     if not args.wait:
         return ExitCode.OK
     return ExitCode.OK if outcome.succeeded else ExitCode.FAILED
+
+
+def _team(session: zenoh.Session, args: argparse.Namespace) -> tuple[int, ...]:
+    """`--team`, or every live UAV; team members not live now are warned about."""
+    live = live_uav_ids(session, args.query_timeout)
+    if not args.team:
+        return tuple(live)
+    absent = [uav for uav in args.team if uav not in live]
+    if absent:
+        print(
+            f"warning: not live now: {', '.join(map(str, absent))}; they can fetch "
+            "the mission while this command runs",
+            file=sys.stderr,
+        )
+    return tuple(args.team)
+
+
+def _report_delivery(
+    session: zenoh.Session, message: MissionTargets, timeout_s: float, out: TextIO
+) -> None:
+    """Without --wait: say which team UAVs have not acknowledged the mission yet."""
+    got = wait_delivered(session, message.mission, message.team, timeout_s)
+    missing = [uav for uav in message.team if uav not in got]
+    if missing:
+        print(
+            f"mission {message.mission}: not yet acknowledged by {', '.join(map(str, missing))}",
+            file=out,
+        )
 
 
 def _read_phases(session: zenoh.Session, outcome: MissionOutcome, timeout_s: float) -> None:
