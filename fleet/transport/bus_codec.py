@@ -11,10 +11,12 @@ reason, so every process can say how much it refused.
 
 from __future__ import annotations
 
+import functools
 import threading
 from collections import Counter
+from collections.abc import Hashable
 from enum import StrEnum
-from typing import Any, TypeVar
+from typing import Any, TypeVar, cast
 
 import msgspec
 import zenoh
@@ -79,6 +81,12 @@ def refuse(text: str, reason: DropReason) -> BadMessage:
     return BadMessage(text, reason)
 
 
+@functools.cache
+def _decoder(kind: Any) -> msgspec.json.Decoder[Any]:
+    """One decoder per message type, made on first use (msgspec compiles it once)."""
+    return msgspec.json.Decoder(kind)
+
+
 def decode_json(payload: bytes, kind: type[T], key: str) -> T:
     """`payload` as `kind` (Any for untyped JSON); BadMessage if too large, deep or invalid."""
     if len(payload) > MAX_PAYLOAD_BYTES:
@@ -87,7 +95,9 @@ def decode_json(payload: bytes, kind: type[T], key: str) -> T:
         )
     name = getattr(kind, "__name__", "JSON value")
     try:
-        return msgspec.json.decode(payload, type=kind)
+        # type[T] is hashable at run time; mypy's lru_cache stub cannot tell.
+        decoded: T = _decoder(cast(Hashable, kind)).decode(payload)
+        return decoded
     except (msgspec.ValidationError, msgspec.DecodeError) as error:
         raise refuse(f"{key}: not a valid {name}: {error}", DropReason.INVALID) from None
     except RecursionError:

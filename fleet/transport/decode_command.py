@@ -16,6 +16,7 @@ from typing import IO, Any
 
 import msgspec
 
+from fleet.mission.messages import MissionAbort, MissionTargets, OpmCommand, StatusText, UavResult
 from fleet.piccolo.autopilot_messages import UnknownAutopilotMessage
 from fleet.planning.link import AutopilotEvent, LinkEvent, PiccoloLink, StreamHeader
 from fleet.planning.protocol import UnknownPlanningMessage
@@ -23,12 +24,12 @@ from fleet.transport.cli import ExitCode, fail, run_standalone
 
 CHUNK = 65536
 
-_PLANNING_KINDS = {
-    "OpmCommand": "opm",
-    "StatusText": "status",
-    "MissionTargets": "targets",
-    "UavResult": "uav_result",
-    "MissionAbort": "abort",
+_PLANNING_KINDS: dict[type, str] = {
+    OpmCommand: "opm",
+    StatusText: "status",
+    MissionTargets: "targets",
+    UavResult: "uav_result",
+    MissionAbort: "abort",
 }
 
 
@@ -86,7 +87,7 @@ def event_record(event: LinkEvent) -> dict[str, Any]:
         record["user"] = planning.user
         record["raw"] = planning.body.hex()
         return record
-    record["kind"] = _PLANNING_KINDS[type(planning).__name__]
+    record["kind"] = _PLANNING_KINDS[type(planning)]
     record["message"] = msgspec.to_builtins(planning)
     return record
 
