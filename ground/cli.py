@@ -189,9 +189,15 @@ def _add_opm(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> N
 
 def _add_abort(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """`abort`: end a mission."""
-    abort = commands.add_parser("abort", help="abort the current mission")
+    abort = commands.add_parser("abort", help="abort the current mission (team or one UAV)")
     abort.add_argument(
         "--mission", type=_mission_id, metavar="M", help="mission id (default: the latest seen)"
+    )
+    abort.add_argument(
+        "--uav",
+        type=piccolo_id,
+        metavar="ID",
+        help="abort this UAV alone; its teammates fly on (default: the whole team)",
     )
     abort.set_defaults(handler=cmd_abort)
 
@@ -492,25 +498,28 @@ def cmd_abort(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
             return ExitCode.FAILED
-        send_abort(session, mission)
-        print(f"mission {mission}: abort sent")
-        return _confirm_abort(session, mission, args.query_timeout)
+        send_abort(session, mission, args.uav)
+        to = "" if args.uav is None else f" to UAV {args.uav}"
+        print(f"mission {mission}: abort sent{to}")
+        return _confirm_abort(session, mission, args.uav, args.query_timeout)
 
 
-def _confirm_abort(session: zenoh.Session, mission: int, timeout_s: float) -> int:
-    """Wait until every UAV on `mission` reports it aborted; say who did and who did not."""
+def _confirm_abort(session: zenoh.Session, mission: int, uav: int | None, timeout_s: float) -> int:
+    """Wait until every UAV aborted (all on `mission`, or `uav` alone) reports it."""
     deadline = time.monotonic() + max(ABORT_CONFIRM_S, timeout_s)
     pending: dict[int, str] = {}
     while True:
         states = query_states(session, timeout_s)
         on_mission = {
-            uav: state
-            for uav, state in states.items()
-            if state.mission is not None and state.mission.mission == mission
+            piccolo_id: state
+            for piccolo_id, state in states.items()
+            if state.mission is not None
+            and state.mission.mission == mission
+            and (uav is None or piccolo_id == uav)
         }
         pending = {
-            uav: str(state.mission.phase)
-            for uav, state in on_mission.items()
+            piccolo_id: str(state.mission.phase)
+            for piccolo_id, state in on_mission.items()
             if state.mission is not None and state.mission.phase != Phase.ABORTED
         }
         if not pending or time.monotonic() >= deadline:
@@ -518,8 +527,11 @@ def _confirm_abort(session: zenoh.Session, mission: int, timeout_s: float) -> in
         time.sleep(0.2)  # polling the UAVs' state: each query is itself an observation
     confirmed = sorted(set(on_mission) - set(pending))
     print(f"mission {mission}: aborted by {', '.join(map(str, confirmed)) or 'no UAV'}")
+    if uav is not None and uav not in on_mission:
+        print(f"error: UAV {uav} is not on mission {mission}", file=sys.stderr)
+        return ExitCode.FAILED
     if pending:
-        still = ", ".join(f"{uav} ({phase})" for uav, phase in sorted(pending.items()))
+        still = ", ".join(f"{p} ({phase})" for p, phase in sorted(pending.items()))
         print(f"error: mission {mission}: not confirmed by {still}", file=sys.stderr)
         return ExitCode.FAILED
     return ExitCode.OK

@@ -458,10 +458,11 @@ def wait_delivered(
 
 
 # ---- commands ----------------------------------------------------------------------------
-def send_abort(session: zenoh.Session, mission: int) -> MissionAbort:
-    abort = MissionAbort(mission=mission)
+def send_abort(session: zenoh.Session, mission: int, uav: int | None = None) -> MissionAbort:
+    """Abort `mission` for its whole team, or for UAV `uav` alone."""
+    abort = MissionAbort(mission=mission, uav=uav)
     put_message(session, keys.mission_abort(mission), abort)
-    log.info("mission %d: abort sent", mission)
+    log.info("mission %d: abort sent to %s", mission, "the team" if uav is None else uav)
     return abort
 
 

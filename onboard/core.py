@@ -289,6 +289,8 @@ class OnboardCore:
 
     def on_abort(self, abort: MissionAbort, now: float) -> None:
         """Abort is final: mission m never commits or flies after this, whatever arrives."""
+        if abort.uav is not None and abort.uav != self.uav_id:
+            return  # a teammate's own abort: this UAV flies on
         self._aborted.add(abort.mission)
         if self.round is None or self.round.mission != abort.mission:
             return

@@ -97,9 +97,15 @@ class UavResult(msgspec.Struct, frozen=True):
 
 
 class MissionAbort(msgspec.Struct, frozen=True):
-    """PAYLOAD_ABORT: the ground aborts a mission; every UAV resumes its course."""
+    """PAYLOAD_ABORT: the ground aborts a mission; every UAV resumes its course.
+
+    `uav` names one UAV to abort alone (its teammates fly on); None aborts the whole
+    team. The binary payload link carries the mission id only, so an abort sent that
+    way is always the team's.
+    """
 
     mission: MissionId
+    uav: PiccoloId | None = None
 
 
 class LinkHealth(msgspec.Struct, frozen=True):

@@ -158,6 +158,11 @@ def encode_application(msg: PlanningMessage) -> tuple[int, bytes]:
         return PAYLOAD_UAVRESULT, _encode_result(msg)
     if isinstance(msg, MissionAbort):
         check_uint("mission", msg.mission, 32)
+        if msg.uav is not None:
+            # The body has room for the mission id alone: sent, it would abort the team.
+            raise PlanningProtocolError(
+                f"PAYLOAD_ABORT cannot carry one UAV ({msg.uav}): it would abort the whole team"
+            )
         return PAYLOAD_ABORT, _ABORT.pack(msg.mission)
     if isinstance(msg, UnknownPlanningMessage):
         if msg.type != PAYLOAD_UAV:

@@ -62,6 +62,7 @@ class SendCommand(msgspec.Struct, frozen=True, tag="send", tag_field="cmd"):
 class AbortCommand(msgspec.Struct, frozen=True, tag="abort", tag_field="cmd"):
     id: int
     mission: MissionId | None = None
+    uav: PiccoloId | None = None  #: one UAV alone; None: the whole team
 
 
 class OpmRequest(msgspec.Struct, frozen=True, tag="opm", tag_field="cmd"):
@@ -205,7 +206,9 @@ def _abort(session: zenoh.Session, desk: MissionDesk, command: AbortCommand) -> 
         mission = current_mission_id(session, 1.0)
     if mission is None:
         return Reply(command.id, False, "no mission to abort (none seen)")
-    send_abort(session, mission)
+    send_abort(session, mission, command.uav)
+    if command.uav is not None:
+        return Reply(command.id, True, f"mission {mission}: abort sent to UAV {command.uav}")
     return Reply(
         command.id, True, f"mission {mission}: abort sent to the team", mission, aborted=True
     )

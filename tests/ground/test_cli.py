@@ -183,7 +183,8 @@ class FakeOnboard:
         abort = msgspec.json.decode(sample.payload.to_bytes(), type=MissionAbort)
         with self._lock:
             self.aborts.append(abort)
-            if self.mission is not None and self.mission.mission == abort.mission:
+            mine = abort.uav is None or abort.uav == self.uav_id
+            if mine and self.mission is not None and self.mission.mission == abort.mission:
                 self.mission = msgspec.structs.replace(self.mission, phase=Phase.ABORTED)
 
     def _on_opm(self, sample: zenoh.Sample) -> None:
@@ -417,6 +418,25 @@ def test_abort_arrives_for_the_current_or_named_mission(
     assert marker.returncode == 0, marker.stderr
     assert wait_until(lambda: fakes[112].aborts.count(MissionAbort(mission)) == 2)
     assert MissionAbort(4242) not in fakes[112].aborts
+
+
+def test_abort_of_one_uav_leaves_its_teammate_on_the_mission(
+    router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
+) -> None:
+    path = tmp_path / "targets.bin"
+    write_targets(path, TARGETS)
+    sent = run_cli("send-targets", str(path), "--json", endpoint=router)
+    assert sent.returncode == 0, sent.stderr
+    mission = json.loads(sent.stdout)["mission"]
+    assert wait_until(
+        lambda: all(f.mission and f.mission.mission == mission for f in fakes.values())
+    )
+    done = run_cli("abort", "--mission", str(mission), "--uav", "74", endpoint=router)
+    assert done.returncode == 0, done.stderr
+    assert f"mission {mission}: aborted by 74\n" in done.stdout
+    assert fakes[74].mission is not None and fakes[74].mission.phase == Phase.ABORTED
+    assert fakes[112].mission is not None and fakes[112].mission.phase == Phase.COMMITTED
+    assert MissionAbort(mission, uav=74) in fakes[112].aborts  # seen, and not obeyed
 
 
 def test_watch_shows_the_table_and_status_messages(

@@ -302,3 +302,13 @@ def test_abort_returns_to_the_original_course() -> None:
     core.on_abort(MissionAbort(11), 0.3)
     assert out.autopilot[-1] == Track(2)
     assert core.phase == "aborted"
+
+
+def test_an_abort_for_one_uav_leaves_its_teammates_flying() -> None:
+    core, out = make_core()
+    fly_target_1(core, out)
+    core.on_telemetry(sample_telemetry(), 3.0)
+    core.on_abort(MissionAbort(1, uav=74), 3.0)  # a teammate's own abort
+    assert core.state(3.0).phase == Phase.FLYING
+    core.on_abort(MissionAbort(1, uav=112), 4.0)
+    assert core.state(4.0).phase == Phase.ABORTED

@@ -288,3 +288,9 @@ def test_constants_are_fixed() -> None:
     assert (SYNC, PAYLOAD_OPM, PAYLOAD_STATUS, PAYLOAD_UAV) == (0xB5, 0, 1, 2)
     assert (PAYLOAD_TARGETS, PAYLOAD_UAVRESULT, PAYLOAD_ABORT) == (1, 2, 3)
     assert (MAX_FRAGMENT_SIZE, MAX_MESSAGE_SIZE) == (251, 64005)
+
+
+def test_an_abort_of_one_uav_is_refused_on_the_payload_link() -> None:
+    # Its body holds the mission id alone: encoded, it would abort the whole team.
+    with pytest.raises(PlanningProtocolError, match="cannot carry one UAV"):
+        encode_message(MissionAbort(mission=3, uav=74), source=1, destination=2)

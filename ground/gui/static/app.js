@@ -361,6 +361,19 @@ function drawUavList() {
       command({ cmd: 'opm', uav: u.id, enabled: u.enabled === false });
     });
     opm.appendChild(toggle);
+    const m = state.mission;
+    if (m && !m.aborted && m.team.includes(u.id)) {
+      const stop = html('button', 'abort', {
+        type: 'button', 'data-abort': u.id, title: 'abort this UAV alone; its teammates fly on',
+      });
+      stop.addEventListener('click', (event) => {
+        event.stopPropagation();
+        confirmThen(`Abort mission ${m.mission} for UAV ${u.id} alone?`,
+          `UAV ${u.id} leaves its target and resumes its course; the rest of the team flies on.`,
+          () => command({ cmd: 'abort', mission: m.mission, uav: u.id }));
+      });
+      opm.appendChild(stop);
+    }
     row.appendChild(opm);
     row.addEventListener('click', () => {
       if (state.excluded.has(u.id)) state.excluded.delete(u.id);
