@@ -137,6 +137,16 @@ def wait_for(driver: Any, what: str, predicate: Callable[[list[dict[str, Any]]],
     raise AssertionError(f"timed out after {timeout} s waiting for {what}; map: {elements}")
 
 
+def text_of(driver: Any, element_id: str) -> str:
+    """An element's text read in one script call: the page re-renders often, and an
+    element found first and read after may be gone by then (StaleElementReference)."""
+    text: str = driver.execute_script(
+        "const e = document.getElementById(arguments[0]); return e ? e.innerText : '';",
+        element_id,
+    )
+    return text
+
+
 def uav_icons(elements: list[dict[str, Any]]) -> dict[int, dict[str, Any]]:
     return {int(e["uav"]): e for e in elements if e["cls"] == "uav"}
 
@@ -249,7 +259,7 @@ def test_the_thesis_scenario_from_the_page(
 
             # Send Targets, confirming the team and the count.
             browser.find_element(By.ID, "send").click()
-            question = browser.find_element(By.ID, "confirm-text").text
+            question = text_of(browser, "confirm-text")
             assert "3 target(s)" in question and "74, 112" in question
             assert not sent.missions, "sent before the operator confirmed"
             browser.find_element(By.ID, "confirm-ok").click()
@@ -272,7 +282,9 @@ def test_the_thesis_scenario_from_the_page(
             assert {i for i, state in states.items() if state == "unserved"} == set(range(3)) - set(
                 assigned.values()
             )
-            assert "agreed" in browser.find_element(By.ID, "agreement").text
+            wait_until(
+                lambda: "agreed" in text_of(browser, "agreement"), 10.0, "the agreement shown"
+            )
             browser.save_screenshot(str(tmp_path / "gui.png"))
 
             wait_for(
@@ -285,7 +297,7 @@ def test_the_thesis_scenario_from_the_page(
 
             # Abort the team, confirmed: every UAV reports the mission aborted.
             browser.find_element(By.ID, "abort").click()
-            assert "Abort mission" in browser.find_element(By.ID, "confirm-text").text
+            assert "Abort mission" in text_of(browser, "confirm-text")
             browser.find_element(By.ID, "confirm-ok").click()
             wait_for(
                 browser,
@@ -296,7 +308,7 @@ def test_the_thesis_scenario_from_the_page(
                 ),
                 30.0,
             )
-            assert "abort sent" in browser.find_element(By.ID, "notice").text
+            assert "abort sent" in text_of(browser, "notice")
         finally:
             sent.subscriber.undeclare()
             seen.close()
