@@ -390,17 +390,23 @@ def test_opm_arrives_with_its_payload(router: str, fakes: dict[int, FakeOnboard]
     assert "999 is not live" in absent.stderr
 
 
-def test_abort_arrives_for_the_current_or_named_mission(
-    router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
-) -> None:
+def send_mission(router: str, fakes: dict[int, FakeOnboard], tmp_path: Path) -> int:
+    """Send TARGETS with `send-targets`; its mission id, once every fake holds it."""
     path = tmp_path / "targets.bin"
     write_targets(path, TARGETS)
     sent = run_cli("send-targets", str(path), "--json", endpoint=router)
     assert sent.returncode == 0, sent.stderr
-    mission = json.loads(sent.stdout)["mission"]
+    mission: int = json.loads(sent.stdout)["mission"]
     assert wait_until(
         lambda: all(f.mission and f.mission.mission == mission for f in fakes.values())
     )
+    return mission
+
+
+def test_abort_arrives_for_the_current_or_named_mission(
+    router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
+) -> None:
+    mission = send_mission(router, fakes, tmp_path)
 
     done = run_cli("abort", endpoint=router)
     assert done.returncode == 0, done.stderr
@@ -423,14 +429,7 @@ def test_abort_arrives_for_the_current_or_named_mission(
 def test_abort_of_one_uav_leaves_its_teammate_on_the_mission(
     router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
 ) -> None:
-    path = tmp_path / "targets.bin"
-    write_targets(path, TARGETS)
-    sent = run_cli("send-targets", str(path), "--json", endpoint=router)
-    assert sent.returncode == 0, sent.stderr
-    mission = json.loads(sent.stdout)["mission"]
-    assert wait_until(
-        lambda: all(f.mission and f.mission.mission == mission for f in fakes.values())
-    )
+    mission = send_mission(router, fakes, tmp_path)
     done = run_cli("abort", "--mission", str(mission), "--uav", "74", endpoint=router)
     assert done.returncode == 0, done.stderr
     assert f"mission {mission}: aborted by 74\n" in done.stdout
