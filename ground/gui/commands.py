@@ -25,6 +25,7 @@ from typing import Annotated, Any
 import msgspec
 import zenoh
 
+from fleet.consensus.deadline import MAX_DEADLINE_S, consensus_deadline
 from fleet.errors import CodecError
 from fleet.mission import keys
 from fleet.mission.messages import MissionTargets, Target
@@ -48,15 +49,15 @@ log = logging.getLogger(__name__)
 
 PiccoloId = Annotated[int, msgspec.Meta(ge=MIN_PICCOLO_ID, le=MAX_PICCOLO_ID)]
 MissionId = Annotated[int, msgspec.Meta(ge=0, le=MAX_MISSION_ID)]
-#: MissionTargets' own default.
-DEFAULT_DEADLINE_S = 10.0
 
 
 class SendCommand(msgspec.Struct, frozen=True, tag="send", tag_field="cmd"):
+    """Send targets; `deadline_s` None: the one that follows the team (consensus_deadline)."""
+
     id: int
     team: tuple[PiccoloId, ...]
     targets: tuple[Target, ...]
-    deadline_s: Annotated[float, msgspec.Meta(gt=0, le=3600)] = DEFAULT_DEADLINE_S
+    deadline_s: Annotated[float, msgspec.Meta(gt=0, le=MAX_DEADLINE_S)] | None = None
 
 
 class AbortCommand(msgspec.Struct, frozen=True, tag="abort", tag_field="cmd"):
@@ -184,7 +185,8 @@ def _send(desk: MissionDesk, command: SendCommand, live: set[int]) -> Reply:
         return Reply(command.id, False, f"target {error.index}: {error.problem}; nothing sent")
     team = tuple(sorted(set(command.team)))
     try:
-        mission = desk.send(team, command.targets, command.deadline_s)
+        deadline_s = command.deadline_s or consensus_deadline(len(team))
+        mission = desk.send(team, command.targets, deadline_s)
     except MissionError as error:
         return Reply(command.id, False, f"{error}; nothing sent")
     absent = [uav for uav in team if uav not in live]
