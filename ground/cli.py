@@ -19,8 +19,16 @@ from typing import Any, TextIO
 
 import zenoh
 
+from fleet.consensus.deadline import consensus_deadline
 from fleet.mission import keys
-from fleet.mission.messages import AssignmentReport, MissionTargets, StatusText, Target, UavResult
+from fleet.mission.messages import (
+    AssignmentReport,
+    MissionTargets,
+    StatusText,
+    Target,
+    TargetOutcome,
+    UavResult,
+)
 from fleet.mission.phase import Phase
 from fleet.mission.targets_file import TargetsFileError
 from fleet.transport import bus_codec
@@ -50,6 +58,8 @@ from ground.mission_control import (
     MissionOutcome,
     TargetsServer,
     check_agreement,
+    current_mission_id,
+    mission_status,
     missions_seen,
     next_mission_id,
     publish_targets,
@@ -68,7 +78,6 @@ from ground.watch import watch
 log = logging.getLogger("ground")
 
 #: MissionTargets' own default: how long a UAV waits for its teammates' results.
-DEFAULT_DEADLINE_S = 10.0
 #: How long `opm` waits for the UAV's status message confirming the change.
 OPM_CONFIRM_S = 2.0
 #: How long `send-targets` without --wait waits for the team to acknowledge receipt.
@@ -105,6 +114,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_watch(commands)
     _add_opm(commands)
     _add_abort(commands)
+    _add_mission(commands)
     _add_targets(commands)
     _add_keys(commands)
     gui_cli.add_parser(commands)
@@ -143,9 +153,9 @@ def _add_send_targets(commands: argparse._SubParsersAction[argparse.ArgumentPars
     send.add_argument(
         "--deadline",
         type=positive_float,
-        default=DEFAULT_DEADLINE_S,
         metavar="S",
-        help="how long each UAV waits for its teammates' results (default %(default)g s)",
+        help="how long each UAV waits for its teammates' results (default: 10 s, longer "
+        "for a large team: 2 x (planning budget + 0.1 s per UAV))",
     )
     send.add_argument(
         "--mission",
@@ -200,6 +210,24 @@ def _add_abort(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="abort this UAV alone; its teammates fly on (default: the whole team)",
     )
     abort.set_defaults(handler=cmd_abort)
+
+
+def _add_mission(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`mission`: a mission's status as the fleet reports it now."""
+    status = commands.add_parser(
+        "mission", help="a mission's targets: reached (by whom), assigned or unserved"
+    )
+    status.add_argument(
+        "--mission", type=_mission_id, metavar="M", help="mission id (default: the latest seen)"
+    )
+    status.add_argument(
+        "--until-reached",
+        type=positive_float,
+        metavar="S",
+        help="first wait up to S seconds for every target to be reached; exit 0 only if so",
+    )
+    status.add_argument("--json", action="store_true", help="print it as one JSON object")
+    status.set_defaults(handler=cmd_mission)
 
 
 def _add_targets(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -266,7 +294,7 @@ def _progress_printer(out: TextIO, team: tuple[int, ...]) -> Listener:
     results: set[int] = set()
     reports: dict[int, AssignmentReport] = {}
 
-    def on_message(kind: str, message: UavResult | AssignmentReport) -> None:
+    def on_message(kind: str, message: UavResult | AssignmentReport | TargetOutcome) -> None:
         with lock:
             if isinstance(message, UavResult):
                 results.add(message.uav)
@@ -274,6 +302,12 @@ def _progress_printer(out: TextIO, team: tuple[int, ...]) -> Listener:
                 lines = [
                     f"mission {message.mission}: UAV {message.uav} result: [{times}] s "
                     f"({len(results & set(team))}/{len(team)} results)"
+                ]
+            elif isinstance(message, TargetOutcome):
+                why = f" ({message.reason})" if message.reason else ""
+                lines = [
+                    f"mission {message.mission}: UAV {message.uav} {message.phase} "
+                    f"target {message.target}{why}"
                 ]
             else:
                 reports[message.uav] = message
@@ -322,9 +356,13 @@ def _summary(outcome: MissionOutcome) -> list[str]:
         reason = outcome.reasons.get(uav)
         state = f"; phase {phase}" + (f" ({reason})" if reason else "") if phase else ""
         lines.append(f"  UAV {uav}: {choice}; {times}{state}")
+    if outcome.epoch:
+        lines.append(f"  re-planned: epoch {outcome.epoch}")
     for target in outcome.target_states():
         if target["state"] == "unserved":
             lines.append(f"  target {target['index']}: unserved: {target['reason']}")
+        elif target["state"] == "reached":
+            lines.append(f"  target {target['index']}: reached by UAV {target['uav']}")
     unassigned = outcome.unassigned()
     lines.append(f"  unassigned targets: {', '.join(map(str, unassigned)) or 'none'}")
     if agreement.agreed:
@@ -367,7 +405,10 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
             print(f"error: {error}", file=sys.stderr)
             return ExitCode.FAILED
         message = MissionTargets(
-            mission=mission, team=team, targets=targets, deadline_s=args.deadline
+            mission=mission,
+            team=team,
+            targets=targets,
+            deadline_s=args.deadline or consensus_deadline(len(team)),
         )
         listener = _progress_printer(progress, team)
         outcome = MissionOutcome(mission=mission, team=team, targets=targets)
@@ -479,6 +520,29 @@ def cmd_opm(args: argparse.Namespace) -> int:
             else:
                 print(f"UAV {args.uav}: no confirmation within {OPM_CONFIRM_S:g} s")
     return ExitCode.OK
+
+
+def cmd_mission(args: argparse.Namespace) -> int:
+    with ground_session(args.zenoh) as session:
+        mission = args.mission
+        if mission is None:
+            mission = current_mission_id(session, args.query_timeout)
+        if mission is None:
+            print("error: no mission seen (give --mission)", file=sys.stderr)
+            return ExitCode.FAILED
+        try:
+            outcome = mission_status(session, mission, args.query_timeout, args.until_reached)
+        except MissionError as error:
+            print(f"error: {error}", file=sys.stderr)
+            return ExitCode.FAILED
+    if args.json:
+        print(json.dumps(outcome.to_json()))
+    else:
+        print("\n".join(_summary(outcome)))
+    if args.until_reached is not None:
+        every = len(outcome.reached_by()) == len(outcome.targets)
+        return ExitCode.OK if every else ExitCode.FAILED
+    return ExitCode.OK if outcome.succeeded else ExitCode.FAILED
 
 
 def cmd_abort(args: argparse.Namespace) -> int:

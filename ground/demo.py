@@ -29,7 +29,13 @@ from fleet.launch.launcher import (
     LaunchError,
 )
 from fleet.launch.up_command import common_arguments, recording_path, start_gui
-from fleet.mission.messages import AssignmentReport, MissionTargets, Target, UavResult
+from fleet.mission.messages import (
+    AssignmentReport,
+    MissionTargets,
+    Target,
+    TargetOutcome,
+    UavResult,
+)
 from fleet.recording.mission_log import build_timeline
 from fleet.recording.plot import PlotError, render
 from fleet.recording.reader import RecordingError, read_recording
@@ -208,7 +214,7 @@ def _fly_demo(
             last_status[uav] = text
             say(f"  UAV {uav}: {text}")
 
-    def on_message(kind: str, message: UavResult | AssignmentReport) -> None:
+    def on_message(kind: str, message: UavResult | AssignmentReport | TargetOutcome) -> None:
         if isinstance(message, AssignmentReport):
             say(f"demo: UAV {message.uav} committed target {message.target}")
 

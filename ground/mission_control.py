@@ -16,6 +16,12 @@ When they do not, the largest group of identical reports is taken as the referen
 (ties: the group holding the lowest Piccolo ID) and everyone else is named as having
 disagreed.
 
+Re-plans: after the commitment, a UAV that drops out (liveliness gone, `failed`,
+`link_lost`) is released by its teammates and its target re-planned; each re-plan is
+a new *epoch* of the same mission, republished on the same assignment keys, and each
+UAV publishes a TargetOutcome (`fleet/mission/{m}/outcome/{id}`) when it reaches its
+target or drops out. The ground reads a target as `reached` (by whom) from those.
+
 Taking part: a UAV whose liveliness token went away while the ground waited is *lost*;
 one that published a result with no time at all *declined* (module off, link lost, no
 GPS). Neither is waited for nor counted as agreeing; `agreed` is about the UAVs that
@@ -44,8 +50,10 @@ from fleet.mission.messages import (
     MissionTargets,
     OpmCommand,
     Target,
+    TargetOutcome,
     UavResult,
 )
+from fleet.mission.phase import Phase
 from fleet.transport import bus_codec
 from ground.fleet_view import query_states
 from ground.session import decode_sample, put_message, query, query_messages
@@ -62,17 +70,17 @@ class MissionError(FleetError, RuntimeError):
 
 # ---- mission ids ---------------------------------------------------------------------
 #: What each mission key carries, by its kind (`fleet/mission/{m}/KIND[/{id}]`).
-_MISSION_KINDS: dict[str, type[MissionTargets | UavResult | AssignmentReport | MissionAbort]] = {
+MissionMessage = MissionTargets | UavResult | AssignmentReport | MissionAbort | TargetOutcome
+_MISSION_KINDS: dict[str, type[MissionMessage]] = {
     "targets": MissionTargets,
     "result": UavResult,
     "assignment": AssignmentReport,
     "abort": MissionAbort,
+    "outcome": TargetOutcome,
 }
 
 
-def _mission_message(
-    key: str, payload: bytes
-) -> MissionTargets | UavResult | AssignmentReport | MissionAbort | None:
+def _mission_message(key: str, payload: bytes) -> MissionMessage | None:
     """The message a mission reply carries, if it is one its key vouches for (else logged)."""
     parts = key.split("/")
     kind = _MISSION_KINDS.get(parts[3]) if len(parts) >= 4 else None
@@ -160,6 +168,8 @@ class MissionOutcome:
     targets: tuple[Target, ...]
     results: dict[int, UavResult] = field(default_factory=dict)
     assignments: dict[int, AssignmentReport] = field(default_factory=dict)
+    #: How each UAV's part ended (reached) or why it dropped out (failed, link_lost).
+    outcomes: dict[int, TargetOutcome] = field(default_factory=dict)
     timed_out: bool = False
     lost: set[int] = field(default_factory=set)  #: liveliness gone while the ground waited
     phases: dict[int, str] = field(default_factory=dict)  #: each UAV's phase at the end
@@ -181,6 +191,19 @@ class MissionOutcome:
         return [uav for uav in self.team if uav not in self.lost and uav not in declined]
 
     @property
+    def epoch(self) -> int:
+        """The latest re-plan epoch any UAV committed (0: the consensus itself)."""
+        return max((report.epoch for report in self.assignments.values()), default=0)
+
+    def reached_by(self) -> dict[int, int]:
+        """Target index -> the UAV whose telemetry put it inside the acceptance radius."""
+        return {
+            outcome.target: uav
+            for uav, outcome in sorted(self.outcomes.items())
+            if outcome.phase == Phase.REACHED and outcome.target is not None
+        }
+
+    @property
     def agreement(self) -> Agreement:
         return check_agreement(self.taking_part, self.assignments)
 
@@ -189,11 +212,15 @@ class MissionOutcome:
         return bool(self.taking_part) and all(uav in self.assignments for uav in self.taking_part)
 
     def target_states(self) -> list[dict[str, Any]]:
-        """Each target's state: assigned (to whom) or unserved (and why)."""
+        """Each target's state: reached (by whom), assigned (to whom) or unserved (why)."""
         holders = {self.target_of(uav): uav for uav in self.taking_part}
         idle = [uav for uav in self.taking_part if self.target_of(uav) is None]
+        reached = self.reached_by()
         states: list[dict[str, Any]] = []
         for index in range(len(self.targets)):
+            if index in reached:
+                states.append({"index": index, "state": "reached", "uav": reached[index]})
+                continue
             holder = holders.get(index)
             if holder is not None:
                 states.append({"index": index, "state": "assigned", "uav": holder})
@@ -260,19 +287,24 @@ class MissionOutcome:
             "phases": {str(uav): self.phases.get(uav) for uav in self.team},
             "reasons": {str(uav): reason for uav, reason in sorted(self.reasons.items())},
             "target_states": self.target_states(),
+            "epoch": self.epoch,
+            "outcomes": {
+                str(uav): msgspec.to_builtins(outcome)
+                for uav, outcome in sorted(self.outcomes.items())
+            },
             "success": self.succeeded,
         }
 
 
 # ---- following a mission -------------------------------------------------------------
-Listener = Callable[[str, UavResult | AssignmentReport], None]
+Listener = Callable[[str, UavResult | AssignmentReport | TargetOutcome], None]
 
 
 class MissionFollower:
     """Collects one mission's results and assignments; a context manager.
 
-    `listener(kind, message)` ("result" or "assignment") is called once per new or
-    changed message, on whichever thread delivered it.
+    `listener(kind, message)` ("result", "assignment" or "outcome") is called once per
+    new or changed message, on whichever thread delivered it.
     """
 
     def __init__(
@@ -284,6 +316,7 @@ class MissionFollower:
         self._changed = threading.Condition()
         self.results: dict[int, UavResult] = {}
         self.assignments: dict[int, AssignmentReport] = {}
+        self.outcomes: dict[int, TargetOutcome] = {}
         self.lost: set[int] = set()  #: UAVs whose liveliness token went away
         self._stack = ExitStack()
 
@@ -298,6 +331,11 @@ class MissionFollower:
             enter(
                 self._session.declare_subscriber(
                     keys.mission_assignments(self.mission), self._on_assignment_sample
+                )
+            )
+            enter(
+                self._session.declare_subscriber(
+                    keys.mission_outcomes(self.mission), self._on_outcome_sample
                 )
             )
             enter(self._session.liveliness().declare_subscriber(keys.ALL_ALIVE, self._on_alive))
@@ -336,19 +374,40 @@ class MissionFollower:
         if report is not None:
             self.add_assignment(report)
 
+    def _on_outcome_sample(self, sample: zenoh.Sample) -> None:
+        outcome = decode_sample(sample, TargetOutcome)
+        if outcome is not None:
+            self.add_outcome(outcome)
+
+    def add_outcome(self, outcome: TargetOutcome) -> None:
+        self._add("outcome", self.outcomes, outcome)
+
     def add_result(self, result: UavResult) -> None:
         self._add("result", self.results, result)
 
     def add_assignment(self, report: AssignmentReport) -> None:
         self._add("assignment", self.assignments, report)
 
-    def _add(self, kind: str, store: dict[int, Any], message: UavResult | AssignmentReport) -> None:
+    def _add(
+        self,
+        kind: str,
+        store: dict[int, Any],
+        message: UavResult | AssignmentReport | TargetOutcome,
+    ) -> None:
         """Keep a UAV's message for this mission; wake waiters and the listener on news."""
         if message.mission != self.mission:
             return
         with self._changed:
-            if store.get(message.uav) == message:
+            held = store.get(message.uav)
+            if held == message:
                 return
+            earlier = (
+                isinstance(held, AssignmentReport)
+                and isinstance(message, AssignmentReport)
+                and message.epoch < held.epoch
+            )
+            if earlier:
+                return  # a late copy of an earlier epoch
             store[message.uav] = message
             self._changed.notify_all()
         if self._listener is not None:
@@ -364,6 +423,10 @@ class MissionFollower:
             self._session, keys.mission_assignments(self.mission), AssignmentReport, timeout_s
         ):
             self.add_assignment(report)
+        for _, outcome in query_messages(
+            self._session, keys.mission_outcomes(self.mission), TargetOutcome, timeout_s
+        ):
+            self.add_outcome(outcome)
 
     def wait_committed(self, team: Iterable[int], timeout_s: float, fetch_every_s: float) -> bool:
         """Wait until every UAV of `team` still alive has committed; True if they did in time.
@@ -372,11 +435,28 @@ class MissionFollower:
         Queries every `fetch_every_s` as well, so a lost sample costs at most that long.
         """
         members = set(team)
+        return self.wait_until(
+            lambda: members - self.lost <= self.assignments.keys(), timeout_s, fetch_every_s
+        )
+
+    def snapshot(self) -> tuple[dict[int, UavResult], dict[int, AssignmentReport]]:
+        with self._changed:
+            return dict(self.results), dict(self.assignments)
+
+    def outcome_snapshot(self) -> dict[int, TargetOutcome]:
+        with self._changed:
+            return dict(self.outcomes)
+
+    def wait_until(self, done: Callable[[], bool], timeout_s: float, fetch_every_s: float) -> bool:
+        """Wait until `done()` (called under the follower's lock) holds; True if in time.
+
+        Queries every `fetch_every_s` as well, so a lost sample costs at most that long.
+        """
         deadline = time.monotonic() + timeout_s
         next_fetch = time.monotonic() + fetch_every_s
         while True:
             with self._changed:
-                if members - self.lost <= self.assignments.keys():
+                if done():
                     return True
             now = time.monotonic()
             if now >= deadline:
@@ -387,10 +467,6 @@ class MissionFollower:
                 continue
             with self._changed:
                 self._changed.wait(min(deadline, next_fetch) - now)
-
-    def snapshot(self) -> tuple[dict[int, UavResult], dict[int, AssignmentReport]]:
-        with self._changed:
-            return dict(self.results), dict(self.assignments)
 
 
 class TargetsServer:
@@ -471,3 +547,47 @@ def send_opm(session: zenoh.Session, uav: int, enabled: bool, status_rate_hz: fl
     put_message(session, keys.opm(uav), command)
     log.info("UAV %d: planning module %s", uav, "on" if enabled else "off")
     return command
+
+
+# ---- a mission's status, after the fact --------------------------------------------------
+def mission_targets_of(session: zenoh.Session, mission: int, timeout_s: float) -> MissionTargets:
+    """The mission's targets and team, as the UAVs (or a ground still sending) serve them."""
+    for _, targets in query_messages(
+        session, keys.mission_targets(mission), MissionTargets, timeout_s
+    ):
+        if targets.mission == mission:
+            return targets
+    raise MissionError(f"mission {mission}: no UAV or ground answers for it")
+
+
+def mission_status(
+    session: zenoh.Session,
+    mission: int,
+    timeout_s: float,
+    until_reached_s: float | None = None,
+) -> MissionOutcome:
+    """Mission `mission` as the fleet reports it now: results, the latest epoch's
+    assignment, outcomes; with `until_reached_s`, first wait that long at most for every
+    target to be reached. MissionError if nothing answers for the mission."""
+    targets = mission_targets_of(session, mission, timeout_s)
+    outcome = MissionOutcome(mission=mission, team=targets.team, targets=targets.targets)
+    with MissionFollower(session, mission) as follower:
+        follower.fetch(timeout_s)
+        if until_reached_s is not None:
+            everything = set(range(len(targets.targets)))
+
+            def all_reached() -> bool:
+                reached = {o.target for o in follower.outcomes.values() if o.phase == Phase.REACHED}
+                return reached >= everything
+
+            follower.wait_until(all_reached, until_reached_s, fetch_every_s=1.0)
+        outcome.results, outcome.assignments = follower.snapshot()
+        outcome.outcomes = follower.outcome_snapshot()
+    states = query_states(session, timeout_s)
+    outcome.lost = {uav for uav in targets.team if uav not in states}
+    for uav, state in states.items():
+        if uav in outcome.team:
+            outcome.phases[uav] = str(state.phase)
+            if state.reason:
+                outcome.reasons[uav] = state.reason
+    return outcome

@@ -2,7 +2,11 @@
 
 The Piccolo echoes a WAYPOINT it stored and reports the TRACK it switched to (piccolo-
 link.md 3): that echo is the only confirmation a sender gets. A command is resent
-every `retry_interval` seconds until its echo arrives or `max_attempts` are spent.
+until its echo arrives or `max_attempts` are spent; a mission's own writes are resent
+until their echo arrives or the mission cancels them (`persistent`), so a link outage
+delays them but never loses them. The interval between attempts follows the echo
+latency measured on this link (`RETRY_LATENCY_FACTOR` times its smoothed value, never
+under `retry_interval`): a slow link gets fewer resends, not false failures.
 Pure: time comes in as `now`, bytes go out through the `send` callable.
 """
 
@@ -29,12 +33,22 @@ def echo_confirms(command: AutopilotCommand, echo: AutopilotCommand) -> bool:
     return isinstance(echo, Waypoint) and encode_waypoint(echo) == encode_waypoint(command)
 
 
+#: Resend after this many times the smoothed echo latency (the floor is `retry_interval`).
+RETRY_LATENCY_FACTOR = 4.0
+#: Never wait longer than this between two attempts.
+MAX_RETRY_INTERVAL = 5.0
+#: Weight of the newest echo latency in the smoothed value.
+LATENCY_SMOOTHING = 0.2
+
+
 @dataclass
 class _Pending:
     command: AutopilotCommand
     on_done: Completion
     attempts: int
     next_try: float
+    sent_at: float
+    persistent: bool
 
 
 @dataclass
@@ -42,28 +56,56 @@ class CommandTracker:
     send: Callable[[AutopilotCommand], None]
     retry_interval: float = 0.5
     max_attempts: int = 4
+    #: Smoothed seconds from a command's last sending to its echo; None before any echo.
+    latency: float | None = None
     _pending: list[_Pending] = field(default_factory=list)
 
-    def submit(self, command: AutopilotCommand, now: float, on_done: Completion) -> None:
+    def interval(self) -> float:
+        """Seconds between two attempts, from the echo latency measured so far."""
+        if self.latency is None:
+            return self.retry_interval
+        return min(
+            MAX_RETRY_INTERVAL, max(self.retry_interval, RETRY_LATENCY_FACTOR * self.latency)
+        )
+
+    def submit(
+        self,
+        command: AutopilotCommand,
+        now: float,
+        on_done: Completion,
+        *,
+        persistent: bool = False,
+    ) -> None:
+        """Send `command` and resend it until echoed; `persistent`: with no attempt limit
+        (until echoed, superseded or cancelled)."""
         # A newer command for the same waypoint (or a newer track) replaces the old one.
         for pending in list(self._pending):
             if _same_target(pending.command, command):
                 self._pending.remove(pending)
                 pending.on_done(CommandResult(False, "superseded", pending.attempts))
         self.send(command)
-        self._pending.append(_Pending(command, on_done, 1, now + self.retry_interval))
+        self._pending.append(_Pending(command, on_done, 1, now + self.interval(), now, persistent))
 
-    def on_echo(self, echo: AutopilotCommand) -> None:
+    def on_echo(self, echo: AutopilotCommand, now: float) -> None:
         for pending in list(self._pending):
             if echo_confirms(pending.command, echo):
                 self._pending.remove(pending)
+                self._measure(now - pending.sent_at)
                 pending.on_done(CommandResult(True, "confirmed by the autopilot", pending.attempts))
+
+    def _measure(self, latency: float) -> None:
+        if latency < 0:
+            return
+        if self.latency is None:
+            self.latency = latency
+        else:
+            self.latency += LATENCY_SMOOTHING * (latency - self.latency)
 
     def tick(self, now: float) -> None:
         for pending in list(self._pending):
             if now < pending.next_try:
                 continue
-            if pending.attempts >= self.max_attempts:
+            if not pending.persistent and pending.attempts >= self.max_attempts:
                 self._pending.remove(pending)
                 log.warning("no echo for %r after %d attempts", pending.command, pending.attempts)
                 pending.on_done(
@@ -73,7 +115,8 @@ class CommandTracker:
                 )
                 continue
             pending.attempts += 1
-            pending.next_try = now + self.retry_interval
+            pending.next_try = now + self.interval()
+            pending.sent_at = now
             self.send(pending.command)
 
     def cancel_all(self, reason: str) -> None:

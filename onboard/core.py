@@ -9,10 +9,13 @@ Flying to a target (thesis 4.3): write waypoint TARGET_WAYPOINT at the target wi
 `next` = the waypoint the aircraft was tracking, then track it; when the autopilot
 moves on from it, the aircraft is back on its original course by itself.
 
-Every phase is what the module observed (docs/lifecycle.md): `flying` once the
-autopilot echoed the track command, `reached` once telemetry put the aircraft within
-REACHED_RADIUS_M of the target, `preempted` when the autopilot left the target route
-anywhere else, `link_lost` when telemetry stopped for LINK_LOST_S.
+Every phase is what the module observed (docs/lifecycle.md), moved by the one table in
+`fleet.mission.lifecycle`: `flying` once the autopilot echoed the track command,
+`reached` once telemetry put the aircraft within REACHED_RADIUS_M of the target,
+`preempted` when the autopilot left the target route anywhere else or the ground
+commanded it directly, `link_lost` when telemetry stopped for LINK_LOST_S, `failed`
+when the target could not be flown (then the UAV is released and its teammates re-plan
+its target: fleet.consensus.replan).
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import msgspec
 from fleet.consensus.mission_round import MissionRound
 from fleet.geo.mercator import MercatorProjection, distance_m
 from fleet.mission import keys
+from fleet.mission.lifecycle import Observation, advance, holds_target
 from fleet.mission.messages import (
     AssignmentReport,
     CommandResult,
@@ -35,6 +39,7 @@ from fleet.mission.messages import (
     MissionTargets,
     OpmCommand,
     StatusText,
+    TargetOutcome,
     UavResult,
     UavState,
 )
@@ -58,6 +63,13 @@ MAX_EARLY_RESULTS = 256
 REACHED_RADIUS_M = 75.0
 #: With no telemetry for this long (wall seconds), the autopilot link counts as lost.
 LINK_LOST_S = 3.0
+#: A target not confirmed by the autopilot this long after the commitment (the writes
+#: are retried all along, across link outages) is given up: `failed`, and released.
+CONFIRM_LIMIT_S = 20.0
+#: A UAV holding a target whose autopilot link stays lost this long is released.
+LINK_RELEASE_S = 20.0
+#: At most one catch-up query (live missions, the teammates' assignments) this often.
+CATCH_UP_INTERVAL_S = 5.0
 
 
 class Planner(Protocol):
@@ -73,8 +85,9 @@ class Outputs(Protocol):
     def send_autopilot(self, command: AutopilotCommand) -> None: ...
     def publish(self, key: str, message: msgspec.Struct) -> None: ...
     def send_ground(self, message: StatusText | UavResult) -> None: ...
-    def fetch_results(self, mission: int) -> None: ...
+    def fetch_results(self, mission: int, uavs: tuple[int, ...]) -> None: ...
     def fetch_assignments(self, mission: int) -> None: ...
+    def fetch_missions(self) -> None: ...
 
 
 @dataclass
@@ -84,6 +97,7 @@ class OnboardCore:
     planner: Planner
     planning_budget_s: float = 2.0
     enabled: bool = True
+    #: How often the UAV's state is published on its state key (0: only on query).
     status_rate_hz: float = 1.0
     telemetry: Telemetry | None = None
     tracked_waypoint: int | None = None
@@ -96,14 +110,28 @@ class OnboardCore:
     commands: CommandTracker = field(init=False)
     _early_results: list[UavResult] = field(default_factory=list)
     _aborted: set[int] = field(default_factory=set)
-    _last_status_at: float = -math.inf
+    _last_state_at: float = -math.inf
     _telemetry_at: float | None = None
     _link_lost: bool = False
+    _request: PlanRequest | None = None  #: the plan asked for the current mission
+    _target: int | None = None  #: the target this UAV holds (committed or flying to)
+    _committed_at: float = 0.0
+    _caught_up_at: float = -math.inf
     _target_tracked: bool = False  #: the autopilot echoed the track to the target waypoint
 
     def __post_init__(self) -> None:
         self.commands = CommandTracker(send=self.outputs.send_autopilot)
         self.alive.add(self.uav_id)
+
+    # ---- the life cycle ----------------------------------------------------------------
+    def _observe(self, observation: Observation, reason: str | None = None) -> bool:
+        """Move the phase by the life-cycle table; True if it changed."""
+        after = advance(self.phase, observation)
+        if after == self.phase:
+            return False
+        self.phase = after
+        self.reason = reason
+        return True
 
     # ---- link events -------------------------------------------------------------
     def on_telemetry(self, telemetry: Telemetry, now: float) -> None:
@@ -113,32 +141,30 @@ class OnboardCore:
         if self._link_lost:
             self._link_lost = False
             self.status("autopilot link back: telemetry flowing again", now)
-        if self.phase in (Phase.COMMITTED, Phase.FLYING) and self._target_distance() is not None:
+        if holds_target(self.phase):
             distance = self._target_distance()
             if distance is not None and distance <= REACHED_RADIUS_M:
                 self._reached(distance, now)
 
     def _target_distance(self) -> float | None:
-        """Metres from the latest GPS fix to the committed target; None if either is unknown."""
-        report = self.round.committed if self.round else None
+        """Metres from the latest GPS fix to the held target; None if either is unknown."""
         gps = self.telemetry.gps if self.telemetry else None
-        if report is None or report.target is None or gps is None or self.round is None:
+        if self._target is None or gps is None or self.round is None:
             return None
-        target = self.round.targets.targets[report.target]
+        target = self.round.targets.targets[self._target]
         return distance_m((gps.lat, gps.lon), (target.lat, target.lon))
 
     def _reached(self, distance: float, now: float) -> None:
-        self.phase = Phase.REACHED
-        self.reason = None
-        target = self.round.committed.target if self.round and self.round.committed else None
-        self.status(f"reached target {target} ({distance:.0f} m from it)", now)
+        self._observe(Observation.WITHIN_RADIUS)
+        self.status(f"reached target {self._target} ({distance:.0f} m from it)", now)
+        self._publish_outcome(Phase.REACHED, None)
 
     def link_lost(self, now: float) -> bool:
         """True while no telemetry has arrived for LINK_LOST_S (or none ever did)."""
         return self._telemetry_at is None or now - self._telemetry_at > LINK_LOST_S
 
     def on_track(self, track: Track, now: float) -> None:
-        self.commands.on_echo(track)
+        self.commands.on_echo(track, now)
         previous, self.tracked_waypoint = self.tracked_waypoint, track.waypoint
         if previous != track.waypoint:
             self.outputs.publish(keys.track(self.uav_id), track)
@@ -146,7 +172,7 @@ class OnboardCore:
             return
         if self.phase == Phase.FLYING and self._target_tracked and previous == TARGET_WAYPOINT:
             self._left_target_route(track.waypoint, now)
-        if self.phase not in (Phase.COMMITTED, Phase.FLYING):
+        if not holds_target(self.phase):
             self.original_waypoint = track.waypoint  # the course to come back to
 
     def _left_target_route(self, waypoint: int, now: float) -> None:
@@ -155,13 +181,13 @@ class OnboardCore:
         if distance is not None and distance <= REACHED_RADIUS_M:
             self._reached(distance, now)
             return
-        self.phase = Phase.PREEMPTED
         where = "unknown distance" if distance is None else f"{distance:.0f} m"
-        self.reason = f"autopilot left the target route for waypoint {waypoint} at {where}"
-        self.status(f"warning: target not reached: {self.reason}", now)
+        why = f"autopilot left the target route for waypoint {waypoint} at {where}"
+        self._observe(Observation.LEFT_ROUTE, why)
+        self.status(f"warning: target not reached: {why}", now)
 
-    def on_waypoint(self, waypoint: Waypoint) -> None:
-        self.commands.on_echo(waypoint)
+    def on_waypoint(self, waypoint: Waypoint, now: float) -> None:
+        self.commands.on_echo(waypoint, now)
         self.outputs.publish(keys.waypoint(self.uav_id, waypoint.index), waypoint)
 
     # ---- ground commands -----------------------------------------------------------
@@ -175,16 +201,31 @@ class OnboardCore:
         if changed and not self.enabled:
             self.commands.cancel_all("module turned off")
         self.status(
-            f"module {'on' if self.enabled else 'off'}, status every "
+            f"module {'on' if self.enabled else 'off'}, state every "
             + (f"{1 / self.status_rate_hz:.3g} s" if self.status_rate_hz else "change"),
             now,
         )
 
     def command_autopilot(self, command: AutopilotCommand, now: float, on_done: Completion) -> None:
-        """A waypoint or track asked for by the ground; refused while the module is off."""
+        """A waypoint or track asked for by the ground; refused while the module is off.
+
+        Commanding the track, or the target waypoint, while holding a target takes the
+        aircraft off it: the mission's part is `preempted` at once, with that reason.
+        """
         if not self.enabled:
             on_done(CommandResult(False, "module is off: it does not write to the autopilot"))
             return
+        retasks = isinstance(command, Track) or command.index == TARGET_WAYPOINT
+        if retasks and holds_target(self.phase):
+            what = (
+                f"track to waypoint {command.waypoint}"
+                if isinstance(command, Track)
+                else f"waypoint {command.index}"
+            )
+            why = f"the ground commanded the autopilot directly ({what})"
+            self.commands.cancel_all(why)
+            self._observe(Observation.OPERATOR_COMMAND, why)
+            self.status(f"warning: target {self._target} given up: {why}", now)
         self.commands.submit(command, now, on_done)
 
     def on_targets(self, targets: MissionTargets, now: float) -> None:
@@ -216,9 +257,9 @@ class OnboardCore:
     def _decline(self, why: str, now: float) -> None:
         """Take no part in the current mission: an all-None result says so to the team."""
         assert self.round is not None
-        self.reason = why
         self.status(f"warning: {why}: not taking part", now)
         self._publish_result(tuple(None for _ in self.round.targets.targets), now)
+        self.reason = why
 
     def _refusal(self, targets: MissionTargets) -> str | None:
         try:
@@ -230,13 +271,15 @@ class OnboardCore:
         return None
 
     def _start_round(self, targets: MissionTargets, now: float) -> None:
+        """Replace the mission in one step: nothing of the old one survives it."""
         # Cancel first: the resume submitted next must survive the new mission's start.
         self.commands.cancel_all(f"mission {targets.mission} started")
-        if self.phase in (Phase.COMMITTED, Phase.FLYING):
+        if holds_target(self.phase):
             self._resume_course(now)
         self.round = MissionRound(targets, self.uav_id, now)
-        self.phase = Phase.COMPUTING
-        self.reason = None
+        self._observe(Observation.MISSION_STARTED)
+        self._request = None
+        self._target = None
         self._target_tracked = False
         early, self._early_results = self._early_results, []
         for result in early:
@@ -258,34 +301,75 @@ class OnboardCore:
             budget_s=self.planning_budget_s,
             cruise_speed=math.hypot(gps.vel_east, gps.vel_north),
         )
+        # The planner drops a run still under way for an older mission: its answer would
+        # be that mission's approach times.
         if not self.planner.run(request):
-            self.status("warning: planner still busy with the previous mission", now)
+            self._decline(f"mission {self.round.mission}: the planner refused the request", now)
             return
+        self._request = request
         self.status(
             f"mission {self.round.mission}: computing approach times to {len(targets)} targets",
             now,
         )
 
     def on_result(self, result: UavResult, now: float) -> None:
-        if self.round is None or result.mission > self.round.mission:
+        mission_round = self.round
+        if mission_round is None or result.mission > mission_round.mission:
             self._early_results = [*self._early_results, result][-MAX_EARLY_RESULTS:]
             return
-        if result.uav != self.uav_id:
-            self.round.add_result(result)
+        if result.uav == self.uav_id or not mission_round.add_result(result):
+            return
+        if mission_round.committed is not None and mission_round.released:
+            self._replan(now)  # it may have waited for this result
 
     def on_assignment(self, report: AssignmentReport, now: float) -> None:
-        if self.round is None or report.uav == self.uav_id:
+        mission_round = self.round
+        if mission_round is None or report.uav == self.uav_id:
             return
-        if report.mission != self.round.mission or self.round.committed is not None:
+        if report.mission != mission_round.mission or report.mission in self._aborted:
             return
-        if report.mission in self._aborted:
-            return
-        adopted = self.round.adopt(report)
-        if adopted is not None:
-            self.status(
-                f"mission {report.mission}: adopted the assignment of UAV {report.uav}", now
+        if mission_round.committed is None:
+            self._adopt(report, now)
+        elif mission_round.release(report.released):
+            self._replan(now)
+        elif (followed := mission_round.follow(report)) is not None:
+            self._apply(followed, now)
+
+    def _adopt(self, report: AssignmentReport, now: float) -> None:
+        assert self.round is not None
+        adopted = self.round.adopt(report, self.alive)
+        if adopted is None:
+            unused = sorted(self.round.thinner(report, self.alive))
+            log.info(
+                "mission %d: UAV %d's assignment not adopted: it was computed without the "
+                "results of %s, which this UAV holds",
+                report.mission,
+                report.uav,
+                ", ".join(map(str, unused)),
             )
-            self._commit(adopted, now)
+            return
+        self.status(f"mission {report.mission}: adopted the assignment of UAV {report.uav}", now)
+        self._apply(adopted, now)
+        self._replan_if_released(now)
+
+    def on_outcome(self, outcome: TargetOutcome, now: float) -> None:
+        """A teammate reached its target, or dropped out of the mission (failed, link lost)."""
+        mission_round = self.round
+        if mission_round is None or outcome.uav == self.uav_id:
+            return
+        if outcome.mission != mission_round.mission:
+            return
+        if outcome.phase == Phase.REACHED:
+            mission_round.reached.add(outcome.uav)
+            return
+        dropped = outcome.phase in (Phase.FAILED, Phase.LINK_LOST)
+        if dropped and mission_round.release((outcome.uav,)):
+            self.status(
+                f"mission {outcome.mission}: UAV {outcome.uav} dropped out "
+                f"({outcome.reason or outcome.phase}); re-planning its target",
+                now,
+            )
+            self._replan(now)
 
     def on_abort(self, abort: MissionAbort, now: float) -> None:
         """Abort is final: mission m never commits or flies after this, whatever arrives."""
@@ -297,25 +381,53 @@ class OnboardCore:
         if self.phase == Phase.ABORTED:
             return
         self.commands.cancel_all(f"mission {abort.mission} aborted")
-        flying = self.phase in (Phase.COMMITTED, Phase.FLYING)
+        flying = holds_target(self.phase)
         if flying:
             self._resume_course(now)
-        self.phase = Phase.ABORTED
-        self.reason = None
+        self._observe(Observation.ABORTED)
         course = "back on course" if flying else "it was not flying a target"
         self.status(f"mission {abort.mission} aborted; {course}", now)
 
-    def on_alive(self, uav: int, alive: bool) -> None:
+    def on_alive(self, uav: int, alive: bool, now: float) -> None:
         if alive:
+            if uav not in self.alive:
+                self.catch_up(now)
             self.alive.add(uav)
-        elif uav != self.uav_id:
-            self.alive.discard(uav)
+            return
+        if uav == self.uav_id:
+            return
+        self.alive.discard(uav)
+        mission_round = self.round
+        if mission_round is None or mission_round.committed is None:
+            return  # before the commitment, the consensus itself leaves it out
+        if mission_round.mission in self._aborted:
+            return
+        if mission_round.release((uav,)):
+            self.status(
+                f"mission {mission_round.mission}: UAV {uav} lost (liveliness gone); "
+                "re-planning its target",
+                now,
+            )
+            self._replan(now)
+
+    def catch_up(self, now: float) -> None:
+        """Ask for the live missions and the current one's assignments: at start, and
+        when a teammate (re)appears, for this UAV may be the one that was away (frozen,
+        cut off). Brings it in line with what was decided meanwhile; at most once every
+        CATCH_UP_INTERVAL_S."""
+        if now - self._caught_up_at < CATCH_UP_INTERVAL_S:
+            return
+        self._caught_up_at = now
+        self.outputs.fetch_missions()
+        if self.round is not None and self.round.committed is not None:
+            self.outputs.fetch_assignments(self.round.mission)
 
     # ---- time ----------------------------------------------------------------------
     def tick(self, now: float) -> None:
         self.commands.tick(now)
         self._collect_plan(now)
         self._check_link(now)
+        self._check_target(now)
         mission_round = self.round
         if (
             mission_round is not None
@@ -324,19 +436,29 @@ class OnboardCore:
         ):
             if mission_round.should_fetch(now, self.alive):
                 mission_round.last_fetch = now
-                self.outputs.fetch_results(mission_round.mission)
+                missing = mission_round.missing(self.alive) - {self.uav_id}
+                self.outputs.fetch_results(mission_round.mission, tuple(sorted(missing)))
             if mission_round.ready(now, self.alive):
-                missing = mission_round.missing(self.alive)
-                report = mission_round.decide(self.alive)
-                if missing:
-                    self.status(
-                        f"mission {mission_round.mission}: deadline passed without "
-                        f"{', '.join(map(str, sorted(missing)))}; assigned without them",
-                        now,
-                    )
-                self._commit(report, now)
-        if self.status_rate_hz > 0 and now - self._last_status_at >= 1 / self.status_rate_hz:
-            self.status(self._summary(), now)
+                self._decide(mission_round, now)
+        if self.status_rate_hz > 0 and now - self._last_state_at >= 1 / self.status_rate_hz:
+            self.publish_state(now)
+
+    def publish_state(self, now: float) -> None:
+        """The UAV's state on its state key: the periodic report, kept out of the status box."""
+        self._last_state_at = now
+        self.outputs.publish(keys.state(self.uav_id), self.state(now))
+
+    def _decide(self, mission_round: MissionRound, now: float) -> None:
+        missing = mission_round.missing(self.alive)
+        report = mission_round.decide(self.alive)
+        if missing:
+            self.status(
+                f"warning: mission {mission_round.mission}: deadline passed without "
+                f"{', '.join(map(str, sorted(missing)))}; assigned without them",
+                now,
+            )
+        self._apply(report, now)
+        self._replan_if_released(now)
 
     def _check_link(self, now: float) -> None:
         if self._telemetry_at is None or self._link_lost or not self.link_lost(now):
@@ -344,12 +466,27 @@ class OnboardCore:
         self._link_lost = True
         self.status(f"error: autopilot link lost: no telemetry for over {LINK_LOST_S:g} s", now)
 
+    def _check_target(self, now: float) -> None:
+        """Give up a target the autopilot cannot be made to fly: it is re-planned."""
+        if not holds_target(self.phase) or self._telemetry_at is None:
+            return
+        silent = now - self._telemetry_at
+        if silent > LINK_RELEASE_S:
+            self._failed(f"autopilot link lost for {silent:.0f} s", now, Phase.LINK_LOST)
+        elif self.phase == Phase.COMMITTED and now - self._committed_at > CONFIRM_LIMIT_S:
+            attempts = "over a lost link" if self.link_lost(now) else "with the link up"
+            self._failed(
+                f"target writes not echoed by the autopilot within {CONFIRM_LIMIT_S:g} s "
+                f"(retried {attempts})",
+                now,
+            )
+
     def _collect_plan(self, now: float) -> None:
         result = self.planner.result()
         if result is None or self.round is None or self.phase != Phase.COMPUTING:
             return
-        if len(result.times) != len(self.round.targets.targets):
-            return  # the answer to a superseded mission
+        if result.request is not self._request:
+            return  # the answer to a superseded mission: never used for this one
         self._report_plan(result, now)
 
     def _report_plan(self, plan: PlanResult, now: float) -> None:
@@ -381,24 +518,78 @@ class OnboardCore:
         self.round.add_result(result)
         # Teammates are computing too: the first fetch waits one interval.
         self.round.last_fetch = now
-        if self.round.committed is None and self.phase == Phase.COMPUTING:
-            self.phase = Phase.WAITING
+        self._observe(Observation.RESULT_PUBLISHED)
         self.outputs.publish(keys.mission_result(result.mission, self.uav_id), result)
         self.outputs.send_ground(result)
 
-    def _commit(self, report: AssignmentReport, now: float) -> None:
-        self.outputs.publish(keys.mission_assignment(report.mission, self.uav_id), report)
-        if report.target is None:
-            self.phase = Phase.IDLE
-            self.status(f"mission {report.mission}: no target assigned; keeping course", now)
+    # ---- the assignment ----------------------------------------------------------------
+    def _replan_if_released(self, now: float) -> None:
+        """Teammates released before this UAV committed: re-plan at once."""
+        mission_round = self.round
+        if mission_round is None or mission_round.base is None:
             return
+        if mission_round.released & set(mission_round.base.team):
+            self._replan(now)
+
+    def _replan(self, now: float) -> None:
+        """Re-assign the targets of released UAVs, or fetch the results that needs."""
+        mission_round = self.round
+        if mission_round is None or mission_round.mission in self._aborted:
+            return
+        if self.phase == Phase.ABORTED:
+            return
+        missing = mission_round.replan_missing()
+        if missing:
+            self.outputs.fetch_results(mission_round.mission, missing)
+            return
+        report = mission_round.replan()
+        if report is None:
+            return
+        self.status(
+            f"mission {report.mission}: re-plan epoch {report.epoch} without "
+            f"{', '.join(map(str, report.released))}",
+            now,
+        )
+        self._apply(report, now)
+
+    def _apply(self, report: AssignmentReport, now: float) -> None:
+        """Publish the assignment this UAV follows now and fly what it says."""
+        self.outputs.publish(keys.mission_assignment(report.mission, self.uav_id), report)
+        if report.target == self._target:
+            if report.target is None and self.phase in (Phase.COMPUTING, Phase.WAITING):
+                self._observe(Observation.ASSIGNED_NONE)
+                self.status(f"mission {report.mission}: no target assigned; keeping course", now)
+            return
+        if self._target is not None and holds_target(self.phase):
+            # Released, or handed another orphan by a later epoch: off the old target.
+            self.commands.cancel_all(f"mission {report.mission} epoch {report.epoch}")
+            self._resume_course(now)
+            self._observe(Observation.RELEASED, f"re-planned at epoch {report.epoch}")
+        if report.target is None or self.uav_id in report.released:
+            self._target = None
+            self._observe(Observation.ASSIGNED_NONE)
+            return
+        self._commit(report, report.target, now)
+
+    def _commit(self, report: AssignmentReport, target_index: int, now: float) -> None:
         assert self.round is not None
-        target = self.round.targets.targets[report.target]
+        self._target = target_index
+        self._committed_at = now
+        self._target_tracked = False
         eta = f"{report.eta_s:.0f} s" if report.eta_s is not None else "unknown"
-        self.status(f"mission {report.mission}: target {report.target} chosen, ETA {eta}", now)
-        self.phase = Phase.COMMITTED
+        self.status(f"mission {report.mission}: target {target_index} chosen, ETA {eta}", now)
+        self._observe(Observation.ASSIGNED_TARGET)
         if not self.enabled:
             return
+        if self.link_lost(now) and report.epoch > 0:
+            self._failed("handed an orphaned target while its autopilot link is lost", now)
+            return
+        self._write_target(report.mission, target_index, now)
+
+    def _write_target(self, mission: int, target_index: int, now: float) -> None:
+        """Write the target waypoint, then track it; both retried until echoed."""
+        assert self.round is not None
+        target = self.round.targets.targets[target_index]
         # on_track never records the target waypoint as the course; 0 before any track.
         back_to = 0 if self.original_waypoint is None else self.original_waypoint
         waypoint = Waypoint(
@@ -408,38 +599,55 @@ class OnboardCore:
             lon=target.lon,
             alt=target.alt,
         )
-        mission = report.mission
 
         def track_target(result: CommandResult) -> None:
-            if self._superseded(mission):
-                return
-            if not result.ok:
-                self._failed(f"target waypoint not stored: {result.detail}", now)
-                return
-            self.commands.submit(Track(TARGET_WAYPOINT), now, tracked)
+            if result.ok and self._still_committed(mission, target_index):
+                self.commands.submit(Track(TARGET_WAYPOINT), now, tracked, persistent=True)
 
         def tracked(result: CommandResult) -> None:
-            if self._superseded(mission):
-                return
-            if not result.ok:
-                self._failed(f"track to the target not confirmed: {result.detail}", now)
+            if not result.ok or self._superseded(mission) or self._target != target_index:
                 return
             self._target_tracked = True
-            if self.phase == Phase.COMMITTED:
-                self.phase = Phase.FLYING
-                self.status(f"mission {mission}: flying to target {report.target}", now)
+            if self._observe(Observation.TRACK_ECHOED):
+                self.status(f"mission {mission}: flying to target {target_index}", now)
 
-        self.commands.submit(waypoint, now, track_target)
+        self.commands.submit(waypoint, now, track_target, persistent=True)
+
+    def _still_committed(self, mission: int, target_index: int) -> bool:
+        return (
+            not self._superseded(mission)
+            and self._target == target_index
+            and self.phase == Phase.COMMITTED
+        )
 
     def _superseded(self, mission: int) -> bool:
         """A command's answer arrived after its mission was replaced or aborted."""
         return self.round is None or self.round.mission != mission or mission in self._aborted
 
-    def _failed(self, why: str, now: float) -> None:
-        self.phase = Phase.FAILED
-        self.reason = why
+    def _failed(self, why: str, now: float, cause: Phase = Phase.FAILED) -> None:
+        """This UAV cannot fly its target: say so, resume course, and release the target."""
+        self.commands.cancel_all(why)
+        self._resume_course(now)
+        lost = cause == Phase.LINK_LOST
+        self._observe(Observation.LINK_LOST if lost else Observation.COMMAND_FAILED, why)
         mission = self.round.mission if self.round else "?"
-        self.status(f"error: mission {mission}: cannot fly the target: {why}", now)
+        self.status(f"error: mission {mission}: cannot fly target {self._target}: {why}", now)
+        self._publish_outcome(cause, why)
+        if self.round is not None and self.round.release((self.uav_id,)):
+            self._replan(now)
+
+    def _publish_outcome(self, phase: Phase, reason: str | None) -> None:
+        if self.round is None:
+            return
+        outcome = TargetOutcome(
+            mission=self.round.mission,
+            uav=self.uav_id,
+            target=self._target,
+            phase=phase,
+            reason=reason,
+        )
+        self.round.outcome = outcome
+        self.outputs.publish(keys.mission_outcome(outcome.mission, self.uav_id), outcome)
 
     def _resume_course(self, now: float) -> None:
         if self.original_waypoint is None or not self.enabled:
@@ -447,31 +655,20 @@ class OnboardCore:
         back = self.original_waypoint
 
         def done(result: CommandResult) -> None:
-            if not result.ok:
+            if not result.ok and result.detail != "superseded":
                 self.status(f"error: could not resume waypoint {back}: {result.detail}", now)
 
         self.commands.submit(Track(back), now, done)
 
     # ---- reporting -----------------------------------------------------------------
     def status(self, text: str, now: float) -> None:
-        self._last_status_at = now
+        """A status message: sent on change only (the periodic report is the state)."""
         self.last_status = text
         severity = Severity.of_text(text)
         (log.info if severity == Severity.INFO else log.warning)("%s", text)
         message = StatusText(text, severity)
         self.outputs.publish(keys.status(self.uav_id), message)
         self.outputs.send_ground(message)
-
-    def _summary(self) -> str:
-        parts = [f"module {'on' if self.enabled else 'off'}"]
-        if self.tracked_waypoint is not None:
-            parts.append(f"tracking waypoint {self.tracked_waypoint}")
-        if self.round is not None:
-            parts.append(f"mission {self.round.mission} {self.phase}")
-            report = self.round.committed
-            if report is not None and report.target is not None:
-                parts.append(f"target {report.target}")
-        return "; ".join(parts)
 
     def overall_phase(self, now: float) -> tuple[Phase, str | None]:
         """The phase the UAV shows: `off` and `link_lost` outrank the mission's phase."""
@@ -520,3 +717,8 @@ class OnboardCore:
         if self.round is None or self.round.mission != mission:
             return None
         return self.round.committed
+
+    def own_outcome(self, mission: int) -> TargetOutcome | None:
+        if self.round is None or self.round.mission != mission:
+            return None
+        return self.round.outcome

@@ -14,12 +14,16 @@ thesis                 here
 global output vars     ``result()`` (a `PlanResult`, handed out once)
 =====================  ======================================================
 
-None of these calls blocks on the solver. The model is built in the worker thread, so
-the constructor does not block either: right after construction (~0.1 s), or, with
-`build_at_start=False`, when `prepare(cruise_speed)` first names the speed the aircraft
-holds (the onboard process calls it on the first GPS telemetry), so the first mission
-does not rebuild it. Pyomo and HiGHS are imported there, in the worker thread, not
-when this module is: an onboard process comes up and joins the fleet without them.
+None of these calls blocks on the solver. `run()` while a run is under way supersedes
+it: the running solve stops at its next LP, its answer is dropped (it would be another
+mission's approach times), and the new request runs next.
+
+The model is built in the worker thread, so the constructor does not block either:
+right after construction (~0.1 s), or, with `build_at_start=False`, when
+`prepare(cruise_speed)` first names the speed the aircraft holds (the onboard process
+calls it on the first GPS telemetry), so the first mission does not rebuild it. Pyomo
+and HiGHS are imported there, in the worker thread, not when this module is: an onboard
+process comes up and joins the fleet without them.
 
 Every run ends with a time for every target. The model stops starting LPs once the
 request's budget has elapsed; targets it did not reach get the analytic Dubins time
@@ -164,7 +168,9 @@ class PlannerWorker:
         self._build_at_start = build_at_start
         self._lock = threading.Lock()
         self._wake = threading.Condition(self._lock)
-        self._cancel = threading.Event()
+        self._cancel = threading.Event()  #: closing: stop every run
+        #: Stops the current run: set by a newer request, and by closing.
+        self._supersede = threading.Event()
         self._pending: PlanRequest | None = None
         self._running = False
         self._closed = False
@@ -179,7 +185,7 @@ class PlannerWorker:
     # -- the thesis's interface -------------------------------------------------------
 
     def run(self, request: PlanRequest) -> bool:
-        """Start planning `request`; False (and nothing started) if a run is under way.
+        """Start planning `request` (True); a run under way is superseded by it.
 
         A result not yet taken with `result()` is discarded.
         """
@@ -187,7 +193,7 @@ class PlannerWorker:
             if self._closed:
                 raise RuntimeError("planner worker is closed")
             if self._running:
-                return False
+                self._supersede.set()
             self._running = True
             self._started = time.monotonic()
             self._finished = None
@@ -232,6 +238,7 @@ class PlannerWorker:
         with self._lock:
             self._closed = True
             self._cancel.set()
+            self._supersede.set()
             self._wake.notify()
         if threading.current_thread() is not self._thread:
             self._thread.join(_JOIN_TIMEOUT_S)
@@ -264,8 +271,12 @@ class PlannerWorker:
                         self._ensure_model()
                     continue
                 started = self._started if self._started is not None else time.monotonic()
+                if not self._closed:
+                    self._supersede.clear()
             result = self._plan(request, started)
             with self._lock:
+                if self._pending is not None:
+                    continue  # superseded while it ran: the newer request runs next
                 self._result = result
                 self._finished = time.monotonic()
                 self._running = False
@@ -308,7 +319,7 @@ class PlannerWorker:
                     request.velocity,
                     request.targets,
                     deadline=deadline,
-                    cancel=self._cancel,
+                    cancel=self._supersede,
                 )
         except Exception as exc:
             logger.exception("approach model failed; Dubins fallback for every target")
@@ -330,7 +341,8 @@ class PlannerWorker:
                     fallback_time(self._limits, request.position, request.velocity, target)
                 )
                 fallback.append(True)
-        if any(fallback) and error is None and not self._cancel.is_set():
+        stopped = self._cancel.is_set() or self._supersede.is_set()
+        if any(fallback) and error is None and not stopped:
             logger.info(
                 "planner: %d of %d targets used the Dubins fallback",
                 sum(fallback),

@@ -32,7 +32,9 @@ from fleet.mission.messages import (
     MissionTargets,
     OpmCommand,
     StatusText,
+    TargetOutcome,
     UavResult,
+    UavState,
 )
 from fleet.piccolo.stream_packet import ALL_GROUND_STATIONS
 from fleet.piccolo.telemetry import Telemetry
@@ -103,6 +105,8 @@ class _Outputs:
             self.dropped_results.add(message.mission)
             log.warning("test hook: first publication of %s dropped", key)
             return
+        if isinstance(message, UavState):
+            message = self.process.full_state(time.monotonic())
         if isinstance(message, Telemetry) and settings.telemetry_hz:
             now = time.monotonic()
             if now - self.last_telemetry_at < 1.0 / settings.telemetry_hz:
@@ -115,18 +119,16 @@ class _Outputs:
             data = encode_message(message, self.process.settings.uav_id, MISSION_MANAGER)
             self.process.link.send_payload(data, ALL_GROUND_STATIONS)
 
-    def fetch_results(self, mission: int) -> None:
+    def fetch_results(self, mission: int, uavs: tuple[int, ...]) -> None:
         """Ask for the missing results only, each from the teammate that owes it."""
-        core = self.process.core
-        node = self.process.node
-        if core.round is None or core.round.mission != mission:
-            node.fetch(keys.mission_results(mission), UavResult)
-            return
-        for uav in sorted(core.round.missing(core.alive) - {core.uav_id}):
-            node.fetch(keys.mission_result(mission, uav), UavResult)
+        for uav in uavs:
+            self.process.node.fetch(keys.mission_result(mission, uav), UavResult)
 
     def fetch_assignments(self, mission: int) -> None:
         self.process.node.fetch(keys.mission_assignments(mission), AssignmentReport)
+
+    def fetch_missions(self) -> None:
+        self.process.node.fetch(keys.ALL_MISSION_TARGETS, MissionTargets)
 
 
 class OnboardProcess:
@@ -181,7 +183,7 @@ class OnboardProcess:
         self.link.start()
         log.info("onboard module %d up", self.settings.uav_id)
         # Catch up with a mission in progress (late join or restart).
-        self.node.fetch(keys.ALL_MISSION_TARGETS, MissionTargets)
+        self.core.catch_up(time.monotonic())
         next_health = 0.0
         try:
             while not self.stop_requested.is_set():
@@ -222,7 +224,7 @@ class OnboardProcess:
 
     def _on_event(self, event: Event | None, now: float) -> None:
         if isinstance(event, PresenceEvent):
-            self.core.on_alive(event.uav, event.alive)
+            self.core.on_alive(event.uav, event.alive, now)
         elif isinstance(event, BusEvent):
             self._on_message(event.message, now, via_payload=False)
         elif event is not None:
@@ -239,7 +241,7 @@ class OnboardProcess:
             elif isinstance(message, Track):
                 self.core.on_track(message, now)
             elif isinstance(message, Waypoint):
-                self.core.on_waypoint(message)
+                self.core.on_waypoint(message, now)
             return
         if isinstance(event, PlanningEvent):
             envelope = event.envelope
@@ -265,6 +267,8 @@ class OnboardProcess:
             core.on_result(message, now)
         elif isinstance(message, AssignmentReport):
             core.on_assignment(message, now)
+        elif isinstance(message, TargetOutcome):
+            core.on_outcome(message, now)
         elif isinstance(message, MissionAbort):
             if via_payload:
                 self.node.publish(keys.mission_abort(message.mission), message)
@@ -275,12 +279,7 @@ class OnboardProcess:
     # ---- queries --------------------------------------------------------------------
     def _serve_queries(self, now: float) -> None:
         while (query := self.node.state_queries.try_recv()) is not None:
-            state = msgspec.structs.replace(
-                self.core.state(now),
-                link=self._link_health(now),
-                model_speed=self.planner.model_speed(),
-            )
-            query.reply(keys.state(self.settings.uav_id), state)
+            query.reply(keys.state(self.settings.uav_id), self.full_state(now))
             query.drop()
         while (query := self.node.command_queries.try_recv()) is not None:
             self._on_command_query(query, now)
@@ -288,6 +287,14 @@ class OnboardProcess:
             while (query := queryable.try_recv()) is not None:
                 self._on_mission_query(query)
                 query.drop()
+
+    def full_state(self, now: float) -> UavState:
+        """The module's state with the link's health and the model's speed."""
+        return msgspec.structs.replace(
+            self.core.state(now),
+            link=self._link_health(now),
+            model_speed=self.planner.model_speed(),
+        )
 
     def _link_health(self, now: float) -> LinkHealth:
         """The serial link's health, with the bus messages refused counted as drops too."""
@@ -320,7 +327,7 @@ class OnboardProcess:
         self.core.command_autopilot(command, now, done)
 
     def _on_mission_query(self, query: BusQuery) -> None:
-        """Serve the current mission's targets, our result and our assignment."""
+        """Serve the current mission's targets, our result, assignment and outcome."""
         targets = self.core.mission_targets()
         if targets is None:
             return
@@ -332,6 +339,7 @@ class OnboardProcess:
                 keys.mission_assignment(mission, self.settings.uav_id),
                 self.core.own_assignment(mission),
             ),
+            (keys.mission_outcome(mission, self.settings.uav_id), self.core.own_outcome(mission)),
         ]
         for key, message in answers:
             # Reply with the concrete key, or consolidation would merge the replies.

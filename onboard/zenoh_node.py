@@ -21,6 +21,7 @@ from fleet.mission.messages import (
     MissionAbort,
     MissionTargets,
     OpmCommand,
+    TargetOutcome,
     UavResult,
 )
 from fleet.transport.bus import Bus, BusSample, Declaration
@@ -55,6 +56,7 @@ def _mission_subscriptions() -> tuple[tuple[str, type[msgspec.Struct]], ...]:
         (keys.ALL_MISSION_RESULTS, UavResult),
         (keys.ALL_MISSION_ASSIGNMENTS, AssignmentReport),
         (keys.ALL_MISSION_ABORTS, MissionAbort),
+        (keys.ALL_MISSION_OUTCOMES, TargetOutcome),
     )
 
 
@@ -96,6 +98,7 @@ class ZenohNode:
                 keys.ALL_MISSION_TARGETS,
                 f"{keys.PREFIX}/mission/*/result/{self.uav_id}",
                 f"{keys.PREFIX}/mission/*/assignment/{self.uav_id}",
+                f"{keys.PREFIX}/mission/*/outcome/{self.uav_id}",
             )
         ]
 

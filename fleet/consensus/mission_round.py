@@ -6,21 +6,28 @@ The thesis assumed lossless links and every UAV in range. Here:
 * a UAV commits as soon as it holds the result of every live teammate, or at the
   mission's deadline with whatever it holds (missing results are fetched by query
   first, by the caller, every `FETCH_INTERVAL` seconds);
-* a committed assignment seen from a teammate is adopted as is: "first committed
-  wins" makes late joiners and restarted UAVs fall in line, and closes the window in
-  which two UAVs could decide on different inputs;
+* a committed assignment seen from a teammate is adopted as is, if it is not thinner
+  than what this UAV holds: it must have been computed from at least the results of
+  the live teammates this UAV holds (else this UAV commits its own and the digests
+  disagree, visibly). "First committed wins" makes late joiners and restarted UAVs
+  (which hold no result of their own yet) fall in line;
 * every commitment carries the digest of the exact results it used, so the ground can
-  confirm agreement or name who disagreed.
+  confirm agreement or name who disagreed;
+* after the commitment, team UAVs that drop out are *released* and their targets
+  re-planned (`fleet.consensus.replan`): each re-plan is a new epoch of the same
+  mission, published under the same key.
 
 Pure: no I/O, time comes in as `now`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from fleet.consensus.assignment import greedy_assign, results_digest
-from fleet.mission.messages import AssignmentReport, MissionTargets, UavResult
+from fleet.consensus.replan import missing_times, replan
+from fleet.mission.messages import AssignmentReport, MissionTargets, TargetOutcome, UavResult
 
 FETCH_INTERVAL = 1.0
 
@@ -31,8 +38,18 @@ class MissionRound:
     own_id: int
     started: float
     results: dict[int, UavResult] = field(default_factory=dict)
+    #: The assignment this UAV follows now: epoch 0, or the latest re-plan.
     committed: AssignmentReport | None = None
     last_fetch: float | None = None
+    #: The epoch-0 assignment every re-plan starts from; None when this UAV adopted a
+    #: re-plan without knowing epoch 0 (it then follows its teammates' epochs).
+    base: AssignmentReport | None = None
+    #: Team UAVs that dropped out of the mission after the commitment (only grows).
+    released: set[int] = field(default_factory=set)
+    #: Team UAVs that reported reaching their target: never released.
+    reached: set[int] = field(default_factory=set)
+    #: How this UAV's own part ended (reached), or why it dropped out; None before.
+    outcome: TargetOutcome | None = None
 
     @property
     def mission(self) -> int:
@@ -81,7 +98,7 @@ class MissionRound:
         outcome = greedy_assign(used, len(self.targets.targets))
         target = outcome.pairs.get(self.own_id)
         own_times = self.results[self.own_id].times
-        self.committed = AssignmentReport(
+        self.committed = self.base = AssignmentReport(
             mission=self.mission,
             uav=self.own_id,
             target=target,
@@ -93,13 +110,45 @@ class MissionRound:
         )
         return self.committed
 
-    def adopt(self, report: AssignmentReport) -> AssignmentReport | None:
-        """Take a teammate's committed assignment as ours; None if we committed already."""
+    def thinner(self, report: AssignmentReport, alive: set[int]) -> set[int]:
+        """Live UAVs whose results this UAV holds but `report` was computed without."""
+        if self.own_id not in self.results:
+            return set()  # a late joiner or a restarted UAV holds nothing to compare
+        # A result with no time at all (a UAV that declined) changes no pair.
+        held = {
+            uav
+            for uav, result in self.results.items()
+            if (uav in alive or uav == self.own_id) and any(t is not None for t in result.times)
+        }
+        return held - set(report.team)
+
+    def adopt(self, report: AssignmentReport, alive: set[int]) -> AssignmentReport | None:
+        """Take a teammate's committed assignment as ours; None if we committed already
+        or if the report is thinner than what we hold (`thinner`)."""
         if self.committed is not None or report.mission != self.mission:
             return None
+        if self.thinner(report, alive):
+            return None
+        self.committed = self._own_copy(report)
+        if report.epoch == 0:
+            self.base = self.committed
+        self.released |= set(report.released)
+        return self.committed
+
+    def follow(self, report: AssignmentReport) -> AssignmentReport | None:
+        """Without epoch 0, take a teammate's later epoch as ours (None if not later)."""
+        if self.base is not None or self.committed is None or report.mission != self.mission:
+            return None
+        if report.epoch <= self.committed.epoch:
+            return None
+        self.released |= set(report.released)
+        self.committed = self._own_copy(report)
+        return self.committed
+
+    def _own_copy(self, report: AssignmentReport) -> AssignmentReport:
         target = report.pairs.get(str(self.own_id))
         own = self.results.get(self.own_id)
-        self.committed = AssignmentReport(
+        return AssignmentReport(
             mission=self.mission,
             uav=self.own_id,
             target=target,
@@ -108,5 +157,46 @@ class MissionRound:
             team=report.team,
             digest=report.digest,
             eta_s=own.times[target] if own is not None and target is not None else None,
+            epoch=report.epoch,
+            released=report.released,
+        )
+
+    # ---- after the commitment ---------------------------------------------------------
+    def release(self, uavs: Iterable[int]) -> bool:
+        """Mark team UAVs as out of the mission; True if that changes the re-plan input."""
+        new = {uav for uav in uavs if uav in self.targets.team} - self.released - self.reached
+        self.released |= new
+        if self.base is None:
+            return False
+        return bool(new & set(self.base.team))
+
+    def replan_missing(self) -> tuple[int, ...]:
+        """Candidates whose results a re-plan needs and this UAV lacks."""
+        if self.base is None:
+            return ()
+        return missing_times(self.base, self._times(), self.released)
+
+    def replan(self) -> AssignmentReport | None:
+        """Commit the assignment for the current released set; None without epoch 0 or
+        while a candidate's results are missing (`replan_missing`)."""
+        if self.base is None or self.replan_missing():
+            return None
+        plan = replan(self.base, self._times(), self.released)
+        target = plan.pairs.get(self.own_id)
+        own = self.results.get(self.own_id)
+        self.committed = AssignmentReport(
+            mission=self.mission,
+            uav=self.own_id,
+            target=target,
+            pairs={str(uav): index for uav, index in plan.pairs.items()},
+            unassigned=plan.unassigned,
+            team=self.base.team,
+            digest=plan.digest,
+            eta_s=own.times[target] if own is not None and target is not None else None,
+            epoch=plan.epoch,
+            released=plan.released,
         )
         return self.committed
+
+    def _times(self) -> dict[int, tuple[float | None, ...]]:
+        return {uav: result.times for uav, result in self.results.items()}

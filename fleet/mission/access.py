@@ -88,6 +88,7 @@ def _uav_grants(uav_id: int) -> list[Grant]:
         keys.uav(uav_id, "**"),
         f"{keys.PREFIX}/mission/*/result/{uav_id}",
         f"{keys.PREFIX}/mission/*/assignment/{uav_id}",
+        f"{keys.PREFIX}/mission/*/outcome/{uav_id}",
     )
     ingress = (Flow.INGRESS,)
     return [
@@ -111,6 +112,7 @@ def _uav_grants(uav_id: int) -> list[Grant]:
                 keys.ALL_MISSION_TARGETS,
                 keys.ALL_MISSION_RESULTS,
                 keys.ALL_MISSION_ASSIGNMENTS,
+                keys.ALL_MISSION_OUTCOMES,
                 keys.ALL_STATE,
             ),
         ),

@@ -17,6 +17,7 @@ from fleet.mission.messages import (
     AssignmentReport,
     MissionAbort,
     MissionTargets,
+    TargetOutcome,
     UavResult,
     UavState,
 )
@@ -95,14 +96,17 @@ def _team(key: str, team: tuple[int, ...]) -> None:
 def check_key(key: str, message: object) -> None:
     """Raise WrongKey unless `message` may travel on `key`."""
     ids = parse_key(key)
-    if isinstance(message, UavResult | AssignmentReport | UavState):
+    if isinstance(message, UavResult | AssignmentReport | UavState | TargetOutcome):
         _same(key, "UAV", ids.uav, message.uav)
-    if isinstance(message, MissionTargets | MissionAbort | UavResult | AssignmentReport):
+    if isinstance(
+        message, MissionTargets | MissionAbort | UavResult | AssignmentReport | TargetOutcome
+    ):
         _same(key, "mission", ids.mission, message.mission)
     if isinstance(message, MissionTargets):
         _team(key, message.team)
     if isinstance(message, AssignmentReport):
         _team(key, message.team)
+        _team(key, message.released)
         indices = [*message.pairs.values(), *message.unassigned]
         if message.target is not None:
             indices.append(message.target)

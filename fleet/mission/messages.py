@@ -142,6 +142,26 @@ class AssignmentReport(msgspec.Struct, frozen=True):
     team: Team  #: the UAVs whose results were used
     digest: str
     eta_s: float | None = None
+    #: 0 for the consensus; after a re-plan (fleet.consensus.replan), the number of team
+    #: UAVs released from the mission, listed in `released`.
+    epoch: Annotated[int, Meta(ge=0, le=MAX_TEAM)] = 0
+    released: Team = ()
+
+
+class TargetOutcome(msgspec.Struct, frozen=True):
+    """How a UAV's part in a mission ended, or why it dropped out of it.
+
+    `phase` is `reached` (telemetry put it inside the acceptance radius of `target`),
+    `failed` (it cannot fly `target`: `reason`) or `link_lost` (its autopilot went
+    silent). A UAV that published `failed` or `link_lost` is released from the mission:
+    its teammates re-plan its target (fleet.consensus.replan).
+    """
+
+    mission: MissionId
+    uav: PiccoloId
+    target: TargetIndex | None
+    phase: Phase
+    reason: str | None = None
 
 
 class MissionProgress(msgspec.Struct, frozen=True):

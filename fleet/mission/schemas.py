@@ -24,6 +24,7 @@ from fleet.mission.messages import (
     MissionTargets,
     OpmCommand,
     StatusText,
+    TargetOutcome,
     UavResult,
     UavState,
 )
@@ -48,6 +49,7 @@ MESSAGES: dict[str, tuple[type[msgspec.Struct], tuple[str, ...]]] = {
     "uav_result": (UavResult, ("fleet/mission/{m}/result/{id}",)),
     "assignment_report": (AssignmentReport, ("fleet/mission/{m}/assignment/{id}",)),
     "mission_abort": (MissionAbort, ("fleet/mission/{m}/abort",)),
+    "target_outcome": (TargetOutcome, ("fleet/mission/{m}/outcome/{id}",)),
 }
 
 #: Where the schemas go by default, relative to the current directory.

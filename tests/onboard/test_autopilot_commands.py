@@ -20,7 +20,7 @@ def test_an_echo_confirms_and_nothing_is_resent() -> None:
     commands, sent, results = tracker()
     commands.submit(WAYPOINT, 0.0, results.append)
     assert sent == [WAYPOINT] and commands.pending == 1
-    commands.on_echo(WAYPOINT)
+    commands.on_echo(WAYPOINT, 0.1)
     assert results == [CommandResult(True, "confirmed by the autopilot", 1)]
     commands.tick(10.0)
     assert sent == [WAYPOINT] and commands.pending == 0
@@ -42,8 +42,8 @@ def test_no_echo_is_retried_then_reported_failed() -> None:
 def test_an_echo_of_something_else_does_not_confirm() -> None:
     commands, _, results = tracker()
     commands.submit(WAYPOINT, 0.0, results.append)
-    commands.on_echo(Track(90))
-    commands.on_echo(Waypoint(index=90, next_index=0, lat=35.73, lon=-120.76, alt=600.0))
+    commands.on_echo(Track(90), 0.1)
+    commands.on_echo(Waypoint(index=90, next_index=0, lat=35.73, lon=-120.76, alt=600.0), 0.1)
     assert not results and commands.pending == 1
 
 
@@ -60,7 +60,7 @@ def test_a_newer_command_for_the_same_target_supersedes() -> None:
     commands.submit(Track(1), 0.0, first.append)
     commands.submit(Track(2), 0.1, results.append)
     assert first == [CommandResult(False, "superseded", 1)]
-    commands.on_echo(Track(2))
+    commands.on_echo(Track(2), 0.1)
     assert results[0].ok and commands.pending == 0
 
 

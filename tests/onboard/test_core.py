@@ -18,6 +18,7 @@ from fleet.mission.messages import (
     OpmCommand,
     StatusText,
     Target,
+    TargetOutcome,
     UavResult,
 )
 from fleet.mission.phase import Phase, Severity
@@ -25,7 +26,7 @@ from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from onboard.autopilot_commands import AutopilotCommand
-from onboard.core import LINK_LOST_S, TARGET_WAYPOINT, OnboardCore
+from onboard.core import CONFIRM_LIMIT_S, LINK_LOST_S, TARGET_WAYPOINT, OnboardCore
 from onboard.planner_worker import PlanRequest, PlanResult
 from tests.link_samples import sample_telemetry
 
@@ -39,6 +40,7 @@ class Recorder:
     ground: list[msgspec.Struct] = field(default_factory=list)
     fetches: list[int] = field(default_factory=list)
     assignment_fetches: list[int] = field(default_factory=list)
+    mission_fetches: int = 0
 
     def send_autopilot(self, command: AutopilotCommand) -> None:
         self.autopilot.append(command)
@@ -49,11 +51,14 @@ class Recorder:
     def send_ground(self, message: StatusText | UavResult) -> None:
         self.ground.append(message)
 
-    def fetch_results(self, mission: int) -> None:
+    def fetch_results(self, mission: int, uavs: tuple[int, ...]) -> None:
         self.fetches.append(mission)
 
     def fetch_assignments(self, mission: int) -> None:
         self.assignment_fetches.append(mission)
+
+    def fetch_missions(self) -> None:
+        self.mission_fetches += 1
 
     def statuses(self) -> list[str]:
         return [m.text for _, m in self.published if isinstance(m, StatusText)]
@@ -109,7 +114,7 @@ def test_single_uav_flies_to_the_fastest_target_then_resumes() -> None:
     assert (waypoint.index, waypoint.next_index) == (TARGET_WAYPOINT, 2)
     assert (waypoint.lat, waypoint.lon) == (TARGETS[1].lat, TARGETS[1].lon)
     assert core.state(1.5).phase == Phase.COMMITTED  # nothing echoed yet
-    core.on_waypoint(waypoint)  # the autopilot's echo
+    core.on_waypoint(waypoint, 1.5)  # the autopilot's echo
     assert out.autopilot[-1] == Track(TARGET_WAYPOINT)
     core.on_track(Track(TARGET_WAYPOINT), 2.0)
     assert core.state(2.0).phase == Phase.FLYING
@@ -133,7 +138,7 @@ def fly_target_1(core: OnboardCore, out: Recorder) -> None:
     core.tick(1.1)
     (waypoint,) = out.autopilot
     assert isinstance(waypoint, Waypoint)
-    core.on_waypoint(waypoint)
+    core.on_waypoint(waypoint, 1.5)
     core.on_track(Track(TARGET_WAYPOINT), 2.0)
 
 
@@ -159,7 +164,7 @@ def test_a_stale_resume_echo_before_the_track_echo_is_not_an_arrival() -> None:
 
 def test_abort_while_waiting_for_a_teammate_is_final() -> None:
     core, out = make_core()
-    core.on_alive(74, True)
+    core.on_alive(74, True, 0.0)
     core.on_targets(MissionTargets(mission=1, team=(74, 112), targets=TARGETS), 1.0)
     core.tick(1.1)  # own result out; waiting for 74
     core.on_abort(MissionAbort(1), 2.0)
@@ -192,13 +197,52 @@ def test_status_messages_carry_their_severity() -> None:
     assert Severity.ERROR in severities.values()
 
 
-def test_unconfirmed_waypoint_is_retried_then_reported_failed() -> None:
+def run_with_telemetry(core: OnboardCore, start: float, end: float, step: float = 0.25) -> float:
+    """Tick the module from `start` to `end` with telemetry flowing; returns the end time."""
+    now = start
+    while now < end:
+        now += step
+        core.on_telemetry(sample_telemetry(), now)
+        core.tick(now)
+    return now
+
+
+def test_an_unechoed_target_is_retried_until_the_limit_then_failed_and_released() -> None:
     core, out = make_core()
     core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 0.0)
-    for step in range(1, 40):
+    now = run_with_telemetry(core, 0.0, 10.0)
+    assert core.state(now).phase == Phase.COMMITTED  # still retrying, not failed
+    assert len([c for c in out.autopilot if isinstance(c, Waypoint)]) > 4
+    now = run_with_telemetry(core, now, CONFIRM_LIMIT_S + 1.0)
+    state = core.state(now)
+    assert state.phase == Phase.FAILED
+    assert state.reason is not None and "not echoed" in state.reason
+    (outcome,) = out.on(keys.mission_outcome(1, 112))
+    assert outcome == TargetOutcome(1, 112, 1, Phase.FAILED, state.reason)
+    assert any(s.startswith("error: mission 1: cannot fly target 1") for s in out.statuses())
+
+
+def test_a_late_echo_is_not_a_failure() -> None:
+    core, out = make_core()
+    core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 0.0)
+    now = run_with_telemetry(core, 0.0, 8.0)  # no echo for 8 s: four times the old limit
+    core.on_waypoint(out.autopilot[0], now)  # type: ignore[arg-type]
+    core.on_track(Track(TARGET_WAYPOINT), now + 0.1)
+    assert core.state(now + 0.1).phase == Phase.FLYING
+
+
+def test_writes_are_retried_across_a_link_outage() -> None:
+    core, out = make_core()
+    core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 0.0)
+    for step in range(1, 40):  # 10 s without telemetry: the link is lost
         core.tick(step * 0.25)
-    assert len([c for c in out.autopilot if isinstance(c, Waypoint)]) == 4
-    assert any("target waypoint not stored" in s for s in out.statuses())
+    assert core.state(10.0).phase == Phase.LINK_LOST
+    sent_during_outage = len(out.autopilot)
+    now = run_with_telemetry(core, 10.0, 11.0)  # the link is back
+    assert len(out.autopilot) > sent_during_outage
+    core.on_waypoint(out.autopilot[0], now)  # type: ignore[arg-type]
+    core.on_track(Track(TARGET_WAYPOINT), now)
+    assert core.state(now).phase == Phase.FLYING
 
 
 def test_module_off_never_writes_to_the_autopilot() -> None:
@@ -229,7 +273,7 @@ def test_malformed_targets_are_refused_without_disturbing_the_mission() -> None:
 
 def test_team_waits_for_the_teammate_then_both_agree() -> None:
     core, out = make_core(112, (80.0, 40.0, 60.0))
-    core.on_alive(74, True)
+    core.on_alive(74, True, 0.0)
     mission = MissionTargets(mission=5, team=(74, 112), targets=TARGETS, deadline_s=10.0)
     core.on_targets(mission, 0.0)
     core.tick(0.1)
@@ -245,13 +289,13 @@ def test_team_waits_for_the_teammate_then_both_agree() -> None:
 
 def test_dead_teammate_is_left_out_and_deadline_commits() -> None:
     core, out = make_core(112)
-    core.on_alive(74, True)
-    core.on_alive(75, True)
+    core.on_alive(74, True, 0.0)
+    core.on_alive(75, True, 0.0)
     mission = MissionTargets(mission=6, team=(74, 75, 112), targets=TARGETS, deadline_s=5.0)
     core.on_targets(mission, 0.0)
     core.on_result(UavResult(6, 74, (10.0, 10.0, 10.0)), 0.5)
     core.tick(1.0)
-    core.on_alive(75, False)  # killed
+    core.on_alive(75, False, 0.0)  # killed
     core.tick(1.1)
     (report,) = out.on(keys.mission_assignment(6, 112))
     assert isinstance(report, AssignmentReport) and report.team == (74, 112)
@@ -259,7 +303,7 @@ def test_dead_teammate_is_left_out_and_deadline_commits() -> None:
 
 def test_silent_teammate_is_dropped_at_the_deadline() -> None:
     core, out = make_core(112)
-    core.on_alive(74, True)
+    core.on_alive(74, True, 0.0)
     core.on_targets(MissionTargets(mission=7, team=(74, 112), targets=TARGETS, deadline_s=3.0), 0.0)
     core.tick(2.9)
     assert out.on(keys.mission_assignment(7, 112)) == []
@@ -297,7 +341,7 @@ def test_abort_returns_to_the_original_course() -> None:
     core, out = make_core()
     core.on_targets(MissionTargets(mission=11, team=(112,), targets=TARGETS), 0.0)
     core.tick(0.1)
-    core.on_waypoint(out.autopilot[0])  # type: ignore[arg-type]
+    core.on_waypoint(out.autopilot[0], 1.5)  # type: ignore[arg-type]
     core.on_track(Track(TARGET_WAYPOINT), 0.2)
     core.on_abort(MissionAbort(11), 0.3)
     assert out.autopilot[-1] == Track(2)
@@ -312,3 +356,137 @@ def test_an_abort_for_one_uav_leaves_its_teammates_flying() -> None:
     assert core.state(3.0).phase == Phase.FLYING
     core.on_abort(MissionAbort(1, uav=112), 4.0)
     assert core.state(4.0).phase == Phase.ABORTED
+
+
+# ---- re-planning, thin commitments, operator commands, quick succession -------------
+TWO_TARGETS = TARGETS[:2]
+
+
+def commit_three_uav_team(core: OnboardCore) -> None:
+    """UAV 200 (this core) in a team with 74 and 112, 2 targets: 200 is left idle."""
+    for uav in (74, 112):
+        core.on_alive(uav, True, 0.0)
+    mission = MissionTargets(mission=3, team=(74, 112, 200), targets=TWO_TARGETS)
+    core.on_targets(mission, 0.0)
+    core.on_result(UavResult(3, 74, (10.0, 50.0)), 0.1)
+    core.on_result(UavResult(3, 112, (40.0, 20.0)), 0.1)
+    core.tick(0.2)
+
+
+def test_an_idle_uav_flies_the_target_of_a_holder_lost_after_the_commitment() -> None:
+    core, out = make_core(200, (30.0, 35.0))
+    commit_three_uav_team(core)
+    (first,) = out.on(keys.mission_assignment(3, 200))
+    assert isinstance(first, AssignmentReport) and first.target is None and first.epoch == 0
+    assert core.state(0.2).phase == Phase.IDLE
+    core.on_telemetry(sample_telemetry(), 5.0)
+    core.on_alive(112, False, 5.0)  # the holder of target 1 is killed
+    second = out.on(keys.mission_assignment(3, 200))[-1]
+    assert isinstance(second, AssignmentReport)
+    assert (second.target, second.epoch, second.released) == (1, 1, (112,))
+    assert second.pairs == {"74": 0, "200": 1}
+    assert core.state(5.0).phase == Phase.COMMITTED
+    (waypoint,) = [c for c in out.autopilot if isinstance(c, Waypoint)]
+    assert (waypoint.lat, waypoint.lon) == (TWO_TARGETS[1].lat, TWO_TARGETS[1].lon)
+
+
+def test_a_teammates_failure_outcome_releases_it_and_a_reached_one_does_not() -> None:
+    core, out = make_core(200, (30.0, 35.0))
+    commit_three_uav_team(core)
+    core.on_outcome(TargetOutcome(3, 74, 0, Phase.REACHED), 4.0)
+    core.on_alive(74, False, 5.0)  # gone after reaching: nothing orphaned
+    assert out.on(keys.mission_assignment(3, 200))[-1].epoch == 0  # type: ignore[attr-defined]
+    core.on_telemetry(sample_telemetry(), 6.0)
+    core.on_outcome(TargetOutcome(3, 112, 1, Phase.FAILED, "waypoint not echoed"), 6.0)
+    report = out.on(keys.mission_assignment(3, 200))[-1]
+    assert isinstance(report, AssignmentReport) and report.target == 1
+    assert report.released == (112,)
+
+
+def test_an_orphan_handed_to_a_uav_without_autopilot_link_is_released_again() -> None:
+    core, out = make_core(200, (30.0, 35.0))
+    commit_three_uav_team(core)
+    core.on_alive(112, False, LINK_LOST_S + 1.0)  # no telemetry since t=0
+    report = out.on(keys.mission_assignment(3, 200))[-1]
+    assert isinstance(report, AssignmentReport)
+    assert (report.epoch, report.released, report.target) == (2, (112, 200), None)
+    (outcome,) = out.on(keys.mission_outcome(3, 200))
+    assert isinstance(outcome, TargetOutcome) and outcome.phase == Phase.FAILED
+
+
+def test_a_teammates_later_epoch_is_merged_and_re_planned_identically() -> None:
+    core, out = make_core(200, (30.0, 35.0))
+    commit_three_uav_team(core)
+    theirs = AssignmentReport(
+        3, 74, 0, {"74": 0, "200": 1}, (), (74, 112, 200), "x", epoch=1, released=(112,)
+    )
+    core.on_telemetry(sample_telemetry(), 5.0)
+    core.on_assignment(theirs, 5.0)
+    report = out.on(keys.mission_assignment(3, 200))[-1]
+    assert isinstance(report, AssignmentReport)
+    assert (report.epoch, report.released, report.target) == (1, (112,), 1)
+
+
+def test_a_thinner_commitment_is_not_adopted() -> None:
+    core, out = make_core(200, (30.0, 35.0))
+    for uav in (74, 112):
+        core.on_alive(uav, True, 0.0)
+    core.on_targets(MissionTargets(mission=4, team=(74, 112, 200), targets=TWO_TARGETS), 0.0)
+    core.on_result(UavResult(4, 112, (40.0, 20.0)), 0.1)
+    core.tick(0.2)  # own result out; 74's missing
+    thin = AssignmentReport(4, 74, 0, {"74": 0}, (1,), (74,), "thin")
+    core.on_assignment(thin, 0.3)  # 74 committed on its own result alone
+    assert out.on(keys.mission_assignment(4, 200)) == []
+    core.on_result(UavResult(4, 74, (10.0, 50.0)), 0.4)
+    core.tick(0.5)
+    (own,) = out.on(keys.mission_assignment(4, 200))
+    assert isinstance(own, AssignmentReport) and own.team == (74, 112, 200)
+    assert own.digest != "thin"  # the disagreement is visible to the ground
+
+
+def test_an_operator_track_command_preempts_the_target_at_once() -> None:
+    core, out = make_core()
+    fly_target_1(core, out)
+    answers: list[object] = []
+    core.command_autopilot(Track(5), 3.0, answers.append)
+    state = core.state(3.0)
+    assert state.phase == Phase.PREEMPTED
+    assert state.reason is not None and "track to waypoint 5" in state.reason
+    assert out.autopilot[-1] == Track(5)
+
+
+@dataclass
+class HeldPlanner:
+    """Answers only when told to: the test picks which request's answer arrives."""
+
+    requests: list[PlanRequest] = field(default_factory=list)
+    ready: PlanResult | None = None
+
+    def run(self, request: PlanRequest) -> bool:
+        self.requests.append(request)
+        return True
+
+    def answer(self, request: PlanRequest, times: tuple[float, ...]) -> None:
+        self.ready = PlanResult(request, times, (False,) * len(times), 0.01)
+
+    def result(self) -> PlanResult | None:
+        done, self.ready = self.ready, None
+        return done
+
+
+def test_a_stale_plan_is_never_used_for_the_next_mission() -> None:
+    planner = HeldPlanner()
+    out = Recorder()
+    core = OnboardCore(uav_id=112, outputs=out, planner=planner)
+    core.on_telemetry(sample_telemetry(), 0.0)
+    core.on_targets(MissionTargets(mission=1, team=(112,), targets=TWO_TARGETS), 0.0)
+    core.on_targets(MissionTargets(mission=2, team=(112,), targets=TWO_TARGETS), 0.05)
+    first, second = planner.requests
+    planner.answer(first, (1.0, 2.0))  # mission 1's answer, same target count
+    core.tick(0.1)
+    assert out.on(keys.mission_result(2, 112)) == []
+    planner.answer(second, (7.0, 8.0))
+    core.tick(0.2)
+    assert out.on(keys.mission_result(2, 112)) == [
+        UavResult(2, 112, (7.0, 8.0), model_times=2, fallback_times=0)
+    ]

@@ -109,7 +109,6 @@ def test_run_does_not_block_and_reports_progress(
     assert worker.run(request())  # returns while the model is held at the gate
     assert worker.is_running()
     assert worker.result() is None
-    assert not worker.run(request())  # already running: refused
     first = worker.elapsed()
     assert first > 0.0
     wait_for_clock_past(time.monotonic())
@@ -126,6 +125,21 @@ def test_run_does_not_block_and_reports_progress(
     assert worker.elapsed() == done  # frozen once finished, though the clock moved on
     assert worker.run(request())  # free again
     wait_result(worker)
+
+
+def test_a_newer_request_supersedes_the_run_under_way(
+    make_worker: Callable[..., PlannerWorker],
+) -> None:
+    gate = threading.Event()
+    worker = make_worker(lambda: GatedModel(gate))
+    old = request()
+    assert worker.run(old)  # held at the gate until cancelled
+    newer = PlanRequest((0.0, 0.0), (V, 0.0), TARGETS[:2], budget_s=10.0)
+    assert worker.run(newer)  # the old run stops at once; its answer is dropped
+    gate.set()
+    result = wait_result(worker)
+    assert result.request is newer and result.times == (10.0, 10.0)
+    assert worker.result() is None  # only the newer request's answer is handed out
 
 
 def test_real_model_matches_direct_solve(make_worker: Callable[..., PlannerWorker]) -> None:
