@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import random
+import signal
 import time
 from collections.abc import Iterable
 from pathlib import Path
@@ -21,6 +22,8 @@ from tests.processes import Fleet, SimEndpoints, wait_until
 #: The killed-UAV mission's deadline: long, so that committing early is clearly the
 #: liveliness exclusion and not the deadline.
 KILLED_DEADLINE_S = 30.0
+#: How long a UAV stays frozen (SIGSTOP) while the mission is sent: past Zenoh's lease.
+FROZEN_S = 15.0
 
 
 def ring_targets(count: int, seed: int) -> tuple[Target, ...]:
@@ -208,3 +211,29 @@ def test_late_joiner_catches_up_with_the_current_mission(
     assert late.mission == 1
     assert late.digest == seen.assignments[team[0]].digest
     assert late.target is None  # the others had committed without it
+
+
+def test_a_uav_frozen_while_the_mission_was_sent_falls_in_line_when_it_resumes(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    seen = ground.seen
+    team = start_ring(fleet, ground, tmp_path, 3)
+    frozen = fleet.children[-1]
+    assert frozen.name == f"onboard {team[-1]}"
+    frozen.process.send_signal(signal.SIGSTOP)  # the fault: frozen before the mission
+    try:
+        mission = MissionTargets(
+            mission=1, team=tuple(team), targets=ring_targets(3, seed=11), deadline_s=5.0
+        )
+        ground.send(mission)
+        awake = set(team[:-1])
+        wait_until(lambda: awake <= set(seen.assignments), 60.0, "the others' commitments")
+        time.sleep(FROZEN_S - 5.0)  # it stays frozen past Zenoh's lease
+    finally:
+        frozen.process.send_signal(signal.SIGCONT)
+    wait_until(lambda: team[-1] in seen.assignments, 60.0, "the resumed UAV's commitment")
+    resumed = seen.assignments[team[-1]]
+    reference = seen.assignments[team[0]]
+    assert resumed.mission == 1
+    assert (resumed.digest, resumed.pairs) == (reference.digest, reference.pairs)
+    assert resumed.target == reference.pairs.get(str(team[-1]))
