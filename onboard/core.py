@@ -337,9 +337,9 @@ class OnboardCore:
 
     def _adopt(self, report: AssignmentReport, now: float) -> None:
         assert self.round is not None
-        adopted = self.round.adopt(report, self.alive)
+        adopted = self.round.adopt(report, self.alive, now)
         if adopted is None:
-            unused = sorted(self.round.thinner(report, self.alive))
+            unused = sorted(self.round.thinner(report, self.alive, now))
             log.info(
                 "mission %d: UAV %d's assignment not adopted: it was computed without the "
                 "results of %s, which this UAV holds",

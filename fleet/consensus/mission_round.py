@@ -10,7 +10,7 @@ The thesis assumed lossless links and every UAV in range. Here:
   than what this UAV holds: it must have been computed from at least the results of
   the live teammates this UAV holds (else this UAV commits its own and the digests
   disagree, visibly). "First committed wins" makes late joiners and restarted UAVs
-  (which hold no result of their own yet) fall in line;
+  (which hold no result yet) fall in line;
 * every commitment carries the digest of the exact results it used, so the ground can
   confirm agreement or name who disagreed;
 * after the commitment, team UAVs that drop out are *released* and their targets
@@ -30,6 +30,9 @@ from fleet.consensus.replan import missing_times, replan
 from fleet.mission.messages import AssignmentReport, MissionTargets, TargetOutcome, UavResult
 
 FETCH_INTERVAL = 1.0
+#: A teammate's assignment that arrives this soon (s) after this UAV started the round
+#: was committed before it joined: adopted even without this UAV's result in it.
+JOIN_GRACE_S = 1.0
 
 
 @dataclass
@@ -110,24 +113,33 @@ class MissionRound:
         )
         return self.committed
 
-    def thinner(self, report: AssignmentReport, alive: set[int]) -> set[int]:
-        """Live UAVs whose results this UAV holds but `report` was computed without."""
-        if self.own_id not in self.results:
-            return set()  # a late joiner or a restarted UAV holds nothing to compare
+    def thinner(self, report: AssignmentReport, alive: set[int], now: float) -> set[int]:
+        """Live UAVs whose results this UAV holds, or is computing, but `report` was
+        computed without.
+
+        Its own result counts while it is still being computed, once the round is older
+        than JOIN_GRACE_S: a report that arrives within that grace was committed before
+        this UAV even started (a late joiner, a restart, a UAV back from a freeze, all of
+        which fetch the assignments at once), and is adopted.
+        """
         # A result with no time at all (a UAV that declined) changes no pair.
         held = {
             uav
             for uav, result in self.results.items()
             if (uav in alive or uav == self.own_id) and any(t is not None for t in result.times)
         }
+        if self.own_id not in self.results and now - self.started > JOIN_GRACE_S:
+            held.add(self.own_id)
         return held - set(report.team)
 
-    def adopt(self, report: AssignmentReport, alive: set[int]) -> AssignmentReport | None:
+    def adopt(
+        self, report: AssignmentReport, alive: set[int], now: float
+    ) -> AssignmentReport | None:
         """Take a teammate's committed assignment as ours; None if we committed already
         or if the report is thinner than what we hold (`thinner`)."""
         if self.committed is not None or report.mission != self.mission:
             return None
-        if self.thinner(report, alive):
+        if self.thinner(report, alive, now):
             return None
         self.committed = self._own_copy(report)
         if report.epoch == 0:

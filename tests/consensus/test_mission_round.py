@@ -94,7 +94,7 @@ def test_decide_runs_the_greedy_on_the_live_results_and_commits() -> None:
     # Committed: never ready or fetching again, and a teammate's report is not adopted.
     assert not mission_round.ready(now=1e9, alive=ALL)
     assert not mission_round.should_fetch(now=1e9, alive=ALL)
-    assert mission_round.adopt(report, ALL) is None
+    assert mission_round.adopt(report, ALL, 0.1) is None
 
 
 def test_an_idle_uav_commits_to_no_target() -> None:
@@ -114,7 +114,7 @@ def test_adopting_a_teammates_commitment_takes_its_pairs_and_own_eta() -> None:
 
     late = round_of(112)
     late.add_result(result(112))
-    adopted = late.adopt(theirs, ALL)
+    adopted = late.adopt(theirs, ALL, 0.1)
     assert adopted is not None
     assert late.committed == adopted
     assert adopted.uav == 112
@@ -131,7 +131,7 @@ def test_adopting_without_its_own_result_has_no_eta() -> None:
     deciding = round_of(74)
     for uav in ALL:
         deciding.add_result(result(uav))
-    adopted = round_of(112).adopt(deciding.decide(alive=ALL), ALL)
+    adopted = round_of(112).adopt(deciding.decide(alive=ALL), ALL, 0.1)
     assert adopted is not None
     assert adopted.target == 1
     assert adopted.eta_s is None
@@ -146,5 +146,27 @@ def test_a_commitment_for_another_mission_is_not_adopted() -> None:
     for uav in ALL:
         other.add_result(result(uav, mission=8))
     mission_round = round_of(112)
-    assert mission_round.adopt(other.decide(alive=ALL), ALL) is None
+    assert mission_round.adopt(other.decide(alive=ALL), ALL, 0.1) is None
     assert mission_round.committed is None
+
+
+def test_a_thin_commitment_is_refused_while_this_uav_still_computes() -> None:
+    alone = round_of(74)
+    alone.add_result(result(74))
+    thin = alone.decide(alive=ALL)  # 74 committed on its own result alone
+    computing = round_of(112, started=0.0)
+    computing.add_result(result(74))  # holds nothing 74 did not use...
+    assert computing.adopt(thin, ALL, now=5.0) is None  # ...but computes its own
+    assert computing.thinner(thin, ALL, now=5.0) == {112}
+    joining = round_of(200, started=0.0)
+    assert joining.adopt(thin, ALL, now=0.05) is not None  # committed before it joined
+
+
+def test_a_commitment_without_a_held_teammate_result_is_refused() -> None:
+    alone = round_of(74)
+    alone.add_result(result(74))
+    thin = alone.decide(alive=ALL)
+    holding = round_of(112, started=0.0)
+    holding.add_result(result(200))
+    assert holding.thinner(thin, ALL, now=0.05) == {200}
+    assert holding.adopt(thin, ALL, now=0.05) is None

@@ -119,3 +119,39 @@ def test_a_dead_autopilot_link_is_link_lost_and_the_mission_is_not_reported_agre
     assert report["agreed"] is False
     assert {s["state"] for s in report["target_states"]} == {"unserved"}
     assert status == 1, err
+
+
+def test_a_commitment_thinner_than_what_the_teammates_hold_is_not_adopted(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    endpoints = ring_sim(fleet, tmp_path, 3)
+    start_onboard(fleet, endpoints, ground.router)
+    team = sorted(endpoints)
+    first, *slow = team
+    wait_for_telemetry(ground, team)
+    seen = ground.seen
+    path = targets_file(tmp_path, ring_targets(100, seed=12))  # a long solve
+    send = ground_cli(
+        ground.router, "send-targets", str(path), "--wait", "--json",
+        "--team", ",".join(map(str, team)), "--deadline", "3", "--timeout", "90",
+    )  # fmt: skip
+    stopped = [c for c in fleet.children if c.name in {f"onboard {uav}" for uav in slow}]
+
+    def computing(uav: int) -> bool:
+        return any("computing approach times" in s for s in seen.statuses(uav))
+
+    wait_until(lambda: all(computing(uav) for uav in slow), 30.0, "the slow UAVs computing")
+    for child in stopped:  # the fault: their solves outrun the deadline
+        child.process.send_signal(signal.SIGSTOP)
+    try:
+        wait_until(lambda: first in seen.assignments, 30.0, f"UAV {first} committing alone")
+    finally:
+        for child in stopped:
+            child.process.send_signal(signal.SIGCONT)
+    assert seen.assignments[first].team == (first,)  # a one-UAV assignment
+    status, out, err = finish(send, 120)
+    report = json.loads(out)
+    for uav in slow:  # neither took it as its own: each committed on what it held
+        assert seen.assignments[uav].team != (first,), f"UAV {uav} adopted a thin commitment"
+    assert report["agreed"] is False and report["disagreed"], err  # visibly
+    assert status == 1, err
