@@ -12,7 +12,13 @@ import sys
 import time
 from pathlib import Path
 
-from fleet.mission.messages import Target
+import msgspec
+
+from fleet.launch.launcher import ring_scenario
+from fleet.mission import keys
+from fleet.mission.messages import CommandResult, Target
+from fleet.piccolo.track import Track
+from fleet.transport.bus_codec import encode
 from fleet.transport.targets_io import write_targets
 from tests.conftest import Ground
 from tests.onboard.test_multi_uav import ring_sim, ring_targets, start_onboard, wait_for_telemetry
@@ -155,3 +161,31 @@ def test_a_commitment_thinner_than_what_the_teammates_hold_is_not_adopted(
         assert seen.assignments[uav].team != (first,), f"UAV {uav} adopted a thin commitment"
     assert report["agreed"] is False and report["disagreed"], err  # visibly
     assert status == 1, err
+
+
+def test_an_operator_retasking_a_uav_in_flight_is_preempted_not_reached_and_abortable(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    scenario = tmp_path / "ring.toml"
+    scenario.write_text(ring_scenario(1))
+    endpoints = fleet.sim(str(scenario), 2.0, 5.0)
+    start_onboard(fleet, endpoints, ground.router)
+    (uav,) = endpoints
+    wait_for_telemetry(ground, [uav])
+    seen = ground.seen
+    path = targets_file(tmp_path, ring_targets(1, seed=4))
+    assert finish(ground_cli(ground.router, "send-targets", str(path)), 60)[0] == 0
+    wait_until(lambda: any("flying to target 0" in s for s in seen.statuses(uav)), 60.0, "flying")
+    # The fault: an operator re-tasks the aircraft to waypoint 1 while it flies.
+    (reply,) = ground.session.get(keys.command(uav, "track"), payload=encode(Track(1)), timeout=10)
+    assert reply.ok is not None
+    answer = msgspec.json.decode(reply.ok.payload.to_bytes(), type=CommandResult)
+    assert answer.ok, answer
+    status, out, err = finish(ground_cli(ground.router, "uavs", "--json"), 30)
+    (row,) = json.loads(out)
+    assert row["phase"] == "preempted", row
+    assert "track to waypoint 1" in row["reason"]
+    wait_until(lambda: seen.latest_track(uav) == 1, 30.0, "the aircraft on waypoint 1")
+    assert not any(s.startswith("reached") for s in seen.statuses(uav))
+    status, out, err = finish(ground_cli(ground.router, "abort"), 30)
+    assert status == 0, out + err  # the abort is obeyed and confirmed in that state too
