@@ -430,6 +430,7 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
                 _report_delivery(session, message, min(DELIVERY_WAIT_S, args.timeout), progress)
             follower.fetch(args.query_timeout)
             outcome.results, outcome.assignments = follower.snapshot()
+            outcome.outcomes = follower.outcome_snapshot()
             outcome.lost = set(follower.lost) & set(team)
             if args.wait:
                 _read_phases(session, outcome, args.query_timeout)
