@@ -68,6 +68,8 @@ LINK_LOST_S = 3.0
 CONFIRM_LIMIT_S = 20.0
 #: A UAV holding a target whose autopilot link stays lost this long is released.
 LINK_RELEASE_S = 20.0
+#: The share of a mission's deadline the approach model may use (see `_budget`).
+PLAN_SHARE_OF_DEADLINE = 0.5
 #: At most one catch-up query (live missions, the teammates' assignments) this often.
 CATCH_UP_INTERVAL_S = 5.0
 
@@ -298,7 +300,7 @@ class OnboardCore:
             position=(0.0, 0.0),
             velocity=(gps.vel_east, gps.vel_north),
             targets=targets,
-            budget_s=self.planning_budget_s,
+            budget_s=self._budget(self.round.targets),
             cruise_speed=math.hypot(gps.vel_east, gps.vel_north),
         )
         # The planner drops a run still under way for an older mission: its answer would
@@ -311,6 +313,13 @@ class OnboardCore:
             f"mission {self.round.mission}: computing approach times to {len(targets)} targets",
             now,
         )
+
+    def _budget(self, targets: MissionTargets) -> float:
+        """The planning budget for this mission: the module's own, or half the mission's
+        deadline if that is longer. The other half is for the exchange of results: the
+        ground lengthens the deadline for a large team (fleet.consensus.deadline), and
+        the approach model gets that time too, instead of answering by the fallback."""
+        return max(self.planning_budget_s, PLAN_SHARE_OF_DEADLINE * targets.deadline_s)
 
     def on_result(self, result: UavResult, now: float) -> None:
         mission_round = self.round
@@ -494,7 +503,8 @@ class OnboardCore:
         mission = self.round.mission if self.round else "?"
         text = f"mission {mission}: approach times in {plan.solve_seconds:.2f} s"
         if fallbacks:
-            text += f"; {fallbacks} by the Dubins fallback (budget {self.planning_budget_s:g} s)"
+            budget = plan.request.budget_s
+            text += f"; {fallbacks} by the Dubins fallback (budget {budget:g} s)"
         if plan.error:
             text = f"warning: {text}; solver error: {plan.error}"
         self.status(text, now)

@@ -490,3 +490,12 @@ def test_a_stale_plan_is_never_used_for_the_next_mission() -> None:
     assert out.on(keys.mission_result(2, 112)) == [
         UavResult(2, 112, (7.0, 8.0), model_times=2, fallback_times=0)
     ]
+
+
+def test_the_planning_budget_grows_with_the_missions_deadline() -> None:
+    core, _ = make_core()
+    planner = core.planner
+    assert isinstance(planner, ScriptedPlanner)
+    core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS, deadline_s=3.0), 0.0)
+    core.on_targets(MissionTargets(mission=2, team=(112,), targets=TARGETS, deadline_s=30.0), 1.0)
+    assert [r.budget_s for r in planner.requests] == [2.0, 15.0]
