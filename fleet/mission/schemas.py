@@ -42,7 +42,7 @@ MESSAGES: dict[str, tuple[type[msgspec.Struct], tuple[str, ...]]] = {
     ),
     "status": (StatusText, ("fleet/uav/{id}/status",)),
     "link_health": (LinkHealth, ("fleet/uav/{id}/link",)),
-    "uav_state": (UavState, ("fleet/uav/{id}/state (query reply)",)),
+    "uav_state": (UavState, ("fleet/uav/{id}/state (put at the OPM status rate; query reply)",)),
     "opm_command": (OpmCommand, ("fleet/uav/{id}/opm",)),
     "command_result": (CommandResult, ("fleet/uav/{id}/cmd/* (query reply)",)),
     "mission_targets": (MissionTargets, ("fleet/mission/{m}/targets",)),
