@@ -60,6 +60,7 @@ from ground.mission_control import (
     check_agreement,
     current_mission_id,
     mission_status,
+    mission_targets_of,
     missions_seen,
     next_mission_id,
     publish_targets,
@@ -570,13 +571,22 @@ def cmd_abort(args: argparse.Namespace) -> int:
 
 
 def _confirm_abort(session: zenoh.Session, mission: int, uav: int | None, timeout_s: float) -> int:
-    """Wait until every UAV aborted (all on `mission`, or `uav` alone) reports it."""
+    """Wait until every UAV aborted (the mission's team, or `uav` alone) reports it.
+
+    A team UAV that does not answer at all (frozen, cut off) has not confirmed: it is
+    named, and the exit code says so.
+    """
     deadline = time.monotonic() + max(ABORT_CONFIRM_S, timeout_s)
+    try:
+        team = set(mission_targets_of(session, mission, timeout_s).team)
+    except MissionError:
+        team = set()  # nobody serves the targets: judge by the states alone
+    expected = {uav} if uav is not None else team
     pending: dict[int, str] = {}
     while True:
         states = query_states(session, timeout_s)
         on_mission = {
-            piccolo_id: state
+            piccolo_id
             for piccolo_id, state in states.items()
             if state.mission is not None
             and state.mission.mission == mission
@@ -584,15 +594,20 @@ def _confirm_abort(session: zenoh.Session, mission: int, uav: int | None, timeou
         }
         pending = {
             piccolo_id: str(state.mission.phase)
-            for piccolo_id, state in on_mission.items()
-            if state.mission is not None and state.mission.phase != Phase.ABORTED
+            for piccolo_id, state in states.items()
+            if piccolo_id in on_mission
+            and state.mission is not None
+            and state.mission.phase != Phase.ABORTED
         }
+        # A team UAV that left for a later mission is off this one; a silent one is not.
+        silent = expected - states.keys()
+        pending.update({piccolo_id: "no answer" for piccolo_id in silent})
         if not pending or time.monotonic() >= deadline:
             break
         time.sleep(0.2)  # polling the UAVs' state: each query is itself an observation
-    confirmed = sorted(set(on_mission) - set(pending))
+    confirmed = sorted(on_mission - set(pending))
     print(f"mission {mission}: aborted by {', '.join(map(str, confirmed)) or 'no UAV'}")
-    if uav is not None and uav not in on_mission:
+    if uav is not None and uav not in on_mission and uav not in pending:
         print(f"error: UAV {uav} is not on mission {mission}", file=sys.stderr)
         return ExitCode.FAILED
     if pending:

@@ -112,6 +112,7 @@ class OnboardCore:
     commands: CommandTracker = field(init=False)
     _early_results: list[UavResult] = field(default_factory=list)
     _aborted: set[int] = field(default_factory=set)
+    _abort: MissionAbort | None = None  #: the abort this UAV obeyed last (relayed by query)
     _last_state_at: float = -math.inf
     _telemetry_at: float | None = None
     _link_lost: bool = False
@@ -385,6 +386,7 @@ class OnboardCore:
         if abort.uav is not None and abort.uav != self.uav_id:
             return  # a teammate's own abort: this UAV flies on
         self._aborted.add(abort.mission)
+        self._abort = abort
         if self.round is None or self.round.mission != abort.mission:
             return
         if self.phase == Phase.ABORTED:
@@ -727,6 +729,12 @@ class OnboardCore:
         if self.round is None or self.round.mission != mission:
             return None
         return self.round.committed
+
+    def abort_of(self, mission: int) -> MissionAbort | None:
+        """The abort of `mission` this UAV obeyed, for a teammate that missed it."""
+        if self._abort is None or self._abort.mission != mission:
+            return None
+        return self._abort
 
     def own_outcome(self, mission: int) -> TargetOutcome | None:
         if self.round is None or self.round.mission != mission:

@@ -125,7 +125,10 @@ class _Outputs:
             self.process.node.fetch(keys.mission_result(mission, uav), UavResult)
 
     def fetch_assignments(self, mission: int) -> None:
+        """What the team decided on `mission` while this UAV was away: the assignments,
+        and an abort (which teammates relay by query)."""
         self.process.node.fetch(keys.mission_assignments(mission), AssignmentReport)
+        self.process.node.fetch(keys.mission_abort(mission), MissionAbort)
 
     def fetch_missions(self) -> None:
         self.process.node.fetch(keys.ALL_MISSION_TARGETS, MissionTargets)
@@ -340,6 +343,7 @@ class OnboardProcess:
                 self.core.own_assignment(mission),
             ),
             (keys.mission_outcome(mission, self.settings.uav_id), self.core.own_outcome(mission)),
+            (keys.mission_abort(mission), self.core.abort_of(mission)),
         ]
         for key, message in answers:
             # Reply with the concrete key, or consolidation would merge the replies.

@@ -90,12 +90,14 @@ class ZenohNode:
             self._declared.append(bus.subscribe(key, self._decoder(kind)))
         self.state_queries = bus.declare_queryable(keys.state(self.uav_id), self.wake)
         self.command_queries = bus.declare_queryable(keys.command(self.uav_id, "*"), self.wake)
-        # Each UAV answers for the targets and for its own result and assignment only, so
+        # Each UAV answers for the targets and the abort of its current mission, and for
+        # its own result, assignment and outcome only, so
         # a teammate's query for a missing result reaches the UAV that owes it.
         self.mission_queries = [
             bus.declare_queryable(key, self.wake)
             for key in (
                 keys.ALL_MISSION_TARGETS,
+                keys.ALL_MISSION_ABORTS,
                 f"{keys.PREFIX}/mission/*/result/{self.uav_id}",
                 f"{keys.PREFIX}/mission/*/assignment/{self.uav_id}",
                 f"{keys.PREFIX}/mission/*/outcome/{self.uav_id}",

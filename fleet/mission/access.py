@@ -93,6 +93,15 @@ def _uav_grants(uav_id: int) -> list[Grant]:
     ingress = (Flow.INGRESS,)
     return [
         Grant(f"uav-{uav_id}-publish", me, ingress, (Message.PUT, Message.REPLY), own),
+        # A UAV relays its current mission's targets and abort by query (never by put):
+        # how a teammate that was away learns the live mission and that it was aborted.
+        Grant(
+            f"uav-{uav_id}-relay",
+            me,
+            ingress,
+            (Message.REPLY,),
+            (keys.ALL_MISSION_TARGETS, keys.ALL_MISSION_ABORTS),
+        ),
         Grant(
             f"uav-{uav_id}-alive", me, ingress, (Message.LIVELINESS_TOKEN,), (keys.alive(uav_id),)
         ),
@@ -113,6 +122,7 @@ def _uav_grants(uav_id: int) -> list[Grant]:
                 keys.ALL_MISSION_RESULTS,
                 keys.ALL_MISSION_ASSIGNMENTS,
                 keys.ALL_MISSION_OUTCOMES,
+                keys.ALL_MISSION_ABORTS,
                 keys.ALL_STATE,
             ),
         ),

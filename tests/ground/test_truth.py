@@ -16,10 +16,11 @@ import msgspec
 
 from fleet.launch.launcher import ring_scenario
 from fleet.mission import keys
-from fleet.mission.messages import CommandResult, Target
+from fleet.mission.messages import CommandResult, MissionTargets, Target
 from fleet.piccolo.track import Track
 from fleet.transport.bus_codec import encode
 from fleet.transport.targets_io import write_targets
+from onboard.core import TARGET_WAYPOINT
 from tests.conftest import Ground
 from tests.onboard.test_multi_uav import ring_sim, ring_targets, start_onboard, wait_for_telemetry
 from tests.processes import Fleet, wait_until
@@ -28,6 +29,8 @@ from tests.processes import Fleet, wait_until
 #: noticed, not a timer running out.
 DEADLINE_S = 30.0
 WAIT_TIMEOUT_S = 90.0
+#: The abort test's consensus deadline: the abort surely arrives before it runs out.
+ABORT_DEADLINE_S = 15.0
 
 
 def ground_cli(router: str, *args: str) -> subprocess.Popen[str]:
@@ -189,3 +192,46 @@ def test_an_operator_retasking_a_uav_in_flight_is_preempted_not_reached_and_abor
     assert not any(s.startswith("reached") for s in seen.statuses(uav))
     status, out, err = finish(ground_cli(ground.router, "abort"), 30)
     assert status == 0, out + err  # the abort is obeyed and confirmed in that state too
+
+
+def test_an_abort_while_the_team_waits_for_a_frozen_teammate_is_final(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    endpoints = ring_sim(fleet, tmp_path, 3)
+    start_onboard(fleet, endpoints, ground.router)
+    team = sorted(endpoints)
+    *awake, sleeper = team
+    wait_for_telemetry(ground, team)
+    seen = ground.seen
+    (frozen,) = [c for c in fleet.children if c.name == f"onboard {sleeper}"]
+    frozen.process.send_signal(signal.SIGSTOP)  # the fault: it never answers in time
+    try:
+        mission = MissionTargets(
+            mission=1,
+            team=tuple(team),
+            targets=ring_targets(3, seed=13),
+            deadline_s=ABORT_DEADLINE_S,
+        )
+        sent = time.monotonic()
+        ground.send(mission)
+        wait_until(lambda: set(awake) <= set(seen.results), 30.0, "the awake UAVs' results")
+        # Before Zenoh's lease lets the team drop the frozen UAV and commit without it.
+        abort = ground_cli(ground.router, "--query-timeout", "0.3", "abort")
+        status, out, err = finish(abort, 30)
+        assert status == 1 and f"{sleeper} (no answer)" in err, out + err  # unconfirmed
+    finally:
+        frozen.process.send_signal(signal.SIGCONT)
+
+    def all_aborted() -> bool:
+        status, out, _ = finish(ground_cli(ground.router, "uavs", "--json"), 30)
+        rows = json.loads(out) if status == 0 else []
+        return len(rows) == 3 and all(r["phase"] == "aborted" for r in rows)
+
+    # It learns the mission and its abort from its teammates when it resumes.
+    wait_until(all_aborted, 60.0, "every UAV acknowledging the abort")
+    # The old defect showed here: the deadline ran out and all three committed and flew.
+    wait_until(
+        lambda: time.monotonic() > sent + ABORT_DEADLINE_S + 3.0, 60.0, "the deadline passing"
+    )
+    assert not seen.assignments, seen.assignments
+    assert all(seen.latest_track(uav) != TARGET_WAYPOINT for uav in team)
