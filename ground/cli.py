@@ -56,8 +56,10 @@ from ground.mission_control import (
     MissionError,
     MissionFollower,
     MissionOutcome,
+    TargetsServer,
     check_agreement,
     claim_mission,
+    contest_grace_s,
     current_mission_id,
     mission_status,
     missions_seen,
@@ -407,7 +409,7 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
 
         try:
             with claim_mission(session, make, args.query_timeout, mission=args.mission) as server:
-                outcome = _send_and_follow(session, server.targets, args, progress)
+                outcome = _send_and_follow(session, server, args, progress)
         except MissionError as error:
             print(f"error: {error}; nothing sent", file=sys.stderr)
             return ExitCode.FAILED
@@ -421,9 +423,11 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
 
 
 def _send_and_follow(
-    session: zenoh.Session, message: MissionTargets, args: argparse.Namespace, progress: TextIO
+    session: zenoh.Session, server: TargetsServer, args: argparse.Namespace, progress: TextIO
 ) -> MissionOutcome:
-    """Put the claimed mission and, with --wait, follow it to its commitments."""
+    """Put the claimed mission and, with --wait, follow it to its commitments (and, when
+    another ground contested its id, for as long as that ground's mission may take)."""
+    message = server.targets
     mission, team, targets = message.mission, message.team, message.targets
     listener = _progress_printer(progress, team) if args.wait else None
     outcome = MissionOutcome(mission=mission, team=team, targets=targets)
@@ -438,6 +442,15 @@ def _send_and_follow(
         if args.wait:
             committed = follower.wait_committed(team, args.timeout, fetch_every_s=1.0)
             outcome.timed_out = not committed and follower.superseded_by is None
+            if committed and server.contested.is_set():
+                grace = contest_grace_s(args.query_timeout)
+                print(
+                    f"mission {mission}: another ground chose this id too; watching "
+                    f"{grace:g} s for its mission",
+                    file=progress,
+                    flush=True,
+                )
+                follower.wait_superseded(grace)
         else:
             _report_delivery(session, message, min(DELIVERY_WAIT_S, args.timeout), progress)
         follower.fetch(args.query_timeout)

@@ -145,7 +145,10 @@ def rival_claims(session: zenoh.Session, targets: MissionTargets, timeout_s: flo
     """
     rivals = 0
     key = keys.mission_targets(targets.mission)
-    for reply in query(session, key, timeout_s, every_reply=True):
+    # The query carries our candidate: a ground already serving this id learns that it
+    # was contested (TargetsServer.contested).
+    candidate = bus_codec.encode(targets)
+    for reply in query(session, key, timeout_s, every_reply=True, payload=candidate):
         message = _mission_message(reply.key, reply.payload)
         if isinstance(message, MissionTargets) and message != targets:
             rivals += 1
@@ -173,7 +176,9 @@ def claim_mission(
     `mission` is never changed: its collision is a MissionError, as is running out of
     attempts.
 
-    Yields the entered TargetsServer of the claimed mission (`.targets`).
+    Yields the entered TargetsServer of the claimed mission (`.targets`); its
+    `contested` is set when this claim met a rival, or a rival's claim met it later:
+    a mission of the rival may then supersede this one at any moment (`contest_grace_s`).
     """
     rng = rng if rng is not None else random.Random()
     chosen = mission if mission is not None else next_mission_id(session, timeout_s)
@@ -184,6 +189,7 @@ def claim_mission(
             if not rivals:
                 if attempt > 1:
                     log.warning("mission %d: claimed at attempt %d", chosen, attempt)
+                    server.contested.set()
                 yield server
                 return
         if mission is not None:
@@ -208,6 +214,12 @@ def claim_mission(
     raise MissionError(
         f"no free mission id after {attempts} attempts (other grounds kept choosing the same)"
     )
+
+
+def contest_grace_s(timeout_s: float) -> float:
+    """How long a rival that collided with us may take to send its own mission: its
+    back-off, its look for missions seen (two queries) and its claim (one query)."""
+    return CLAIM_BACKOFF_S[1] + 3 * timeout_s
 
 
 def current_mission_id(session: zenoh.Session, timeout_s: float) -> int | None:
@@ -602,6 +614,17 @@ class MissionFollower:
             with self._changed:
                 self._changed.wait(min(deadline, next_fetch) - now)
 
+    def wait_superseded(self, timeout_s: float) -> int | None:
+        """Wait up to `timeout_s` for a later mission of the team; its id, or None."""
+        deadline = time.monotonic() + timeout_s
+        with self._changed:
+            while self.superseded_by is None:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    break
+                self._changed.wait(remaining)
+            return self.superseded_by
+
 
 class TargetsServer:
     """Answers queries on `fleet/mission/{m}/targets` with the mission, while open.
@@ -614,6 +637,8 @@ class TargetsServer:
         self.targets = targets
         self._key = keys.mission_targets(targets.mission)
         self._payload = bus_codec.encode(targets)
+        #: Another ground asked for this id with other targets (see `claim_mission`).
+        self.contested = threading.Event()
         self._stack = ExitStack()
 
     def __enter__(self) -> Self:
@@ -632,6 +657,13 @@ class TargetsServer:
         # The concrete key, not the query's (possibly wildcard) one: otherwise Zenoh's
         # consolidation would merge this reply with another mission's.
         query.reply(self._key, self._payload, encoding=bus_codec.ENCODING)
+        candidate = query.payload.to_bytes() if query.payload is not None else b""
+        if candidate and candidate != self._payload and not self.contested.is_set():
+            self.contested.set()
+            log.warning(
+                "mission %d: another ground asked to use this id with other targets",
+                self.targets.mission,
+            )
 
 
 def publish_targets(session: zenoh.Session, targets: MissionTargets) -> None:

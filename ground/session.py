@@ -110,12 +110,18 @@ class Reply:
 
 
 def query(
-    session: zenoh.Session, selector: str, timeout_s: float, *, every_reply: bool = False
+    session: zenoh.Session,
+    selector: str,
+    timeout_s: float,
+    *,
+    every_reply: bool = False,
+    payload: bytes | None = None,
 ) -> list[Reply]:
     """Every successful reply to `selector` within `timeout_s`; errors are logged.
 
     `every_reply`: ask every matching queryable and keep each one's reply, even several
     for one key (Zenoh otherwise consolidates replies on the same key into one).
+    `payload`: sent with the query, for the queryables that read it.
     """
     replies: list[Reply] = []
     options: dict[str, Any] = (
@@ -123,6 +129,8 @@ def query(
         if every_reply
         else {}
     )
+    if payload is not None:
+        options["payload"] = payload
     for reply in session.get(selector, timeout=timeout_s, **options):
         sample = reply.ok
         if sample is None:
