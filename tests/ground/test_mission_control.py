@@ -15,6 +15,7 @@ from fleet.mission import keys
 from fleet.mission.messages import MissionTargets, Target
 from fleet.transport import bus_codec
 from fleet.transport.zenoh_config import make_config
+from ground.cli import _summary
 from ground.mission_control import (
     MissionError,
     MissionFollower,
@@ -217,3 +218,8 @@ def test_a_later_mission_the_uavs_serve_is_found_by_the_fetch(
         assert follower.superseded_by == 52
         follower.note_later_mission(51)  # an older later one changes nothing
         assert follower.superseded_by == 52
+
+
+def test_the_summary_says_superseded() -> None:
+    outcome = MissionOutcome(mission=2, team=(7,), targets=TARGETS, superseded_by=3)
+    assert "  SUPERSEDED by mission 3: the team no longer flies mission 2" in _summary(outcome)
