@@ -58,11 +58,12 @@ from ground.mission_control import (
     MissionOutcome,
     TargetsServer,
     check_agreement,
+    claim_mission,
+    contest_grace_s,
     current_mission_id,
     mission_status,
     mission_targets_of,
     missions_seen,
-    next_mission_id,
     publish_targets,
     send_abort,
     send_opm,
@@ -366,6 +367,11 @@ def _summary(outcome: MissionOutcome) -> list[str]:
             lines.append(f"  target {target['index']}: reached by UAV {target['uav']}")
     unassigned = outcome.unassigned()
     lines.append(f"  unassigned targets: {', '.join(map(str, unassigned)) or 'none'}")
+    if outcome.superseded_by is not None:
+        lines.append(
+            f"  SUPERSEDED by mission {outcome.superseded_by}: the team no longer flies "
+            f"mission {outcome.mission}"
+        )
     if agreement.agreed:
         digest = agreement.reference.digest[:12] if agreement.reference else ""
         lines.append(f"  agreed: yes (digest {digest})")
@@ -396,45 +402,18 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
         if not team:
             print("error: no live UAV to send to (name the team with --team)", file=sys.stderr)
             return ExitCode.FAILED
+
+        deadline_s = args.deadline or consensus_deadline(len(team))
+
+        def make(mission: int) -> MissionTargets:
+            return MissionTargets(mission, team, targets, deadline_s=deadline_s)
+
         try:
-            mission = (
-                args.mission
-                if args.mission is not None
-                else next_mission_id(session, args.query_timeout)
-            )
+            with claim_mission(session, make, args.query_timeout, mission=args.mission) as server:
+                outcome = _send_and_follow(session, server, args, progress)
         except MissionError as error:
-            print(f"error: {error}", file=sys.stderr)
+            print(f"error: {error}; nothing sent", file=sys.stderr)
             return ExitCode.FAILED
-        message = MissionTargets(
-            mission=mission,
-            team=team,
-            targets=targets,
-            deadline_s=args.deadline or consensus_deadline(len(team)),
-        )
-        listener = _progress_printer(progress, team)
-        outcome = MissionOutcome(mission=mission, team=team, targets=targets)
-        with (
-            MissionFollower(session, mission, listener if args.wait else None) as follower,
-            TargetsServer(session, message),
-        ):
-            publish_targets(session, message)
-            print(
-                f"mission {mission}: {len(targets)} targets from {args.file} sent to "
-                f"{', '.join(map(str, team))}",
-                file=progress,
-                flush=True,
-            )
-            if args.wait:
-                committed = follower.wait_committed(team, args.timeout, fetch_every_s=1.0)
-                outcome.timed_out = not committed
-            else:
-                _report_delivery(session, message, min(DELIVERY_WAIT_S, args.timeout), progress)
-            follower.fetch(args.query_timeout)
-            outcome.results, outcome.assignments = follower.snapshot()
-            outcome.outcomes = follower.outcome_snapshot()
-            outcome.lost = set(follower.lost) & set(team)
-            if args.wait:
-                _read_phases(session, outcome, args.query_timeout)
     if args.json:
         print(json.dumps(outcome.to_json()))
     elif args.wait:
@@ -442,6 +421,46 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
     if not args.wait:
         return ExitCode.OK
     return ExitCode.OK if outcome.succeeded else ExitCode.FAILED
+
+
+def _send_and_follow(
+    session: zenoh.Session, server: TargetsServer, args: argparse.Namespace, progress: TextIO
+) -> MissionOutcome:
+    """Put the claimed mission and, with --wait, follow it to its commitments (and, when
+    another ground contested its id, for as long as that ground's mission may take)."""
+    message = server.targets
+    mission, team, targets = message.mission, message.team, message.targets
+    listener = _progress_printer(progress, team) if args.wait else None
+    outcome = MissionOutcome(mission=mission, team=team, targets=targets)
+    with MissionFollower(session, mission, listener, team) as follower:
+        publish_targets(session, message)
+        print(
+            f"mission {mission}: {len(targets)} targets from {args.file} sent to "
+            f"{', '.join(map(str, team))}",
+            file=progress,
+            flush=True,
+        )
+        if args.wait:
+            committed = follower.wait_committed(team, args.timeout, fetch_every_s=1.0)
+            outcome.timed_out = not committed and follower.superseded_by is None
+            if committed and server.contested.is_set():
+                grace = contest_grace_s(args.query_timeout)
+                print(
+                    f"mission {mission}: another ground chose this id too; watching "
+                    f"{grace:g} s for its mission",
+                    file=progress,
+                    flush=True,
+                )
+                follower.wait_superseded(grace)
+        else:
+            _report_delivery(session, message, min(DELIVERY_WAIT_S, args.timeout), progress)
+        follower.fetch(args.query_timeout)
+        outcome.results, outcome.assignments = follower.snapshot()
+        outcome.outcomes = follower.outcome_snapshot()
+        outcome.lost = set(follower.lost) & set(team)
+        if args.wait:
+            _read_phases(session, outcome, follower, args.query_timeout)
+    return outcome
 
 
 def _team(session: zenoh.Session, args: argparse.Namespace) -> tuple[int, ...]:
@@ -472,13 +491,19 @@ def _report_delivery(
         )
 
 
-def _read_phases(session: zenoh.Session, outcome: MissionOutcome, timeout_s: float) -> None:
-    """Each team UAV's phase (and reason) as its own state query answers it."""
+def _read_phases(
+    session: zenoh.Session, outcome: MissionOutcome, follower: MissionFollower, timeout_s: float
+) -> None:
+    """Each team UAV's phase (and reason) as its own state query answers it; a team UAV
+    on a later mission means this one was superseded."""
     for uav, state in query_states(session, timeout_s).items():
         if uav in outcome.team:
             outcome.phases[uav] = str(state.phase)
             if state.reason:
                 outcome.reasons[uav] = state.reason
+            if state.mission is not None:
+                follower.note_later_mission(state.mission.mission)
+    outcome.superseded_by = follower.superseded_by
 
 
 def cmd_watch(args: argparse.Namespace) -> int:

@@ -43,6 +43,7 @@ from fleet.sim.scenario import ScenarioError, resolve_scenario
 from fleet.transport.cli import ExitCode, fail, positive_float, stop_on_signals
 
 # The demo is a ground station: it uses the mission manager's own code.
+from ground.alerts import StatusRecord
 from ground.fleet_view import FleetView
 from ground.mission_control import (
     MissionFollower,
@@ -208,8 +209,9 @@ def _fly_demo(
 
     last_status: dict[int, str] = {}
 
-    def on_status(uav: int, text: str) -> None:
-        # The modules repeat a summary every second; show only what changed.
+    def on_status(status: StatusRecord) -> None:
+        # Show only what changed (a module may repeat a summary at its status rate).
+        uav, text = status.uav, status.text
         if last_status.get(uav) != text:
             last_status[uav] = text
             say(f"  UAV {uav}: {text}")

@@ -34,6 +34,7 @@ from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from fleet.transport.bus_codec import DropReason, refuse
+from ground.alerts import Alerts, StatusRecord
 from ground.session import decode_sample, live_tokens, query_messages
 
 log = logging.getLogger(__name__)
@@ -175,13 +176,14 @@ class FleetView:
 
     Zenoh runs the callbacks on its own threads; everything they touch is under one
     lock, and readers get copies. `on_status` (if given) is called for every status
-    message, outside the lock, e.g. to print it as it arrives.
+    message, outside the lock, e.g. to print it as it arrives. Warnings and errors are
+    also pinned (`alerts`, the rules of `ground.alerts`).
     """
 
     def __init__(
         self,
         session: zenoh.Session,
-        on_status: Callable[[int, str], None] | None = None,
+        on_status: Callable[[StatusRecord], None] | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self._session = session
@@ -191,6 +193,8 @@ class FleetView:
         self._changed = threading.Condition(self._lock)
         self._uavs: dict[int, _Uav] = {}
         self.statuses: deque[tuple[float, int, str]] = deque(maxlen=STATUS_HISTORY)
+        self._records: deque[StatusRecord] = deque(maxlen=STATUS_HISTORY)
+        self._alerts = Alerts()
         self._stack = ExitStack()
 
     def __enter__(self) -> Self:
@@ -272,13 +276,16 @@ class FleetView:
         status = decode_sample(sample, StatusText)
         if uav_id is None or status is None:
             return
+        record = StatusRecord(time.time(), uav_id, status.text, status.severity)
         with self._changed:
             entry = self._entry(uav_id)
             entry.view = replace(entry.view, last_status=status.text)
-            self.statuses.append((time.time(), uav_id, status.text))
+            self.statuses.append((record.time, uav_id, status.text))
+            self._records.append(record)
+            self._alerts.add(record)
             self._changed.notify_all()
         if self._on_status is not None:
-            self._on_status(uav_id, status.text)
+            self._on_status(record)
 
     # ---- queries and readers (caller's thread) --------------------------------------
     def refresh_states(self, timeout_s: float) -> None:
@@ -336,6 +343,16 @@ class FleetView:
         """The last `count` status messages as (wall time, Piccolo ID, text), oldest first."""
         with self._lock:
             return list(self.statuses)[-count:]
+
+    def recent_records(self, count: int = STATUS_HISTORY) -> list[StatusRecord]:
+        """The last `count` status messages with their severity, oldest first."""
+        with self._lock:
+            return list(self._records)[-count:]
+
+    def alerts(self) -> list[StatusRecord]:
+        """The warnings and errors kept in view (`ground.alerts`), oldest first."""
+        with self._lock:
+            return self._alerts.pinned()
 
     def statuses_of(self, uav_id: int) -> list[str]:
         with self._lock:

@@ -31,10 +31,11 @@ took part, and every target gets a state: `assigned` (to whom) or `unserved` (wh
 from __future__ import annotations
 
 import logging
+import random
 import threading
 import time
-from collections.abc import Callable, Iterable
-from contextlib import ExitStack
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from types import TracebackType
 from typing import Any, Self
@@ -126,6 +127,101 @@ def next_mission_id(session: zenoh.Session, timeout_s: float) -> int:
     return mission
 
 
+#: How many mission ids `claim_mission` tries before it gives up.
+CLAIM_ATTEMPTS = 5
+#: The random pause (s) before choosing again after a collision, so that two grounds
+#: that collided do not choose again in lockstep.
+CLAIM_BACKOFF_S = (0.02, 0.2)
+#: After a collision the next id is the highest seen + 1 + a random step below this.
+CLAIM_STEP = 4
+
+
+def rival_claims(session: zenoh.Session, targets: MissionTargets, timeout_s: float) -> int:
+    """How many others serve a different MissionTargets under `targets`' mission id.
+
+    Every reply is kept (no consolidation: two grounds serving the same key must both
+    be heard). A reply with the same content is no rival: our own queryable, or a UAV
+    that already holds this very mission.
+    """
+    rivals = 0
+    key = keys.mission_targets(targets.mission)
+    # The query carries our candidate: a ground already serving this id learns that it
+    # was contested (TargetsServer.contested).
+    candidate = bus_codec.encode(targets)
+    for reply in query(session, key, timeout_s, every_reply=True, payload=candidate):
+        message = _mission_message(reply.key, reply.payload)
+        if isinstance(message, MissionTargets) and message != targets:
+            rivals += 1
+    return rivals
+
+
+@contextmanager
+def claim_mission(
+    session: zenoh.Session,
+    make: Callable[[int], MissionTargets],
+    timeout_s: float,
+    *,
+    mission: int | None = None,
+    attempts: int = CLAIM_ATTEMPTS,
+    rng: random.Random | None = None,
+) -> Iterator[TargetsServer]:
+    """Choose a mission id no other ground is using and serve its targets while open.
+
+    The rule (docs/ground.md): choose m (`mission`, else `next_mission_id`); serve
+    `make(m)` on `fleet/mission/{m}/targets` *first*, then query that key. A reply with
+    different content means another ground (or a UAV holding another ground's mission)
+    claimed m: withdraw, wait a random moment and choose again, above everything seen
+    and by a random step, at most `attempts` times. Two grounds that choose together
+    each declare before they query, so at least one of them hears the other. A given
+    `mission` is never changed: its collision is a MissionError, as is running out of
+    attempts.
+
+    Yields the entered TargetsServer of the claimed mission (`.targets`); its
+    `contested` is set when this claim met a rival, or a rival's claim met it later:
+    a mission of the rival may then supersede this one at any moment (`contest_grace_s`).
+    """
+    rng = rng if rng is not None else random.Random()
+    chosen = mission if mission is not None else next_mission_id(session, timeout_s)
+    for attempt in range(1, attempts + 1):
+        targets = make(chosen)
+        with TargetsServer(session, targets) as server:
+            rivals = rival_claims(session, targets, timeout_s)
+            if not rivals:
+                if attempt > 1:
+                    log.warning("mission %d: claimed at attempt %d", chosen, attempt)
+                    server.contested.set()
+                yield server
+                return
+        if mission is not None:
+            raise MissionError(
+                f"mission {mission} is already in use with other targets (another ground "
+                "sent it); choose another --mission or leave it out"
+            )
+        pause = rng.uniform(*CLAIM_BACKOFF_S)
+        log.warning(
+            "mission %d: another ground chose it too (%d rival claim(s)); choosing again "
+            "in %.0f ms (attempt %d of %d)",
+            chosen,
+            rivals,
+            pause * 1000,
+            attempt,
+            attempts,
+        )
+        time.sleep(pause)  # a random back-off, so the two grounds do not collide again
+        chosen = max(next_mission_id(session, timeout_s), chosen + 1) + rng.randrange(CLAIM_STEP)
+        if chosen > MAX_MISSION_ID:
+            raise MissionError(f"mission id {chosen} does not fit in 32 bits")
+    raise MissionError(
+        f"no free mission id after {attempts} attempts (other grounds kept choosing the same)"
+    )
+
+
+def contest_grace_s(timeout_s: float) -> float:
+    """How long a rival that collided with us may take to send its own mission: its
+    back-off, its look for missions seen (two queries) and its claim (one query)."""
+    return CLAIM_BACKOFF_S[1] + 3 * timeout_s
+
+
 def current_mission_id(session: zenoh.Session, timeout_s: float) -> int | None:
     seen = missions_seen(session, timeout_s)
     return max(seen) if seen else None
@@ -174,6 +270,8 @@ class MissionOutcome:
     lost: set[int] = field(default_factory=set)  #: liveliness gone while the ground waited
     phases: dict[int, str] = field(default_factory=dict)  #: each UAV's phase at the end
     reasons: dict[int, str] = field(default_factory=dict)
+    #: A higher mission that reached the team while the ground followed this one
+    superseded_by: int | None = None
 
     @property
     def declined(self) -> list[int]:
@@ -237,7 +335,9 @@ class MissionOutcome:
     @property
     def succeeded(self) -> bool:
         """The truth behind the exit code: the team agreed and no target was left unserved
-        while a UAV taking part had none."""
+        while a UAV taking part had none, and no later mission superseded it."""
+        if self.superseded_by is not None:
+            return False
         if not self.committed or not self.agreement.agreed:
             return False
         return not any(
@@ -292,6 +392,7 @@ class MissionOutcome:
                 str(uav): msgspec.to_builtins(outcome)
                 for uav, outcome in sorted(self.outcomes.items())
             },
+            "superseded_by": self.superseded_by,
             "success": self.succeeded,
         }
 
@@ -305,19 +406,31 @@ class MissionFollower:
 
     `listener(kind, message)` ("result", "assignment" or "outcome") is called once per
     new or changed message, on whichever thread delivered it.
+
+    Superseded: a MissionTargets with a higher id for any UAV of `team` (every UAV when
+    `team` is empty), seen on `fleet/mission/*/targets` or in what the UAVs serve there,
+    or a team UAV's state reporting a higher mission (`note_later_mission`), sets
+    `superseded_by` to the highest such id and ends every wait: the team no longer
+    flies this mission.
     """
 
     def __init__(
-        self, session: zenoh.Session, mission: int, listener: Listener | None = None
+        self,
+        session: zenoh.Session,
+        mission: int,
+        listener: Listener | None = None,
+        team: Iterable[int] = (),
     ) -> None:
         self._session = session
         self.mission = mission
         self._listener = listener
+        self._team = frozenset(team)
         self._changed = threading.Condition()
         self.results: dict[int, UavResult] = {}
         self.assignments: dict[int, AssignmentReport] = {}
         self.outcomes: dict[int, TargetOutcome] = {}
         self.lost: set[int] = set()  #: UAVs whose liveliness token went away
+        self.superseded_by: int | None = None  #: the highest later mission of the team
         self._stack = ExitStack()
 
     def __enter__(self) -> Self:
@@ -339,6 +452,9 @@ class MissionFollower:
                 )
             )
             enter(self._session.liveliness().declare_subscriber(keys.ALL_ALIVE, self._on_alive))
+            enter(
+                self._session.declare_subscriber(keys.ALL_MISSION_TARGETS, self._on_targets_sample)
+            )
         except BaseException:
             self._stack.close()
             raise
@@ -363,6 +479,27 @@ class MissionFollower:
             else:
                 self.lost.discard(uav)
             self._changed.notify_all()
+
+    def _on_targets_sample(self, sample: zenoh.Sample) -> None:
+        targets = decode_sample(sample, MissionTargets)
+        if targets is not None:
+            self.note_targets(targets)
+
+    def note_targets(self, targets: MissionTargets) -> None:
+        """A mission sent to some team: a later one for any of ours supersedes this one."""
+        if not self._team or self._team & set(targets.team):
+            self.note_later_mission(targets.mission)
+
+    def note_later_mission(self, mission: int) -> None:
+        """Our team (or part of it) is on `mission`: if it is later, this one is superseded."""
+        if mission <= self.mission:
+            return
+        with self._changed:
+            if self.superseded_by is not None and self.superseded_by >= mission:
+                return
+            self.superseded_by = mission
+            self._changed.notify_all()
+        log.warning("mission %d: superseded by mission %d", self.mission, mission)
 
     def _on_result_sample(self, sample: zenoh.Sample) -> None:
         result = decode_sample(sample, UavResult)
@@ -427,12 +564,18 @@ class MissionFollower:
             self._session, keys.mission_outcomes(self.mission), TargetOutcome, timeout_s
         ):
             self.add_outcome(outcome)
+        # The UAVs serve their current mission's targets: a later one supersedes ours.
+        for _, targets in query_messages(
+            self._session, keys.ALL_MISSION_TARGETS, MissionTargets, timeout_s
+        ):
+            self.note_targets(targets)
 
     def wait_committed(self, team: Iterable[int], timeout_s: float, fetch_every_s: float) -> bool:
         """Wait until every UAV of `team` still alive has committed; True if they did in time.
 
         A UAV whose liveliness token goes away is not waited for (it is in `lost`).
         Queries every `fetch_every_s` as well, so a lost sample costs at most that long.
+        A superseded mission is not waited for either: False at once.
         """
         members = set(team)
         return self.wait_until(
@@ -451,11 +594,14 @@ class MissionFollower:
         """Wait until `done()` (called under the follower's lock) holds; True if in time.
 
         Queries every `fetch_every_s` as well, so a lost sample costs at most that long.
+        A superseded mission is not waited for: False at once.
         """
         deadline = time.monotonic() + timeout_s
         next_fetch = time.monotonic() + fetch_every_s
         while True:
             with self._changed:
+                if self.superseded_by is not None:
+                    return False
                 if done():
                     return True
             now = time.monotonic()
@@ -468,6 +614,17 @@ class MissionFollower:
             with self._changed:
                 self._changed.wait(min(deadline, next_fetch) - now)
 
+    def wait_superseded(self, timeout_s: float) -> int | None:
+        """Wait up to `timeout_s` for a later mission of the team; its id, or None."""
+        deadline = time.monotonic() + timeout_s
+        with self._changed:
+            while self.superseded_by is None:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    break
+                self._changed.wait(remaining)
+            return self.superseded_by
+
 
 class TargetsServer:
     """Answers queries on `fleet/mission/{m}/targets` with the mission, while open.
@@ -477,8 +634,11 @@ class TargetsServer:
 
     def __init__(self, session: zenoh.Session, targets: MissionTargets) -> None:
         self._session = session
+        self.targets = targets
         self._key = keys.mission_targets(targets.mission)
         self._payload = bus_codec.encode(targets)
+        #: Another ground asked for this id with other targets (see `claim_mission`).
+        self.contested = threading.Event()
         self._stack = ExitStack()
 
     def __enter__(self) -> Self:
@@ -497,6 +657,13 @@ class TargetsServer:
         # The concrete key, not the query's (possibly wildcard) one: otherwise Zenoh's
         # consolidation would merge this reply with another mission's.
         query.reply(self._key, self._payload, encoding=bus_codec.ENCODING)
+        candidate = query.payload.to_bytes() if query.payload is not None else b""
+        if candidate and candidate != self._payload and not self.contested.is_set():
+            self.contested.set()
+            log.warning(
+                "mission %d: another ground asked to use this id with other targets",
+                self.targets.mission,
+            )
 
 
 def publish_targets(session: zenoh.Session, targets: MissionTargets) -> None:

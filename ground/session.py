@@ -109,10 +109,29 @@ class Reply:
     encoding: str
 
 
-def query(session: zenoh.Session, selector: str, timeout_s: float) -> list[Reply]:
-    """Every successful reply to `selector` within `timeout_s`; errors are logged."""
+def query(
+    session: zenoh.Session,
+    selector: str,
+    timeout_s: float,
+    *,
+    every_reply: bool = False,
+    payload: bytes | None = None,
+) -> list[Reply]:
+    """Every successful reply to `selector` within `timeout_s`; errors are logged.
+
+    `every_reply`: ask every matching queryable and keep each one's reply, even several
+    for one key (Zenoh otherwise consolidates replies on the same key into one).
+    `payload`: sent with the query, for the queryables that read it.
+    """
     replies: list[Reply] = []
-    for reply in session.get(selector, timeout=timeout_s):
+    options: dict[str, Any] = (
+        {"target": zenoh.QueryTarget.ALL, "consolidation": zenoh.ConsolidationMode.NONE}
+        if every_reply
+        else {}
+    )
+    if payload is not None:
+        options["payload"] = payload
+    for reply in session.get(selector, timeout=timeout_s, **options):
         sample = reply.ok
         if sample is None:
             error = reply.err

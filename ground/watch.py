@@ -1,9 +1,14 @@
 """`ground-cli watch`: a live table of the fleet with the status box (thesis 3.1.4).
 
 Status messages (`fleet/uav/*/status`) are printed the moment they arrive, each with its
-UAV's Piccolo ID, as the thesis's status box listed them; the table of every UAV is
-printed every `interval_s`. On a terminal each frame redraws the screen (table, then the
-latest status messages); otherwise frames are appended, so the output can be logged.
+severity and its UAV's Piccolo ID, as the thesis's status box listed them; the table of
+every UAV is printed every `interval_s`. On a terminal each frame redraws the screen
+(table, the pinned warnings and errors, then the latest status messages); otherwise
+frames are appended, so the output can be logged, each frame followed by the pinned
+warnings and errors. Which alerts stay pinned: `ground.alerts`.
+
+Each frame costs one wildcard state query (`fleet/uav/*/state`), whatever the fleet's
+size; everything else arrives by subscription.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ from typing import TextIO
 
 import zenoh
 
+from ground.alerts import StatusRecord
 from ground.fleet_view import FleetView, format_table
 
 log = logging.getLogger(__name__)
@@ -24,8 +30,17 @@ STATUS_BOX_LINES = 12
 _CLEAR = "\x1b[H\x1b[2J"
 
 
-def _status_line(when: float, uav: int, text: str) -> str:
-    return f"{time.strftime('%H:%M:%S', time.localtime(when))} UAV {uav}: {text}"
+def status_line(status: StatusRecord) -> str:
+    """`warning 12:00:01 UAV 74: text`: the severity first, padded to one width."""
+    when = time.strftime("%H:%M:%S", time.localtime(status.time))
+    return f"{status.severity:<7} {when} UAV {status.uav}: {status.text}"
+
+
+def alerts_box(alerts: list[StatusRecord]) -> list[str]:
+    """The pinned warnings and errors, newest first, under their own heading."""
+    if not alerts:
+        return []
+    return ["warnings and errors (pinned):", *("  " + status_line(a) for a in reversed(alerts))]
 
 
 def watch(
@@ -44,11 +59,11 @@ def watch(
     redraw = out.isatty()
     write_lock = threading.Lock()
 
-    def on_status(uav: int, text: str) -> None:
+    def on_status(status: StatusRecord) -> None:
         if redraw:
             return  # shown in the status box at the next frame
         with write_lock:
-            out.write(_status_line(time.time(), uav, text) + "\n")
+            out.write(status_line(status) + "\n")
             out.flush()
 
     started = time.monotonic()
@@ -58,12 +73,14 @@ def watch(
             while count is None or frames < count:
                 view.refresh_states(query_timeout_s)
                 frame = format_table(view.snapshot())
+                pinned = alerts_box(view.alerts())
                 if redraw:
-                    box = [_status_line(*s) for s in view.recent_statuses(STATUS_BOX_LINES)]
-                    frame = _CLEAR + frame + "\n\nstatus:\n" + "\n".join(box)
+                    box = [status_line(s) for s in view.recent_records(STATUS_BOX_LINES)]
+                    frame = "\n\n".join([_CLEAR + frame, *(["\n".join(pinned)] if pinned else [])])
+                    frame += "\n\nstatus:\n" + "\n".join(box)
                 else:
                     stamp = time.strftime("%H:%M:%S")
-                    frame = f"-- {stamp} {len(view.live_ids())} UAV(s)\n{frame}"
+                    frame = "\n".join([f"-- {stamp} {len(view.live_ids())} UAV(s)", frame, *pinned])
                 with write_lock:
                     out.write(frame + "\n")
                     out.flush()

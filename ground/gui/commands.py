@@ -37,8 +37,8 @@ from ground.mission_control import (
     MissionFollower,
     MissionOutcome,
     TargetsServer,
+    claim_mission,
     current_mission_id,
-    next_mission_id,
     publish_targets,
     send_abort,
     send_opm,
@@ -129,13 +129,22 @@ class MissionDesk:
         self._targets = message
 
     def send(self, team: tuple[int, ...], targets: tuple[Target, ...], deadline_s: float) -> int:
-        mission = next_mission_id(self._session, 1.0)
-        message = MissionTargets(mission=mission, team=team, targets=targets, deadline_s=deadline_s)
+        """Claim a mission id no other ground uses (`claim_mission`), follow it, put it."""
+
+        def make(mission: int) -> MissionTargets:
+            return MissionTargets(
+                mission=mission, team=team, targets=targets, deadline_s=deadline_s
+            )
+
         with self._lock:
-            self._follow(message, serve=True)
+            claim = ExitStack()
+            message = claim.enter_context(claim_mission(self._session, make, 1.0)).targets
+            self._follow(message, serve=False)
+            # The claimed id's targets server stays open as long as the mission is followed.
+            self._stack.push(claim)
             publish_targets(self._session, message)
         self._on_change()
-        return mission
+        return message.mission
 
     @property
     def mission(self) -> int | None:

@@ -46,6 +46,7 @@ from aiohttp import WSMsgType, web
 from fleet.mission import keys
 from fleet.mission.messages import Target
 from ground import targets_formats
+from ground.alerts import StatusRecord
 from ground.fleet_view import FleetView
 from ground.gui.commands import CommandError, MissionDesk, Reply, decode_command, execute
 from ground.gui.snapshot import Coalescer, GuiModel
@@ -111,9 +112,8 @@ class GuiServer:
         loop = asyncio.get_running_loop()
         coalescer = self._coalescer = Coalescer(self._push, self.config.rate_hz)
 
-        def on_status(uav: int, text: str) -> None:  # a Zenoh thread
-            now = time.time()
-            loop.call_soon_threadsafe(self._on_status, uav, text, now)
+        def on_status(status: StatusRecord) -> None:  # a Zenoh thread
+            loop.call_soon_threadsafe(self._on_status, status)
 
         with contextlib.ExitStack() as stack:
             self._view = stack.enter_context(FleetView(self.session, on_status))
@@ -142,8 +142,8 @@ class GuiServer:
                 for ws in list(self.sockets):
                     await ws.close()
 
-    def _on_status(self, uav: int, text: str, wall_time: float) -> None:
-        self.model.add_status(uav, text, wall_time)
+    def _on_status(self, status: StatusRecord) -> None:
+        self.model.add_status(status.uav, status.text, status.time, status.severity)
         if self._coalescer is not None:
             self._coalescer.mark()
 
@@ -236,6 +236,7 @@ class GuiServer:
             "uavs": [self.model.uav_json(view) for view in views],
             "mission": self.model.mission_json(self._desk.outcome(), views),
             "statuses": statuses,
+            "alerts": self.model.alerts_json(),
         }
 
     async def _push(self) -> None:

@@ -26,6 +26,8 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
 
+from fleet.mission.phase import Severity
+from ground.alerts import Alerts, StatusRecord
 from ground.fleet_view import UavView
 from ground.mission_control import MissionOutcome
 
@@ -43,12 +45,6 @@ LINK_LOST_AFTER_S = 3.0
 STATUS_HISTORY = 500
 
 
-class Severity(StrEnum):
-    INFO = "info"
-    WARNING = "warning"
-    ERROR = "error"
-
-
 class TargetState(StrEnum):
     """A mission target as the page shows it."""
 
@@ -60,7 +56,8 @@ class TargetState(StrEnum):
 
 
 def severity_of(text: str) -> Severity:
-    """The status text's own prefix ("error: ...", "warning: ..."), the onboard convention."""
+    """The status text's own prefix ("error: ...", "warning: ..."), the onboard convention,
+    for a message that carries no severity of its own."""
     lower = text.lower()
     if lower.startswith("error"):
         return Severity.ERROR
@@ -138,11 +135,29 @@ class GuiModel:
     #: (mission, uav) pairs seen reached
     reached: set[tuple[int, int]] = field(default_factory=set)
     aborted: set[int] = field(default_factory=set)
+    #: The warnings and errors the page keeps in view (`ground.alerts`).
+    alerts: Alerts = field(default_factory=Alerts)
 
-    def add_status(self, uav: int, text: str, wall_time: float | None = None) -> None:
+    def add_status(
+        self,
+        uav: int,
+        text: str,
+        wall_time: float | None = None,
+        severity: Severity | None = None,
+    ) -> None:
+        """A status message; its severity as it carried it, else read from its text."""
         self._seq += 1
         when = time.time() if wall_time is None else wall_time
-        self.statuses.append(StatusEntry(self._seq, when, uav, text, severity_of(text)))
+        level = severity if severity is not None else severity_of(text)
+        self.statuses.append(StatusEntry(self._seq, when, uav, text, level))
+        self.alerts.add(StatusRecord(when, uav, text, level))
+
+    def alerts_json(self) -> list[dict[str, Any]]:
+        """The pinned warnings and errors, oldest first."""
+        return [
+            {"time": a.time, "uav": a.uav, "text": a.text, "severity": str(a.severity)}
+            for a in self.alerts.pinned()
+        ]
 
     def note_views(self, views: list[UavView]) -> None:
         """Extend the trails, and remember which UAVs reached their target."""

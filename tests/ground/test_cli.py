@@ -39,7 +39,7 @@ from fleet.mission.messages import (
     UavResult,
     UavState,
 )
-from fleet.mission.phase import Phase
+from fleet.mission.phase import Phase, Severity
 from fleet.piccolo.telemetry import GpsBlock, SensorBlock, Telemetry
 from fleet.transport import bus_codec
 from fleet.transport.targets_io import write_targets
@@ -403,6 +403,24 @@ def send_mission(router: str, fakes: dict[int, FakeOnboard], tmp_path: Path) -> 
     return mission
 
 
+def test_uavs_json_gives_each_uav_its_mission_target_phase_and_link_age(
+    router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
+) -> None:
+    mission = send_mission(router, fakes, tmp_path)
+    done = run_cli("uavs", "--json", endpoint=router)
+    assert done.returncode == 0, done.stderr
+    rows = {row["id"]: row for row in json.loads(done.stdout)}
+    for uav, fake in fakes.items():
+        assert fake.mission is not None and fake.mission.assignment is not None
+        row = rows[uav]
+        assert row["mission"] == mission
+        assert row["target"] == fake.mission.assignment.target
+        assert row["phase"] == str(fake.state().phase)
+        assert row["reason"] is None
+        # The fakes report no link health: the key is there, its value unknown.
+        assert "link_age_s" in row and row["link_age_s"] is None
+
+
 def test_abort_arrives_for_the_current_or_named_mission(
     router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
 ) -> None:
@@ -448,6 +466,42 @@ def test_watch_shows_the_table_and_status_messages(
     rows = [line.split()[0] for line in lines if line.split() and line.split()[0].isdigit()]
     assert "74" in rows and "112" in rows
     assert any("UAV 74: fake 74 tick" in line for line in lines), done.stdout
+
+
+def test_watch_keeps_a_warning_in_view_while_info_streams_past(
+    router: str, fakes: dict[int, FakeOnboard]
+) -> None:
+    command = [sys.executable, "-m", "ground.cli", "--connect", router]
+    watch = subprocess.Popen(
+        [*command, "watch", "--count", "6", "--interval", "0.3"],
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        assert watch.stdout is not None
+        first = watch.stdout.readline()  # the first frame: watch is subscribed
+        assert first.startswith("-- "), first
+        # The severity the message carries counts, not its wording.
+        fakes[112].put(keys.status(112), StatusText("GPS fix degraded", Severity.WARNING))
+        out, err = watch.communicate(timeout=CLI_TIMEOUT_S)
+    finally:
+        if watch.poll() is None:
+            watch.kill()
+            watch.communicate()
+    assert watch.returncode == 0, err
+    lines = out.splitlines()
+    # Appended as it arrived, severity first...
+    assert any(
+        line.startswith("warning ") and line.endswith("UAV 112: GPS fix degraded") for line in lines
+    ), out
+    assert any(line.startswith("info ") and "UAV 74: fake 74 tick" in line for line in lines)
+    # ...and pinned under every frame after it, however many info lines came since.
+    last_frame = out.rsplit("\n-- ", 1)[1]
+    assert "warnings and errors (pinned):" in last_frame, out
+    assert "UAV 112: GPS fix degraded" in last_frame
 
 
 # ---- without a router ---------------------------------------------------------------------

@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import msgspec
+import pytest
 
 from fleet.launch.launcher import ring_scenario
 from fleet.mission import keys
@@ -22,7 +23,13 @@ from fleet.transport.bus_codec import encode
 from fleet.transport.targets_io import write_targets
 from onboard.core import TARGET_WAYPOINT
 from tests.conftest import Ground
-from tests.onboard.test_multi_uav import ring_sim, ring_targets, start_onboard, wait_for_telemetry
+from tests.onboard.test_multi_uav import (
+    ring_sim,
+    ring_targets,
+    start_onboard,
+    start_ring,
+    wait_for_telemetry,
+)
 from tests.processes import Fleet, wait_until
 
 #: A long consensus deadline and --wait timeout, so a prompt answer is the fault being
@@ -235,3 +242,35 @@ def test_an_abort_while_the_team_waits_for_a_frozen_teammate_is_final(
     )
     assert not seen.assignments, seen.assignments
     assert all(seen.latest_track(uav) != TARGET_WAYPOINT for uav in team)
+
+
+@pytest.mark.parametrize("apart_s", [0.0, 0.05])
+def test_two_send_targets_at_once_get_different_ids_and_the_superseded_one_says_so(
+    fleet: Fleet, ground: Ground, tmp_path: Path, apart_s: float
+) -> None:
+    team = start_ring(fleet, ground, tmp_path, 2)
+    first = tmp_path / "first.bin"
+    second = tmp_path / "second.bin"
+    write_targets(first, ring_targets(2, seed=11))
+    write_targets(second, ring_targets(2, seed=12))
+    args = ("--wait", "--json", "--deadline", "10", "--timeout", "60")
+    sends = [ground_cli(ground.router, "send-targets", str(first), *args)]
+    if apart_s:
+        time.sleep(apart_s)  # the fault: a second operator, a moment later
+    sends.append(ground_cli(ground.router, "send-targets", str(second), *args))
+    finished = [finish(send, 120) for send in sends]
+    reports = [json.loads(out) for _, out, _ in finished]
+    errs = "\n".join(err for _, _, err in finished)
+    missions = [report["mission"] for report in reports]
+    assert missions[0] != missions[1], errs
+    later = max(missions)
+    winner, loser = sorted(range(2), key=lambda i: reports[i]["mission"] != later)
+    # The later mission is the one the team flies: it agreed, and says so.
+    assert reports[winner]["superseded_by"] is None, errs
+    assert reports[winner]["success"] is True, errs
+    assert finished[winner][0] == 0, errs
+    # The earlier one is reported superseded by it: no success, a non-zero exit.
+    assert reports[loser]["superseded_by"] == later, errs
+    assert reports[loser]["success"] is False
+    assert finished[loser][0] == 1
+    assert sorted(reports[winner]["taking_part"]) == team

@@ -454,7 +454,8 @@ function addStatuses(entries) {
     const kept = { ...entry, count: 1 };
     state.statuses.push(kept);
     state.lastOf.set(entry.uav, kept);
-    if (entry.severity !== 'info') {
+    // A server without pinned alerts of its own: keep the latest warnings and errors.
+    if (entry.severity !== 'info' && !state.serverAlerts) {
       state.alerts.push(entry);
       state.alerts = state.alerts.slice(-MAX_ALERTS);
     }
@@ -615,6 +616,11 @@ function onSnapshot(snapshot) {
     state.seenMission = m.mission;
     // A page opened during a mission (or a mission from another ground) shows its targets.
     if (!state.targets.length) state.targets = m.targets.map((t) => ({ ...t }));
+  }
+  // The server pins each UAV's warnings and errors until that UAV says they cleared.
+  if (Array.isArray(snapshot.alerts)) {
+    state.serverAlerts = true;
+    state.alerts = snapshot.alerts.slice().reverse();
   }
   addStatuses(snapshot.statuses);
   render();

@@ -7,8 +7,9 @@ import threading
 import time
 
 from fleet.mission.messages import AssignmentReport, Target, UavResult
+from fleet.mission.phase import Severity
 from ground.fleet_view import UavView
-from ground.gui.snapshot import Coalescer, GuiModel, Severity, severity_of, target_states
+from ground.gui.snapshot import Coalescer, GuiModel, severity_of, target_states
 from ground.mission_control import MissionOutcome
 
 TARGETS = (Target(35.72, -120.76, 600.0), Target(35.71, -120.75, 600.0), Target(35.7, -120.7, 0))
@@ -60,6 +61,19 @@ def test_severity_comes_from_the_status_prefix() -> None:
     assert severity_of("error: could not resume waypoint 3") is Severity.ERROR
     assert severity_of("Warning: link slow") is Severity.WARNING
     assert severity_of("module on; tracking waypoint 0") is Severity.INFO
+
+
+def test_the_page_keeps_warnings_and_errors_in_view_by_the_severity_carried() -> None:
+    model = GuiModel()
+    model.add_status(74, "mission 1: flying to target 0", 0.5, Severity.INFO)
+    model.add_status(74, "GPS fix degraded", 1.0, Severity.WARNING)
+    for tick in range(600):  # more than the status history holds
+        model.add_status(74, f"mission 1: tick {tick}", 2.0 + tick, Severity.INFO)
+    assert [(a["uav"], a["text"], a["severity"]) for a in model.alerts_json()] == [
+        (74, "GPS fix degraded", "warning")
+    ]
+    model.add_status(74, "mission 2: computing", 700.0, Severity.INFO)  # a later mission
+    assert model.alerts_json() == []
 
 
 def test_the_model_keeps_trails_statuses_and_reached_uavs() -> None:
