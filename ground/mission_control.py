@@ -310,7 +310,8 @@ class MissionOutcome:
         return bool(self.taking_part) and all(uav in self.assignments for uav in self.taking_part)
 
     def target_states(self) -> list[dict[str, Any]]:
-        """Each target's state: reached (by whom), assigned (to whom) or unserved (why)."""
+        """Each target's state: reached (by whom), assigned (to whom) or unserved (why;
+        every target not reached is unserved once a later mission superseded this one)."""
         holders = {self.target_of(uav): uav for uav in self.taking_part}
         idle = [uav for uav in self.taking_part if self.target_of(uav) is None]
         reached = self.reached_by()
@@ -318,6 +319,10 @@ class MissionOutcome:
         for index in range(len(self.targets)):
             if index in reached:
                 states.append({"index": index, "state": "reached", "uav": reached[index]})
+                continue
+            if self.superseded_by is not None:
+                why = f"mission {self.superseded_by} superseded this one"
+                states.append({"index": index, "state": "unserved", "uav": None, "reason": why})
                 continue
             holder = holders.get(index)
             if holder is not None:

@@ -272,5 +272,6 @@ def test_two_send_targets_at_once_get_different_ids_and_the_superseded_one_says_
     # The earlier one is reported superseded by it: no success, a non-zero exit.
     assert reports[loser]["superseded_by"] == later, errs
     assert reports[loser]["success"] is False
+    assert {s["state"] for s in reports[loser]["target_states"]} <= {"unserved", "reached"}
     assert finished[loser][0] == 1
     assert sorted(reports[winner]["taking_part"]) == team
