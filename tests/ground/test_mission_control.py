@@ -198,12 +198,18 @@ def test_a_later_mission_for_the_team_supersedes_the_followed_one(
             bus_codec.encode(mission(41, team=(9,))),
             encoding=bus_codec.ENCODING,
         )
-        rival.put(
-            keys.mission_targets(43),
-            bus_codec.encode(mission(43, team=(8, 9))),
-            encoding=bus_codec.ENCODING,
-        )
-        wait_until(lambda: follower.superseded_by is not None, 10.0, "the later mission")
+
+        def put_later_mission() -> bool:
+            # Put again until heard: the follower's subscription reaches the router
+            # asynchronously, and a put before it arrives is not delivered.
+            rival.put(
+                keys.mission_targets(43),
+                bus_codec.encode(mission(43, team=(8, 9))),
+                encoding=bus_codec.ENCODING,
+            )
+            return follower.wait_superseded(0.2) is not None
+
+        wait_until(put_later_mission, 10.0, "the later mission")
         assert follower.superseded_by == 43
         # Waiting for commitments of a superseded mission ends at once.
         assert follower.wait_committed((7, 8), timeout_s=30.0, fetch_every_s=1.0) is False
