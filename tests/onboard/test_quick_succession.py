@@ -58,3 +58,30 @@ def test_a_second_mission_50_ms_later_supersedes_the_first_everywhere(
             # (0.7: the aircraft flies on, sped up, for a moment before it plans.)
             floor = distance_m((start.lat, start.lon), (target.lat, target.lon)) / top_speed
             assert time_s >= 0.7 * floor, f"UAV {uav}: {time_s:.0f} s < {floor:.0f} s"
+
+
+def test_a_new_mission_in_flight_replaces_the_old_target_without_a_false_arrival(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    team = start_ring(fleet, ground, tmp_path, 1)
+    (uav,) = team
+    seen = ground.seen
+    first = MissionTargets(mission=1, team=(uav,), targets=far_targets(1))
+    ground.send(first)
+    wait_until(
+        lambda: any("mission 1: flying to target 0" in s for s in seen.statuses(uav)),
+        30.0,
+        "flying mission 1's target",
+    )
+    # The fault: a new mission arrives while the aircraft flies to the old target.
+    second = MissionTargets(mission=2, team=(uav,), targets=ring_targets(1, seed=21))
+    ground.send(second)
+    wait_until(
+        lambda: any("mission 2: flying to target 0" in s for s in seen.statuses(uav)),
+        30.0,
+        "flying mission 2's target",
+    )
+    statuses = seen.statuses(uav)
+    assert not any(s.startswith("reached") for s in statuses), statuses  # 8 km short of it
+    assert not any("could not resume" in s for s in statuses), statuses
+    assert seen.assignments[uav].mission == 2
