@@ -309,10 +309,21 @@ class MissionOutcome:
     def committed(self) -> bool:
         return bool(self.taking_part) and all(uav in self.assignments for uav in self.taking_part)
 
+    def holders(self) -> dict[int, int]:
+        """Target index -> the UAV holding it at the latest epoch: a UAV still showing an
+        earlier epoch (dead, or not yet re-planned) holds nothing here."""
+        latest = self.epoch
+        return {
+            report.target: uav
+            for uav, report in sorted(self.assignments.items())
+            if uav in self.team and report.epoch == latest and report.target is not None
+        }
+
     def target_states(self) -> list[dict[str, Any]]:
         """Each target's state: reached (by whom), assigned (to whom) or unserved (why;
         every target not reached is unserved once a later mission superseded this one)."""
-        holders = {self.target_of(uav): uav for uav in self.taking_part}
+        taking_part = set(self.taking_part)
+        holders = {t: uav for t, uav in self.holders().items() if uav in taking_part}
         idle = [uav for uav in self.taking_part if self.target_of(uav) is None]
         reached = self.reached_by()
         states: list[dict[str, Any]] = []

@@ -177,6 +177,7 @@ class MissionDesk:
             message, follower = self._targets, self._follower
         outcome = MissionOutcome(message.mission, message.team, message.targets)
         outcome.results, outcome.assignments = follower.snapshot()
+        outcome.outcomes = follower.outcome_snapshot()
         return outcome
 
     def close(self) -> None:

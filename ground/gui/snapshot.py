@@ -92,19 +92,16 @@ def target_states(
     `reached` holds the UAVs seen to reach their target in this mission (sticky: a
     UAV's phase moves on after it reached).
     """
-    owner: dict[int, int] = {}
-    for member in outcome.team:
-        index = outcome.target_of(member)
-        if index is not None:
-            owner[index] = member
+    owner = outcome.holders()
+    reached_by = outcome.reached_by()
     states = []
     for index in range(len(outcome.targets)):
-        uav = owner.get(index)
+        uav = reached_by.get(index, owner.get(index))
         view = views.get(uav) if uav is not None else None
         says_reached = (
             view is not None and view.mission == outcome.mission and view.phase == "reached"
         )
-        if uav is not None and (uav in reached or says_reached):
+        if index in reached_by or (uav is not None and (uav in reached or says_reached)):
             state = TargetState.REACHED
         elif uav is None and outcome.committed:
             state = TargetState.UNSERVED

@@ -12,7 +12,8 @@ import pytest
 import zenoh
 
 from fleet.mission import keys
-from fleet.mission.messages import MissionTargets, Target
+from fleet.mission.messages import AssignmentReport, MissionTargets, Target, TargetOutcome
+from fleet.mission.phase import Phase
 from fleet.transport import bus_codec
 from fleet.transport.zenoh_config import make_config
 from ground.cli import _summary
@@ -229,3 +230,23 @@ def test_a_later_mission_the_uavs_serve_is_found_by_the_fetch(
 def test_the_summary_says_superseded() -> None:
     outcome = MissionOutcome(mission=2, team=(7,), targets=TARGETS, superseded_by=3)
     assert "  SUPERSEDED by mission 3: the team no longer flies mission 2" in _summary(outcome)
+
+
+def test_after_a_re_plan_a_target_belongs_to_its_latest_epoch_holder() -> None:
+    def report(uav: int, target: int | None, epoch: int) -> AssignmentReport:
+        pairs = {"101": 0, "102": 1} if epoch == 0 else {"102": 1, "103": 0}
+        released = () if epoch == 0 else (101,)
+        return AssignmentReport(
+            1, uav, target, pairs, (), (101, 102, 103), "d", epoch=epoch, released=released
+        )
+
+    outcome = MissionOutcome(mission=1, team=(101, 102, 103), targets=TARGETS)
+    outcome.assignments = {101: report(101, 0, 0), 102: report(102, 1, 1), 103: report(103, 0, 1)}
+    outcome.lost = {101}
+    assert outcome.epoch == 1
+    assert outcome.holders() == {0: 103, 1: 102}
+    states = {s["index"]: s for s in outcome.target_states()}
+    assert states[0] == {"index": 0, "state": "assigned", "uav": 103}
+    outcome.outcomes = {103: TargetOutcome(1, 103, 0, Phase.REACHED)}
+    assert outcome.target_states()[0] == {"index": 0, "state": "reached", "uav": 103}
+    assert outcome.succeeded
