@@ -51,24 +51,24 @@ from ground import keyspace, targets_command
 from ground.fleet_view import fleet_snapshot, format_table, live_uav_ids, query_states
 from ground.gui import cli as gui_cli
 from ground.mission_control import (
-    MAX_MISSION_ID,
-    Listener,
     MissionError,
-    MissionFollower,
-    MissionOutcome,
-    TargetsServer,
-    check_agreement,
-    claim_mission,
-    contest_grace_s,
-    current_mission_id,
     mission_status,
     mission_targets_of,
-    missions_seen,
     publish_targets,
     send_abort,
     send_opm,
     wait_delivered,
 )
+from ground.mission_follower import Listener, MissionFollower
+from ground.mission_ids import (
+    MAX_MISSION_ID,
+    TargetsServer,
+    claim_mission,
+    contest_grace_s,
+    current_mission_id,
+    missions_seen,
+)
+from ground.mission_outcome import MissionOutcome, check_agreement
 from ground.session import (
     GroundConnectError,
     decode_sample,

@@ -45,13 +45,10 @@ from fleet.transport.cli import ExitCode, fail, positive_float, stop_on_signals
 # The demo is a ground station: it uses the mission manager's own code.
 from ground.alerts import StatusRecord
 from ground.fleet_view import FleetView
-from ground.mission_control import (
-    MissionFollower,
-    MissionOutcome,
-    TargetsServer,
-    next_mission_id,
-    publish_targets,
-)
+from ground.mission_control import publish_targets
+from ground.mission_follower import MissionFollower
+from ground.mission_ids import TargetsServer, next_mission_id
+from ground.mission_outcome import MissionOutcome
 from ground.session import ground_session
 
 log = logging.getLogger(__name__)

@@ -31,18 +31,10 @@ from fleet.mission import keys
 from fleet.mission.messages import MissionTargets, Target
 from fleet.mission.targets_file import TargetsFileError, encode_targets
 from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
-from ground.mission_control import (
-    MAX_MISSION_ID,
-    MissionError,
-    MissionFollower,
-    MissionOutcome,
-    TargetsServer,
-    claim_mission,
-    current_mission_id,
-    publish_targets,
-    send_abort,
-    send_opm,
-)
+from ground.mission_control import MissionError, publish_targets, send_abort, send_opm
+from ground.mission_follower import MissionFollower
+from ground.mission_ids import MAX_MISSION_ID, TargetsServer, claim_mission, current_mission_id
+from ground.mission_outcome import MissionOutcome
 from ground.session import query_messages
 
 log = logging.getLogger(__name__)

@@ -29,7 +29,7 @@ from typing import Any
 from fleet.mission.phase import Severity
 from ground.alerts import Alerts, StatusRecord
 from ground.fleet_view import UavView
-from ground.mission_control import MissionOutcome
+from ground.mission_outcome import MissionOutcome
 
 log = logging.getLogger(__name__)
 

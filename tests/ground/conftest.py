@@ -6,8 +6,10 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import pytest
+import zenoh
 
 from fleet.transport.router import Router
+from fleet.transport.zenoh_config import make_config
 from tests.ground.test_cli import FakeOnboard, free_endpoint
 
 
@@ -28,3 +30,22 @@ def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
     finally:
         for fake in opened.values():
             fake.close()
+
+
+@pytest.fixture
+def session(router: str) -> Iterator[zenoh.Session]:
+    opened = zenoh.open(make_config("client", [router]))
+    try:
+        yield opened
+    finally:
+        opened.close()
+
+
+@pytest.fixture
+def rival(router: str) -> Iterator[zenoh.Session]:
+    """Another ground's session."""
+    opened = zenoh.open(make_config("client", [router]))
+    try:
+        yield opened
+    finally:
+        opened.close()

@@ -44,7 +44,7 @@ from fleet.piccolo.telemetry import GpsBlock, SensorBlock, Telemetry
 from fleet.transport import bus_codec
 from fleet.transport.targets_io import write_targets
 from fleet.transport.zenoh_config import CONNECT_ENV, make_config
-from ground.mission_control import MissionOutcome, check_agreement
+from ground.mission_outcome import MissionOutcome, check_agreement
 
 REPO = Path(__file__).resolve().parents[2]
 CLI_TIMEOUT_S = 30.0

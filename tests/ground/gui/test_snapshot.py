@@ -10,7 +10,7 @@ from fleet.mission.messages import AssignmentReport, Target, UavResult
 from fleet.mission.phase import Severity
 from ground.fleet_view import UavView
 from ground.gui.snapshot import Coalescer, GuiModel, severity_of, target_states
-from ground.mission_control import MissionOutcome
+from ground.mission_outcome import MissionOutcome
 
 TARGETS = (Target(35.72, -120.76, 600.0), Target(35.71, -120.75, 600.0), Target(35.7, -120.7, 0))
 

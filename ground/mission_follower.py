@@ -1,0 +1,259 @@
+"""Following one mission on the bus: its results, assignments (every epoch), outcomes,
+the team's liveliness, and any later mission that supersedes it.
+
+Every UAV publishes its UavResult and, once the consensus has run, its AssignmentReport
+(again at each re-plan epoch) and a TargetOutcome when it reaches its target or drops
+out; all are collected by subscription and, every second and at the end, by a query of
+what the UAVs serve, so a sample lost in transit is still counted.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable, Iterable
+from contextlib import ExitStack
+from types import TracebackType
+from typing import Any, Self
+
+import zenoh
+
+from fleet.mission import keys
+from fleet.mission.messages import (
+    AssignmentReport,
+    MissionTargets,
+    TargetOutcome,
+    UavResult,
+)
+from ground.session import decode_sample, query_messages
+
+log = logging.getLogger(__name__)
+
+
+Listener = Callable[[str, UavResult | AssignmentReport | TargetOutcome], None]
+
+
+class MissionFollower:
+    """Collects one mission's results and assignments; a context manager.
+
+    `listener(kind, message)` ("result", "assignment" or "outcome") is called once per
+    new or changed message, on whichever thread delivered it.
+
+    Superseded: a MissionTargets with a higher id for any UAV of `team` (every UAV when
+    `team` is empty), seen on `fleet/mission/*/targets` or in what the UAVs serve there,
+    or a team UAV's state reporting a higher mission (`note_later_mission`), sets
+    `superseded_by` to the highest such id and ends every wait: the team no longer
+    flies this mission.
+    """
+
+    def __init__(
+        self,
+        session: zenoh.Session,
+        mission: int,
+        listener: Listener | None = None,
+        team: Iterable[int] = (),
+    ) -> None:
+        self._session = session
+        self.mission = mission
+        self._listener = listener
+        self._team = frozenset(team)
+        self._changed = threading.Condition()
+        self.results: dict[int, UavResult] = {}
+        self.assignments: dict[int, AssignmentReport] = {}
+        self.outcomes: dict[int, TargetOutcome] = {}
+        self.lost: set[int] = set()  #: UAVs whose liveliness token went away
+        self.superseded_by: int | None = None  #: the highest later mission of the team
+        self._stack = ExitStack()
+
+    def __enter__(self) -> Self:
+        enter = self._stack.enter_context
+        try:
+            enter(
+                self._session.declare_subscriber(
+                    keys.mission_results(self.mission), self._on_result_sample
+                )
+            )
+            enter(
+                self._session.declare_subscriber(
+                    keys.mission_assignments(self.mission), self._on_assignment_sample
+                )
+            )
+            enter(
+                self._session.declare_subscriber(
+                    keys.mission_outcomes(self.mission), self._on_outcome_sample
+                )
+            )
+            enter(self._session.liveliness().declare_subscriber(keys.ALL_ALIVE, self._on_alive))
+            enter(
+                self._session.declare_subscriber(keys.ALL_MISSION_TARGETS, self._on_targets_sample)
+            )
+        except BaseException:
+            self._stack.close()
+            raise
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self._stack.close()
+
+    def _on_alive(self, sample: zenoh.Sample) -> None:
+        try:
+            uav = keys.uav_id_of(str(sample.key_expr))
+        except (ValueError, IndexError):
+            return
+        with self._changed:
+            if sample.kind == zenoh.SampleKind.DELETE:
+                self.lost.add(uav)
+            else:
+                self.lost.discard(uav)
+            self._changed.notify_all()
+
+    def _on_targets_sample(self, sample: zenoh.Sample) -> None:
+        targets = decode_sample(sample, MissionTargets)
+        if targets is not None:
+            self.note_targets(targets)
+
+    def note_targets(self, targets: MissionTargets) -> None:
+        """A mission sent to some team: a later one for any of ours supersedes this one."""
+        if not self._team or self._team & set(targets.team):
+            self.note_later_mission(targets.mission)
+
+    def note_later_mission(self, mission: int) -> None:
+        """Our team (or part of it) is on `mission`: if it is later, this one is superseded."""
+        if mission <= self.mission:
+            return
+        with self._changed:
+            if self.superseded_by is not None and self.superseded_by >= mission:
+                return
+            self.superseded_by = mission
+            self._changed.notify_all()
+        log.warning("mission %d: superseded by mission %d", self.mission, mission)
+
+    def _on_result_sample(self, sample: zenoh.Sample) -> None:
+        result = decode_sample(sample, UavResult)
+        if result is not None:
+            self.add_result(result)
+
+    def _on_assignment_sample(self, sample: zenoh.Sample) -> None:
+        report = decode_sample(sample, AssignmentReport)
+        if report is not None:
+            self.add_assignment(report)
+
+    def _on_outcome_sample(self, sample: zenoh.Sample) -> None:
+        outcome = decode_sample(sample, TargetOutcome)
+        if outcome is not None:
+            self.add_outcome(outcome)
+
+    def add_outcome(self, outcome: TargetOutcome) -> None:
+        self._add("outcome", self.outcomes, outcome)
+
+    def add_result(self, result: UavResult) -> None:
+        self._add("result", self.results, result)
+
+    def add_assignment(self, report: AssignmentReport) -> None:
+        self._add("assignment", self.assignments, report)
+
+    def _add(
+        self,
+        kind: str,
+        store: dict[int, Any],
+        message: UavResult | AssignmentReport | TargetOutcome,
+    ) -> None:
+        """Keep a UAV's message for this mission; wake waiters and the listener on news."""
+        if message.mission != self.mission:
+            return
+        with self._changed:
+            held = store.get(message.uav)
+            if held == message:
+                return
+            earlier = (
+                isinstance(held, AssignmentReport)
+                and isinstance(message, AssignmentReport)
+                and message.epoch < held.epoch
+            )
+            if earlier:
+                return  # a late copy of an earlier epoch
+            store[message.uav] = message
+            self._changed.notify_all()
+        if self._listener is not None:
+            self._listener(kind, message)
+
+    def fetch(self, timeout_s: float) -> None:
+        """Query what the UAVs serve, to catch anything the subscriptions missed."""
+        for _, result in query_messages(
+            self._session, keys.mission_results(self.mission), UavResult, timeout_s
+        ):
+            self.add_result(result)
+        for _, report in query_messages(
+            self._session, keys.mission_assignments(self.mission), AssignmentReport, timeout_s
+        ):
+            self.add_assignment(report)
+        for _, outcome in query_messages(
+            self._session, keys.mission_outcomes(self.mission), TargetOutcome, timeout_s
+        ):
+            self.add_outcome(outcome)
+        # The UAVs serve their current mission's targets: a later one supersedes ours.
+        for _, targets in query_messages(
+            self._session, keys.ALL_MISSION_TARGETS, MissionTargets, timeout_s
+        ):
+            self.note_targets(targets)
+
+    def wait_committed(self, team: Iterable[int], timeout_s: float, fetch_every_s: float) -> bool:
+        """Wait until every UAV of `team` still alive has committed; True if they did in time.
+
+        A UAV whose liveliness token goes away is not waited for (it is in `lost`).
+        Queries every `fetch_every_s` as well, so a lost sample costs at most that long.
+        A superseded mission is not waited for either: False at once.
+        """
+        members = set(team)
+        return self.wait_until(
+            lambda: members - self.lost <= self.assignments.keys(), timeout_s, fetch_every_s
+        )
+
+    def snapshot(self) -> tuple[dict[int, UavResult], dict[int, AssignmentReport]]:
+        with self._changed:
+            return dict(self.results), dict(self.assignments)
+
+    def outcome_snapshot(self) -> dict[int, TargetOutcome]:
+        with self._changed:
+            return dict(self.outcomes)
+
+    def wait_until(self, done: Callable[[], bool], timeout_s: float, fetch_every_s: float) -> bool:
+        """Wait until `done()` (called under the follower's lock) holds; True if in time.
+
+        Queries every `fetch_every_s` as well, so a lost sample costs at most that long.
+        A superseded mission is not waited for: False at once.
+        """
+        deadline = time.monotonic() + timeout_s
+        next_fetch = time.monotonic() + fetch_every_s
+        while True:
+            with self._changed:
+                if self.superseded_by is not None:
+                    return False
+                if done():
+                    return True
+            now = time.monotonic()
+            if now >= deadline:
+                return False
+            if now >= next_fetch:
+                self.fetch(min(1.0, max(0.1, deadline - now)))
+                next_fetch = time.monotonic() + fetch_every_s
+                continue
+            with self._changed:
+                self._changed.wait(min(deadline, next_fetch) - now)
+
+    def wait_superseded(self, timeout_s: float) -> int | None:
+        """Wait up to `timeout_s` for a later mission of the team; its id, or None."""
+        deadline = time.monotonic() + timeout_s
+        with self._changed:
+            while self.superseded_by is None:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    break
+                self._changed.wait(remaining)
+            return self.superseded_by

@@ -1,0 +1,220 @@
+"""What the ground concludes about a mission: agreement, who took part, each target's state.
+
+Agreement: every team UAV runs the same deterministic greedy on the same results, so
+every report must carry the same `digest` (of the results used) and the same `pairs`.
+When they do not, the largest group of identical reports is taken as the reference
+(ties: the group holding the lowest Piccolo ID) and everyone else is named as having
+disagreed.
+
+Taking part: a UAV whose liveliness token went away while the ground waited is *lost*;
+one that published a result with no time at all *declined* (module off, link lost, no
+GPS). Neither is waited for nor counted as agreeing; `agreed` is about the UAVs that
+took part, and every target gets a state: `reached` (by whom), `assigned` (to whom, at
+the latest re-plan epoch) or `unserved` (why).
+
+Pure: no I/O.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import msgspec
+
+from fleet.mission.messages import (
+    AssignmentReport,
+    Target,
+    TargetOutcome,
+    UavResult,
+)
+from fleet.mission.phase import Phase
+
+log = logging.getLogger(__name__)
+
+
+def _report_identity(report: AssignmentReport) -> tuple[str, tuple[tuple[str, int], ...]]:
+    return report.digest, tuple(sorted(report.pairs.items()))
+
+
+@dataclass(frozen=True)
+class Agreement:
+    agreed: bool
+    reference: AssignmentReport | None
+    disagreed: tuple[int, ...]  #: committed, but not the reference assignment
+    missing: tuple[int, ...]  #: team UAVs with no AssignmentReport
+
+
+def check_agreement(team: Iterable[int], assignments: dict[int, AssignmentReport]) -> Agreement:
+    """Whether every team UAV committed the same assignment (same digest and pairs)."""
+    team = sorted(set(team))
+    committed = [uav for uav in team if uav in assignments]
+    missing = tuple(uav for uav in team if uav not in assignments)
+    groups: dict[tuple[str, tuple[tuple[str, int], ...]], list[int]] = {}
+    for uav in committed:
+        groups.setdefault(_report_identity(assignments[uav]), []).append(uav)
+    if not groups:
+        return Agreement(False, None, (), missing)
+    # Largest group first; among equals the one with the lowest Piccolo ID.
+    reference_group = min(groups.values(), key=lambda members: (-len(members), members[0]))
+    reference = assignments[reference_group[0]]
+    disagreed = tuple(uav for uav in committed if uav not in reference_group)
+    return Agreement(not disagreed and not missing, reference, disagreed, missing)
+
+
+@dataclass
+class MissionOutcome:
+    mission: int
+    team: tuple[int, ...]
+    targets: tuple[Target, ...]
+    results: dict[int, UavResult] = field(default_factory=dict)
+    assignments: dict[int, AssignmentReport] = field(default_factory=dict)
+    #: How each UAV's part ended (reached) or why it dropped out (failed, link_lost).
+    outcomes: dict[int, TargetOutcome] = field(default_factory=dict)
+    timed_out: bool = False
+    lost: set[int] = field(default_factory=set)  #: liveliness gone while the ground waited
+    phases: dict[int, str] = field(default_factory=dict)  #: each UAV's phase at the end
+    reasons: dict[int, str] = field(default_factory=dict)
+    #: A higher mission that reached the team while the ground followed this one
+    superseded_by: int | None = None
+
+    @property
+    def declined(self) -> list[int]:
+        """Team UAVs whose result holds no time at all: they take no part."""
+        return [
+            uav
+            for uav in self.team
+            if (result := self.results.get(uav)) is not None
+            and all(time is None for time in result.times)
+        ]
+
+    @property
+    def taking_part(self) -> list[int]:
+        declined = set(self.declined)
+        return [uav for uav in self.team if uav not in self.lost and uav not in declined]
+
+    @property
+    def epoch(self) -> int:
+        """The latest re-plan epoch any UAV committed (0: the consensus itself)."""
+        return max((report.epoch for report in self.assignments.values()), default=0)
+
+    def reached_by(self) -> dict[int, int]:
+        """Target index -> the UAV whose telemetry put it inside the acceptance radius."""
+        return {
+            outcome.target: uav
+            for uav, outcome in sorted(self.outcomes.items())
+            if outcome.phase == Phase.REACHED and outcome.target is not None
+        }
+
+    @property
+    def agreement(self) -> Agreement:
+        return check_agreement(self.taking_part, self.assignments)
+
+    @property
+    def committed(self) -> bool:
+        return bool(self.taking_part) and all(uav in self.assignments for uav in self.taking_part)
+
+    def holders(self) -> dict[int, int]:
+        """Target index -> the UAV holding it at the latest epoch: a UAV still showing an
+        earlier epoch (dead, or not yet re-planned) holds nothing here."""
+        latest = self.epoch
+        return {
+            report.target: uav
+            for uav, report in sorted(self.assignments.items())
+            if uav in self.team and report.epoch == latest and report.target is not None
+        }
+
+    def target_states(self) -> list[dict[str, Any]]:
+        """Each target's state: reached (by whom), assigned (to whom) or unserved (why;
+        every target not reached is unserved once a later mission superseded this one)."""
+        taking_part = set(self.taking_part)
+        holders = {t: uav for t, uav in self.holders().items() if uav in taking_part}
+        idle = [uav for uav in self.taking_part if self.target_of(uav) is None]
+        reached = self.reached_by()
+        states: list[dict[str, Any]] = []
+        for index in range(len(self.targets)):
+            if index in reached:
+                states.append({"index": index, "state": "reached", "uav": reached[index]})
+                continue
+            if self.superseded_by is not None:
+                why = f"mission {self.superseded_by} superseded this one"
+                states.append({"index": index, "state": "unserved", "uav": None, "reason": why})
+                continue
+            holder = holders.get(index)
+            if holder is not None:
+                states.append({"index": index, "state": "assigned", "uav": holder})
+                continue
+            if not self.committed:
+                why = "the team did not commit"
+            elif idle:
+                why = f"not assigned although UAV {idle[0]} had no target"
+            else:
+                why = "more targets than UAVs taking part"
+            states.append({"index": index, "state": "unserved", "uav": None, "reason": why})
+        return states
+
+    @property
+    def succeeded(self) -> bool:
+        """The truth behind the exit code: the team agreed and no target was left unserved
+        while a UAV taking part had none, and no later mission superseded it."""
+        if self.superseded_by is not None:
+            return False
+        if not self.committed or not self.agreement.agreed:
+            return False
+        return not any(
+            s["state"] == "unserved" and "had no target" in s["reason"]
+            for s in self.target_states()
+        )
+
+    def target_of(self, uav: int) -> int | None:
+        report = self.assignments.get(uav)
+        return report.target if report is not None else None
+
+    def unassigned(self) -> list[int]:
+        taken = {self.target_of(uav) for uav in self.team}
+        return [i for i in range(len(self.targets)) if i not in taken]
+
+    def to_json(self) -> dict[str, Any]:
+        """The `send-targets --json` object (docs/ground.md)."""
+        agreement = self.agreement
+        n = len(self.targets)
+        results: dict[str, list[float | None]] = {}
+        for uav in self.team:
+            result = self.results.get(uav)
+            times = list(result.times) if result is not None and len(result.times) == n else None
+            results[str(uav)] = times if times is not None else [None] * n
+        reference = agreement.reference
+        return {
+            "mission": self.mission,
+            "team": list(self.team),
+            "targets": [msgspec.to_builtins(t) for t in self.targets],
+            "results": results,
+            "assignment": {str(uav): self.target_of(uav) for uav in self.team},
+            "eta": {
+                str(uav): (report.eta_s if (report := self.assignments.get(uav)) else None)
+                for uav in self.team
+            },
+            "unassigned": self.unassigned(),
+            "agreed": agreement.agreed,
+            "disagreed": list(agreement.disagreed),
+            "missing_results": [uav for uav in self.team if uav not in self.results],
+            "missing_assignments": list(agreement.missing),
+            "digest": reference.digest if reference is not None else None,
+            "complete": self.committed,
+            "timed_out": self.timed_out,
+            "lost": sorted(self.lost),
+            "declined": self.declined,
+            "taking_part": self.taking_part,
+            "phases": {str(uav): self.phases.get(uav) for uav in self.team},
+            "reasons": {str(uav): reason for uav, reason in sorted(self.reasons.items())},
+            "target_states": self.target_states(),
+            "epoch": self.epoch,
+            "outcomes": {
+                str(uav): msgspec.to_builtins(outcome)
+                for uav, outcome in sorted(self.outcomes.items())
+            },
+            "superseded_by": self.superseded_by,
+            "success": self.succeeded,
+        }

@@ -1,0 +1,136 @@
+"""Mission ids two grounds cannot share: `claim_mission` against a real router on
+loopback, with another Zenoh session of this process standing in for another ground."""
+
+from __future__ import annotations
+
+import logging
+import threading
+
+import pytest
+import zenoh
+
+from fleet.mission import keys
+from fleet.transport import bus_codec
+from fleet.transport.zenoh_config import make_config
+from ground.mission_control import MissionError
+from ground.mission_ids import TargetsServer, claim_mission, rival_claims
+from tests.ground.mission_samples import (
+    OTHER_TARGETS,
+    TARGETS,
+    TIMEOUT_S,
+    maker,
+    mission,
+)
+
+
+def test_a_fresh_key_space_is_claimed_at_once_and_served_while_open(
+    session: zenoh.Session, rival: zenoh.Session
+) -> None:
+    with claim_mission(session, lambda m: mission(m), TIMEOUT_S, mission=901) as server:
+        assert server.targets == mission(901)
+        # Served to others while claimed: a second ground sees the claim as a rival.
+        assert rival_claims(rival, mission(901, OTHER_TARGETS), TIMEOUT_S) == 1
+        # The same content is no rival (a UAV holding this very mission, say).
+        assert rival_claims(rival, mission(901), TIMEOUT_S) == 0
+    assert rival_claims(rival, mission(901, OTHER_TARGETS), TIMEOUT_S) == 0
+
+
+def test_a_given_mission_id_another_ground_serves_is_refused(
+    session: zenoh.Session, rival: zenoh.Session
+) -> None:
+    with (
+        TargetsServer(rival, mission(902, OTHER_TARGETS)),
+        pytest.raises(MissionError, match="902 is already in use"),
+        claim_mission(session, lambda m: mission(m), TIMEOUT_S, mission=902),
+    ):
+        pass
+
+
+class Squatter:
+    """Another ground that claims, with other targets, every mission id asked about by
+    its own key (as if it had chosen the same id a moment earlier); it does not answer
+    the ground's wildcard look for missions seen, so the collision happens every time.
+    `limit` bounds how many ids it squats."""
+
+    def __init__(self, session: zenoh.Session, limit: int) -> None:
+        self.asked: list[int] = []
+        self._limit = limit
+        self._queryable = session.declare_queryable(keys.ALL_MISSION_TARGETS, self._on_query)
+
+    def _on_query(self, query: zenoh.Query) -> None:
+        key = str(query.key_expr)
+        if "*" in key:
+            return
+        m = keys.mission_of(key)
+        if m not in self.asked:
+            self.asked.append(m)
+        if self.asked.index(m) < self._limit:
+            reply = mission(m, OTHER_TARGETS)
+            query.reply(key, bus_codec.encode(reply), encoding=bus_codec.ENCODING)
+
+    def close(self) -> None:
+        self._queryable.undeclare()
+
+
+def test_a_collision_moves_on_to_a_higher_id_and_says_so(
+    session: zenoh.Session, rival: zenoh.Session, caplog: pytest.LogCaptureFixture
+) -> None:
+    squatter = Squatter(rival, limit=1)
+    caplog.set_level(logging.WARNING, logger="ground.mission_ids")
+    try:
+        with claim_mission(session, lambda m: mission(m), TIMEOUT_S) as server:
+            chosen = server.targets.mission
+    finally:
+        squatter.close()
+    first = squatter.asked[0]
+    assert first < chosen <= first + 4, squatter.asked
+    assert squatter.asked == [first, chosen]
+    assert f"mission {first}: another ground chose it too" in caplog.text
+    assert f"mission {chosen}: claimed at attempt 2" in caplog.text
+
+
+def test_running_out_of_attempts_is_an_error(session: zenoh.Session, rival: zenoh.Session) -> None:
+    squatter = Squatter(rival, limit=1000)
+    try:
+        with (
+            pytest.raises(MissionError, match="no free mission id after 3 attempts"),
+            claim_mission(session, lambda m: mission(m), TIMEOUT_S, attempts=3),
+        ):
+            pass
+    finally:
+        squatter.close()
+    assert len(squatter.asked) == 3
+    assert squatter.asked == sorted(squatter.asked)
+
+
+def test_two_grounds_claiming_together_get_different_ids(router: str) -> None:
+    sessions = [zenoh.open(make_config("client", [router])) for _ in range(2)]
+    try:
+        for _ in range(3):
+            claimed = claim_together(sessions)
+            assert len(claimed) == 2 and claimed[0] != claimed[1], claimed
+    finally:
+        for opened in sessions:
+            opened.close()
+
+
+def claim_together(sessions: list[zenoh.Session]) -> dict[int, int]:
+    """Two grounds claim at the same moment, each holding its claim until both have one."""
+    start = threading.Barrier(2)
+    held = threading.Barrier(3)
+    claimed: dict[int, int] = {}
+
+    def claim(index: int) -> None:
+        targets = TARGETS if index == 0 else OTHER_TARGETS
+        start.wait()
+        with claim_mission(sessions[index], maker(targets), TIMEOUT_S) as server:
+            claimed[index] = server.targets.mission
+            held.wait(30)
+
+    threads = [threading.Thread(target=claim, args=(i,)) for i in range(2)]
+    for thread in threads:
+        thread.start()
+    held.wait(30)
+    for thread in threads:
+        thread.join(30)
+    return claimed
