@@ -1,8 +1,8 @@
 """Minimum approach time from one UAV to each of a set of targets (Richards-How model).
 
-One Pyomo model per UAV is built once, handed to HiGHS once through Pyomo's persistent
-interface, and re-solved as the aircraft's state and the targets change by updating
-variable bounds only: no constraint, coefficient or Param changes after construction.
+One linear program per UAV is built once, handed to HiGHS once, and re-solved as the
+aircraft's state and the targets change by updating variable bounds only: no constraint
+or coefficient changes after construction (see "Solvers" below for Pyomo's part).
 
 Model
 -----
@@ -86,14 +86,23 @@ without one; one above the maximum (a ground speed with tailwind) as max_airspee
 not modelled. Times assume the aircraft may fly at max_airspeed; if the autopilot holds a
 lower commanded airspeed, build the model with that as max_airspeed.
 
-Pyomo overheads
----------------
-The persistent interface's `solve()` costs ~2-4 ms per call on top of a ~2-3 ms
-warm-started LP, and it redirects the process-wide stdout/stderr file descriptors while
-HiGHS runs, which would swallow other threads' log output in the onboard process. The
-model is therefore translated and updated through the persistent interface
-(`set_instance`, `update_variables`) and run on the HiGHS instance that interface owns
-(see `_PersistentHighs`).
+Solvers: the onboard's LP straight on HiGHS, the Pyomo model as the reference
+---------------------------------------------------------------------------
+The model was written in Pyomo (`onboard.approach_pyomo.build_point_mass`) and handed to
+HiGHS through Pyomo's persistent interface. Pyomo and numpy, which highspy's Python
+layer imports, hold ~37 MB resident in every onboard process (issue 14: fifty onboards
+on one box) and nothing of them is used after the model is translated: the LP scan only
+changes variable bounds and runs HiGHS. So `point_mass_lp` states the same LP as arrays,
+row for row, column for column, in the order Pyomo's translation gives them, and `HighsLp`
+passes it to HiGHS's compiled core (`load_highs_core`: without highspy's numpy layer) and
+changes its bounds in place. The LP HiGHS receives is then identical to Pyomo's (a test
+compares both), so HiGHS solves the same problems from the same bases: the times are
+equal (the tests and `bench/bench_approach.py` compare them). `LpBackend.PYOMO` runs the
+scan on the Pyomo model, for the tests, the bench and its MILP reference.
+
+HiGHS runs with one thread and no output. Pyomo's public persistent `solve()` added
+~2-4 ms per LP and redirected the process-wide stdout/stderr descriptors while HiGHS ran;
+neither path uses it (see `onboard.approach_pyomo`).
 """
 
 from __future__ import annotations
@@ -101,18 +110,19 @@ from __future__ import annotations
 import bisect
 import dataclasses
 import enum
+import importlib.machinery
+import importlib.util
 import logging
 import math
+import os
+import sys
+import tempfile
 import threading
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Any
-
-import highspy
-import pyomo.environ as pyo
-from pyomo.contrib.solver.common.factory import SolverFactory
-from pyomo.contrib.solver.common.results import TerminationCondition
+from dataclasses import dataclass, field
+from types import ModuleType
+from typing import Any, Protocol
 
 from fleet.errors import FleetError
 from fleet.geo.aircraft import AircraftLimits
@@ -121,26 +131,33 @@ from fleet.geo.dubins import dubins_path_length
 __all__ = [
     "ApproachModelError",
     "ApproachTimeModel",
+    "BoundChange",
+    "Column",
+    "HighsLp",
+    "LinearProgram",
+    "LpBackend",
+    "PointMassLp",
     "TargetSolution",
     "TargetStatus",
     "along_velocity_bounds",
-    "build_point_mass",
     "default_steps",
+    "load_highs_core",
+    "point_mass_lp",
 ]
 
 logger = logging.getLogger(__name__)
 
-_SIDES = 16
-_HALF_SIDE = math.pi / _SIDES
-# Inradius of the acceleration 16-gon, inscribed in the unit circle.
-_ACCEL_INRADIUS = math.cos(_HALF_SIDE)
-# Inradius of the speed 16-gon scaled to a mean radius of 1: the inscribed 16-gon's mean
-# radius is cos(h) ln(sec h + tan h) / h with h = pi/16, so this is h / ln(sec h + tan h).
-_SPEED_INRADIUS = _HALF_SIDE / math.log(1.0 / math.cos(_HALF_SIDE) + math.tan(_HALF_SIDE))
-# Facet normals of a 16-gon with a vertex at angle 0 (dead ahead in the heading frame).
-_NORMALS = tuple(
-    (math.cos((2 * i + 1) * math.pi / _SIDES), math.sin((2 * i + 1) * math.pi / _SIDES))
-    for i in range(_SIDES)
+SIDES = 16
+_HALF_SIDE = math.pi / SIDES
+#: Inradius of the acceleration 16-gon, inscribed in the unit circle.
+ACCEL_INRADIUS = math.cos(_HALF_SIDE)
+#: Inradius of the speed 16-gon scaled to a mean radius of 1: the inscribed 16-gon's mean
+#: radius is cos(h) ln(sec h + tan h) / h with h = pi/16, so this is h / ln(sec h + tan h).
+SPEED_INRADIUS = _HALF_SIDE / math.log(1.0 / math.cos(_HALF_SIDE) + math.tan(_HALF_SIDE))
+#: Facet normals of a 16-gon with a vertex at angle 0 (dead ahead in the heading frame).
+NORMALS = tuple(
+    (math.cos((2 * i + 1) * math.pi / SIDES), math.sin((2 * i + 1) * math.pi / SIDES))
+    for i in range(SIDES)
 )
 # Distance (metres, 16-gon norm) below which the target counts as reached; HiGHS's
 # primal feasibility tolerance on a km-scale model leaves residuals far below this.
@@ -201,149 +218,236 @@ def default_steps(horizon_s: float) -> tuple[float, ...]:
     return tuple(steps)
 
 
-class _PersistentHighs:
-    """Pyomo's persistent HiGHS interface, run without its per-solve overhead.
+#: A variable of the LP: its name in the Pyomo model and its index (0 for a scalar).
+Column = tuple[str, int]
+#: New lower and upper bounds of a variable; None is unbounded.
+BoundChange = tuple[Column, float | None, float | None]
 
-    Model translation and every later bound change go through the public persistent
-    API. The run itself uses the HiGHS instance the interface owns, because `solve()`
-    adds ~2-4 ms per LP and swaps the process-wide stdout/stderr descriptors during the
-    run (unsafe with other threads logging). If a future Pyomo renames that attribute,
-    this falls back to the public `solve()`, slower but correct.
-    """
 
-    def __init__(self, model: pyo.ConcreteModel) -> None:
-        opt: Any = SolverFactory("highs")
-        if int(opt.available()) <= 0:
-            raise ApproachModelError("HiGHS (highspy) is not available")
-        updates = opt.config.auto_updates
-        # Only bounds change after construction, and they are pushed explicitly.
-        for flag in (
-            "check_for_new_or_removed_constraints",
-            "check_for_new_or_removed_vars",
-            "check_for_new_or_removed_params",
-            "check_for_new_objective",
-            "update_constraints",
-            "update_vars",
-            "update_parameters",
-            "update_named_expressions",
-            "update_objective",
-        ):
-            setattr(updates, flag, False)
-        opt.config.load_solutions = False
-        opt.config.raise_exception_on_nonoptimal_result = False
-        opt.set_instance(model)
-        self._opt = opt
-        self._model = model
-        self._highs: Any = getattr(opt, "_solver_model", None)
-        if self._highs is not None:
-            self._highs.setOptionValue("output_flag", False)
-            # One thread: the machine is shared and these LPs are far too small to gain.
-            self._highs.setOptionValue("threads", 1)
-        else:
-            logger.warning("pyomo highs interface has no _solver_model; using solve()")
+class LpBackend(enum.Enum):
+    """What runs the LP scan's linear programs."""
 
-    def push_bounds(self, variables: Sequence[Any]) -> None:
-        """Send the current bounds of `variables` to HiGHS."""
-        if variables:
-            self._opt.update_variables(list(variables))
+    HIGHS = "highs"  # `HighsLp`: the arrays straight on HiGHS (the onboard's)
+    PYOMO = "pyomo"  # `onboard.approach_pyomo.PyomoLp`: the Pyomo model (the reference)
+
+
+class LinearProgram(Protocol):
+    """The point-mass LP, changed through variable bounds only."""
+
+    def set_bounds(self, changes: Sequence[BoundChange]) -> None: ...
 
     def minimise(self) -> float | None:
-        """Solve the LP; the optimal objective, or None if it is not optimal."""
-        if self._highs is None:
-            res = self._opt.solve(self._model)
-            ok = res.termination_condition == TerminationCondition.convergenceCriteriaSatisfied
-            return float(res.incumbent_objective) if ok else None
-
-        self._highs.run()
-        if self._highs.getModelStatus() != highspy.HighsModelStatus.kOptimal:
-            # Drop the basis, so that the next LP does not warm-start from a failed one.
-            self._highs.clearSolver()
-            return None
-        return float(self._highs.getInfo().objective_function_value)
+        """The optimal objective, or None if HiGHS found no optimum."""
+        ...
 
 
-def build_point_mass(limits: AircraftLimits, steps: Sequence[float]) -> pyo.ConcreteModel:
-    """The Pyomo point-mass model on the time grid `steps`, in the heading frame.
+@dataclass
+class PointMassLp:
+    """`build_point_mass`'s LP as arrays, in HiGHS's row-wise form.
 
-    Variables x, y, vx, vy on nodes 0..n, ax, ay on steps 0..n-1; node 0 is fixed at the
-    origin flying along +x at max speed (change vx[0]'s bounds for another speed, and
-    see `along_velocity_bounds`). The selection part (slacks sx, sy, gap vector ex, ey,
-    target tx, ty and the objective `gap`) serves the LP scan; the bench's MILP
-    reference reuses the rest.
+    Columns are numbered in order of first appearance in the rows, and rows come in the
+    Pyomo model's constraint order, with its coefficients: the order Pyomo's HiGHS
+    translation produces, so that HiGHS receives an identical LP.
+    """
+
+    columns: dict[Column, int] = field(default_factory=dict)
+    col_lower: list[float] = field(default_factory=list)
+    col_upper: list[float] = field(default_factory=list)
+    row_lower: list[float] = field(default_factory=list)
+    row_upper: list[float] = field(default_factory=list)
+    starts: list[int] = field(default_factory=list)  # first entry of each row
+    index: list[int] = field(default_factory=list)
+    value: list[float] = field(default_factory=list)
+
+    def add_row(self, terms: Sequence[tuple[Column, float]], lower: float, upper: float) -> None:
+        self.starts.append(len(self.index))
+        for column, coefficient in terms:
+            number = self.columns.get(column)
+            if number is None:
+                number = self.columns[column] = len(self.columns)
+                self.col_lower.append(-math.inf)
+                self.col_upper.append(math.inf)
+            self.index.append(number)
+            self.value.append(coefficient)
+        self.row_lower.append(lower)
+        self.row_upper.append(upper)
+
+    def bound(self, column: Column, lower: float, upper: float) -> None:
+        number = self.columns[column]
+        self.col_lower[number] = lower
+        self.col_upper[number] = upper
+
+    def to_mps(self) -> str:
+        """The LP in free-format MPS, minimising the last column (`gap`); rows, columns
+        and every number (`repr`, which reads back exactly) in this LP's order."""
+        rows = len(self.row_lower)
+        kinds = []
+        rhs = []
+        for r, (lower, upper) in enumerate(zip(self.row_lower, self.row_upper, strict=True)):
+            if lower == upper:
+                kinds.append(f" E r{r}")
+                value = lower
+            elif lower == -math.inf and upper < math.inf:
+                kinds.append(f" L r{r}")
+                value = upper
+            elif upper == math.inf and lower > -math.inf:
+                kinds.append(f" G r{r}")
+                value = lower
+            else:
+                raise ValueError(f"row {r}: bounds [{lower}, {upper}] are not one-sided")
+            if value != 0.0:
+                rhs.append(f" rhs r{r} {value!r}")
+        by_column: list[list[tuple[int, float]]] = [[] for _ in self.columns]
+        for r in range(rows):
+            end = self.starts[r + 1] if r + 1 < rows else len(self.index)
+            for j in range(self.starts[r], end):
+                by_column[self.index[j]].append((r, self.value[j]))
+        last = len(by_column) - 1
+        entries = []
+        for c, column in enumerate(by_column):
+            entries += [f" c{c} r{r} {value!r}" for r, value in column]
+            if c == last:
+                entries.append(f" c{c} obj 1.0")
+        bounds = []
+        for c, (lower, upper) in enumerate(zip(self.col_lower, self.col_upper, strict=True)):
+            if lower == upper:
+                bounds.append(f" FX bnd c{c} {lower!r}")
+            elif lower == -math.inf and upper == math.inf:
+                bounds.append(f" FR bnd c{c}")
+            else:
+                if lower == -math.inf:
+                    bounds.append(f" MI bnd c{c}")
+                elif lower != 0.0:
+                    bounds.append(f" LO bnd c{c} {lower!r}")
+                if upper != math.inf:
+                    bounds.append(f" UP bnd c{c} {upper!r}")
+        lines = ["NAME approach_time", "ROWS", " N obj", *kinds, "COLUMNS", *entries]
+        lines += ["RHS", *rhs, "BOUNDS", *bounds, "ENDATA", ""]
+        return "\n".join(lines)
+
+
+def point_mass_lp(limits: AircraftLimits, steps: Sequence[float]) -> PointMassLp:
+    """The point-mass LP on the time grid `steps`, in the heading frame.
+
+    Variables x, y, vx, vy on nodes 0..n, ax, ay on steps 0..n-1, the slack pair sx, sy
+    per node (fixed to 0 on the node being tested, free elsewhere), the gap vector ex,
+    ey (target minus the tested node's position), the target tx, ty (fixed through its
+    bounds) and the objective `gap` >= 0, the 16-gon norm of (ex, ey). Node 0 is at the
+    origin flying along +x at max speed. `onboard.approach_pyomo.build_point_mass` is
+    the same model in Pyomo; a coefficient written as Pyomo computes it (0.5 * dt * dt).
     """
     n = len(steps)
-    v_cap = limits.max_airspeed * _SPEED_INRADIUS
-    a_cap = limits.max_accel * _ACCEL_INRADIUS
-    m = pyo.ConcreteModel(name="approach_time")
-    m.K = pyo.RangeSet(0, n)  # nodes
-    m.S = pyo.RangeSet(0, n - 1)  # steps
-    m.F = pyo.RangeSet(0, _SIDES - 1)  # polygon facets
-    m.x = pyo.Var(m.K)
-    m.y = pyo.Var(m.K)
-    m.vx = pyo.Var(m.K)
-    m.vy = pyo.Var(m.K)
-    m.ax = pyo.Var(m.S)
-    m.ay = pyo.Var(m.S)
-    # Slack pair per node: fixed to 0 on the node being tested, free elsewhere.
-    m.sx = pyo.Var(m.K)
-    m.sy = pyo.Var(m.K)
-    m.ex = pyo.Var()  # target minus the tested node's position
-    m.ey = pyo.Var()
-    m.tx = pyo.Var()  # target, fixed through its bounds
-    m.ty = pyo.Var()
-    m.gap = pyo.Var(bounds=(0.0, None))
-
-    def pos_x(b: Any, k: int) -> Any:
-        dt = steps[k]
-        return b.x[k + 1] == b.x[k] + dt * b.vx[k] + 0.5 * dt * dt * b.ax[k]
-
-    def pos_y(b: Any, k: int) -> Any:
-        dt = steps[k]
-        return b.y[k + 1] == b.y[k] + dt * b.vy[k] + 0.5 * dt * dt * b.ay[k]
-
-    def vel_x(b: Any, k: int) -> Any:
-        return b.vx[k + 1] == b.vx[k] + steps[k] * b.ax[k]
-
-    def vel_y(b: Any, k: int) -> Any:
-        return b.vy[k + 1] == b.vy[k] + steps[k] * b.ay[k]
-
-    def speed(b: Any, k: int, f: int) -> Any:
-        nx, ny = _NORMALS[f]
-        return nx * b.vx[k] + ny * b.vy[k] <= v_cap
-
-    def accel(b: Any, k: int, f: int) -> Any:
-        nx, ny = _NORMALS[f]
-        return nx * b.ax[k] + ny * b.ay[k] <= a_cap
-
-    def select_x(b: Any, k: int) -> Any:
-        return b.ex == b.tx - b.x[k] + b.sx[k]
-
-    def select_y(b: Any, k: int) -> Any:
-        return b.ey == b.ty - b.y[k] + b.sy[k]
-
-    def gauge(b: Any, f: int) -> Any:
-        nx, ny = _NORMALS[f]
-        return b.gap >= nx * b.ex + ny * b.ey
-
-    m.pos_x = pyo.Constraint(m.S, rule=pos_x)
-    m.pos_y = pyo.Constraint(m.S, rule=pos_y)
-    m.vel_x = pyo.Constraint(m.S, rule=vel_x)
-    m.vel_y = pyo.Constraint(m.S, rule=vel_y)
+    v_cap = limits.max_airspeed * SPEED_INRADIUS
+    a_cap = limits.max_accel * ACCEL_INRADIUS
+    lp = PointMassLp()
+    for pos, vel, acc in (("x", "vx", "ax"), ("y", "vy", "ay")):
+        for k, dt in enumerate(steps):  # pos[k+1] = pos[k] + dt vel[k] + dt^2/2 acc[k]
+            terms = [((pos, k + 1), 1.0), ((pos, k), -1.0), ((vel, k), -dt)]
+            lp.add_row([*terms, ((acc, k), -(0.5 * dt * dt))], 0.0, 0.0)
+    for vel, acc in (("vx", "ax"), ("vy", "ay")):
+        for k, dt in enumerate(steps):  # vel[k+1] = vel[k] + dt acc[k]
+            lp.add_row([((vel, k + 1), 1.0), ((vel, k), -1.0), ((acc, k), -dt)], 0.0, 0.0)
     # Node 0 is fixed by bounds, so its speed needs no polygon.
-    m.speed = pyo.Constraint(pyo.RangeSet(1, n), m.F, rule=speed)
-    m.accel = pyo.Constraint(m.S, m.F, rule=accel)
-    m.select_x = pyo.Constraint(m.K, rule=select_x)
-    m.select_y = pyo.Constraint(m.K, rule=select_y)
-    m.gauge = pyo.Constraint(m.F, rule=gauge)
-    m.objective = pyo.Objective(expr=m.gap, sense=pyo.minimize)
-
+    for k in range(1, n + 1):
+        for nx, ny in NORMALS:
+            lp.add_row([(("vx", k), nx), (("vy", k), ny)], -math.inf, v_cap)
+    for k in range(n):
+        for nx, ny in NORMALS:
+            lp.add_row([(("ax", k), nx), (("ay", k), ny)], -math.inf, a_cap)
+    for pos, gap, target, slack in (("x", "ex", "tx", "sx"), ("y", "ey", "ty", "sy")):
+        for k in range(n + 1):  # gap = target - pos[k] + slack[k]
+            terms = [((gap, 0), 1.0), ((target, 0), -1.0), ((pos, k), 1.0), ((slack, k), -1.0)]
+            lp.add_row(terms, 0.0, 0.0)
+    for nx, ny in NORMALS:  # gap >= the 16-gon's facet distance
+        lp.add_row([(("ex", 0), nx), (("ey", 0), ny), (("gap", 0), -1.0)], -math.inf, 0.0)
     # The heading frame puts the aircraft at the origin flying along +x.
-    for var in (m.x[0], m.y[0], m.vy[0], m.tx, m.ty):
-        var.setlb(0.0)
-        var.setub(0.0)
-    m.vx[0].setlb(limits.max_airspeed)
-    m.vx[0].setub(limits.max_airspeed)
-    return m
+    for column in (("x", 0), ("y", 0), ("vy", 0), ("tx", 0), ("ty", 0)):
+        lp.bound(column, 0.0, 0.0)
+    lp.bound(("vx", 0), limits.max_airspeed, limits.max_airspeed)
+    lp.bound(("gap", 0), 0.0, math.inf)
+    return lp
+
+
+def load_highs_core() -> ModuleType:
+    """HiGHS's compiled core (`highspy._core`), without highspy's Python layer.
+
+    `import highspy` also imports numpy (~12 MB resident per process) for array helpers
+    this LP does not need: the core takes Python lists and scalars. So the extension is
+    loaded on its own and registered under its own name, so that a later `import highspy`
+    (Pyomo's, in the tests) reuses the same module instead of loading it twice. If
+    highspy's layout ever changes, the whole package is imported instead.
+    """
+    name = "highspy._core"
+    loaded = sys.modules.get(name)
+    if loaded is not None:
+        return loaded
+    package = importlib.util.find_spec("highspy")
+    if package is None:
+        raise ApproachModelError("HiGHS (highspy) is not installed")
+    locations = list(package.submodule_search_locations or ())
+    spec = importlib.machinery.PathFinder.find_spec(name, locations)
+    if spec is None or spec.loader is None:
+        logger.info("highspy has no %s of its own: importing the whole package", name)
+        return importlib.import_module(name)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+    except BaseException:
+        del sys.modules[name]
+        raise
+    return module
+
+
+class HighsLp:
+    """`point_mass_lp` on one HiGHS instance, changed through column bounds only.
+
+    The LP reaches HiGHS as a free-format MPS file (written to a temporary file and
+    read back at once): every array-taking call of highspy's core converts through numpy,
+    which this avoids importing; the file's numbers are written exactly (`repr`).
+    """
+
+    def __init__(self, limits: AircraftLimits, steps: Sequence[float]) -> None:
+        core: Any = load_highs_core()
+        lp = point_mass_lp(limits, steps)
+        highs = core._Highs()
+        highs.setOptionValue("output_flag", False)
+        # One thread: the machine is shared and these LPs are far too small to gain.
+        highs.setOptionValue("threads", 1)
+        with tempfile.TemporaryDirectory(prefix="approach-lp-") as tmp:
+            path = os.path.join(tmp, "approach.mps")
+            with open(path, "w", encoding="ascii") as file:
+                file.write(lp.to_mps())
+            status = highs.readModel(path)
+        if status != core.HighsStatus.kOk or highs.getNumCol() != len(lp.columns):
+            raise ApproachModelError(f"HiGHS refused the approach-time LP: {status}")
+        self.columns = lp.columns
+        self.highs: Any = highs
+        self._optimal = core.HighsModelStatus.kOptimal
+
+    def set_bounds(self, changes: Sequence[BoundChange]) -> None:
+        for column, lower, upper in changes:
+            self.highs.changeColBounds(
+                self.columns[column],
+                -math.inf if lower is None else lower,
+                math.inf if upper is None else upper,
+            )
+
+    def minimise(self) -> float | None:
+        self.highs.run()
+        if self.highs.getModelStatus() != self._optimal:
+            # Drop the basis, so that the next LP does not warm-start from a failed one.
+            self.highs.clearSolver()
+            return None
+        return float(self.highs.getInfo().objective_function_value)
+
+
+def _make_lp(backend: LpBackend, limits: AircraftLimits, steps: Sequence[float]) -> LinearProgram:
+    if backend is LpBackend.PYOMO:
+        from onboard.approach_pyomo import PyomoLp  # Pyomo: the reference only
+
+        return PyomoLp(limits, steps)
+    return HighsLp(limits, steps)
 
 
 def along_velocity_bounds(
@@ -377,12 +481,14 @@ class ApproachTimeModel:
         *,
         steps: Sequence[float] | None = None,
         turn_constraint: bool = True,
+        backend: LpBackend = LpBackend.HIGHS,
     ) -> None:
         """Build the model.
 
         `steps` overrides the time grid (default `default_steps(horizon_s)`);
         `turn_constraint=False` gives the pure point mass (kept for the bench's
-        comparison).
+        comparison); `backend=LpBackend.PYOMO` runs the scan on the Pyomo model (the
+        reference; the same LP, the same times).
         """
         started = time.perf_counter()
         self.limits = limits
@@ -394,8 +500,8 @@ class ApproachTimeModel:
         for dt in self._steps:
             times.append(times[-1] + dt)
         self._times = tuple(times)
-        self._model = build_point_mass(limits, self._steps)
-        self._solver = _PersistentHighs(self._model)
+        self.backend = backend
+        self.lp = _make_lp(backend, limits, self._steps)
         self._selected: int | None = None
         self._speed: float | None = None
         self.build_seconds = time.perf_counter() - started
@@ -425,44 +531,28 @@ class ApproachTimeModel:
         """Initial speed and the turn-rate bounds on the along-heading velocity."""
         if self._speed == speed:
             return
-        m = self._model
-        m.vx[0].setlb(speed)
-        m.vx[0].setub(speed)
-        changed = [m.vx[0]]
+        changes: list[BoundChange] = [(("vx", 0), speed, speed)]
         lowers = along_velocity_bounds(self.limits, self._times, speed)
         for k in range(1, len(self._times)):
-            m.vx[k].setlb(lowers[k] if self.turn_constraint else None)
-            changed.append(m.vx[k])
-        self._solver.push_bounds(changed)
+            changes.append((("vx", k), lowers[k] if self.turn_constraint else None, None))
+        self.lp.set_bounds(changes)
         self._speed = speed
 
     def _set_target(self, along: float, cross: float) -> None:
-        m = self._model
-        m.tx.setlb(along)
-        m.tx.setub(along)
-        m.ty.setlb(cross)
-        m.ty.setub(cross)
-        self._solver.push_bounds([m.tx, m.ty])
+        self.lp.set_bounds([(("tx", 0), along, along), (("ty", 0), cross, cross)])
 
     def _select(self, node: int) -> None:
-        m = self._model
-        changed = []
+        changes: list[BoundChange] = []
         if self._selected is not None:
-            for var in (m.sx[self._selected], m.sy[self._selected]):
-                var.setlb(None)
-                var.setub(None)
-                changed.append(var)
-        for var in (m.sx[node], m.sy[node]):
-            var.setlb(0.0)
-            var.setub(0.0)
-            changed.append(var)
-        self._solver.push_bounds(changed)
+            changes += [(("sx", self._selected), None, None), (("sy", self._selected), None, None)]
+        changes += [(("sx", node), 0.0, 0.0), (("sy", node), 0.0, 0.0)]
+        self.lp.set_bounds(changes)
         self._selected = node
 
     def _gauge_time(self, along: float, cross: float) -> float:
         """Time to cover (along, cross) at max speed inside the speed 16-gon."""
-        reach = max(nx * along + ny * cross for nx, ny in _NORMALS)
-        return max(reach, 0.0) / (_SPEED_INRADIUS * self.limits.max_airspeed)
+        reach = max(nx * along + ny * cross for nx, ny in NORMALS)
+        return max(reach, 0.0) / (SPEED_INRADIUS * self.limits.max_airspeed)
 
     def _first_node_at_or_after(self, t: float) -> int:
         return bisect.bisect_left(self._times, t - 1e-9)
@@ -470,7 +560,7 @@ class ApproachTimeModel:
     def _gap_at(self, node: int) -> float | None:
         """Least 16-gon distance to the target at `node`; None if the LP failed."""
         self._select(node)
-        return self._solver.minimise()
+        return self.lp.minimise()
 
     def _scan(
         self,
@@ -484,7 +574,7 @@ class ApproachTimeModel:
                 return True
             return deadline is not None and time.monotonic() >= deadline
 
-        speed_cap = _SPEED_INRADIUS * self.limits.max_airspeed
+        speed_cap = SPEED_INRADIUS * self.limits.max_airspeed
         # Before any LP: node 0 is fixed, so its 16-gon distance is already a bound.
         bound = self._gauge_time(along, cross)
         if bound <= 0.0:

@@ -21,9 +21,11 @@ mission's approach times), and the new request runs next.
 The model is built in the worker thread, so the constructor does not block either:
 right after construction (~0.1 s), or, with `build_at_start=False`, when
 `prepare(cruise_speed)` first names the speed the aircraft holds (the onboard process
-calls it on the first GPS telemetry), so the first mission does not rebuild it. Pyomo
-and HiGHS are imported there, in the worker thread, not when this module is: an onboard
-process comes up and joins the fleet without them.
+calls it on the first GPS telemetry), so the first mission does not rebuild it. HiGHS
+is loaded there, in the worker thread, not when this module is: an onboard process
+comes up and joins the fleet without it. The model is the LP straight on HiGHS
+(`onboard.approach_model.HighsLp`): neither Pyomo nor numpy is ever loaded in an
+onboard process.
 
 Every run ends with a time for every target. The model stops starting LPs once the
 request's budget has elapsed; targets it did not reach get the analytic Dubins time
@@ -31,7 +33,7 @@ request's budget has elapsed; targets it did not reach get the analytic Dubins t
 says which. An exception inside the model is logged and turned into a result with the
 Dubins time for every target and the exception in `error`; the model is then rebuilt
 before the next run, because a failure half-way through a bound update could leave the
-solver and the Pyomo model out of step.
+solver and the model's bookkeeping out of step.
 """
 
 from __future__ import annotations
@@ -133,7 +135,7 @@ def fallback_time(
 
 
 def _default_model(limits: AircraftLimits, horizon_s: float) -> ApproachTimeModel:
-    from onboard.approach_model import ApproachTimeModel  # Pyomo and HiGHS: here only
+    from onboard.approach_model import ApproachTimeModel  # HiGHS: here only
 
     return ApproachTimeModel(limits, horizon_s)
 

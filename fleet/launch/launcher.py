@@ -56,8 +56,8 @@ log = logging.getLogger(__name__)
 
 #: Seconds a child gets between SIGTERM and SIGKILL.
 STOP_GRACE_S = 5.0
-#: Seconds to wait for the simulator's ports and every UAV's token and telemetry. Every
-#: onboard imports Pyomo and HiGHS at start, which takes seconds on a busy machine.
+#: Seconds to wait for the simulator's ports and every UAV's token and telemetry: dozens
+#: of Python processes starting at once take seconds each on a busy machine.
 DEFAULT_START_TIMEOUT_S = 120.0
 #: At most one progress report this often while waiting for the UAVs, seconds.
 PROGRESS_PERIOD_S = 1.0

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import itertools
 import math
+import random
+import subprocess
+import sys
 import time
 
 import pytest
@@ -12,6 +15,7 @@ from bench.bench_approach import fly_pure_pursuit
 from fleet.geo.aircraft import AircraftLimits, turn_radius
 from onboard.approach_model import (
     ApproachTimeModel,
+    LpBackend,
     TargetStatus,
     default_steps,
 )
@@ -171,3 +175,66 @@ def test_default_steps_cover_the_horizon() -> None:
     assert default_steps(600.0)[:10] == (2.0,) * 10
     with pytest.raises(ValueError, match="horizon must be positive"):
         default_steps(0.0)
+
+
+# -- the onboard's LP on HiGHS against the Pyomo model ---------------------------------
+
+
+def test_the_lp_on_highs_is_the_pyomo_models_lp() -> None:
+    """Same columns, rows, order, bounds and coefficients as Pyomo hands to HiGHS."""
+    ours = ApproachTimeModel(LIMITS, horizon_s=120.0)
+    reference = ApproachTimeModel(LIMITS, horizon_s=120.0, backend=LpBackend.PYOMO)
+    lps = []
+    for model in (ours, reference):
+        highs = model.lp.highs  # type: ignore[attr-defined]
+        highs.ensureColwise()
+        lps.append(highs.getLp())
+    a, b = lps
+    assert (a.num_col_, a.num_row_) == (b.num_col_, b.num_row_)
+    for name in ("col_cost_", "col_lower_", "col_upper_", "row_lower_", "row_upper_"):
+        assert list(getattr(a, name)) == list(getattr(b, name)), name
+    for name in ("start_", "index_", "value_"):
+        assert list(getattr(a.a_matrix_, name)) == list(getattr(b.a_matrix_, name)), name
+    assert (a.sense_, a.offset_) == (b.sense_, b.offset_)
+
+
+def test_the_lp_on_highs_gives_the_pyomo_models_times() -> None:
+    """Random states and targets at 0.1-6 km: every solution is identical."""
+    rng = random.Random(14)
+    ours = ApproachTimeModel(AircraftLimits(max_airspeed=22.0))
+    reference = ApproachTimeModel(AircraftLimits(max_airspeed=22.0), backend=LpBackend.PYOMO)
+    for _ in range(12):
+        position = (rng.uniform(-500.0, 500.0), rng.uniform(-500.0, 500.0))
+        speed = rng.uniform(5.0, 30.0)
+        heading = rng.uniform(0.0, math.tau)
+        velocity = (speed * math.cos(heading), speed * math.sin(heading))
+        targets = [polar(rng.uniform(100.0, 6000.0), rng.uniform(0.0, 360.0)) for _ in range(6)]
+        got = ours.solve_detailed(position, velocity, targets)
+        expected = reference.solve_detailed(position, velocity, targets)
+        assert got == expected
+
+
+def test_the_onboard_model_loads_neither_pyomo_nor_numpy() -> None:
+    probe = (
+        "import sys; from onboard.approach_model import ApproachTimeModel;"
+        "ApproachTimeModel().solve((0.0, 0.0), (30.0, 0.0), [(2000.0, 500.0)]);"
+        "print(sorted(m.split('.')[0] for m in sys.modules"
+        " if m.split('.')[0] in ('pyomo', 'numpy', 'highspy')))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, check=True, timeout=60
+    )
+    assert set(out.stdout.split("'")[1::2]) == {"highspy"}
+
+
+def test_highspy_imported_after_the_core_reuses_it() -> None:
+    """Pyomo's `import highspy` after the onboard loaded the core alone (as in these tests)."""
+    probe = (
+        "from onboard.approach_model import load_highs_core; core = load_highs_core();"
+        "import sys, highspy; assert sys.modules['highspy._core'] is core;"
+        "print(highspy.Highs().version())"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, check=True, timeout=60
+    )
+    assert out.stdout.strip()
