@@ -1,8 +1,19 @@
-"""The Zenoh backend of `fleet.transport.bus.Bus`: one Zenoh session."""
+"""The Zenoh backend of `fleet.transport.bus.Bus`: one Zenoh session.
+
+Every callback runs directly on the Zenoh thread that received the data
+(`zenoh.handlers.Callback(..., indirect=False)`). zenoh-python's default runs each
+subscription's, queryable's and query's callback in a Python thread of its own: 11
+long-lived threads per onboard process, one more per query in flight, and a thread
+hand-off per sample. The bus's callbacks only decode and queue (`fleet.transport.bus`:
+they never wait), so they need no thread of their own. (`indirect` is marked unstable
+in zenoh-python; the dependency is pinned to 1.10.)
+"""
 
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 import zenoh
 
@@ -17,6 +28,13 @@ from fleet.transport.bus import (
     QueryNotify,
     SampleCallback,
 )
+
+_T = TypeVar("_T")
+
+
+def direct(callback: Callable[[_T], Any]) -> zenoh.handlers.Callback[_T]:
+    """`callback` run on the Zenoh thread that received the data, not a thread of its own."""
+    return zenoh.handlers.Callback(callback, indirect=False)
 
 
 def _sample(sample: zenoh.Sample) -> BusSample:
@@ -48,7 +66,7 @@ class ZenohQueryable(Queryable):
     def __init__(self, session: zenoh.Session, key_expr: str, notify: QueryNotify | None) -> None:
         self._waiting: deque[ZenohQuery] = deque()
         self._notify = notify
-        self._queryable = session.declare_queryable(key_expr, self._on_query)
+        self._queryable = session.declare_queryable(key_expr, direct(self._on_query))
 
     def _on_query(self, query: zenoh.Query) -> None:
         self._waiting.append(ZenohQuery(query))
@@ -81,9 +99,10 @@ class ZenohBus(Bus):
         bus_qos.put(self.session, key, payload)
 
     def subscribe(self, key_expr: str, callback: SampleCallback) -> Declaration:
-        subscriber: Declaration = self.session.declare_subscriber(
-            key_expr, lambda sample: callback(_sample(sample))
-        )
+        def on_sample(sample: zenoh.Sample) -> None:
+            callback(_sample(sample))
+
+        subscriber: Declaration = self.session.declare_subscriber(key_expr, direct(on_sample))
         return subscriber
 
     def get(
@@ -94,9 +113,9 @@ class ZenohBus(Bus):
                 callback(_sample(reply.ok))
 
         if payload:
-            self.session.get(selector, on_reply, payload=payload, timeout=timeout)
+            self.session.get(selector, direct(on_reply), payload=payload, timeout=timeout)
         else:
-            self.session.get(selector, on_reply, timeout=timeout)
+            self.session.get(selector, direct(on_reply), timeout=timeout)
 
     def declare_queryable(self, key_expr: str, notify: QueryNotify | None = None) -> Queryable:
         return ZenohQueryable(self.session, key_expr, notify)
@@ -110,7 +129,7 @@ class ZenohBus(Bus):
             callback(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
 
         subscriber: Declaration = self.session.liveliness().declare_subscriber(
-            key_expr, on_token, history=True
+            key_expr, direct(on_token), history=True
         )
         return subscriber
 
