@@ -9,7 +9,9 @@ process per UAV), then measures:
   /proc/PID/stat during an idle window, in % of one core (the machine has `nproc` x 100 %);
   the router and the ground subscriber run in this process and are shown apart;
 * RSS: the children's resident memory summed from /proc/PID/status, idle and after the
-  missions (Pyomo and HiGHS may load only when the model is built);
+  missions; this counts every shared library (Zenoh's 12 MB, libpython, HiGHS) once per
+  process. PSS (/proc/PID/smaps_rollup: each shared page divided among the processes
+  that map it) summed over the children is the memory the fleet really holds;
 * telemetry extra latency p99: for every telemetry sample seen on the bus, its arrival
   minus the simulator time it carries, less the smallest such offset of that UAV;
 * per mission: send -> last commit and last result -> last commit, and how many
@@ -86,6 +88,9 @@ class Config:
 class Mission:
     send_to_commit: float | None
     result_to_commit: float | None
+    #: last result -> the median UAV's commitment: a delay every UAV shares (the machine's
+    #: run queue) against a few late ones
+    result_to_median_commit: float | None
     model: int | None
     fallback: int | None
     agreed: bool
@@ -102,6 +107,8 @@ class Row:
     ground_cpu_pct: float
     rss_idle_mb: float
     rss_after_mb: float
+    pss_idle_mb: float
+    pss_after_mb: float
     threads: float  # per onboard, mean
     latency_p99_ms: float | None
     missions: list[Mission]
@@ -123,6 +130,17 @@ def status_field(pid: int, name: str) -> int:
     try:
         for line in Path(f"/proc/{pid}/status").read_text().splitlines():
             if line.startswith(name + ":"):
+                return int(line.split()[1])
+    except OSError:
+        pass
+    return 0
+
+
+def pss_kb(pid: int) -> int:
+    """Proportional set size: resident pages, each shared one divided among its mappers."""
+    try:
+        for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
+            if line.startswith("Pss:"):
                 return int(line.split()[1])
     except OSError:
         pass
@@ -302,6 +320,11 @@ def summarise(observer: Observer, mission: int, team: tuple[int, ...], sent: flo
         result_to_commit=(
             None if last_commit is None or last_result is None else last_commit - last_result
         ),
+        result_to_median_commit=(
+            None
+            if last_commit is None or last_result is None
+            else statistics.median(t for t, _ in commits) - last_result
+        ),
         model=model,
         fallback=fallback,
         agreed=complete and len({r.digest for _, r in commits}) == 1,
@@ -355,11 +378,13 @@ def measure(config: Config, n: int, args: argparse.Namespace, workdir: Path) -> 
             sim_cpu = 100.0 * (cpu_seconds(sim) - sim0) / window
             own = 100.0 * (time.process_time() - own0) / window
             rss_idle = sum(status_field(pid, "VmRSS") for pid in pids) / 1024.0
+            pss_idle = sum(pss_kb(pid) for pid in pids) / 1024.0
             threads = statistics.mean(status_field(pid, "Threads") for pid in onboards)
             team = tuple(sorted(fleet.uav_ids))
             deadline_s = 10.0 if budget is None else budget + 10.0
             missions = run_missions(session, observer, team, args.missions, deadline_s, log)
             rss_after = sum(status_field(pid, "VmRSS") for pid in pids) / 1024.0
+            pss_after = sum(pss_kb(pid) for pid in pids) / 1024.0
         finally:
             observer.close()
     return Row(
@@ -372,6 +397,8 @@ def measure(config: Config, n: int, args: argparse.Namespace, workdir: Path) -> 
         ground_cpu_pct=own,
         rss_idle_mb=rss_idle,
         rss_after_mb=rss_after,
+        pss_idle_mb=pss_idle,
+        pss_after_mb=pss_after,
         threads=threads,
         latency_p99_ms=observer.latency_p99_ms(),
         missions=missions,
@@ -423,6 +450,9 @@ def _range(values: list[float], scale: float, digits: int) -> str:
 def format_row(row: Row) -> str:
     sends = [m.send_to_commit for m in row.missions if m.send_to_commit is not None]
     consensus = [m.result_to_commit for m in row.missions if m.result_to_commit is not None]
+    medians = [
+        m.result_to_median_commit for m in row.missions if m.result_to_median_commit is not None
+    ]
     answers = "/".join("?" if m.model is None else f"{m.model}:{m.fallback}" for m in row.missions)
     failed = sum(1 for m in row.missions if m.send_to_commit is None or not m.agreed)
     bound = row.n * row.solve_s / CORES + 0.5
@@ -432,17 +462,20 @@ def format_row(row: Row) -> str:
         f"{row.n:>3} {row.config:<9} {row.ready_s:>6.1f} {models:>6} {row.cpu_pct:>6.1f} "
         f"{row.sim_cpu_pct:>5.1f} "
         f"{row.ground_cpu_pct:>6.1f} {row.rss_idle_mb / 1024:>6.2f} "
-        f"{row.rss_after_mb / 1024:>6.2f} "
+        f"{row.rss_after_mb / 1024:>6.2f} {row.pss_idle_mb / 1024:>6.2f} "
+        f"{row.pss_after_mb / 1024:>6.2f} "
         f"{row.threads:>5.1f} {latency:>6} {_range(sends, 1.0, 2):>10} {bound:>6.2f} "
-        f"{_range(consensus, 1000.0, 0):>9} {answers:>12} {failed:>4} {row.defects:>4}"
+        f"{_range(consensus, 1000.0, 0):>9} {_range(medians, 1000.0, 0):>9} {answers:>12} "
+        f"{failed:>4} {row.defects:>4}"
     )
 
 
 HEADER = (
-    "  N config     ready  model    CPU   sim ground  RSS-i  RSS-m  thr/ tel-p99  send->com  bound"
-    "  res->com  model:fallb fail  def\n"
-    "                  s      s  %core %core  %core     GB     GB   onb      ms          s      s"
-    "        ms   (per msn)     "
+    "  N config     ready  model    CPU   sim ground  RSS-i  RSS-m  PSS-i  PSS-m  thr/ tel-p99"
+    "  send->com  bound"
+    "  res->com  res->med  model:fallb fail  def\n"
+    "                  s      s  %core %core  %core     GB     GB     GB     GB   onb      ms"
+    "          s      s        ms        ms   (per msn)     "
 )
 
 
@@ -459,6 +492,7 @@ def ratios(before: Row, after: Row) -> str:
         f"  CPU {ratio(after.cpu_pct, before.cpu_pct)}"
         f"  RSS idle {ratio(after.rss_idle_mb, before.rss_idle_mb)}"
         f"  RSS after missions {ratio(after.rss_after_mb, before.rss_after_mb)}"
+        f"  PSS idle {ratio(after.pss_idle_mb, before.pss_idle_mb)}"
         f"  telemetry p99 {ratio(after.latency_p99_ms, before.latency_p99_ms)}"
         f"  send->commit {ratio(median(after, 'send_to_commit'), median(before, 'send_to_commit'))}"
         "  result->commit "
