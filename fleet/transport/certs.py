@@ -211,7 +211,8 @@ def client_config(files: IdentityFiles, connect: list[str]) -> dict[str, Any]:
         "mode": "client",
         "connect": {"endpoints": list(connect)},
         "scouting": {"multicast": {"enabled": False}, "delay": 0},
-        "transport": {"link": {"tls": tls_settings(files)}},
+        # As the built-in config (fleet.transport.zenoh_config): no shared memory.
+        "transport": {"link": {"tls": tls_settings(files)}, "shared_memory": {"enabled": False}},
     }
 
 

@@ -4,6 +4,12 @@ Multicast scouting is off everywhere: it is slow or broken in containers and CI,
 peers are always named by explicit tcp endpoints. The scouting delay is 0 so a
 router-mode session opens in milliseconds rather than 500 ms.
 
+Shared memory is off too (`SHARED_MEMORY_OFF`). Zenoh's default turns it on lazily: the
+first message over 3 KB a process sends (a 50-target mission, a UAV's state with its
+mission) makes it create a 16 MiB pool and map its peers' pools, which put 20-35 MB
+resident in every such process (issue 14: fifty onboards on one box). Fleet messages are
+small, and the aircraft of a real fleet share no memory.
+
 A deployment that needs more (TLS, access control, shared memory, timeouts) gives a full
 Zenoh JSON5 config file instead, as zenoh's own tools and rmw_zenoh do: `build_config`
 loads it and lays only the endpoints and mode named on the command line over it.
@@ -24,6 +30,8 @@ CONNECT_ENV = "FLEET_ZENOH_CONNECT"
 #: A full Zenoh config file (JSON5, JSON or YAML) to use instead of the built-in one.
 CONFIG_ENV = "FLEET_ZENOH_CONFIG"
 MODES = ("client", "peer", "router")
+#: The config key and value that keep Zenoh's shared-memory transport off.
+SHARED_MEMORY_OFF = ("transport/shared_memory/enabled", "false")
 
 # `proto/address`, e.g. tcp/127.0.0.1:7447 or tcp/[::1]:7447; Zenoh checks the rest.
 _ENDPOINT = re.compile(r"^[a-z0-9]+/\S+$")
@@ -67,6 +75,7 @@ def make_config(
     config.insert_json5("mode", json.dumps(mode))
     config.insert_json5("scouting/multicast/enabled", "false")
     config.insert_json5("scouting/delay", "0")
+    config.insert_json5(*SHARED_MEMORY_OFF)
     _set_endpoints(config, connect, listen)
     if mode == "router":
         # Let stock tools read the router's admin space (`@/**`).

@@ -44,6 +44,7 @@ def test_every_identity_gets_a_certificate_key_and_client_config(tmp_path: Path)
         tls = config["transport"]["link"]["tls"]
         assert tls["connect_certificate"] == str(files.certificate)
         assert tls["enable_mtls"] is True
+        assert config["transport"]["shared_memory"] == {"enabled": False}
         zenoh.Config.from_file(str(files.client_config))  # Zenoh itself accepts it
 
 
