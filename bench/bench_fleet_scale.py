@@ -271,12 +271,19 @@ def team_budget(n: int, solve_s: float) -> float:
 
 
 def wait_models_built(session: zenoh.Session, team: set[int], limit_s: float) -> bool:
-    """Poll every UAV's state until each says its approach model is built."""
+    """Poll every UAV's state until each says its approach model is built.
+
+    False at once if a UAV's state has no `model_speed` (a revision that cannot say), or
+    after `limit_s`.
+    """
     give_up = time.monotonic() + limit_s
     while time.monotonic() < give_up:
         built = set()
         for reply in session.get(f"{keys.PREFIX}/uav/*/state", timeout=5.0):
             if reply.ok is not None:
+                raw = msgspec.json.decode(reply.ok.payload.to_bytes())
+                if isinstance(raw, dict) and "model_speed" not in raw:
+                    return False
                 state = msgspec.json.decode(reply.ok.payload.to_bytes(), type=UavState)
                 if state.model_speed is not None:
                     built.add(state.uav)
@@ -372,10 +379,9 @@ def measure(config: Config, n: int, args: argparse.Namespace, workdir: Path) -> 
         observer = Observer(session)
         try:
             models: float | None = None
-            # A baseline cannot say (it imports Pyomo before it is alive, then builds).
-            if config.pythonpath is None and wait_models_built(
-                session, set(fleet.uav_ids), args.start_timeout
-            ):
+            # The idle window starts once every model is built, where the UAVs say so
+            # (`UavState.model_speed`): otherwise a build would count as idle CPU.
+            if wait_models_built(session, set(fleet.uav_ids), args.start_timeout):
                 models = time.monotonic() - started
             time.sleep(args.settle)
             pids = [child.pid for child in fleet.children]
