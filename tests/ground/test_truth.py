@@ -254,10 +254,29 @@ def test_two_send_targets_at_once_get_different_ids_and_the_superseded_one_says_
     write_targets(first, ring_targets(2, seed=11))
     write_targets(second, ring_targets(2, seed=12))
     args = ("--wait", "--json", "--deadline", "10", "--timeout", "60")
-    sends = [ground_cli(ground.router, "send-targets", str(first), *args)]
-    if apart_s:
-        time.sleep(apart_s)  # the fault: a second operator, a moment later
-    sends.append(ground_cli(ground.router, "send-targets", str(second), *args))
+    # The team is held (SIGSTOP) until both missions are on the bus: a 2-target mission
+    # completes in tens of milliseconds, far sooner than a second ground-cli starts, so
+    # unheld the first could be over before the second exists (and then it is rightly
+    # not superseded). Short queries keep the hold well under the 3 s after which a UAV
+    # counts its autopilot link as lost (and would decline).
+    quick = ("--query-timeout", "0.3")
+    onboards = [c for c in fleet.children if c.name.startswith("onboard ")]
+    for child in onboards:
+        child.process.send_signal(signal.SIGSTOP)
+    try:
+        sends = [ground_cli(ground.router, *quick, "send-targets", str(first), *args)]
+        if apart_s:
+            time.sleep(apart_s)  # the fault: a second operator, a moment later
+        sends.append(ground_cli(ground.router, *quick, "send-targets", str(second), *args))
+        for send in sends:  # each ground's progress says when its mission is out
+            assert send.stderr is not None
+            lines = [send.stderr.readline()]
+            while lines[-1] and "sent to" not in lines[-1]:
+                lines.append(send.stderr.readline())  # a claim's warnings come first
+            assert "sent to" in lines[-1], "".join(lines)
+    finally:
+        for child in onboards:
+            child.process.send_signal(signal.SIGCONT)
     finished = [finish(send, 120) for send in sends]
     reports = [json.loads(out) for _, out, _ in finished]
     errs = "\n".join(err for _, _, err in finished)
