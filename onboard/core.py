@@ -140,7 +140,6 @@ class OnboardCore:
     def on_telemetry(self, telemetry: Telemetry, now: float) -> None:
         self.telemetry = telemetry
         self._telemetry_at = now
-        self.outputs.publish(keys.telemetry(self.uav_id), telemetry)
         if self._link_lost:
             self._link_lost = False
             self.status("autopilot link back: telemetry flowing again", now)

@@ -2,7 +2,9 @@
 
 Threads: the link loop (onboard.link_adapter), the planner worker
 (onboard.planner_worker), Zenoh's own callback threads, and this main loop, which alone
-touches the module's state: every other thread hands it events through one queue.
+touches the module's state: every other thread hands it events through one queue,
+except telemetry, which the link loop publishes itself and leaves in a one-message slot
+that the main loop reads on its next turn (`_from_link`).
 The main loop sleeps on that queue until an event comes (a query or a planner result
 too) or its next timer is due (the module's timers, command retries and status and
 result fetches, need no finer than `TICK_PERIOD`), so an idle module does not wake
@@ -90,7 +92,6 @@ class _Outputs:
 
     process: OnboardProcess
     dropped_results: set[int] = field(default_factory=set)
-    last_telemetry_at: float = -math.inf
 
     def send_autopilot(self, command: AutopilotCommand) -> None:
         self.process.link.send_autopilot(command)
@@ -107,11 +108,6 @@ class _Outputs:
             return
         if isinstance(message, UavState):
             message = self.process.full_state(time.monotonic())
-        if isinstance(message, Telemetry) and settings.telemetry_hz:
-            now = time.monotonic()
-            if now - self.last_telemetry_at < 1.0 / settings.telemetry_hz:
-                return  # the bus gets telemetry at its own rate, not the autopilot's
-            self.last_telemetry_at = now
         self.process.node.publish(key, message)
 
     def send_ground(self, message: StatusText | UavResult) -> None:
@@ -165,11 +161,14 @@ class OnboardProcess:
             SerialLink("program", settings.program_url, settings.baud),
             SerialLink("payload", settings.payload_url, settings.baud),
         )
+        self._latest_telemetry: tuple[Telemetry, float] | None = None
+        self._telemetry_lock = threading.Lock()
+        self._telemetry_published_at = -math.inf
         self.link = LinkAdapter(
             settings.uav_id,
             program,
             payload,
-            sink=self.events.put,
+            sink=self._from_link,
         )
         if bus is None:
             if settings.zenoh_config is None:
@@ -191,6 +190,7 @@ class OnboardProcess:
         try:
             while not self.stop_requested.is_set():
                 now = time.monotonic()
+                self._take_telemetry()
                 self._serve_queries(now)
                 self.core.tick(now)
                 if now >= next_health:
@@ -225,7 +225,41 @@ class OnboardProcess:
             except Exception:  # a bad event is logged; the module keeps serving
                 log.exception("error handling event %r", event)
 
+    def _from_link(self, event: LinkEvent) -> None:
+        """The link thread's hand-off. Telemetry, the bulk of the traffic, goes on the
+        bus from the link thread itself and waits in one slot for the main loop's next
+        turn (at most TICK_PERIOD away): it neither wakes the main loop nor queues up.
+        Everything else is queued as an event."""
+        if isinstance(event, AutopilotEvent) and isinstance(event.message, Telemetry):
+            now = time.monotonic()
+            self.link.note_telemetry(now)
+            self._publish_telemetry(event.message, now)
+            with self._telemetry_lock:
+                self._latest_telemetry = (event.message, now)
+            return
+        self.events.put(event)
+
+    def _publish_telemetry(self, telemetry: Telemetry, now: float) -> None:
+        hz = self.settings.telemetry_hz
+        if hz and now - self._telemetry_published_at < 1.0 / hz:
+            return  # the bus gets telemetry at its own rate, not the autopilot's
+        self._telemetry_published_at = now
+        self.node.publish(keys.telemetry(self.settings.uav_id), telemetry)
+
+    def _take_telemetry(self) -> None:
+        """Hand the module the latest telemetry, if any arrived since the last turn."""
+        with self._telemetry_lock:
+            latest, self._latest_telemetry = self._latest_telemetry, None
+        if latest is None:
+            return
+        telemetry, at = latest
+        if telemetry.gps is not None:
+            self.planner.prepare(math.hypot(telemetry.gps.vel_east, telemetry.gps.vel_north))
+        self.core.on_telemetry(telemetry, at)
+
     def _on_event(self, event: Event | None, now: float) -> None:
+        # The aircraft's latest position first: a track change is judged against it.
+        self._take_telemetry()
         if isinstance(event, PresenceEvent):
             self.core.on_alive(event.uav, event.alive, now)
         elif isinstance(event, BusEvent):
@@ -236,12 +270,7 @@ class OnboardProcess:
     def _on_link(self, event: LinkEvent, now: float) -> None:
         if isinstance(event, AutopilotEvent):
             message = event.message
-            if isinstance(message, Telemetry):
-                self.link.note_telemetry(now)
-                if message.gps is not None:
-                    self.planner.prepare(math.hypot(message.gps.vel_east, message.gps.vel_north))
-                self.core.on_telemetry(message, now)
-            elif isinstance(message, Track):
+            if isinstance(message, Track):
                 self.core.on_track(message, now)
             elif isinstance(message, Waypoint):
                 self.core.on_waypoint(message, now)
