@@ -63,7 +63,7 @@ Event = LinkEvent | BusEvent | PresenceEvent
 
 LINK_HEALTH_PERIOD = 1.0
 #: The main loop runs the module's timers at least this often (events run them too).
-TICK_PERIOD = 0.1
+TICK_PERIOD = 0.25
 #: At most this many queued events are handled before the timers run again.
 MAX_EVENTS_PER_TICK = 200
 
