@@ -27,7 +27,7 @@ from typing import Protocol
 
 import msgspec
 
-from fleet.consensus.mission_round import MissionRound
+from fleet.consensus.mission_round import MissionRound, assignment_problem
 from fleet.geo.mercator import MercatorProjection, distance_m
 from fleet.mission import keys
 from fleet.mission.lifecycle import Observation, advance, holds_target
@@ -336,6 +336,14 @@ class OnboardCore:
         if mission_round is None or report.uav == self.uav_id:
             return
         if report.mission != mission_round.mission or report.mission in self._aborted:
+            return
+        problem = assignment_problem(report, mission_round.targets)
+        if problem is not None:
+            log.warning(
+                "mission %d: UAV %d's assignment refused: %s",
+                *(report.mission, report.uav),
+                problem,
+            )
             return
         if mission_round.committed is None:
             self._adopt(report, now)

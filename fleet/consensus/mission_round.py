@@ -35,6 +35,32 @@ FETCH_INTERVAL = 1.0
 JOIN_GRACE_S = 1.0
 
 
+def assignment_problem(report: AssignmentReport, targets: MissionTargets) -> str | None:
+    """Why a teammate's assignment cannot be this mission's (None if it can be).
+
+    The schema bounds each index by MAX_TARGETS only; here every pair must name a UAV of
+    the mission's team (its Piccolo ID written in decimal, as `decide` writes it) and a
+    target of this mission, no target twice, so that a hostile or corrupt report is
+    refused whole instead of being indexed, flown or re-planned.
+    """
+    count = len(targets.targets)
+    team = set(targets.team)
+    for key, index in report.pairs.items():
+        if not key.isdecimal() or str(int(key)) != key or int(key) not in team:
+            return f"pair {key!r}: not a UAV of mission {targets.mission}'s team"
+        if index >= count:
+            return f"UAV {key}'s target {index}: mission {targets.mission} has {count}"
+    if len(set(report.pairs.values())) != len(report.pairs):
+        return "two UAVs paired with the same target"
+    if report.target is not None and report.target >= count:
+        return f"target {report.target}: mission {targets.mission} has {count}"
+    if any(index >= count for index in report.unassigned):
+        return f"an unassigned target beyond mission {targets.mission}'s {count}"
+    if not set(report.team) <= team:
+        return f"results of UAVs outside mission {targets.mission}'s team"
+    return None
+
+
 @dataclass
 class MissionRound:
     targets: MissionTargets

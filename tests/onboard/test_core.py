@@ -499,3 +499,37 @@ def test_the_planning_budget_grows_with_the_missions_deadline() -> None:
     core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS, deadline_s=3.0), 0.0)
     core.on_targets(MissionTargets(mission=2, team=(112,), targets=TARGETS, deadline_s=30.0), 1.0)
     assert [r.budget_s for r in planner.requests] == [2.0, 15.0]
+
+
+# ---- review of issue 10: hostile reports, finished candidates, writes after arrival --
+def test_an_assignment_naming_a_target_beyond_the_mission_is_refused_never_indexed() -> None:
+    core, out = make_core(200, (30.0, 35.0))
+    for uav in (74, 112):
+        core.on_alive(uav, True, 0.0)
+    core.on_targets(MissionTargets(mission=3, team=(74, 112, 200), targets=TWO_TARGETS), 0.0)
+    bad = AssignmentReport(3, 74, 0, {"74": 0, "200": 7}, (), (74, 112, 200), "x")
+    core.on_assignment(bad, 0.2)  # raised IndexError, then every telemetry did
+    core.on_telemetry(sample_telemetry(), 0.5)
+    assert core.phase == Phase.COMPUTING and out.on(keys.mission_assignment(3, 200)) == []
+    later = AssignmentReport(
+        3, 74, 0, {"200": 9}, (), (74, 112, 200), "y", epoch=2, released=(74, 112)
+    )
+    core.on_assignment(later, 0.6)
+    assert core.phase == Phase.COMPUTING and not any(isinstance(c, Waypoint) for c in out.autopilot)
+
+
+def test_a_base_assignment_with_a_pair_that_is_no_uav_id_never_breaks_a_re_plan() -> None:
+    core, out = make_core(200, (30.0, 35.0))
+    for uav in (74, 112):
+        core.on_alive(uav, True, 0.0)
+    core.on_targets(MissionTargets(mission=3, team=(74, 112, 200), targets=TWO_TARGETS), 0.0)
+    odd = AssignmentReport(3, 74, 0, {"74": 0, "abc": 1}, (), (74, 112, 200), "x")
+    core.on_assignment(odd, 0.2)  # adopted, then int("abc") raised at each re-plan
+    core.on_result(UavResult(3, 74, (10.0, 50.0)), 0.3)
+    core.on_result(UavResult(3, 112, (40.0, 20.0)), 0.3)
+    core.tick(0.4)  # commits its own
+    core.on_telemetry(sample_telemetry(), 1.0)
+    core.on_alive(112, False, 1.0)
+    report = out.on(keys.mission_assignment(3, 200))[-1]
+    assert isinstance(report, AssignmentReport)
+    assert (report.epoch, report.target) == (1, 1)
