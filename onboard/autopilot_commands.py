@@ -124,6 +124,13 @@ class CommandTracker:
         for item in pending:
             item.on_done(CommandResult(False, reason, item.attempts))
 
+    def cancel_persistent(self, reason: str) -> None:
+        """Cancel the mission's own writes (`persistent`); the operator's commands go on."""
+        cancelled = [item for item in self._pending if item.persistent]
+        self._pending = [item for item in self._pending if not item.persistent]
+        for item in cancelled:
+            item.on_done(CommandResult(False, reason, item.attempts))
+
     @property
     def pending(self) -> int:
         return len(self._pending)

@@ -157,6 +157,9 @@ class OnboardCore:
         return distance_m((gps.lat, gps.lon), (target.lat, target.lon))
 
     def _reached(self, distance: float, now: float) -> None:
+        # Reached before the track was echoed (it passed by): the target writes still
+        # pending would only turn it back to where it has been.
+        self.commands.cancel_persistent(f"target {self._target} reached")
         self._observe(Observation.WITHIN_RADIUS)
         self.status(f"reached target {self._target} ({distance:.0f} m from it)", now)
         self._publish_outcome(Phase.REACHED, None)
@@ -592,6 +595,9 @@ class OnboardCore:
 
     def _commit(self, report: AssignmentReport, target_index: int, now: float) -> None:
         assert self.round is not None
+        if advance(self.phase, Observation.ASSIGNED_TARGET) != Phase.COMMITTED:
+            self._refuse_orphan(report, target_index, now)
+            return
         self._target = target_index
         self._committed_at = now
         self._target_tracked = False
@@ -604,6 +610,20 @@ class OnboardCore:
             self._failed("handed an orphaned target while its autopilot link is lost", now)
             return
         self._write_target(report.mission, target_index, now)
+
+    def _refuse_orphan(self, report: AssignmentReport, target_index: int, now: float) -> None:
+        """A re-plan handed an orphan to a UAV whose part is over (the operator took it
+        off its target, or it failed): it does not fly it, and drops out like a failed
+        UAV, so that the next epoch hands the orphan on instead of leaving it unflown."""
+        why = f"handed target {target_index} at epoch {report.epoch} while {self.phase}"
+        self.status(f"warning: mission {report.mission}: {why}: not flying it", now)
+        if self.round is None:
+            return
+        outcome = TargetOutcome(report.mission, self.uav_id, target_index, Phase.FAILED, why)
+        self.round.outcome = outcome
+        self.outputs.publish(keys.mission_outcome(report.mission, self.uav_id), outcome)
+        if self.round.release((self.uav_id,)):
+            self._replan(now)
 
     def _write_target(self, mission: int, target_index: int, now: float) -> None:
         """Write the target waypoint, then track it; both retried until echoed."""

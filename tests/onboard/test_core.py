@@ -533,3 +533,71 @@ def test_a_base_assignment_with_a_pair_that_is_no_uav_id_never_breaks_a_re_plan(
     report = out.on(keys.mission_assignment(3, 200))[-1]
     assert isinstance(report, AssignmentReport)
     assert (report.epoch, report.target) == (1, 1)
+
+
+FOUR_TEAM = (10, 20, 30, 40)
+
+
+def commit_four_uav_team(core: OnboardCore) -> None:
+    """UAV 30 (this core, times (30, 35)) with 10 (holds 0), 20 (holds 1) and 40 (idle).
+
+    Once 20 is lost, 30 takes target 1; once 10 is lost too, the greedy over 30 and 40
+    gives 30 target 0 (30 s) and 40 target 1.
+    """
+    for uav in (10, 20, 40):
+        core.on_alive(uav, True, 0.0)
+    core.on_targets(MissionTargets(mission=5, team=FOUR_TEAM, targets=TWO_TARGETS), 0.0)
+    core.on_result(UavResult(5, 10, (10.0, 50.0)), 0.1)
+    core.on_result(UavResult(5, 20, (40.0, 20.0)), 0.1)
+    core.on_result(UavResult(5, 40, (32.0, 60.0)), 0.1)
+    core.tick(0.2)
+    core.on_telemetry(sample_telemetry(), 1.0)
+    core.on_alive(20, False, 1.0)
+    assert core.phase == Phase.COMMITTED and core.round is not None
+    assert core.round.committed is not None and core.round.committed.target == 1
+
+
+def test_a_candidate_that_reached_its_orphan_flies_the_next_one_and_shows_it() -> None:
+    core, out = make_core(30, (30.0, 35.0))
+    commit_four_uav_team(core)
+    core.on_waypoint(out.autopilot[-1], 1.1)  # type: ignore[arg-type]
+    core.on_track(Track(TARGET_WAYPOINT), 1.2)
+    core.on_telemetry(telemetry_at(TWO_TARGETS[1].lat, TWO_TARGETS[1].lon), 2.0)
+    assert core.phase == Phase.REACHED
+    core.on_alive(10, False, 3.0)  # epoch 2 hands 30 target 0
+    report = out.on(keys.mission_assignment(5, 30))[-1]
+    assert isinstance(report, AssignmentReport) and (report.epoch, report.target) == (2, 0)
+    waypoint = [c for c in out.autopilot if isinstance(c, Waypoint)][-1]
+    assert (waypoint.lat, waypoint.lon) == (TWO_TARGETS[0].lat, TWO_TARGETS[0].lon)
+    # It flies target 0: the phase says so (it said `reached` while flying before).
+    assert core.state(3.0).phase == Phase.COMMITTED
+
+
+def test_a_preempted_candidate_handed_another_orphan_drops_out_and_it_is_handed_on() -> None:
+    core, out = make_core(30, (30.0, 35.0))
+    commit_four_uav_team(core)
+    core.command_autopilot(Track(5), 1.5, lambda _: None)  # the operator takes it off
+    assert core.phase == Phase.PREEMPTED
+    writes = len([c for c in out.autopilot if isinstance(c, Waypoint)])
+    core.on_alive(10, False, 3.0)  # epoch 2 would hand 30 target 0
+    assert len([c for c in out.autopilot if isinstance(c, Waypoint)]) == writes  # not flown
+    assert core.state(3.0).phase == Phase.PREEMPTED
+    outcome = out.on(keys.mission_outcome(5, 30))[-1]
+    assert isinstance(outcome, TargetOutcome)
+    assert (outcome.phase, outcome.target) == (Phase.FAILED, 0)
+    report = out.on(keys.mission_assignment(5, 30))[-1]
+    assert isinstance(report, AssignmentReport)
+    assert (report.epoch, report.released) == (3, (10, 20, 30))
+    assert report.pairs == {"40": 0}  # the orphan went on to 40, not left with 30
+
+
+def test_reaching_the_target_before_the_track_echo_stops_the_target_writes() -> None:
+    core, out = make_core()
+    core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 1.0)
+    core.tick(1.1)  # the waypoint write, not echoed yet
+    core.on_telemetry(telemetry_at(TARGETS[1].lat, TARGETS[1].lon), 1.2)  # passing by
+    assert core.phase == Phase.REACHED
+    sent = len(out.autopilot)
+    run_with_telemetry(core, 1.2, 10.0)
+    assert len(out.autopilot) == sent  # no more resends that would turn it back
+    assert core.commands.pending == 0
