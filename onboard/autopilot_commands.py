@@ -124,10 +124,10 @@ class CommandTracker:
         for item in pending:
             item.on_done(CommandResult(False, reason, item.attempts))
 
-    def cancel_persistent(self, reason: str) -> None:
-        """Cancel the mission's own writes (`persistent`); the operator's commands go on."""
-        cancelled = [item for item in self._pending if item.persistent]
-        self._pending = [item for item in self._pending if not item.persistent]
+    def cancel_where(self, which: Callable[[AutopilotCommand], bool], reason: str) -> None:
+        """Cancel the pending commands `which` picks; the others go on."""
+        cancelled = [item for item in self._pending if which(item.command)]
+        self._pending = [item for item in self._pending if not which(item.command)]
         for item in cancelled:
             item.on_done(CommandResult(False, reason, item.attempts))
 

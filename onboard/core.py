@@ -121,6 +121,7 @@ class OnboardCore:
     _committed_at: float = 0.0
     _caught_up_at: float = -math.inf
     _target_tracked: bool = False  #: the autopilot echoed the track to the target waypoint
+    _resuming: bool = False  #: a resume of the course is sent and not echoed yet
 
     def __post_init__(self) -> None:
         self.commands = CommandTracker(send=self.outputs.send_autopilot)
@@ -159,7 +160,7 @@ class OnboardCore:
     def _reached(self, distance: float, now: float) -> None:
         # Reached before the track was echoed (it passed by): the target writes still
         # pending would only turn it back to where it has been.
-        self.commands.cancel_persistent(f"target {self._target} reached")
+        self.commands.cancel_where(_is_target_write, f"target {self._target} reached")
         self._observe(Observation.WITHIN_RADIUS)
         self.status(f"reached target {self._target} ({distance:.0f} m from it)", now)
         self._publish_outcome(Phase.REACHED, None)
@@ -278,8 +279,9 @@ class OnboardCore:
     def _start_round(self, targets: MissionTargets, now: float) -> None:
         """Replace the mission in one step: nothing of the old one survives it."""
         # Cancel first: the resume submitted next must survive the new mission's start.
+        resuming = self._resuming
         self.commands.cancel_all(f"mission {targets.mission} started")
-        if holds_target(self.phase):
+        if holds_target(self.phase) or resuming:
             self._resume_course(now)
         self.round = MissionRound(targets, self.uav_id, now)
         self._observe(Observation.MISSION_STARTED)
@@ -401,9 +403,10 @@ class OnboardCore:
             return
         if self.phase == Phase.ABORTED:
             return
+        resuming = self._resuming  # a resume still pending (a link outage) goes on
         self.commands.cancel_all(f"mission {abort.mission} aborted")
         flying = holds_target(self.phase)
-        if flying:
+        if flying or resuming:
             self._resume_course(now)
         self._observe(Observation.ABORTED)
         course = "back on course" if flying else "it was not flying a target"
@@ -689,15 +692,20 @@ class OnboardCore:
         self.outputs.publish(keys.mission_outcome(outcome.mission, self.uav_id), outcome)
 
     def _resume_course(self, now: float) -> None:
+        """Track the course again; resent until echoed, across a link outage too, for an
+        aircraft left tracking a target it gave up would fly it beside its new holder.
+        Only a newer track (a new target, the operator's) or a cancel ends it early."""
         if self.original_waypoint is None or not self.enabled:
             return
         back = self.original_waypoint
 
         def done(result: CommandResult) -> None:
-            if not result.ok and result.detail != "superseded":
-                self.status(f"error: could not resume waypoint {back}: {result.detail}", now)
+            self._resuming = False
+            if not result.ok:
+                log.info("resume of waypoint %d ended: %s", back, result.detail)
 
-        self.commands.submit(Track(back), now, done)
+        self._resuming = True
+        self.commands.submit(Track(back), now, done, persistent=True)
 
     # ---- reporting -----------------------------------------------------------------
     def status(self, text: str, now: float) -> None:
@@ -767,3 +775,10 @@ class OnboardCore:
         if self.round is None or self.round.mission != mission:
             return None
         return self.round.outcome
+
+
+def _is_target_write(command: AutopilotCommand) -> bool:
+    """The target waypoint's write or the track to it (a mission's own target writes)."""
+    if isinstance(command, Track):
+        return command.waypoint == TARGET_WAYPOINT
+    return command.index == TARGET_WAYPOINT

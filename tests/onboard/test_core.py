@@ -26,7 +26,13 @@ from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from onboard.autopilot_commands import AutopilotCommand
-from onboard.core import CONFIRM_LIMIT_S, LINK_LOST_S, TARGET_WAYPOINT, OnboardCore
+from onboard.core import (
+    CONFIRM_LIMIT_S,
+    LINK_LOST_S,
+    LINK_RELEASE_S,
+    TARGET_WAYPOINT,
+    OnboardCore,
+)
 from onboard.planner_worker import PlanRequest, PlanResult
 from tests.link_samples import sample_telemetry
 
@@ -601,3 +607,39 @@ def test_reaching_the_target_before_the_track_echo_stops_the_target_writes() -> 
     run_with_telemetry(core, 1.2, 10.0)
     assert len(out.autopilot) == sent  # no more resends that would turn it back
     assert core.commands.pending == 0
+
+
+def tick_without_telemetry(core: OnboardCore, start: float, end: float) -> float:
+    now = start
+    while now < end:
+        now += 0.25
+        core.tick(now)
+    return now
+
+
+def test_the_resume_after_a_link_release_outlives_the_outage_so_it_stops_flying_the_target() -> (
+    None
+):
+    core, out = make_core()
+    fly_target_1(core, out)  # tracking the target waypoint, telemetry last at t=0
+    now = tick_without_telemetry(core, 2.0, LINK_RELEASE_S + 5.0)  # released meanwhile
+    assert core.phase == Phase.FAILED
+    now = tick_without_telemetry(core, now, now + 10.0)  # the outage goes on
+    sent = len(out.autopilot)
+    core.on_telemetry(sample_telemetry(), now)  # the link is back; still on the target
+    run_with_telemetry(core, now, now + 2.0)
+    # The resume is still being sent: the teammate now flies this target.
+    assert out.autopilot[sent:] and set(out.autopilot[sent:]) == {Track(2)}
+    core.on_track(Track(2), now + 2.5)  # echoed: done
+    assert core.commands.pending == 0
+
+
+def test_an_abort_during_an_outage_takes_the_aircraft_off_its_target_once_it_is_back() -> None:
+    core, out = make_core()
+    fly_target_1(core, out)
+    core.on_abort(MissionAbort(1), 2.5)
+    now = tick_without_telemetry(core, 2.5, 15.0)  # no echo of the resume
+    sent = len(out.autopilot)
+    run_with_telemetry(core, now, now + 2.0)
+    assert out.autopilot[sent:] and set(out.autopilot[sent:]) == {Track(2)}
+    assert core.state(now + 2.0).phase == Phase.ABORTED
