@@ -101,6 +101,10 @@ class OnboardCore:
     enabled: bool = True
     #: How often the UAV's state is published on its state key (0: only on query).
     status_rate_hz: float = 1.0
+    #: A target not echoed this long after the commitment is given up (CONFIRM_LIMIT_S).
+    confirm_limit_s: float = CONFIRM_LIMIT_S
+    #: A held target whose autopilot link stays lost this long is released (LINK_RELEASE_S).
+    link_release_s: float = LINK_RELEASE_S
     telemetry: Telemetry | None = None
     tracked_waypoint: int | None = None
     original_waypoint: int | None = None
@@ -495,12 +499,12 @@ class OnboardCore:
         if not holds_target(self.phase) or self._telemetry_at is None:
             return
         silent = now - self._telemetry_at
-        if silent > LINK_RELEASE_S:
+        if silent > self.link_release_s:
             self._failed(f"autopilot link lost for {silent:.0f} s", now, Phase.LINK_LOST)
-        elif self.phase == Phase.COMMITTED and now - self._committed_at > CONFIRM_LIMIT_S:
+        elif self.phase == Phase.COMMITTED and now - self._committed_at > self.confirm_limit_s:
             attempts = "over a lost link" if self.link_lost(now) else "with the link up"
             self._failed(
-                f"target writes not echoed by the autopilot within {CONFIRM_LIMIT_S:g} s "
+                f"target writes not echoed by the autopilot within {self.confirm_limit_s:g} s "
                 f"(retried {attempts})",
                 now,
             )
