@@ -126,6 +126,7 @@ class OnboardCore:
     _caught_up_at: float = -math.inf
     _target_tracked: bool = False  #: the autopilot echoed the track to the target waypoint
     _resuming: bool = False  #: a resume of the course is sent and not echoed yet
+    _operator_track: bool = False  #: the ground commanded the target waypoint or its track
 
     def __post_init__(self) -> None:
         self.commands = CommandTracker(send=self.outputs.send_autopilot)
@@ -179,6 +180,8 @@ class OnboardCore:
         if previous != track.waypoint:
             self.outputs.publish(keys.track(self.uav_id), track)
         if track.waypoint == TARGET_WAYPOINT:
+            if previous != TARGET_WAYPOINT and self._target is None:
+                self._leave_stale_target(now)  # a restart's first track, after the re-plan
             return
         if self.phase == Phase.FLYING and self._target_tracked and previous == TARGET_WAYPOINT:
             self._left_target_route(track.waypoint, now)
@@ -226,6 +229,7 @@ class OnboardCore:
             on_done(CommandResult(False, "module is off: it does not write to the autopilot"))
             return
         retasks = isinstance(command, Track) or command.index == TARGET_WAYPOINT
+        self._operator_track = isinstance(command, Track) and command.waypoint == TARGET_WAYPOINT
         if retasks and holds_target(self.phase):
             what = (
                 f"track to waypoint {command.waypoint}"
@@ -588,6 +592,8 @@ class OnboardCore:
             if report.target is None and self.phase in (Phase.COMPUTING, Phase.WAITING):
                 self._observe(Observation.ASSIGNED_NONE)
                 self.status(f"mission {report.mission}: no target assigned; keeping course", now)
+            if report.target is None:
+                self._leave_stale_target(now)
             return
         if self._target is not None and holds_target(self.phase):
             # Released, or handed another orphan by a later epoch: off the old target.
@@ -597,8 +603,25 @@ class OnboardCore:
         if report.target is None or self.uav_id in report.released:
             self._target = None
             self._observe(Observation.ASSIGNED_NONE)
+            self._leave_stale_target(now)
             return
         self._commit(report, report.target, now)
+
+    def _leave_stale_target(self, now: float) -> None:
+        """Holding no target, yet the autopilot tracks the target waypoint: left there by
+        this module before a restart, and the target is another UAV's now (a re-plan
+        released this one while it was away). Back to the course, or it flies it too."""
+        if self.tracked_waypoint != TARGET_WAYPOINT or self._resuming or self._operator_track:
+            return
+        mission_round = self.round
+        if mission_round is None or mission_round.committed is None:
+            return  # nothing decided yet: it may still be handed that very target
+        self.status(
+            "warning: the autopilot still tracks the target waypoint of a target this UAV "
+            "no longer holds; resuming the course",
+            now,
+        )
+        self._resume_course(now)
 
     def _commit(self, report: AssignmentReport, target_index: int, now: float) -> None:
         assert self.round is not None
@@ -635,6 +658,7 @@ class OnboardCore:
     def _write_target(self, mission: int, target_index: int, now: float) -> None:
         """Write the target waypoint, then track it; both retried until echoed."""
         assert self.round is not None
+        self._operator_track = False  # the module's own target route from now on
         target = self.round.targets.targets[target_index]
         # on_track never records the target waypoint as the course; 0 before any track.
         back_to = 0 if self.original_waypoint is None else self.original_waypoint
@@ -699,9 +723,11 @@ class OnboardCore:
         """Track the course again; resent until echoed, across a link outage too, for an
         aircraft left tracking a target it gave up would fly it beside its new holder.
         Only a newer track (a new target, the operator's) or a cancel ends it early."""
-        if self.original_waypoint is None or not self.enabled:
+        if not self.enabled:
             return
-        back = self.original_waypoint
+        # No course seen yet (a restart on the target route): the flight plan's start,
+        # as the target waypoint's own `next` is then (see `_write_target`).
+        back = 0 if self.original_waypoint is None else self.original_waypoint
 
         def done(result: CommandResult) -> None:
             self._resuming = False

@@ -204,3 +204,45 @@ def test_a_holder_whose_autopilot_link_is_cut_is_released_and_its_teammate_reach
     assert seen.assignments[holder].released == (holder,)  # it agrees it was released
     assert seen.assignments[holder].digest == seen.assignments[idle].digest
     assert seen.closest_approach(idle, targets[0].lat, targets[0].lon) <= 75.0
+
+
+def test_a_holder_restarted_after_the_re_plan_adopts_the_latest_epoch_and_leaves_the_target(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    scenario = tmp_path / "ring.toml"
+    scenario.write_text(ring_scenario(3))
+    endpoints = fleet.sim(str(scenario), SPEEDUP, 5.0)
+    start_onboard(fleet, endpoints, ground.router)
+    team = sorted(endpoints)
+    wait_for_telemetry(ground, team)
+    seen = ground.seen
+    path = targets_file(tmp_path, ring_targets(2, seed=7))
+    send = ground_cli(ground.router, "send-targets", str(path), "--team", ",".join(map(str, team)))
+    assert finish(send, 60)[0] == 0
+    wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "three commitments")
+    holders = {int(uav): t for uav, t in seen.assignments[team[0]].pairs.items()}
+    (idle,) = set(team) - set(holders)
+    etas = {uav: seen.assignments[uav].eta_s or 0.0 for uav in holders}
+    victim = max(holders, key=etas.__getitem__)  # still on its way when restarted
+    wait_until(lambda: seen.latest_track(victim) == TARGET_WAYPOINT, 30.0, "the victim flying")
+    (child,) = [c for c in fleet.children if c.name == f"onboard {victim}"]
+    child.process.kill()
+    child.process.wait(10)
+    wait_until(lambda: seen.assignments[idle].epoch == 1, 30.0, "the re-plan")
+    replanned = seen.assignments[idle]
+    assert replanned.target == holders[victim]
+
+    fleet.onboard(victim, endpoints[victim], ground.router)  # the same aircraft, restarted
+    wait_until(lambda: seen.assignments[victim].epoch == 1, 30.0, "the restarted UAV at epoch 1")
+    mine = seen.assignments[victim]
+    assert (mine.digest, mine.pairs, mine.target) == (replanned.digest, replanned.pairs, None)
+    # Its autopilot was left flying the target its teammate holds now: it leaves it.
+    wait_until(
+        lambda: seen.latest_track(victim) not in (None, TARGET_WAYPOINT),
+        30.0,
+        "the restarted UAV off the target route",
+    )
+    assert any("no longer holds" in s for s in seen.statuses(victim)), seen.tracks[victim]
+    # Turned back on its way, not by arriving: it never came within reach of that target.
+    orphan = ring_targets(2, seed=7)[holders[victim]]
+    assert seen.closest_approach(victim, orphan.lat, orphan.lon) > 75.0

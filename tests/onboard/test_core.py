@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import msgspec
+import pytest
 
 from fleet.mission import keys
 from fleet.mission.messages import (
@@ -643,3 +644,31 @@ def test_an_abort_during_an_outage_takes_the_aircraft_off_its_target_once_it_is_
     run_with_telemetry(core, now, now + 2.0)
     assert out.autopilot[sent:] and set(out.autopilot[sent:]) == {Track(2)}
     assert core.state(now + 2.0).phase == Phase.ABORTED
+
+
+@pytest.mark.parametrize("track_first", [True, False])
+def test_a_restarted_uav_left_on_the_target_route_leaves_it_when_the_re_plan_released_it(
+    track_first: bool,
+) -> None:
+    recorder = Recorder()
+    core = OnboardCore(uav_id=112, outputs=recorder, planner=ScriptedPlanner((40.0, 20.0)))
+    core.on_telemetry(sample_telemetry(), 0.0)
+    if track_first:
+        core.on_track(Track(TARGET_WAYPOINT), 0.0)  # its autopilot still flies the old target
+    for uav in (74, 200):
+        core.on_alive(uav, True, 0.0)
+    core.on_targets(MissionTargets(mission=3, team=(74, 112, 200), targets=TWO_TARGETS), 0.1)
+    epoch_1 = AssignmentReport(
+        3, 74, 0, {"74": 0, "200": 1}, (), (74, 112, 200), "r", epoch=1, released=(112,)
+    )
+    core.on_assignment(epoch_1, 0.2)  # fetched at start: it was released meanwhile
+    if not track_first:
+        core.on_track(Track(TARGET_WAYPOINT), 0.3)  # the autopilot's first report, later
+    mine = recorder.on(keys.mission_assignment(3, 112))[-1]
+    assert isinstance(mine, AssignmentReport) and (mine.epoch, mine.target) == (1, None)
+    # 200 flies target 1 now: this aircraft must not fly it too.
+    assert recorder.autopilot and recorder.autopilot[-1] == Track(0)
+    run_with_telemetry(core, 0.2, 5.0)
+    assert recorder.autopilot[-1] == Track(0)  # resent until echoed
+    core.on_track(Track(0), 5.1)
+    assert core.commands.pending == 0
