@@ -124,8 +124,10 @@ class _Outputs:
 
     def fetch_assignments(self, mission: int) -> None:
         """What the team decided on `mission` while this UAV was away: the assignments,
+        the outcomes (who reached its target: never released later; who dropped out)
         and an abort (which teammates relay by query)."""
         self.process.node.fetch(keys.mission_assignments(mission), AssignmentReport)
+        self.process.node.fetch(keys.mission_outcomes(mission), TargetOutcome)
         self.process.node.fetch(keys.mission_abort(mission), MissionAbort)
 
     def fetch_missions(self) -> None:
