@@ -71,7 +71,8 @@ class MissionRound:
     committed: AssignmentReport | None = None
     last_fetch: float | None = None
     #: The epoch-0 assignment every re-plan starts from; None when this UAV adopted a
-    #: re-plan without knowing epoch 0 (it then follows its teammates' epochs).
+    #: re-plan without knowing epoch 0, or epoch 0 without the own result it was
+    #: computed from (a restart): it then follows its teammates' epochs.
     base: AssignmentReport | None = None
     #: Team UAVs that dropped out of the mission after the commitment (only grows).
     released: set[int] = field(default_factory=set)
@@ -168,7 +169,10 @@ class MissionRound:
         if self.thinner(report, alive, now):
             return None
         self.committed = self._own_copy(report)
-        if report.epoch == 0:
+        # A re-plan needs this UAV's own epoch-0 times if epoch 0 used them; a restarted
+        # UAV lost them (nobody else answers for them), so it follows its teammates'
+        # epochs instead of waiting for them forever.
+        if report.epoch == 0 and (self.own_id in self.results or self.own_id not in report.team):
             self.base = self.committed
         self.released |= set(report.released)
         return self.committed

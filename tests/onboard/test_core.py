@@ -672,3 +672,23 @@ def test_a_restarted_uav_left_on_the_target_route_leaves_it_when_the_re_plan_rel
     assert recorder.autopilot[-1] == Track(0)  # resent until echoed
     core.on_track(Track(0), 5.1)
     assert core.commands.pending == 0
+
+
+def test_a_restarted_idle_uav_follows_the_re_plan_that_hands_it_the_orphan() -> None:
+    core, out = make_core(200, (30.0, 35.0))
+    for uav in (74, 112):
+        core.on_alive(uav, True, 0.0)
+    core.on_targets(MissionTargets(mission=3, team=(74, 112, 200), targets=TWO_TARGETS), 0.0)
+    base = AssignmentReport(3, 74, 0, {"74": 0, "112": 1}, (), (74, 112, 200), "d0")
+    core.on_assignment(base, 0.05)  # fetched at once: adopted before its own result
+    core.tick(0.1)
+    core.on_telemetry(sample_telemetry(), 1.0)
+    core.on_alive(112, False, 1.0)  # its own epoch-0 times are gone with its old process
+    epoch_1 = AssignmentReport(
+        3, 74, 0, {"74": 0, "200": 1}, (), (74, 112, 200), "d1", epoch=1, released=(112,)
+    )
+    core.on_assignment(epoch_1, 1.2)  # it used to stay at epoch 0, waiting for itself
+    mine = out.on(keys.mission_assignment(3, 200))[-1]
+    assert isinstance(mine, AssignmentReport)
+    assert (mine.epoch, mine.target, mine.digest) == (1, 1, "d1")
+    assert core.state(1.2).phase == Phase.COMMITTED
