@@ -95,6 +95,10 @@ class MissionRound:
             return False
         if len(result.times) != len(self.targets.targets):
             return False
+        if self.committed is not None and result.uav in self.results:
+            # Re-plans use the epoch-0 results: a restarted teammate's new times would
+            # give UAVs that heard them other pairs under the same digest.
+            return False
         self.results[result.uav] = result
         return True
 

@@ -191,3 +191,13 @@ def test_an_assignment_that_cannot_be_this_missions_is_named() -> None:
     ]:
         problem = assignment_problem(bad, TARGETS)
         assert problem is not None and why in problem, (bad, problem)
+
+
+def test_after_the_commitment_a_teammates_new_result_does_not_replace_the_one_used() -> None:
+    mission_round = round_of()
+    for uav in ALL:
+        mission_round.add_result(result(uav))
+    mission_round.decide(ALL)
+    again = UavResult(mission=7, uav=200, times=(1.0, 1.0))  # restarted, planned anew
+    assert not mission_round.add_result(again)
+    assert mission_round.results[200] == result(200)
