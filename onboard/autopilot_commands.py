@@ -124,6 +124,13 @@ class CommandTracker:
         for item in pending:
             item.on_done(CommandResult(False, reason, item.attempts))
 
+    def cancel_where(self, which: Callable[[AutopilotCommand], bool], reason: str) -> None:
+        """Cancel the pending commands `which` picks; the others go on."""
+        cancelled = [item for item in self._pending if which(item.command)]
+        self._pending = [item for item in self._pending if not which(item.command)]
+        for item in cancelled:
+            item.on_done(CommandResult(False, reason, item.attempts))
+
     @property
     def pending(self) -> int:
         return len(self._pending)

@@ -27,7 +27,7 @@ from typing import Protocol
 
 import msgspec
 
-from fleet.consensus.mission_round import MissionRound
+from fleet.consensus.mission_round import MissionRound, assignment_problem
 from fleet.geo.mercator import MercatorProjection, distance_m
 from fleet.mission import keys
 from fleet.mission.lifecycle import Observation, advance, holds_target
@@ -101,6 +101,10 @@ class OnboardCore:
     enabled: bool = True
     #: How often the UAV's state is published on its state key (0: only on query).
     status_rate_hz: float = 1.0
+    #: A target not echoed this long after the commitment is given up (CONFIRM_LIMIT_S).
+    confirm_limit_s: float = CONFIRM_LIMIT_S
+    #: A held target whose autopilot link stays lost this long is released (LINK_RELEASE_S).
+    link_release_s: float = LINK_RELEASE_S
     telemetry: Telemetry | None = None
     tracked_waypoint: int | None = None
     original_waypoint: int | None = None
@@ -121,6 +125,8 @@ class OnboardCore:
     _committed_at: float = 0.0
     _caught_up_at: float = -math.inf
     _target_tracked: bool = False  #: the autopilot echoed the track to the target waypoint
+    _resuming: bool = False  #: a resume of the course is sent and not echoed yet
+    _operator_track: bool = False  #: the ground commanded the target waypoint or its track
 
     def __post_init__(self) -> None:
         self.commands = CommandTracker(send=self.outputs.send_autopilot)
@@ -157,6 +163,9 @@ class OnboardCore:
         return distance_m((gps.lat, gps.lon), (target.lat, target.lon))
 
     def _reached(self, distance: float, now: float) -> None:
+        # Reached before the track was echoed (it passed by): the target writes still
+        # pending would only turn it back to where it has been.
+        self.commands.cancel_where(_is_target_write, f"target {self._target} reached")
         self._observe(Observation.WITHIN_RADIUS)
         self.status(f"reached target {self._target} ({distance:.0f} m from it)", now)
         self._publish_outcome(Phase.REACHED, None)
@@ -171,6 +180,8 @@ class OnboardCore:
         if previous != track.waypoint:
             self.outputs.publish(keys.track(self.uav_id), track)
         if track.waypoint == TARGET_WAYPOINT:
+            if previous != TARGET_WAYPOINT and self._target is None:
+                self._leave_stale_target(now)  # a restart's first track, after the re-plan
             return
         if self.phase == Phase.FLYING and self._target_tracked and previous == TARGET_WAYPOINT:
             self._left_target_route(track.waypoint, now)
@@ -218,6 +229,7 @@ class OnboardCore:
             on_done(CommandResult(False, "module is off: it does not write to the autopilot"))
             return
         retasks = isinstance(command, Track) or command.index == TARGET_WAYPOINT
+        self._operator_track = isinstance(command, Track) and command.waypoint == TARGET_WAYPOINT
         if retasks and holds_target(self.phase):
             what = (
                 f"track to waypoint {command.waypoint}"
@@ -275,8 +287,9 @@ class OnboardCore:
     def _start_round(self, targets: MissionTargets, now: float) -> None:
         """Replace the mission in one step: nothing of the old one survives it."""
         # Cancel first: the resume submitted next must survive the new mission's start.
+        resuming = self._resuming
         self.commands.cancel_all(f"mission {targets.mission} started")
-        if holds_target(self.phase):
+        if holds_target(self.phase) or resuming:
             self._resume_course(now)
         self.round = MissionRound(targets, self.uav_id, now)
         self._observe(Observation.MISSION_STARTED)
@@ -337,6 +350,14 @@ class OnboardCore:
             return
         if report.mission != mission_round.mission or report.mission in self._aborted:
             return
+        problem = assignment_problem(report, mission_round.targets)
+        if problem is not None:
+            log.warning(
+                "mission %d: UAV %d's assignment refused: %s",
+                *(report.mission, report.uav),
+                problem,
+            )
+            return
         if mission_round.committed is None:
             self._adopt(report, now)
         elif mission_round.release(report.released):
@@ -390,9 +411,10 @@ class OnboardCore:
             return
         if self.phase == Phase.ABORTED:
             return
+        resuming = self._resuming  # a resume still pending (a link outage) goes on
         self.commands.cancel_all(f"mission {abort.mission} aborted")
         flying = holds_target(self.phase)
-        if flying:
+        if flying or resuming:
             self._resume_course(now)
         self._observe(Observation.ABORTED)
         course = "back on course" if flying else "it was not flying a target"
@@ -481,12 +503,12 @@ class OnboardCore:
         if not holds_target(self.phase) or self._telemetry_at is None:
             return
         silent = now - self._telemetry_at
-        if silent > LINK_RELEASE_S:
+        if silent > self.link_release_s:
             self._failed(f"autopilot link lost for {silent:.0f} s", now, Phase.LINK_LOST)
-        elif self.phase == Phase.COMMITTED and now - self._committed_at > CONFIRM_LIMIT_S:
+        elif self.phase == Phase.COMMITTED and now - self._committed_at > self.confirm_limit_s:
             attempts = "over a lost link" if self.link_lost(now) else "with the link up"
             self._failed(
-                f"target writes not echoed by the autopilot within {CONFIRM_LIMIT_S:g} s "
+                f"target writes not echoed by the autopilot within {self.confirm_limit_s:g} s "
                 f"(retried {attempts})",
                 now,
             )
@@ -570,6 +592,8 @@ class OnboardCore:
             if report.target is None and self.phase in (Phase.COMPUTING, Phase.WAITING):
                 self._observe(Observation.ASSIGNED_NONE)
                 self.status(f"mission {report.mission}: no target assigned; keeping course", now)
+            if report.target is None:
+                self._leave_stale_target(now)
             return
         if self._target is not None and holds_target(self.phase):
             # Released, or handed another orphan by a later epoch: off the old target.
@@ -579,11 +603,31 @@ class OnboardCore:
         if report.target is None or self.uav_id in report.released:
             self._target = None
             self._observe(Observation.ASSIGNED_NONE)
+            self._leave_stale_target(now)
             return
         self._commit(report, report.target, now)
 
+    def _leave_stale_target(self, now: float) -> None:
+        """Holding no target, yet the autopilot tracks the target waypoint: left there by
+        this module before a restart, and the target is another UAV's now (a re-plan
+        released this one while it was away). Back to the course, or it flies it too."""
+        if self.tracked_waypoint != TARGET_WAYPOINT or self._resuming or self._operator_track:
+            return
+        mission_round = self.round
+        if mission_round is None or mission_round.committed is None:
+            return  # nothing decided yet: it may still be handed that very target
+        self.status(
+            "warning: the autopilot still tracks the target waypoint of a target this UAV "
+            "no longer holds; resuming the course",
+            now,
+        )
+        self._resume_course(now)
+
     def _commit(self, report: AssignmentReport, target_index: int, now: float) -> None:
         assert self.round is not None
+        if advance(self.phase, Observation.ASSIGNED_TARGET) != Phase.COMMITTED:
+            self._refuse_orphan(report, target_index, now)
+            return
         self._target = target_index
         self._committed_at = now
         self._target_tracked = False
@@ -597,9 +641,24 @@ class OnboardCore:
             return
         self._write_target(report.mission, target_index, now)
 
+    def _refuse_orphan(self, report: AssignmentReport, target_index: int, now: float) -> None:
+        """A re-plan handed an orphan to a UAV whose part is over (the operator took it
+        off its target, or it failed): it does not fly it, and drops out like a failed
+        UAV, so that the next epoch hands the orphan on instead of leaving it unflown."""
+        why = f"handed target {target_index} at epoch {report.epoch} while {self.phase}"
+        self.status(f"warning: mission {report.mission}: {why}: not flying it", now)
+        if self.round is None:
+            return
+        outcome = TargetOutcome(report.mission, self.uav_id, target_index, Phase.FAILED, why)
+        self.round.outcome = outcome
+        self.outputs.publish(keys.mission_outcome(report.mission, self.uav_id), outcome)
+        if self.round.release((self.uav_id,)):
+            self._replan(now)
+
     def _write_target(self, mission: int, target_index: int, now: float) -> None:
         """Write the target waypoint, then track it; both retried until echoed."""
         assert self.round is not None
+        self._operator_track = False  # the module's own target route from now on
         target = self.round.targets.targets[target_index]
         # on_track never records the target waypoint as the course; 0 before any track.
         back_to = 0 if self.original_waypoint is None else self.original_waypoint
@@ -661,15 +720,22 @@ class OnboardCore:
         self.outputs.publish(keys.mission_outcome(outcome.mission, self.uav_id), outcome)
 
     def _resume_course(self, now: float) -> None:
-        if self.original_waypoint is None or not self.enabled:
+        """Track the course again; resent until echoed, across a link outage too, for an
+        aircraft left tracking a target it gave up would fly it beside its new holder.
+        Only a newer track (a new target, the operator's) or a cancel ends it early."""
+        if not self.enabled:
             return
-        back = self.original_waypoint
+        # No course seen yet (a restart on the target route): the flight plan's start,
+        # as the target waypoint's own `next` is then (see `_write_target`).
+        back = 0 if self.original_waypoint is None else self.original_waypoint
 
         def done(result: CommandResult) -> None:
-            if not result.ok and result.detail != "superseded":
-                self.status(f"error: could not resume waypoint {back}: {result.detail}", now)
+            self._resuming = False
+            if not result.ok:
+                log.info("resume of waypoint %d ended: %s", back, result.detail)
 
-        self.commands.submit(Track(back), now, done)
+        self._resuming = True
+        self.commands.submit(Track(back), now, done, persistent=True)
 
     # ---- reporting -----------------------------------------------------------------
     def status(self, text: str, now: float) -> None:
@@ -739,3 +805,10 @@ class OnboardCore:
         if self.round is None or self.round.mission != mission:
             return None
         return self.round.outcome
+
+
+def _is_target_write(command: AutopilotCommand) -> bool:
+    """The target waypoint's write or the track to it (a mission's own target writes)."""
+    if isinstance(command, Track):
+        return command.waypoint == TARGET_WAYPOINT
+    return command.index == TARGET_WAYPOINT

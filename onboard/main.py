@@ -22,6 +22,7 @@ from fleet.transport.cli import (
     zenoh_config,
 )
 from fleet.transport.zenoh_config import endpoints, error_text
+from onboard.core import CONFIRM_LIMIT_S, LINK_RELEASE_S
 from onboard.process import OnboardProcess, OnboardSettings
 
 log = logging.getLogger("onboard")
@@ -53,6 +54,22 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="HZ",
         help="publish telemetry on the bus at most this often (default: every packet)",
     )
+    parser.add_argument(
+        "--confirm-limit",
+        type=positive_float,
+        default=CONFIRM_LIMIT_S,
+        metavar="S",
+        help="give a target up when its writes are not echoed this long after the "
+        "commitment, s (default %(default)g)",
+    )
+    parser.add_argument(
+        "--link-release",
+        type=positive_float,
+        default=LINK_RELEASE_S,
+        metavar="S",
+        help="give a held target up (it is re-planned) when the autopilot link stays "
+        "lost this long, s (default %(default)g)",
+    )
     parser.add_argument("--drop-first-result", action="store_true", help=argparse.SUPPRESS)
     add_zenoh_arguments(parser)
     add_verbose_argument(parser)
@@ -75,6 +92,8 @@ def main(argv: list[str] | None = None) -> int:
         payload_ground=args.payload_ground,
         status_rate_hz=args.status_rate,
         planning_budget_s=args.budget,
+        confirm_limit_s=args.confirm_limit,
+        link_release_s=args.link_release,
         telemetry_hz=args.telemetry_hz,
         drop_first_result=args.drop_first_result,
     )

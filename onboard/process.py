@@ -51,7 +51,7 @@ from fleet.transport.link import Link
 from fleet.transport.serial_port import DEFAULT_BAUD, SerialLink
 from fleet.transport.zenoh_bus import ZenohBus
 from onboard.autopilot_commands import AutopilotCommand
-from onboard.core import OnboardCore
+from onboard.core import CONFIRM_LIMIT_S, LINK_RELEASE_S, OnboardCore
 from onboard.link_adapter import LinkAdapter
 from onboard.planner_worker import PlannerWorker
 from onboard.zenoh_node import BusEvent, PresenceEvent, ZenohNode
@@ -79,6 +79,8 @@ class OnboardSettings:
     payload_ground: bool = False
     status_rate_hz: float = 1.0
     planning_budget_s: float = 2.0
+    confirm_limit_s: float = CONFIRM_LIMIT_S
+    link_release_s: float = LINK_RELEASE_S
     #: Telemetry published on the bus at most this often; None: every packet relayed.
     telemetry_hz: float | None = None
     #: Test hook: drop the first publication of our own mission result (the teammates
@@ -122,8 +124,10 @@ class _Outputs:
 
     def fetch_assignments(self, mission: int) -> None:
         """What the team decided on `mission` while this UAV was away: the assignments,
+        the outcomes (who reached its target: never released later; who dropped out)
         and an abort (which teammates relay by query)."""
         self.process.node.fetch(keys.mission_assignments(mission), AssignmentReport)
+        self.process.node.fetch(keys.mission_outcomes(mission), TargetOutcome)
         self.process.node.fetch(keys.mission_abort(mission), MissionAbort)
 
     def fetch_missions(self) -> None:
@@ -156,6 +160,8 @@ class OnboardProcess:
             planner=self.planner,
             planning_budget_s=settings.planning_budget_s,
             status_rate_hz=settings.status_rate_hz,
+            confirm_limit_s=settings.confirm_limit_s,
+            link_release_s=settings.link_release_s,
         )
         program, payload = links or (
             SerialLink("program", settings.program_url, settings.baud),

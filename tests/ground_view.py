@@ -11,7 +11,7 @@ import zenoh
 
 from fleet.geo.mercator import MercatorProjection
 from fleet.mission import keys
-from fleet.mission.messages import AssignmentReport, StatusText, UavResult
+from fleet.mission.messages import AssignmentReport, StatusText, TargetOutcome, UavResult
 from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
 
@@ -27,6 +27,8 @@ class GroundView:
         #: When (monotonic s) each UAV's latest assignment arrived.
         self.assigned_at: dict[int, float] = {}
         self.results: dict[int, UavResult] = {}
+        #: Every TargetOutcome each UAV published, in order.
+        self.outcomes: dict[int, list[TargetOutcome]] = {}
         self.status: dict[int, list[str]] = {}
         self.subscriber = session.declare_subscriber(f"{keys.PREFIX}/**", self.on_sample)
 
@@ -44,6 +46,9 @@ class GroundView:
                 report = msgspec.json.decode(data, type=AssignmentReport)
                 self.assignments[report.uav] = report
                 self.assigned_at[report.uav] = time.monotonic()
+            elif "/outcome/" in key:
+                outcome = msgspec.json.decode(data, type=TargetOutcome)
+                self.outcomes.setdefault(outcome.uav, []).append(outcome)
             elif "/result/" in key:
                 result = msgspec.json.decode(data, type=UavResult)
                 self.results[result.uav] = result
@@ -66,6 +71,10 @@ class GroundView:
             if t.gps is not None
         ]
         return min(distances, default=math.inf)
+
+    def outcomes_of(self, uav: int) -> list[TargetOutcome]:
+        with self.lock:
+            return list(self.outcomes.get(uav, []))
 
     def statuses(self, uav: int) -> list[str]:
         with self.lock:

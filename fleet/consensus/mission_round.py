@@ -35,6 +35,32 @@ FETCH_INTERVAL = 1.0
 JOIN_GRACE_S = 1.0
 
 
+def assignment_problem(report: AssignmentReport, targets: MissionTargets) -> str | None:
+    """Why a teammate's assignment cannot be this mission's (None if it can be).
+
+    The schema bounds each index by MAX_TARGETS only; here every pair must name a UAV of
+    the mission's team (its Piccolo ID written in decimal, as `decide` writes it) and a
+    target of this mission, no target twice, so that a hostile or corrupt report is
+    refused whole instead of being indexed, flown or re-planned.
+    """
+    count = len(targets.targets)
+    team = set(targets.team)
+    for key, index in report.pairs.items():
+        if not key.isdecimal() or str(int(key)) != key or int(key) not in team:
+            return f"pair {key!r}: not a UAV of mission {targets.mission}'s team"
+        if index >= count:
+            return f"UAV {key}'s target {index}: mission {targets.mission} has {count}"
+    if len(set(report.pairs.values())) != len(report.pairs):
+        return "two UAVs paired with the same target"
+    if report.target is not None and report.target >= count:
+        return f"target {report.target}: mission {targets.mission} has {count}"
+    if any(index >= count for index in report.unassigned):
+        return f"an unassigned target beyond mission {targets.mission}'s {count}"
+    if not set(report.team) <= team:
+        return f"results of UAVs outside mission {targets.mission}'s team"
+    return None
+
+
 @dataclass
 class MissionRound:
     targets: MissionTargets
@@ -45,7 +71,8 @@ class MissionRound:
     committed: AssignmentReport | None = None
     last_fetch: float | None = None
     #: The epoch-0 assignment every re-plan starts from; None when this UAV adopted a
-    #: re-plan without knowing epoch 0 (it then follows its teammates' epochs).
+    #: re-plan without knowing epoch 0, or epoch 0 without the own result it was
+    #: computed from (a restart): it then follows its teammates' epochs.
     base: AssignmentReport | None = None
     #: Team UAVs that dropped out of the mission after the commitment (only grows).
     released: set[int] = field(default_factory=set)
@@ -67,6 +94,10 @@ class MissionRound:
         if result.mission != self.mission or result.uav not in self.targets.team:
             return False
         if len(result.times) != len(self.targets.targets):
+            return False
+        if self.committed is not None and result.uav in self.results:
+            # Re-plans use the epoch-0 results: a restarted teammate's new times would
+            # give UAVs that heard them other pairs under the same digest.
             return False
         self.results[result.uav] = result
         return True
@@ -142,7 +173,10 @@ class MissionRound:
         if self.thinner(report, alive, now):
             return None
         self.committed = self._own_copy(report)
-        if report.epoch == 0:
+        # A re-plan needs this UAV's own epoch-0 times if epoch 0 used them; a restarted
+        # UAV lost them (nobody else answers for them), so it follows its teammates'
+        # epochs instead of waiting for them forever.
+        if report.epoch == 0 and (self.own_id in self.results or self.own_id not in report.team):
             self.base = self.committed
         self.released |= set(report.released)
         return self.committed

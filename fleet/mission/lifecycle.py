@@ -44,8 +44,10 @@ TRANSITIONS: dict[tuple[Observation, Phase], Phase] = {
     (Observation.RESULT_PUBLISHED, Phase.COMPUTING): Phase.WAITING,
     (Observation.ASSIGNED_TARGET, Phase.COMPUTING): Phase.COMMITTED,
     (Observation.ASSIGNED_TARGET, Phase.WAITING): Phase.COMMITTED,
-    # A re-plan hands an orphaned target to a UAV that had none.
+    # A re-plan hands an orphaned target to a UAV that had none, or a later epoch hands
+    # a candidate that already reached its orphan another one (fleet.consensus.replan).
     (Observation.ASSIGNED_TARGET, Phase.IDLE): Phase.COMMITTED,
+    (Observation.ASSIGNED_TARGET, Phase.REACHED): Phase.COMMITTED,
     (Observation.ASSIGNED_NONE, Phase.COMPUTING): Phase.IDLE,
     (Observation.ASSIGNED_NONE, Phase.WAITING): Phase.IDLE,
     (Observation.TRACK_ECHOED, Phase.COMMITTED): Phase.FLYING,

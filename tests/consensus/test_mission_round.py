@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from fleet.consensus.assignment import results_digest
-from fleet.consensus.mission_round import FETCH_INTERVAL, MissionRound
-from fleet.mission.messages import MissionTargets, Target, UavResult
+from fleet.consensus.mission_round import FETCH_INTERVAL, MissionRound, assignment_problem
+from fleet.mission.messages import AssignmentReport, MissionTargets, Target, UavResult
 
 TARGETS = MissionTargets(
     mission=7,
@@ -170,3 +170,34 @@ def test_a_commitment_without_a_held_teammate_result_is_refused() -> None:
     holding.add_result(result(200))
     assert holding.thinner(thin, ALL, now=0.05) == {200}
     assert holding.adopt(thin, ALL, now=0.05) is None
+
+
+def test_an_assignment_that_cannot_be_this_missions_is_named() -> None:
+    def report(pairs: dict[str, int], **extra: object) -> AssignmentReport:
+        fields: dict[str, object] = {"target": None, "unassigned": (), "team": (74, 112)}
+        fields.update(extra)
+        return AssignmentReport(7, 74, pairs=pairs, digest="d", **fields)  # type: ignore[arg-type]
+
+    assert assignment_problem(report({"74": 0, "112": 1}), TARGETS) is None
+    for bad, why in [
+        (report({"74": 2}), "has 2"),
+        (report({"abc": 0}), "not a UAV"),
+        (report({"074": 0}), "not a UAV"),
+        (report({"999": 0}), "not a UAV"),
+        (report({"74": 0, "112": 0}), "same target"),
+        (report({}, target=5), "has 2"),
+        (report({}, unassigned=(3,)), "beyond"),
+        (report({}, team=(74, 999)), "outside"),
+    ]:
+        problem = assignment_problem(bad, TARGETS)
+        assert problem is not None and why in problem, (bad, problem)
+
+
+def test_after_the_commitment_a_teammates_new_result_does_not_replace_the_one_used() -> None:
+    mission_round = round_of()
+    for uav in ALL:
+        mission_round.add_result(result(uav))
+    mission_round.decide(ALL)
+    again = UavResult(mission=7, uav=200, times=(1.0, 1.0))  # restarted, planned anew
+    assert not mission_round.add_result(again)
+    assert mission_round.results[200] == result(200)

@@ -4,14 +4,21 @@ commitment; its idle teammate re-plans, flies the orphaned target and reaches it
 
 from __future__ import annotations
 
+import contextlib
 import json
+import time
+from dataclasses import replace
 from pathlib import Path
 
 from fleet.launch.launcher import ring_scenario
+from fleet.mission.phase import Phase
+from onboard.autopilot_commands import MAX_RETRY_INTERVAL
+from onboard.core import LINK_LOST_S, TARGET_WAYPOINT
 from tests.conftest import Ground
 from tests.ground.test_truth import finish, ground_cli, targets_file
 from tests.onboard.test_multi_uav import ring_targets, start_onboard, wait_for_telemetry
 from tests.processes import Fleet, wait_until
+from tests.tcp_proxy import cuttable_proxy
 
 #: Slow enough that the victim cannot reach its target before it is killed.
 SPEEDUP = 3.0
@@ -62,3 +69,180 @@ def test_the_idle_uav_flies_and_reaches_the_target_of_a_holder_killed_after_comm
     assert status == 0, err
     target = ring_targets(2, seed=7)[orphan]
     assert seen.closest_approach(idle, target.lat, target.lon) <= 75.0
+
+
+def commit_ring(
+    fleet: Fleet, ground: Ground, tmp_path: Path, count: int, n_targets: int, *extra: str
+) -> tuple[list[int], dict[int, int]]:
+    """`count` UAVs on a ring, a mission of `n_targets` sent and committed by all; the
+    team and the holders (UAV -> target)."""
+    scenario = tmp_path / "ring.toml"
+    scenario.write_text(ring_scenario(count))
+    endpoints = fleet.sim(str(scenario), SPEEDUP, 5.0)
+    for uav, where in endpoints.items():
+        fleet.onboard(uav, where, ground.router, *extra)
+    team = sorted(endpoints)
+    wait_for_telemetry(ground, team)
+    seen = ground.seen
+    path = targets_file(tmp_path, ring_targets(n_targets, seed=7))
+    send = ground_cli(ground.router, "send-targets", str(path), "--team", ",".join(map(str, team)))
+    assert finish(send, 60)[0] == 0
+    wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "every commitment")
+    pairs = seen.assignments[team[0]].pairs
+    return team, {int(uav): target for uav, target in pairs.items()}
+
+
+def test_two_holders_killed_at_once_their_targets_go_to_the_two_idle_uavs(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    team, holders = commit_ring(fleet, ground, tmp_path, 4, 2)
+    seen = ground.seen
+    idle = sorted(set(team) - set(holders))
+    assert len(idle) == 2
+    victims = [c for c in fleet.children if c.name in {f"onboard {uav}" for uav in holders}]
+    for child in victims:  # both at once: the survivors may see the losses in any order
+        child.process.kill()
+    for child in victims:
+        child.process.wait(10)
+
+    released = tuple(sorted(holders))
+    wait_until(
+        lambda: all(seen.assignments[uav].released == released for uav in idle),
+        30.0,
+        "both idle UAVs at epoch 2",
+    )
+    first, second = (seen.assignments[uav] for uav in idle)
+    assert first.epoch == second.epoch == 2
+    assert (first.digest, first.pairs) == (second.digest, second.pairs)  # the same re-plan
+    assert sorted(first.pairs.values()) == sorted(holders.values())  # both orphans flown
+    assert {int(uav) for uav in first.pairs} == set(idle)  # one each
+
+    status, out, err = finish(
+        ground_cli(ground.router, "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json"),
+        REACH_TIMEOUT_S + 60,
+    )
+    report = json.loads(out)
+    states = {s["index"]: s for s in report["target_states"]}
+    for uav in idle:
+        target = first.pairs[str(uav)]
+        assert states[target] == {"index": target, "state": "reached", "uav": uav}, err
+        place = ring_targets(2, seed=7)[target]
+        assert seen.closest_approach(uav, place.lat, place.lon) <= 75.0
+    assert report["epoch"] == 2 and report["lost"] == list(released)
+    assert status == 0, err
+
+
+#: Short enough for a test, long enough over LINK_LOST_S (3 s) to tell the two apart.
+LINK_RELEASE_TEST_S = 6.0
+#: Real time: the holder (ETA about a minute) cannot reach its target during the cut,
+#: so only the resume can take it off the target route once the link is back.
+LINK_CUT_SPEEDUP = 1.0
+
+
+def test_a_holder_whose_autopilot_link_is_cut_is_released_and_its_teammate_reaches_it(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    scenario = tmp_path / "ring.toml"
+    scenario.write_text(ring_scenario(2))
+    endpoints = fleet.sim(str(scenario), LINK_CUT_SPEEDUP, 5.0)
+    seen = ground.seen
+    with contextlib.ExitStack() as stack:
+        proxies = {
+            uav: stack.enter_context(cuttable_proxy(where.program))
+            for uav, where in endpoints.items()
+        }
+        for uav, where in endpoints.items():
+            fleet.onboard(
+                uav,
+                replace(where, program=proxies[uav].url),
+                ground.router,
+                "--link-release",
+                str(LINK_RELEASE_TEST_S),
+            )
+        team = sorted(endpoints)
+        wait_for_telemetry(ground, team)
+        targets = ring_targets(1, seed=7)
+        path = targets_file(tmp_path, targets)
+        send = ground_cli(
+            ground.router, "send-targets", str(path), "--team", ",".join(map(str, team))
+        )
+        assert finish(send, 60)[0] == 0
+        wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "both commitments")
+        (holder,) = (int(uav) for uav in seen.assignments[team[0]].pairs)
+        (idle,) = set(team) - {holder}
+        wait_until(lambda: seen.latest_track(holder) == TARGET_WAYPOINT, 30.0, "flying")
+
+        proxies[holder].cut()  # the fault: the holder's autopilot link goes for good
+        wait_until(
+            lambda: any(o.phase == Phase.LINK_LOST for o in seen.outcomes_of(holder)),
+            LINK_LOST_S + LINK_RELEASE_TEST_S + 30.0,
+            "the holder's link_lost outcome",
+        )
+        wait_until(
+            lambda: seen.assignments[idle].target == 0 and seen.assignments[idle].epoch == 1,
+            30.0,
+            "the idle UAV handed the target",
+        )
+        assert seen.assignments[idle].released == (holder,)
+        assert seen.latest_track(holder) == TARGET_WAYPOINT  # nothing got through the cut
+        # The outage outlasts any limited resend of the resume (4 attempts at most
+        # MAX_RETRY_INTERVAL apart), which used to end while the link was still cut.
+        time.sleep(4 * MAX_RETRY_INTERVAL)
+        proxies[holder].restore()
+        # Back on its course: the resume was retried across the outage, so it does not
+        # fly the target beside its new holder.
+        wait_until(
+            lambda: seen.latest_track(holder) not in (None, TARGET_WAYPOINT),
+            30.0,
+            "the released holder back on its course",
+        )
+        wait_until(
+            lambda: any("reached target 0" in s for s in seen.statuses(idle)),
+            REACH_TIMEOUT_S,
+            "the teammate reaching the target",
+        )
+    assert seen.assignments[holder].released == (holder,)  # it agrees it was released
+    assert seen.assignments[holder].digest == seen.assignments[idle].digest
+    assert seen.closest_approach(idle, targets[0].lat, targets[0].lon) <= 75.0
+
+
+def test_a_holder_restarted_after_the_re_plan_adopts_the_latest_epoch_and_leaves_the_target(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    scenario = tmp_path / "ring.toml"
+    scenario.write_text(ring_scenario(3))
+    endpoints = fleet.sim(str(scenario), SPEEDUP, 5.0)
+    start_onboard(fleet, endpoints, ground.router)
+    team = sorted(endpoints)
+    wait_for_telemetry(ground, team)
+    seen = ground.seen
+    path = targets_file(tmp_path, ring_targets(2, seed=7))
+    send = ground_cli(ground.router, "send-targets", str(path), "--team", ",".join(map(str, team)))
+    assert finish(send, 60)[0] == 0
+    wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "three commitments")
+    holders = {int(uav): t for uav, t in seen.assignments[team[0]].pairs.items()}
+    (idle,) = set(team) - set(holders)
+    etas = {uav: seen.assignments[uav].eta_s or 0.0 for uav in holders}
+    victim = max(holders, key=etas.__getitem__)  # still on its way when restarted
+    wait_until(lambda: seen.latest_track(victim) == TARGET_WAYPOINT, 30.0, "the victim flying")
+    (child,) = [c for c in fleet.children if c.name == f"onboard {victim}"]
+    child.process.kill()
+    child.process.wait(10)
+    wait_until(lambda: seen.assignments[idle].epoch == 1, 30.0, "the re-plan")
+    replanned = seen.assignments[idle]
+    assert replanned.target == holders[victim]
+
+    fleet.onboard(victim, endpoints[victim], ground.router)  # the same aircraft, restarted
+    wait_until(lambda: seen.assignments[victim].epoch == 1, 30.0, "the restarted UAV at epoch 1")
+    mine = seen.assignments[victim]
+    assert (mine.digest, mine.pairs, mine.target) == (replanned.digest, replanned.pairs, None)
+    # Its autopilot was left flying the target its teammate holds now: it leaves it.
+    wait_until(
+        lambda: seen.latest_track(victim) not in (None, TARGET_WAYPOINT),
+        30.0,
+        "the restarted UAV off the target route",
+    )
+    assert any("no longer holds" in s for s in seen.statuses(victim)), seen.tracks[victim]
+    # Turned back on its way, not by arriving: it never came within reach of that target.
+    orphan = ring_targets(2, seed=7)[holders[victim]]
+    assert seen.closest_approach(victim, orphan.lat, orphan.lon) > 75.0

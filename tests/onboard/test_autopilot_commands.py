@@ -71,3 +71,14 @@ def test_cancel_all_reports_each_pending_command() -> None:
     commands.cancel_all("mission aborted")
     assert [r.detail for r in results] == ["mission aborted", "mission aborted"]
     assert commands.pending == 0
+
+
+def test_cancel_where_ends_only_the_commands_it_picks() -> None:
+    commands, sent, results = tracker()
+    commands.submit(WAYPOINT, 0.0, results.append, persistent=True)
+    other = Waypoint(index=3, next_index=4, lat=35.7, lon=-120.7, alt=600.0)
+    commands.submit(other, 0.0, results.append)
+    commands.cancel_where(lambda c: isinstance(c, Waypoint) and c.index == 90, "reached")
+    assert results == [CommandResult(False, "reached", 1)] and commands.pending == 1
+    commands.tick(0.5)
+    assert sent[-1] == other

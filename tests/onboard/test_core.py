@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import msgspec
+import pytest
 
 from fleet.mission import keys
 from fleet.mission.messages import (
@@ -26,7 +27,13 @@ from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from onboard.autopilot_commands import AutopilotCommand
-from onboard.core import CONFIRM_LIMIT_S, LINK_LOST_S, TARGET_WAYPOINT, OnboardCore
+from onboard.core import (
+    CONFIRM_LIMIT_S,
+    LINK_LOST_S,
+    LINK_RELEASE_S,
+    TARGET_WAYPOINT,
+    OnboardCore,
+)
 from onboard.planner_worker import PlanRequest, PlanResult
 from tests.link_samples import sample_telemetry
 
@@ -499,3 +506,189 @@ def test_the_planning_budget_grows_with_the_missions_deadline() -> None:
     core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS, deadline_s=3.0), 0.0)
     core.on_targets(MissionTargets(mission=2, team=(112,), targets=TARGETS, deadline_s=30.0), 1.0)
     assert [r.budget_s for r in planner.requests] == [2.0, 15.0]
+
+
+# ---- review of issue 10: hostile reports, finished candidates, writes after arrival --
+def test_an_assignment_naming_a_target_beyond_the_mission_is_refused_never_indexed() -> None:
+    core, out = make_core(200, (30.0, 35.0))
+    for uav in (74, 112):
+        core.on_alive(uav, True, 0.0)
+    core.on_targets(MissionTargets(mission=3, team=(74, 112, 200), targets=TWO_TARGETS), 0.0)
+    bad = AssignmentReport(3, 74, 0, {"74": 0, "200": 7}, (), (74, 112, 200), "x")
+    core.on_assignment(bad, 0.2)  # raised IndexError, then every telemetry did
+    core.on_telemetry(sample_telemetry(), 0.5)
+    assert core.phase == Phase.COMPUTING and out.on(keys.mission_assignment(3, 200)) == []
+    later = AssignmentReport(
+        3, 74, 0, {"200": 9}, (), (74, 112, 200), "y", epoch=2, released=(74, 112)
+    )
+    core.on_assignment(later, 0.6)
+    assert core.phase == Phase.COMPUTING and not any(isinstance(c, Waypoint) for c in out.autopilot)
+
+
+def test_a_base_assignment_with_a_pair_that_is_no_uav_id_never_breaks_a_re_plan() -> None:
+    core, out = make_core(200, (30.0, 35.0))
+    for uav in (74, 112):
+        core.on_alive(uav, True, 0.0)
+    core.on_targets(MissionTargets(mission=3, team=(74, 112, 200), targets=TWO_TARGETS), 0.0)
+    odd = AssignmentReport(3, 74, 0, {"74": 0, "abc": 1}, (), (74, 112, 200), "x")
+    core.on_assignment(odd, 0.2)  # adopted, then int("abc") raised at each re-plan
+    core.on_result(UavResult(3, 74, (10.0, 50.0)), 0.3)
+    core.on_result(UavResult(3, 112, (40.0, 20.0)), 0.3)
+    core.tick(0.4)  # commits its own
+    core.on_telemetry(sample_telemetry(), 1.0)
+    core.on_alive(112, False, 1.0)
+    report = out.on(keys.mission_assignment(3, 200))[-1]
+    assert isinstance(report, AssignmentReport)
+    assert (report.epoch, report.target) == (1, 1)
+
+
+FOUR_TEAM = (10, 20, 30, 40)
+
+
+def commit_four_uav_team(core: OnboardCore) -> None:
+    """UAV 30 (this core, times (30, 35)) with 10 (holds 0), 20 (holds 1) and 40 (idle).
+
+    Once 20 is lost, 30 takes target 1; once 10 is lost too, the greedy over 30 and 40
+    gives 30 target 0 (30 s) and 40 target 1.
+    """
+    for uav in (10, 20, 40):
+        core.on_alive(uav, True, 0.0)
+    core.on_targets(MissionTargets(mission=5, team=FOUR_TEAM, targets=TWO_TARGETS), 0.0)
+    core.on_result(UavResult(5, 10, (10.0, 50.0)), 0.1)
+    core.on_result(UavResult(5, 20, (40.0, 20.0)), 0.1)
+    core.on_result(UavResult(5, 40, (32.0, 60.0)), 0.1)
+    core.tick(0.2)
+    core.on_telemetry(sample_telemetry(), 1.0)
+    core.on_alive(20, False, 1.0)
+    assert core.phase == Phase.COMMITTED and core.round is not None
+    assert core.round.committed is not None and core.round.committed.target == 1
+
+
+def test_a_candidate_that_reached_its_orphan_flies_the_next_one_and_shows_it() -> None:
+    core, out = make_core(30, (30.0, 35.0))
+    commit_four_uav_team(core)
+    core.on_waypoint(out.autopilot[-1], 1.1)  # type: ignore[arg-type]
+    core.on_track(Track(TARGET_WAYPOINT), 1.2)
+    core.on_telemetry(telemetry_at(TWO_TARGETS[1].lat, TWO_TARGETS[1].lon), 2.0)
+    assert core.phase == Phase.REACHED
+    core.on_alive(10, False, 3.0)  # epoch 2 hands 30 target 0
+    report = out.on(keys.mission_assignment(5, 30))[-1]
+    assert isinstance(report, AssignmentReport) and (report.epoch, report.target) == (2, 0)
+    waypoint = [c for c in out.autopilot if isinstance(c, Waypoint)][-1]
+    assert (waypoint.lat, waypoint.lon) == (TWO_TARGETS[0].lat, TWO_TARGETS[0].lon)
+    # It flies target 0: the phase says so (it said `reached` while flying before).
+    assert core.state(3.0).phase == Phase.COMMITTED
+
+
+def test_a_preempted_candidate_handed_another_orphan_drops_out_and_it_is_handed_on() -> None:
+    core, out = make_core(30, (30.0, 35.0))
+    commit_four_uav_team(core)
+    core.command_autopilot(Track(5), 1.5, lambda _: None)  # the operator takes it off
+    assert core.phase == Phase.PREEMPTED
+    writes = len([c for c in out.autopilot if isinstance(c, Waypoint)])
+    core.on_alive(10, False, 3.0)  # epoch 2 would hand 30 target 0
+    assert len([c for c in out.autopilot if isinstance(c, Waypoint)]) == writes  # not flown
+    assert core.state(3.0).phase == Phase.PREEMPTED
+    outcome = out.on(keys.mission_outcome(5, 30))[-1]
+    assert isinstance(outcome, TargetOutcome)
+    assert (outcome.phase, outcome.target) == (Phase.FAILED, 0)
+    report = out.on(keys.mission_assignment(5, 30))[-1]
+    assert isinstance(report, AssignmentReport)
+    assert (report.epoch, report.released) == (3, (10, 20, 30))
+    assert report.pairs == {"40": 0}  # the orphan went on to 40, not left with 30
+
+
+def test_reaching_the_target_before_the_track_echo_stops_the_target_writes() -> None:
+    core, out = make_core()
+    core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 1.0)
+    core.tick(1.1)  # the waypoint write, not echoed yet
+    core.on_telemetry(telemetry_at(TARGETS[1].lat, TARGETS[1].lon), 1.2)  # passing by
+    assert core.phase == Phase.REACHED
+    sent = len(out.autopilot)
+    run_with_telemetry(core, 1.2, 10.0)
+    assert len(out.autopilot) == sent  # no more resends that would turn it back
+    assert core.commands.pending == 0
+
+
+def tick_without_telemetry(core: OnboardCore, start: float, end: float) -> float:
+    now = start
+    while now < end:
+        now += 0.25
+        core.tick(now)
+    return now
+
+
+def test_the_resume_after_a_link_release_outlives_the_outage_so_it_stops_flying_the_target() -> (
+    None
+):
+    core, out = make_core()
+    fly_target_1(core, out)  # tracking the target waypoint, telemetry last at t=0
+    now = tick_without_telemetry(core, 2.0, LINK_RELEASE_S + 5.0)  # released meanwhile
+    assert core.phase == Phase.FAILED
+    now = tick_without_telemetry(core, now, now + 10.0)  # the outage goes on
+    sent = len(out.autopilot)
+    core.on_telemetry(sample_telemetry(), now)  # the link is back; still on the target
+    run_with_telemetry(core, now, now + 2.0)
+    # The resume is still being sent: the teammate now flies this target.
+    assert out.autopilot[sent:] and set(out.autopilot[sent:]) == {Track(2)}
+    core.on_track(Track(2), now + 2.5)  # echoed: done
+    assert core.commands.pending == 0
+
+
+def test_an_abort_during_an_outage_takes_the_aircraft_off_its_target_once_it_is_back() -> None:
+    core, out = make_core()
+    fly_target_1(core, out)
+    core.on_abort(MissionAbort(1), 2.5)
+    now = tick_without_telemetry(core, 2.5, 15.0)  # no echo of the resume
+    sent = len(out.autopilot)
+    run_with_telemetry(core, now, now + 2.0)
+    assert out.autopilot[sent:] and set(out.autopilot[sent:]) == {Track(2)}
+    assert core.state(now + 2.0).phase == Phase.ABORTED
+
+
+@pytest.mark.parametrize("track_first", [True, False])
+def test_a_restarted_uav_left_on_the_target_route_leaves_it_when_the_re_plan_released_it(
+    track_first: bool,
+) -> None:
+    recorder = Recorder()
+    core = OnboardCore(uav_id=112, outputs=recorder, planner=ScriptedPlanner((40.0, 20.0)))
+    core.on_telemetry(sample_telemetry(), 0.0)
+    if track_first:
+        core.on_track(Track(TARGET_WAYPOINT), 0.0)  # its autopilot still flies the old target
+    for uav in (74, 200):
+        core.on_alive(uav, True, 0.0)
+    core.on_targets(MissionTargets(mission=3, team=(74, 112, 200), targets=TWO_TARGETS), 0.1)
+    epoch_1 = AssignmentReport(
+        3, 74, 0, {"74": 0, "200": 1}, (), (74, 112, 200), "r", epoch=1, released=(112,)
+    )
+    core.on_assignment(epoch_1, 0.2)  # fetched at start: it was released meanwhile
+    if not track_first:
+        core.on_track(Track(TARGET_WAYPOINT), 0.3)  # the autopilot's first report, later
+    mine = recorder.on(keys.mission_assignment(3, 112))[-1]
+    assert isinstance(mine, AssignmentReport) and (mine.epoch, mine.target) == (1, None)
+    # 200 flies target 1 now: this aircraft must not fly it too.
+    assert recorder.autopilot and recorder.autopilot[-1] == Track(0)
+    run_with_telemetry(core, 0.2, 5.0)
+    assert recorder.autopilot[-1] == Track(0)  # resent until echoed
+    core.on_track(Track(0), 5.1)
+    assert core.commands.pending == 0
+
+
+def test_a_restarted_idle_uav_follows_the_re_plan_that_hands_it_the_orphan() -> None:
+    core, out = make_core(200, (30.0, 35.0))
+    for uav in (74, 112):
+        core.on_alive(uav, True, 0.0)
+    core.on_targets(MissionTargets(mission=3, team=(74, 112, 200), targets=TWO_TARGETS), 0.0)
+    base = AssignmentReport(3, 74, 0, {"74": 0, "112": 1}, (), (74, 112, 200), "d0")
+    core.on_assignment(base, 0.05)  # fetched at once: adopted before its own result
+    core.tick(0.1)
+    core.on_telemetry(sample_telemetry(), 1.0)
+    core.on_alive(112, False, 1.0)  # its own epoch-0 times are gone with its old process
+    epoch_1 = AssignmentReport(
+        3, 74, 0, {"74": 0, "200": 1}, (), (74, 112, 200), "d1", epoch=1, released=(112,)
+    )
+    core.on_assignment(epoch_1, 1.2)  # it used to stay at epoch 0, waiting for itself
+    mine = out.on(keys.mission_assignment(3, 200))[-1]
+    assert isinstance(mine, AssignmentReport)
+    assert (mine.epoch, mine.target, mine.digest) == (1, 1, "d1")
+    assert core.state(1.2).phase == Phase.COMMITTED

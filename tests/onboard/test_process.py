@@ -9,6 +9,7 @@ import socket
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import msgspec
 import pytest
@@ -20,10 +21,12 @@ from fleet.mission.messages import (
     AssignmentReport,
     CommandResult,
     LinkHealth,
+    MissionAbort,
     MissionTargets,
     OpmCommand,
     StatusText,
     Target,
+    TargetOutcome,
     UavResult,
     UavState,
 )
@@ -32,6 +35,7 @@ from fleet.piccolo.waypoint import Waypoint
 from fleet.planning.link import PiccoloLink, PlanningEvent
 from fleet.planning.protocol import encode_message
 from fleet.transport.bus_codec import ENCODING, encode
+from onboard.process import _Outputs
 from tests.ground_view import GroundView
 from tests.processes import (
     Child,
@@ -252,3 +256,16 @@ def test_telemetry_reaches_the_bus_at_the_rate_asked_for() -> None:
     # no more than one every 500 ms gets through, where 20 Hz would be ten.
     span_ms = samples[-1] - samples[0]
     assert len(samples) <= span_ms / 500 + 2, f"{len(samples)} samples in {span_ms} ms"
+
+
+def test_a_catch_up_fetches_the_assignments_outcomes_and_abort() -> None:
+    asked: list[tuple[str, type]] = []
+    node = SimpleNamespace(fetch=lambda key, kind: asked.append((key, kind)))
+    _Outputs(SimpleNamespace(node=node)).fetch_assignments(5)  # type: ignore[arg-type]
+    # A restarted UAV learns who reached its target, so it never releases that UAV later
+    # (which would put it at an epoch its teammates never reach).
+    assert asked == [
+        (keys.mission_assignments(5), AssignmentReport),
+        (keys.mission_outcomes(5), TargetOutcome),
+        (keys.mission_abort(5), MissionAbort),
+    ]
