@@ -72,6 +72,12 @@ LINK_RELEASE_S = 20.0
 PLAN_SHARE_OF_DEADLINE = 0.5
 #: At most one catch-up query (live missions, the teammates' assignments) this often.
 CATCH_UP_INTERVAL_S = 5.0
+#: Two ticks this far apart (s; the main loop ticks every 0.25 s) mean the module itself
+#: was suspended (SIGSTOP, a starved machine): it catches up at once, and again after
+#: each of these delays (s), for its bus session may still be working off the backlog
+#: or reconnecting, and a query then goes unanswered.
+SUSPENDED_S = 2.0
+CATCH_UP_AFTER_SUSPENSION_S = (1.0, 3.0)
 
 
 class Planner(Protocol):
@@ -124,6 +130,8 @@ class OnboardCore:
     _target: int | None = None  #: the target this UAV holds (committed or flying to)
     _committed_at: float = 0.0
     _caught_up_at: float = -math.inf
+    _ticked_at: float | None = None
+    _catch_ups_due: list[float] = field(default_factory=list)
     _target_tracked: bool = False  #: the autopilot echoed the track to the target waypoint
     _resuming: bool = False  #: a resume of the course is sent and not echoed yet
     _operator_track: bool = False  #: the ground commanded the target waypoint or its track
@@ -249,6 +257,11 @@ class OnboardCore:
         if current is not None and targets.mission <= current:
             return  # a repeat of the current mission, or a stale one
         if targets.mission in self._aborted:
+            # Its abort came first (this UAV was away when the mission was sent): the
+            # mission still replaces the old one, as on every teammate, and shows aborted.
+            self._start_round(targets, now)
+            self._observe(Observation.ABORTED)
+            self.status(f"mission {targets.mission} arrived already aborted: not flying it", now)
             return
         problem = self._refusal(targets)
         if problem is not None:
@@ -442,12 +455,12 @@ class OnboardCore:
             )
             self._replan(now)
 
-    def catch_up(self, now: float) -> None:
-        """Ask for the live missions and the current one's assignments: at start, and
-        when a teammate (re)appears, for this UAV may be the one that was away (frozen,
-        cut off). Brings it in line with what was decided meanwhile; at most once every
-        CATCH_UP_INTERVAL_S."""
-        if now - self._caught_up_at < CATCH_UP_INTERVAL_S:
+    def catch_up(self, now: float, *, force: bool = False) -> None:
+        """Ask for the live missions and the current one's assignments: at start, when
+        a teammate (re)appears, for this UAV may be the one that was away (frozen, cut
+        off), and (`force`) when its own clock shows it was suspended. Brings it in line
+        with what was decided meanwhile; else at most once every CATCH_UP_INTERVAL_S."""
+        if not force and now - self._caught_up_at < CATCH_UP_INTERVAL_S:
             return
         self._caught_up_at = now
         self.outputs.fetch_missions()
@@ -456,6 +469,16 @@ class OnboardCore:
 
     # ---- time ----------------------------------------------------------------------
     def tick(self, now: float) -> None:
+        if self._ticked_at is not None and now - self._ticked_at > SUSPENDED_S:
+            # Frozen shorter than Zenoh's lease, no teammate seemed to come back, and
+            # what was published meanwhile may be lost: ask for it.
+            log.info("no tick for %.1f s: catching up", now - self._ticked_at)
+            self.catch_up(now, force=True)
+            self._catch_ups_due = [now + delay for delay in CATCH_UP_AFTER_SUSPENSION_S]
+        elif self._catch_ups_due and now >= self._catch_ups_due[0]:
+            self._catch_ups_due.pop(0)
+            self.catch_up(now, force=True)
+        self._ticked_at = now
         self.commands.tick(now)
         self._collect_plan(now)
         self._check_link(now)

@@ -692,3 +692,28 @@ def test_a_restarted_idle_uav_follows_the_re_plan_that_hands_it_the_orphan() -> 
     assert isinstance(mine, AssignmentReport)
     assert (mine.epoch, mine.target, mine.digest) == (1, 1, "d1")
     assert core.state(1.2).phase == Phase.COMMITTED
+
+
+def test_a_module_suspended_for_a_while_catches_up_at_once_when_it_runs_again() -> None:
+    core, out = make_core()
+    core.on_alive(74, True, 0.0)  # a catch-up at 0 s: the next is rate-limited
+    fetched = out.mission_fetches
+    core.tick(0.1)
+    core.tick(0.2)
+    assert out.mission_fetches == fetched
+    core.tick(3.5)  # frozen (SIGSTOP) for 3.3 s: a mission and its abort may be missed
+    assert out.mission_fetches == fetched + 1
+    for step in range(36, 80):  # and twice more, in case the first query went unanswered
+        core.tick(step / 10)
+    assert out.mission_fetches == fetched + 3
+
+
+def test_a_mission_whose_abort_came_first_shows_aborted_and_is_never_flown() -> None:
+    core, out = make_core()
+    core.on_abort(MissionAbort(5), 1.0)  # away when mission 5 was sent; its abort arrives
+    core.on_targets(MissionTargets(mission=5, team=(112,), targets=TARGETS), 2.0)
+    run_with_telemetry(core, 2.0, 4.0)
+    state = core.state(4.0)
+    assert state.phase == Phase.ABORTED
+    assert state.mission is not None and state.mission.mission == 5
+    assert out.autopilot == [] and out.on(keys.mission_result(5, 112)) == []
