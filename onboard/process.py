@@ -109,7 +109,7 @@ class _Outputs:
             log.warning("test hook: first publication of %s dropped", key)
             return
         if isinstance(message, UavState):
-            message = self.process.full_state(time.monotonic())
+            message = self.process.with_link(message, time.monotonic())
         self.process.node.publish(key, message)
 
     def send_ground(self, message: StatusText | UavResult) -> None:
@@ -317,7 +317,7 @@ class OnboardProcess:
     # ---- queries --------------------------------------------------------------------
     def _serve_queries(self, now: float) -> None:
         while (query := self.node.state_queries.try_recv()) is not None:
-            query.reply(keys.state(self.settings.uav_id), self.full_state(now))
+            query.reply(keys.state(self.settings.uav_id), self.with_link(self.core.state(now), now))
             query.drop()
         while (query := self.node.command_queries.try_recv()) is not None:
             self._on_command_query(query, now)
@@ -326,10 +326,11 @@ class OnboardProcess:
                 self._on_mission_query(query)
                 query.drop()
 
-    def full_state(self, now: float) -> UavState:
-        """The module's state with the link's health and the model's speed."""
+    def with_link(self, state: UavState, now: float) -> UavState:
+        """The module's state with what only the process knows: the link's health and
+        the model's speed."""
         return msgspec.structs.replace(
-            self.core.state(now),
+            state,
             link=self._link_health(now),
             model_speed=self.planner.model_speed(),
         )

@@ -146,6 +146,18 @@ class Fleet:
         self.children.append(child)
         return child
 
+    def onboard_child(self, uav: int) -> Child:
+        """The onboard process of UAV `uav` started last (by `onboard` or `restart`)."""
+        return [c for c in self.children if c.name == f"onboard {uav}"][-1]
+
+    def restart(self, child: Child) -> Child:
+        """Start `child`'s command again (after it was killed), as a new child."""
+        argv = child.process.args
+        assert isinstance(argv, list)
+        again = start(child.name, [str(arg) for arg in argv])
+        self.children.append(again)
+        return again
+
     def stop_all(self) -> None:
         for child in reversed(self.children):
             child.stop()

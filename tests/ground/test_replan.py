@@ -16,7 +16,7 @@ from onboard.autopilot_commands import MAX_RETRY_INTERVAL
 from onboard.core import LINK_LOST_S, TARGET_WAYPOINT
 from tests.conftest import Ground
 from tests.ground.test_truth import finish, ground_cli, targets_file
-from tests.onboard.test_multi_uav import ring_targets, start_onboard, wait_for_telemetry
+from tests.onboard.test_multi_uav import ring_targets, start_ring, wait_for_telemetry
 from tests.processes import Fleet, wait_until
 from tests.tcp_proxy import cuttable_proxy
 
@@ -25,28 +25,32 @@ SPEEDUP = 3.0
 REACH_TIMEOUT_S = 240.0
 
 
+def commit_ring(
+    fleet: Fleet, ground: Ground, tmp_path: Path, count: int, n_targets: int
+) -> tuple[list[int], dict[int, int]]:
+    """`count` UAVs on a ring, a mission of `n_targets` sent and committed by all; the
+    team and the holders (UAV -> target)."""
+    team = start_ring(fleet, ground, tmp_path, count, SPEEDUP, telemetry_hz=5.0)
+    seen = ground.seen
+    path = targets_file(tmp_path, ring_targets(n_targets, seed=7))
+    send = ground_cli(ground.router, "send-targets", str(path), "--team", ",".join(map(str, team)))
+    assert finish(send, 60)[0] == 0
+    wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "every commitment")
+    pairs = seen.assignments[team[0]].pairs
+    return team, {int(uav): target for uav, target in pairs.items()}
+
+
 def test_the_idle_uav_flies_and_reaches_the_target_of_a_holder_killed_after_commit(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    scenario = tmp_path / "ring.toml"
-    scenario.write_text(ring_scenario(3))
-    endpoints = fleet.sim(str(scenario), SPEEDUP, 5.0)
-    start_onboard(fleet, endpoints, ground.router)
-    team = sorted(endpoints)
-    wait_for_telemetry(ground, team)
+    team, holders = commit_ring(fleet, ground, tmp_path, 3, 2)
     seen = ground.seen
-    path = targets_file(tmp_path, ring_targets(2, seed=7))
-    send = ground_cli(ground.router, "send-targets", str(path), "--team", ",".join(map(str, team)))
-    assert finish(send, 60)[0] == 0
-    wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "three commitments")
-    pairs = seen.assignments[team[0]].pairs
-    holders = {int(uav): target for uav, target in pairs.items()}
     (idle,) = set(team) - set(holders)
     # The victim: the holder with the farther target, so it is still on its way.
     etas = {uav: seen.assignments[uav].eta_s or 0.0 for uav in holders}
     victim = max(holders, key=etas.__getitem__)
     orphan = holders[victim]
-    (child,) = [c for c in fleet.children if c.name == f"onboard {victim}"]
+    child = fleet.onboard_child(victim)
     child.process.kill()  # liveliness goes with the TCP connection
     child.process.wait(10)
 
@@ -69,27 +73,6 @@ def test_the_idle_uav_flies_and_reaches_the_target_of_a_holder_killed_after_comm
     assert status == 0, err
     target = ring_targets(2, seed=7)[orphan]
     assert seen.closest_approach(idle, target.lat, target.lon) <= 75.0
-
-
-def commit_ring(
-    fleet: Fleet, ground: Ground, tmp_path: Path, count: int, n_targets: int, *extra: str
-) -> tuple[list[int], dict[int, int]]:
-    """`count` UAVs on a ring, a mission of `n_targets` sent and committed by all; the
-    team and the holders (UAV -> target)."""
-    scenario = tmp_path / "ring.toml"
-    scenario.write_text(ring_scenario(count))
-    endpoints = fleet.sim(str(scenario), SPEEDUP, 5.0)
-    for uav, where in endpoints.items():
-        fleet.onboard(uav, where, ground.router, *extra)
-    team = sorted(endpoints)
-    wait_for_telemetry(ground, team)
-    seen = ground.seen
-    path = targets_file(tmp_path, ring_targets(n_targets, seed=7))
-    send = ground_cli(ground.router, "send-targets", str(path), "--team", ",".join(map(str, team)))
-    assert finish(send, 60)[0] == 0
-    wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "every commitment")
-    pairs = seen.assignments[team[0]].pairs
-    return team, {int(uav): target for uav, target in pairs.items()}
 
 
 def test_two_holders_killed_at_once_their_targets_go_to_the_two_idle_uavs(
@@ -209,30 +192,20 @@ def test_a_holder_whose_autopilot_link_is_cut_is_released_and_its_teammate_reach
 def test_a_holder_restarted_after_the_re_plan_adopts_the_latest_epoch_and_leaves_the_target(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    scenario = tmp_path / "ring.toml"
-    scenario.write_text(ring_scenario(3))
-    endpoints = fleet.sim(str(scenario), SPEEDUP, 5.0)
-    start_onboard(fleet, endpoints, ground.router)
-    team = sorted(endpoints)
-    wait_for_telemetry(ground, team)
+    team, holders = commit_ring(fleet, ground, tmp_path, 3, 2)
     seen = ground.seen
-    path = targets_file(tmp_path, ring_targets(2, seed=7))
-    send = ground_cli(ground.router, "send-targets", str(path), "--team", ",".join(map(str, team)))
-    assert finish(send, 60)[0] == 0
-    wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "three commitments")
-    holders = {int(uav): t for uav, t in seen.assignments[team[0]].pairs.items()}
     (idle,) = set(team) - set(holders)
     etas = {uav: seen.assignments[uav].eta_s or 0.0 for uav in holders}
     victim = max(holders, key=etas.__getitem__)  # still on its way when restarted
     wait_until(lambda: seen.latest_track(victim) == TARGET_WAYPOINT, 30.0, "the victim flying")
-    (child,) = [c for c in fleet.children if c.name == f"onboard {victim}"]
+    child = fleet.onboard_child(victim)
     child.process.kill()
     child.process.wait(10)
     wait_until(lambda: seen.assignments[idle].epoch == 1, 30.0, "the re-plan")
     replanned = seen.assignments[idle]
     assert replanned.target == holders[victim]
 
-    fleet.onboard(victim, endpoints[victim], ground.router)  # the same aircraft, restarted
+    fleet.restart(child)  # the same aircraft, restarted
     wait_until(lambda: seen.assignments[victim].epoch == 1, 30.0, "the restarted UAV at epoch 1")
     mine = seen.assignments[victim]
     assert (mine.digest, mine.pairs, mine.target) == (replanned.digest, replanned.pairs, None)

@@ -15,7 +15,6 @@ from pathlib import Path
 import msgspec
 import pytest
 
-from fleet.launch.launcher import ring_scenario
 from fleet.mission import keys
 from fleet.mission.messages import CommandResult, MissionTargets, Target
 from fleet.piccolo.track import Track
@@ -24,11 +23,8 @@ from fleet.transport.targets_io import write_targets
 from onboard.core import TARGET_WAYPOINT
 from tests.conftest import Ground
 from tests.onboard.test_multi_uav import (
-    ring_sim,
     ring_targets,
-    start_onboard,
     start_ring,
-    wait_for_telemetry,
 )
 from tests.processes import Fleet, wait_until
 
@@ -69,12 +65,9 @@ def targets_file(tmp_path: Path, targets: tuple[Target, ...]) -> Path:
 def test_a_uav_killed_before_its_result_is_reported_lost_without_waiting_for_it(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    endpoints = ring_sim(fleet, tmp_path, 3)
-    start_onboard(fleet, endpoints, ground.router)
-    team = sorted(endpoints)
-    wait_for_telemetry(ground, team)
+    team = start_ring(fleet, ground, tmp_path, 3)
     victim = team[-1]
-    (child,) = [c for c in fleet.children if c.name == f"onboard {victim}"]
+    child = fleet.onboard_child(victim)
     child.process.send_signal(signal.SIGSTOP)  # it will never publish a result
     path = targets_file(tmp_path, ring_targets(2, seed=7))
     started = time.monotonic()
@@ -104,10 +97,7 @@ def test_a_uav_killed_before_its_result_is_reported_lost_without_waiting_for_it(
 def test_a_dead_autopilot_link_is_link_lost_and_the_mission_is_not_reported_agreed(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    endpoints = ring_sim(fleet, tmp_path, 2)
-    start_onboard(fleet, endpoints, ground.router)
-    team = sorted(endpoints)
-    wait_for_telemetry(ground, team)
+    team = start_ring(fleet, ground, tmp_path, 2)
     (sim,) = [c for c in fleet.children if c.name == "fleet sim"]
     sim.process.send_signal(signal.SIGKILL)  # both autopilots go silent
     sim.process.wait(10)
@@ -140,11 +130,8 @@ def test_a_dead_autopilot_link_is_link_lost_and_the_mission_is_not_reported_agre
 def test_a_commitment_thinner_than_what_the_teammates_hold_is_not_adopted(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    endpoints = ring_sim(fleet, tmp_path, 3)
-    start_onboard(fleet, endpoints, ground.router)
-    team = sorted(endpoints)
+    team = start_ring(fleet, ground, tmp_path, 3)
     first, *slow = team
-    wait_for_telemetry(ground, team)
     seen = ground.seen
     path = targets_file(tmp_path, ring_targets(100, seed=12))  # a long solve
     send = ground_cli(
@@ -176,12 +163,7 @@ def test_a_commitment_thinner_than_what_the_teammates_hold_is_not_adopted(
 def test_an_operator_retasking_a_uav_in_flight_is_preempted_not_reached_and_abortable(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    scenario = tmp_path / "ring.toml"
-    scenario.write_text(ring_scenario(1))
-    endpoints = fleet.sim(str(scenario), 2.0, 5.0)
-    start_onboard(fleet, endpoints, ground.router)
-    (uav,) = endpoints
-    wait_for_telemetry(ground, [uav])
+    (uav,) = start_ring(fleet, ground, tmp_path, 1, speedup=2.0, telemetry_hz=5.0)
     seen = ground.seen
     path = targets_file(tmp_path, ring_targets(1, seed=4))
     assert finish(ground_cli(ground.router, "send-targets", str(path)), 60)[0] == 0
@@ -204,13 +186,10 @@ def test_an_operator_retasking_a_uav_in_flight_is_preempted_not_reached_and_abor
 def test_an_abort_while_the_team_waits_for_a_frozen_teammate_is_final(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    endpoints = ring_sim(fleet, tmp_path, 3)
-    start_onboard(fleet, endpoints, ground.router)
-    team = sorted(endpoints)
+    team = start_ring(fleet, ground, tmp_path, 3)
     *awake, sleeper = team
-    wait_for_telemetry(ground, team)
     seen = ground.seen
-    (frozen,) = [c for c in fleet.children if c.name == f"onboard {sleeper}"]
+    frozen = fleet.onboard_child(sleeper)
     frozen.process.send_signal(signal.SIGSTOP)  # the fault: it never answers in time
     try:
         mission = MissionTargets(

@@ -52,11 +52,13 @@ def assert_agreed(reports: dict[int, AssignmentReport], team: set[int], n_target
     assert sorted([*targets, *first.unassigned]) == list(range(n_targets))
 
 
-def ring_sim(fleet: Fleet, tmp_path: Path, count: int) -> dict[int, SimEndpoints]:
+def ring_sim(
+    fleet: Fleet, tmp_path: Path, count: int, speedup: float = 10.0, telemetry_hz: float = 2.0
+) -> dict[int, SimEndpoints]:
     """Simulated autopilots for `count` UAVs on a ring; no onboard modules yet."""
     scenario = tmp_path / "ring.toml"
     scenario.write_text(ring_scenario(count))
-    return fleet.sim(str(scenario), 10.0, 2.0)
+    return fleet.sim(str(scenario), speedup, telemetry_hz)
 
 
 def start_onboard(fleet: Fleet, endpoints: dict[int, SimEndpoints], router: str) -> None:
@@ -70,10 +72,17 @@ def wait_for_telemetry(ground: Ground, uavs: Iterable[int]) -> None:
     wait_until(lambda: team <= set(ground.seen.telemetry), 60.0, f"telemetry from {sorted(team)}")
 
 
-def start_ring(fleet: Fleet, ground: Ground, tmp_path: Path, count: int) -> list[int]:
+def start_ring(
+    fleet: Fleet,
+    ground: Ground,
+    tmp_path: Path,
+    count: int,
+    speedup: float = 10.0,
+    telemetry_hz: float = 2.0,
+) -> list[int]:
     """`count` UAVs on a ring, each with its onboard module; their IDs in order, once the
     ground sees telemetry from every one."""
-    endpoints = ring_sim(fleet, tmp_path, count)
+    endpoints = ring_sim(fleet, tmp_path, count, speedup, telemetry_hz)
     start_onboard(fleet, endpoints, ground.router)
     team = sorted(endpoints)
     wait_for_telemetry(ground, team)
