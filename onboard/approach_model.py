@@ -116,7 +116,6 @@ import logging
 import math
 import os
 import sys
-import tempfile
 import threading
 import time
 from collections.abc import Sequence
@@ -399,10 +398,33 @@ def load_highs_core() -> ModuleType:
     return module
 
 
+def _read_mps(highs: Any, mps: str) -> Any:
+    """Hand `mps` to HiGHS through a private file, removed at once; HiGHS's status.
+
+    The file is created exclusively (`O_EXCL`, mode 0600) under a name that holds the
+    process ID, so no other process can hand HiGHS its own LP: `tempfile` would do the
+    same but loads `random`, `shutil`, `bz2` and `lzma` into every onboard (~0.3 MB).
+    """
+    directory = os.environ.get("TMPDIR") or "/tmp"
+    for attempt in range(100):
+        path = os.path.join(directory, f"approach-lp-{os.getpid()}-{attempt}.mps")
+        try:
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        except FileExistsError:  # a leftover of a killed process with a reused PID
+            continue
+        try:
+            with os.fdopen(fd, "w", encoding="ascii") as file:
+                file.write(mps)
+            return highs.readModel(path)
+        finally:
+            os.unlink(path)
+    raise ApproachModelError(f"no free file name for the approach-time LP in {directory}")
+
+
 class HighsLp:
     """`point_mass_lp` on one HiGHS instance, changed through column bounds only.
 
-    The LP reaches HiGHS as a free-format MPS file (written to a temporary file and
+    The LP reaches HiGHS as a free-format MPS file (written to a private file and
     read back at once): every array-taking call of highspy's core converts through numpy,
     which this avoids importing; the file's numbers are written exactly (`repr`).
     """
@@ -414,11 +436,7 @@ class HighsLp:
         highs.setOptionValue("output_flag", False)
         # One thread: the machine is shared and these LPs are far too small to gain.
         highs.setOptionValue("threads", 1)
-        with tempfile.TemporaryDirectory(prefix="approach-lp-") as tmp:
-            path = os.path.join(tmp, "approach.mps")
-            with open(path, "w", encoding="ascii") as file:
-                file.write(lp.to_mps())
-            status = highs.readModel(path)
+        status = _read_mps(highs, lp.to_mps())
         if status != core.HighsStatus.kOk or highs.getNumCol() != len(lp.columns):
             raise ApproachModelError(f"HiGHS refused the approach-time LP: {status}")
         self.columns = lp.columns

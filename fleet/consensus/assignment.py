@@ -24,11 +24,12 @@ input before acting on the result.
 
 from __future__ import annotations
 
-import hashlib
 import math
 import struct
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+
+from fleet.consensus.digest import sha256
 
 __all__ = ["Assignment", "greedy_assign", "results_digest"]
 
@@ -126,4 +127,4 @@ def results_digest(results: Mapping[int, Sequence[float | None]]) -> str:
         row = results[uav]
         parts.append(_HEADER.pack(uav, len(row)))
         parts += [b"N" if time is None else b"T" + _TIME.pack(time) for time in row]
-    return hashlib.sha256(b"".join(parts)).hexdigest()[:16]
+    return sha256(b"".join(parts)).hexdigest()[:16]

@@ -27,11 +27,11 @@ Pure: no I/O.
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 from fleet.consensus.assignment import greedy_assign
+from fleet.consensus.digest import sha256
 from fleet.mission.messages import AssignmentReport
 
 _REPLAN_VERSION = b"fleet.assignment.replan/v1\x00"
@@ -66,7 +66,7 @@ def replan_digest(base_digest: str, released: Iterable[int]) -> str:
     gone = sorted(set(released))
     if not gone:
         return base_digest
-    h = hashlib.sha256(_REPLAN_VERSION)
+    h = sha256(_REPLAN_VERSION)
     h.update(base_digest.encode("ascii", "replace"))
     for uav in gone:
         h.update(uav.to_bytes(2, "little"))
