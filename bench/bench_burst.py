@@ -135,8 +135,9 @@ class _InstantPlanner:
 
 # ---- one mission's traffic --------------------------------------------------------------
 def _times(rng: random.Random, n: int) -> tuple[float | None, ...]:
-    # Full-precision floats as the model yields them; now and then a target unanswered.
-    return tuple(None if rng.random() < 0.01 else rng.uniform(40.0, 400.0) for _ in range(n))
+    # Full-precision floats as the planner yields them: a time for every target (the
+    # Dubins fallback answers where the model did not).
+    return tuple(rng.uniform(40.0, 400.0) for _ in range(n))
 
 
 def mission_traffic(

@@ -28,6 +28,7 @@ import math
 import struct
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from itertools import chain, repeat
 
 from fleet.consensus.digest import sha256
 
@@ -75,33 +76,48 @@ def greedy_assign(results: Mapping[int, Sequence[float | None]], n_targets: int)
     # -inf first, and the sweep skips both, which is cheaper than filtering every entry
     # with math.isfinite before the sort.
     uavs = sorted(results)
-    keys = [_INF if t is None or t != t else t for uav in uavs for t in results[uav]]
+    rows = [results[uav] for uav in uavs]
+    keys = list(chain.from_iterable(rows))
+    # A finite sum means no None (TypeError), NaN or infinity: the times are their own
+    # keys, and one C-level pass saves a Python pass over every entry (N=50: ~2,500).
+    try:
+        finite = math.isfinite(sum(keys))
+    except TypeError:
+        finite = False
+    if not finite:
+        keys = [_INF if t is None or t != t else t for t in keys]
     order = sorted(range(len(keys)), key=keys.__getitem__)
 
     pairs: dict[int, int] = {}
-    taken_targets: set[int] = set()
+    uav_free = [True] * len(uavs)
+    target_free = [True] * n_targets
     # Once either side is exhausted no further pair is possible: stop the sweep early.
     # With 20 UAVs and 50 targets the sweep typically ends after ~90 of 1,000 entries.
     max_pairs = min(len(uavs), n_targets)
-    for k in order:
-        if len(pairs) == max_pairs:
-            break
-        time = keys[k]
-        if time == _INF:
-            break  # only unusable entries remain
-        if time == -_INF:
-            continue
-        rank, target = divmod(k, n_targets)
-        uav = uavs[rank]
-        if uav in pairs or target in taken_targets:
-            continue
-        pairs[uav] = target
-        taken_targets.add(target)
+    if max_pairs:
+        # Each candidate's time, UAV rank and target, read lazily in sweep order (C-level
+        # maps: only the entries the sweep reaches are looked up, no divmod per entry).
+        ranks = list(chain.from_iterable(repeat(rank, n_targets) for rank in range(len(uavs))))
+        targets = list(range(n_targets)) * len(uavs)
+        sweep = zip(
+            map(keys.__getitem__, order),
+            map(ranks.__getitem__, order),
+            map(targets.__getitem__, order),
+            strict=True,
+        )
+        for time, rank, target in sweep:
+            if time == _INF:
+                break  # only unusable entries remain
+            if uav_free[rank] and target_free[target] and time != -_INF:
+                uav_free[rank] = target_free[target] = False
+                pairs[uavs[rank]] = target
+                if len(pairs) == max_pairs:
+                    break
 
     return Assignment(
         pairs={uav: pairs[uav] for uav in sorted(pairs)},
-        unassigned_targets=tuple(t for t in range(n_targets) if t not in taken_targets),
-        idle_uavs=tuple(sorted(uav for uav in results if uav not in pairs)),
+        unassigned_targets=tuple(t for t in range(n_targets) if target_free[t]),
+        idle_uavs=tuple(uav for uav in uavs if uav not in pairs),
     )
 
 
@@ -122,9 +138,41 @@ def results_digest(results: Mapping[int, Sequence[float | None]]) -> str:
     """
     # One buffer hashed once: the same bytes as an update per field, in a third of the
     # time (50 x 50 results: ~0.3 ms instead of ~0.9 ms, on every UAV at every commit).
+    # The times are packed in C, all at once, then interleaved with their b'T' markers
+    # by strided copies (`_tagged`); only a row holding a None (struct.error: nearly
+    # never) is written entry by entry.
+    uavs = sorted(results)
+    rows = [results[uav] for uav in uavs]
+    try:
+        tagged = _tagged(list(chain.from_iterable(rows)))
+        whole = [True] * len(rows)
+    except struct.error:
+        whole = [None not in row for row in rows]
+        tagged = _tagged(
+            list(chain.from_iterable(row for row, w in zip(rows, whole, strict=True) if w))
+        )
     parts = [_DIGEST_VERSION]
-    for uav in sorted(results):
-        row = results[uav]
+    offset = 0
+    for uav, row, packed in zip(uavs, rows, whole, strict=True):
         parts.append(_HEADER.pack(uav, len(row)))
-        parts += [b"N" if time is None else b"T" + _TIME.pack(time) for time in row]
+        if packed:
+            end = offset + _TAGGED_SIZE * len(row)
+            parts.append(tagged[offset:end])
+            offset = end
+        else:
+            parts += [b"N" if time is None else b"T" + _TIME.pack(time) for time in row]
     return sha256(b"".join(parts)).hexdigest()[:16]
+
+
+_TAGGED_SIZE = 1 + _TIME.size
+
+
+def _tagged(times: list[float]) -> bytearray:
+    """b'T' + '<d' of each time, concatenated (struct.error if one is not a number)."""
+    count = len(times)
+    packed = struct.pack(f"<{count}d", *times)
+    tagged = bytearray(_TAGGED_SIZE * count)
+    tagged[0::_TAGGED_SIZE] = b"T" * count
+    for byte in range(_TIME.size):
+        tagged[1 + byte :: _TAGGED_SIZE] = packed[byte :: _TIME.size]
+    return tagged

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import hashlib
 import math
 import random
 import struct
+from collections.abc import Mapping, Sequence
 
 import pytest
 from hypothesis import given, settings
@@ -242,3 +244,80 @@ def test_digest_is_bit_exact_for_nan_payloads() -> None:
     quiet = struct.unpack("<d", struct.pack("<Q", 0x7FF8000000000000))[0]
     other = struct.unpack("<d", struct.pack("<Q", 0x7FF8000000000001))[0]
     assert results_digest({1: [quiet]}) != results_digest({1: [other]})
+
+
+# --- the implementation before the faster one, kept as its reference ---------------
+
+
+def _reference_greedy_assign(
+    results: Mapping[int, Sequence[float | None]], n_targets: int
+) -> Assignment:
+    """greedy_assign as it was written before its sweep and its keys were made faster."""
+    uavs = sorted(results)
+    keys = [math.inf if t is None or t != t else t for uav in uavs for t in results[uav]]
+    order = sorted(range(len(keys)), key=keys.__getitem__)
+    pairs: dict[int, int] = {}
+    taken_targets: set[int] = set()
+    max_pairs = min(len(uavs), n_targets)
+    for k in order:
+        if len(pairs) == max_pairs:
+            break
+        time = keys[k]
+        if time == math.inf:
+            break
+        if time == -math.inf:
+            continue
+        rank, target = divmod(k, n_targets)
+        uav = uavs[rank]
+        if uav in pairs or target in taken_targets:
+            continue
+        pairs[uav] = target
+        taken_targets.add(target)
+    return Assignment(
+        pairs={uav: pairs[uav] for uav in sorted(pairs)},
+        unassigned_targets=tuple(t for t in range(n_targets) if t not in taken_targets),
+        idle_uavs=tuple(sorted(uav for uav in results if uav not in pairs)),
+    )
+
+
+def _reference_digest(results: Mapping[int, Sequence[float | None]]) -> str:
+    """results_digest as it was written before its times were packed all at once."""
+    parts = [b"fleet.assignment.results/v1\x00"]
+    for uav in sorted(results):
+        row = results[uav]
+        parts.append(struct.pack("<qQ", uav, len(row)))
+        parts += [b"N" if time is None else b"T" + struct.pack("<d", time) for time in row]
+    return hashlib.sha256(b"".join(parts)).hexdigest()[:16]
+
+
+def _random_case(rng: random.Random) -> tuple[dict[int, Sequence[float | None]], int]:
+    """Teams and missions up to 60 x 60: model-like times, ties, and now and then None,
+    NaN (any payload), the infinities, -0.0 and negative times; rows as tuples or lists."""
+    n_targets = rng.choice((0, 1, 2, rng.randint(1, 60)))
+    uavs = rng.sample(range(1, 0xFFF1), rng.choice((0, 1, rng.randint(1, 60))))
+    odd = rng.random() < 0.5  # half the cases are all finite times, as the model gives
+
+    def time() -> float | None:
+        if odd and rng.random() < 0.1:
+            nan = struct.unpack("<d", struct.pack("<Q", 0x7FF8000000000000 | rng.getrandbits(20)))
+            return rng.choice((None, math.inf, -math.inf, -0.0, 0.0, -5.0, nan[0]))
+        if rng.random() < 0.05:
+            return float(rng.randint(0, 3))  # ties
+        return rng.uniform(20.0, 900.0)
+
+    results: dict[int, Sequence[float | None]] = {}
+    for uav in uavs:
+        row = [time() for _ in range(n_targets)]
+        results[uav] = tuple(row) if rng.random() < 0.5 else row
+    return results, n_targets
+
+
+def test_equal_to_the_previous_implementation_on_random_cases() -> None:
+    rng = random.Random(20261125)
+    for _ in range(1000):
+        results, n_targets = _random_case(rng)
+        fast = greedy_assign(results, n_targets)
+        reference = _reference_greedy_assign(results, n_targets)
+        assert fast == reference
+        assert list(fast.pairs) == list(reference.pairs)
+        assert results_digest(results) == _reference_digest(results)
