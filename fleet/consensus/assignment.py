@@ -29,6 +29,7 @@ import struct
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from itertools import chain, repeat
+from typing import cast
 
 from fleet.consensus.digest import sha256
 
@@ -77,15 +78,16 @@ def greedy_assign(results: Mapping[int, Sequence[float | None]], n_targets: int)
     # with math.isfinite before the sort.
     uavs = sorted(results)
     rows = [results[uav] for uav in uavs]
-    keys = list(chain.from_iterable(rows))
+    times = list(chain.from_iterable(rows))
     # A finite sum means no None (TypeError), NaN or infinity: the times are their own
     # keys, and one C-level pass saves a Python pass over every entry (N=50: ~2,500).
     try:
-        finite = math.isfinite(sum(keys))
+        finite = math.isfinite(sum(cast(list[float], times)))
     except TypeError:
         finite = False
-    if not finite:
-        keys = [_INF if t is None or t != t else t for t in keys]
+    keys = (
+        cast(list[float], times) if finite else [_INF if t is None or t != t else t for t in times]
+    )
     order = sorted(range(len(keys)), key=keys.__getitem__)
 
     pairs: dict[int, int] = {}
@@ -151,7 +153,7 @@ def results_digest(results: Mapping[int, Sequence[float | None]]) -> str:
         tagged = _tagged(
             list(chain.from_iterable(row for row, w in zip(rows, whole, strict=True) if w))
         )
-    parts = [_DIGEST_VERSION]
+    parts: list[bytes | bytearray] = [_DIGEST_VERSION]
     offset = 0
     for uav, row, packed in zip(uavs, rows, whole, strict=True):
         parts.append(_HEADER.pack(uav, len(row)))
@@ -167,7 +169,7 @@ def results_digest(results: Mapping[int, Sequence[float | None]]) -> str:
 _TAGGED_SIZE = 1 + _TIME.size
 
 
-def _tagged(times: list[float]) -> bytearray:
+def _tagged(times: list[float | None]) -> bytearray:
     """b'T' + '<d' of each time, concatenated (struct.error if one is not a number)."""
     count = len(times)
     packed = struct.pack(f"<{count}d", *times)
