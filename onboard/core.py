@@ -27,7 +27,7 @@ from typing import Protocol
 
 import msgspec
 
-from fleet.consensus.mission_round import MissionRound, assignment_problem
+from fleet.consensus.mission_round import MissionRound, Settled, assignment_problem
 from fleet.geo.mercator import MercatorProjection, distance_m
 from fleet.mission import keys
 from fleet.mission.lifecycle import Observation, advance, holds_target
@@ -119,6 +119,9 @@ class OnboardCore:
     reason: str | None = None  #: why the phase is what it is, where that needs saying
     last_status: str | None = None
     alive: set[int] = field(default_factory=set)
+    #: A snapshot of what this UAV settled of its mission (`Settled`), replaced as it
+    #: changes: the bus threads drop the assignment reports it covers by their header.
+    settled: Settled | None = None
     commands: CommandTracker = field(init=False)
     _early_results: list[UavResult] = field(default_factory=list)
     _aborted: set[int] = field(default_factory=set)
@@ -315,6 +318,13 @@ class OnboardCore:
                 self.round.add_result(result)
             elif result.mission > targets.mission:
                 self._early_results.append(result)
+        self._settle()
+
+    def _settle(self) -> None:
+        """Publish a new snapshot of what this UAV settled (after any change to it)."""
+        mission_round = self.round
+        if mission_round is not None:
+            self.settled = mission_round.settled(mission_round.mission in self._aborted)
 
     def _start_planning(self, now: float) -> None:
         assert self.round is not None and self.telemetry is not None
@@ -354,6 +364,7 @@ class OnboardCore:
             return
         if result.uav == self.uav_id or not mission_round.add_result(result):
             return
+        mission_round.heard(now)
         if mission_round.committed is not None and mission_round.released:
             self._replan(now)  # it may have waited for this result
 
@@ -377,6 +388,7 @@ class OnboardCore:
             self._replan(now)
         elif (followed := mission_round.follow(report)) is not None:
             self._apply(followed, now)
+        self._settle()
 
     def _adopt(self, report: AssignmentReport, now: float) -> None:
         assert self.round is not None
@@ -404,6 +416,7 @@ class OnboardCore:
             return
         if outcome.phase == Phase.REACHED:
             mission_round.reached.add(outcome.uav)
+            self._settle()
             return
         dropped = outcome.phase in (Phase.FAILED, Phase.LINK_LOST)
         if dropped and mission_round.release((outcome.uav,)):
@@ -413,6 +426,7 @@ class OnboardCore:
                 now,
             )
             self._replan(now)
+            self._settle()
 
     def on_abort(self, abort: MissionAbort, now: float) -> None:
         """Abort is final: mission m never commits or flies after this, whatever arrives."""
@@ -422,6 +436,7 @@ class OnboardCore:
         self._abort = abort
         if self.round is None or self.round.mission != abort.mission:
             return
+        self._settle()
         if self.phase == Phase.ABORTED:
             return
         resuming = self._resuming  # a resume still pending (a link outage) goes on
@@ -454,6 +469,7 @@ class OnboardCore:
                 now,
             )
             self._replan(now)
+            self._settle()
 
     def catch_up(self, now: float, *, force: bool = False) -> None:
         """Ask for the live missions and the current one's assignments: at start, when
@@ -610,6 +626,7 @@ class OnboardCore:
 
     def _apply(self, report: AssignmentReport, now: float) -> None:
         """Publish the assignment this UAV follows now and fly what it says."""
+        self._settle()
         self.outputs.publish(keys.mission_assignment(report.mission, self.uav_id), report)
         if report.target == self._target:
             if report.target is None and self.phase in (Phase.COMPUTING, Phase.WAITING):

@@ -185,6 +185,8 @@ class OnboardProcess:
             bus,
             sink=self.events.put,
             wake=self._wake,
+            # The core replaces its snapshot whole: a bus thread reads one or the other.
+            settled=lambda: self.core.settled,
         )
 
     def run(self) -> None:

@@ -14,9 +14,11 @@ from dataclasses import dataclass
 
 import msgspec
 
+from fleet.consensus.mission_round import Settled
 from fleet.mission import keys
 from fleet.mission.key_check import WrongKey, parse_key
 from fleet.mission.messages import (
+    AssignmentHeader,
     AssignmentReport,
     MissionAbort,
     MissionTargets,
@@ -25,7 +27,7 @@ from fleet.mission.messages import (
     UavResult,
 )
 from fleet.transport.bus import Bus, BusSample, Declaration
-from fleet.transport.bus_codec import BadMessage, DropReason, decode, refuse
+from fleet.transport.bus_codec import BadMessage, DropReason, decode, decode_header, refuse
 
 log = logging.getLogger(__name__)
 
@@ -64,12 +66,21 @@ class ZenohNode:
     """The onboard's declarations on its bus, which it owns (closed by `close`)."""
 
     def __init__(
-        self, uav_id: int, bus: Bus, sink: Sink, wake: Callable[[], None] | None = None
+        self,
+        uav_id: int,
+        bus: Bus,
+        sink: Sink,
+        wake: Callable[[], None] | None = None,
+        settled: Callable[[], Settled | None] | None = None,
     ) -> None:
-        """`sink` gets every event; `wake` is called when a query waits to be served."""
+        """`sink` gets every event; `wake` is called when a query waits to be served;
+        `settled` gives the module's latest `Settled` snapshot, if any: an assignment
+        report it covers changes nothing, and is dropped on its header alone."""
         self.uav_id = uav_id
         self.sink = sink
         self.wake = wake
+        self.settled = settled
+        self._full_assignment = self._full_decoder(AssignmentReport)
         self.bus = bus
         self._declared: list[Declaration] = []
         try:
@@ -115,6 +126,23 @@ class ZenohNode:
         self.sink(PresenceEvent(uav, alive))
 
     def _decoder(self, kind: type[msgspec.Struct]) -> Callable[[BusSample], None]:
+        if kind is AssignmentReport and self.settled is not None:
+            return self._on_assignment
+        return self._full_decoder(kind)
+
+    def _on_assignment(self, sample: BusSample) -> None:
+        """An assignment report: dropped on its header if it changes nothing (at N UAVs,
+        N-1 per mission after this UAV committed), else decoded and checked in full.
+        A header that does not decode or that its key does not vouch for goes the full
+        way too, where it is refused and counted."""
+        settled = self.settled() if self.settled is not None else None
+        if settled is not None:
+            header = decode_header(sample.payload, AssignmentHeader, sample.key)
+            if header is not None and settled.covers(header):
+                return
+        self._full_assignment(sample)
+
+    def _full_decoder(self, kind: type[msgspec.Struct]) -> Callable[[BusSample], None]:
         def on_sample(sample: BusSample) -> None:
             try:
                 message = decode(sample.payload, kind, sample.key)

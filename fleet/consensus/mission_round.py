@@ -5,7 +5,8 @@ The thesis assumed lossless links and every UAV in range. Here:
 * the team is the one the ground named, less the UAVs not alive (liveliness);
 * a UAV commits as soon as it holds the result of every live teammate, or at the
   mission's deadline with whatever it holds (missing results are fetched by query
-  first, by the caller, every `FETCH_INTERVAL` seconds);
+  first, by the caller, `FETCH_INTERVAL` seconds after the last result heard, and at
+  least one interval before the deadline);
 * a committed assignment seen from a teammate is adopted as is, if it is not thinner
   than what this UAV holds: it must have been computed from at least the results of
   the live teammates this UAV holds (else this UAV commits its own and the digests
@@ -22,12 +23,19 @@ Pure: no I/O, time comes in as `now`.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from fleet.consensus.assignment import greedy_assign, results_digest
 from fleet.consensus.replan import missing_times, replan
-from fleet.mission.messages import AssignmentReport, MissionTargets, TargetOutcome, UavResult
+from fleet.mission.messages import (
+    AssignmentHeader,
+    AssignmentReport,
+    MissionTargets,
+    TargetOutcome,
+    UavResult,
+)
 
 FETCH_INTERVAL = 1.0
 #: A teammate's assignment that arrives this soon (s) after this UAV started the round
@@ -44,21 +52,67 @@ def assignment_problem(report: AssignmentReport, targets: MissionTargets) -> str
     refused whole instead of being indexed, flown or re-planned.
     """
     count = len(targets.targets)
-    team = set(targets.team)
-    for key, index in report.pairs.items():
-        if not key.isdecimal() or str(int(key)) != key or int(key) not in team:
-            return f"pair {key!r}: not a UAV of mission {targets.mission}'s team"
-        if index >= count:
-            return f"UAV {key}'s target {index}: mission {targets.mission} has {count}"
-    if len(set(report.pairs.values())) != len(report.pairs):
+    team, names = _team_sets(targets.team)
+    pairs = report.pairs
+    # A team member's decimal name is exactly one of `names`: a set comparison in C
+    # checks every pair's UAV at once (each UAV hears N-1 reports of N pairs per mission).
+    if not names >= pairs.keys() or (pairs and max(pairs.values()) >= count):
+        for key, index in pairs.items():  # name the first bad pair
+            if not key.isdecimal() or str(int(key)) != key or int(key) not in team:
+                return f"pair {key!r}: not a UAV of mission {targets.mission}'s team"
+            if index >= count:
+                return f"UAV {key}'s target {index}: mission {targets.mission} has {count}"
+    if len(set(pairs.values())) != len(pairs):
         return "two UAVs paired with the same target"
     if report.target is not None and report.target >= count:
         return f"target {report.target}: mission {targets.mission} has {count}"
-    if any(index >= count for index in report.unassigned):
+    if report.unassigned and max(report.unassigned) >= count:
         return f"an unassigned target beyond mission {targets.mission}'s {count}"
-    if not set(report.team) <= team:
+    if not team.issuperset(report.team):
         return f"results of UAVs outside mission {targets.mission}'s team"
     return None
+
+
+@functools.lru_cache(maxsize=8)
+def _team_sets(team: tuple[int, ...]) -> tuple[frozenset[int], frozenset[str]]:
+    """A team's Piccolo IDs, and their decimal names (a few recent teams are kept)."""
+    return frozenset(team), frozenset(map(str, team))
+
+
+@dataclass(frozen=True, slots=True)
+class Settled:
+    """What a UAV has settled of its mission: enough to tell, from an assignment
+    report's header alone (`AssignmentHeader`), that the report changes nothing for it.
+
+    Every part only grows while the UAV runs (the mission id, the commitment, the abort,
+    the released and reached UAVs, the epoch followed), so a report an older snapshot
+    `covers` changes nothing under the UAV's later state either: a bus thread may check
+    reports against a snapshot while the main loop moves on.
+    """
+
+    mission: int
+    own_id: int
+    committed: bool
+    aborted: bool
+    team: frozenset[int]
+    #: Team UAVs released or reached: a report releasing them again changes nothing.
+    done: frozenset[int]
+    #: Without epoch 0 (`MissionRound.base` None), the epoch followed: a later one is
+    #: taken (`MissionRound.follow`). None with epoch 0: later epochs are re-planned
+    #: from the released set alone.
+    following: int | None
+
+    def covers(self, header: AssignmentHeader) -> bool:
+        """True if the report `header` heads changes nothing for this UAV."""
+        if header.mission != self.mission:
+            return header.mission < self.mission  # an older mission's; a newer may start
+        if header.uav == self.own_id or self.aborted:
+            return True
+        if not self.committed:
+            return False  # it may be adopted
+        if self.following is not None and header.epoch > self.following:
+            return False
+        return all(uav in self.done or uav not in self.team for uav in header.released)
 
 
 @dataclass
@@ -89,6 +143,19 @@ class MissionRound:
     def deadline(self) -> float:
         return self.started + self.targets.deadline_s
 
+    def settled(self, aborted: bool) -> Settled:
+        """This UAV's standing in the mission (`aborted`: the mission was aborted)."""
+        committed = self.committed
+        return Settled(
+            mission=self.mission,
+            own_id=self.own_id,
+            committed=committed is not None,
+            aborted=aborted,
+            team=_team_sets(self.targets.team)[0],
+            done=frozenset(self.released | self.reached),
+            following=committed.epoch if committed is not None and self.base is None else None,
+        )
+
     def add_result(self, result: UavResult) -> bool:
         """Keep a teammate's (or our own) result; False if it is not for this round."""
         if result.mission != self.mission or result.uav not in self.targets.team:
@@ -101,6 +168,15 @@ class MissionRound:
             return False
         self.results[result.uav] = result
         return True
+
+    def heard(self, now: float) -> None:
+        """A teammate's result arrived by publication: while results keep coming, the
+        next fetch of the missing ones waits (FETCH_INTERVAL after the latest), but it
+        still comes at least one interval before the deadline, when they are due."""
+        if self.committed is not None or self.last_fetch is None:
+            return
+        latest = self.deadline - 2 * FETCH_INTERVAL
+        self.last_fetch = max(self.last_fetch, min(now, latest))
 
     def expected(self, alive: set[int]) -> set[int]:
         """Teammates whose results this UAV still waits for or holds."""

@@ -9,11 +9,14 @@ the transport drops and counts the message (`fleet.transport.bus_codec`).
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Set as AbstractSet
 from dataclasses import dataclass
 
 from fleet.errors import FleetError
 from fleet.mission import keys
 from fleet.mission.messages import (
+    AssignmentHeader,
     AssignmentReport,
     MissionAbort,
     MissionTargets,
@@ -52,14 +55,36 @@ def _number(text: str, low: int, high: int, what: str, key: str) -> int:
     return value
 
 
+# Every message a process decodes has its key parsed, and most keys recur (a UAV's
+# telemetry, state, link; a mission's keys across its epochs and re-fetches): the ids of
+# the last PARSED_KEYS keys are kept. Bounded, so a flood of distinct keys costs a parse
+# each and no memory; a refused key is never kept (WrongKey is raised, not cached).
+PARSED_KEYS = 1024
+
+
+#: Piccolo IDs in decimal already found valid (in keys, and as an assignment's pair
+#: keys), at most PARSED_KEYS of them: a team's IDs recur in every key and report.
+_PICCOLO_IDS: dict[str, int] = {}
+
+
 def _piccolo_id(text: str, key: str) -> int:
-    return _number(text, MIN_PICCOLO_ID, MAX_PICCOLO_ID, "Piccolo ID", key)
+    value = _PICCOLO_IDS.get(text)
+    if value is None:
+        value = _number(text, MIN_PICCOLO_ID, MAX_PICCOLO_ID, "Piccolo ID", key)
+        if len(_PICCOLO_IDS) < PARSED_KEYS:
+            _PICCOLO_IDS[text] = value
+    return value
 
 
 def parse_key(key: str) -> KeyIds:
     """The ids in a `fleet/uav/{id}/...` or `fleet/mission/{m}/...` key; WrongKey if bad."""
+    return _parse_key(key, keys.PREFIX)
+
+
+@functools.lru_cache(maxsize=PARSED_KEYS)
+def _parse_key(key: str, prefix: str) -> KeyIds:
     parts = key.split("/")
-    if len(parts) < 4 or parts[0] != keys.PREFIX:
+    if len(parts) < 4 or parts[0] != prefix:
         raise WrongKey(f"{key}: not a fleet message key")
     if parts[1] == "uav":
         uav = _piccolo_id(parts[2], key)
@@ -88,9 +113,19 @@ def _same(key: str, what: str, in_key: int | None, in_message: int) -> None:
 
 
 def _team(key: str, team: tuple[int, ...]) -> None:
+    if not team or (min(team) >= MIN_PICCOLO_ID and max(team) <= MAX_PICCOLO_ID):
+        return  # the common case, in C; else the first member out of range is named
     for uav in team:
         if not MIN_PICCOLO_ID <= uav <= MAX_PICCOLO_ID:
             raise WrongKey(f"{key}: team member {uav} is not a Piccolo ID")
+
+
+def _piccolo_id_texts(key: str, texts: AbstractSet[str]) -> None:
+    """WrongKey naming the first of `texts` that is not a Piccolo ID in decimal."""
+    if _PICCOLO_IDS.keys() >= texts:
+        return  # all known valid: one set operation in C
+    for text in texts:
+        _piccolo_id(text, key)
 
 
 def check_key(key: str, message: object) -> None:
@@ -102,6 +137,10 @@ def check_key(key: str, message: object) -> None:
         message, MissionTargets | MissionAbort | UavResult | AssignmentReport | TargetOutcome
     ):
         _same(key, "mission", ids.mission, message.mission)
+    if isinstance(message, AssignmentHeader):
+        _same(key, "UAV", ids.uav, message.uav)
+        _same(key, "mission", ids.mission, message.mission)
+        _team(key, message.released)
     if isinstance(message, MissionTargets):
         _team(key, message.team)
     if isinstance(message, AssignmentReport):
@@ -110,10 +149,9 @@ def check_key(key: str, message: object) -> None:
         indices = [*message.pairs.values(), *message.unassigned]
         if message.target is not None:
             indices.append(message.target)
-        if any(not 0 <= i <= MAX_TARGET_INDEX for i in indices):
+        if indices and not (min(indices) >= 0 and max(indices) <= MAX_TARGET_INDEX):
             raise WrongKey(f"{key}: a target index outside 0-{MAX_TARGET_INDEX}")
-        for uav in message.pairs:
-            _piccolo_id(uav, key)
+        _piccolo_id_texts(key, message.pairs.keys())
     if isinstance(message, UavState) and message.mission is not None:
         progress = message.mission
         if not 0 <= progress.mission <= MAX_MISSION_ID:

@@ -148,6 +148,21 @@ class AssignmentReport(msgspec.Struct, frozen=True):
     released: Team = ()
 
 
+class AssignmentHeader(msgspec.Struct, frozen=True):
+    """The fields of an `AssignmentReport` that decide whether it changes anything for a
+    UAV that has committed (`fleet.consensus.mission_round.Settled`): decoded alone, the
+    rest of the report (its pairs, team and digest) is skipped, not validated.
+
+    At N UAVs each onboard hears N-1 reports per mission after it committed, nearly all
+    of which change nothing; the ground decodes and checks every report in full.
+    """
+
+    mission: MissionId
+    uav: PiccoloId
+    epoch: Annotated[int, Meta(ge=0, le=MAX_TEAM)] = 0
+    released: Team = ()
+
+
 class TargetOutcome(msgspec.Struct, frozen=True):
     """How a UAV's part in a mission ended, or why it dropped out of it.
 

@@ -113,3 +113,18 @@ def decode(payload: bytes, kind: type[T], key: str) -> T:
     except WrongKey as error:
         raise refuse(str(error), DropReason.WRONG_KEY) from None
     return message
+
+
+def decode_header(payload: bytes, kind: type[T], key: str) -> T | None:
+    """The fields of `payload` that `kind` names (a header struct: the rest is skipped,
+    not validated), if they decode and its key vouches for them; None otherwise,
+    uncounted: the caller then decodes it in full (`decode`), which refuses and counts.
+    """
+    if len(payload) > MAX_PAYLOAD_BYTES:
+        return None
+    try:
+        header: T = _decoder(cast(Hashable, kind)).decode(payload)
+        check_key(key, header)
+    except (msgspec.ValidationError, msgspec.DecodeError, RecursionError, WrongKey):
+        return None
+    return header
