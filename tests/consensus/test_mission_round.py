@@ -4,7 +4,13 @@ from __future__ import annotations
 
 from fleet.consensus.assignment import results_digest
 from fleet.consensus.mission_round import FETCH_INTERVAL, MissionRound, assignment_problem
-from fleet.mission.messages import AssignmentReport, MissionTargets, Target, UavResult
+from fleet.mission.messages import (
+    AssignmentHeader,
+    AssignmentReport,
+    MissionTargets,
+    Target,
+    UavResult,
+)
 
 TARGETS = MissionTargets(
     mission=7,
@@ -201,3 +207,57 @@ def test_after_the_commitment_a_teammates_new_result_does_not_replace_the_one_us
     again = UavResult(mission=7, uav=200, times=(1.0, 1.0))  # restarted, planned anew
     assert not mission_round.add_result(again)
     assert mission_round.results[200] == result(200)
+
+
+def test_each_result_heard_pushes_the_fetch_back_but_not_past_the_deadline() -> None:
+    mission_round = round_of(started=100.0)  # deadline 110
+    mission_round.add_result(result(74))
+    mission_round.last_fetch = 101.0  # its own result published
+    mission_round.add_result(result(112))
+    mission_round.heard(101.8)
+    assert not mission_round.should_fetch(now=102.5, alive=ALL)
+    assert mission_round.should_fetch(now=102.8, alive=ALL)
+    # Results keep coming: the fetch still comes one interval before the deadline.
+    for now in (106.0, 107.5, 108.5, 109.0):
+        mission_round.heard(now)
+    assert mission_round.should_fetch(now=110.0 - FETCH_INTERVAL, alive=ALL)
+
+
+def _header(
+    uav: int, mission: int = 7, epoch: int = 0, released: tuple[int, ...] = ()
+) -> AssignmentHeader:
+    return AssignmentHeader(mission=mission, uav=uav, epoch=epoch, released=released)
+
+
+def test_settled_covers_only_reports_that_change_nothing() -> None:
+    mission_round = round_of(74)
+    for uav in ALL:
+        mission_round.add_result(result(uav))
+    waiting = mission_round.settled(aborted=False)
+    assert not waiting.covers(_header(112))  # it may adopt it
+    assert waiting.covers(_header(74))  # its own, echoed
+    assert waiting.covers(_header(112, mission=6))  # an older mission's
+    assert not waiting.covers(_header(112, mission=8))  # a newer one may start
+    assert mission_round.settled(aborted=True).covers(_header(112))
+
+    mission_round.decide(ALL)
+    settled = mission_round.settled(aborted=False)
+    assert settled.covers(_header(112))
+    assert settled.covers(_header(112, epoch=1, released=(999,)))  # not of the team
+    assert not settled.covers(_header(112, epoch=1, released=(200,)))  # a re-plan
+    mission_round.release((200,))
+    assert mission_round.settled(aborted=False).covers(_header(112, epoch=1, released=(200,)))
+
+
+def test_settled_without_epoch_zero_takes_later_epochs() -> None:
+    mission_round = round_of(112)  # restarted: no result of its own
+    report = AssignmentReport(
+        mission=7, uav=74, target=0, pairs={"74": 0, "112": 1}, unassigned=(),
+        team=(74, 112), digest="d", epoch=1, released=(200,),
+    )  # fmt: skip
+    assert mission_round.follow(report) is None
+    assert mission_round.adopt(report, ALL, now=100.1) is not None
+    assert mission_round.base is None
+    settled = mission_round.settled(aborted=False)
+    assert settled.covers(_header(74, epoch=1, released=(200,)))
+    assert not settled.covers(_header(74, epoch=2, released=(200,)))

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from fleet.mission import keys
+from fleet.mission import key_check, keys
 from fleet.mission.key_check import WrongKey, check_key, parse_key, uav_of
 from fleet.mission.messages import (
+    AssignmentHeader,
     AssignmentReport,
     MissionAbort,
     MissionProgress,
@@ -87,3 +88,34 @@ def test_uav_of_and_parse_key() -> None:
     assert parse_key(keys.mission_targets(9)).mission == 9
     with pytest.raises(WrongKey, match="names no UAV"):
         uav_of(keys.mission_targets(9))
+
+
+def test_an_assignment_header_is_checked_against_its_key() -> None:
+    check_key(keys.mission_assignment(5, 74), AssignmentHeader(5, 74, 1, (112,)))
+    for key, header, why in [
+        (keys.mission_assignment(5, 74), AssignmentHeader(5, 112), "UAV 112"),
+        (keys.mission_assignment(6, 74), AssignmentHeader(5, 74), "mission 5"),
+        (keys.mission_assignment(5, 74), AssignmentHeader(5, 74, 1, (0,)), "member 0"),
+    ]:
+        with pytest.raises(WrongKey, match=why):
+            check_key(key, header)
+
+
+def test_parsed_keys_are_remembered_within_a_bound() -> None:
+    assert key_check.PARSED_KEYS <= 1024
+    for mission in range(3 * key_check.PARSED_KEYS):
+        assert parse_key(keys.mission_result(mission, 74)).mission == mission
+    assert len(key_check._PICCOLO_IDS) <= key_check.PARSED_KEYS
+    with pytest.raises(WrongKey):  # a refused key stays refused, each time
+        parse_key("fleet/uav/0/state")
+    with pytest.raises(WrongKey):
+        parse_key("fleet/uav/0/state")
+    # Under another prefix a key remembered under the old one is not the fleet's.
+    original = keys.PREFIX
+    parse_key(keys.mission_result(5, 74))
+    keys.use_prefix("replay" if original != "replay" else "fleet")
+    try:
+        with pytest.raises(WrongKey, match="not a fleet message key"):
+            parse_key(f"{original}/mission/5/result/74")
+    finally:
+        keys.use_prefix(original)

@@ -9,8 +9,10 @@ from collections.abc import Iterator
 
 import pytest
 
+from fleet.consensus.mission_round import MissionRound
 from fleet.mission import keys
-from fleet.mission.messages import MissionTargets, OpmCommand, Target, UavResult
+from fleet.mission.messages import AssignmentReport, MissionTargets, OpmCommand, Target, UavResult
+from fleet.transport import bus_codec
 from fleet.transport.memory import MemoryBus, MemoryNetwork
 from onboard.zenoh_node import BusEvent, PresenceEvent, ZenohNode
 
@@ -114,3 +116,48 @@ def test_close_withdraws_the_token(harness: Harness) -> None:
     harness.ground.subscribe_presence(keys.ALL_ALIVE, lambda key, alive: seen.append((key, alive)))
     harness.node.close()
     assert seen == [(keys.alive(UAV), True), (keys.alive(UAV), False)]
+
+
+def _report(uav: int, mission: int = 3, **changes: object) -> AssignmentReport:
+    fields: dict[str, object] = {
+        "mission": mission, "uav": uav, "target": 0, "pairs": {str(uav): 0},
+        "unassigned": (), "team": (UAV, 74), "digest": "d",
+    }  # fmt: skip
+    fields.update(changes)
+    return AssignmentReport(**fields)  # type: ignore[arg-type]
+
+
+def test_a_settled_uav_drops_reports_that_change_nothing_on_their_header() -> None:
+    network = MemoryNetwork()
+    events: queue.SimpleQueue[BusEvent | PresenceEvent] = queue.SimpleQueue()
+    mission_round = MissionRound(MISSION, UAV, 0.0)
+    mission_round.add_result(UavResult(3, UAV, (10.0,)))
+    mission_round.add_result(UavResult(3, 74, (20.0,)))
+    mission_round.decide({UAV, 74})
+    settled = mission_round.settled(aborted=False)
+    node = ZenohNode(UAV, network.bus(), events.put, settled=lambda: settled)
+    ground = network.bus()
+    try:
+        while not events.empty():
+            events.get_nowait()
+        before = bus_codec.DROPPED.counts()
+        ground.publish(keys.mission_assignment(3, 74), _report(74))  # changes nothing
+        assert events.empty()
+        assert bus_codec.DROPPED.counts() == before
+        replan = _report(74, epoch=1, released=(UAV,))  # a re-plan: it matters
+        ground.publish(keys.mission_assignment(3, 74), replan)
+        assert events.get_nowait() == BusEvent(keys.mission_assignment(3, 74), replan)
+        newer = _report(74, mission=4)
+        ground.publish(keys.mission_assignment(4, 74), newer)
+        assert events.get_nowait() == BusEvent(keys.mission_assignment(4, 74), newer)
+        # A header its key does not vouch for, or that does not decode, is refused and
+        # counted as before: on the full decode.
+        ground.publish(keys.mission_assignment(3, 75), _report(74))
+        ground.put(keys.mission_assignment(3, 74), b'{"mission": 3, "uav": "74"}')
+        assert events.empty()
+        after = bus_codec.DROPPED.counts()
+        assert after.get("wrong_key", 0) == before.get("wrong_key", 0) + 1
+        assert after.get("invalid", 0) == before.get("invalid", 0) + 1
+    finally:
+        node.close()
+        ground.close()
