@@ -10,8 +10,10 @@ the transport drops and counts the message (`fleet.transport.bus_codec`).
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from collections.abc import Set as AbstractSet
 from dataclasses import dataclass
+from typing import Any
 
 from fleet.errors import FleetError
 from fleet.mission import keys
@@ -131,34 +133,73 @@ def _piccolo_id_texts(key: str, texts: AbstractSet[str]) -> None:
 def check_key(key: str, message: object) -> None:
     """Raise WrongKey unless `message` may travel on `key`."""
     ids = parse_key(key)
-    if isinstance(message, UavResult | AssignmentReport | UavState | TargetOutcome):
-        _same(key, "UAV", ids.uav, message.uav)
-    if isinstance(
-        message, MissionTargets | MissionAbort | UavResult | AssignmentReport | TargetOutcome
-    ):
-        _same(key, "mission", ids.mission, message.mission)
-    if isinstance(message, AssignmentHeader):
-        _same(key, "UAV", ids.uav, message.uav)
-        _same(key, "mission", ids.mission, message.mission)
-        _team(key, message.released)
-    if isinstance(message, MissionTargets):
-        _team(key, message.team)
-    if isinstance(message, AssignmentReport):
-        _team(key, message.team)
-        _team(key, message.released)
-        indices = [*message.pairs.values(), *message.unassigned]
-        if message.target is not None:
-            indices.append(message.target)
-        if indices and not (min(indices) >= 0 and max(indices) <= MAX_TARGET_INDEX):
-            raise WrongKey(f"{key}: a target index outside 0-{MAX_TARGET_INDEX}")
-        _piccolo_id_texts(key, message.pairs.keys())
-    if isinstance(message, UavState) and message.mission is not None:
-        progress = message.mission
-        if not 0 <= progress.mission <= MAX_MISSION_ID:
-            raise WrongKey(f"{key}: mission id {progress.mission} is not a u32")
-        for own in (progress.result, progress.assignment):
-            if own is not None:
-                _same(key, "UAV", message.uav, own.uav)
-                _same(key, "mission", progress.mission, own.mission)
-    if isinstance(message, Waypoint) and ids.index is not None:
+    # One lookup by type instead of a chain of isinstance checks (every message a
+    # process decodes comes through here); a subclass finds its base's checks.
+    check = _CHECKS.get(type(message))
+    if check is None:
+        check = next((c for kind, c in _CHECKS.items() if isinstance(message, kind)), None)
+    if check is not None:
+        check(key, ids, message)
+
+
+def _check_result(key: str, ids: KeyIds, message: UavResult | TargetOutcome) -> None:
+    _same(key, "UAV", ids.uav, message.uav)
+    _same(key, "mission", ids.mission, message.mission)
+
+
+def _check_header(key: str, ids: KeyIds, message: AssignmentHeader) -> None:
+    _same(key, "UAV", ids.uav, message.uav)
+    _same(key, "mission", ids.mission, message.mission)
+    _team(key, message.released)
+
+
+def _check_report(key: str, ids: KeyIds, message: AssignmentReport) -> None:
+    _same(key, "UAV", ids.uav, message.uav)
+    _same(key, "mission", ids.mission, message.mission)
+    _team(key, message.team)
+    _team(key, message.released)
+    indices = [*message.pairs.values(), *message.unassigned]
+    if message.target is not None:
+        indices.append(message.target)
+    if indices and not (min(indices) >= 0 and max(indices) <= MAX_TARGET_INDEX):
+        raise WrongKey(f"{key}: a target index outside 0-{MAX_TARGET_INDEX}")
+    _piccolo_id_texts(key, message.pairs.keys())
+
+
+def _check_targets(key: str, ids: KeyIds, message: MissionTargets) -> None:
+    _same(key, "mission", ids.mission, message.mission)
+    _team(key, message.team)
+
+
+def _check_abort(key: str, ids: KeyIds, message: MissionAbort) -> None:
+    _same(key, "mission", ids.mission, message.mission)
+
+
+def _check_state(key: str, ids: KeyIds, message: UavState) -> None:
+    _same(key, "UAV", ids.uav, message.uav)
+    if message.mission is None:
+        return
+    progress = message.mission
+    if not 0 <= progress.mission <= MAX_MISSION_ID:
+        raise WrongKey(f"{key}: mission id {progress.mission} is not a u32")
+    for own in (progress.result, progress.assignment):
+        if own is not None:
+            _same(key, "UAV", message.uav, own.uav)
+            _same(key, "mission", progress.mission, own.mission)
+
+
+def _check_waypoint(key: str, ids: KeyIds, message: Waypoint) -> None:
+    if ids.index is not None:
         _same(key, "waypoint index", ids.index, message.index)
+
+
+_CHECKS: dict[type, Callable[[str, KeyIds, Any], None]] = {
+    UavResult: _check_result,
+    TargetOutcome: _check_result,
+    AssignmentHeader: _check_header,
+    AssignmentReport: _check_report,
+    MissionTargets: _check_targets,
+    MissionAbort: _check_abort,
+    UavState: _check_state,
+    Waypoint: _check_waypoint,
+}
