@@ -134,6 +134,11 @@ class MissionRound:
     reached: set[int] = field(default_factory=set)
     #: How this UAV's own part ended (reached), or why it dropped out; None before.
     outcome: TargetOutcome | None = None
+    #: The team as a set (membership is asked of every message heard).
+    team: frozenset[int] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        self.team = _team_sets(self.targets.team)[0]
 
     @property
     def mission(self) -> int:
@@ -151,14 +156,14 @@ class MissionRound:
             own_id=self.own_id,
             committed=committed is not None,
             aborted=aborted,
-            team=_team_sets(self.targets.team)[0],
+            team=self.team,
             done=frozenset(self.released | self.reached),
             following=committed.epoch if committed is not None and self.base is None else None,
         )
 
     def add_result(self, result: UavResult) -> bool:
         """Keep a teammate's (or our own) result; False if it is not for this round."""
-        if result.mission != self.mission or result.uav not in self.targets.team:
+        if result.mission != self.mission or result.uav not in self.team:
             return False
         if len(result.times) != len(self.targets.targets):
             return False
@@ -286,7 +291,7 @@ class MissionRound:
     # ---- after the commitment ---------------------------------------------------------
     def release(self, uavs: Iterable[int]) -> bool:
         """Mark team UAVs as out of the mission; True if that changes the re-plan input."""
-        new = {uav for uav in uavs if uav in self.targets.team} - self.released - self.reached
+        new = {uav for uav in uavs if uav in self.team} - self.released - self.reached
         self.released |= new
         if self.base is None:
             return False
