@@ -96,9 +96,18 @@ def greedy_assign(results: Mapping[int, Sequence[float | None]], n_targets: int)
     # Once either side is exhausted no further pair is possible: stop the sweep early.
     # With 20 UAVs and 50 targets the sweep typically ends after ~90 of 1,000 entries.
     max_pairs = min(len(uavs), n_targets)
-    if max_pairs:
+    if max_pairs and finite:
+        # Every time usable (the common case): only each candidate's UAV rank and target
+        # are needed, one C-level divmod per entry the sweep reaches.
+        for rank, target in map(divmod, order, repeat(n_targets)):
+            if uav_free[rank] and target_free[target]:
+                uav_free[rank] = target_free[target] = False
+                pairs[uavs[rank]] = target
+                if len(pairs) == max_pairs:
+                    break
+    elif max_pairs:
         # Each candidate's time, UAV rank and target, read lazily in sweep order (C-level
-        # maps: only the entries the sweep reaches are looked up, no divmod per entry).
+        # maps: only the entries the sweep reaches are looked up).
         ranks = list(chain.from_iterable(repeat(rank, n_targets) for rank in range(len(uavs))))
         targets = list(range(n_targets)) * len(uavs)
         sweep = zip(
