@@ -1,7 +1,8 @@
 """The onboard module's bus edge: presence, subscriptions, queryables, publications.
 
 The bus is Zenoh in flight (`fleet.transport.zenoh_bus`) and in-memory in unit tests
-(`fleet.transport.memory`). Every callback only decodes and hands an event to `sink`;
+(`fleet.transport.memory`). Every callback only decodes and hands an event to `sink`
+(or drops an assignment report that changes nothing, on its header: `_on_assignment`);
 the main loop does the rest, so no bus thread ever waits on the module. Queryables are
 polled by the main loop, so a command's reply can wait for the autopilot's echo.
 """
