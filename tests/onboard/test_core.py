@@ -294,6 +294,20 @@ def test_team_waits_for_the_teammate_then_both_agree() -> None:
     assert report.pairs == {"74": 1, "112": 2} and report.target == 2
 
 
+def test_results_still_coming_push_the_fetch_back() -> None:
+    core, out = make_core(112, (80.0, 40.0, 60.0))
+    for uav in (74, 75):
+        core.on_alive(uav, True, 0.0)
+    mission = MissionTargets(mission=5, team=(74, 75, 112), targets=TARGETS, deadline_s=10.0)
+    core.on_targets(mission, 0.0)
+    core.tick(0.1)  # its own result published
+    core.on_result(UavResult(5, 74, (50.0, 30.0, 70.0)), 0.9)
+    core.tick(1.2)
+    assert out.fetches == []  # 74's result just came: 75's may be on its way too
+    core.tick(2.0)
+    assert out.fetches == [5]  # an interval after the last result heard
+
+
 def test_dead_teammate_is_left_out_and_deadline_commits() -> None:
     core, out = make_core(112)
     core.on_alive(74, True, 0.0)
