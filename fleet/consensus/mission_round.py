@@ -112,7 +112,8 @@ class Settled:
             return False  # it may be adopted
         if self.following is not None and header.epoch > self.following:
             return False
-        return all(uav in self.done or uav not in self.team for uav in header.released)
+        released = header.released
+        return not released or all(uav in self.done or uav not in self.team for uav in released)
 
 
 @dataclass
