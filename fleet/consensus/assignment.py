@@ -68,7 +68,9 @@ def greedy_assign(results: Mapping[int, Sequence[float | None]], n_targets: int)
                 f"UAV {uav}: expected {n_targets} approach times (one per target), got {len(row)}"
             )
 
-    # Sort all candidates once, then sweep. Candidates are numbered k = rank * n + target
+    # Sort all candidates once, then sweep (with every time finite, the common case, the
+    # sort comes in parts and the sweep ends on a submatrix: `_finite_sweep`, same
+    # order, same pairs). Candidates are numbered k = rank * n + target
     # with UAVs ranked by increasing Piccolo ID, so increasing k is increasing
     # (Piccolo ID, target index); a *stable* sort on the time alone therefore yields the
     # full total order (time, Piccolo ID, target index). Sorting on a float key is about
