@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from itertools import chain, repeat
 from typing import cast
@@ -90,6 +90,7 @@ def greedy_assign(results: Mapping[int, Sequence[float | None]], n_targets: int)
     keys = (
         cast(list[float], times) if finite else [_INF if t is None or t != t else t for t in times]
     )
+    order = sorted(range(len(keys)), key=keys.__getitem__)
 
     pairs: dict[int, int] = {}
     uav_free = [True] * len(uavs)
@@ -99,7 +100,7 @@ def greedy_assign(results: Mapping[int, Sequence[float | None]], n_targets: int)
     max_pairs = min(len(uavs), n_targets)
     if max_pairs and finite:
         finite_rows = cast(list[Sequence[float]], rows)
-        for rank, target in _finite_sweep(finite_rows, n_targets, keys, _SUBMATRIX).items():
+        for rank, target in _finite_sweep(finite_rows, n_targets, order, _SUBMATRIX).items():
             uav_free[rank] = target_free[target] = False
             pairs[uavs[rank]] = target
     elif max_pairs:
@@ -107,7 +108,6 @@ def greedy_assign(results: Mapping[int, Sequence[float | None]], n_targets: int)
         # maps: only the entries the sweep reaches are looked up).
         ranks = list(chain.from_iterable(repeat(rank, n_targets) for rank in range(len(uavs))))
         targets = list(range(n_targets)) * len(uavs)
-        order = sorted(range(len(keys)), key=keys.__getitem__)
         sweep = zip(
             map(keys.__getitem__, order),
             map(ranks.__getitem__, order),
@@ -135,10 +135,10 @@ _SUBMATRIX = 36
 
 
 def _finite_sweep(
-    rows: Sequence[Sequence[float]], n_targets: int, keys: list[float], submatrix: int
+    rows: Sequence[Sequence[float]], n_targets: int, order: Sequence[int], submatrix: int
 ) -> dict[int, int]:
-    """The greedy's pairs (UAV rank -> target) on finite times, `keys` being the rows'
-    times end to end (candidate k = rank * n_targets + target).
+    """The greedy's pairs (UAV rank -> target) on finite times, `order` being every
+    candidate k = rank * n_targets + target in the total order (time, rank, target).
 
     Once at most `submatrix` candidates remain between the free UAVs and the free
     targets, the rest of the sweep is the greedy on that submatrix alone: every one of
@@ -156,7 +156,7 @@ def _finite_sweep(
     uav_free = [True] * n_uavs
     target_free = [True] * n_targets
     # One C-level divmod per entry the sweep reaches gives its UAV rank and target.
-    for rank, target in map(divmod, _candidate_order(keys), repeat(n_targets)):
+    for rank, target in map(divmod, order, repeat(n_targets)):
         if uav_free[rank] and target_free[target]:
             uav_free[rank] = target_free[target] = False
             pairs[rank] = target
@@ -167,46 +167,13 @@ def _finite_sweep(
                 free = [t for t in range(n_targets) if target_free[t]]
                 sub_rows = [[rows[r][t] for t in free] for r in ranks]
                 sub_keys = list(chain.from_iterable(sub_rows))
-                for sub_rank, sub_target in _finite_sweep(sub_rows, len(free), sub_keys, 0).items():
+                sub_order = sorted(range(len(sub_keys)), key=sub_keys.__getitem__)
+                for sub_rank, sub_target in _finite_sweep(
+                    sub_rows, len(free), sub_order, 0
+                ).items():
                     pairs[ranks[sub_rank]] = free[sub_target]
                 break
     return pairs
-
-
-#: Above this many candidates the order is sorted in two parts (`_candidate_order`).
-_SPLIT_ABOVE = 400
-#: Every this many-th time is sampled, and the first part holds about 1/_SPLIT_SHARE of
-#: the candidates: the sweep mostly needs no more before the submatrix (N = M = 50,
-#: median of random times: ~12 %). Measured on random, ring-like and 20 km-square
-#: geometric times (N = M = 30, 50, 100): a third is faster than one sort in all but
-#: the 100 x 100 geometric case (+15 %); a quarter or a half lose more often.
-_SPLIT_SAMPLE = 16
-_SPLIT_SHARE = 3
-
-
-def _candidate_order(keys: list[float]) -> Iterator[int]:
-    """The candidates k in the total order (time, k): a stable sort on the time.
-
-    Many candidates are sorted in two parts, lazily: those under a sampled quantile of
-    the times (every one of them comes before every other one in the order), then the
-    others, sorted only if the sweep gets that far. Each part is sorted stably from k
-    order, so the parts end to end are the one sort's order exactly.
-    """
-    count = len(keys)
-    if count <= _SPLIT_ABOVE:
-        return iter(sorted(range(count), key=keys.__getitem__))
-    sample = sorted(keys[::_SPLIT_SAMPLE])
-    bound = sample[len(sample) // _SPLIT_SHARE]
-
-    def parts() -> Iterator[list[int]]:
-        first = [k for k, time in enumerate(keys) if time < bound]
-        first.sort(key=keys.__getitem__)
-        yield first
-        rest = [k for k, time in enumerate(keys) if not time < bound]
-        rest.sort(key=keys.__getitem__)
-        yield rest
-
-    return chain.from_iterable(parts())
 
 
 # Digest layout, fixed so that every implementation hashes the same bytes:

@@ -321,23 +321,3 @@ def test_equal_to_the_previous_implementation_on_random_cases() -> None:
         assert fast == reference
         assert list(fast.pairs) == list(reference.pairs)
         assert results_digest(results) == _reference_digest(results)
-
-
-def test_equal_to_the_previous_implementation_on_large_teams() -> None:
-    # Up to 100 x 100 (the most targets a mission holds): the order is then sorted in
-    # parts and the end solved on a submatrix; times tied in bulk, or with structure
-    # (positions in a 20 km square, where the sweep goes deep).
-    rng = random.Random(14)
-    for case in range(40):
-        n_uavs, n_targets = rng.choice(((100, 100), (50, 50), (100, 40), (30, 100)))
-        uavs = rng.sample(range(1, 0xFFF1), n_uavs)
-        if case % 2:
-            results = {u: [float(rng.randint(0, 9)) for _ in range(n_targets)] for u in uavs}
-        else:
-            spots = [(rng.uniform(0, 2e4), rng.uniform(0, 2e4)) for _ in range(n_targets)]
-            results = {}
-            for uav in uavs:
-                x, y, speed = rng.uniform(0, 2e4), rng.uniform(0, 2e4), rng.uniform(15, 30)
-                results[uav] = [math.hypot(x - tx, y - ty) / speed for tx, ty in spots]
-        fast = greedy_assign(results, n_targets)
-        assert fast == _reference_greedy_assign(results, n_targets)
