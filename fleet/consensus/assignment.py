@@ -99,10 +99,14 @@ def greedy_assign(results: Mapping[int, Sequence[float | None]], n_targets: int)
     # With 20 UAVs and 50 targets the sweep typically ends after ~90 of 1,000 entries.
     max_pairs = min(len(uavs), n_targets)
     if max_pairs and finite:
-        finite_rows = cast(list[Sequence[float]], rows)
-        for rank, target in _finite_sweep(finite_rows, n_targets, order, _SUBMATRIX).items():
-            uav_free[rank] = target_free[target] = False
-            pairs[uavs[rank]] = target
+        # Every time usable (the common case): only each candidate's UAV rank and target
+        # are needed, one C-level divmod per entry the sweep reaches.
+        for rank, target in map(divmod, order, repeat(n_targets)):
+            if uav_free[rank] and target_free[target]:
+                uav_free[rank] = target_free[target] = False
+                pairs[uavs[rank]] = target
+                if len(pairs) == max_pairs:
+                    break
     elif max_pairs:
         # Each candidate's time, UAV rank and target, read lazily in sweep order (C-level
         # maps: only the entries the sweep reaches are looked up).
@@ -128,52 +132,6 @@ def greedy_assign(results: Mapping[int, Sequence[float | None]], n_targets: int)
         unassigned_targets=tuple(t for t in range(n_targets) if target_free[t]),
         idle_uavs=tuple(uav for uav in uavs if uav not in pairs),
     )
-
-
-#: Free UAVs x free targets at most this many: the sweep's rest is solved on its own.
-_SUBMATRIX = 36
-
-
-def _finite_sweep(
-    rows: Sequence[Sequence[float]], n_targets: int, order: Sequence[int], submatrix: int
-) -> dict[int, int]:
-    """The greedy's pairs (UAV rank -> target) on finite times, `order` being every
-    candidate k = rank * n_targets + target in the total order (time, rank, target).
-
-    Once at most `submatrix` candidates remain between the free UAVs and the free
-    targets, the rest of the sweep is the greedy on that submatrix alone: every one of
-    its entries lies further on in the order (one before would have been taken, both
-    sides being free then as now), and the entries in between only belong to taken
-    UAVs or targets. With N = M = 50 the last pairs are found late (median of random
-    times: the last one after ~1,900 of 2,500 entries, the last 8 after ~220): the
-    small submatrix is sorted and swept instead (greedy 250 -> 190 us).
-    """
-    n_uavs = len(rows)
-    max_pairs = min(n_uavs, n_targets)
-    pairs: dict[int, int] = {}
-    if not max_pairs:
-        return pairs
-    uav_free = [True] * n_uavs
-    target_free = [True] * n_targets
-    # One C-level divmod per entry the sweep reaches gives its UAV rank and target.
-    for rank, target in map(divmod, order, repeat(n_targets)):
-        if uav_free[rank] and target_free[target]:
-            uav_free[rank] = target_free[target] = False
-            pairs[rank] = target
-            if len(pairs) == max_pairs:
-                break
-            if (n_uavs - len(pairs)) * (n_targets - len(pairs)) <= submatrix:
-                ranks = [r for r in range(n_uavs) if uav_free[r]]
-                free = [t for t in range(n_targets) if target_free[t]]
-                sub_rows = [[rows[r][t] for t in free] for r in ranks]
-                sub_keys = list(chain.from_iterable(sub_rows))
-                sub_order = sorted(range(len(sub_keys)), key=sub_keys.__getitem__)
-                for sub_rank, sub_target in _finite_sweep(
-                    sub_rows, len(free), sub_order, 0
-                ).items():
-                    pairs[ranks[sub_rank]] = free[sub_target]
-                break
-    return pairs
 
 
 # Digest layout, fixed so that every implementation hashes the same bytes:
