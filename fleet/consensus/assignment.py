@@ -68,9 +68,7 @@ def greedy_assign(results: Mapping[int, Sequence[float | None]], n_targets: int)
                 f"UAV {uav}: expected {n_targets} approach times (one per target), got {len(row)}"
             )
 
-    # Sort all candidates once, then sweep (with every time finite, the common case, the
-    # sort comes in parts and the sweep ends on a submatrix: `_finite_sweep`, same
-    # order, same pairs). Candidates are numbered k = rank * n + target
+    # Sort all candidates once, then sweep. Candidates are numbered k = rank * n + target
     # with UAVs ranked by increasing Piccolo ID, so increasing k is increasing
     # (Piccolo ID, target index); a *stable* sort on the time alone therefore yields the
     # full total order (time, Piccolo ID, target index). Sorting on a float key is about
@@ -108,19 +106,11 @@ def greedy_assign(results: Mapping[int, Sequence[float | None]], n_targets: int)
                 if len(pairs) == max_pairs:
                     break
     elif max_pairs:
-        # Each candidate's time, UAV rank and target, read lazily in sweep order (C-level
-        # maps: only the entries the sweep reaches are looked up).
-        ranks = list(chain.from_iterable(repeat(rank, n_targets) for rank in range(len(uavs))))
-        targets = list(range(n_targets)) * len(uavs)
-        sweep = zip(
-            map(keys.__getitem__, order),
-            map(ranks.__getitem__, order),
-            map(targets.__getitem__, order),
-            strict=True,
-        )
-        for time, rank, target in sweep:
+        for k in order:  # some times unusable (rare): +inf ends the sweep, -inf is skipped
+            time = keys[k]
             if time == _INF:
-                break  # only unusable entries remain
+                break
+            rank, target = divmod(k, n_targets)
             if uav_free[rank] and target_free[target] and time != -_INF:
                 uav_free[rank] = target_free[target] = False
                 pairs[uavs[rank]] = target
