@@ -68,6 +68,11 @@ LINK_LOST_S = 3.0
 CONFIRM_LIMIT_S = 20.0
 #: A UAV holding a target whose autopilot link stays lost this long is released.
 LINK_RELEASE_S = 20.0
+#: A committed teammate whose liveliness token stays gone this long (s) is released. A
+#: router failover withdraws every token learned through the dead router and declares
+#: it again through the surviving path some milliseconds later: releasing at once
+#: re-planned both UAVs of a two-router mesh apart, each without the other.
+LIVELINESS_GRACE_S = 2.0
 #: The share of a mission's deadline the approach model may use (see `_budget`).
 PLAN_SHARE_OF_DEADLINE = 0.5
 #: At most one catch-up query (live missions, the teammates' assignments) this often.
@@ -111,6 +116,8 @@ class OnboardCore:
     confirm_limit_s: float = CONFIRM_LIMIT_S
     #: A held target whose autopilot link stays lost this long is released (LINK_RELEASE_S).
     link_release_s: float = LINK_RELEASE_S
+    #: A committed teammate gone from liveliness this long is released (LIVELINESS_GRACE_S).
+    liveliness_grace_s: float = LIVELINESS_GRACE_S
     telemetry: Telemetry | None = None
     tracked_waypoint: int | None = None
     original_waypoint: int | None = None
@@ -135,6 +142,7 @@ class OnboardCore:
     _caught_up_at: float = -math.inf
     _ticked_at: float | None = None
     _catch_ups_due: list[float] = field(default_factory=list)
+    _gone_since: dict[int, float] = field(default_factory=dict)  #: liveliness lost, when
     _target_tracked: bool = False  #: the autopilot echoed the track to the target waypoint
     _resuming: bool = False  #: a resume of the course is sent and not echoed yet
     _operator_track: bool = False  #: the ground commanded the target waypoint or its track
@@ -453,10 +461,25 @@ class OnboardCore:
             if uav not in self.alive:
                 self.catch_up(now)
             self.alive.add(uav)
+            self._gone_since.pop(uav, None)
             return
         if uav == self.uav_id:
             return
+        # Before the commitment the consensus leaves it out at once; after, it is
+        # released only if it stays gone (LIVELINESS_GRACE_S).
         self.alive.discard(uav)
+        if self.round is not None and self.round.committed is not None:
+            self._gone_since.setdefault(uav, now)
+            self._release_gone(now)  # at once with no grace (unit tests)
+
+    def _release_gone(self, now: float) -> None:
+        """Release the committed teammates whose liveliness stayed gone past the grace."""
+        for uav, since in list(self._gone_since.items()):
+            if now - since >= self.liveliness_grace_s:
+                del self._gone_since[uav]
+                self._release_lost(uav, now)
+
+    def _release_lost(self, uav: int, now: float) -> None:
         mission_round = self.round
         if mission_round is None or mission_round.committed is None:
             return  # before the commitment, the consensus itself leaves it out
@@ -496,6 +519,7 @@ class OnboardCore:
             self.catch_up(now, force=True)
         self._ticked_at = now
         self.commands.tick(now)
+        self._release_gone(now)
         self._collect_plan(now)
         self._check_link(now)
         self._check_target(now)

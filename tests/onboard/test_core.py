@@ -31,6 +31,7 @@ from onboard.core import (
     CONFIRM_LIMIT_S,
     LINK_LOST_S,
     LINK_RELEASE_S,
+    LIVELINESS_GRACE_S,
     TARGET_WAYPOINT,
     OnboardCore,
 )
@@ -98,10 +99,17 @@ class ScriptedPlanner:
 
 
 def make_core(
-    uav: int = 112, times: tuple[float, ...] = (80.0, 40.0, 60.0)
+    uav: int = 112,
+    times: tuple[float, ...] = (80.0, 40.0, 60.0),
+    liveliness_grace_s: float = 0.0,  # most tests: a lost teammate is released at once
 ) -> tuple[OnboardCore, Recorder]:
     recorder = Recorder()
-    core = OnboardCore(uav_id=uav, outputs=recorder, planner=ScriptedPlanner(times))
+    core = OnboardCore(
+        uav_id=uav,
+        outputs=recorder,
+        planner=ScriptedPlanner(times),
+        liveliness_grace_s=liveliness_grace_s,
+    )
     core.on_telemetry(sample_telemetry(), 0.0)
     core.on_track(Track(2), 0.0)
     return core, recorder
@@ -409,6 +417,32 @@ def test_an_idle_uav_flies_the_target_of_a_holder_lost_after_the_commitment() ->
     assert core.state(5.0).phase == Phase.COMMITTED
     (waypoint,) = [c for c in out.autopilot if isinstance(c, Waypoint)]
     assert (waypoint.lat, waypoint.lon) == (TWO_TARGETS[1].lat, TWO_TARGETS[1].lon)
+
+
+def test_a_liveliness_blip_after_the_commitment_releases_nobody() -> None:
+    # A router failover withdraws a teammate's token and declares it again at once.
+    core, out = make_core(200, (30.0, 35.0), liveliness_grace_s=LIVELINESS_GRACE_S)
+    commit_three_uav_team(core)
+    core.on_alive(112, False, 5.0)
+    core.tick(5.1)
+    core.on_alive(112, True, 5.2)
+    core.tick(5.0 + LIVELINESS_GRACE_S + 1.0)
+    reports = out.on(keys.mission_assignment(3, 200))
+    assert [r.epoch for r in reports] == [0]  # type: ignore[attr-defined]
+
+
+def test_a_teammate_gone_past_the_grace_is_released_at_the_next_tick() -> None:
+    core, out = make_core(200, (30.0, 35.0), liveliness_grace_s=LIVELINESS_GRACE_S)
+    commit_three_uav_team(core)
+    core.on_telemetry(sample_telemetry(), 5.0)
+    core.on_alive(112, False, 5.0)
+    core.tick(5.0 + LIVELINESS_GRACE_S / 2)
+    assert out.on(keys.mission_assignment(3, 200))[-1].epoch == 0  # type: ignore[attr-defined]
+    core.on_telemetry(sample_telemetry(), 5.0 + LIVELINESS_GRACE_S)
+    core.tick(5.0 + LIVELINESS_GRACE_S)
+    report = out.on(keys.mission_assignment(3, 200))[-1]
+    assert isinstance(report, AssignmentReport)
+    assert (report.target, report.epoch, report.released) == (1, 1, (112,))
 
 
 def test_a_teammates_failure_outcome_releases_it_and_a_reached_one_does_not() -> None:
