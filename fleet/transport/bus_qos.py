@@ -40,12 +40,26 @@ def qos_for(key: str) -> Qos:
     return ORDINARY
 
 
-def put(session: zenoh.Session, key: str, payload: bytes) -> None:
-    """Publish bus-codec `payload` on `key` with the key's priority and congestion control."""
-    qos = qos_for(key)
+def put(session: zenoh.Session, key: str, payload: bytes, qos: Qos | None = None) -> None:
+    """Publish bus-codec `payload` on `key` with the key's priority and congestion control
+    (`qos`, when the caller already looked it up)."""
+    qos = qos or qos_for(key)
     session.put(
         key,
         payload,
+        encoding=ENCODING,
+        priority=qos.priority,
+        congestion_control=qos.congestion_control,
+        express=qos.express,
+    )
+
+
+def declare(session: zenoh.Session, key: str, qos: Qos | None = None) -> zenoh.Publisher:
+    """A publisher of bus-codec payloads on `key`, with the key's priority and congestion
+    control: for a key put at a steady rate."""
+    qos = qos or qos_for(key)
+    return session.declare_publisher(
+        key,
         encoding=ENCODING,
         priority=qos.priority,
         congestion_control=qos.congestion_control,
