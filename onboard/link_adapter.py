@@ -129,15 +129,19 @@ class LinkAdapter:
 
     # ---- the loop -------------------------------------------------------------------
     def _run(self) -> None:
+        readable: set[int] | None = None  # None: read every port
         while not self._stop.is_set():
             try:
-                self._service(time.monotonic())
+                self._service(time.monotonic(), readable)
             except Exception:  # one bad event must not stop the link
                 log.exception("link loop error")
-            self._wait(time.monotonic())
+            readable = self._wait(time.monotonic())
 
-    def _wait(self, now: float) -> None:
-        """Sleep until a port is readable, work is queued, a reconnection is due, or stop."""
+    def _wait(self, now: float) -> set[int] | None:
+        """Sleep until a port is readable, work is queued, a reconnection is due, or stop.
+
+        The descriptors found readable; None when every port must be read (a select
+        that failed: the next read says why)."""
         timeout = IDLE_WAKE
         waiting_on = [self._wake_read]
         for endpoint in (self.program, self.payload):
@@ -151,25 +155,35 @@ class LinkAdapter:
         try:
             readable, _, _ = select.select(waiting_on, [], [], timeout)
         except (OSError, ValueError):  # a port closed under us: the next service says why
-            return
+            return None
         if self._wake_read in readable:
             with contextlib.suppress(BlockingIOError, OSError):
                 os.read(self._wake_read, 4096)
+        return set(readable)
 
-    def _service(self, now: float) -> None:
+    def _service(self, now: float, readable: set[int] | None = None) -> None:
+        """Read the ports with bytes waiting (`readable`; None: all), then send what is
+        queued. A port with no descriptor, or one just reopened, is always read. Reading
+        only the readable ports saves a syscall per idle port per telemetry packet."""
         for endpoint, link in (
             (self.program, self.program_link),
             (self.payload, self.payload_link),
         ):
+            was_up = endpoint.up
             if not endpoint.ensure_open(now):
                 continue
+            if readable is not None and was_up:
+                fd = endpoint.fileno()
+                if fd is not None and fd not in readable:
+                    continue
             data = endpoint.read(now)
             if data:
                 with self._lock:
                     events = link.feed(data, now)
                 for event in events:
                     self.sink(event)
-        self._flush(now)
+        if not self._outbound.empty():
+            self._flush(now)
 
     def _flush(self, now: float) -> None:
         while True:

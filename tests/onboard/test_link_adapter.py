@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import logging
 import queue
+import socket
 from collections.abc import Iterator
 
 import pytest
@@ -16,6 +17,7 @@ from fleet.piccolo.track import Track
 from fleet.planning.link import AutopilotEvent, LinkEvent, PiccoloLink, PlanningEvent
 from fleet.planning.protocol import encode_message
 from fleet.transport.memory import MemoryLink, memory_link_pair
+from fleet.transport.serial_port import SerialLink
 from onboard.link_adapter import ONBOARD_ADDRESS, LinkAdapter
 from tests.processes import wait_until
 
@@ -106,3 +108,49 @@ def test_a_dropped_port_is_reported_and_nothing_is_sent(
     harness.adapter.send_autopilot(Track(2))
     events = harness.received(harness.program, harness.autopilot)
     assert [e.message for e in events if isinstance(e, AutopilotEvent)] == [Track(2)]
+
+
+class CountingLink(SerialLink):
+    """A socket:// port that counts its reads."""
+
+    reads: int = 0
+
+    def read(self, now: float) -> bytes:
+        self.reads += 1
+        return super().read(now)
+
+
+def test_only_the_readable_port_is_read_and_every_packet_arrives_in_order() -> None:
+    """Over sockets (as from the simulator) the loop reads only the ports its select
+    found readable (issue 14): packets on the program port all arrive, in order, and the
+    idle payload port is not read for each of them."""
+    servers = [socket.create_server(("127.0.0.1", 0)) for _ in range(2)]
+    program, payload = (
+        CountingLink(name, f"socket://127.0.0.1:{server.getsockname()[1]}")
+        for name, server in zip(("program", "payload"), servers, strict=True)
+    )
+    events: queue.SimpleQueue[LinkEvent] = queue.SimpleQueue()
+    adapter = LinkAdapter(UAV, program, payload, sink=events.put)
+    adapter.start()
+    try:
+        program_peer, _ = servers[0].accept()
+        payload_peer, _ = servers[1].accept()
+        autopilot = PiccoloLink(UAV)
+        with program_peer, payload_peer:
+            for n in range(20):
+                sent = Telemetry(system_time_ms=n, gps=TELEMETRY.gps)
+                program_peer.sendall(autopilot.encode_autopilot(sent, ONBOARD_ADDRESS))
+                event = events.get(timeout=5.0)
+                assert isinstance(event, AutopilotEvent) and event.message == sent
+            assert payload.reads <= 2  # at the start only, not once per packet
+            payload_peer.sendall(
+                PiccoloLink(ALL_GROUND_STATIONS).encode_payload(
+                    encode_message(StatusText("hi"), MISSION_MANAGER, UAV), ONBOARD_ADDRESS
+                )
+            )
+            event = events.get(timeout=5.0)
+            assert isinstance(event, PlanningEvent)
+    finally:
+        adapter.stop()
+        for server in servers:
+            server.close()

@@ -3,7 +3,10 @@ socket:// (pyserial's TCP URL, as the simulator serves it)."""
 
 from __future__ import annotations
 
+import os
+import pty
 import socket
+import tty
 from collections.abc import Iterator
 
 import pytest
@@ -69,3 +72,52 @@ def test_a_dropped_socket_is_counted_and_reopened(listener: tuple[socket.socket,
     again.close()
     link.close()
     assert not link.up
+
+
+def test_a_socket_is_read_from_its_descriptor_every_byte_in_order(
+    listener: tuple[socket.socket, int],
+) -> None:
+    """A socket:// port is read with one os.read on its descriptor (issue 14): every
+    byte arrives in order, and a read with nothing waiting is b'' without a drop."""
+    server, port = listener
+    link = SerialLink("program", f"socket://127.0.0.1:{port}")
+    assert link.ensure_open(0.0)
+    peer, _ = server.accept()
+    with peer:
+        assert link.fileno() is not None and link._fd == link.fileno()
+        assert link.read(0.0) == b"" and link.up  # nothing waiting: no drop
+        sent = bytes(range(256)) * 64  # more than one read's worth
+        peer.sendall(sent)
+        received = bytearray()
+
+        def got_all() -> bool:
+            received.extend(link.read(0.0))
+            return len(received) >= len(sent)
+
+        wait_until(got_all, 5.0, "every byte sent")
+        assert bytes(received) == sent
+    link.close()
+
+
+def test_a_pty_is_read_through_pyserial() -> None:
+    """A serial device keeps pyserial's read: its b'' means nothing waiting, not a drop."""
+    master, slave = pty.openpty()
+    link = SerialLink("program", os.ttyname(slave))
+    try:
+        tty.setraw(master)
+        assert link.ensure_open(0.0)
+        assert link._fd is None
+        assert link.read(0.0) == b"" and link.up
+        os.write(master, b"hello")
+        received = bytearray()
+
+        def got_hello() -> bool:
+            received.extend(link.read(0.0))
+            return len(received) >= 5
+
+        wait_until(got_hello, 5.0, "the bytes written")
+        assert bytes(received) == b"hello"
+    finally:
+        link.close()
+        os.close(slave)
+        os.close(master)
