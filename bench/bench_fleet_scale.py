@@ -7,7 +7,8 @@ process per UAV), then measures:
 * ready: from the start to every UAV's liveliness token (what `fleet up` waits for);
 * CPU: the fleet's children (simulator + onboards), summed over their PIDs from
   /proc/PID/stat during an idle window, in % of one core (the machine has `nproc` x 100 %);
-  the router and the ground subscriber run in this process and are shown apart;
+  the router and the observer (a client of the router, as a ground is) run in this
+  process and are shown apart;
 * RSS: the children's resident memory summed from /proc/PID/status, idle and after the
   missions; this counts every shared library (Zenoh's 12 MB, libpython, HiGHS) once per
   process. PSS (/proc/PID/smaps_rollup: each shared page divided among the processes
@@ -64,6 +65,7 @@ from fleet.mission.messages import (
 )
 from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.zenoh_bus import direct
+from fleet.transport.zenoh_config import make_config
 from tests.onboard.test_multi_uav import ring_targets
 
 REPO = Path(__file__).resolve().parent.parent
@@ -376,7 +378,12 @@ def measure(config: Config, n: int, args: argparse.Namespace, workdir: Path) -> 
         ready = time.monotonic() - started
         assert fleet.router is not None
         session = fleet.router.session
-        observer = Observer(session)
+        # The observer is a client of the router, as a ground is: its Python callbacks
+        # run on the client's threads. On the router's own session they ran on the
+        # routing threads, which then waited for this process's GIL before stamping
+        # and routing the next sample (the last commit came ~100 ms later at N = 50).
+        ground = zenoh.open(make_config("client", connect=[spec.listen]))
+        observer = Observer(ground)
         try:
             models: float | None = None
             # The idle window starts once every model is built, where the UAVs say so
@@ -408,6 +415,7 @@ def measure(config: Config, n: int, args: argparse.Namespace, workdir: Path) -> 
             pss_after = sum(pss_kb(pid) for pid in pids) / 1024.0
         finally:
             observer.close()
+            ground.close()
     return Row(
         n=n,
         config=config.name,
@@ -531,6 +539,9 @@ def main() -> None:
     parser.add_argument("--settle", type=float, default=3.0, help="wait after ready, s")
     parser.add_argument("--start-timeout", type=float, default=180.0)
     parser.add_argument("--port", type=int, default=7461, help="the router's port")
+    parser.add_argument(
+        "--keep", type=Path, help="keep every fleet's logs in this folder (default: removed)"
+    )
     args = parser.parse_args()
     print(
         f"{CORES} cores; telemetry {TELEMETRY_HZ:g} Hz; M = N targets; bound = N x solve / "
@@ -539,7 +550,8 @@ def main() -> None:
     )
     rows: list[Row] = []
     with tempfile.TemporaryDirectory(prefix="bench-fleet-") as tmp:
-        workdir = Path(tmp)
+        workdir = Path(tmp) if args.keep is None else args.keep
+        workdir.mkdir(parents=True, exist_ok=True)
         chosen = configs(args.configs, args.baseline, workdir)
         print(HEADER, flush=True)
         for n in args.sizes:

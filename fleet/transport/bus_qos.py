@@ -2,10 +2,14 @@
 
 Mission traffic (targets, results, assignments, aborts under `{prefix}/mission/`) and the
 ground's commands (`{prefix}/uav/{id}/opm`) must never queue behind telemetry: they go at
-INTERACTIVE_HIGH priority, express (sent at once, not batched), and BLOCK (never dropped
-when a queue is full). Telemetry goes at DATA_LOW and DROP: a stale sample is worth
-nothing when the next follows within a second. Everything else keeps Zenoh's defaults
-(DATA, DROP).
+INTERACTIVE_HIGH priority (a queue of its own, served before the others) and BLOCK
+(never dropped when a queue is full). They are not express: when the fifty UAVs of a
+team commit together, the router batches the fifty assignment reports it fans out to
+each UAV instead of writing them one by one, each waking the UAV's receiving thread
+(measured at N = 50, last result -> last commit 115-186 ms express, 71-103 ms batched;
+a batch waits at most Zenoh's batching time limit, 1 ms by default). Telemetry goes at
+DATA_LOW and DROP: a stale sample is worth nothing when the next follows within a
+second. Everything else keeps Zenoh's defaults (DATA, DROP).
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ class Qos:
     express: bool
 
 
-URGENT = Qos(zenoh.Priority.INTERACTIVE_HIGH, zenoh.CongestionControl.BLOCK, True)
+URGENT = Qos(zenoh.Priority.INTERACTIVE_HIGH, zenoh.CongestionControl.BLOCK, False)
 TELEMETRY = Qos(zenoh.Priority.DATA_LOW, zenoh.CongestionControl.DROP, False)
 ORDINARY = Qos(zenoh.Priority.DATA, zenoh.CongestionControl.DROP, False)
 

@@ -26,6 +26,7 @@ def test_mission_messages_and_commands_are_urgent_and_never_dropped() -> None:
         assert qos_for(key) == URGENT, key
     assert URGENT.congestion_control == zenoh.CongestionControl.BLOCK
     assert URGENT.priority == zenoh.Priority.INTERACTIVE_HIGH
+    assert not URGENT.express  # a team's commits fan out batched (see bus_qos)
 
 
 def test_telemetry_is_least_urgent_and_dropped_under_congestion() -> None:
