@@ -500,6 +500,12 @@ class OnboardCore:
         off), and (`force`) when its own clock shows it was suspended. Brings it in line
         with what was decided meanwhile; else at most once every CATCH_UP_INTERVAL_S."""
         if not force and now - self._caught_up_at < CATCH_UP_INTERVAL_S:
+            # Deferred, not dropped: a teammate reappearing just after a catch-up may
+            # mean this UAV's own session has only now reconnected, and that catch-up's
+            # queries went nowhere.
+            due = self._caught_up_at + CATCH_UP_INTERVAL_S
+            if due not in self._catch_ups_due:
+                self._catch_ups_due = sorted([*self._catch_ups_due, due])
             return
         self._caught_up_at = now
         self.outputs.fetch_missions()

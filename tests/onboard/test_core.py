@@ -28,6 +28,7 @@ from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from onboard.autopilot_commands import AutopilotCommand
 from onboard.core import (
+    CATCH_UP_INTERVAL_S,
     CONFIRM_LIMIT_S,
     LINK_LOST_S,
     LINK_RELEASE_S,
@@ -765,3 +766,19 @@ def test_a_mission_whose_abort_came_first_shows_aborted_and_is_never_flown() -> 
     assert state.phase == Phase.ABORTED
     assert state.mission is not None and state.mission.mission == 5
     assert out.autopilot == [] and out.on(keys.mission_result(5, 112)) == []
+
+
+def test_a_catch_up_asked_too_soon_after_another_is_deferred_not_dropped() -> None:
+    # Resumed after Zenoh's lease: the forced catch-ups may go out before the session has
+    # reconnected; the teammates reappearing afterwards must still bring a catch-up.
+    core, out = make_core()
+    core.catch_up(0.0, force=True)
+    fetched = out.mission_fetches
+    core.on_alive(74, True, 1.0)  # rate-limited: due at 0 + CATCH_UP_INTERVAL_S
+    core.on_alive(75, True, 1.5)  # the same deferred catch-up
+    assert out.mission_fetches == fetched
+    core.tick(CATCH_UP_INTERVAL_S - 0.1)
+    assert out.mission_fetches == fetched
+    core.tick(CATCH_UP_INTERVAL_S)
+    core.tick(CATCH_UP_INTERVAL_S + 0.25)
+    assert out.mission_fetches == fetched + 1

@@ -240,7 +240,12 @@ def test_a_uav_frozen_while_the_mission_was_sent_falls_in_line_when_it_resumes(
         time.sleep(FROZEN_S - 5.0)  # it stays frozen past Zenoh's lease
     finally:
         frozen.process.send_signal(signal.SIGCONT)
-    wait_until(lambda: team[-1] in seen.assignments, 60.0, "the resumed UAV's commitment")
+    try:
+        wait_until(lambda: team[-1] in seen.assignments, 60.0, "the resumed UAV's commitment")
+    except AssertionError:
+        for c in fleet.children:
+            print("=====", c.name, *c.history[-60:], sep="\n")
+        raise
     resumed = seen.assignments[team[-1]]
     reference = seen.assignments[team[0]]
     assert resumed.mission == 1
