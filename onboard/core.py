@@ -470,7 +470,7 @@ class OnboardCore:
         self.alive.discard(uav)
         if self.round is not None and self.round.committed is not None:
             self._gone_since.setdefault(uav, now)
-            self._release_gone(now)  # at once with no grace (unit tests)
+            self._release_gone(now)  # at once when there is no grace
 
     def _release_gone(self, now: float) -> None:
         """Release the committed teammates whose liveliness stayed gone past the grace."""

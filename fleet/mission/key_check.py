@@ -65,32 +65,18 @@ PARSED_KEYS = 1024
 
 
 #: Piccolo IDs in decimal already found valid (in keys, and as an assignment's pair
-#: keys), and mission ids: a team's IDs recur in every key and report, a mission's id in
-#: each of its keys. At most PARSED_KEYS of each (emptied when full).
+#: keys): a team's IDs recur in every key and report. At most PARSED_KEYS (emptied when
+#: full).
 _PICCOLO_IDS: dict[str, int] = {}
-_MISSION_IDS: dict[str, int] = {}
-
-
-def _known(known: dict[str, int], text: str, value: int) -> int:
-    if len(known) >= PARSED_KEYS:
-        known.clear()
-    known[text] = value
-    return value
 
 
 def _piccolo_id(text: str, key: str) -> int:
     value = _PICCOLO_IDS.get(text)
     if value is None:
         value = _number(text, MIN_PICCOLO_ID, MAX_PICCOLO_ID, "Piccolo ID", key)
-        _known(_PICCOLO_IDS, text, value)
-    return value
-
-
-def _mission_id(text: str, key: str) -> int:
-    value = _MISSION_IDS.get(text)
-    if value is None:
-        value = _number(text, 0, MAX_MISSION_ID, "mission id", key)
-        _known(_MISSION_IDS, text, value)
+        if len(_PICCOLO_IDS) >= PARSED_KEYS:
+            _PICCOLO_IDS.clear()
+        _PICCOLO_IDS[text] = value
     return value
 
 
@@ -111,7 +97,7 @@ def _parse_key(key: str, prefix: str) -> KeyIds:
             index = _number(parts[4], 0, MAX_INDEX, "waypoint index", key)
         return KeyIds(uav, None, index)
     if parts[1] == "mission":
-        mission = _mission_id(parts[2], key)
+        mission = _number(parts[2], 0, MAX_MISSION_ID, "mission id", key)
         member = _piccolo_id(parts[4], key) if len(parts) == 5 else None
         return KeyIds(member, mission, None)
     raise WrongKey(f"{key}: not a fleet message key")
