@@ -18,7 +18,7 @@ CPU is this thread's CPU time (`time.thread_time`), per burst; each round runs
 at N=50 (median of `--calls` calls): the greedy, the digest and `MissionRound.decide`.
 
 `--baseline REV` runs this same script against revision REV (default none) from a
-temporary `git worktree` in the same run, alternating with this tree round by round,
+temporary folder (`git archive`) in the same run, alternating with this tree round by round,
 and prints after/before ratios of the medians.
 
 Run: .venv/bin/python -m bench.bench_burst [--sizes 20 50] [--bursts 30] [--rounds 4]
@@ -42,6 +42,7 @@ from typing import cast
 
 import msgspec
 
+from bench.bench_fleet_scale import baseline_tree
 from fleet.consensus.assignment import greedy_assign, results_digest
 from fleet.consensus.mission_round import MissionRound
 from fleet.mission import keys
@@ -56,7 +57,6 @@ from onboard.zenoh_node import PresenceEvent
 from tests.link_samples import sample_telemetry
 from tests.onboard.test_multi_uav import ring_targets
 
-REPO = Path(__file__).resolve().parent.parent
 #: The UAV measured; its teammates are 2..N (Piccolo IDs 1..N).
 OWN = 1
 SEED = 14
@@ -279,17 +279,11 @@ def run_round(sizes: list[int], bursts: int, calls: int) -> dict[str, float]:
 
 # ---- the baseline and the table -------------------------------------------------------------
 class Baseline:
-    """This script run against another revision, from a temporary `git worktree`."""
+    """This script run against another revision, extracted to a temporary folder."""
 
     def __init__(self, revision: str) -> None:
         self.tmp = Path(tempfile.mkdtemp(prefix="bench-burst-"))
-        self.tree = self.tmp / "tree"
-        subprocess.run(
-            ["git", "-C", str(REPO), "worktree", "add", "--detach", str(self.tree), revision],
-            check=True,
-            capture_output=True,
-        )
-        (self.tree / "bench").mkdir(exist_ok=True)
+        self.tree = baseline_tree(revision, self.tmp, ("fleet", "onboard", "tests", "bench"))
         shutil.copy(Path(__file__), self.tree / "bench" / "bench_burst.py")
 
     def round(self, args: argparse.Namespace) -> dict[str, float]:
@@ -319,11 +313,6 @@ class Baseline:
         return figures
 
     def close(self) -> None:
-        subprocess.run(
-            ["git", "-C", str(REPO), "worktree", "remove", "--force", str(self.tree)],
-            check=False,
-            capture_output=True,
-        )
         shutil.rmtree(self.tmp, ignore_errors=True)
 
 

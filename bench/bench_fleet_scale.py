@@ -441,12 +441,14 @@ def measure(config: Config, n: int, args: argparse.Namespace, workdir: Path) -> 
 
 
 # ---- configurations and the table -----------------------------------------------------------
-def baseline_tree(revision: str, workdir: Path) -> Path:
-    """`revision` of this repository, extracted (no checkout is touched)."""
+def baseline_tree(
+    revision: str, workdir: Path, paths: tuple[str, ...] = ("fleet", "onboard")
+) -> Path:
+    """`paths` of this repository at `revision`, extracted (no checkout is touched)."""
     target = workdir / "baseline"
     target.mkdir()
     archive = subprocess.run(
-        ["git", "-C", str(REPO), "archive", revision, "fleet", "onboard"],
+        ["git", "-C", str(REPO), "archive", revision, *paths],
         check=True,
         capture_output=True,
     ).stdout
