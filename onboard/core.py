@@ -261,7 +261,8 @@ class OnboardCore:
             self.status(f"warning: target {self._target} given up: {why}", now)
         self.commands.submit(command, now, on_done)
 
-    def on_targets(self, targets: MissionTargets, now: float) -> None:
+    def on_targets(self, targets: MissionTargets, now: float, *, replayed: bool = False) -> None:
+        """A mission's targets, heard live or (`replayed`) in reply to a catch-up."""
         if self.uav_id not in targets.team:
             return
         current = self.round.mission if self.round else None
@@ -280,8 +281,13 @@ class OnboardCore:
             self.status(f"error: mission {targets.mission} refused: {problem}", now)
             return
         self._start_round(targets, now)
-        # A UAV that joins late or restarts adopts what its teammates committed.
-        self.outputs.fetch_assignments(targets.mission)
+        if replayed:
+            # Learnt from a catch-up (a late join, a restart): the team may have decided
+            # on it already, and this UAV adopts that. A mission heard live is as new to
+            # the team as to this UAV: asking would cost every teammate three queries
+            # while they all plan (a UAV that heard it late, after a freeze, asks in
+            # its catch-ups; see `catch_up`).
+            self.outputs.fetch_assignments(targets.mission)
         if self.telemetry is None or self.telemetry.gps is None:
             self._decline(f"mission {targets.mission}: no GPS telemetry yet", now)
         elif self.link_lost(now):
@@ -509,7 +515,7 @@ class OnboardCore:
             return
         self._caught_up_at = now
         self.outputs.fetch_missions()
-        if self.round is not None and self.round.committed is not None:
+        if self.round is not None:
             self.outputs.fetch_assignments(self.round.mission)
 
     # ---- time ----------------------------------------------------------------------
@@ -594,6 +600,7 @@ class OnboardCore:
         fallbacks = sum(plan.fallback)
         mission = self.round.mission if self.round else "?"
         text = f"mission {mission}: approach times in {plan.solve_seconds:.2f} s"
+        text += f" ({plan.cpu_seconds:.3f} s of CPU)"
         if fallbacks:
             budget = plan.request.budget_s
             text += f"; {fallbacks} by the Dubins fallback (budget {budget:g} s)"

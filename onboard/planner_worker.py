@@ -100,6 +100,9 @@ class PlanResult:
     times: tuple[float, ...]
     fallback: tuple[bool, ...]  # True where times[i] is the Dubins time, not the model's
     solve_seconds: float  # from run() to the result, build included if it happened then
+    #: CPU time of the worker thread for this result: what the solve cost, however long
+    #: it waited for a core on a busy machine.
+    cpu_seconds: float = 0.0
     error: str | None = None  # the exception that made every target fall back
     lps: int = 0  # LPs solved for this result
     defects: int = 0  # model answers faster than the Dubins time allows (logged)
@@ -307,6 +310,7 @@ class PlannerWorker:
             self._model = None
 
     def _plan(self, request: PlanRequest, started: float) -> PlanResult:
+        cpu_started = time.thread_time()
         self._adopt_cruise_speed(request.cruise_speed)
         deadline = started + request.budget_s
         solutions: Sequence[TargetSolution] = ()
@@ -355,6 +359,7 @@ class PlannerWorker:
             times=tuple(times),
             fallback=tuple(fallback),
             solve_seconds=time.monotonic() - started,
+            cpu_seconds=time.thread_time() - cpu_started,
             error=error,
             lps=lps,
             defects=self._sanity_check(request, solutions),

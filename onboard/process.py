@@ -271,7 +271,7 @@ class OnboardProcess:
         if isinstance(event, PresenceEvent):
             self.core.on_alive(event.uav, event.alive, now)
         elif isinstance(event, BusEvent):
-            self._on_message(event.message, now, via_payload=False)
+            self._on_message(event.message, now, via_payload=False, replayed=event.replayed)
         elif event is not None:
             self._on_link(event, now)
 
@@ -289,8 +289,11 @@ class OnboardProcess:
                 return
             self._on_message(envelope.message, now, via_payload=True)
 
-    def _on_message(self, message: object, now: float, via_payload: bool) -> None:
-        """One path for a command, whether it came over Zenoh or the payload port."""
+    def _on_message(
+        self, message: object, now: float, via_payload: bool, replayed: bool = False
+    ) -> None:
+        """One path for a command, whether it came over Zenoh or the payload port;
+        `replayed`: in reply to this UAV's catch-up query, not live."""
         core = self.core
         uav = self.settings.uav_id
         if isinstance(message, OpmCommand):
@@ -300,7 +303,7 @@ class OnboardProcess:
         elif isinstance(message, MissionTargets):
             if via_payload and uav in message.team:
                 self.node.publish(keys.mission_targets(message.mission), message)
-            core.on_targets(message, now)
+            core.on_targets(message, now, replayed=replayed)
         elif isinstance(message, UavResult):
             if via_payload:
                 self.node.publish(keys.mission_result(message.mission, message.uav), message)

@@ -2,7 +2,7 @@
 
 The bus is Zenoh in flight (`fleet.transport.zenoh_bus`) and in-memory in unit tests
 (`fleet.transport.memory`). Every callback only decodes and hands an event to `sink`
-(or drops an assignment report that changes nothing, on its header: `_on_assignment`);
+(or drops an assignment report that changes nothing, on its header: `_changes_nothing`);
 the main loop does the rest, so no bus thread ever waits on the module. Queryables are
 polled by the main loop, so a command's reply can wait for the autopilot's echo.
 """
@@ -39,6 +39,8 @@ class BusEvent:
 
     key: str
     message: msgspec.Struct  #: one of the messages in fleet.mission.messages
+    #: A reply to this UAV's query (a catch-up), not a live publication: it may be old.
+    replayed: bool = False
 
 
 @dataclass(frozen=True)
@@ -81,7 +83,6 @@ class ZenohNode:
         self.sink = sink
         self.wake = wake
         self.settled = settled
-        self._full_assignment = self._full_decoder(AssignmentReport)
         self.bus = bus
         self._declared: list[Declaration] = []
         try:
@@ -126,31 +127,40 @@ class ZenohNode:
             return
         self.sink(PresenceEvent(uav, alive))
 
-    def _decoder(self, kind: type[msgspec.Struct]) -> Callable[[BusSample], None]:
-        if kind is AssignmentReport and self.settled is not None:
-            return self._on_assignment
-        return self._full_decoder(kind)
+    def _decoder(
+        self, kind: type[msgspec.Struct], *, replayed: bool = False
+    ) -> Callable[[BusSample], None]:
+        full = self._full_decoder(kind, replayed=replayed)
+        if kind is not AssignmentReport or self.settled is None:
+            return full
 
-    def _on_assignment(self, sample: BusSample) -> None:
-        """An assignment report: dropped on its header if it changes nothing (at N UAVs,
-        N-1 per mission after this UAV committed), else decoded and checked in full.
-        A header that does not decode or that its key does not vouch for goes the full
-        way too, where it is refused and counted."""
+        def on_assignment(sample: BusSample) -> None:
+            if not self._changes_nothing(sample):
+                full(sample)
+
+        return on_assignment
+
+    def _changes_nothing(self, sample: BusSample) -> bool:
+        """An assignment report the module's `Settled` snapshot covers, judged on its
+        header (at N UAVs, N-1 per mission after this UAV committed). A header that does
+        not decode or that its key does not vouch for goes the full way, where it is
+        refused and counted."""
         settled = self.settled() if self.settled is not None else None
-        if settled is not None:
-            header = decode_header(sample.payload, AssignmentHeader, sample.key)
-            if header is not None and settled.covers(header):
-                return
-        self._full_assignment(sample)
+        if settled is None:
+            return False
+        header = decode_header(sample.payload, AssignmentHeader, sample.key)
+        return header is not None and settled.covers(header)
 
-    def _full_decoder(self, kind: type[msgspec.Struct]) -> Callable[[BusSample], None]:
+    def _full_decoder(
+        self, kind: type[msgspec.Struct], *, replayed: bool = False
+    ) -> Callable[[BusSample], None]:
         def on_sample(sample: BusSample) -> None:
             try:
                 message = decode(sample.payload, kind, sample.key)
             except BadMessage as error:
                 log.warning("dropped: %s", error)
                 return
-            self.sink(BusEvent(sample.key, message))
+            self.sink(BusEvent(sample.key, message, replayed))
 
         return on_sample
 
@@ -158,8 +168,9 @@ class ZenohNode:
         self.bus.publish(key, message)
 
     def fetch(self, selector: str, kind: type[msgspec.Struct], timeout: float = 1.0) -> None:
-        """Query `selector`; replies come back through the sink like publications."""
-        self.bus.get(selector, self._decoder(kind), timeout)
+        """Query `selector`; replies come back through the sink like publications,
+        marked `replayed`."""
+        self.bus.get(selector, self._decoder(kind, replayed=True), timeout)
 
     def close(self) -> None:
         for declared in self._declared:

@@ -353,6 +353,25 @@ def test_late_joiner_adopts_the_committed_assignment() -> None:
     assert isinstance(report, AssignmentReport) and report.target == 0 and report.digest == "abc"
 
 
+def test_a_mission_heard_live_asks_nobody_and_one_from_a_catch_up_asks_the_team() -> None:
+    # Heard live, the mission is as new to the team as to this UAV: no queries while
+    # everybody plans. Learnt from a catch-up, the team may have decided already.
+    core, out = make_core(74)
+    core.on_targets(MissionTargets(mission=8, team=(74, 112), targets=TARGETS), 0.0)
+    assert out.assignment_fetches == []
+    core.on_targets(MissionTargets(mission=9, team=(74, 112), targets=TARGETS), 0.1, replayed=True)
+    assert out.assignment_fetches == [9]
+
+
+def test_a_catch_up_during_a_round_asks_for_its_assignments_committed_or_not() -> None:
+    # A UAV frozen while the mission was sent hears it live, late: its catch-ups after
+    # the freeze must still bring what the team decided meanwhile.
+    core, out = make_core(74)
+    core.on_targets(MissionTargets(mission=8, team=(74, 112), targets=TARGETS), 0.0)
+    core.catch_up(0.1, force=True)
+    assert out.assignment_fetches == [8]
+
+
 def test_stale_messages_are_ignored_and_a_new_mission_supersedes() -> None:
     core, out = make_core()
     core.on_targets(MissionTargets(mission=9, team=(112,), targets=TARGETS), 0.0)
