@@ -54,6 +54,7 @@ from pathlib import Path
 import msgspec
 import zenoh
 
+from bench.proc_threads import by_kind, snapshot
 from fleet.launch.launcher import Fleet, FleetSpec, ring_scenario
 from fleet.mission import keys
 from fleet.mission.messages import (
@@ -100,6 +101,10 @@ class Mission:
     model: int | None
     fallback: int | None
     agreed: bool
+    #: CPU seconds from the send until every commitment was seen, by where they went:
+    #: the onboards' thread kinds (bench/proc_threads.py), "sim", and "router" (this
+    #: process: the router and the observer)
+    cpu: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass
@@ -301,11 +306,16 @@ def run_missions(
     team: tuple[int, ...],
     count: int,
     deadline_s: float,
+    processes: tuple[list[int], int],
     log: list[str],
 ) -> list[Mission]:
+    """Send `count` missions one after the other; `processes`: the onboards' PIDs and the
+    simulator's, whose CPU is counted from each send to its last commitment."""
+    onboards, sim = processes
     missions = []
     for mission in range(1, count + 1):
         message = MissionTargets(mission, team, ring_targets(len(team), seed=mission), deadline_s)
+        threads0, sim0, own0 = snapshot(onboards), snapshot([sim]), time.process_time()
         sent = time.time()
         session.put(keys.mission_targets(mission), encode(message), encoding=ENCODING)
         limit = time.monotonic() + deadline_s + 30.0
@@ -313,14 +323,20 @@ def run_missions(
             with observer.lock:
                 if all((mission, uav) in observer.commits for uav in team):
                     break
-            time.sleep(0.05)
-        missions.append(summarise(observer, mission, team, sent))
+            time.sleep(0.01)
+        spent = by_kind(threads0, snapshot(onboards))
+        cpu = {kind: seconds for kind, (seconds, _) in spent.items()}
+        cpu["sim"] = by_kind(sim0, snapshot([sim]))["total"][0]
+        cpu["router"] = time.process_time() - own0
+        missions.append(summarise(observer, mission, team, sent, cpu))
         log.append(f"mission {mission}: {missions[-1]}")
         time.sleep(1.0)
     return missions
 
 
-def summarise(observer: Observer, mission: int, team: tuple[int, ...], sent: float) -> Mission:
+def summarise(
+    observer: Observer, mission: int, team: tuple[int, ...], sent: float, cpu: dict[str, float]
+) -> Mission:
     with observer.lock:
         commits = [observer.commits[(mission, u)] for u in team if (mission, u) in observer.commits]
         results = [observer.results[(mission, u)] for u in team if (mission, u) in observer.results]
@@ -352,6 +368,7 @@ def summarise(observer: Observer, mission: int, team: tuple[int, ...], sent: flo
         model=model,
         fallback=fallback,
         agreed=complete and len({r.digest for _, r in commits}) == 1,
+        cpu=cpu,
     )
 
 
@@ -410,7 +427,9 @@ def measure(config: Config, n: int, args: argparse.Namespace, workdir: Path) -> 
             threads = statistics.mean(status_field(pid, "Threads") for pid in onboards)
             team = tuple(sorted(fleet.uav_ids))
             deadline_s = 10.0 if budget is None else budget + 10.0
-            missions = run_missions(session, observer, team, args.missions, deadline_s, log)
+            missions = run_missions(
+                session, observer, team, args.missions, deadline_s, (onboards, sim), log
+            )
             rss_after = sum(status_field(pid, "VmRSS") for pid in pids) / 1024.0
             pss_after = sum(pss_kb(pid) for pid in pids) / 1024.0
         finally:
@@ -510,6 +529,42 @@ HEADER = (
 )
 
 
+CPU_COLUMNS = (
+    ("planner", ("planner",)),
+    ("link", ("link",)),
+    ("main", ("python",)),
+    ("zenoh", ("tx", "rx", "net", "app", "acc")),
+    ("sim", ("sim",)),
+    ("router", ("router",)),
+)
+CPU_HEADER = (
+    "  N config    "
+    + "".join(f"{name:>8}" for name, _ in CPU_COLUMNS)
+    + "   other  (planner+other)/cores  send->com"
+)
+
+
+def format_cpu(row: Row) -> str:
+    """Where a mission's CPU went from the send to the last commitment (CPU seconds, the
+    mean of the missions): the planners' solves, and all the rest, which shares the cores
+    with them; a previous release's unnamed threads all count as "main"."""
+    missions = [m for m in row.missions if m.cpu and m.send_to_commit is not None]
+    if not missions:
+        return f"{row.n:>3} {row.config:<9} -"
+
+    def mean(kinds: tuple[str, ...]) -> float:
+        return statistics.mean(sum(m.cpu.get(k, 0.0) for k in kinds) for m in missions)
+
+    cells = {name: mean(kinds) for name, kinds in CPU_COLUMNS}
+    other = sum(cells.values()) - cells["planner"]
+    send = statistics.mean(m.send_to_commit or 0.0 for m in missions)
+    return (
+        f"{row.n:>3} {row.config:<9} "
+        + "".join(f"{cells[name]:>8.2f}" for name, _ in CPU_COLUMNS)
+        + f"{other:>8.2f}  {(cells['planner'] + other) / CORES:>21.2f}  {send:>9.2f}"
+    )
+
+
 def ratios(before: Row, after: Row) -> str:
     def ratio(a: float | None, b: float | None) -> str:
         return "-" if a is None or b is None or b == 0 else f"{a / b:.2f}"
@@ -561,6 +616,11 @@ def main() -> None:
                 row = measure(config, n, args, workdir)
                 rows.append(row)
                 print(format_row(row), flush=True)
+    print()
+    print("CPU seconds from the send to the last commitment, mean of the missions")
+    print(CPU_HEADER)
+    for row in rows:
+        print(format_cpu(row))
     print()
     for n in args.sizes:
         of_n = {row.config: row for row in rows if row.n == n}

@@ -8,8 +8,10 @@ as in bench_fleet_scale) and *after* (this tree), so both see the same machine; 
 sequential run (bench_fleet_scale's idle window) cannot show a 10 % change on a shared
 2-core machine whose load moves by more than that from one minute to the next. For each
 window, per onboard: CPU of each thread kind from /proc/PID/task/*/schedstat (run time
-in ns, not ticks), and wake-ups (voluntary context switches) a second. Python's threads
-(main loop, link loop, planner worker) are one kind, Zenoh's by name (tx, rx, net, app).
+in ns, not ticks), and wake-ups (voluntary context switches) a second, by the threads'
+kernel names (bench/proc_threads.py): the link loop, the planner, the rest of Python (the
+main loop; a previous release's unnamed threads are all "python") and Zenoh's (tx, rx,
+net, app).
 
 Each fleet is measured twice: with nobody subscribed to telemetry, then with a
 subscriber on each router (as the ground's watch, the page, a recording or
@@ -20,9 +22,7 @@ subscribes to.
 from __future__ import annotations
 
 import argparse
-import collections
 import contextlib
-import os
 import tempfile
 import time
 from pathlib import Path
@@ -30,56 +30,19 @@ from pathlib import Path
 import zenoh
 
 from bench.bench_fleet_scale import Config, baseline_tree, child_environment
+from bench.proc_threads import KINDS, Snapshot, by_kind, snapshot
 from fleet.launch.launcher import Fleet, FleetSpec, ring_scenario
 from fleet.mission import keys
 from fleet.transport.zenoh_config import make_config
-
-#: (pid, tid) -> (thread kind, run time ns, voluntary switches)
-Snapshot = dict[tuple[int, int], tuple[str, int, int]]
-KINDS = ("python", "tx", "rx", "net", "app", "acc")
-
-
-def kind_of(comm: str) -> str:
-    head = comm.split("-", 1)[0]
-    return head if head in KINDS else "python"
-
-
-def snapshot(pids: list[int]) -> Snapshot:
-    found: Snapshot = {}
-    for pid in pids:
-        with contextlib.suppress(OSError):
-            for tid in os.listdir(f"/proc/{pid}/task"):
-                task = f"/proc/{pid}/task/{tid}"
-                try:
-                    comm = Path(f"{task}/comm").read_text().strip()
-                    run_ns = int(Path(f"{task}/schedstat").read_text().split()[0])
-                    status = Path(f"{task}/status").read_text()
-                except OSError:
-                    continue  # the thread ended
-                switches = next(
-                    int(line.split()[1])
-                    for line in status.splitlines()
-                    if line.startswith("voluntary_ctxt_switches")
-                )
-                found[(pid, int(tid))] = (kind_of(comm), run_ns, switches)
-    return found
 
 
 def per_onboard(
     before: Snapshot, after: Snapshot, onboards: int, window: float
 ) -> dict[str, tuple[float, float]]:
     """{kind: (% of one core, wake-ups/s)} per onboard, and "total"."""
-    sums: dict[str, list[float]] = collections.defaultdict(lambda: [0.0, 0.0])
-    for key, (kind, run_ns, switches) in after.items():
-        if key not in before:
-            continue
-        _, run0, switches0 = before[key]
-        for name in (kind, "total"):
-            sums[name][0] += run_ns - run0
-            sums[name][1] += switches - switches0
     return {
-        name: (100.0 * ns / 1e9 / window / onboards, wakes / window / onboards)
-        for name, (ns, wakes) in sums.items()
+        name: (100.0 * seconds / window / onboards, wakes / window / onboards)
+        for name, (seconds, wakes) in by_kind(before, after).items()
     }
 
 

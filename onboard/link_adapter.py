@@ -28,6 +28,7 @@ from fleet.piccolo.autopilot_messages import AutopilotMessage
 from fleet.piccolo.stream_packet import ALL_OPERATOR_INTERFACES
 from fleet.planning.link import LinkEvent, PiccoloLink
 from fleet.transport.link import Link
+from onboard.native_thread import name_native_thread
 
 log = logging.getLogger(__name__)
 
@@ -129,6 +130,7 @@ class LinkAdapter:
 
     # ---- the loop -------------------------------------------------------------------
     def _run(self) -> None:
+        name_native_thread()
         readable: set[int] | None = None  # None: read every port
         while not self._stop.is_set():
             try:

@@ -48,6 +48,7 @@ from typing import TYPE_CHECKING
 
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.dubins import dubins_time_to_point
+from onboard.native_thread import name_native_thread
 
 if TYPE_CHECKING:
     from onboard.approach_model import ApproachTimeModel, TargetSolution
@@ -184,7 +185,7 @@ class PlannerWorker:
         self._result: PlanResult | None = None
         self._model: ApproachTimeModel | None = None
         self._build_error: str | None = None
-        self._thread = threading.Thread(target=self._loop, name="planner-worker", daemon=True)
+        self._thread = threading.Thread(target=self._loop, name="planner", daemon=True)
         self._thread.start()
 
     # -- the thesis's interface -------------------------------------------------------
@@ -259,6 +260,7 @@ class PlannerWorker:
     # -- the worker thread ------------------------------------------------------------
 
     def _loop(self) -> None:
+        name_native_thread()
         if self._build_at_start:
             self._ensure_model()
         while True:
