@@ -14,6 +14,7 @@ bus): they must only hand work on, never wait.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
@@ -73,11 +74,26 @@ QueryNotify = Callable[[], None]
 
 
 class Queryable(ABC):
-    """Queries arriving on a key expression, polled by the owner's loop."""
+    """Queries arriving on a key expression, polled by the owner's loop.
 
-    @abstractmethod
+    A backend hands each arriving query to `deliver` (from any thread); the owner takes
+    them with `try_recv` and is woken by `notify`, if given, when one waits."""
+
+    def __init__(self, notify: QueryNotify | None = None) -> None:
+        self._notify = notify
+        self._waiting: deque[BusQuery] = deque()  # appends and pops are thread-safe
+
+    def deliver(self, query: BusQuery) -> None:
+        self._waiting.append(query)
+        if self._notify is not None:
+            self._notify()
+
     def try_recv(self) -> BusQuery | None:
         """The next waiting query, or None."""
+        try:
+            return self._waiting.popleft()
+        except IndexError:
+            return None
 
     @abstractmethod
     def undeclare(self) -> None: ...

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import itertools
 import threading
-from collections import deque
 from dataclasses import dataclass, field
 
 import zenoh
@@ -174,22 +173,10 @@ class MemoryQueryable(Queryable):
         owner: MemoryBus,
         notify: QueryNotify | None = None,
     ) -> None:
+        super().__init__(notify)
         self.key_expr = key_expr
-        self._notify = notify
         self.owner = owner
         self._network = network
-        self._waiting: deque[MemoryQuery] = deque()
-
-    def deliver(self, query: MemoryQuery) -> None:
-        self._waiting.append(query)
-        if self._notify is not None:
-            self._notify()
-
-    def try_recv(self) -> BusQuery | None:
-        try:
-            return self._waiting.popleft()
-        except IndexError:
-            return None
 
     def undeclare(self) -> None:
         with self._network.lock:

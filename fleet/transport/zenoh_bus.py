@@ -11,7 +11,6 @@ in zenoh-python; the dependency is pinned to 1.10.)
 
 from __future__ import annotations
 
-from collections import deque
 from collections.abc import Callable
 from typing import Any, TypeVar
 
@@ -64,20 +63,11 @@ class ZenohQueryable(Queryable):
     """Queries queued by a Zenoh callback, which then calls `notify`."""
 
     def __init__(self, session: zenoh.Session, key_expr: str, notify: QueryNotify | None) -> None:
-        self._waiting: deque[ZenohQuery] = deque()
-        self._notify = notify
+        super().__init__(notify)
         self._queryable = session.declare_queryable(key_expr, direct(self._on_query))
 
     def _on_query(self, query: zenoh.Query) -> None:
-        self._waiting.append(ZenohQuery(query))
-        if self._notify is not None:
-            self._notify()
-
-    def try_recv(self) -> BusQuery | None:
-        try:
-            return self._waiting.popleft()
-        except IndexError:
-            return None
+        self.deliver(ZenohQuery(query))
 
     def undeclare(self) -> None:
         self._queryable.undeclare()
