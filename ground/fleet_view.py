@@ -20,10 +20,8 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from contextlib import ExitStack
 from dataclasses import dataclass, field, replace
-from types import TracebackType
-from typing import Any, Self
+from typing import Any
 
 import zenoh
 
@@ -35,6 +33,7 @@ from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from fleet.transport.bus_codec import DropReason, refuse
 from ground.alerts import Alerts, StatusRecord
+from ground.declarations import Declarations, Enter
 from ground.session import decode_sample, live_tokens, query_messages
 
 log = logging.getLogger(__name__)
@@ -171,7 +170,7 @@ class _Uav:
     track_history: list[int] = field(default_factory=list)
 
 
-class FleetView:
+class FleetView(Declarations):
     """A live, thread-safe picture of the fleet, fed by subscriptions.
 
     Zenoh runs the callbacks on its own threads; everything they touch is under one
@@ -195,27 +194,10 @@ class FleetView:
         self.statuses: deque[tuple[float, int, str]] = deque(maxlen=STATUS_HISTORY)
         self._records: deque[StatusRecord] = deque(maxlen=STATUS_HISTORY)
         self._alerts = Alerts()
-        self._stack = ExitStack()
+        super().__init__()
 
-    def __enter__(self) -> Self:
-        try:
-            self._declare()
-        except BaseException:
-            self._stack.close()
-            raise
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self._stack.close()
-
-    def _declare(self) -> None:
+    def _declare(self, enter: Enter) -> None:
         session = self._session
-        enter = self._stack.enter_context
         enter(session.liveliness().declare_subscriber(keys.ALL_ALIVE, self._on_alive, history=True))
         enter(session.declare_subscriber(keys.ALL_TELEMETRY, self._on_telemetry))
         enter(session.declare_subscriber(keys.ALL_TRACK, self._on_track))

@@ -13,9 +13,7 @@ import logging
 import threading
 import time
 from collections.abc import Callable, Iterable
-from contextlib import ExitStack
-from types import TracebackType
-from typing import Any, Self
+from typing import Any
 
 import zenoh
 
@@ -26,6 +24,7 @@ from fleet.mission.messages import (
     TargetOutcome,
     UavResult,
 )
+from ground.declarations import Declarations, Enter
 from ground.session import decode_sample, query_messages
 
 log = logging.getLogger(__name__)
@@ -34,7 +33,7 @@ log = logging.getLogger(__name__)
 Listener = Callable[[str, UavResult | AssignmentReport | TargetOutcome], None]
 
 
-class MissionFollower:
+class MissionFollower(Declarations):
     """Collects one mission's results and assignments; a context manager.
 
     `listener(kind, message)` ("result", "assignment" or "outcome") is called once per
@@ -64,42 +63,19 @@ class MissionFollower:
         self.outcomes: dict[int, TargetOutcome] = {}
         self.lost: set[int] = set()  #: UAVs whose liveliness token went away
         self.superseded_by: int | None = None  #: the highest later mission of the team
-        self._stack = ExitStack()
+        super().__init__()
 
-    def __enter__(self) -> Self:
-        enter = self._stack.enter_context
-        try:
-            enter(
-                self._session.declare_subscriber(
-                    keys.mission_results(self.mission), self._on_result_sample
-                )
+    def _declare(self, enter: Enter) -> None:
+        session, mission = self._session, self.mission
+        enter(session.declare_subscriber(keys.mission_results(mission), self._on_result_sample))
+        enter(
+            session.declare_subscriber(
+                keys.mission_assignments(mission), self._on_assignment_sample
             )
-            enter(
-                self._session.declare_subscriber(
-                    keys.mission_assignments(self.mission), self._on_assignment_sample
-                )
-            )
-            enter(
-                self._session.declare_subscriber(
-                    keys.mission_outcomes(self.mission), self._on_outcome_sample
-                )
-            )
-            enter(self._session.liveliness().declare_subscriber(keys.ALL_ALIVE, self._on_alive))
-            enter(
-                self._session.declare_subscriber(keys.ALL_MISSION_TARGETS, self._on_targets_sample)
-            )
-        except BaseException:
-            self._stack.close()
-            raise
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self._stack.close()
+        )
+        enter(session.declare_subscriber(keys.mission_outcomes(mission), self._on_outcome_sample))
+        enter(session.liveliness().declare_subscriber(keys.ALL_ALIVE, self._on_alive))
+        enter(session.declare_subscriber(keys.ALL_MISSION_TARGETS, self._on_targets_sample))
 
     def _on_alive(self, sample: zenoh.Sample) -> None:
         try:

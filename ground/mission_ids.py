@@ -15,9 +15,7 @@ import random
 import threading
 import time
 from collections.abc import Callable, Iterator
-from contextlib import ExitStack, contextmanager
-from types import TracebackType
-from typing import Self
+from contextlib import contextmanager
 
 import zenoh
 
@@ -30,6 +28,7 @@ from fleet.mission.messages import (
     UavResult,
 )
 from fleet.transport import bus_codec
+from ground.declarations import Declarations, Enter
 from ground.fleet_view import query_states
 from ground.mission_control import MissionError
 from ground.session import query
@@ -198,7 +197,7 @@ def current_mission_id(session: zenoh.Session, timeout_s: float) -> int | None:
     return max(seen) if seen else None
 
 
-class TargetsServer:
+class TargetsServer(Declarations):
     """Answers queries on `fleet/mission/{m}/targets` with the mission, while open.
 
     A UAV that starts, or reconnects, after the put can still fetch the mission.
@@ -211,19 +210,10 @@ class TargetsServer:
         self._payload = bus_codec.encode(targets)
         #: Another ground asked for this id with other targets (see `claim_mission`).
         self.contested = threading.Event()
-        self._stack = ExitStack()
+        super().__init__()
 
-    def __enter__(self) -> Self:
-        self._stack.enter_context(self._session.declare_queryable(self._key, self._on_query))
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self._stack.close()
+    def _declare(self, enter: Enter) -> None:
+        enter(self._session.declare_queryable(self._key, self._on_query))
 
     def _on_query(self, query: zenoh.Query) -> None:
         # The concrete key, not the query's (possibly wildcard) one: otherwise Zenoh's
