@@ -21,7 +21,11 @@ process per UAV), then measures:
   median UAV's commit (router timestamps too), and how many
   approach times came from the model and how many from the Dubins fallback (from the
   results' `model_times`/`fallback_times`, or from the status text of a release that did
-  not report them).
+  not report them);
+* per mission, the CPU seconds from the send to the last commitment, by where they went
+  (the onboards' planners, link loops, main loops and Zenoh threads by their kernel
+  names, bench/proc_threads.py; the simulator; this process's router and observer):
+  send -> last commit is their sum over the cores when the machine is the limit.
 
 Configurations: `before` runs the onboard and the simulator of a previous revision
 (`--baseline REV`, extracted with `git archive`, default `main`) with its default
