@@ -74,8 +74,8 @@ def greedy_assign(results: Mapping[int, Sequence[float | None]], n_targets: int)
     # full total order (time, Piccolo ID, target index). Sorting on a float key is about
     # three times faster than sorting (time, uav, target) tuples, which compare slowly.
     # None and NaN become +inf (NaN would break the sort's order); +inf sorts last and
-    # -inf first, and the sweep skips both, which is cheaper than filtering every entry
-    # with math.isfinite before the sort.
+    # -inf first, and both are cut off the sorted order, which is cheaper than filtering
+    # every entry with math.isfinite before the sort.
     uavs = sorted(results)
     rows = [results[uav] for uav in uavs]
     times = list(chain.from_iterable(rows))
@@ -89,6 +89,8 @@ def greedy_assign(results: Mapping[int, Sequence[float | None]], n_targets: int)
         cast(list[float], times) if finite else [_INF if t is None or t != t else t for t in times]
     )
     order = sorted(range(len(keys)), key=keys.__getitem__)
+    if not finite:  # some times unusable (rare): only the finite middle of the order
+        order = order[keys.count(-_INF) : len(keys) - keys.count(_INF)]
 
     pairs: dict[int, int] = {}
     uav_free = [True] * len(uavs)
@@ -96,22 +98,11 @@ def greedy_assign(results: Mapping[int, Sequence[float | None]], n_targets: int)
     # Once either side is exhausted no further pair is possible: stop the sweep early.
     # With 20 UAVs and 50 targets the sweep typically ends after ~90 of 1,000 entries.
     max_pairs = min(len(uavs), n_targets)
-    if max_pairs and finite:
-        # Every time usable (the common case): only each candidate's UAV rank and target
-        # are needed, one C-level divmod per entry the sweep reaches.
+    if max_pairs:
+        # Only each candidate's UAV rank and target are needed: one C-level divmod per
+        # entry the sweep reaches.
         for rank, target in map(divmod, order, repeat(n_targets)):
             if uav_free[rank] and target_free[target]:
-                uav_free[rank] = target_free[target] = False
-                pairs[uavs[rank]] = target
-                if len(pairs) == max_pairs:
-                    break
-    elif max_pairs:
-        for k in order:  # some times unusable (rare): +inf ends the sweep, -inf is skipped
-            time = keys[k]
-            if time == _INF:
-                break
-            rank, target = divmod(k, n_targets)
-            if uav_free[rank] and target_free[target] and time != -_INF:
                 uav_free[rank] = target_free[target] = False
                 pairs[uavs[rank]] = target
                 if len(pairs) == max_pairs:

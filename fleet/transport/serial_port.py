@@ -91,20 +91,21 @@ class SerialLink(Link):
             return None
         if self._fd is not None:
             return self._fd
+        return self._port_fd(self.port)
+
+    @staticmethod
+    def _port_fd(port: serial.SerialBase) -> int | None:
         try:
-            return int(self.port.fileno())
+            return int(port.fileno())
         except (serial.SerialException, OSError, AttributeError, ValueError):
             return None  # e.g. loop://, which only polling can serve
 
-    @staticmethod
-    def _plain_fd(port: serial.SerialBase) -> int | None:
+    @classmethod
+    def _plain_fd(cls, port: serial.SerialBase) -> int | None:
         if type(port) not in _PLAIN_FD_PORTS:
             return None
-        try:
-            fd = int(port.fileno())
-        except (serial.SerialException, OSError, AttributeError, ValueError):
-            return None
-        return fd if not os.get_blocking(fd) else None
+        fd = cls._port_fd(port)
+        return fd if fd is not None and not os.get_blocking(fd) else None
 
     def retry_in(self, now: float) -> float:
         return max(0.0, self._retry_at - now)

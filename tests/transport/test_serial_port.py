@@ -46,6 +46,18 @@ def listener() -> Iterator[tuple[socket.socket, int]]:
         server.close()
 
 
+def read_until(link: SerialLink, count: int, what: str) -> bytes:
+    """What `link` reads until it holds `count` bytes (waited for, at most 5 s)."""
+    received = bytearray()
+
+    def enough() -> bool:
+        received.extend(link.read(0.0))
+        return len(received) >= count
+
+    wait_until(enough, 5.0, what)
+    return bytes(received)
+
+
 def test_a_dropped_socket_is_counted_and_reopened(listener: tuple[socket.socket, int]) -> None:
     server, port = listener
     link = SerialLink("program", f"socket://127.0.0.1:{port}", backoff=Backoff(0.05, 0.1))
@@ -53,14 +65,7 @@ def test_a_dropped_socket_is_counted_and_reopened(listener: tuple[socket.socket,
     peer, _ = server.accept()
     with peer:
         peer.sendall(b"hello")
-        received = bytearray()
-
-        def got_hello() -> bool:
-            received.extend(link.read(0.0))
-            return len(received) >= 5
-
-        wait_until(got_hello, 5.0, "the bytes sent")
-        assert bytes(received) == b"hello"
+        assert read_until(link, 5, "the bytes sent") == b"hello"
         assert link.write(b"back", 0.0)
         assert peer.recv(16) == b"back"
     # The far end closed: the next read notices, closes the port and schedules a retry.
@@ -109,14 +114,7 @@ def test_a_pty_is_read_through_pyserial() -> None:
         assert link._fd is None
         assert link.read(0.0) == b"" and link.up
         os.write(master, b"hello")
-        received = bytearray()
-
-        def got_hello() -> bool:
-            received.extend(link.read(0.0))
-            return len(received) >= 5
-
-        wait_until(got_hello, 5.0, "the bytes written")
-        assert bytes(received) == b"hello"
+        assert read_until(link, 5, "the bytes written") == b"hello"
     finally:
         link.close()
         os.close(slave)
