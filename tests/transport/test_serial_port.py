@@ -93,14 +93,7 @@ def test_a_socket_is_read_from_its_descriptor_every_byte_in_order(
         assert link.read(0.0) == b"" and link.up  # nothing waiting: no drop
         sent = bytes(range(256)) * 64  # more than one read's worth
         peer.sendall(sent)
-        received = bytearray()
-
-        def got_all() -> bool:
-            received.extend(link.read(0.0))
-            return len(received) >= len(sent)
-
-        wait_until(got_all, 5.0, "every byte sent")
-        assert bytes(received) == sent
+        assert read_until(link, len(sent), "every byte sent") == sent
     link.close()
 
 
