@@ -546,7 +546,12 @@ class OnboardCore:
                 missing = mission_round.missing(self.alive) - {self.uav_id}
                 self.outputs.fetch_results(mission_round.mission, tuple(sorted(missing)))
             if mission_round.ready(now, self.alive):
-                self._decide(mission_round, now)
+                if mission_round.missing(self.alive) and mission_round.asked_at is None:
+                    # Deciding without some results: ask the team first (ASK_GRACE_S).
+                    mission_round.asked_at = now
+                    self.outputs.fetch_assignments(mission_round.mission)
+                elif not mission_round.asking(now):
+                    self._decide(mission_round, now)
         if self.status_rate_hz > 0 and now - self._last_state_at >= 1 / self.status_rate_hz:
             self.publish_state(now)
 
@@ -665,6 +670,11 @@ class OnboardCore:
         """Publish the assignment this UAV follows now and fly what it says."""
         self._settle()
         self.outputs.publish(keys.mission_assignment(report.mission, self.uav_id), report)
+        if report.epoch > 0:
+            # Teammates hear re-plans on a key of their own: the N - 1 epoch-0
+            # commitments each UAV would otherwise hear change nothing once it committed
+            # (docs/lifecycle.md, "Who hears which assignment").
+            self.outputs.publish(keys.mission_replan(report.mission, self.uav_id), report)
         if report.target == self._target:
             if report.target is None and self.phase in (Phase.COMPUTING, Phase.WAITING):
                 self._observe(Observation.ASSIGNED_NONE)

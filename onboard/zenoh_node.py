@@ -59,7 +59,9 @@ def _mission_subscriptions() -> tuple[tuple[str, type[msgspec.Struct]], ...]:
     return (
         (keys.ALL_MISSION_TARGETS, MissionTargets),
         (keys.ALL_MISSION_RESULTS, UavResult),
-        (keys.ALL_MISSION_ASSIGNMENTS, AssignmentReport),
+        # Re-plans only: a teammate's epoch-0 commitment changes nothing for a UAV that
+        # committed too, and one that has not learns it by query (`fetch`).
+        (keys.ALL_MISSION_REPLANS, AssignmentReport),
         (keys.ALL_MISSION_ABORTS, MissionAbort),
         (keys.ALL_MISSION_OUTCOMES, TargetOutcome),
     )

@@ -41,6 +41,9 @@ FETCH_INTERVAL = 1.0
 #: A teammate's assignment that arrives this soon (s) after this UAV started the round
 #: was committed before it joined: adopted even without this UAV's result in it.
 JOIN_GRACE_S = 1.0
+#: At its deadline with results missing, a UAV asks the team what it decided and waits
+#: this long (s) for the answers before it decides without those results.
+ASK_GRACE_S = 0.5
 
 
 def assignment_problem(report: AssignmentReport, targets: MissionTargets) -> str | None:
@@ -125,6 +128,10 @@ class MissionRound:
     #: The assignment this UAV follows now: epoch 0, or the latest re-plan.
     committed: AssignmentReport | None = None
     last_fetch: float | None = None
+    #: When this UAV, at its deadline with results missing, asked its teammates what
+    #: they decided (their commitments are not heard live, only their re-plans); None
+    #: before.
+    asked_at: float | None = None
     #: The epoch-0 assignment every re-plan starts from; None when this UAV adopted a
     #: re-plan without knowing epoch 0, or epoch 0 without the own result it was
     #: computed from (a restart): it then follows its teammates' epochs.
@@ -195,6 +202,11 @@ class MissionRound:
         if self.committed is not None or self.own_id not in self.results:
             return False
         return not self.missing(alive) or now >= self.deadline
+
+    def asking(self, now: float) -> bool:
+        """Still waiting for the teammates' answers (`asked_at`): a teammate that
+        committed with the results this UAV lacks is adopted, not contradicted."""
+        return self.asked_at is not None and now - self.asked_at < ASK_GRACE_S
 
     def should_fetch(self, now: float, alive: set[int]) -> bool:
         """Time to query the results we have not heard published."""

@@ -88,6 +88,7 @@ def _uav_grants(uav_id: int) -> list[Grant]:
         keys.uav(uav_id, "**"),
         f"{keys.PREFIX}/mission/*/result/{uav_id}",
         f"{keys.PREFIX}/mission/*/assignment/{uav_id}",
+        f"{keys.PREFIX}/mission/*/replan/{uav_id}",
         f"{keys.PREFIX}/mission/*/outcome/{uav_id}",
     )
     ingress = (Flow.INGRESS,)

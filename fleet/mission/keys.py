@@ -15,6 +15,8 @@ Layout (all under the prefix `fleet`):
     fleet/mission/{m}/targets          MissionTargets, ground -> team (queryable too)
     fleet/mission/{m}/result/{id}      UavResult (queryable too: late fetch)
     fleet/mission/{m}/assignment/{id}  AssignmentReport (republished at each re-plan epoch)
+    fleet/mission/{m}/replan/{id}      AssignmentReport of a re-plan (epoch > 0) only: what
+                                       teammates subscribe to (docs/lifecycle.md)
     fleet/mission/{m}/outcome/{id}     TargetOutcome: reached, failed or link_lost
     fleet/mission/{m}/abort            MissionAbort, ground -> team
 
@@ -53,14 +55,14 @@ PREFIX = checked_prefix(os.environ.get(PREFIX_ENV, DEFAULT_PREFIX))
 # The wildcards over every UAV or mission; `use_prefix` re-derives them.
 ALL_ALIVE = ALL_TELEMETRY = ALL_TRACK = ALL_WAYPOINTS = ALL_STATUS = ALL_STATE = ""
 ALL_MISSION_KEYS = ALL_MISSION_TARGETS = ALL_MISSION_RESULTS = ALL_MISSION_ASSIGNMENTS = ""
-ALL_MISSION_ABORTS = ALL_MISSION_OUTCOMES = ""
+ALL_MISSION_ABORTS = ALL_MISSION_OUTCOMES = ALL_MISSION_REPLANS = ""
 
 
 def use_prefix(prefix: str) -> None:
     """Make `prefix` the key prefix of this process (ValueError if it is not one chunk)."""
     global PREFIX, ALL_ALIVE, ALL_TELEMETRY, ALL_TRACK, ALL_WAYPOINTS, ALL_STATUS, ALL_STATE
     global ALL_MISSION_KEYS, ALL_MISSION_TARGETS, ALL_MISSION_RESULTS, ALL_MISSION_ASSIGNMENTS
-    global ALL_MISSION_ABORTS, ALL_MISSION_OUTCOMES
+    global ALL_MISSION_ABORTS, ALL_MISSION_OUTCOMES, ALL_MISSION_REPLANS
     PREFIX = checked_prefix(prefix)
     ALL_ALIVE = f"{PREFIX}/uav/*/alive"
     ALL_TELEMETRY = f"{PREFIX}/uav/*/telemetry"
@@ -72,6 +74,7 @@ def use_prefix(prefix: str) -> None:
     ALL_MISSION_TARGETS = f"{PREFIX}/mission/*/targets"
     ALL_MISSION_RESULTS = f"{PREFIX}/mission/*/result/*"
     ALL_MISSION_ASSIGNMENTS = f"{PREFIX}/mission/*/assignment/*"
+    ALL_MISSION_REPLANS = f"{PREFIX}/mission/*/replan/*"
     ALL_MISSION_ABORTS = f"{PREFIX}/mission/*/abort"
     ALL_MISSION_OUTCOMES = f"{PREFIX}/mission/*/outcome/*"
 
@@ -137,6 +140,10 @@ def mission_assignment(mission: int, uav_id: int) -> str:
 
 def mission_assignments(mission: int) -> str:
     return f"{PREFIX}/mission/{mission}/assignment/*"
+
+
+def mission_replan(mission: int, uav_id: int) -> str:
+    return f"{PREFIX}/mission/{mission}/replan/{uav_id}"
 
 
 def mission_outcome(mission: int, uav_id: int) -> str:

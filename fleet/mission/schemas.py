@@ -47,7 +47,10 @@ MESSAGES: dict[str, tuple[type[msgspec.Struct], tuple[str, ...]]] = {
     "command_result": (CommandResult, ("fleet/uav/{id}/cmd/* (query reply)",)),
     "mission_targets": (MissionTargets, ("fleet/mission/{m}/targets",)),
     "uav_result": (UavResult, ("fleet/mission/{m}/result/{id}",)),
-    "assignment_report": (AssignmentReport, ("fleet/mission/{m}/assignment/{id}",)),
+    "assignment_report": (
+        AssignmentReport,
+        ("fleet/mission/{m}/assignment/{id}", "fleet/mission/{m}/replan/{id} (epoch > 0)"),
+    ),
     "mission_abort": (MissionAbort, ("fleet/mission/{m}/abort",)),
     "target_outcome": (TargetOutcome, ("fleet/mission/{m}/outcome/{id}",)),
 }

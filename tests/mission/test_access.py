@@ -36,6 +36,7 @@ def puts(identity: str, key: str) -> bool:
         keys.telemetry(112),
         keys.mission_result(5, 112),
         keys.mission_assignment(5, 112),
+        keys.mission_replan(5, 112),
         "fleet/other",
     ],
 )
@@ -44,7 +45,13 @@ def test_uav_74_cannot_write_for_others_or_command(key: str) -> None:
 
 
 @pytest.mark.parametrize(
-    "key", [keys.telemetry(74), keys.mission_result(5, 74), keys.mission_assignment(5, 74)]
+    "key",
+    [
+        keys.telemetry(74),
+        keys.mission_result(5, 74),
+        keys.mission_assignment(5, 74),
+        keys.mission_replan(5, 74),
+    ],
 )
 def test_uav_74_writes_its_own_keys(key: str) -> None:
     assert puts(uav_identity(74), key)

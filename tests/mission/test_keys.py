@@ -47,6 +47,7 @@ def test_use_prefix_rederives_every_wildcard() -> None:
         keys.use_prefix("replay")
         assert keys.ALL_ALIVE == "replay/uav/*/alive"
         assert keys.ALL_MISSION_ASSIGNMENTS == "replay/mission/*/assignment/*"
+        assert keys.ALL_MISSION_REPLANS == "replay/mission/*/replan/*"
         assert keys.mission_targets(3) == "replay/mission/3/targets"
         with pytest.raises(ValueError, match="one key chunk"):
             keys.use_prefix("re/play")

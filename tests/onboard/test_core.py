@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import msgspec
 import pytest
 
+from fleet.consensus.mission_round import ASK_GRACE_S
 from fleet.mission import keys
 from fleet.mission.messages import (
     AssignmentReport,
@@ -338,9 +339,33 @@ def test_silent_teammate_is_dropped_at_the_deadline() -> None:
     core.tick(2.9)
     assert out.on(keys.mission_assignment(7, 112)) == []
     core.tick(3.1)
+    assert out.assignment_fetches == [7]  # the team is asked what it decided first
+    assert out.on(keys.mission_assignment(7, 112)) == []
+    core.tick(3.1 + ASK_GRACE_S)
     (report,) = out.on(keys.mission_assignment(7, 112))
     assert isinstance(report, AssignmentReport) and report.team == (112,) and report.target == 1
     assert any("without 74" in s for s in out.statuses())
+    assert out.assignment_fetches == [7]
+
+
+def test_at_the_deadline_a_teammates_commitment_with_the_missing_result_is_adopted() -> None:
+    # 75's result reached 74 but not 112: 74 committed with it, and 112 falls in line.
+    core, out = make_core(112, (80.0, 40.0, 60.0))
+    for uav in (74, 75):
+        core.on_alive(uav, True, 0.0)
+    team = (74, 75, 112)
+    core.on_targets(MissionTargets(mission=7, team=team, targets=TARGETS, deadline_s=3.0), 0.0)
+    core.on_result(UavResult(7, 74, (10.0, 50.0, 50.0)), 0.5)
+    core.tick(3.1)
+    assert out.assignment_fetches == [7]
+    pairs = {"74": 0, "75": 1, "112": 2}
+    committed = AssignmentReport(7, 74, 0, pairs, (), team, "with-75")
+    core.on_assignment(committed, 3.2)  # the answer to the query
+    (report,) = out.on(keys.mission_assignment(7, 112))
+    assert isinstance(report, AssignmentReport)
+    assert (report.digest, report.target) == ("with-75", 2)
+    core.tick(3.1 + ASK_GRACE_S)
+    assert len(out.on(keys.mission_assignment(7, 112))) == 1
 
 
 def test_late_joiner_adopts_the_committed_assignment() -> None:
@@ -427,10 +452,12 @@ def test_an_idle_uav_flies_the_target_of_a_holder_lost_after_the_commitment() ->
     commit_three_uav_team(core)
     (first,) = out.on(keys.mission_assignment(3, 200))
     assert isinstance(first, AssignmentReport) and first.target is None and first.epoch == 0
+    assert out.on(keys.mission_replan(3, 200)) == []  # teammates hear epoch 0 by query
     assert core.state(0.2).phase == Phase.IDLE
     core.on_telemetry(sample_telemetry(), 5.0)
     core.on_alive(112, False, 5.0)  # the holder of target 1 is killed
     second = out.on(keys.mission_assignment(3, 200))[-1]
+    assert out.on(keys.mission_replan(3, 200)) == [second]  # and re-plans live too
     assert isinstance(second, AssignmentReport)
     assert (second.target, second.epoch, second.released) == (1, 1, (112,))
     assert second.pairs == {"74": 0, "200": 1}

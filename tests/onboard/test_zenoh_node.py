@@ -143,19 +143,20 @@ def test_a_settled_uav_drops_reports_that_change_nothing_on_their_header() -> No
         while not events.empty():
             events.get_nowait()
         before = bus_codec.DROPPED.counts()
-        ground.publish(keys.mission_assignment(3, 74), _report(74))  # changes nothing
+        # An epoch 0 on the re-plan key (no teammate puts one there) changes nothing.
+        ground.publish(keys.mission_replan(3, 74), _report(74))
         assert events.empty()
         assert bus_codec.DROPPED.counts() == before
         replan = _report(74, epoch=1, released=(UAV,))  # a re-plan: it matters
-        ground.publish(keys.mission_assignment(3, 74), replan)
-        assert events.get_nowait() == BusEvent(keys.mission_assignment(3, 74), replan)
+        ground.publish(keys.mission_replan(3, 74), replan)
+        assert events.get_nowait() == BusEvent(keys.mission_replan(3, 74), replan)
         newer = _report(74, mission=4)
-        ground.publish(keys.mission_assignment(4, 74), newer)
-        assert events.get_nowait() == BusEvent(keys.mission_assignment(4, 74), newer)
+        ground.publish(keys.mission_replan(4, 74), newer)
+        assert events.get_nowait() == BusEvent(keys.mission_replan(4, 74), newer)
         # A header its key does not vouch for, or that does not decode, is refused and
         # counted as before: on the full decode.
-        ground.publish(keys.mission_assignment(3, 75), _report(74))
-        ground.put(keys.mission_assignment(3, 74), b'{"mission": 3, "uav": "74"}')
+        ground.publish(keys.mission_replan(3, 75), _report(74))
+        ground.put(keys.mission_replan(3, 74), b'{"mission": 3, "uav": "74"}')
         assert events.empty()
         after = bus_codec.DROPPED.counts()
         assert after.get("wrong_key", 0) == before.get("wrong_key", 0) + 1
@@ -163,3 +164,32 @@ def test_a_settled_uav_drops_reports_that_change_nothing_on_their_header() -> No
     finally:
         node.close()
         ground.close()
+
+
+def test_a_uav_hears_its_teammates_re_plans_live_and_their_commitments_by_query() -> None:
+    network = MemoryNetwork()
+    events: queue.SimpleQueue[BusEvent | PresenceEvent] = queue.SimpleQueue()
+    node = ZenohNode(UAV, network.bus(), events.put)
+    teammate = network.bus()
+    commitment = _report(74)
+    served = teammate.declare_queryable(keys.mission_assignment(3, 74))
+    try:
+        while not events.empty():
+            events.get_nowait()
+        teammate.publish(keys.mission_assignment(3, 74), commitment)
+        assert events.empty()  # N - 1 of these per mission would reach every UAV
+        replan = _report(74, epoch=1, released=(UAV,))
+        teammate.publish(keys.mission_replan(3, 74), replan)
+        assert events.get_nowait() == BusEvent(keys.mission_replan(3, 74), replan)
+        node.fetch(keys.mission_assignments(3), AssignmentReport)
+        query = served.try_recv()
+        assert query is not None
+        query.reply(keys.mission_assignment(3, 74), commitment)
+        query.drop()
+        assert events.get_nowait() == BusEvent(
+            keys.mission_assignment(3, 74), commitment, replayed=True
+        )
+    finally:
+        served.undeclare()
+        node.close()
+        teammate.close()
