@@ -26,6 +26,8 @@ class GroundView:
         self.assignments: dict[int, AssignmentReport] = {}
         #: When (monotonic s) each UAV's latest assignment arrived.
         self.assigned_at: dict[int, float] = {}
+        #: Every report each UAV put on its re-plan key (the one its teammates hear).
+        self.replans: dict[int, list[AssignmentReport]] = {}
         self.results: dict[int, UavResult] = {}
         #: Every TargetOutcome each UAV published, in order.
         self.outcomes: dict[int, list[TargetOutcome]] = {}
@@ -46,6 +48,9 @@ class GroundView:
                 report = msgspec.json.decode(data, type=AssignmentReport)
                 self.assignments[report.uav] = report
                 self.assigned_at[report.uav] = time.monotonic()
+            elif "/replan/" in key:
+                report = msgspec.json.decode(data, type=AssignmentReport)
+                self.replans.setdefault(report.uav, []).append(report)
             elif "/outcome/" in key:
                 outcome = msgspec.json.decode(data, type=TargetOutcome)
                 self.outcomes.setdefault(outcome.uav, []).append(outcome)

@@ -60,6 +60,10 @@ def test_the_idle_uav_flies_and_reaches_the_target_of_a_holder_killed_after_comm
     survivor = next(uav for uav in holders if uav != victim)
     wait_until(lambda: seen.assignments[survivor].epoch == 1, 30.0, f"UAV {survivor} at epoch 1")
     assert seen.assignments[survivor].digest == replanned.digest  # the same re-plan
+    # What the teammates heard: the re-plans, never an epoch-0 commitment.
+    wait_until(lambda: len(seen.replans.get(survivor, [])) == 1, 10.0, "the re-plan key")
+    assert [r.epoch for r in seen.replans[idle]] == [1]
+    assert seen.replans[survivor][0].digest == replanned.digest
 
     status, out, err = finish(
         ground_cli(ground.router, "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json"),
