@@ -58,7 +58,8 @@ def assignment_problem(report: AssignmentReport, targets: MissionTargets) -> str
     team, names = _team_sets(targets.team)
     pairs = report.pairs
     # A team member's decimal name is exactly one of `names`: a set comparison in C
-    # checks every pair's UAV at once (each UAV hears N-1 reports of N pairs per mission).
+    # checks every pair's UAV at once (the ground checks N reports of N pairs per mission,
+    # a UAV every re-plan it hears).
     if not names >= pairs.keys() or (pairs and max(pairs.values()) >= count):
         for key, index in pairs.items():  # name the first bad pair
             if not key.isdecimal() or str(int(key)) != key or int(key) not in team:

@@ -153,8 +153,9 @@ class AssignmentHeader(msgspec.Struct, frozen=True):
     UAV that has committed (`fleet.consensus.mission_round.Settled`): decoded alone, the
     rest of the report (its pairs, team and digest) is skipped, not validated.
 
-    At N UAVs each onboard hears N-1 reports per mission after it committed, nearly all
-    of which change nothing; the ground decodes and checks every report in full.
+    At each re-plan epoch every onboard hears its N-2 surviving teammates' re-plans
+    (`fleet/mission/{m}/replan/{id}`), nearly all of which change nothing for a UAV
+    that re-planned the same epoch; the ground decodes and checks every report in full.
     """
 
     mission: MissionId
