@@ -8,9 +8,9 @@ team commit together, the router batches the fifty assignment reports it fans ou
 each subscriber instead of writing them one by one, each waking the subscriber's
 receiving thread (measured at N = 50 while every UAV still subscribed to its
 teammates' commitments, last result -> last commit 115-186 ms express, 71-103 ms
-batched; a batch waits at most Zenoh's batching time limit, 1 ms by default). Telemetry goes at
-DATA_LOW and DROP: a stale sample is worth nothing when the next follows within a
-second. Everything else keeps Zenoh's defaults (DATA, DROP).
+batched; a batch waits at most Zenoh's batching time limit, 1 ms by default).
+Telemetry goes at DATA_LOW and DROP: a stale sample is worth nothing when the next
+follows within a second. Everything else keeps Zenoh's defaults (DATA, DROP).
 """
 
 from __future__ import annotations
