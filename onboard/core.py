@@ -280,7 +280,7 @@ class OnboardCore:
             # Bad input never disturbs the mission in progress.
             self.status(f"error: mission {targets.mission} refused: {problem}", now)
             return
-        self._start_round(targets, now)
+        self._start_round(targets, now, replayed=replayed)
         if replayed:
             # Learnt from a catch-up (a late join, a restart): the team may have decided
             # on it already, and this UAV adopts that. A mission heard live is as new to
@@ -314,14 +314,14 @@ class OnboardCore:
             return f"deadline {targets.deadline_s!r} s is not a positive number"
         return None
 
-    def _start_round(self, targets: MissionTargets, now: float) -> None:
+    def _start_round(self, targets: MissionTargets, now: float, *, replayed: bool = False) -> None:
         """Replace the mission in one step: nothing of the old one survives it."""
         # Cancel first: the resume submitted next must survive the new mission's start.
         resuming = self._resuming
         self.commands.cancel_all(f"mission {targets.mission} started")
         if holds_target(self.phase) or resuming:
             self._resume_course(now)
-        self.round = MissionRound(targets, self.uav_id, now)
+        self.round = MissionRound(targets, self.uav_id, now, replayed=replayed)
         self._observe(Observation.MISSION_STARTED)
         self._request = None
         self._target = None
@@ -546,12 +546,7 @@ class OnboardCore:
                 missing = mission_round.missing(self.alive) - {self.uav_id}
                 self.outputs.fetch_results(mission_round.mission, tuple(sorted(missing)))
             if mission_round.ready(now, self.alive):
-                if mission_round.missing(self.alive) and mission_round.asked_at is None:
-                    # Deciding without some results: ask the team first (ASK_GRACE_S).
-                    mission_round.asked_at = now
-                    self.outputs.fetch_assignments(mission_round.mission)
-                elif not mission_round.asking(now):
-                    self._decide(mission_round, now)
+                self._decide_or_ask(mission_round, now)
         if self.status_rate_hz > 0 and now - self._last_state_at >= 1 / self.status_rate_hz:
             self.publish_state(now)
 
@@ -559,6 +554,18 @@ class OnboardCore:
         """The UAV's state on its state key: the periodic report, kept out of the status box."""
         self._last_state_at = now
         self.outputs.publish(keys.state(self.uav_id), self.state(now))
+
+    def _decide_or_ask(self, mission_round: MissionRound, now: float) -> None:
+        """Decide, unless the decision might not be the team's: then ask the team what
+        it decided first, and decide ASK_GRACE_S later if no answer was adopted (or at
+        once, if what made it uncertain is gone: a missing result arrived)."""
+        if not mission_round.must_ask(self.alive):
+            self._decide(mission_round, now)
+        elif mission_round.asked_at is None:
+            mission_round.asked_at = now
+            self.outputs.fetch_assignments(mission_round.mission)
+        elif not mission_round.asking(now):
+            self._decide(mission_round, now)
 
     def _decide(self, mission_round: MissionRound, now: float) -> None:
         missing = mission_round.missing(self.alive)

@@ -12,6 +12,9 @@ The thesis assumed lossless links and every UAV in range. Here:
   the live teammates this UAV holds (else this UAV commits its own and the digests
   disagree, visibly). "First committed wins" makes late joiners and restarted UAVs
   (which hold no result yet) fall in line;
+* teammates' commitments are not heard live (only their re-plans are): a UAV asks for
+  them by query when its own decision might not be the team's (`must_ask`), and waits
+  `ASK_GRACE_S` for the answers before it decides;
 * every commitment carries the digest of the exact results it used, so the ground can
   confirm agreement or name who disagreed;
 * after the commitment, team UAVs that drop out are *released* and their targets
@@ -41,8 +44,8 @@ FETCH_INTERVAL = 1.0
 #: A teammate's assignment that arrives this soon (s) after this UAV started the round
 #: was committed before it joined: adopted even without this UAV's result in it.
 JOIN_GRACE_S = 1.0
-#: At its deadline with results missing, a UAV asks the team what it decided and waits
-#: this long (s) for the answers before it decides without those results.
+#: A UAV whose decision might not be the team's (`MissionRound.must_ask`) asks the team
+#: what it decided and waits this long (s) for the answers before it decides.
 ASK_GRACE_S = 0.5
 
 
@@ -125,13 +128,14 @@ class MissionRound:
     targets: MissionTargets
     own_id: int
     started: float
+    #: Learnt from a catch-up (a late join, a restart), not heard live: the team may
+    #: have decided already, with this UAV's result from before a restart.
+    replayed: bool = False
     results: dict[int, UavResult] = field(default_factory=dict)
     #: The assignment this UAV follows now: epoch 0, or the latest re-plan.
     committed: AssignmentReport | None = None
     last_fetch: float | None = None
-    #: When this UAV, at its deadline with results missing, asked its teammates what
-    #: they decided (their commitments are not heard live, only their re-plans); None
-    #: before.
+    #: When this UAV asked its teammates what they decided (`must_ask`); None before.
     asked_at: float | None = None
     #: The epoch-0 assignment every re-plan starts from; None when this UAV adopted a
     #: re-plan without knowing epoch 0, or epoch 0 without the own result it was
@@ -204,9 +208,23 @@ class MissionRound:
             return False
         return not self.missing(alive) or now >= self.deadline
 
+    def excluded(self, alive: set[int]) -> frozenset[int]:
+        """Team UAVs whose results a decision now would leave out (missing, or gone)."""
+        used = {uav for uav in self.results if uav in alive or uav == self.own_id}
+        return self.team - used
+
+    def must_ask(self, alive: set[int]) -> bool:
+        """Whether this UAV's own decision now might not be its teammates': it would
+        leave a team UAV's result out (a teammate may hold it and have committed with
+        it), or the round was learnt by catch-up (the team may have committed with this
+        UAV's result from before a restart). Teammates' commitments are not heard live,
+        so such a UAV asks for them before it decides, and adopts one that is not
+        thinner than what it holds. A UAV that holds every team UAV's result, heard
+        live, decides what its teammates decide from the same results."""
+        return self.replayed or bool(self.excluded(alive))
+
     def asking(self, now: float) -> bool:
-        """Still waiting for the teammates' answers (`asked_at`): a teammate that
-        committed with the results this UAV lacks is adopted, not contradicted."""
+        """Still waiting for the answers to the question `must_ask` called for."""
         return self.asked_at is not None and now - self.asked_at < ASK_GRACE_S
 
     def should_fetch(self, now: float, alive: set[int]) -> bool:

@@ -328,6 +328,8 @@ def test_dead_teammate_is_left_out_and_deadline_commits() -> None:
     core.tick(1.0)
     core.on_alive(75, False, 0.0)  # killed
     core.tick(1.1)
+    assert out.assignment_fetches == [6]  # 74 may have committed with 75's result
+    core.tick(1.1 + ASK_GRACE_S)
     (report,) = out.on(keys.mission_assignment(6, 112))
     assert isinstance(report, AssignmentReport) and report.team == (74, 112)
 
@@ -366,6 +368,58 @@ def test_at_the_deadline_a_teammates_commitment_with_the_missing_result_is_adopt
     assert (report.digest, report.target) == ("with-75", 2)
     core.tick(3.1 + ASK_GRACE_S)
     assert len(out.on(keys.mission_assignment(7, 112))) == 1
+
+
+def test_a_teammate_gone_before_its_result_reached_this_uav_makes_it_ask_first() -> None:
+    # 112's result reached 74 but not 200, then 112 went away: 74 committed with it,
+    # and 200, with nothing missing among the live, adopts that instead of deciding alone.
+    core, out = make_core(200, (50.0, 15.0, 20.0))
+    for uav in (74, 112):
+        core.on_alive(uav, True, 0.0)
+    team = (74, 112, 200)
+    core.on_targets(MissionTargets(mission=4, team=team, targets=TARGETS), 0.0)
+    core.on_result(UavResult(4, 74, (10.0, 50.0, 50.0)), 0.1)
+    core.tick(0.2)
+    core.on_alive(112, False, 0.3)
+    core.tick(0.4)
+    assert out.assignment_fetches == [4]
+    assert out.on(keys.mission_assignment(4, 200)) == []
+    pairs = {"74": 0, "112": 1, "200": 2}
+    core.on_assignment(AssignmentReport(4, 74, 0, pairs, (), team, "with-112"), 0.5)
+    (report,) = out.on(keys.mission_assignment(4, 200))
+    assert isinstance(report, AssignmentReport) and report.digest == "with-112"
+
+
+def test_a_restarted_uav_asks_again_before_deciding_on_its_new_times() -> None:
+    # The team committed with 74's result from before its restart, after the query
+    # 74 sent when the mission reached it by catch-up: 74 asks again before deciding.
+    core, out = make_core(74, (5.0, 50.0, 50.0))
+    core.on_alive(112, True, 0.0)
+    team = (74, 112)
+    mission = MissionTargets(mission=9, team=team, targets=TARGETS)
+    core.on_targets(mission, 0.0, replayed=True)
+    assert out.assignment_fetches == [9]
+    core.tick(0.1)  # its new result
+    core.on_result(UavResult(9, 112, (50.0, 50.0, 20.0)), 0.2)
+    core.tick(0.3)
+    assert out.assignment_fetches == [9, 9]
+    assert out.on(keys.mission_assignment(9, 74)) == []
+    old = AssignmentReport(9, 112, 2, {"74": 1, "112": 2}, (0,), team, "old-times")
+    core.on_assignment(old, 0.4)
+    (report,) = out.on(keys.mission_assignment(9, 74))
+    assert isinstance(report, AssignmentReport) and report.digest == "old-times"
+
+
+def test_a_missing_result_arriving_while_asking_is_decided_on_at_once() -> None:
+    core, out = make_core(112, (80.0, 40.0, 60.0))
+    core.on_alive(74, True, 0.0)
+    core.on_targets(MissionTargets(mission=7, team=(74, 112), targets=TARGETS, deadline_s=3.0), 0.0)
+    core.tick(3.1)
+    assert out.assignment_fetches == [7]
+    core.on_result(UavResult(7, 74, (50.0, 30.0, 70.0)), 3.2)
+    core.tick(3.2)  # every result held, heard live: nothing to wait for
+    (report,) = out.on(keys.mission_assignment(7, 112))
+    assert isinstance(report, AssignmentReport) and report.team == (74, 112)
 
 
 def test_late_joiner_adopts_the_committed_assignment() -> None:
