@@ -563,6 +563,12 @@ class OnboardCore:
             self._decide(mission_round, now)
         elif mission_round.asked_at is None:
             mission_round.asked_at = now
+            excluded = sorted(mission_round.excluded(self.alive))
+            log.info(
+                "mission %d: asking the team what it decided before deciding (%s)",
+                mission_round.mission,
+                f"without {', '.join(map(str, excluded))}" if excluded else "learnt by catch-up",
+            )
             self.outputs.fetch_assignments(mission_round.mission)
         elif not mission_round.asking(now):
             self._decide(mission_round, now)
