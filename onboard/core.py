@@ -141,6 +141,7 @@ class OnboardCore:
     _committed_at: float = 0.0
     _caught_up_at: float = -math.inf
     _ticked_at: float | None = None
+    _resumed_at: float = -math.inf  #: when a suspension of this module was last noticed
     _catch_ups_due: list[float] = field(default_factory=list)
     _gone_since: dict[int, float] = field(default_factory=dict)  #: liveliness lost, when
     _target_tracked: bool = False  #: the autopilot echoed the track to the target waypoint
@@ -263,6 +264,9 @@ class OnboardCore:
 
     def on_targets(self, targets: MissionTargets, now: float, *, replayed: bool = False) -> None:
         """A mission's targets, heard live or (`replayed`) in reply to a catch-up."""
+        # Heard just after this module was suspended, a mission may have been sent
+        # while it was: its teammates may have decided on it already.
+        late = replayed or self._resumed(now)
         if self.uav_id not in targets.team:
             return
         current = self.round.mission if self.round else None
@@ -280,13 +284,12 @@ class OnboardCore:
             # Bad input never disturbs the mission in progress.
             self.status(f"error: mission {targets.mission} refused: {problem}", now)
             return
-        self._start_round(targets, now, replayed=replayed)
-        if replayed:
-            # Learnt from a catch-up (a late join, a restart): the team may have decided
-            # on it already, and this UAV adopts that. A mission heard live is as new to
-            # the team as to this UAV: asking would cost every teammate three queries
-            # while they all plan (a UAV that heard it late, after a freeze, asks in
-            # its catch-ups; see `catch_up`).
+        self._start_round(targets, now, late=late)
+        if late:
+            # Learnt from a catch-up (a late join, a restart) or after a freeze: the
+            # team may have decided on it already, and this UAV adopts that. A mission
+            # heard live is as new to the team as to this UAV: asking would cost every
+            # teammate three queries while they all plan.
             self.outputs.fetch_assignments(targets.mission)
         if self.telemetry is None or self.telemetry.gps is None:
             self._decline(f"mission {targets.mission}: no GPS telemetry yet", now)
@@ -314,14 +317,14 @@ class OnboardCore:
             return f"deadline {targets.deadline_s!r} s is not a positive number"
         return None
 
-    def _start_round(self, targets: MissionTargets, now: float, *, replayed: bool = False) -> None:
+    def _start_round(self, targets: MissionTargets, now: float, *, late: bool = False) -> None:
         """Replace the mission in one step: nothing of the old one survives it."""
         # Cancel first: the resume submitted next must survive the new mission's start.
         resuming = self._resuming
         self.commands.cancel_all(f"mission {targets.mission} started")
         if holds_target(self.phase) or resuming:
             self._resume_course(now)
-        self.round = MissionRound(targets, self.uav_id, now, replayed=replayed)
+        self.round = MissionRound(targets, self.uav_id, now, late=late)
         self._observe(Observation.MISSION_STARTED)
         self._request = None
         self._target = None
@@ -519,8 +522,17 @@ class OnboardCore:
             self.outputs.fetch_assignments(self.round.mission)
 
     # ---- time ----------------------------------------------------------------------
+    def _resumed(self, now: float) -> bool:
+        """Whether this module was suspended just before `now`: its main loop has not
+        ticked for SUSPENDED_S (an event may be handled before the first tick after
+        it), or the tick noticed it within the last catch-ups' span."""
+        if self._ticked_at is not None and now - self._ticked_at > SUSPENDED_S:
+            return True
+        return now - self._resumed_at <= CATCH_UP_AFTER_SUSPENSION_S[-1]
+
     def tick(self, now: float) -> None:
         if self._ticked_at is not None and now - self._ticked_at > SUSPENDED_S:
+            self._resumed_at = now
             # Frozen shorter than Zenoh's lease, no teammate seemed to come back, and
             # what was published meanwhile may be lost: ask for it.
             log.info("no tick for %.1f s: catching up", now - self._ticked_at)
@@ -567,7 +579,7 @@ class OnboardCore:
             log.info(
                 "mission %d: asking the team what it decided before deciding (%s)",
                 mission_round.mission,
-                f"without {', '.join(map(str, excluded))}" if excluded else "learnt by catch-up",
+                f"without {', '.join(map(str, excluded))}" if excluded else "the mission came late",
             )
             self.outputs.fetch_assignments(mission_round.mission)
         elif not mission_round.asking(now):

@@ -128,9 +128,10 @@ class MissionRound:
     targets: MissionTargets
     own_id: int
     started: float
-    #: Learnt from a catch-up (a late join, a restart), not heard live: the team may
-    #: have decided already, with this UAV's result from before a restart.
-    replayed: bool = False
+    #: Learnt from a catch-up (a late join, a restart) or just after this UAV was
+    #: suspended, not as it was sent: the team may have decided already, maybe with
+    #: this UAV's result from before a restart.
+    late: bool = False
     results: dict[int, UavResult] = field(default_factory=dict)
     #: The assignment this UAV follows now: epoch 0, or the latest re-plan.
     committed: AssignmentReport | None = None
@@ -216,12 +217,13 @@ class MissionRound:
     def must_ask(self, alive: set[int]) -> bool:
         """Whether this UAV's own decision now might not be its teammates': it would
         leave a team UAV's result out (a teammate may hold it and have committed with
-        it), or the round was learnt by catch-up (the team may have committed with this
-        UAV's result from before a restart). Teammates' commitments are not heard live,
-        so such a UAV asks for them before it decides, and adopts one that is not
-        thinner than what it holds. A UAV that holds every team UAV's result, heard
-        live, decides what its teammates decide from the same results."""
-        return self.replayed or bool(self.excluded(alive))
+        it), or the round was learnt late (by catch-up, or after a freeze: the team may
+        have committed without this UAV, or with its result from before a restart).
+        Teammates' commitments are not heard live, so such a UAV asks for them before
+        it decides, and adopts one that is not thinner than what it holds. A UAV that
+        holds every team UAV's result, heard live, decides what its teammates decide
+        from the same results."""
+        return self.late or bool(self.excluded(alive))
 
     def asking(self, now: float) -> bool:
         """Still waiting for the answers to the question `must_ask` called for."""
@@ -263,8 +265,10 @@ class MissionRound:
 
         Its own result counts while it is still being computed, once the round is older
         than JOIN_GRACE_S: a report that arrives within that grace was committed before
-        this UAV even started (a late joiner, a restart, a UAV back from a freeze, all of
-        which fetch the assignments at once), and is adopted.
+        this UAV even started, and is adopted. In a round learnt late (a late joiner, a
+        restart, a UAV back from a freeze) its own result never counts: the team may
+        have decided without it while it was away, and an answer that comes after
+        JOIN_GRACE_S (a loaded machine) is still adopted.
         """
         # A result with no time at all (a UAV that declined) changes no pair.
         held = {
@@ -272,7 +276,9 @@ class MissionRound:
             for uav, result in self.results.items()
             if (uav in alive or uav == self.own_id) and any(t is not None for t in result.times)
         }
-        if self.own_id not in self.results and now - self.started > JOIN_GRACE_S:
+        if self.late:
+            held.discard(self.own_id)
+        elif self.own_id not in self.results and now - self.started > JOIN_GRACE_S:
             held.add(self.own_id)
         return held - set(report.team)
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import msgspec
 import pytest
 
-from fleet.consensus.mission_round import ASK_GRACE_S
+from fleet.consensus.mission_round import ASK_GRACE_S, JOIN_GRACE_S
 from fleet.mission import keys
 from fleet.mission.messages import (
     AssignmentReport,
@@ -420,6 +420,51 @@ def test_a_missing_result_arriving_while_asking_is_decided_on_at_once() -> None:
     core.tick(3.2)  # every result held, heard live: nothing to wait for
     (report,) = out.on(keys.mission_assignment(7, 112))
     assert isinstance(report, AssignmentReport) and report.team == (74, 112)
+
+
+@pytest.mark.parametrize("tick_first", [False, True])
+def test_a_mission_heard_live_just_after_a_freeze_asks_the_team_at_once(
+    tick_first: bool,
+) -> None:
+    # Frozen while the mission was sent: it arrives live but late, before or after the
+    # first tick that notices the freeze, and the team committed meanwhile.
+    core, out = make_core(74)
+    core.on_alive(112, True, 0.0)
+    core.tick(0.0)
+    if tick_first:
+        core.tick(20.0)
+    mission = MissionTargets(mission=8, team=(74, 112), targets=TARGETS)
+    core.on_targets(mission, 20.1)
+    assert 8 in out.assignment_fetches
+    committed = AssignmentReport(8, 112, 1, {"74": 0, "112": 1}, (2,), (74, 112), "abc")
+    core.on_result(UavResult(8, 112, (50.0, 10.0, 50.0)), 20.15)
+    core.on_assignment(committed, 20.2)  # the answer
+    (report,) = out.on(keys.mission_assignment(8, 74))
+    assert isinstance(report, AssignmentReport) and report.digest == "abc"
+
+
+def test_a_uav_back_from_a_freeze_adopts_the_team_decision_made_without_it() -> None:
+    # The answer comes late (a loaded machine): this UAV holds every result by then,
+    # its own too, and still falls in line with what the team decided while it was away.
+    core, out = make_core(74, (5.0, 50.0, 50.0))
+    core.on_alive(112, True, 0.0)
+    core.tick(0.0)
+    core.on_targets(MissionTargets(mission=8, team=(74, 112), targets=TARGETS), 20.0)
+    core.on_result(UavResult(8, 112, (50.0, 10.0, 50.0)), 20.1)
+    core.tick(20.2)  # its own result; it asks before deciding
+    without = AssignmentReport(8, 112, 0, {"112": 0}, (1, 2), (112,), "without-74")
+    core.on_assignment(without, 20.2 + JOIN_GRACE_S + 0.1)
+    (report,) = out.on(keys.mission_assignment(8, 74))
+    assert isinstance(report, AssignmentReport) and report.digest == "without-74"
+    assert report.target is None
+
+
+def test_a_mission_heard_live_in_the_normal_course_asks_nobody() -> None:
+    core, out = make_core(74)
+    for t in (0.0, 0.25, 0.5):
+        core.tick(t)
+    core.on_targets(MissionTargets(mission=8, team=(74, 112), targets=TARGETS), 0.6)
+    assert out.assignment_fetches == []
 
 
 def test_late_joiner_adopts_the_committed_assignment() -> None:
