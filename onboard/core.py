@@ -264,9 +264,6 @@ class OnboardCore:
 
     def on_targets(self, targets: MissionTargets, now: float, *, replayed: bool = False) -> None:
         """A mission's targets, heard live or (`replayed`) in reply to a catch-up."""
-        # Heard just after this module was suspended, a mission may have been sent
-        # while it was: its teammates may have decided on it already.
-        late = replayed or self._resumed(now)
         if self.uav_id not in targets.team:
             return
         current = self.round.mission if self.round else None
@@ -284,6 +281,9 @@ class OnboardCore:
             # Bad input never disturbs the mission in progress.
             self.status(f"error: mission {targets.mission} refused: {problem}", now)
             return
+        # Heard just after this module was suspended, a mission may have been sent
+        # while it was: its teammates may have decided on it already.
+        late = replayed or self._resumed(now)
         self._start_round(targets, now, late=late)
         if late:
             # Learnt from a catch-up (a late join, a restart) or after a freeze: the
@@ -522,16 +522,19 @@ class OnboardCore:
             self.outputs.fetch_assignments(self.round.mission)
 
     # ---- time ----------------------------------------------------------------------
+    def _ticks_missed(self, now: float) -> bool:
+        """The main loop has not ticked for SUSPENDED_S: the module was suspended."""
+        return self._ticked_at is not None and now - self._ticked_at > SUSPENDED_S
+
     def _resumed(self, now: float) -> bool:
-        """Whether this module was suspended just before `now`: its main loop has not
-        ticked for SUSPENDED_S (an event may be handled before the first tick after
-        it), or the tick noticed it within the last catch-ups' span."""
-        if self._ticked_at is not None and now - self._ticked_at > SUSPENDED_S:
-            return True
-        return now - self._resumed_at <= CATCH_UP_AFTER_SUSPENSION_S[-1]
+        """Whether this module was suspended just before `now`: ticks missed (an event
+        may be handled before the first tick after it), or the tick noticed it within
+        the last catch-ups' span."""
+        return self._ticks_missed(now) or now - self._resumed_at <= CATCH_UP_AFTER_SUSPENSION_S[-1]
 
     def tick(self, now: float) -> None:
-        if self._ticked_at is not None and now - self._ticked_at > SUSPENDED_S:
+        if self._ticks_missed(now):
+            assert self._ticked_at is not None
             self._resumed_at = now
             # Frozen shorter than Zenoh's lease, no teammate seemed to come back, and
             # what was published meanwhile may be lost: ask for it.

@@ -144,9 +144,9 @@ class ZenohNode:
 
     def _changes_nothing(self, sample: BusSample) -> bool:
         """An assignment report the module's `Settled` snapshot covers, judged on its
-        header (at N UAVs, N-1 per mission after this UAV committed). A header that does
-        not decode or that its key does not vouch for goes the full way, where it is
-        refused and counted."""
+        header (at each re-plan epoch, the N-2 teammates' re-plans of the epoch this UAV
+        re-planned too; and catch-up replies). A header that does not decode or that its
+        key does not vouch for goes the full way, where it is refused and counted."""
         settled = self.settled() if self.settled is not None else None
         if settled is None:
             return False
