@@ -26,19 +26,20 @@ Format (docs/simulator.md has the full description)::
     airspeed = 22.0                        # m/s
     plan = [[35.72, -120.75, 600.0], ...]  # optional: waypoints 0, 1, ... closed back to 0
 
-Loading is strict: an unknown key is refused (a misspelt `heading` would otherwise
-silently mean north), and every error names the file and the field.
+Loading is strict (`msgspec.toml` against the file's schema below): an unknown key, a
+wrong type or a number out of range is refused, and every error names the file and the
+field.
 """
 
 from __future__ import annotations
 
-import math
-import tomllib
-from collections.abc import Mapping
+import re
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Annotated
+
+import msgspec
 
 from fleet.errors import FleetError
 from fleet.geo.aircraft import AircraftLimits
@@ -63,20 +64,52 @@ __all__ = [
 
 # Mercator degenerates toward the poles; the WAYPOINT packet holds whole metres in an
 # i16, and telemetry height is u24 centimetres above -1000 m.
-_MAX_ABS_LAT = 85.0
-_ALT_RANGE = (-500.0, 10_000.0)
+_Lat = Annotated[float, msgspec.Meta(ge=-85.0, le=85.0)]
+_Lon = Annotated[float, msgspec.Meta(ge=-180.0, le=180.0)]
+_Alt = Annotated[float, msgspec.Meta(ge=-500.0, le=10_000.0)]
+_WindSpeed = Annotated[float, msgspec.Meta(ge=-100.0, le=100.0)]
+_Limit = Annotated[float, msgspec.Meta(ge=0.0, le=1000.0)]
 
-_TOP_KEYS = frozenset({"description", "targets", "wind", "aircraft", "uav"})
-_WIND_KEYS = frozenset({"north", "east"})
-_AIRCRAFT_KEYS = {
-    "min_airspeed": "min_airspeed",
-    "max_airspeed": "max_airspeed",
-    "bank_limit": "bank_limit_deg",
-    "roll_rate": "roll_rate_deg",
-    "climb_rate": "climb_rate",
-    "airspeed_rate": "airspeed_rate",
-}
-_UAV_KEYS = frozenset({"id", "lat", "lon", "alt", "heading", "airspeed", "plan"})
+
+# The file's schema: msgspec refuses unknown keys (a misspelt `heading` would otherwise
+# silently mean north), wrong types (`heading = true` is a mistake, not 1 degree), NaN
+# and out-of-range numbers, and names the field in its error.
+class _WindTable(msgspec.Struct, forbid_unknown_fields=True):
+    north: _WindSpeed = 0.0
+    east: _WindSpeed = 0.0
+
+
+class _AircraftTable(msgspec.Struct, forbid_unknown_fields=True):
+    # None: the envelope's default (fleet.geo.aircraft.AircraftLimits).
+    min_airspeed: _Limit | None = None
+    max_airspeed: _Limit | None = None
+    bank_limit_deg: _Limit | None = msgspec.field(default=None, name="bank_limit")
+    roll_rate_deg: _Limit | None = msgspec.field(default=None, name="roll_rate")
+    climb_rate: _Limit | None = None
+    airspeed_rate: _Limit | None = None
+
+
+class _UavTable(msgspec.Struct, forbid_unknown_fields=True):
+    id: Annotated[int, msgspec.Meta(ge=MIN_PICCOLO_ID, le=MAX_PICCOLO_ID)]
+    lat: _Lat
+    lon: _Lon
+    alt: _Alt
+    heading: Annotated[float, msgspec.Meta(ge=0.0, lt=360.0)]
+    airspeed: float
+    plan: (
+        Annotated[
+            list[tuple[_Lat, _Lon, _Alt]], msgspec.Meta(min_length=1, max_length=MAX_INDEX + 1)
+        ]
+        | None
+    ) = None
+
+
+class _ScenarioFile(msgspec.Struct, forbid_unknown_fields=True):
+    uav: Annotated[list[_UavTable], msgspec.Meta(min_length=1)]
+    description: str = ""
+    targets: Annotated[str, msgspec.Meta(min_length=1)] | None = None
+    wind: _WindTable | None = None
+    aircraft: _AircraftTable | None = None
 
 
 class ScenarioError(FleetError, ValueError):
@@ -112,60 +145,38 @@ class Scenario:
             raise ScenarioError(f"{self.source}: targets: {error}") from error
 
 
-def _number(value: Any, where: str, low: float, high: float, *, high_open: bool = False) -> float:
-    # bool is an int in Python; `heading = true` is a mistake, not 1 degree.
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ScenarioError(f"{where}: expected a number, got {value!r}")
-    number = float(value)
-    above = number >= high if high_open else number > high
-    if not math.isfinite(number) or number < low or above:
-        bracket = ")" if high_open else "]"
-        raise ScenarioError(
-            f"{where}: expected a number in [{low:g}, {high:g}{bracket}, got {value!r}"
-        )
-    return number
+_AT = re.compile(r"^(?P<what>.*) - at `\$\.?(?P<where>[^`]*)`$")
 
 
-def _table(value: Any, where: str) -> Mapping[str, Any]:
-    if not isinstance(value, dict):
-        raise ScenarioError(f"{where}: expected a table, got {value!r}")
-    return value
+def _schema_error(error: msgspec.ValidationError, source: str) -> ScenarioError:
+    """msgspec's "Expected ... - at `$.uav[0].lat`" as "FILE: uav[0].lat: expected ..."."""
+    text = str(error)
+    match = _AT.match(text)
+    if match is None:
+        return ScenarioError(f"{source}: {text}")
+    what = match["what"]
+    where = match["where"] or "top level"
+    return ScenarioError(f"{source}: {where}: {what[:1].lower()}{what[1:]}")
 
 
-def _check_keys(
-    table: Mapping[str, Any], allowed: frozenset[str] | Mapping[str, str], where: str
-) -> None:
-    unknown = sorted(set(table) - set(allowed))
-    if unknown:
-        raise ScenarioError(
-            f"{where}: unknown key {unknown[0]!r} (expected one of {', '.join(sorted(allowed))})"
-        )
-
-
-def _limits(data: Mapping[str, Any], source: str) -> AircraftLimits:
-    if "aircraft" not in data:
+def _limits(table: _AircraftTable | None, source: str) -> AircraftLimits:
+    if table is None:
         return AircraftLimits()
-    table = _table(data["aircraft"], f"{source}: aircraft")
-    _check_keys(table, _AIRCRAFT_KEYS, f"{source}: aircraft")
-    values = {
-        _AIRCRAFT_KEYS[key]: _number(value, f"{source}: aircraft.{key}", 0.0, 1000.0)
-        for key, value in table.items()
-    }
     try:
-        return AircraftLimits(**values)
+        given = {
+            name: value
+            for name, value in msgspec.structs.asdict(table).items()
+            if value is not None
+        }
+        return AircraftLimits(**given)
     except ValueError as error:
         raise ScenarioError(f"{source}: aircraft: {error}") from error
 
 
-def _wind(data: Mapping[str, Any], source: str, limits: AircraftLimits) -> Wind:
-    if "wind" not in data:
+def _wind(table: _WindTable | None, source: str, limits: AircraftLimits) -> Wind:
+    if table is None:
         return Wind()
-    table = _table(data["wind"], f"{source}: wind")
-    _check_keys(table, _WIND_KEYS, f"{source}: wind")
-    wind = Wind(
-        north=_number(table.get("north", 0.0), f"{source}: wind.north", -100.0, 100.0),
-        east=_number(table.get("east", 0.0), f"{source}: wind.east", -100.0, 100.0),
-    )
+    wind = Wind(north=table.north, east=table.east)
     # An aircraft slower than the wind cannot make way against it; no plan is flyable.
     if wind.speed >= limits.min_airspeed:
         raise ScenarioError(
@@ -175,82 +186,35 @@ def _wind(data: Mapping[str, Any], source: str, limits: AircraftLimits) -> Wind:
     return wind
 
 
-def _plan(value: Any, where: str) -> tuple[tuple[float, float, float], ...]:
-    if not isinstance(value, list) or not value:
-        raise ScenarioError(f"{where}: expected a non-empty list of [lat, lon, alt]")
-    if len(value) > MAX_INDEX + 1:
-        raise ScenarioError(f"{where}: {len(value)} waypoints; at most {MAX_INDEX + 1} fit (0-99)")
-    points = []
-    for i, point in enumerate(value):
-        here = f"{where}[{i}]"
-        if not isinstance(point, list) or len(point) != 3:
-            raise ScenarioError(f"{here}: expected [lat, lon, alt], got {point!r}")
-        points.append(
-            (
-                _number(point[0], f"{here}.lat", -_MAX_ABS_LAT, _MAX_ABS_LAT),
-                _number(point[1], f"{here}.lon", -180.0, 180.0),
-                _number(point[2], f"{here}.alt", *_ALT_RANGE),
-            )
-        )
-    return tuple(points)
-
-
-def _uav(value: Any, where: str, limits: AircraftLimits) -> UavSpec:
-    table = _table(value, where)
-    _check_keys(table, _UAV_KEYS, where)
-    for key in ("id", "lat", "lon", "alt", "heading", "airspeed"):
-        if key not in table:
-            raise ScenarioError(f"{where}: missing required key {key!r}")
-    piccolo_id = table["id"]
-    if (
-        isinstance(piccolo_id, bool)
-        or not isinstance(piccolo_id, int)
-        or not MIN_PICCOLO_ID <= piccolo_id <= MAX_PICCOLO_ID
-    ):
+def _uav(table: _UavTable, where: str, limits: AircraftLimits) -> UavSpec:
+    # The airspeed's range is the scenario's own envelope, known only once it is read.
+    if not limits.min_airspeed <= table.airspeed <= limits.max_airspeed:
         raise ScenarioError(
-            f"{where}.id: expected a Piccolo ID, an integer in "
-            f"[{MIN_PICCOLO_ID}, {MAX_PICCOLO_ID}], got {piccolo_id!r}"
+            f"{where}.airspeed: expected a number in [{limits.min_airspeed:g}, "
+            f"{limits.max_airspeed:g}], got {table.airspeed!r}"
         )
     return UavSpec(
-        piccolo_id=piccolo_id,
-        lat=_number(table["lat"], f"{where}.lat", -_MAX_ABS_LAT, _MAX_ABS_LAT),
-        lon=_number(table["lon"], f"{where}.lon", -180.0, 180.0),
-        alt=_number(table["alt"], f"{where}.alt", *_ALT_RANGE),
-        heading=_number(table["heading"], f"{where}.heading", 0.0, 360.0, high_open=True),
-        airspeed=_number(
-            table["airspeed"], f"{where}.airspeed", limits.min_airspeed, limits.max_airspeed
-        ),
-        plan=_plan(table["plan"], f"{where}.plan") if "plan" in table else None,
+        piccolo_id=table.id,
+        lat=table.lat,
+        lon=table.lon,
+        alt=table.alt,
+        heading=table.heading,
+        airspeed=table.airspeed,
+        plan=tuple(table.plan) if table.plan is not None else None,
     )
 
 
-def parse_scenario(
-    data: Mapping[str, Any], source: str, base_dir: Path | None = None, name: str = ""
-) -> Scenario:
-    """Validate parsed TOML. `source` names the file in errors; `base_dir` resolves
-    the targets file (the current directory if None)."""
-    _check_keys(data, _TOP_KEYS, source)
-    description = data.get("description", "")
-    if not isinstance(description, str):
-        raise ScenarioError(f"{source}: description: expected a string, got {description!r}")
-    limits = _limits(data, source)
-    wind = _wind(data, source, limits)
-
+def _checked(data: _ScenarioFile, source: str, base_dir: Path | None, name: str) -> Scenario:
+    limits = _limits(data.aircraft, source)
+    wind = _wind(data.wind, source, limits)
     targets_path = None
-    if "targets" in data:
-        targets = data["targets"]
-        if not isinstance(targets, str) or not targets:
-            raise ScenarioError(f"{source}: targets: expected a file name, got {targets!r}")
-        targets_path = (base_dir or Path.cwd()) / targets
+    if data.targets is not None:
+        targets_path = (base_dir or Path.cwd()) / data.targets
         if not targets_path.is_file():
             raise ScenarioError(f"{source}: targets: no such file {str(targets_path)!r}")
-
-    uav_list = data.get("uav")
-    if not isinstance(uav_list, list) or not uav_list:
-        raise ScenarioError(f"{source}: uav: expected at least one [[uav]] table")
     uavs: list[UavSpec] = []
-    for i, value in enumerate(uav_list):
-        uav = _uav(value, f"{source}: uav[{i}]", limits)
+    for i, table in enumerate(data.uav):
+        uav = _uav(table, f"{source}: uav[{i}]", limits)
         if any(other.piccolo_id == uav.piccolo_id for other in uavs):
             raise ScenarioError(f"{source}: uav[{i}].id: Piccolo ID {uav.piccolo_id} repeated")
         uavs.append(uav)
@@ -260,9 +224,23 @@ def parse_scenario(
         uavs=tuple(uavs),
         wind=wind,
         limits=limits,
-        description=description,
+        description=data.description,
         targets_path=targets_path,
     )
+
+
+def parse_scenario(
+    text: bytes | str, source: str, base_dir: Path | None = None, name: str = ""
+) -> Scenario:
+    """Validate a scenario's TOML text. `source` names the file in errors; `base_dir`
+    resolves the targets file (the current directory if None)."""
+    try:
+        data = msgspec.toml.decode(text, type=_ScenarioFile)
+    except msgspec.ValidationError as error:
+        raise _schema_error(error, source) from error
+    except msgspec.DecodeError as error:
+        raise ScenarioError(f"{source}: not valid TOML: {error}") from error
+    return _checked(data, source, base_dir, name)
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -270,13 +248,10 @@ def load_scenario(path: str | Path) -> Scenario:
     path = Path(path)
     source = str(path)
     try:
-        with path.open("rb") as file:
-            data = tomllib.load(file)
+        text = path.read_bytes()
     except OSError as error:
         raise ScenarioError(f"{source}: cannot read: {error.strerror or error}") from error
-    except tomllib.TOMLDecodeError as error:
-        raise ScenarioError(f"{source}: not valid TOML: {error}") from error
-    return parse_scenario(data, source, path.parent, path.stem)
+    return parse_scenario(text, source, path.parent, path.stem)
 
 
 def _shipped_dir() -> Path:

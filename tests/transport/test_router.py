@@ -166,11 +166,9 @@ def test_client_endpoint_of_a_wildcard_listen() -> None:
 
 
 def test_ring_scenario_is_a_valid_scenario() -> None:
-    import tomllib
-
     from fleet.sim.scenario import parse_scenario
 
-    scenario = parse_scenario(tomllib.loads(ring_scenario(5)), "ring")
+    scenario = parse_scenario(ring_scenario(5), "ring")
     assert [u.piccolo_id for u in scenario.uavs] == [101, 102, 103, 104, 105]
     assert len({u.alt for u in scenario.uavs}) == 5
 
