@@ -3,10 +3,9 @@ on loopback, with other Zenoh sessions standing in for another ground and the UA
 
 from __future__ import annotations
 
-import zenoh
-
 from fleet.mission import keys
 from fleet.transport import bus_codec
+from fleet.transport.zenoh_bus import ZenohBus
 from ground.mission_follower import MissionFollower
 from ground.mission_ids import TargetsServer
 from tests.ground.mission_samples import (
@@ -17,11 +16,11 @@ from tests.processes import wait_until
 
 
 def test_a_later_mission_for_the_team_supersedes_the_followed_one(
-    session: zenoh.Session, rival: zenoh.Session
+    session: ZenohBus, rival: ZenohBus
 ) -> None:
     with MissionFollower(session, 40, team=(7, 8)) as follower:
         # Another team's later mission is no concern of this one.
-        rival.put(
+        rival.session.put(
             keys.mission_targets(41),
             bus_codec.encode(mission(41, team=(9,))),
             encoding=bus_codec.ENCODING,
@@ -30,7 +29,7 @@ def test_a_later_mission_for_the_team_supersedes_the_followed_one(
         def put_later_mission() -> bool:
             # Put again until heard: the follower's subscription reaches the router
             # asynchronously, and a put before it arrives is not delivered.
-            rival.put(
+            rival.session.put(
                 keys.mission_targets(43),
                 bus_codec.encode(mission(43, team=(8, 9))),
                 encoding=bus_codec.ENCODING,
@@ -44,7 +43,7 @@ def test_a_later_mission_for_the_team_supersedes_the_followed_one(
 
 
 def test_a_later_mission_the_uavs_serve_is_found_by_the_fetch(
-    session: zenoh.Session, rival: zenoh.Session
+    session: ZenohBus, rival: ZenohBus
 ) -> None:
     with MissionFollower(session, 50, team=(7,)) as follower:
         with TargetsServer(rival, mission(52, team=(7,))):

@@ -11,6 +11,7 @@ import zenoh
 
 from fleet.mission import keys
 from fleet.transport import bus_codec
+from fleet.transport.zenoh_bus import ZenohBus
 from fleet.transport.zenoh_config import make_config
 from ground.mission_control import MissionError
 from ground.mission_ids import TargetsServer, claim_mission, rival_claims
@@ -24,7 +25,7 @@ from tests.ground.mission_samples import (
 
 
 def test_a_fresh_key_space_is_claimed_at_once_and_served_while_open(
-    session: zenoh.Session, rival: zenoh.Session
+    session: ZenohBus, rival: ZenohBus
 ) -> None:
     with claim_mission(session, lambda m: mission(m), TIMEOUT_S, mission=901) as server:
         assert server.targets == mission(901)
@@ -36,7 +37,7 @@ def test_a_fresh_key_space_is_claimed_at_once_and_served_while_open(
 
 
 def test_a_given_mission_id_another_ground_serves_is_refused(
-    session: zenoh.Session, rival: zenoh.Session
+    session: ZenohBus, rival: ZenohBus
 ) -> None:
     with (
         TargetsServer(rival, mission(902, OTHER_TARGETS)),
@@ -73,9 +74,9 @@ class Squatter:
 
 
 def test_a_collision_moves_on_to_a_higher_id_and_says_so(
-    session: zenoh.Session, rival: zenoh.Session, caplog: pytest.LogCaptureFixture
+    session: ZenohBus, rival: ZenohBus, caplog: pytest.LogCaptureFixture
 ) -> None:
-    squatter = Squatter(rival, limit=1)
+    squatter = Squatter(rival.session, limit=1)
     caplog.set_level(logging.WARNING, logger="ground.mission_ids")
     try:
         with claim_mission(session, lambda m: mission(m), TIMEOUT_S) as server:
@@ -89,8 +90,8 @@ def test_a_collision_moves_on_to_a_higher_id_and_says_so(
     assert f"mission {chosen}: claimed at attempt 2" in caplog.text
 
 
-def test_running_out_of_attempts_is_an_error(session: zenoh.Session, rival: zenoh.Session) -> None:
-    squatter = Squatter(rival, limit=1000)
+def test_running_out_of_attempts_is_an_error(session: ZenohBus, rival: ZenohBus) -> None:
+    squatter = Squatter(rival.session, limit=1000)
     try:
         with (
             pytest.raises(MissionError, match="no free mission id after 3 attempts"),
@@ -104,7 +105,7 @@ def test_running_out_of_attempts_is_an_error(session: zenoh.Session, rival: zeno
 
 
 def test_two_grounds_claiming_together_get_different_ids(router: str) -> None:
-    sessions = [zenoh.open(make_config("client", [router])) for _ in range(2)]
+    sessions = [ZenohBus(zenoh.open(make_config("client", [router]))) for _ in range(2)]
     try:
         for _ in range(3):
             claimed = claim_together(sessions)
@@ -114,7 +115,7 @@ def test_two_grounds_claiming_together_get_different_ids(router: str) -> None:
             opened.close()
 
 
-def claim_together(sessions: list[zenoh.Session]) -> dict[int, int]:
+def claim_together(sessions: list[ZenohBus]) -> dict[int, int]:
     """Two grounds claim at the same moment, each holding its claim until both have one."""
     start = threading.Barrier(2)
     held = threading.Barrier(3)
