@@ -15,10 +15,8 @@ from typing import TextIO
 
 from fleet.consensus.deadline import consensus_deadline
 from fleet.mission.messages import AssignmentReport, MissionTargets, TargetOutcome, UavResult
-from fleet.mission.targets_file import TargetsFileError
 from fleet.transport.bus import Bus
 from fleet.transport.cli import ExitCode
-from fleet.transport.targets_io import read_targets
 from fleet.transport.zenoh_bus import client_bus
 from ground.fleet_view import live_uav_ids, query_states
 from ground.mission_control import MissionError, publish_targets, wait_delivered
@@ -26,6 +24,7 @@ from ground.mission_follower import Listener, MissionFollower
 from ground.mission_ids import TargetsServer, claim_mission, contest_grace_s
 from ground.mission_outcome import MissionOutcome, check_agreement
 from ground.mission_summary import summary_lines
+from ground.targets_command import read_or_say
 
 #: How long `send-targets` without --wait waits for the team to acknowledge receipt.
 DELIVERY_WAIT_S = 3.0
@@ -77,14 +76,10 @@ def _progress_printer(out: TextIO, team: tuple[int, ...]) -> Listener:
 def cmd_send_targets(args: argparse.Namespace) -> int:
     # The file is read and checked before anything touches the network: a bad file
     # sends nothing.
-    try:
-        targets = tuple(read_targets(args.file))
-    except TargetsFileError as error:
-        print(f"error: {error}; nothing sent", file=sys.stderr)
+    read = read_or_say(args.file, "nothing sent")
+    if read is None:
         return ExitCode.FAILED
-    except OSError as error:
-        print(f"error: cannot read {args.file}: {error.strerror}; nothing sent", file=sys.stderr)
-        return ExitCode.FAILED
+    targets = tuple(read)
     progress = sys.stderr if args.json else sys.stdout
     with client_bus(args.zenoh) as bus:
         team = _team(bus, args)

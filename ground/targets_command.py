@@ -72,14 +72,21 @@ def cmd_targets_make(args: argparse.Namespace) -> int:
     return ExitCode.OK
 
 
-def cmd_targets_show(args: argparse.Namespace) -> int:
+def read_or_say(path: str, consequence: str = "") -> list[Target] | None:
+    """`path`'s targets; or None, once stderr says why not (and `consequence`, if any)."""
+    after = f"; {consequence}" if consequence else ""
     try:
-        targets: list[Target] = show(args.file)
+        return show(path)
     except TargetsFileError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return ExitCode.FAILED
+        print(f"error: {error}{after}", file=sys.stderr)
     except OSError as error:
-        print(f"error: cannot read {args.file}: {error.strerror}", file=sys.stderr)
+        print(f"error: cannot read {path}: {error.strerror}{after}", file=sys.stderr)
+    return None
+
+
+def cmd_targets_show(args: argparse.Namespace) -> int:
+    targets = read_or_say(args.file)
+    if targets is None:
         return ExitCode.FAILED
     if args.json:
         print(targets_json(targets))

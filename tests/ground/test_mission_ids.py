@@ -4,17 +4,28 @@ loopback, with another Zenoh session of this process standing in for another gro
 from __future__ import annotations
 
 import logging
+import random
 import threading
 
 import pytest
 import zenoh
 
 from fleet.mission import keys
+from fleet.mission.messages import MissionTargets
 from fleet.transport import bus_codec
+from fleet.transport.memory import MemoryNetwork
 from fleet.transport.zenoh_bus import ZenohBus
 from fleet.transport.zenoh_config import make_config
 from ground.mission_control import MissionError
-from ground.mission_ids import TargetsServer, claim_mission, rival_claims
+from ground.mission_ids import (
+    TargetsServer,
+    claim_mission,
+    current_mission_id,
+    missions_seen,
+    next_mission_id,
+    rival_claims,
+)
+from tests.ground.memory_fleet import MemoryUav
 from tests.ground.mission_samples import (
     OTHER_TARGETS,
     TARGETS,
@@ -135,3 +146,41 @@ def claim_together(sessions: list[ZenohBus]) -> dict[int, int]:
     for thread in threads:
         thread.join(30)
     return claimed
+
+
+# ---- on the in-memory bus -------------------------------------------------------------------
+def test_the_next_id_is_above_every_mission_served_or_reported() -> None:
+    network = MemoryNetwork()
+    ground = network.bus()
+    assert next_mission_id(ground, 0.1) == 1
+    uav = MemoryUav(network, 7)
+    uav.fly(mission(12))
+    assert missions_seen(ground, 0.1) == {12}
+    assert next_mission_id(ground, 0.1) == 13
+    assert current_mission_id(ground, 0.1) == 12
+
+
+def test_a_targets_server_answers_and_notes_a_contested_id() -> None:
+    network = MemoryNetwork()
+    ground, rival = network.bus(), network.bus()
+    with TargetsServer(ground, mission(20)) as server:
+        assert rival.query_messages(keys.mission_targets(20), MissionTargets, 0.1) == [
+            (keys.mission_targets(20), mission(20))
+        ]
+        assert not server.contested.is_set()
+        assert rival_claims(rival, mission(20, OTHER_TARGETS), 0.1) == 1
+        assert server.contested.is_set()
+    assert rival_claims(rival, mission(20, OTHER_TARGETS), 0.1) == 0
+
+
+def test_a_claim_on_the_memory_bus_skips_an_id_a_uav_holds_with_other_targets() -> None:
+    network = MemoryNetwork()
+    MemoryUav(network, 7).fly(mission(30, OTHER_TARGETS))
+    rng = random.Random(1)
+    with claim_mission(network.bus(), lambda m: mission(m), 0.1, rng=rng) as server:
+        assert server.targets.mission > 30
+    with (
+        pytest.raises(MissionError, match="30 is already in use"),
+        claim_mission(network.bus(), lambda m: mission(m), 0.1, mission=30),
+    ):
+        pass
