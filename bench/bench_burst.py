@@ -50,7 +50,7 @@ from fleet.mission import keys
 from fleet.mission.messages import AssignmentReport, MissionTargets, UavResult
 from fleet.piccolo.track import Track
 from fleet.transport import bus_codec
-from fleet.transport.bus import Bus, BusQuery, BusSample, Declaration, Queryable
+from fleet.transport.bus import Bus, BusQuery, BusReply, BusSample, Declaration, Queryable
 from fleet.transport.memory import memory_link_pair
 from onboard.planner_worker import PlanRequest, PlanResult
 from onboard.process import OnboardProcess, OnboardSettings
@@ -100,6 +100,11 @@ class BytesBus(Bus):
     ) -> None:
         pass
 
+    def query(
+        self, selector: str, timeout: float, payload: bytes = b"", *, every_reply: bool = False
+    ) -> list[BusReply]:
+        return []
+
     def declare_queryable(
         self, key_expr: str, notify: Callable[[], None] | None = None
     ) -> Queryable:
@@ -107,6 +112,9 @@ class BytesBus(Bus):
 
     def declare_token(self, key: str) -> Declaration:
         return _Nothing()
+
+    def live_tokens(self, key_expr: str, timeout: float) -> list[str]:
+        return []
 
     def subscribe_presence(
         self, key_expr: str, callback: Callable[[str, bool], None]

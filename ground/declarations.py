@@ -1,14 +1,16 @@
-"""A ground tool's Zenoh declarations, held for as long as it is entered."""
+"""A ground tool's declarations on the bus, held for as long as it is entered."""
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from contextlib import AbstractContextManager, ExitStack
+from contextlib import ExitStack
 from types import TracebackType
-from typing import Any, Self
+from typing import Self
 
-Enter = Callable[[AbstractContextManager[Any]], Any]
+from fleet.transport.bus import Declaration
+
+Enter = Callable[[Declaration], None]
 
 
 class Declarations(ABC):
@@ -22,9 +24,12 @@ class Declarations(ABC):
     def _declare(self, enter: Enter) -> None:
         """Declare everything, each declaration through `enter`."""
 
+    def _enter(self, declaration: Declaration) -> None:
+        self._stack.callback(declaration.undeclare)
+
     def __enter__(self) -> Self:
         try:
-            self._declare(self._stack.enter_context)
+            self._declare(self._enter)
         except BaseException:
             self._stack.close()
             raise

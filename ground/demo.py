@@ -41,6 +41,7 @@ from fleet.recording.plot import PlotError, render
 from fleet.recording.reader import RecordingError, read_recording
 from fleet.sim.scenario import ScenarioError, resolve_scenario
 from fleet.transport.cli import ExitCode, fail, positive_float, stop_on_signals
+from fleet.transport.zenoh_bus import client_bus
 
 # The demo is a ground station: it uses the mission manager's own code.
 from ground.alerts import StatusRecord
@@ -49,7 +50,6 @@ from ground.mission_control import publish_targets
 from ground.mission_follower import MissionFollower
 from ground.mission_ids import TargetsServer, next_mission_id
 from ground.mission_outcome import MissionOutcome
-from ground.session import ground_session
 
 log = logging.getLogger(__name__)
 
@@ -217,23 +217,23 @@ def _fly_demo(
         if isinstance(message, AssignmentReport):
             say(f"demo: UAV {message.uav} committed target {message.target}")
 
-    with ground_session(fleet.connect) as session, FleetView(session, on_status) as view:
+    with client_bus(fleet.connect) as bus, FleetView(bus, on_status) as view:
         # A UAV refuses a mission before its first GPS fix, so wait for telemetry.
         deadline = time.monotonic() + args.start_timeout
         while not stop.is_set() and time.monotonic() < deadline:
             if all(v.lat is not None for v in view.snapshot()) and view.live_ids() == list(team):
                 break
             view.wait_changed(0.5)
-        mission = next_mission_id(session, 1.0)
+        mission = next_mission_id(bus, 1.0)
         message = MissionTargets(mission=mission, team=team, targets=targets)
         outcome = MissionOutcome(mission=mission, team=team, targets=targets)
         arrivals: dict[int, Arrival] = {}
         with (
-            MissionFollower(session, mission, on_message) as follower,
-            TargetsServer(session, message),
+            MissionFollower(bus, mission, on_message) as follower,
+            TargetsServer(bus, message),
         ):
             sent_wall = time.time()
-            publish_targets(session, message)
+            publish_targets(bus, message)
             say(f"demo: mission {mission}: {len(targets)} targets sent to the team")
             committed = follower.wait_committed(
                 team, min(DEMO_COMMIT_TIMEOUT_S, args.timeout), fetch_every_s=1.0

@@ -23,18 +23,16 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-import zenoh
-
 from fleet.mission import keys
 from fleet.mission.key_check import WrongKey, uav_of
 from fleet.mission.messages import StatusText, UavState
 from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
+from fleet.transport.bus import Bus, BusSample, decode_sample
 from fleet.transport.bus_codec import DropReason, refuse
 from ground.alerts import Alerts, StatusRecord
 from ground.declarations import Declarations, Enter
-from ground.session import decode_sample, live_tokens, query_messages
 
 log = logging.getLogger(__name__)
 
@@ -136,10 +134,10 @@ def view_from_state(state: UavState) -> UavView:
     return view
 
 
-def live_uav_ids(session: zenoh.Session, timeout_s: float) -> list[int]:
+def live_uav_ids(bus: Bus, timeout_s: float) -> list[int]:
     """The Piccolo IDs whose liveliness token `fleet/uav/{id}/alive` is declared."""
     ids: set[int] = set()
-    for key in live_tokens(session, keys.ALL_ALIVE, timeout_s):
+    for key in bus.live_tokens(keys.ALL_ALIVE, timeout_s):
         try:
             ids.add(uav_of(key))
         except WrongKey as error:
@@ -147,17 +145,16 @@ def live_uav_ids(session: zenoh.Session, timeout_s: float) -> list[int]:
     return sorted(ids)
 
 
-def query_states(session: zenoh.Session, timeout_s: float) -> dict[int, UavState]:
+def query_states(bus: Bus, timeout_s: float) -> dict[int, UavState]:
     return {
-        state.uav: state
-        for _, state in query_messages(session, keys.ALL_STATE, UavState, timeout_s)
+        state.uav: state for _, state in bus.query_messages(keys.ALL_STATE, UavState, timeout_s)
     }
 
 
-def fleet_snapshot(session: zenoh.Session, timeout_s: float) -> list[UavView]:
+def fleet_snapshot(bus: Bus, timeout_s: float) -> list[UavView]:
     """Every live UAV, with what its state query said (just its id if it did not answer)."""
-    ids = live_uav_ids(session, timeout_s)
-    states = query_states(session, timeout_s) if ids else {}
+    ids = live_uav_ids(bus, timeout_s)
+    states = query_states(bus, timeout_s) if ids else {}
     return [view_from_state(states[i]) if i in states else UavView(id=i) for i in ids]
 
 
@@ -181,11 +178,11 @@ class FleetView(Declarations):
 
     def __init__(
         self,
-        session: zenoh.Session,
+        bus: Bus,
         on_status: Callable[[StatusRecord], None] | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        self._session = session
+        self._bus = bus
         self._on_status = on_status
         self._clock = clock
         self._lock = threading.Lock()
@@ -197,12 +194,12 @@ class FleetView(Declarations):
         super().__init__()
 
     def _declare(self, enter: Enter) -> None:
-        session = self._session
-        enter(session.liveliness().declare_subscriber(keys.ALL_ALIVE, self._on_alive, history=True))
-        enter(session.declare_subscriber(keys.ALL_TELEMETRY, self._on_telemetry))
-        enter(session.declare_subscriber(keys.ALL_TRACK, self._on_track))
-        enter(session.declare_subscriber(keys.ALL_WAYPOINTS, self._on_waypoint))
-        enter(session.declare_subscriber(keys.ALL_STATUS, self._on_status_sample))
+        bus = self._bus
+        enter(bus.subscribe_presence(keys.ALL_ALIVE, self._on_alive))
+        enter(bus.subscribe(keys.ALL_TELEMETRY, self._on_telemetry))
+        enter(bus.subscribe(keys.ALL_TRACK, self._on_track))
+        enter(bus.subscribe(keys.ALL_WAYPOINTS, self._on_waypoint))
+        enter(bus.subscribe(keys.ALL_STATUS, self._on_status_sample))
 
     # ---- callbacks (Zenoh threads) ------------------------------------------------
     def _entry(self, uav_id: int) -> _Uav:
@@ -211,18 +208,17 @@ class FleetView(Declarations):
             entry = self._uavs[uav_id] = _Uav(UavView(id=uav_id))
         return entry
 
-    def _on_alive(self, sample: zenoh.Sample) -> None:
-        uav_id = _uav_of(sample)
+    def _on_alive(self, key: str, alive: bool) -> None:
+        uav_id = _uav_of(key)
         if uav_id is None:
             return
-        alive = sample.kind == zenoh.SampleKind.PUT
         with self._changed:
             self._entry(uav_id).alive = alive
             self._changed.notify_all()
         log.info("UAV %d %s", uav_id, "joined" if alive else "left")
 
-    def _on_telemetry(self, sample: zenoh.Sample) -> None:
-        uav_id = _uav_of(sample)
+    def _on_telemetry(self, sample: BusSample) -> None:
+        uav_id = _uav_of(sample.key)
         telemetry = decode_sample(sample, Telemetry)
         if uav_id is None or telemetry is None:
             return
@@ -232,8 +228,8 @@ class FleetView(Declarations):
             entry.telemetry_at = self._clock()
             self._changed.notify_all()
 
-    def _on_track(self, sample: zenoh.Sample) -> None:
-        uav_id = _uav_of(sample)
+    def _on_track(self, sample: BusSample) -> None:
+        uav_id = _uav_of(sample.key)
         track = decode_sample(sample, Track)
         if uav_id is None or track is None:
             return
@@ -244,8 +240,8 @@ class FleetView(Declarations):
                 entry.track_history.append(track.waypoint)
             self._changed.notify_all()
 
-    def _on_waypoint(self, sample: zenoh.Sample) -> None:
-        uav_id = _uav_of(sample)
+    def _on_waypoint(self, sample: BusSample) -> None:
+        uav_id = _uav_of(sample.key)
         waypoint = decode_sample(sample, Waypoint)
         if uav_id is None or waypoint is None:
             return
@@ -253,8 +249,8 @@ class FleetView(Declarations):
             self._entry(uav_id).waypoints[waypoint.index] = waypoint
             self._changed.notify_all()
 
-    def _on_status_sample(self, sample: zenoh.Sample) -> None:
-        uav_id = _uav_of(sample)
+    def _on_status_sample(self, sample: BusSample) -> None:
+        uav_id = _uav_of(sample.key)
         status = decode_sample(sample, StatusText)
         if uav_id is None or status is None:
             return
@@ -272,7 +268,7 @@ class FleetView(Declarations):
     # ---- queries and readers (caller's thread) --------------------------------------
     def refresh_states(self, timeout_s: float) -> None:
         """Fill in what is only in state answers (module on/off, mission phase, target)."""
-        states = query_states(self._session, timeout_s)
+        states = query_states(self._bus, timeout_s)
         with self._changed:
             for uav_id, state in states.items():
                 entry = self._entry(uav_id)
@@ -356,9 +352,9 @@ class FleetView(Declarations):
             self.wait_changed(min(remaining, 0.5))
 
 
-def _uav_of(sample: zenoh.Sample) -> int | None:
+def _uav_of(key: str) -> int | None:
     try:
-        return uav_of(str(sample.key_expr))
+        return uav_of(key)
     except WrongKey as error:
         log.warning("ignored: %s", refuse(str(error), DropReason.WRONG_KEY))
         return None

@@ -21,10 +21,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import msgspec
-import zenoh
 
 from fleet.mission import keys
-from ground.session import decode_value, live_tokens, query
+from fleet.transport import bus_codec
+from fleet.transport.bus import JSON_ENCODING, Bus, BusReply, BusSample
 
 log = logging.getLogger(__name__)
 
@@ -51,7 +51,7 @@ class KeyValue:
 
 
 def collect(
-    session: zenoh.Session,
+    bus: Bus,
     expr: str,
     *,
     window_s: float,
@@ -62,34 +62,38 @@ def collect(
     found: dict[str, KeyValue] = {}
     lock = threading.Lock()
 
-    def on_sample(sample: zenoh.Sample) -> None:
-        if sample.kind != zenoh.SampleKind.PUT:
+    def on_sample(sample: BusSample) -> None:
+        if sample.deleted:
             return
-        payload = sample.payload.to_bytes()
-        encoding = str(sample.encoding)
         value = KeyValue(
-            str(sample.key_expr), encoding, decode_value(payload, encoding), "subscription"
+            sample.key,
+            sample.encoding,
+            decode_value(sample.payload, sample.encoding),
+            "subscription",
         )
         with lock:
             found[value.key] = value
 
     # Subscribe before querying, so a sample published meanwhile is not lost; samples
     # that arrive after the query are newer than its replies and replace them.
-    with session.declare_subscriber(expr, on_sample):
-        for reply in query(session, expr, timeout_s):
+    subscription = bus.subscribe(expr, on_sample)
+    try:
+        for reply in _values(bus, expr, timeout_s):
             value = KeyValue(
                 reply.key, reply.encoding, decode_value(reply.payload, reply.encoding), "query"
             )
             with lock:
                 found.setdefault(value.key, value)
-        for key in live_tokens(session, expr, timeout_s):
+        for key in bus.live_tokens(expr, timeout_s):
             with lock:
                 found.setdefault(key, KeyValue(key, "", "<liveliness token>", "liveliness"))
         deadline = time.monotonic() + window_s
         while (remaining := deadline - time.monotonic()) > 0:
             time.sleep(min(remaining, 0.1))
+    finally:
+        subscription.undeclare()
     if admin and not expr.startswith("@"):
-        for reply in query(session, ADMIN_EXPR, timeout_s):
+        for reply in _values(bus, ADMIN_EXPR, timeout_s):
             found.setdefault(
                 reply.key,
                 KeyValue(
@@ -98,6 +102,15 @@ def collect(
             )
     with lock:
         return [found[key] for key in sorted(found)]
+
+
+def _values(bus: Bus, selector: str, timeout_s: float) -> list[BusReply]:
+    """The successful replies to `selector`; error replies are logged."""
+    replies = bus.query(selector, timeout_s)
+    for reply in replies:
+        if not reply.ok:
+            log.debug("query %s: error reply %r", selector, reply.payload)
+    return [reply for reply in replies if reply.ok]
 
 
 def format_lines(values: list[KeyValue], full: bool = False) -> list[str]:
@@ -112,3 +125,39 @@ def format_lines(values: list[KeyValue], full: bool = False) -> list[str]:
         suffix = f"  ({item.encoding})" if item.encoding and "json" not in item.encoding else ""
         lines.append(f"{item.key} = {text}{suffix}")
     return lines
+
+
+def decode_value(payload: bytes, encoding: str) -> Any:
+    """A payload for display: JSON decoded, text as text, anything else as hex.
+
+    A payload too large or nested too deep to decode safely is shown as what it is.
+    """
+    if len(payload) > bus_codec.MAX_PAYLOAD_BYTES:
+        return {"refused": f"{len(payload)} bytes, too large to show", "bytes": len(payload)}
+    if encoding.startswith(JSON_ENCODING):
+        value = _json_or_none(payload)
+        if value is not None:
+            return value
+    if encoding.startswith(("text/", "application/json", "zenoh/string")):
+        try:
+            return payload.decode("utf-8")
+        except UnicodeDecodeError:
+            pass
+    try:
+        text = payload.decode("utf-8")
+    except UnicodeDecodeError:
+        return {"hex": payload.hex(), "bytes": len(payload)}
+    # Undeclared encodings that happen to hold JSON are still shown decoded.
+    value = _json_or_none(payload)
+    return text if value is None else value
+
+
+def _json_or_none(payload: bytes) -> Any:
+    """The JSON value in `payload`; None if it is not JSON; a note if it is too deep."""
+    try:
+        return msgspec.json.decode(payload)
+    except msgspec.DecodeError:
+        return None
+    except RecursionError:
+        bus_codec.DROPPED.add(bus_codec.DropReason.TOO_DEEP)
+        return {"refused": "JSON nested too deep to show", "bytes": len(payload)}

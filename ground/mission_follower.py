@@ -15,8 +15,6 @@ import time
 from collections.abc import Callable, Iterable
 from typing import Any
 
-import zenoh
-
 from fleet.mission import keys
 from fleet.mission.messages import (
     AssignmentReport,
@@ -24,8 +22,8 @@ from fleet.mission.messages import (
     TargetOutcome,
     UavResult,
 )
+from fleet.transport.bus import Bus, BusSample, decode_sample
 from ground.declarations import Declarations, Enter
-from ground.session import decode_sample, query_messages
 
 log = logging.getLogger(__name__)
 
@@ -48,12 +46,12 @@ class MissionFollower(Declarations):
 
     def __init__(
         self,
-        session: zenoh.Session,
+        bus: Bus,
         mission: int,
         listener: Listener | None = None,
         team: Iterable[int] = (),
     ) -> None:
-        self._session = session
+        self._bus = bus
         self.mission = mission
         self._listener = listener
         self._team = frozenset(team)
@@ -66,30 +64,27 @@ class MissionFollower(Declarations):
         super().__init__()
 
     def _declare(self, enter: Enter) -> None:
-        session, mission = self._session, self.mission
-        enter(session.declare_subscriber(keys.mission_results(mission), self._on_result_sample))
-        enter(
-            session.declare_subscriber(
-                keys.mission_assignments(mission), self._on_assignment_sample
-            )
-        )
-        enter(session.declare_subscriber(keys.mission_outcomes(mission), self._on_outcome_sample))
-        enter(session.liveliness().declare_subscriber(keys.ALL_ALIVE, self._on_alive))
-        enter(session.declare_subscriber(keys.ALL_MISSION_TARGETS, self._on_targets_sample))
+        bus, mission = self._bus, self.mission
+        enter(bus.subscribe(keys.mission_results(mission), self._on_result_sample))
+        enter(bus.subscribe(keys.mission_assignments(mission), self._on_assignment_sample))
+        enter(bus.subscribe(keys.mission_outcomes(mission), self._on_outcome_sample))
+        # The tokens present now are reported too: each is a UAV not lost, a no-op.
+        enter(bus.subscribe_presence(keys.ALL_ALIVE, self._on_alive))
+        enter(bus.subscribe(keys.ALL_MISSION_TARGETS, self._on_targets_sample))
 
-    def _on_alive(self, sample: zenoh.Sample) -> None:
+    def _on_alive(self, key: str, alive: bool) -> None:
         try:
-            uav = keys.uav_id_of(str(sample.key_expr))
+            uav = keys.uav_id_of(key)
         except (ValueError, IndexError):
             return
         with self._changed:
-            if sample.kind == zenoh.SampleKind.DELETE:
-                self.lost.add(uav)
-            else:
+            if alive:
                 self.lost.discard(uav)
+            else:
+                self.lost.add(uav)
             self._changed.notify_all()
 
-    def _on_targets_sample(self, sample: zenoh.Sample) -> None:
+    def _on_targets_sample(self, sample: BusSample) -> None:
         targets = decode_sample(sample, MissionTargets)
         if targets is not None:
             self.note_targets(targets)
@@ -110,17 +105,17 @@ class MissionFollower(Declarations):
             self._changed.notify_all()
         log.warning("mission %d: superseded by mission %d", self.mission, mission)
 
-    def _on_result_sample(self, sample: zenoh.Sample) -> None:
+    def _on_result_sample(self, sample: BusSample) -> None:
         result = decode_sample(sample, UavResult)
         if result is not None:
             self.add_result(result)
 
-    def _on_assignment_sample(self, sample: zenoh.Sample) -> None:
+    def _on_assignment_sample(self, sample: BusSample) -> None:
         report = decode_sample(sample, AssignmentReport)
         if report is not None:
             self.add_assignment(report)
 
-    def _on_outcome_sample(self, sample: zenoh.Sample) -> None:
+    def _on_outcome_sample(self, sample: BusSample) -> None:
         outcome = decode_sample(sample, TargetOutcome)
         if outcome is not None:
             self.add_outcome(outcome)
@@ -161,21 +156,21 @@ class MissionFollower(Declarations):
 
     def fetch(self, timeout_s: float) -> None:
         """Query what the UAVs serve, to catch anything the subscriptions missed."""
-        for _, result in query_messages(
-            self._session, keys.mission_results(self.mission), UavResult, timeout_s
+        for _, result in self._bus.query_messages(
+            keys.mission_results(self.mission), UavResult, timeout_s
         ):
             self.add_result(result)
-        for _, report in query_messages(
-            self._session, keys.mission_assignments(self.mission), AssignmentReport, timeout_s
+        for _, report in self._bus.query_messages(
+            keys.mission_assignments(self.mission), AssignmentReport, timeout_s
         ):
             self.add_assignment(report)
-        for _, outcome in query_messages(
-            self._session, keys.mission_outcomes(self.mission), TargetOutcome, timeout_s
+        for _, outcome in self._bus.query_messages(
+            keys.mission_outcomes(self.mission), TargetOutcome, timeout_s
         ):
             self.add_outcome(outcome)
         # The UAVs serve their current mission's targets: a later one supersedes ours.
-        for _, targets in query_messages(
-            self._session, keys.ALL_MISSION_TARGETS, MissionTargets, timeout_s
+        for _, targets in self._bus.query_messages(
+            keys.ALL_MISSION_TARGETS, MissionTargets, timeout_s
         ):
             self.note_targets(targets)
 

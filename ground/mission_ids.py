@@ -17,8 +17,6 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
-import zenoh
-
 from fleet.mission import keys
 from fleet.mission.messages import (
     AssignmentReport,
@@ -28,10 +26,10 @@ from fleet.mission.messages import (
     UavResult,
 )
 from fleet.transport import bus_codec
+from fleet.transport.bus import Bus, BusQuery, BusReply, Queryable
 from ground.declarations import Declarations, Enter
 from ground.fleet_view import query_states
 from ground.mission_control import MissionError
-from ground.session import query
 
 log = logging.getLogger(__name__)
 
@@ -51,21 +49,24 @@ _MISSION_KINDS: dict[str, type[MissionMessage]] = {
 }
 
 
-def _mission_message(key: str, payload: bytes) -> MissionMessage | None:
+def _mission_message(reply: BusReply) -> MissionMessage | None:
     """The message a mission reply carries, if it is one its key vouches for (else logged)."""
-    parts = key.split("/")
+    if not reply.ok:
+        log.debug("error reply %r", reply.payload)
+        return None
+    parts = reply.key.split("/")
     kind = _MISSION_KINDS.get(parts[3]) if len(parts) >= 4 else None
     if kind is None:
-        log.debug("not a mission message: %s", key)
+        log.debug("not a mission message: %s", reply.key)
         return None
     try:
-        return bus_codec.decode(payload, kind, key)
+        return bus_codec.decode(reply.payload, kind, reply.key)
     except bus_codec.BadMessage as error:
         log.warning("ignored reply %s", error)
         return None
 
 
-def missions_seen(session: zenoh.Session, timeout_s: float) -> set[int]:
+def missions_seen(bus: Bus, timeout_s: float) -> set[int]:
     """Every mission id anything in the key space still answers for.
 
     The UAVs serve their current mission's targets, results and assignments by query,
@@ -73,24 +74,24 @@ def missions_seen(session: zenoh.Session, timeout_s: float) -> set[int]:
     that sent it has gone.
     """
     seen: set[int] = set()
-    for reply in query(session, keys.ALL_MISSION_KEYS, timeout_s):
-        message = _mission_message(reply.key, reply.payload)
+    for reply in bus.query(keys.ALL_MISSION_KEYS, timeout_s):
+        message = _mission_message(reply)
         if message is not None:
             seen.add(message.mission)
-    for state in query_states(session, timeout_s).values():
+    for state in query_states(bus, timeout_s).values():
         if state.mission is not None:
             seen.add(state.mission.mission)
     return seen
 
 
-def next_mission_id(session: zenoh.Session, timeout_s: float) -> int:
+def next_mission_id(bus: Bus, timeout_s: float) -> int:
     """One more than the highest mission id seen, or 1 on a fresh fleet.
 
     A UAV ignores a mission id not above its current one (a higher id supersedes a
     lower one), and every UAV reports its current mission, so max + 1 is always new to
     every live UAV, stays small and readable, and survives a ground restart.
     """
-    seen = missions_seen(session, timeout_s)
+    seen = missions_seen(bus, timeout_s)
     mission = max(seen, default=0) + 1
     if mission > MAX_MISSION_ID:
         raise MissionError(f"mission id {mission} does not fit in 32 bits")
@@ -106,7 +107,7 @@ CLAIM_BACKOFF_S = (0.02, 0.2)
 CLAIM_STEP = 4
 
 
-def rival_claims(session: zenoh.Session, targets: MissionTargets, timeout_s: float) -> int:
+def rival_claims(bus: Bus, targets: MissionTargets, timeout_s: float) -> int:
     """How many others serve a different MissionTargets under `targets`' mission id.
 
     Every reply is kept (no consolidation: two grounds serving the same key must both
@@ -118,8 +119,8 @@ def rival_claims(session: zenoh.Session, targets: MissionTargets, timeout_s: flo
     # The query carries our candidate: a ground already serving this id learns that it
     # was contested (TargetsServer.contested).
     candidate = bus_codec.encode(targets)
-    for reply in query(session, key, timeout_s, every_reply=True, payload=candidate):
-        message = _mission_message(reply.key, reply.payload)
+    for reply in bus.query(key, timeout_s, candidate, every_reply=True):
+        message = _mission_message(reply)
         if isinstance(message, MissionTargets) and message != targets:
             rivals += 1
     return rivals
@@ -127,7 +128,7 @@ def rival_claims(session: zenoh.Session, targets: MissionTargets, timeout_s: flo
 
 @contextmanager
 def claim_mission(
-    session: zenoh.Session,
+    bus: Bus,
     make: Callable[[int], MissionTargets],
     timeout_s: float,
     *,
@@ -151,11 +152,11 @@ def claim_mission(
     a mission of the rival may then supersede this one at any moment (`contest_grace_s`).
     """
     rng = rng if rng is not None else random.Random()
-    chosen = mission if mission is not None else next_mission_id(session, timeout_s)
+    chosen = mission if mission is not None else next_mission_id(bus, timeout_s)
     for attempt in range(1, attempts + 1):
         targets = make(chosen)
-        with TargetsServer(session, targets) as server:
-            rivals = rival_claims(session, targets, timeout_s)
+        with TargetsServer(bus, targets) as server:
+            rivals = rival_claims(bus, targets, timeout_s)
             if not rivals:
                 if attempt > 1:
                     log.warning("mission %d: claimed at attempt %d", chosen, attempt)
@@ -178,7 +179,7 @@ def claim_mission(
             attempts,
         )
         time.sleep(pause)  # a random back-off, so the two grounds do not collide again
-        chosen = max(next_mission_id(session, timeout_s), chosen + 1) + rng.randrange(CLAIM_STEP)
+        chosen = max(next_mission_id(bus, timeout_s), chosen + 1) + rng.randrange(CLAIM_STEP)
         if chosen > MAX_MISSION_ID:
             raise MissionError(f"mission id {chosen} does not fit in 32 bits")
     raise MissionError(
@@ -192,8 +193,8 @@ def contest_grace_s(timeout_s: float) -> float:
     return CLAIM_BACKOFF_S[1] + 3 * timeout_s
 
 
-def current_mission_id(session: zenoh.Session, timeout_s: float) -> int | None:
-    seen = missions_seen(session, timeout_s)
+def current_mission_id(bus: Bus, timeout_s: float) -> int | None:
+    seen = missions_seen(bus, timeout_s)
     return max(seen) if seen else None
 
 
@@ -203,23 +204,37 @@ class TargetsServer(Declarations):
     A UAV that starts, or reconnects, after the put can still fetch the mission.
     """
 
-    def __init__(self, session: zenoh.Session, targets: MissionTargets) -> None:
-        self._session = session
+    def __init__(self, bus: Bus, targets: MissionTargets) -> None:
+        self._bus = bus
         self.targets = targets
         self._key = keys.mission_targets(targets.mission)
         self._payload = bus_codec.encode(targets)
         #: Another ground asked for this id with other targets (see `claim_mission`).
         self.contested = threading.Event()
+        self._queryable: Queryable | None = None
         super().__init__()
 
     def _declare(self, enter: Enter) -> None:
-        enter(self._session.declare_queryable(self._key, self._on_query))
+        # Answered as each query arrives, on the bus's thread: nothing else polls this.
+        self._queryable = self._bus.declare_queryable(self._key, self._answer_waiting)
+        enter(self._queryable)
+        self._answer_waiting()  # any query that arrived before the assignment above
 
-    def _on_query(self, query: zenoh.Query) -> None:
+    def _answer_waiting(self) -> None:
+        queryable = self._queryable
+        if queryable is None:
+            return
+        while (query := queryable.try_recv()) is not None:
+            try:
+                self._answer(query)
+            finally:
+                query.drop()
+
+    def _answer(self, query: BusQuery) -> None:
         # The concrete key, not the query's (possibly wildcard) one: otherwise Zenoh's
         # consolidation would merge this reply with another mission's.
-        query.reply(self._key, self._payload, encoding=bus_codec.ENCODING)
-        candidate = query.payload.to_bytes() if query.payload is not None else b""
+        query.reply_bytes(self._key, self._payload)
+        candidate = query.payload
         if candidate and candidate != self._payload and not self.contested.is_set():
             self.contested.set()
             log.warning(

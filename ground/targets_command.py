@@ -6,10 +6,14 @@ command-line text into targets and targets into text.
 
 from __future__ import annotations
 
+import argparse
 import json
+import sys
 
 from fleet.errors import FleetError
 from fleet.mission.messages import Target
+from fleet.mission.targets_file import TargetsFileError
+from fleet.transport.cli import ExitCode
 from fleet.transport.targets_io import read_targets, write_targets
 
 
@@ -53,3 +57,39 @@ def targets_table(targets: list[Target]) -> str:
     for i, t in enumerate(targets):
         lines.append(f"{i:>3} {t.lat:>12.6f} {t.lon:>13.6f} {t.alt:>8.1f}")
     return "\n".join(lines)
+
+
+def cmd_targets_make(args: argparse.Namespace) -> int:
+    try:
+        targets = make(args.out, args.targets)
+    except (TargetSyntaxError, TargetsFileError) as error:
+        print(f"error: {error}; {args.out} not written", file=sys.stderr)
+        return ExitCode.FAILED
+    except OSError as error:
+        print(f"error: cannot write {args.out}: {error.strerror}", file=sys.stderr)
+        return ExitCode.FAILED
+    print(f"{args.out}: {len(targets)} targets written")
+    return ExitCode.OK
+
+
+def read_or_say(path: str, consequence: str = "") -> list[Target] | None:
+    """`path`'s targets; or None, once stderr says why not (and `consequence`, if any)."""
+    after = f"; {consequence}" if consequence else ""
+    try:
+        return show(path)
+    except TargetsFileError as error:
+        print(f"error: {error}{after}", file=sys.stderr)
+    except OSError as error:
+        print(f"error: cannot read {path}: {error.strerror}{after}", file=sys.stderr)
+    return None
+
+
+def cmd_targets_show(args: argparse.Namespace) -> int:
+    targets = read_or_say(args.file)
+    if targets is None:
+        return ExitCode.FAILED
+    if args.json:
+        print(targets_json(targets))
+    else:
+        print(targets_table(targets))
+    return ExitCode.OK

@@ -18,8 +18,7 @@ import threading
 import time
 from typing import TextIO
 
-import zenoh
-
+from fleet.transport.bus import Bus
 from ground.alerts import StatusRecord
 from ground.fleet_view import FleetView, format_table
 
@@ -44,7 +43,7 @@ def alerts_box(alerts: list[StatusRecord]) -> list[str]:
 
 
 def watch(
-    session: zenoh.Session,
+    bus: Bus,
     out: TextIO,
     *,
     count: int | None,
@@ -68,7 +67,7 @@ def watch(
 
     started = time.monotonic()
     frames = 0
-    with FleetView(session, on_status=on_status) as view:
+    with FleetView(bus, on_status=on_status) as view:
         try:
             while count is None or frames < count:
                 view.refresh_states(query_timeout_s)

@@ -13,23 +13,56 @@ bus): they must only hand work on, never wait.
 
 from __future__ import annotations
 
+import logging
 from abc import ABC, abstractmethod
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, TypeVar
 
 import msgspec
 
 from fleet.transport import bus_codec
 
+log = logging.getLogger(__name__)
+
+T = TypeVar("T")
+
+#: The encoding of everything the fleet puts (`bus_codec.ENCODING`), as text.
+JSON_ENCODING = str(bus_codec.ENCODING)
+
 
 @dataclass(frozen=True)
 class BusSample:
-    """A value seen on the bus: a publication, or a successful reply to a query."""
+    """A value seen on the bus: a publication, or a successful reply to a query.
+
+    `deleted`: the key was deleted (Zenoh's DELETE kind), `payload` is then empty.
+    """
 
     key: str
     payload: bytes
+    encoding: str = JSON_ENCODING
+    deleted: bool = False
+
+
+@dataclass(frozen=True)
+class BusReply:
+    """One reply to a query: a value on the replier's key, or an error (`ok` False,
+    `payload` the error's text; Zenoh's error replies carry no key, so `key` is "")."""
+
+    key: str
+    payload: bytes
+    ok: bool = True
+    encoding: str = JSON_ENCODING
+
+
+def decode_sample(sample: BusSample, kind: type[T]) -> T | None:
+    """The payload as `kind`, or None (logged) if it is not one."""
+    try:
+        return bus_codec.decode(sample.payload, kind, sample.key)
+    except bus_codec.BadMessage as error:
+        log.warning("ignored %s", error)
+    return None
 
 
 #: Called with each sample a subscription or a query receives.
@@ -116,12 +149,41 @@ class Bus(ABC):
         to `callback` as it arrives, until `timeout` seconds have passed."""
 
     @abstractmethod
+    def query(
+        self, selector: str, timeout: float, payload: bytes = b"", *, every_reply: bool = False
+    ) -> list[BusReply]:
+        """Every reply to `selector` (with `payload`) within `timeout` seconds, errors too.
+
+        `every_reply`: ask every matching queryable and keep each one's reply, even several
+        for one key (Zenoh otherwise asks the best-matching ones and consolidates replies
+        on the same key into one).
+        """
+
+    def query_messages(self, selector: str, kind: type[T], timeout: float) -> list[tuple[str, T]]:
+        """The replies to `selector` that decode as `kind`, with their keys; error replies
+        are logged at debug level, undecodable ones as warnings."""
+        found: list[tuple[str, T]] = []
+        for reply in self.query(selector, timeout):
+            if not reply.ok:
+                log.debug("query %s: error reply %r", selector, reply.payload)
+                continue
+            try:
+                found.append((reply.key, bus_codec.decode(reply.payload, kind, reply.key)))
+            except bus_codec.BadMessage as error:
+                log.warning("ignored reply %s", error)
+        return found
+
+    @abstractmethod
     def declare_queryable(self, key_expr: str, notify: QueryNotify | None = None) -> Queryable:
         """Queries on `key_expr`, taken with `try_recv`; `notify` is called as each arrives."""
 
     @abstractmethod
     def declare_token(self, key: str) -> Declaration:
         """A liveliness token: present while declared and while this bus is open."""
+
+    @abstractmethod
+    def live_tokens(self, key_expr: str, timeout: float) -> list[str]:
+        """The keys of the liveliness tokens present under `key_expr` now."""
 
     @abstractmethod
     def subscribe_presence(self, key_expr: str, callback: PresenceCallback) -> Declaration:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import itertools
 import threading
+import time
 from dataclasses import dataclass, field
 
 import zenoh
@@ -19,6 +20,7 @@ import zenoh
 from fleet.transport.bus import (
     Bus,
     BusQuery,
+    BusReply,
     BusSample,
     Declaration,
     PresenceCallback,
@@ -147,7 +149,8 @@ class MemoryQuery(BusQuery):
         self.key = key
         self.payload = payload
         self._callback = callback
-        self._dropped = False
+        #: Set by `drop`: the answerer is done with the query.
+        self.done = threading.Event()
         #: Error replies, for tests to read.
         self.errors: list[str] = []
 
@@ -155,14 +158,14 @@ class MemoryQuery(BusQuery):
         return _intersects(self.key, key)
 
     def reply_bytes(self, key: str, payload: bytes) -> None:
-        if not self._dropped:
+        if not self.done.is_set():
             self._callback(BusSample(key, payload))
 
     def reply_err(self, text: str) -> None:
         self.errors.append(text)
 
     def drop(self) -> None:
-        self._dropped = True
+        self.done.set()
 
 
 class MemoryQueryable(Queryable):
@@ -211,11 +214,40 @@ class MemoryBus(Bus):
     ) -> None:
         """Queue the query at every intersecting queryable; replies reach `callback` when
         their owners answer. The timeout is not enforced: a test bounds its own waits."""
+        self._ask(selector, payload, callback)
+
+    def query(
+        self, selector: str, timeout: float, payload: bytes = b"", *, every_reply: bool = False
+    ) -> list[BusReply]:
+        """Ask every intersecting queryable and wait until each has dropped its query, or
+        `timeout` has passed. Without `every_reply`, one reply per key (the last), as
+        Zenoh's consolidation keeps one."""
+        lock = threading.Lock()
+        replies: list[BusReply] = []
+
+        def on_reply(sample: BusSample) -> None:
+            with lock:
+                replies.append(BusReply(sample.key, sample.payload))
+
+        queries = self._ask(selector, payload, on_reply)
+        deadline = time.monotonic() + timeout
+        for query in queries:
+            query.done.wait(max(0.0, deadline - time.monotonic()))
+        with lock:
+            found = list(replies)
+        if not every_reply:
+            found = list({reply.key: reply for reply in found}.values())
+        errors = [BusReply("", text.encode(), ok=False) for q in queries for text in q.errors]
+        return found + errors
+
+    def _ask(self, selector: str, payload: bytes, callback: SampleCallback) -> list[MemoryQuery]:
         key = selector.partition("?")[0]  # selector parameters are not used by the fleet
         with self.network.lock:
             targets = [q for q in self.network.queryables if _intersects(q.key_expr, key)]
-        for queryable in targets:
-            queryable.deliver(MemoryQuery(key, payload, callback))
+        queries = [MemoryQuery(key, payload, callback) for _ in targets]
+        for queryable, query in zip(targets, queries, strict=True):
+            queryable.deliver(query)
+        return queries
 
     def declare_queryable(self, key_expr: str, notify: QueryNotify | None = None) -> Queryable:
         queryable = MemoryQueryable(self.network, key_expr, self, notify)
@@ -229,6 +261,10 @@ class MemoryBus(Bus):
             self.network.tokens[token] = (key, self)
         self.network.token_change(key, True)
         return _Undeclare(lambda: self._drop_token(token))
+
+    def live_tokens(self, key_expr: str, timeout: float) -> list[str]:
+        with self.network.lock:
+            return [k for k, _ in self.network.tokens.values() if _intersects(key_expr, k)]
 
     def subscribe_presence(self, key_expr: str, callback: PresenceCallback) -> Declaration:
         entry = _Presence(key_expr, callback, self)

@@ -18,7 +18,7 @@ import webbrowser
 from typing import TYPE_CHECKING
 
 from fleet.transport.cli import ExitCode, bounded_int, fail, positive_float
-from ground.session import ground_session
+from fleet.transport.zenoh_bus import client_bus
 
 if TYPE_CHECKING:
     from ground.gui.server import GuiConfig
@@ -116,9 +116,9 @@ def cmd_gui(args: argparse.Namespace) -> int:
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGTERM, signal.SIGINT):
             loop.add_signal_handler(sig, task.cancel)
-        await serve(session, config, on_ready)
+        await serve(bus, config, on_ready)
 
-    with ground_session(args.zenoh) as session:
+    with client_bus(args.zenoh) as bus:
         try:
             asyncio.run(main())
         except asyncio.CancelledError:

@@ -23,7 +23,6 @@ from dataclasses import dataclass
 from typing import Annotated, Any
 
 import msgspec
-import zenoh
 
 from fleet.consensus.deadline import MAX_DEADLINE_S, consensus_deadline
 from fleet.errors import CodecError
@@ -31,11 +30,11 @@ from fleet.mission import keys
 from fleet.mission.messages import MissionTargets, Target
 from fleet.mission.targets_file import TargetsFileError, encode_targets
 from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
+from fleet.transport.bus import Bus
 from ground.mission_control import MissionError, publish_targets, send_abort, send_opm
 from ground.mission_follower import MissionFollower
 from ground.mission_ids import MAX_MISSION_ID, TargetsServer, claim_mission, current_mission_id
 from ground.mission_outcome import MissionOutcome
-from ground.session import query_messages
 
 log = logging.getLogger(__name__)
 
@@ -96,12 +95,12 @@ class MissionDesk:
     """The one mission the page follows: the last it sent, or the latest the fleet has.
 
     While it follows a mission it sent, it serves that mission's targets by query, as
-    `send-targets` does, for UAVs that join late. `on_change` is called (on a Zenoh
+    `send-targets` does, for UAVs that join late. `on_change` is called (on a bus
     thread) whenever a result or an assignment arrives.
     """
 
-    def __init__(self, session: zenoh.Session, on_change: Callable[[], None]) -> None:
-        self._session = session
+    def __init__(self, bus: Bus, on_change: Callable[[], None]) -> None:
+        self._bus = bus
         self._on_change = on_change
         self._lock = threading.Lock()
         self._stack = ExitStack()
@@ -112,12 +111,10 @@ class MissionDesk:
         """Follow `message`'s mission from now on (caller holds the lock)."""
         self._stack.close()
         self._stack = ExitStack()
-        follower = MissionFollower(
-            self._session, message.mission, lambda kind, _: self._on_change()
-        )
+        follower = MissionFollower(self._bus, message.mission, lambda kind, _: self._on_change())
         self._follower = self._stack.enter_context(follower)
         if serve:
-            self._stack.enter_context(TargetsServer(self._session, message))
+            self._stack.enter_context(TargetsServer(self._bus, message))
         self._targets = message
 
     def send(self, team: tuple[int, ...], targets: tuple[Target, ...], deadline_s: float) -> int:
@@ -130,11 +127,11 @@ class MissionDesk:
 
         with self._lock:
             claim = ExitStack()
-            message = claim.enter_context(claim_mission(self._session, make, 1.0)).targets
+            message = claim.enter_context(claim_mission(self._bus, make, 1.0)).targets
             self._follow(message, serve=False)
             # The claimed id's targets server stays open as long as the mission is followed.
             self._stack.push(claim)
-            publish_targets(self._session, message)
+            publish_targets(self._bus, message)
         self._on_change()
         return message.mission
 
@@ -145,9 +142,7 @@ class MissionDesk:
 
     def adopt(self, mission: int, timeout_s: float) -> bool:
         """Follow `mission` (sent by another ground), if some UAV serves its targets."""
-        found = query_messages(
-            self._session, keys.mission_targets(mission), MissionTargets, timeout_s
-        )
+        found = self._bus.query_messages(keys.mission_targets(mission), MissionTargets, timeout_s)
         with self._lock:
             if self._targets is not None and self._targets.mission >= mission:
                 return False
@@ -202,15 +197,15 @@ def _send(desk: MissionDesk, command: SendCommand, live: set[int]) -> Reply:
     )
 
 
-def _abort(session: zenoh.Session, desk: MissionDesk, command: AbortCommand) -> Reply:
+def _abort(bus: Bus, desk: MissionDesk, command: AbortCommand) -> Reply:
     mission = command.mission
     if mission is None:
         mission = desk.mission
     if mission is None:
-        mission = current_mission_id(session, 1.0)
+        mission = current_mission_id(bus, 1.0)
     if mission is None:
         return Reply(command.id, False, "no mission to abort (none seen)")
-    send_abort(session, mission, command.uav)
+    send_abort(bus, mission, command.uav)
     if command.uav is not None:
         return Reply(command.id, True, f"mission {mission}: abort sent to UAV {command.uav}")
     return Reply(
@@ -218,15 +213,15 @@ def _abort(session: zenoh.Session, desk: MissionDesk, command: AbortCommand) -> 
     )
 
 
-def execute(session: zenoh.Session, desk: MissionDesk, command: Command, live: set[int]) -> Reply:
+def execute(bus: Bus, desk: MissionDesk, command: Command, live: set[int]) -> Reply:
     """Carry out one command (blocking); the reply says what was done, or why not."""
     if isinstance(command, SendCommand):
         return _send(desk, command, live)
     if isinstance(command, AbortCommand):
-        return _abort(session, desk, command)
+        return _abort(bus, desk, command)
     if command.uav not in live:
         return Reply(command.id, False, f"UAV {command.uav} is not live; nothing sent")
-    send_opm(session, command.uav, command.enabled, command.status_rate_hz)
+    send_opm(bus, command.uav, command.enabled, command.status_rate_hz)
     state = "on" if command.enabled else "off"
     return Reply(
         command.id,

@@ -14,8 +14,8 @@ One aiohttp application on one event loop:
   `POST /api/targets/export?format=bin|csv|geojson` (a JSON list of targets): Load and
   Save Targets through `ground.targets_formats`.
 
-The Zenoh session and its callbacks live on Zenoh's threads; they reach the loop only
-through `loop.call_soon_threadsafe`. Blocking Zenoh queries run in worker threads.
+The bus's callbacks run on its (Zenoh's) threads; they reach the loop only through
+`loop.call_soon_threadsafe`. Blocking queries run in worker threads.
 
 Access: the page can send missions and aborts to aircraft, so by default it listens on
 loopback only. Listening anywhere else requires `--allow-remote` and a token (given, or
@@ -40,11 +40,11 @@ from pathlib import Path
 from typing import Any
 
 import msgspec
-import zenoh
 from aiohttp import WSMsgType, web
 
 from fleet.mission import keys
 from fleet.mission.messages import Target
+from fleet.transport.bus import Bus
 from ground import targets_formats
 from ground.alerts import StatusRecord
 from ground.fleet_view import FleetView
@@ -83,10 +83,10 @@ def is_loopback(host: str) -> bool:
 
 
 class GuiServer:
-    """The page's server over one Zenoh session; `run` serves until cancelled."""
+    """The page's server over one bus; `run` serves until cancelled."""
 
-    def __init__(self, session: zenoh.Session, config: GuiConfig) -> None:
-        self.session = session
+    def __init__(self, bus: Bus, config: GuiConfig) -> None:
+        self.bus = bus
         self.config = config
         self.model = GuiModel()
         self.sockets: set[web.WebSocketResponse] = set()
@@ -112,22 +112,18 @@ class GuiServer:
         loop = asyncio.get_running_loop()
         coalescer = self._coalescer = Coalescer(self._push, self.config.rate_hz)
 
-        def on_status(status: StatusRecord) -> None:  # a Zenoh thread
+        def on_status(status: StatusRecord) -> None:  # a bus thread
             loop.call_soon_threadsafe(self._on_status, status)
 
         with contextlib.ExitStack() as stack:
-            self._view = stack.enter_context(FleetView(self.session, on_status))
+            self._view = stack.enter_context(FleetView(self.bus, on_status))
             # Anything of the fleet changing wakes the pusher; the coalescer bounds the rate.
             everything = f"{keys.PREFIX}/**"
-            stack.enter_context(
-                self.session.declare_subscriber(everything, lambda _: coalescer.mark_threadsafe())
-            )
-            stack.enter_context(
-                self.session.liveliness().declare_subscriber(
-                    everything, lambda _: coalescer.mark_threadsafe()
-                )
-            )
-            self._desk = MissionDesk(self.session, coalescer.mark_threadsafe)
+            changes = self.bus.subscribe(everything, lambda _: coalescer.mark_threadsafe())
+            stack.callback(changes.undeclare)
+            tokens = self.bus.subscribe_presence(everything, lambda *_: coalescer.mark_threadsafe())
+            stack.callback(tokens.undeclare)
+            self._desk = MissionDesk(self.bus, coalescer.mark_threadsafe)
             stack.callback(self._desk.close)
             tasks = [
                 asyncio.create_task(coalescer.run()),
@@ -276,7 +272,7 @@ class GuiServer:
             return Reply(None, False, str(error))
         try:
             reply = await asyncio.to_thread(
-                execute, self.session, self._desk, command, set(self._view.live_ids())
+                execute, self.bus, self._desk, command, set(self._view.live_ids())
             )
         except Exception as error:
             log.exception("command %r failed", command)
@@ -287,9 +283,9 @@ class GuiServer:
         return reply
 
 
-async def serve(session: zenoh.Session, config: GuiConfig, on_ready: Callable[[str], None]) -> None:
+async def serve(bus: Bus, config: GuiConfig, on_ready: Callable[[str], None]) -> None:
     """Serve the page until cancelled; `on_ready(url)` once it listens."""
-    server = GuiServer(session, config)
+    server = GuiServer(bus, config)
     runner = web.AppRunner(server.app(), access_log=None)
     await runner.setup()
     try:

@@ -9,6 +9,7 @@ import pytest
 import zenoh
 
 from fleet.transport.router import Router
+from fleet.transport.zenoh_bus import ZenohBus
 from fleet.transport.zenoh_config import make_config
 from tests.ground.test_cli import FakeOnboard, free_endpoint
 
@@ -33,8 +34,9 @@ def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
 
 
 @pytest.fixture
-def session(router: str) -> Iterator[zenoh.Session]:
-    opened = zenoh.open(make_config("client", [router]))
+def session(router: str) -> Iterator[ZenohBus]:
+    """The ground's bus (`.session` is its Zenoh session)."""
+    opened = ZenohBus(zenoh.open(make_config("client", [router])))
     try:
         yield opened
     finally:
@@ -42,9 +44,9 @@ def session(router: str) -> Iterator[zenoh.Session]:
 
 
 @pytest.fixture
-def rival(router: str) -> Iterator[zenoh.Session]:
-    """Another ground's session."""
-    opened = zenoh.open(make_config("client", [router]))
+def rival(router: str) -> Iterator[ZenohBus]:
+    """Another ground's bus."""
+    opened = ZenohBus(zenoh.open(make_config("client", [router])))
     try:
         yield opened
     finally:

@@ -3,12 +3,14 @@ on loopback, with other Zenoh sessions standing in for another ground and the UA
 
 from __future__ import annotations
 
-import zenoh
-
 from fleet.mission import keys
+from fleet.mission.messages import AssignmentReport, UavResult
 from fleet.transport import bus_codec
+from fleet.transport.memory import MemoryNetwork
+from fleet.transport.zenoh_bus import ZenohBus
 from ground.mission_follower import MissionFollower
 from ground.mission_ids import TargetsServer
+from tests.ground.memory_fleet import MemoryUav
 from tests.ground.mission_samples import (
     TIMEOUT_S,
     mission,
@@ -17,11 +19,11 @@ from tests.processes import wait_until
 
 
 def test_a_later_mission_for_the_team_supersedes_the_followed_one(
-    session: zenoh.Session, rival: zenoh.Session
+    session: ZenohBus, rival: ZenohBus
 ) -> None:
     with MissionFollower(session, 40, team=(7, 8)) as follower:
         # Another team's later mission is no concern of this one.
-        rival.put(
+        rival.session.put(
             keys.mission_targets(41),
             bus_codec.encode(mission(41, team=(9,))),
             encoding=bus_codec.ENCODING,
@@ -30,7 +32,7 @@ def test_a_later_mission_for_the_team_supersedes_the_followed_one(
         def put_later_mission() -> bool:
             # Put again until heard: the follower's subscription reaches the router
             # asynchronously, and a put before it arrives is not delivered.
-            rival.put(
+            rival.session.put(
                 keys.mission_targets(43),
                 bus_codec.encode(mission(43, team=(8, 9))),
                 encoding=bus_codec.ENCODING,
@@ -44,7 +46,7 @@ def test_a_later_mission_for_the_team_supersedes_the_followed_one(
 
 
 def test_a_later_mission_the_uavs_serve_is_found_by_the_fetch(
-    session: zenoh.Session, rival: zenoh.Session
+    session: ZenohBus, rival: ZenohBus
 ) -> None:
     with MissionFollower(session, 50, team=(7,)) as follower:
         with TargetsServer(rival, mission(52, team=(7,))):
@@ -52,3 +54,29 @@ def test_a_later_mission_the_uavs_serve_is_found_by_the_fetch(
         assert follower.superseded_by == 52
         follower.note_later_mission(51)  # an older later one changes nothing
         assert follower.superseded_by == 52
+
+
+# ---- on the in-memory bus -------------------------------------------------------------------
+def test_results_and_commitments_are_collected_and_a_lost_uav_is_not_waited_for() -> None:
+    network = MemoryNetwork()
+    seven, eight = MemoryUav(network, 7), MemoryUav(network, 8)
+    heard: list[str] = []
+    with MissionFollower(network.bus(), 60, lambda kind, _: heard.append(kind), (7, 8)) as f:
+        seven.bus.publish(keys.mission_result(60, 7), UavResult(60, 7, (1.0,)))
+        report = AssignmentReport(60, 7, 0, {"7": 0}, (), (7,), "d")
+        seven.bus.publish(keys.mission_assignment(60, 7), report)
+        assert heard == ["result", "assignment"]
+        assert f.wait_committed((7, 8), timeout_s=0.1, fetch_every_s=0.05) is False
+        eight.leave()
+        assert f.lost == {8}
+        assert f.wait_committed((7, 8), timeout_s=0.1, fetch_every_s=0.05) is True
+
+
+def test_a_fetch_collects_what_the_uavs_serve() -> None:
+    network = MemoryNetwork()
+    result = UavResult(61, 7, (2.0, 3.0))
+    MemoryUav(network, 7).fly(mission(61), result)
+    with MissionFollower(network.bus(), 61) as follower:
+        follower.fetch(0.1)
+        assert follower.snapshot() == ({7: result}, {})
+        assert follower.superseded_by is None

@@ -4,16 +4,28 @@ loopback, with another Zenoh session of this process standing in for another gro
 from __future__ import annotations
 
 import logging
+import random
 import threading
 
 import pytest
 import zenoh
 
 from fleet.mission import keys
+from fleet.mission.messages import MissionTargets
 from fleet.transport import bus_codec
+from fleet.transport.memory import MemoryNetwork
+from fleet.transport.zenoh_bus import ZenohBus
 from fleet.transport.zenoh_config import make_config
 from ground.mission_control import MissionError
-from ground.mission_ids import TargetsServer, claim_mission, rival_claims
+from ground.mission_ids import (
+    TargetsServer,
+    claim_mission,
+    current_mission_id,
+    missions_seen,
+    next_mission_id,
+    rival_claims,
+)
+from tests.ground.memory_fleet import MemoryUav
 from tests.ground.mission_samples import (
     OTHER_TARGETS,
     TARGETS,
@@ -24,7 +36,7 @@ from tests.ground.mission_samples import (
 
 
 def test_a_fresh_key_space_is_claimed_at_once_and_served_while_open(
-    session: zenoh.Session, rival: zenoh.Session
+    session: ZenohBus, rival: ZenohBus
 ) -> None:
     with claim_mission(session, lambda m: mission(m), TIMEOUT_S, mission=901) as server:
         assert server.targets == mission(901)
@@ -36,7 +48,7 @@ def test_a_fresh_key_space_is_claimed_at_once_and_served_while_open(
 
 
 def test_a_given_mission_id_another_ground_serves_is_refused(
-    session: zenoh.Session, rival: zenoh.Session
+    session: ZenohBus, rival: ZenohBus
 ) -> None:
     with (
         TargetsServer(rival, mission(902, OTHER_TARGETS)),
@@ -73,9 +85,9 @@ class Squatter:
 
 
 def test_a_collision_moves_on_to_a_higher_id_and_says_so(
-    session: zenoh.Session, rival: zenoh.Session, caplog: pytest.LogCaptureFixture
+    session: ZenohBus, rival: ZenohBus, caplog: pytest.LogCaptureFixture
 ) -> None:
-    squatter = Squatter(rival, limit=1)
+    squatter = Squatter(rival.session, limit=1)
     caplog.set_level(logging.WARNING, logger="ground.mission_ids")
     try:
         with claim_mission(session, lambda m: mission(m), TIMEOUT_S) as server:
@@ -89,8 +101,8 @@ def test_a_collision_moves_on_to_a_higher_id_and_says_so(
     assert f"mission {chosen}: claimed at attempt 2" in caplog.text
 
 
-def test_running_out_of_attempts_is_an_error(session: zenoh.Session, rival: zenoh.Session) -> None:
-    squatter = Squatter(rival, limit=1000)
+def test_running_out_of_attempts_is_an_error(session: ZenohBus, rival: ZenohBus) -> None:
+    squatter = Squatter(rival.session, limit=1000)
     try:
         with (
             pytest.raises(MissionError, match="no free mission id after 3 attempts"),
@@ -104,7 +116,7 @@ def test_running_out_of_attempts_is_an_error(session: zenoh.Session, rival: zeno
 
 
 def test_two_grounds_claiming_together_get_different_ids(router: str) -> None:
-    sessions = [zenoh.open(make_config("client", [router])) for _ in range(2)]
+    sessions = [ZenohBus(zenoh.open(make_config("client", [router]))) for _ in range(2)]
     try:
         for _ in range(3):
             claimed = claim_together(sessions)
@@ -114,7 +126,7 @@ def test_two_grounds_claiming_together_get_different_ids(router: str) -> None:
             opened.close()
 
 
-def claim_together(sessions: list[zenoh.Session]) -> dict[int, int]:
+def claim_together(sessions: list[ZenohBus]) -> dict[int, int]:
     """Two grounds claim at the same moment, each holding its claim until both have one."""
     start = threading.Barrier(2)
     held = threading.Barrier(3)
@@ -134,3 +146,41 @@ def claim_together(sessions: list[zenoh.Session]) -> dict[int, int]:
     for thread in threads:
         thread.join(30)
     return claimed
+
+
+# ---- on the in-memory bus -------------------------------------------------------------------
+def test_the_next_id_is_above_every_mission_served_or_reported() -> None:
+    network = MemoryNetwork()
+    ground = network.bus()
+    assert next_mission_id(ground, 0.1) == 1
+    uav = MemoryUav(network, 7)
+    uav.fly(mission(12))
+    assert missions_seen(ground, 0.1) == {12}
+    assert next_mission_id(ground, 0.1) == 13
+    assert current_mission_id(ground, 0.1) == 12
+
+
+def test_a_targets_server_answers_and_notes_a_contested_id() -> None:
+    network = MemoryNetwork()
+    ground, rival = network.bus(), network.bus()
+    with TargetsServer(ground, mission(20)) as server:
+        assert rival.query_messages(keys.mission_targets(20), MissionTargets, 0.1) == [
+            (keys.mission_targets(20), mission(20))
+        ]
+        assert not server.contested.is_set()
+        assert rival_claims(rival, mission(20, OTHER_TARGETS), 0.1) == 1
+        assert server.contested.is_set()
+    assert rival_claims(rival, mission(20, OTHER_TARGETS), 0.1) == 0
+
+
+def test_a_claim_on_the_memory_bus_skips_an_id_a_uav_holds_with_other_targets() -> None:
+    network = MemoryNetwork()
+    MemoryUav(network, 7).fly(mission(30, OTHER_TARGETS))
+    rng = random.Random(1)
+    with claim_mission(network.bus(), lambda m: mission(m), 0.1, rng=rng) as server:
+        assert server.targets.mission > 30
+    with (
+        pytest.raises(MissionError, match="30 is already in use"),
+        claim_mission(network.bus(), lambda m: mission(m), 0.1, mission=30),
+    ):
+        pass

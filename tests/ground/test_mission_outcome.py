@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from fleet.mission.messages import AssignmentReport, TargetOutcome
 from fleet.mission.phase import Phase
-from ground.cli import _summary
 from ground.mission_outcome import MissionOutcome
+from ground.mission_summary import summary_lines
 from tests.ground.mission_samples import (
     TARGETS,
 )
@@ -22,7 +22,7 @@ def test_a_superseded_mission_is_no_success_even_when_agreed() -> None:
 
 def test_the_summary_says_superseded() -> None:
     outcome = MissionOutcome(mission=2, team=(7,), targets=TARGETS, superseded_by=3)
-    assert "  SUPERSEDED by mission 3: the team no longer flies mission 2" in _summary(outcome)
+    assert "  SUPERSEDED by mission 3: the team no longer flies mission 2" in summary_lines(outcome)
 
 
 def test_after_a_re_plan_a_target_belongs_to_its_latest_epoch_holder() -> None:

@@ -7,12 +7,10 @@ import io
 import threading
 import time
 
-import zenoh
-
 from fleet.mission import keys
 from fleet.mission.messages import StatusText
 from fleet.mission.phase import Severity
-from fleet.transport.zenoh_config import make_config
+from fleet.transport.zenoh_bus import client_bus
 from ground.alerts import StatusRecord
 from ground.watch import alerts_box, status_line, watch
 from tests.ground.test_cli import FakeOnboard
@@ -45,7 +43,7 @@ def test_on_a_terminal_each_frame_redraws_table_pinned_alerts_and_stream(
     router: str, fakes: dict[int, FakeOnboard]
 ) -> None:
     screen = Terminal()
-    with zenoh.open(make_config("client", [router])) as session:
+    with client_bus(router) as session:
         seen = threading.Event()
 
         def warn_once_watching() -> None:

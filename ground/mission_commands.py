@@ -1,0 +1,113 @@
+"""`ground-cli mission` and `abort`: a mission's status now, and ending it."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+from fleet.mission.phase import Phase
+from fleet.transport.bus import Bus
+from fleet.transport.cli import ExitCode
+from fleet.transport.zenoh_bus import client_bus
+from ground.fleet_view import query_states
+from ground.mission_control import MissionError, mission_status, mission_targets_of, send_abort
+from ground.mission_ids import current_mission_id, missions_seen
+from ground.mission_summary import summary_lines
+
+#: How long `abort` waits for every UAV on the mission to report it aborted.
+ABORT_CONFIRM_S = 5.0
+
+
+def cmd_mission(args: argparse.Namespace) -> int:
+    with client_bus(args.zenoh) as bus:
+        mission = args.mission
+        if mission is None:
+            mission = current_mission_id(bus, args.query_timeout)
+        if mission is None:
+            print("error: no mission seen (give --mission)", file=sys.stderr)
+            return ExitCode.FAILED
+        try:
+            outcome = mission_status(bus, mission, args.query_timeout, args.until_reached)
+        except MissionError as error:
+            print(f"error: {error}", file=sys.stderr)
+            return ExitCode.FAILED
+    if args.json:
+        print(json.dumps(outcome.to_json()))
+    else:
+        print("\n".join(summary_lines(outcome)))
+    if args.until_reached is not None:
+        every = len(outcome.reached_by()) == len(outcome.targets)
+        return ExitCode.OK if every else ExitCode.FAILED
+    return ExitCode.OK if outcome.succeeded else ExitCode.FAILED
+
+
+def cmd_abort(args: argparse.Namespace) -> int:
+    with client_bus(args.zenoh) as bus:
+        seen = missions_seen(bus, args.query_timeout)
+        mission = args.mission
+        if mission is None:
+            mission = max(seen, default=None)
+            if mission is None:
+                print("error: no mission to abort (none seen; give --mission)", file=sys.stderr)
+                return ExitCode.FAILED
+        elif mission not in seen:
+            known = ", ".join(map(str, sorted(seen))) or "none"
+            print(
+                f"error: mission {mission} is unknown to the fleet (missions seen: {known}); "
+                "nothing sent",
+                file=sys.stderr,
+            )
+            return ExitCode.FAILED
+        send_abort(bus, mission, args.uav)
+        to = "" if args.uav is None else f" to UAV {args.uav}"
+        print(f"mission {mission}: abort sent{to}")
+        return _confirm_abort(bus, mission, args.uav, args.query_timeout)
+
+
+def _confirm_abort(bus: Bus, mission: int, uav: int | None, timeout_s: float) -> int:
+    """Wait until every UAV aborted (the mission's team, or `uav` alone) reports it.
+
+    A team UAV that does not answer at all (frozen, cut off) has not confirmed: it is
+    named, and the exit code says so.
+    """
+    deadline = time.monotonic() + max(ABORT_CONFIRM_S, timeout_s)
+    try:
+        team = set(mission_targets_of(bus, mission, timeout_s).team)
+    except MissionError:
+        team = set()  # nobody serves the targets: judge by the states alone
+    expected = {uav} if uav is not None else team
+    pending: dict[int, str] = {}
+    while True:
+        states = query_states(bus, timeout_s)
+        on_mission = {
+            piccolo_id
+            for piccolo_id, state in states.items()
+            if state.mission is not None
+            and state.mission.mission == mission
+            and (uav is None or piccolo_id == uav)
+        }
+        pending = {
+            piccolo_id: str(state.mission.phase)
+            for piccolo_id, state in states.items()
+            if piccolo_id in on_mission
+            and state.mission is not None
+            and state.mission.phase != Phase.ABORTED
+        }
+        # A team UAV that left for a later mission is off this one; a silent one is not.
+        silent = expected - states.keys()
+        pending.update({piccolo_id: "no answer" for piccolo_id in silent})
+        if not pending or time.monotonic() >= deadline:
+            break
+        time.sleep(0.2)  # polling the UAVs' state: each query is itself an observation
+    confirmed = sorted(on_mission - set(pending))
+    print(f"mission {mission}: aborted by {', '.join(map(str, confirmed)) or 'no UAV'}")
+    if uav is not None and uav not in on_mission and uav not in pending:
+        print(f"error: UAV {uav} is not on mission {mission}", file=sys.stderr)
+        return ExitCode.FAILED
+    if pending:
+        still = ", ".join(f"{p} ({phase})" for p, phase in sorted(pending.items()))
+        print(f"error: mission {mission}: not confirmed by {still}", file=sys.stderr)
+        return ExitCode.FAILED
+    return ExitCode.OK

@@ -1,0 +1,61 @@
+"""A mission's outcome as the lines `send-targets --wait` and `mission` print."""
+
+from __future__ import annotations
+
+from ground.mission_outcome import MissionOutcome
+
+
+def summary_lines(outcome: MissionOutcome) -> list[str]:
+    agreement = outcome.agreement
+    lines = [
+        f"mission {outcome.mission}: team {', '.join(map(str, outcome.team))}; "
+        f"{len(outcome.targets)} targets"
+    ]
+    for uav in outcome.team:
+        result = outcome.results.get(uav)
+        report = outcome.assignments.get(uav)
+        times = (
+            "no result"
+            if result is None
+            else "times " + ", ".join("-" if t is None else f"{t:.1f}" for t in result.times) + " s"
+        )
+        if report is None:
+            choice = "not committed"
+        elif report.target is None:
+            choice = "no target"
+        else:
+            eta = "" if report.eta_s is None else f" ETA {report.eta_s:.0f} s"
+            choice = f"target {report.target}{eta}"
+        if uav in outcome.lost:
+            choice = "LOST (liveliness gone) " + choice
+        elif uav in outcome.declined:
+            choice = "declined " + choice
+        phase = outcome.phases.get(uav)
+        reason = outcome.reasons.get(uav)
+        state = f"; phase {phase}" + (f" ({reason})" if reason else "") if phase else ""
+        lines.append(f"  UAV {uav}: {choice}; {times}{state}")
+    if outcome.epoch:
+        lines.append(f"  re-planned: epoch {outcome.epoch}")
+    for target in outcome.target_states():
+        if target["state"] == "unserved":
+            lines.append(f"  target {target['index']}: unserved: {target['reason']}")
+        elif target["state"] == "reached":
+            lines.append(f"  target {target['index']}: reached by UAV {target['uav']}")
+    unassigned = outcome.unassigned()
+    lines.append(f"  unassigned targets: {', '.join(map(str, unassigned)) or 'none'}")
+    if outcome.superseded_by is not None:
+        lines.append(
+            f"  SUPERSEDED by mission {outcome.superseded_by}: the team no longer flies "
+            f"mission {outcome.mission}"
+        )
+    if agreement.agreed:
+        digest = agreement.reference.digest[:12] if agreement.reference else ""
+        lines.append(f"  agreed: yes (digest {digest})")
+    else:
+        why = []
+        if agreement.disagreed:
+            why.append("disagreed: " + ", ".join(map(str, agreement.disagreed)))
+        if agreement.missing:
+            why.append("not committed: " + ", ".join(map(str, agreement.missing)))
+        lines.append(f"  agreed: no ({'; '.join(why)})")
+    return lines

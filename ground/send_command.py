@@ -1,0 +1,188 @@
+"""`ground-cli send-targets`: Send Targets (thesis 3.1.4), and follow the mission.
+
+The file is read and checked first; then a mission id is claimed (`claim_mission`), the
+targets are put, and the mission is followed: to its commitments with --wait, else
+until the team acknowledges receipt (at most `DELIVERY_WAIT_S`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+from typing import TextIO
+
+from fleet.consensus.deadline import consensus_deadline
+from fleet.mission.messages import AssignmentReport, MissionTargets, TargetOutcome, UavResult
+from fleet.transport.bus import Bus
+from fleet.transport.cli import ExitCode
+from fleet.transport.zenoh_bus import client_bus
+from ground.fleet_view import live_uav_ids, query_states
+from ground.mission_control import MissionError, publish_targets, wait_delivered
+from ground.mission_follower import Listener, MissionFollower
+from ground.mission_ids import TargetsServer, claim_mission, contest_grace_s
+from ground.mission_outcome import MissionOutcome, check_agreement
+from ground.mission_summary import summary_lines
+from ground.targets_command import read_or_say
+
+#: How long `send-targets` without --wait waits for the team to acknowledge receipt.
+DELIVERY_WAIT_S = 3.0
+
+
+def _progress_printer(out: TextIO, team: tuple[int, ...]) -> Listener:
+    """Prints each result and commitment as it arrives, with the count so far.
+
+    Once every team UAV has committed, says whether they agree (same digest and pairs).
+    """
+    # Results and reports arrive on Zenoh threads, possibly two at once.
+    lock = threading.Lock()
+    results: set[int] = set()
+    reports: dict[int, AssignmentReport] = {}
+
+    def on_message(kind: str, message: UavResult | AssignmentReport | TargetOutcome) -> None:
+        with lock:
+            if isinstance(message, UavResult):
+                results.add(message.uav)
+                times = ", ".join("-" if t is None else f"{t:.1f}" for t in message.times)
+                lines = [
+                    f"mission {message.mission}: UAV {message.uav} result: [{times}] s "
+                    f"({len(results & set(team))}/{len(team)} results)"
+                ]
+            elif isinstance(message, TargetOutcome):
+                why = f" ({message.reason})" if message.reason else ""
+                lines = [
+                    f"mission {message.mission}: UAV {message.uav} {message.phase} "
+                    f"target {message.target}{why}"
+                ]
+            else:
+                reports[message.uav] = message
+                target = "none" if message.target is None else str(message.target)
+                eta = "" if message.eta_s is None else f", ETA {message.eta_s:.0f} s"
+                lines = [
+                    f"mission {message.mission}: UAV {message.uav} committed target "
+                    f"{target}{eta}, digest {message.digest[:12]} "
+                    f"({len(reports.keys() & set(team))}/{len(team)} committed)"
+                ]
+                agreement = check_agreement(team, reports)
+                if not agreement.missing:
+                    verdict = "agree" if agreement.agreed else "DISAGREE"
+                    lines.append(f"mission {message.mission}: every UAV committed: they {verdict}")
+            print("\n".join(lines), file=out, flush=True)
+
+    return on_message
+
+
+def cmd_send_targets(args: argparse.Namespace) -> int:
+    # The file is read and checked before anything touches the network: a bad file
+    # sends nothing.
+    read = read_or_say(args.file, "nothing sent")
+    if read is None:
+        return ExitCode.FAILED
+    targets = tuple(read)
+    progress = sys.stderr if args.json else sys.stdout
+    with client_bus(args.zenoh) as bus:
+        team = _team(bus, args)
+        if not team:
+            print("error: no live UAV to send to (name the team with --team)", file=sys.stderr)
+            return ExitCode.FAILED
+
+        deadline_s = args.deadline or consensus_deadline(len(team))
+
+        def make(mission: int) -> MissionTargets:
+            return MissionTargets(mission, team, targets, deadline_s=deadline_s)
+
+        try:
+            with claim_mission(bus, make, args.query_timeout, mission=args.mission) as server:
+                outcome = _send_and_follow(bus, server, args, progress)
+        except MissionError as error:
+            print(f"error: {error}; nothing sent", file=sys.stderr)
+            return ExitCode.FAILED
+    if args.json:
+        print(json.dumps(outcome.to_json()))
+    elif args.wait:
+        print("\n".join(summary_lines(outcome)))
+    if not args.wait:
+        return ExitCode.OK
+    return ExitCode.OK if outcome.succeeded else ExitCode.FAILED
+
+
+def _send_and_follow(
+    bus: Bus, server: TargetsServer, args: argparse.Namespace, progress: TextIO
+) -> MissionOutcome:
+    """Put the claimed mission and, with --wait, follow it to its commitments (and, when
+    another ground contested its id, for as long as that ground's mission may take)."""
+    message = server.targets
+    mission, team, targets = message.mission, message.team, message.targets
+    listener = _progress_printer(progress, team) if args.wait else None
+    outcome = MissionOutcome(mission=mission, team=team, targets=targets)
+    with MissionFollower(bus, mission, listener, team) as follower:
+        publish_targets(bus, message)
+        print(
+            f"mission {mission}: {len(targets)} targets from {args.file} sent to "
+            f"{', '.join(map(str, team))}",
+            file=progress,
+            flush=True,
+        )
+        if args.wait:
+            committed = follower.wait_committed(team, args.timeout, fetch_every_s=1.0)
+            outcome.timed_out = not committed and follower.superseded_by is None
+            if committed and server.contested.is_set():
+                grace = contest_grace_s(args.query_timeout)
+                print(
+                    f"mission {mission}: another ground chose this id too; watching "
+                    f"{grace:g} s for its mission",
+                    file=progress,
+                    flush=True,
+                )
+                follower.wait_superseded(grace)
+        else:
+            _report_delivery(bus, message, min(DELIVERY_WAIT_S, args.timeout), progress)
+        follower.fetch(args.query_timeout)
+        outcome.results, outcome.assignments = follower.snapshot()
+        outcome.outcomes = follower.outcome_snapshot()
+        outcome.lost = set(follower.lost) & set(team)
+        if args.wait:
+            _read_phases(bus, outcome, follower, args.query_timeout)
+    return outcome
+
+
+def _team(bus: Bus, args: argparse.Namespace) -> tuple[int, ...]:
+    """`--team`, or every live UAV; team members not live now are warned about."""
+    live = live_uav_ids(bus, args.query_timeout)
+    if not args.team:
+        return tuple(live)
+    absent = [uav for uav in args.team if uav not in live]
+    if absent:
+        print(
+            f"warning: not live now: {', '.join(map(str, absent))}; they can fetch "
+            "the mission while this command runs",
+            file=sys.stderr,
+        )
+    return tuple(args.team)
+
+
+def _report_delivery(bus: Bus, message: MissionTargets, timeout_s: float, out: TextIO) -> None:
+    """Without --wait: say which team UAVs have not acknowledged the mission yet."""
+    got = wait_delivered(bus, message.mission, message.team, timeout_s)
+    missing = [uav for uav in message.team if uav not in got]
+    if missing:
+        print(
+            f"mission {message.mission}: not yet acknowledged by {', '.join(map(str, missing))}",
+            file=out,
+        )
+
+
+def _read_phases(
+    bus: Bus, outcome: MissionOutcome, follower: MissionFollower, timeout_s: float
+) -> None:
+    """Each team UAV's phase (and reason) as its own state query answers it; a team UAV
+    on a later mission means this one was superseded."""
+    for uav, state in query_states(bus, timeout_s).items():
+        if uav in outcome.team:
+            outcome.phases[uav] = str(state.phase)
+            if state.reason:
+                outcome.reasons[uav] = state.reason
+            if state.mission is not None:
+                follower.note_later_mission(state.mission.mission)
+    outcome.superseded_by = follower.superseded_by
