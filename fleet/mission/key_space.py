@@ -78,8 +78,8 @@ class KeySpace:
         """Every key of one UAV: `{prefix}/uav/{id}/**`."""
         return self.uav(uav_id, "**")
 
-    def uav(self, uav_id: int, leaf: str) -> str:
-        """`{prefix}/uav/{id}/{leaf}`: a key or expression below one UAV."""
+    def uav(self, uav_id: int | str, leaf: str) -> str:
+        """`{prefix}/uav/{id}/{leaf}`: a key or expression below one UAV (or `*`: all)."""
         return f"{self.prefix}/uav/{uav_id}/{leaf}"
 
     # --- one UAV's keys ---
