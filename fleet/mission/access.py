@@ -1,9 +1,10 @@
 """Who may do what on the fleet's key space: the access policy of the secure profile.
 
 Pure data: each identity (a certificate's common name) gets grants, each a set of
-message kinds, a direction and the key expressions they cover, built from
-`fleet.mission.keys`. `fleet.transport.acl` turns them into Zenoh's `access_control`
-configuration; anything no grant covers is denied.
+message kinds, a direction and the key expressions they cover, derived from who writes
+and serves each key in the key registry (`fleet.mission.key_registry`).
+`fleet.transport.acl` turns them into Zenoh's `access_control` configuration; anything
+no grant covers is denied.
 
 The policy, from the router's point of view (ingress: from that client into the router;
 egress: from the router out to that client):
@@ -11,13 +12,13 @@ egress: from the router out to that client):
 * every fleet identity may *read* the fleet's key space: subscribe, query, receive;
 * only the ground may *command*: put missions, aborts and OPM commands, query the
   waypoint and track command queryables, answer mission-targets queries;
-* UAV n may only *write* as UAV n: publish under `fleet/uav/n/**`, its own mission
+* UAV n may only *write* as UAV n: publish under `{prefix}/uav/n/**`, its own mission
   results and assignments, declare its own liveliness token, answer queries for its own
   keys, and serve queries (queryables) for its own keys and the mission space.
 
 Zenoh allows a message only when an allow rule *includes* its key expression, so the
-reading grants cover the whole `fleet/**` tree: a subscription to `fleet/**` would be
-refused by grants that only cover sub-trees.
+reading grants cover the whole `{prefix}/**` tree: a subscription to `{prefix}/**` would
+be refused by grants that only cover sub-trees.
 """
 
 from __future__ import annotations
@@ -26,15 +27,17 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from fleet.mission import keys
+from fleet.mission.key_registry import REGISTRY, Carriage, KeySpec, Party, Role
+from fleet.mission.key_space import KeySpace
 
 GROUND = "ground"
 ROUTER = "router"
 ADMIN_SPACE = "@/**"
 
 
-def all_fleet() -> str:
-    """Every key of the fleet (the prefix is read when used, never copied at import)."""
-    return f"{keys.PREFIX}/**"
+def all_fleet(space: KeySpace | None = None) -> str:
+    """Every key of the fleet (of the process's key space by default)."""
+    return (space or keys.current()).everything
 
 
 def uav_identity(uav_id: int) -> str:
@@ -82,18 +85,37 @@ _READ = (
 )
 
 
-def _uav_grants(uav_id: int) -> list[Grant]:
+_UAVS = frozenset({Party.OWN_UAV, Party.ANY_UAV})
+
+
+def _wildcards(space: KeySpace, specs: list[KeySpec], **ids: int) -> tuple[str, ...]:
+    return tuple(space.key(spec, **ids) for spec in specs)
+
+
+def _uav_grants(uav_id: int, space: KeySpace) -> list[Grant]:
     me = (uav_identity(uav_id),)
-    own = (
-        keys.uav(uav_id, "**"),
-        f"{keys.PREFIX}/mission/*/result/{uav_id}",
-        f"{keys.PREFIX}/mission/*/assignment/{uav_id}",
-        f"{keys.PREFIX}/mission/*/replan/{uav_id}",
-        f"{keys.PREFIX}/mission/*/outcome/{uav_id}",
+    written = [s for s in REGISTRY if s.writer is Party.OWN_UAV]
+    # A UAV owns its whole sub-tree (its replies to the ground's commands and state
+    # queries included); under the mission tree only the keys that name it.
+    own_tree = (space.uav_tree(uav_id),) if any(s.tree == "uav" for s in written) else ()
+    own_mission = [s for s in written if s.tree == "mission" and Carriage.PUT in s.carriage]
+    tokens = [s for s in written if Carriage.TOKEN in s.carriage]
+    # A UAV declares its queryables by wildcard: its own sub-tree, and the mission tree
+    # where it answers for its own keys and relays the ground's.
+    served = {s.tree for s in REGISTRY if s.servers & _UAVS}
+    serve_trees = (
+        *((space.uav_tree(uav_id),) if "uav" in served else ()),
+        *((space.all_mission_keys,) if "mission" in served else ()),
     )
     ingress = (Flow.INGRESS,)
     return [
-        Grant(f"uav-{uav_id}-publish", me, ingress, (Message.PUT, Message.REPLY), own),
+        Grant(
+            f"uav-{uav_id}-publish",
+            me,
+            ingress,
+            (Message.PUT, Message.REPLY),
+            (*own_tree, *_wildcards(space, own_mission, id=uav_id)),
+        ),
         # A UAV relays its current mission's targets and abort by query (never by put):
         # how a teammate that was away learns the live mission and that it was aborted.
         Grant(
@@ -101,70 +123,63 @@ def _uav_grants(uav_id: int) -> list[Grant]:
             me,
             ingress,
             (Message.REPLY,),
-            (keys.ALL_MISSION_TARGETS, keys.ALL_MISSION_ABORTS),
+            _wildcards(space, [s for s in REGISTRY if Party.ANY_UAV in s.servers]),
         ),
         Grant(
-            f"uav-{uav_id}-alive", me, ingress, (Message.LIVELINESS_TOKEN,), (keys.alive(uav_id),)
-        ),
-        Grant(
-            f"uav-{uav_id}-serve",
+            f"uav-{uav_id}-alive",
             me,
             ingress,
-            (Message.DECLARE_QUERYABLE,),
-            (keys.uav(uav_id, "**"), keys.ALL_MISSION_KEYS),
+            (Message.LIVELINESS_TOKEN,),
+            _wildcards(space, tokens, id=uav_id),
         ),
+        Grant(f"uav-{uav_id}-serve", me, ingress, (Message.DECLARE_QUERYABLE,), serve_trees),
         Grant(
             f"uav-{uav_id}-fetch",
             me,
             ingress,
             (Message.QUERY,),
-            (
-                keys.ALL_MISSION_TARGETS,
-                keys.ALL_MISSION_RESULTS,
-                keys.ALL_MISSION_ASSIGNMENTS,
-                keys.ALL_MISSION_OUTCOMES,
-                keys.ALL_MISSION_ABORTS,
-                keys.ALL_STATE,
-            ),
+            _wildcards(space, [s for s in REGISTRY if s.uavs_fetch]),
         ),
     ]
 
 
-def _ground_grants() -> list[Grant]:
+def _ground_grants(space: KeySpace) -> list[Grant]:
     me = (GROUND,)
     ingress = (Flow.INGRESS,)
-    commands = (
-        keys.ALL_MISSION_TARGETS,
-        keys.ALL_MISSION_ABORTS,
-        f"{keys.PREFIX}/uav/*/opm",
-    )
+    commands = [
+        s
+        for s in REGISTRY
+        if s.writer is Party.GROUND and s.role is Role.COMMAND and Carriage.PUT in s.carriage
+    ]
     return [
-        Grant("ground-command", me, ingress, (Message.PUT,), commands),
-        Grant("ground-query", me, ingress, (Message.QUERY,), (all_fleet(), ADMIN_SPACE)),
+        Grant("ground-command", me, ingress, (Message.PUT,), _wildcards(space, commands)),
+        Grant("ground-query", me, ingress, (Message.QUERY,), (space.everything, ADMIN_SPACE)),
         Grant(
             "ground-serve-targets",
             me,
             ingress,
             (Message.DECLARE_QUERYABLE, Message.REPLY),
-            (keys.ALL_MISSION_TARGETS,),
+            _wildcards(space, [s for s in REGISTRY if Party.GROUND in s.servers]),
         ),
     ]
 
 
-def fleet_policy(uav_ids: list[int]) -> list[Grant]:
-    """Every grant of a fleet of `uav_ids` with one ground and its routers.
+def fleet_policy(uav_ids: list[int], space: KeySpace | None = None) -> list[Grant]:
+    """Every grant of a fleet of `uav_ids` with one ground and its routers, on the keys
+    of `space` (the process's by default).
 
     Everything else is denied.
     """
+    space = space or keys.current()
     members = (GROUND, *(uav_identity(u) for u in uav_ids))
     both = (Flow.INGRESS, Flow.EGRESS)
     grants = [
         # Routers relay everything between their clients and each other.
         Grant("router-relay", (ROUTER,), both, tuple(Message), ("**",)),
-        Grant("fleet-receive", members, (Flow.EGRESS,), _RECEIVE, (all_fleet(),)),
-        Grant("fleet-read", members, (Flow.INGRESS,), _READ, (all_fleet(),)),
-        *_ground_grants(),
+        Grant("fleet-receive", members, (Flow.EGRESS,), _RECEIVE, (space.everything,)),
+        Grant("fleet-read", members, (Flow.INGRESS,), _READ, (space.everything,)),
+        *_ground_grants(space),
     ]
     for uav_id in uav_ids:
-        grants += _uav_grants(uav_id)
+        grants += _uav_grants(uav_id, space)
     return grants

@@ -4,7 +4,8 @@ Anyone who can publish on the bus can put anything under any key, so a message i
 believed only as far as its key vouches for it: a result or assignment of UAV n only on
 UAV n's key, a mission's messages only on that mission's keys, and every id in range
 (Piccolo IDs 1-65520, mission ids u32). `check_key` raises `WrongKey` with the reason;
-the transport drops and counts the message (`fleet.transport.bus_codec`).
+the transport drops and counts the message (`fleet.transport.bus_codec`). Where a key
+holds its ids is its pattern in the key registry (`fleet.mission.key_registry`).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from typing import Any
 
 from fleet.errors import FleetError
 from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     AssignmentHeader,
     AssignmentReport,
@@ -44,7 +46,7 @@ class KeyIds:
 
     uav: int | None
     mission: int | None
-    index: int | None  #: a waypoint's index in `fleet/uav/{id}/waypoint/{index}`
+    index: int | None  #: a waypoint's index in `{prefix}/uav/{id}/waypoint/{index}`
 
 
 def _number(text: str, low: int, high: int, what: str, key: str) -> int:
@@ -80,31 +82,41 @@ def _piccolo_id(text: str, key: str) -> int:
     return value
 
 
-def parse_key(key: str) -> KeyIds:
-    """The ids in a `fleet/uav/{id}/...` or `fleet/mission/{m}/...` key; WrongKey if bad."""
-    return _parse_key(key, keys.PREFIX)
+def parse_key(key: str, space: KeySpace | None = None) -> KeyIds:
+    """The ids in a `{prefix}/uav/{id}/...` or `{prefix}/mission/{m}/...` key of `space`
+    (the process's by default); WrongKey if bad."""
+    return _parse_key(key, space or keys.current())
 
 
 @functools.lru_cache(maxsize=PARSED_KEYS)
-def _parse_key(key: str, prefix: str) -> KeyIds:
+def _parse_key(key: str, space: KeySpace) -> KeyIds:
+    parsed = space.parse(key)
+    if parsed is not None:  # a registered key: its ids are where its pattern says
+        uav, mission, index = parsed.uav, parsed.mission, parsed.index
+    else:  # a key no registered pattern names: its ids by their place in its tree
+        uav, mission, index = _ids_by_place(key, space)
+    # Checked in key order (a mission id comes before the member's Piccolo ID).
+    mission_id = None if mission is None else _number(mission, 0, MAX_MISSION_ID, "mission id", key)
+    uav_id = None if uav is None else _piccolo_id(uav, key)
+    index_value = None if index is None else _number(index, 0, MAX_INDEX, "waypoint index", key)
+    return KeyIds(uav_id, mission_id, index_value)
+
+
+def _ids_by_place(key: str, space: KeySpace) -> tuple[str | None, str | None, str | None]:
+    """(UAV, mission, None) as `{prefix}/uav/{id}/...` and `{prefix}/mission/{m}/x/{id}`
+    place them; WrongKey for a key under neither tree."""
     parts = key.split("/")
-    if len(parts) < 4 or parts[0] != prefix:
+    if len(parts) < 4 or not space.owns(key):
         raise WrongKey(f"{key}: not a fleet message key")
     if parts[1] == "uav":
-        uav = _piccolo_id(parts[2], key)
-        index = None
-        if parts[3] == "waypoint" and len(parts) == 5:
-            index = _number(parts[4], 0, MAX_INDEX, "waypoint index", key)
-        return KeyIds(uav, None, index)
+        return parts[2], None, None
     if parts[1] == "mission":
-        mission = _number(parts[2], 0, MAX_MISSION_ID, "mission id", key)
-        member = _piccolo_id(parts[4], key) if len(parts) == 5 else None
-        return KeyIds(member, mission, None)
+        return (parts[4] if len(parts) == 5 else None), parts[2], None
     raise WrongKey(f"{key}: not a fleet message key")
 
 
 def uav_of(key: str) -> int:
-    """The Piccolo ID a `fleet/uav/{id}/...` or `.../{id}` key names; WrongKey if none."""
+    """The Piccolo ID a `{prefix}/uav/{id}/...` or `.../{id}` key names; WrongKey if none."""
     uav = parse_key(key).uav
     if uav is None:
         raise WrongKey(f"{key}: names no UAV")

@@ -1,5 +1,8 @@
 """JSON Schemas of every message on the fleet's Zenoh keys, generated from the structs.
 
+Which struct travels on which key comes from the key registry
+(`fleet.mission.key_registry`); each schema lists those keys in `x-key-expressions`.
+
 `python -m fleet.mission.schemas [DIR]` writes one file per message type into DIR
 (default: `schemas` in the current directory, the repository's `schemas/` when run from
 its root); `--check` writes nothing and exits 1 if a file is missing, drifted or stray.
@@ -16,44 +19,32 @@ from pathlib import Path
 
 import msgspec
 
-from fleet.mission.messages import (
-    AssignmentReport,
-    CommandResult,
-    LinkHealth,
-    MissionAbort,
-    MissionTargets,
-    OpmCommand,
-    StatusText,
-    TargetOutcome,
-    UavResult,
-    UavState,
-)
-from fleet.piccolo.telemetry import Telemetry
-from fleet.piccolo.track import Track
-from fleet.piccolo.waypoint import Waypoint
+from fleet.mission.key_registry import DEFAULT_PREFIX, REGISTRY, SCHEMA_FILES, Carriage, KeySpec
 
-#: Schema file name -> (the struct, the key expressions that carry it).
-MESSAGES: dict[str, tuple[type[msgspec.Struct], tuple[str, ...]]] = {
-    "telemetry": (Telemetry, ("fleet/uav/{id}/telemetry",)),
-    "track": (Track, ("fleet/uav/{id}/track", "fleet/uav/{id}/cmd/track (query payload)")),
-    "waypoint": (
-        Waypoint,
-        ("fleet/uav/{id}/waypoint/{index}", "fleet/uav/{id}/cmd/waypoint (query payload)"),
-    ),
-    "status": (StatusText, ("fleet/uav/{id}/status",)),
-    "link_health": (LinkHealth, ("fleet/uav/{id}/link",)),
-    "uav_state": (UavState, ("fleet/uav/{id}/state (put at the OPM status rate; query reply)",)),
-    "opm_command": (OpmCommand, ("fleet/uav/{id}/opm",)),
-    "command_result": (CommandResult, ("fleet/uav/{id}/cmd/* (query reply)",)),
-    "mission_targets": (MissionTargets, ("fleet/mission/{m}/targets",)),
-    "uav_result": (UavResult, ("fleet/mission/{m}/result/{id}",)),
-    "assignment_report": (
-        AssignmentReport,
-        ("fleet/mission/{m}/assignment/{id}", "fleet/mission/{m}/replan/{id} (epoch > 0)"),
-    ),
-    "mission_abort": (MissionAbort, ("fleet/mission/{m}/abort",)),
-    "target_outcome": (TargetOutcome, ("fleet/mission/{m}/outcome/{id}",)),
-}
+
+def _key_expressions(spec: KeySpec) -> dict[type[msgspec.Struct], str]:
+    """What each struct of `spec` is shown as: its key, and where it travels otherwise."""
+    key = f"{DEFAULT_PREFIX}/{spec.pattern}"
+    shown: dict[type[msgspec.Struct], str] = {}
+    if spec.message is not None:
+        notes = [] if Carriage.PUT in spec.carriage else ["query payload"]
+        notes += [spec.note] if spec.note else []
+        shown[spec.message] = f"{key} ({'; '.join(notes)})" if notes else key
+    if spec.reply is not None and spec.reply is not spec.message:
+        shown[spec.reply] = f"{key} (query reply)"
+    return shown
+
+
+def _messages() -> dict[str, tuple[type[msgspec.Struct], tuple[str, ...]]]:
+    found: dict[type[msgspec.Struct], list[str]] = {struct: [] for struct in SCHEMA_FILES}
+    for spec in REGISTRY:
+        for struct, shown in _key_expressions(spec).items():
+            found[struct].append(shown)
+    return {SCHEMA_FILES[struct]: (struct, tuple(shown)) for struct, shown in found.items()}
+
+
+#: Schema file name -> (the struct, the key expressions that carry it), from the registry.
+MESSAGES = _messages()
 
 #: Where the schemas go by default, relative to the current directory.
 DEFAULT_DIR = Path("schemas")

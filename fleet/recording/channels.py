@@ -1,4 +1,5 @@
-"""Which MCAP channel and schema each fleet key is recorded on (pure).
+"""Which MCAP channel and schema each fleet key is recorded on (pure), from the key
+registry (`fleet.mission.key_registry`: each key's `Recording` and `Role`).
 
 A recording has one channel per Zenoh key (its topic is the key itself, e.g.
 `fleet/uav/101/telemetry`): an MCAP message carries no key of its own, so a channel per
@@ -17,25 +18,24 @@ Two kinds of channel are derived rather than heard on the bus:
 from __future__ import annotations
 
 import json
-import re
 from dataclasses import dataclass, field
 from functools import cache
 from typing import Any
 
-from fleet.mission import schemas
+from fleet.mission import key_registry, schemas
+from fleet.mission.key_registry import REGISTRY, Recording, Role
+from fleet.mission.key_space import KeySpace
 
 SCHEMA_ENCODING = "jsonschema"
 MESSAGE_ENCODING = "json"
 LOCATION_FIX = "foxglove.LocationFix"
 LIVELINESS = "fleet.Liveliness"
 LOCATION_LEAF = "location_fix"
-ALIVE_LEAF = "alive"
-STATE_LEAF = "state"
+ALIVE_LEAF = key_registry.ALIVE.leaf
+STATE_LEAF = key_registry.STATE.leaf
 
 #: Keys under the prefix that carry commands to the fleet: recorded, never replayed.
-COMMAND_PATTERNS = ("uav/*/opm", "uav/*/cmd/**", "mission/*/targets", "mission/*/abort")
-
-_PLACEHOLDER = re.compile(r"\{[a-z]+\}")
+COMMAND_PATTERNS = tuple(spec.fill() for spec in REGISTRY if spec.role is Role.COMMAND)
 
 # Foxglove's published JSON Schema of LocationFix (the fields its map panel reads).
 _LOCATION_FIX_SCHEMA: dict[str, Any] = {
@@ -131,14 +131,11 @@ def is_command(key: str) -> bool:
 @cache
 def _message_patterns() -> tuple[tuple[str, str, str], ...]:
     """(pattern below the prefix, schema name, schema file name) for each published key."""
-    found = []
-    for name, (struct, expressions) in schemas.MESSAGES.items():
-        for expression in expressions:
-            if "(query payload)" in expression or "/cmd/" in expression:
-                continue  # a query's payload or reply: never seen by a subscriber
-            key = expression.split(" (", 1)[0]
-            found.append((_PLACEHOLDER.sub("*", strip_prefix(key)), struct.__name__, name))
-    return tuple(found)
+    return tuple(
+        (spec.fill(), spec.message.__name__, key_registry.SCHEMA_FILES[spec.message])
+        for spec in REGISTRY
+        if spec.recording is Recording.MESSAGE and spec.message is not None
+    )
 
 
 @cache
@@ -157,19 +154,16 @@ def channel_for(key: str) -> ChannelSpec:
 
 def location_channel(prefix: str, uav: int) -> ChannelSpec:
     schema = json.dumps(_LOCATION_FIX_SCHEMA).encode()
+    space = KeySpace(prefix)
     return ChannelSpec(
-        f"{prefix}/uav/{uav}/{LOCATION_LEAF}",
-        LOCATION_FIX,
-        schema,
-        f"{prefix}/uav/*/{LOCATION_LEAF}",
+        space.uav(uav, LOCATION_LEAF), LOCATION_FIX, schema, space.uav("*", LOCATION_LEAF)
     )
 
 
 def alive_channel(prefix: str, uav: int) -> ChannelSpec:
     schema = json.dumps(_LIVELINESS_SCHEMA).encode()
-    return ChannelSpec(
-        f"{prefix}/uav/{uav}/{ALIVE_LEAF}", LIVELINESS, schema, f"{prefix}/uav/*/{ALIVE_LEAF}"
-    )
+    space = KeySpace(prefix)
+    return ChannelSpec(space.alive(uav), LIVELINESS, schema, space.all_alive)
 
 
 def is_derived(spec_schema_name: str) -> bool:

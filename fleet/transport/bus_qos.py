@@ -1,14 +1,15 @@
 """How urgently each fleet message travels on Zenoh: priority and congestion control.
 
-Mission traffic (targets, results, assignments, aborts under `{prefix}/mission/`) and the
-ground's commands (`{prefix}/uav/{id}/opm`) must never queue behind telemetry: they go at
-INTERACTIVE_HIGH priority (a queue of its own, served before the others) and BLOCK
-(never dropped when a queue is full). They are not express: when the fifty UAVs of a
-team commit together, the router batches the fifty assignment reports it fans out to
-each subscriber instead of writing them one by one, each waking the subscriber's
-receiving thread (measured at N = 50 while every UAV still subscribed to its
-teammates' commitments, last result -> last commit 115-186 ms express, 71-103 ms
-batched; a batch waits at most Zenoh's batching time limit, 1 ms by default).
+Each key's `Urgency` is declared in the key registry (`fleet.mission.key_registry`);
+this maps it to Zenoh's QoS. Mission traffic (targets, results, assignments, aborts
+under `{prefix}/mission/`) and the ground's commands (`{prefix}/uav/{id}/opm`) must
+never queue behind telemetry: they go at INTERACTIVE_HIGH priority (a queue of its own,
+served before the others) and BLOCK (never dropped when a queue is full). They are not
+express: when the fifty UAVs of a team commit together, the router batches the fifty
+assignment reports it fans out to each subscriber instead of writing them one by one,
+each waking the subscriber's receiving thread (measured at N = 50 while every UAV still
+subscribed to its teammates' commitments, last result -> last commit 115-186 ms express,
+71-103 ms batched; a batch waits at most Zenoh's batching time limit, 1 ms by default).
 Telemetry goes at DATA_LOW and DROP: a stale sample is worth nothing when the next
 follows within a second. Everything else keeps Zenoh's defaults (DATA, DROP).
 """
@@ -20,6 +21,8 @@ from dataclasses import dataclass
 import zenoh
 
 from fleet.mission import keys
+from fleet.mission.key_registry import Urgency
+from fleet.mission.key_space import KeySpace
 from fleet.transport.bus_codec import ENCODING
 
 
@@ -35,14 +38,14 @@ TELEMETRY = Qos(zenoh.Priority.DATA_LOW, zenoh.CongestionControl.DROP, False)
 ORDINARY = Qos(zenoh.Priority.DATA, zenoh.CongestionControl.DROP, False)
 
 
-def qos_for(key: str) -> Qos:
-    """The priority and congestion control of a publication on `key`."""
-    # keys.PREFIX is read at each call: a process may change it (keys.use_prefix).
-    if key.startswith(f"{keys.PREFIX}/mission/") or key.endswith("/opm"):
-        return URGENT
-    if key.endswith("/telemetry"):
-        return TELEMETRY
-    return ORDINARY
+_QOS = {Urgency.URGENT: URGENT, Urgency.TELEMETRY: TELEMETRY, Urgency.ORDINARY: ORDINARY}
+
+
+def qos_for(key: str, space: KeySpace | None = None) -> Qos:
+    """The priority and congestion control of a publication on `key`: ORDINARY for a key
+    the registry does not know under `space`'s prefix (the process's by default)."""
+    parsed = (space or keys.current()).parse(key)
+    return _QOS[parsed.spec.urgency] if parsed is not None else ORDINARY
 
 
 def put(session: zenoh.Session, key: str, payload: bytes, qos: Qos | None = None) -> None:

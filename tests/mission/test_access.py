@@ -8,6 +8,7 @@ import zenoh
 
 from fleet.mission import keys
 from fleet.mission.access import GROUND, Flow, Message, fleet_policy, uav_identity
+from fleet.mission.key_space import KeySpace
 
 POLICY = fleet_policy([74, 112])
 
@@ -78,3 +79,10 @@ def test_everyone_reads_the_whole_tree_so_a_fleet_wide_subscription_is_allowed()
         assert allowed(identity, Flow.INGRESS, Message.DECLARE_SUBSCRIBER, "fleet/**")
         assert allowed(identity, Flow.EGRESS, Message.PUT, keys.telemetry(74))
     assert not allowed("uav-999", Flow.EGRESS, Message.PUT, keys.telemetry(74))
+
+
+def test_the_policy_follows_the_key_space_given() -> None:
+    lab = KeySpace("lab")
+    exprs = {expr for grant in fleet_policy([74], lab) for expr in grant.key_exprs}
+    assert "lab/uav/74/**" in exprs and "lab/mission/*/targets" in exprs
+    assert not any(expr.startswith(f"{keys.DEFAULT_PREFIX}/") for expr in exprs)

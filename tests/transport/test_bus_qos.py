@@ -7,6 +7,7 @@ import queue
 import zenoh
 
 from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.transport import bus_qos
 from fleet.transport.bus_codec import ENCODING
 from fleet.transport.bus_qos import ORDINARY, TELEMETRY, URGENT, qos_for
@@ -44,6 +45,13 @@ def test_the_key_prefix_in_use_decides() -> None:
         assert qos_for("fleet/mission/1/targets") == ORDINARY  # another prefix's key
     finally:
         keys.use_prefix(previous)
+
+
+def test_a_key_space_given_decides() -> None:
+    lab = KeySpace("lab")
+    assert qos_for(lab.mission_targets(1), lab) == URGENT
+    assert qos_for(lab.telemetry(1), lab) == TELEMETRY
+    assert qos_for(keys.mission_targets(1), lab) == ORDINARY
 
 
 def test_telemetry_goes_through_one_declared_publisher_with_its_qos() -> None:

@@ -1,0 +1,220 @@
+"""Every Zenoh key of the fleet, declared once: what it carries and how it is treated.
+
+Each key is a `KeySpec`: its pattern below the key prefix (`uav/{id}/telemetry`,
+`mission/{m}/assignment/{id}`; `{id}` is a Piccolo ID, `{m}` a mission id, `{index}` a
+waypoint index, all in decimal), the message struct it carries, how urgently it
+travels, whether it commands the fleet or tells its state, who may write and serve it,
+and how a recording keeps it. Everything else that describes keys is derived from
+`REGISTRY`: concrete keys and wildcards (`fleet.mission.key_space.KeySpace`), the JSON
+Schemas (`fleet.mission.schemas`), the QoS (`fleet.transport.bus_qos`), the key check
+(`fleet.mission.key_check`), the access policy (`fleet.mission.access`) and the
+recording channels (`fleet.recording.channels`).
+
+Layout (under the prefix, `fleet` by default):
+
+    uav/{id}/alive               liveliness token: the UAV process is up
+    uav/{id}/telemetry           Telemetry (latest TELEMETRY_HI_RES)
+    uav/{id}/track               Track (the waypoint the autopilot tracks)
+    uav/{id}/waypoint/{index}    Waypoint (as echoed by the autopilot)
+    uav/{id}/status              StatusText (thesis PAYLOAD_STATUS)
+    uav/{id}/link                LinkHealth
+    uav/{id}/state               UavState, put at the OPM status rate and served
+    uav/{id}/opm                 OpmCommand, ground -> UAV
+    uav/{id}/cmd/waypoint        queryable: Waypoint in, CommandResult out
+    uav/{id}/cmd/track           queryable: Track in, CommandResult out
+    mission/{m}/targets          MissionTargets, ground -> team (served too)
+    mission/{m}/result/{id}      UavResult (served too: late fetch)
+    mission/{m}/assignment/{id}  AssignmentReport (republished at each re-plan epoch)
+    mission/{m}/replan/{id}      AssignmentReport of a re-plan (epoch > 0) only: what
+                                 teammates subscribe to (docs/lifecycle.md)
+    mission/{m}/outcome/{id}     TargetOutcome: reached, failed or link_lost
+    mission/{m}/abort            MissionAbort, ground -> team (served too)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum, Flag, auto
+
+import msgspec
+
+from fleet.mission.messages import (
+    AssignmentReport,
+    CommandResult,
+    LinkHealth,
+    MissionAbort,
+    MissionTargets,
+    OpmCommand,
+    StatusText,
+    TargetOutcome,
+    UavResult,
+    UavState,
+)
+from fleet.piccolo.telemetry import Telemetry
+from fleet.piccolo.track import Track
+from fleet.piccolo.waypoint import Waypoint
+
+#: The key prefix when none is chosen; also the one the schemas show their keys under.
+DEFAULT_PREFIX = "fleet"
+
+#: The placeholders a pattern may hold: a Piccolo ID, a mission id, a waypoint index.
+UAV_ID = "id"
+MISSION_ID = "m"
+INDEX = "index"
+PLACEHOLDERS = (UAV_ID, MISSION_ID, INDEX)
+
+
+class Role(Enum):
+    """What a key's messages are to the fleet."""
+
+    COMMAND = auto()  #: tells the fleet to act: recorded, never replayed
+    STATE = auto()  #: tells what is: replayed as it was recorded
+
+
+class Urgency(Enum):
+    """How a put on the key travels (fleet.transport.bus_qos maps it to Zenoh's QoS)."""
+
+    URGENT = auto()  #: mission traffic and commands: a queue of their own, never dropped
+    TELEMETRY = auto()  #: least urgent, dropped under congestion: the next one follows
+    ORDINARY = auto()  #: Zenoh's defaults
+
+
+class Carriage(Flag):
+    """How the key travels on Zenoh."""
+
+    PUT = auto()  #: published: subscribers hear it
+    QUERY = auto()  #: a queryable answers queries on it
+    TOKEN = auto()  #: a liveliness token, neither put nor served
+
+
+class Party(Enum):
+    """Who may write or serve a key (fleet.mission.access)."""
+
+    GROUND = auto()
+    OWN_UAV = auto()  #: the UAV whose Piccolo ID is in the key
+    ANY_UAV = auto()  #: any UAV of the fleet
+
+
+class Recording(Enum):
+    """How a recording keeps the key (fleet.recording.channels)."""
+
+    MESSAGE = auto()  #: a channel per key, with its message's JSON Schema
+    LIVELINESS = auto()  #: a channel of the token appearing (true) or going (false)
+    UNHEARD = auto()  #: query-only: a subscriber never hears it, so it is never recorded
+
+
+@dataclass(frozen=True)
+class KeySpec:
+    """One key of the fleet; the defaults are the common case, a UAV publishing its state."""
+
+    pattern: str  #: below the prefix, with {id}, {m} and {index} placeholders
+    message: type[msgspec.Struct] | None  #: put on the key, or a query's payload; None: token
+    role: Role = Role.STATE
+    carriage: Carriage = Carriage.PUT
+    writer: Party = Party.OWN_UAV  #: puts it, declares its token, or asks (a query-only key)
+    recording: Recording = Recording.MESSAGE
+    urgency: Urgency = Urgency.ORDINARY
+    reply: type[msgspec.Struct] | None = None  #: what a query's answer carries
+    servers: frozenset[Party] = frozenset()  #: declare a queryable on it and reply
+    uavs_fetch: bool = False  #: any UAV may query it (the ground may query every key)
+    note: str = ""  #: shown beside the key in its message's JSON Schema
+
+    @property
+    def chunks(self) -> tuple[str, ...]:
+        return tuple(self.pattern.split("/"))
+
+    @property
+    def placeholders(self) -> tuple[str, ...]:
+        return tuple(c[1:-1] for c in self.chunks if c.startswith("{"))
+
+    @property
+    def tree(self) -> str:
+        """The first chunk: `uav` or `mission`."""
+        return self.chunks[0]
+
+    @property
+    def leaf(self) -> str:
+        """The last fixed chunk: `telemetry`, `waypoint`, `assignment`, ..."""
+        return next(c for c in reversed(self.chunks) if not c.startswith("{"))
+
+    def fill(self, **values: int | str) -> str:
+        """The pattern with `values` put in and `*` for every placeholder not given."""
+        return "/".join(
+            str(values.get(c[1:-1], "*")) if c.startswith("{") else c for c in self.chunks
+        )
+
+
+_OWN = frozenset({Party.OWN_UAV})
+
+ALIVE = KeySpec("uav/{id}/alive", None, carriage=Carriage.TOKEN, recording=Recording.LIVELINESS)
+TELEMETRY = KeySpec("uav/{id}/telemetry", Telemetry, urgency=Urgency.TELEMETRY)
+TRACK = KeySpec("uav/{id}/track", Track)
+WAYPOINT = KeySpec("uav/{id}/waypoint/{index}", Waypoint)
+STATUS = KeySpec("uav/{id}/status", StatusText)
+LINK = KeySpec("uav/{id}/link", LinkHealth)
+STATE = KeySpec(
+    "uav/{id}/state", UavState, carriage=Carriage.PUT | Carriage.QUERY, reply=UavState,
+    servers=_OWN, uavs_fetch=True, note="put at the OPM status rate; query reply",
+)  # fmt: skip
+OPM = KeySpec(
+    "uav/{id}/opm", OpmCommand, role=Role.COMMAND, writer=Party.GROUND, urgency=Urgency.URGENT
+)
+CMD_WAYPOINT = KeySpec(
+    "uav/{id}/cmd/waypoint", Waypoint, role=Role.COMMAND, carriage=Carriage.QUERY,
+    writer=Party.GROUND, recording=Recording.UNHEARD, reply=CommandResult, servers=_OWN,
+)  # fmt: skip
+CMD_TRACK = KeySpec(
+    "uav/{id}/cmd/track", Track, role=Role.COMMAND, carriage=Carriage.QUERY,
+    writer=Party.GROUND, recording=Recording.UNHEARD, reply=CommandResult, servers=_OWN,
+)  # fmt: skip
+#: The ground serves a mission's targets; every UAV relays them to a teammate that was away.
+TARGETS = KeySpec(
+    "mission/{m}/targets", MissionTargets, role=Role.COMMAND,
+    carriage=Carriage.PUT | Carriage.QUERY, writer=Party.GROUND, urgency=Urgency.URGENT,
+    reply=MissionTargets, servers=frozenset({Party.GROUND, Party.ANY_UAV}), uavs_fetch=True,
+)  # fmt: skip
+RESULT = KeySpec(
+    "mission/{m}/result/{id}", UavResult, carriage=Carriage.PUT | Carriage.QUERY,
+    urgency=Urgency.URGENT, reply=UavResult, servers=_OWN, uavs_fetch=True,
+)  # fmt: skip
+ASSIGNMENT = KeySpec(
+    "mission/{m}/assignment/{id}", AssignmentReport, carriage=Carriage.PUT | Carriage.QUERY,
+    urgency=Urgency.URGENT, reply=AssignmentReport, servers=_OWN, uavs_fetch=True,
+)  # fmt: skip
+#: Heard by subscription only: a teammate that missed one fetches the assignment instead.
+REPLAN = KeySpec(
+    "mission/{m}/replan/{id}", AssignmentReport, urgency=Urgency.URGENT, note="epoch > 0"
+)
+OUTCOME = KeySpec(
+    "mission/{m}/outcome/{id}", TargetOutcome, carriage=Carriage.PUT | Carriage.QUERY,
+    urgency=Urgency.URGENT, reply=TargetOutcome, servers=_OWN, uavs_fetch=True,
+)  # fmt: skip
+#: Every UAV relays its current mission's abort to a teammate that was away.
+ABORT = KeySpec(
+    "mission/{m}/abort", MissionAbort, role=Role.COMMAND,
+    carriage=Carriage.PUT | Carriage.QUERY, writer=Party.GROUND, urgency=Urgency.URGENT,
+    reply=MissionAbort, servers=frozenset({Party.ANY_UAV}), uavs_fetch=True,
+)  # fmt: skip
+
+#: Every key of the fleet. Order is kept wherever keys are listed (schemas, grants).
+REGISTRY: tuple[KeySpec, ...] = (
+    ALIVE, TELEMETRY, TRACK, WAYPOINT, STATUS, LINK, STATE, OPM, CMD_WAYPOINT, CMD_TRACK,
+    TARGETS, RESULT, ASSIGNMENT, REPLAN, OUTCOME, ABORT,
+)  # fmt: skip
+
+#: The JSON Schema file (without `.schema.json`) of each struct that travels on a key.
+SCHEMA_FILES: dict[type[msgspec.Struct], str] = {
+    Telemetry: "telemetry",
+    Track: "track",
+    Waypoint: "waypoint",
+    StatusText: "status",
+    LinkHealth: "link_health",
+    UavState: "uav_state",
+    OpmCommand: "opm_command",
+    CommandResult: "command_result",
+    MissionTargets: "mission_targets",
+    UavResult: "uav_result",
+    AssignmentReport: "assignment_report",
+    MissionAbort: "mission_abort",
+    TargetOutcome: "target_outcome",
+}
