@@ -3,7 +3,7 @@
 Events arrive here whichever way they came (Zenoh, or the payload port from a ground
 station reachable only over the Piccolo radio): one code path handles a command.
 What the module does goes out through `Outputs`, which the process wires to the link
-adapter and the Zenoh node, and which unit tests replace with a recorder. No I/O here.
+adapter and the bus edge, and which unit tests replace with a recorder. No I/O here.
 
 Flying to a target (thesis 4.3): write waypoint TARGET_WAYPOINT at the target with
 `next` = the waypoint the aircraft was tracking, then track it; when the autopilot
