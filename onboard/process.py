@@ -18,7 +18,7 @@ import math
 import queue
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import msgspec
 import zenoh
@@ -83,9 +83,6 @@ class OnboardSettings:
     link_release_s: float = LINK_RELEASE_S
     #: Telemetry published on the bus at most this often; None: every packet relayed.
     telemetry_hz: float | None = None
-    #: Test hook: drop the first publication of our own mission result (the teammates
-    #: must recover it by query).
-    drop_first_result: bool = False
 
 
 @dataclass
@@ -93,21 +90,11 @@ class _Outputs:
     """OnboardCore's outputs, wired to the link adapter and the bus edge."""
 
     process: OnboardProcess
-    dropped_results: set[int] = field(default_factory=set)
 
     def send_autopilot(self, command: AutopilotCommand) -> None:
         self.process.link.send_autopilot(command)
 
     def publish(self, key: str, message: msgspec.Struct) -> None:
-        settings = self.process.settings
-        if (
-            settings.drop_first_result
-            and isinstance(message, UavResult)
-            and message.mission not in self.dropped_results
-        ):
-            self.dropped_results.add(message.mission)
-            log.warning("test hook: first publication of %s dropped", key)
-            return
         if isinstance(message, UavState):
             message = self.process.with_link(message, time.monotonic())
         self.process.node.publish(key, message)
