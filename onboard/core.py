@@ -36,13 +36,15 @@ from fleet.mission.phase import Phase
 from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
+from onboard.approach_plan import ApproachPlan, Planner
 from onboard.autopilot_commands import AutopilotCommand, CommandTracker, Completion
 from onboard.catch_up import CATCH_UP_INTERVAL_S
 from onboard.link_watch import LINK_LOST_S, LinkWatch
-from onboard.mission_participation import LIVELINESS_GRACE_S, MissionParticipation, Planner
+from onboard.mission_participation import MissionParticipation
 from onboard.mission_phase import MissionPhase
 from onboard.state_report import StateReport, overall_phase
 from onboard.target_flight import CONFIRM_LIMIT_S, LINK_RELEASE_S, TARGET_WAYPOINT, TargetFlight
+from onboard.team_presence import LIVELINESS_GRACE_S, TeamPresence
 
 # Imported from here by the process, its CLI and the tests: the module's settings.
 __all__ = [
@@ -103,13 +105,12 @@ class OnboardCore:
         self.mission = MissionParticipation(
             uav_id,
             outputs,
-            planner,
+            ApproachPlan(planner, planning_budget_s),
+            TeamPresence(uav_id, liveliness_grace_s),
             self.life,
             self.link,
             self.flight,
             say,
-            planning_budget_s=planning_budget_s,
-            liveliness_grace_s=liveliness_grace_s,
         )
 
     # ---- what the roles hold, read by the process and the tests ----------------------------
@@ -246,13 +247,19 @@ class OnboardCore:
         return self.round.targets if self.round else None
 
     def own_result(self, mission: int) -> UavResult | None:
-        return self.mission.own_result(mission)
+        if self.round is None or self.round.mission != mission:
+            return None
+        return self.round.results.get(self.uav_id)
 
     def own_assignment(self, mission: int) -> AssignmentReport | None:
-        return self.mission.own_assignment(mission)
+        if self.round is None or self.round.mission != mission:
+            return None
+        return self.round.committed
 
     def abort_of(self, mission: int) -> MissionAbort | None:
         return self.mission.abort_of(mission)
 
     def own_outcome(self, mission: int) -> TargetOutcome | None:
-        return self.mission.own_outcome(mission)
+        if self.round is None or self.round.mission != mission:
+            return None
+        return self.round.outcome

@@ -18,7 +18,6 @@ from typing import Protocol
 import msgspec
 
 from fleet.consensus.mission_round import MissionRound, Settled, assignment_problem
-from fleet.geo.mercator import MercatorProjection
 from fleet.mission import keys
 from fleet.mission.lifecycle import Observation, advance
 from fleet.mission.messages import (
@@ -31,31 +30,18 @@ from fleet.mission.messages import (
 )
 from fleet.mission.phase import Phase
 from fleet.mission.targets_file import TargetsFileError, encode_targets
+from onboard.approach_plan import ApproachPlan, plan_text
 from onboard.catch_up import CatchUp
 from onboard.link_watch import LinkWatch
 from onboard.mission_phase import MissionPhase
-from onboard.planner_worker import PlanRequest, PlanResult
 from onboard.state_report import Say
 from onboard.target_flight import TargetFlight
+from onboard.team_presence import TeamPresence
 
 log = logging.getLogger(__name__)
 
 #: Results for missions not seen yet are kept, at most this many, for when they start.
 MAX_EARLY_RESULTS = 256
-#: A committed teammate whose liveliness token stays gone this long (s) is released. A
-#: router failover withdraws every token learned through the dead router and declares
-#: it again through the surviving path some milliseconds later: releasing at once
-#: re-planned both UAVs of a two-router mesh apart, each without the other.
-LIVELINESS_GRACE_S = 2.0
-#: The share of a mission's deadline the approach model may use (see `_budget`).
-PLAN_SHARE_OF_DEADLINE = 0.5
-
-
-class Planner(Protocol):
-    """The RunMILP / IsMILPRunning contract (thesis 2.8): see onboard.planner_worker."""
-
-    def run(self, request: PlanRequest) -> bool: ...
-    def result(self) -> PlanResult | None: ...
 
 
 class MissionOutputs(Protocol):
@@ -70,16 +56,13 @@ class MissionOutputs(Protocol):
 class MissionParticipation:
     uav_id: int
     outputs: MissionOutputs
-    planner: Planner
+    plan: ApproachPlan
+    team: TeamPresence
     life: MissionPhase
     link: LinkWatch
     flight: TargetFlight
     say: Say
-    planning_budget_s: float = 2.0
-    #: A committed teammate gone from liveliness this long is released (LIVELINESS_GRACE_S).
-    liveliness_grace_s: float = LIVELINESS_GRACE_S
     round: MissionRound | None = None
-    alive: set[int] = field(default_factory=set)
     #: A snapshot of what this UAV settled of its mission (`Settled`), replaced as it
     #: changes: the bus threads drop the assignment reports it covers by their header.
     settled: Settled | None = None
@@ -87,13 +70,10 @@ class MissionParticipation:
     _early_results: list[UavResult] = field(default_factory=list)
     _aborted: set[int] = field(default_factory=set)
     _abort: MissionAbort | None = None  #: the abort this UAV obeyed last (relayed by query)
-    _request: PlanRequest | None = None  #: the plan asked for the current mission
-    _gone_since: dict[int, float] = field(default_factory=dict)  #: liveliness lost, when
 
     def __post_init__(self) -> None:
         self.flight.mission = self
         self.catch_up = CatchUp(self.outputs, lambda: self.round.mission if self.round else None)
-        self.alive.add(self.uav_id)
 
     # ---- what the flight asks of its mission ------------------------------------------------
     def superseded(self, mission: int) -> bool:
@@ -169,7 +149,7 @@ class MissionParticipation:
         self.flight.restart(f"mission {targets.mission} started", now)
         self.round = MissionRound(targets, self.uav_id, now, late=late)
         self.life.observe(Observation.MISSION_STARTED)
-        self._request = None
+        self.plan.forget()
         self.flight.hold(None, None)
         early, self._early_results = self._early_results, []
         for result in early:
@@ -189,53 +169,21 @@ class MissionParticipation:
     def _start_planning(self, now: float) -> None:
         gps = self.link.gps
         assert self.round is not None and gps is not None
-        projection = MercatorProjection(gps.lat, gps.lon)
-        targets = tuple(projection.to_xy(t.lat, t.lon) for t in self.round.targets.targets)
-        request = PlanRequest(
-            position=(0.0, 0.0),
-            velocity=(gps.vel_east, gps.vel_north),
-            targets=targets,
-            budget_s=self._budget(self.round.targets),
-            cruise_speed=math.hypot(gps.vel_east, gps.vel_north),
-        )
-        # The planner drops a run still under way for an older mission: its answer would
-        # be that mission's approach times.
-        if not self.planner.run(request):
+        if not self.plan.start(self.round.targets, gps):
             self._decline(f"mission {self.round.mission}: the planner refused the request", now)
             return
-        self._request = request
         self.say(
-            f"mission {self.round.mission}: computing approach times to {len(targets)} targets",
+            f"mission {self.round.mission}: computing approach times to "
+            f"{len(self.round.targets.targets)} targets",
             now,
         )
 
-    def _budget(self, targets: MissionTargets) -> float:
-        """The planning budget for this mission: the module's own, or half the mission's
-        deadline if that is longer. The other half is for the exchange of results: the
-        ground lengthens the deadline for a large team (fleet.consensus.deadline), and
-        the approach model gets that time too, instead of answering by the fallback."""
-        return max(self.planning_budget_s, PLAN_SHARE_OF_DEADLINE * targets.deadline_s)
-
     def collect_plan(self, now: float) -> None:
-        result = self.planner.result()
+        result = self.plan.take()
         if result is None or self.round is None or self.life.phase != Phase.COMPUTING:
             return
-        if result.request is not self._request:
-            return  # the answer to a superseded mission: never used for this one
-        self._report_plan(result, now)
-
-    def _report_plan(self, plan: PlanResult, now: float) -> None:
-        fallbacks = sum(plan.fallback)
-        mission = self.round.mission if self.round else "?"
-        text = f"mission {mission}: approach times in {plan.solve_seconds:.2f} s"
-        text += f" ({plan.cpu_seconds:.3f} s of CPU)"
-        if fallbacks:
-            budget = plan.request.budget_s
-            text += f"; {fallbacks} by the Dubins fallback (budget {budget:g} s)"
-        if plan.error:
-            text = f"warning: {text}; solver error: {plan.error}"
-        self.say(text, now)
-        self._publish_result(tuple(plan.times), now, plan.model_times, plan.fallback_times)
+        self.say(plan_text(result, self.round.mission), now)
+        self._publish_result(tuple(result.times), now, result.model_times, result.fallback_times)
 
     def _publish_result(
         self,
@@ -295,9 +243,9 @@ class MissionParticipation:
 
     def _adopt(self, report: AssignmentReport, now: float) -> None:
         assert self.round is not None
-        adopted = self.round.adopt(report, self.alive, now)
+        adopted = self.round.adopt(report, self.team.alive, now)
         if adopted is None:
-            unused = sorted(self.round.thinner(report, self.alive, now))
+            unused = sorted(self.round.thinner(report, self.team.alive, now))
             log.info(
                 "mission %d: UAV %d's assignment not adopted: it was computed without the "
                 "results of %s, which this UAV holds",
@@ -352,26 +300,15 @@ class MissionParticipation:
     # ---- the team's liveliness ---------------------------------------------------------------
     def on_alive(self, uav: int, alive: bool, now: float) -> None:
         if alive:
-            if uav not in self.alive:
+            if self.team.came(uav):
                 self.catch_up.request(now)
-            self.alive.add(uav)
-            self._gone_since.pop(uav, None)
-            return
-        if uav == self.uav_id:
-            return
-        # Before the commitment the consensus leaves it out at once; after, it is
-        # released only if it stays gone (LIVELINESS_GRACE_S).
-        self.alive.discard(uav)
-        if self.round is not None and self.round.committed is not None:
-            self._gone_since.setdefault(uav, now)
+        elif self.team.went(uav, now, committed=self.decided()):
             self.release_gone(now)  # at once when there is no grace
 
     def release_gone(self, now: float) -> None:
         """Release the committed teammates whose liveliness stayed gone past the grace."""
-        for uav, since in list(self._gone_since.items()):
-            if now - since >= self.liveliness_grace_s:
-                del self._gone_since[uav]
-                self._release_lost(uav, now)
+        for uav in self.team.gone_past_grace(now):
+            self._release_lost(uav, now)
 
     def _release_lost(self, uav: int, now: float) -> None:
         mission_round = self.round
@@ -398,22 +335,22 @@ class MissionParticipation:
             or mission_round.mission in self._aborted
         ):
             return
-        if mission_round.should_fetch(now, self.alive):
+        if mission_round.should_fetch(now, self.team.alive):
             mission_round.last_fetch = now
-            missing = mission_round.missing(self.alive) - {self.uav_id}
+            missing = mission_round.missing(self.team.alive) - {self.uav_id}
             self.outputs.fetch_results(mission_round.mission, tuple(sorted(missing)))
-        if mission_round.ready(now, self.alive):
+        if mission_round.ready(now, self.team.alive):
             self._decide_or_ask(mission_round, now)
 
     def _decide_or_ask(self, mission_round: MissionRound, now: float) -> None:
         """Decide, unless the decision might not be the team's: then ask the team what
         it decided first, and decide ASK_GRACE_S later if no answer was adopted (or at
         once, if what made it uncertain is gone: a missing result arrived)."""
-        if not mission_round.must_ask(self.alive):
+        if not mission_round.must_ask(self.team.alive):
             self._decide(mission_round, now)
         elif mission_round.asked_at is None:
             mission_round.asked_at = now
-            excluded = sorted(mission_round.excluded(self.alive))
+            excluded = sorted(mission_round.excluded(self.team.alive))
             log.info(
                 "mission %d: asking the team what it decided before deciding (%s)",
                 mission_round.mission,
@@ -424,8 +361,8 @@ class MissionParticipation:
             self._decide(mission_round, now)
 
     def _decide(self, mission_round: MissionRound, now: float) -> None:
-        missing = mission_round.missing(self.alive)
-        report = mission_round.decide(self.alive)
+        missing = mission_round.missing(self.team.alive)
+        report = mission_round.decide(self.team.alive)
         if missing:
             self.say(
                 f"warning: mission {mission_round.mission}: deadline passed without "
@@ -541,27 +478,11 @@ class MissionParticipation:
         if self.round is not None and self.round.release((self.uav_id,)):
             self._replan(now)
 
-    # ---- what teammates ask for ----------------------------------------------------------------
-    def own_result(self, mission: int) -> UavResult | None:
-        if self.round is None or self.round.mission != mission:
-            return None
-        return self.round.results.get(self.uav_id)
-
-    def own_assignment(self, mission: int) -> AssignmentReport | None:
-        if self.round is None or self.round.mission != mission:
-            return None
-        return self.round.committed
-
     def abort_of(self, mission: int) -> MissionAbort | None:
         """The abort of `mission` this UAV obeyed, for a teammate that missed it."""
         if self._abort is None or self._abort.mission != mission:
             return None
         return self._abort
-
-    def own_outcome(self, mission: int) -> TargetOutcome | None:
-        if self.round is None or self.round.mission != mission:
-            return None
-        return self.round.outcome
 
 
 def _refusal(targets: MissionTargets) -> str | None:
