@@ -52,9 +52,9 @@ from fleet.piccolo.track import Track
 from fleet.transport import bus_codec
 from fleet.transport.bus import Bus, BusQuery, BusReply, BusSample, Declaration, Queryable
 from fleet.transport.memory import memory_link_pair
+from onboard.bus_edge import PresenceEvent
 from onboard.planner_worker import PlanRequest, PlanResult
 from onboard.process import OnboardProcess, OnboardSettings
-from onboard.zenoh_node import PresenceEvent
 from tests.link_samples import sample_telemetry
 from tests.onboard.test_multi_uav import ring_targets
 

@@ -5,7 +5,7 @@ docstring there explains it); `PyomoLp` hands it to HiGHS through Pyomo's persis
 interface and changes it by variable bounds only. `ApproachTimeModel(...,
 backend=LpBackend.PYOMO)` runs the LP scan on it. The onboard process does not: it builds
 the very same LP (same rows, columns, order and coefficients) straight on HiGHS
-(`onboard.approach_model.HighsLp`), without Pyomo or numpy in memory; the tests and
+(`onboard.approach_highs.HighsLp`), without Pyomo or numpy in memory; the tests and
 `bench/bench_approach.py` check that both give the same times, and the bench's MILP
 reference is built from this model.
 
@@ -30,7 +30,7 @@ from pyomo.contrib.solver.common.factory import SolverFactory
 from pyomo.contrib.solver.common.results import TerminationCondition
 
 from fleet.geo.aircraft import AircraftLimits
-from onboard.approach_model import (
+from onboard.approach_lp import (
     ACCEL_INRADIUS,
     NORMALS,
     SIDES,
@@ -51,7 +51,7 @@ def build_point_mass(limits: AircraftLimits, steps: Sequence[float]) -> pyo.Conc
     origin flying along +x at max speed (change vx[0]'s bounds for another speed, and
     see `along_velocity_bounds`). The selection part (slacks sx, sy, gap vector ex, ey,
     target tx, ty and the objective `gap`) serves the LP scan; the bench's MILP
-    reference reuses the rest. `onboard.approach_model.point_mass_lp` is the same LP,
+    reference reuses the rest. `onboard.approach_highs.point_mass_lp` is the same LP,
     row for row.
     """
     n = len(steps)

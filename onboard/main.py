@@ -70,20 +70,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="give a held target up (it is re-planned) when the autopilot link stays "
         "lost this long, s (default %(default)g)",
     )
-    parser.add_argument("--drop-first-result", action="store_true", help=argparse.SUPPRESS)
     add_zenoh_arguments(parser)
     add_verbose_argument(parser)
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    setup_logging(args.verbose, name=f"onboard[{args.id}]")
-    try:
-        config = zenoh_config(args)
-    except ZenohConfigError as error:
-        return fail("onboard", str(error))
-    settings = OnboardSettings(
+def settings_from(args: argparse.Namespace, config: zenoh.Config) -> OnboardSettings:
+    """The process's settings from `build_parser`'s arguments and their Zenoh config."""
+    return OnboardSettings(
         uav_id=args.id,
         program_url=args.program,
         payload_url=args.payload,
@@ -95,8 +89,17 @@ def main(argv: list[str] | None = None) -> int:
         confirm_limit_s=args.confirm_limit,
         link_release_s=args.link_release,
         telemetry_hz=args.telemetry_hz,
-        drop_first_result=args.drop_first_result,
     )
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    setup_logging(args.verbose, name=f"onboard[{args.id}]")
+    try:
+        config = zenoh_config(args)
+    except ZenohConfigError as error:
+        return fail("onboard", str(error))
+    settings = settings_from(args, config)
     try:
         process = OnboardProcess(settings)
     except zenoh.ZError as error:

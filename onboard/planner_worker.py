@@ -24,7 +24,7 @@ right after construction (~0.1 s), or, with `build_at_start=False`, when
 calls it on the first GPS telemetry), so the first mission does not rebuild it. HiGHS
 is loaded there, in the worker thread, not when this module is: an onboard process
 comes up and joins the fleet without it. The model is the LP straight on HiGHS
-(`onboard.approach_model.HighsLp`): neither Pyomo nor numpy is ever loaded in an
+(`onboard.approach_highs.HighsLp`): neither Pyomo nor numpy is ever loaded in an
 onboard process.
 
 Every run ends with a time for every target. The model stops starting LPs once the

@@ -1,4 +1,4 @@
-"""The onboard process: wires the link adapter, the Zenoh node and the module logic.
+"""The onboard process: wires the link adapter, the bus edge and the module logic.
 
 Threads: the link loop (onboard.link_adapter), the planner worker
 (onboard.planner_worker), Zenoh's own callback threads, and this main loop, which alone
@@ -18,7 +18,7 @@ import math
 import queue
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import msgspec
 import zenoh
@@ -51,10 +51,10 @@ from fleet.transport.link import Link
 from fleet.transport.serial_port import DEFAULT_BAUD, SerialLink
 from fleet.transport.zenoh_bus import ZenohBus
 from onboard.autopilot_commands import AutopilotCommand
+from onboard.bus_edge import BusEdge, BusEvent, PresenceEvent
 from onboard.core import CONFIRM_LIMIT_S, LINK_RELEASE_S, OnboardCore
 from onboard.link_adapter import LinkAdapter
 from onboard.planner_worker import PlannerWorker
-from onboard.zenoh_node import BusEvent, PresenceEvent, ZenohNode
 
 log = logging.getLogger(__name__)
 
@@ -83,31 +83,18 @@ class OnboardSettings:
     link_release_s: float = LINK_RELEASE_S
     #: Telemetry published on the bus at most this often; None: every packet relayed.
     telemetry_hz: float | None = None
-    #: Test hook: drop the first publication of our own mission result (the teammates
-    #: must recover it by query).
-    drop_first_result: bool = False
 
 
 @dataclass
 class _Outputs:
-    """OnboardCore's outputs, wired to the link adapter and the Zenoh node."""
+    """OnboardCore's outputs, wired to the link adapter and the bus edge."""
 
     process: OnboardProcess
-    dropped_results: set[int] = field(default_factory=set)
 
     def send_autopilot(self, command: AutopilotCommand) -> None:
         self.process.link.send_autopilot(command)
 
     def publish(self, key: str, message: msgspec.Struct) -> None:
-        settings = self.process.settings
-        if (
-            settings.drop_first_result
-            and isinstance(message, UavResult)
-            and message.mission not in self.dropped_results
-        ):
-            self.dropped_results.add(message.mission)
-            log.warning("test hook: first publication of %s dropped", key)
-            return
         if isinstance(message, UavState):
             message = self.process.with_link(message, time.monotonic())
         self.process.node.publish(key, message)
@@ -180,7 +167,7 @@ class OnboardProcess:
             if settings.zenoh_config is None:
                 raise ValueError("an onboard process needs a bus or a Zenoh config")
             bus = ZenohBus.open(settings.zenoh_config)
-        self.node = ZenohNode(
+        self.node = BusEdge(
             settings.uav_id,
             bus,
             sink=self.events.put,

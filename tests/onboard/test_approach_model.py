@@ -230,7 +230,7 @@ def test_the_onboard_model_loads_neither_pyomo_nor_numpy() -> None:
 def test_highspy_imported_after_the_core_reuses_it() -> None:
     """Pyomo's `import highspy` after the onboard loaded the core alone (as in these tests)."""
     probe = (
-        "from onboard.approach_model import load_highs_core; core = load_highs_core();"
+        "from onboard.approach_highs import load_highs_core; core = load_highs_core();"
         "import sys, highspy; assert sys.modules['highspy._core'] is core;"
         "print(highspy.Highs().version())"
     )

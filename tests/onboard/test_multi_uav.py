@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import random
 import signal
+import sys
 import time
 from collections.abc import Iterable
 from pathlib import Path
@@ -17,7 +18,7 @@ from fleet.mission.messages import AssignmentReport, MissionTargets, Target
 from fleet.sim.scenario import shipped_scenario
 from onboard.core import TARGET_WAYPOINT
 from tests.conftest import Ground
-from tests.processes import Fleet, SimEndpoints, wait_until
+from tests.processes import Fleet, SimEndpoints, start, wait_until
 
 #: The killed-UAV mission's deadline: long, so that committing early is clearly the
 #: liveliness exclusion and not the deadline.
@@ -188,7 +189,17 @@ def test_lost_result_is_recovered_by_query(fleet: Fleet, ground: Ground, tmp_pat
     seen, router = ground.seen, ground.router
     endpoints = ring_sim(fleet, tmp_path, 2)
     (first, second) = sorted(endpoints)
-    fleet.onboard(first, endpoints[first], router, "--drop-first-result")
+    # The fault is the bus's, not the process's: the first publication of each of its
+    # results is lost (tests.onboard.faulty_onboard).
+    where = endpoints[first]
+    faulty = start(
+        f"onboard {first}",
+        [
+            sys.executable, "-m", "tests.onboard.faulty_onboard", "--id", str(first),
+            "--program", where.program, "--payload", where.payload, "--connect", router,
+        ],
+    )  # fmt: skip
+    fleet.children.append(faulty)
     fleet.onboard(second, endpoints[second], router)
     wait_for_telemetry(ground, (first, second))
     mission = MissionTargets(

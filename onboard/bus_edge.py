@@ -35,7 +35,7 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class BusEvent:
-    """A decoded message that arrived over Zenoh, with the key it arrived on."""
+    """A decoded message that arrived on the bus, with the key it arrived on."""
 
     key: str
     message: msgspec.Struct  #: one of the messages in fleet.mission.messages
@@ -67,7 +67,7 @@ def _mission_subscriptions() -> tuple[tuple[str, type[msgspec.Struct]], ...]:
     )
 
 
-class ZenohNode:
+class BusEdge:
     """The onboard's declarations on its bus, which it owns (closed by `close`)."""
 
     def __init__(

@@ -14,7 +14,7 @@ from fleet.mission import keys
 from fleet.mission.messages import AssignmentReport, MissionTargets, OpmCommand, Target, UavResult
 from fleet.transport import bus_codec
 from fleet.transport.memory import MemoryBus, MemoryNetwork
-from onboard.zenoh_node import BusEvent, PresenceEvent, ZenohNode
+from onboard.bus_edge import BusEdge, BusEvent, PresenceEvent
 
 UAV = 112
 MISSION = MissionTargets(mission=3, team=(UAV, 74), targets=(Target(35.7, -120.7, 600.0),))
@@ -24,7 +24,7 @@ class Harness:
     def __init__(self) -> None:
         self.network = MemoryNetwork()
         self.events: queue.SimpleQueue[BusEvent | PresenceEvent] = queue.SimpleQueue()
-        self.node = ZenohNode(UAV, self.network.bus(), self.events.put)
+        self.node = BusEdge(UAV, self.network.bus(), self.events.put)
         self.ground = self.network.bus()
 
     def next_event(self) -> BusEvent | PresenceEvent:
@@ -81,7 +81,7 @@ def test_a_bad_message_is_dropped_and_logged(
     harness: Harness, caplog: pytest.LogCaptureFixture
 ) -> None:
     harness.drain()
-    with caplog.at_level(logging.WARNING, logger="onboard.zenoh_node"):
+    with caplog.at_level(logging.WARNING, logger="onboard.bus_edge"):
         harness.ground.put(keys.mission_targets(4), b'{"mission": "four"}')
         harness.ground.put(keys.mission_result(4, 74), b"\xff not json")
     assert harness.drain() == []
@@ -137,7 +137,7 @@ def test_a_settled_uav_drops_reports_that_change_nothing_on_their_header() -> No
     mission_round.add_result(UavResult(3, 74, (20.0,)))
     mission_round.decide({UAV, 74})
     settled = mission_round.settled(aborted=False)
-    node = ZenohNode(UAV, network.bus(), events.put, settled=lambda: settled)
+    node = BusEdge(UAV, network.bus(), events.put, settled=lambda: settled)
     ground = network.bus()
     try:
         while not events.empty():
@@ -169,7 +169,7 @@ def test_a_settled_uav_drops_reports_that_change_nothing_on_their_header() -> No
 def test_a_uav_hears_its_teammates_re_plans_live_and_their_commitments_by_query() -> None:
     network = MemoryNetwork()
     events: queue.SimpleQueue[BusEvent | PresenceEvent] = queue.SimpleQueue()
-    node = ZenohNode(UAV, network.bus(), events.put)
+    node = BusEdge(UAV, network.bus(), events.put)
     teammate = network.bus()
     commitment = _report(74)
     served = teammate.declare_queryable(keys.mission_assignment(3, 74))

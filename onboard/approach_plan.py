@@ -1,0 +1,81 @@
+"""Asking the planner for this UAV's approach times to a mission's targets.
+
+The request is posed in a local frame at the aircraft (its GPS fix, its velocity); the
+answer is taken only if it is the one to the request of the current mission.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+from fleet.geo.mercator import MercatorProjection
+from fleet.mission.messages import MissionTargets
+from fleet.piccolo.telemetry import GpsBlock
+from onboard.planner_worker import PlanRequest, PlanResult
+
+#: The share of a mission's deadline the approach model may use (see `budget`).
+PLAN_SHARE_OF_DEADLINE = 0.5
+
+
+class Planner(Protocol):
+    """The RunMILP / IsMILPRunning contract (thesis 2.8): see onboard.planner_worker."""
+
+    def run(self, request: PlanRequest) -> bool: ...
+    def result(self) -> PlanResult | None: ...
+
+
+@dataclass
+class ApproachPlan:
+    planner: Planner
+    planning_budget_s: float = 2.0
+    _request: PlanRequest | None = None  #: the plan asked for the current mission
+
+    def start(self, targets: MissionTargets, gps: GpsBlock) -> bool:
+        """Ask for the approach times from `gps` to `targets`; False if the planner refused."""
+        projection = MercatorProjection(gps.lat, gps.lon)
+        request = PlanRequest(
+            position=(0.0, 0.0),
+            velocity=(gps.vel_east, gps.vel_north),
+            targets=tuple(projection.to_xy(t.lat, t.lon) for t in targets.targets),
+            budget_s=self.budget(targets),
+            cruise_speed=math.hypot(gps.vel_east, gps.vel_north),
+        )
+        # The planner drops a run still under way for an older mission: its answer would
+        # be that mission's approach times.
+        if not self.planner.run(request):
+            return False
+        self._request = request
+        return True
+
+    def forget(self) -> None:
+        """A new mission: no answer to an older request is ever taken."""
+        self._request = None
+
+    def budget(self, targets: MissionTargets) -> float:
+        """The planning budget for this mission: the module's own, or half the mission's
+        deadline if that is longer. The other half is for the exchange of results: the
+        ground lengthens the deadline for a large team (fleet.consensus.deadline), and
+        the approach model gets that time too, instead of answering by the fallback."""
+        return max(self.planning_budget_s, PLAN_SHARE_OF_DEADLINE * targets.deadline_s)
+
+    def take(self) -> PlanResult | None:
+        """The planner's answer, if one came and it is to the current request."""
+        result = self.planner.result()
+        if result is None or result.request is not self._request:
+            return None  # the answer to a superseded mission: never used for this one
+        return result
+
+
+def plan_text(plan: PlanResult, mission: int | str) -> str:
+    """The status message that reports `plan`."""
+    fallbacks = sum(plan.fallback)
+    text = f"mission {mission}: approach times in {plan.solve_seconds:.2f} s"
+    text += f" ({plan.cpu_seconds:.3f} s of CPU)"
+    if fallbacks:
+        budget = plan.request.budget_s
+        text += f"; {fallbacks} by the Dubins fallback (budget {budget:g} s)"
+    if plan.error:
+        text = f"warning: {text}; solver error: {plan.error}"
+    return text

@@ -1,0 +1,46 @@
+"""Watching the autopilot link: the latest telemetry, and whether it stopped coming.
+
+Telemetry silent for LINK_LOST_S counts as a lost link, said once when it happens and
+once when telemetry flows again; what a lost link does to a held target is the target
+flight's (onboard.target_flight).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from fleet.piccolo.telemetry import GpsBlock, Telemetry
+from onboard.state_report import Say
+
+#: With no telemetry for this long (wall seconds), the autopilot link counts as lost.
+LINK_LOST_S = 3.0
+
+
+@dataclass
+class LinkWatch:
+    say: Say
+    telemetry: Telemetry | None = None
+    telemetry_at: float | None = None  #: when the latest telemetry arrived
+    _said_lost: bool = False
+
+    def on_telemetry(self, telemetry: Telemetry, now: float) -> None:
+        self.telemetry = telemetry
+        self.telemetry_at = now
+        if self._said_lost:
+            self._said_lost = False
+            self.say("autopilot link back: telemetry flowing again", now)
+
+    @property
+    def gps(self) -> GpsBlock | None:
+        return self.telemetry.gps if self.telemetry else None
+
+    def lost(self, now: float) -> bool:
+        """True while no telemetry has arrived for LINK_LOST_S (or none ever did)."""
+        return self.telemetry_at is None or now - self.telemetry_at > LINK_LOST_S
+
+    def check(self, now: float) -> None:
+        """Say so once when telemetry that was flowing stops."""
+        if self.telemetry_at is None or self._said_lost or not self.lost(now):
+            return
+        self._said_lost = True
+        self.say(f"error: autopilot link lost: no telemetry for over {LINK_LOST_S:g} s", now)

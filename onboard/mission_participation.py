@@ -1,0 +1,496 @@
+"""Taking part in a mission: its targets, the plan, the decision, re-plans, an abort.
+
+A mission's targets start a round (fleet.consensus.mission_round): this UAV computes
+its approach times (the planner), publishes them, hears its teammates', and decides (or
+adopts a teammate's decision, or asks the team first); it then flies the target it is
+assigned (onboard.target_flight). A target that cannot be flown is `failed` and
+released, and the UAVs still in the mission re-plan it (fleet.consensus.replan); so is
+one of a teammate that dropped out or whose liveliness stayed gone.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import msgspec
+
+from fleet.consensus.mission_round import MissionRound, Settled, assignment_problem
+from fleet.mission import keys
+from fleet.mission.lifecycle import Observation, advance
+from fleet.mission.messages import (
+    AssignmentReport,
+    MissionAbort,
+    MissionTargets,
+    StatusText,
+    TargetOutcome,
+    UavResult,
+)
+from fleet.mission.phase import Phase
+from fleet.mission.targets_file import TargetsFileError, encode_targets
+from onboard.approach_plan import ApproachPlan, plan_text
+from onboard.catch_up import CatchUp
+from onboard.link_watch import LinkWatch
+from onboard.mission_phase import MissionPhase
+from onboard.state_report import Say
+from onboard.target_flight import TargetFlight
+from onboard.team_presence import TeamPresence
+
+log = logging.getLogger(__name__)
+
+#: Results for missions not seen yet are kept, at most this many, for when they start.
+MAX_EARLY_RESULTS = 256
+
+
+class MissionOutputs(Protocol):
+    def publish(self, key: str, message: msgspec.Struct) -> None: ...
+    def send_ground(self, message: StatusText | UavResult) -> None: ...
+    def fetch_results(self, mission: int, uavs: tuple[int, ...]) -> None: ...
+    def fetch_assignments(self, mission: int) -> None: ...
+    def fetch_missions(self) -> None: ...
+
+
+@dataclass
+class MissionParticipation:
+    uav_id: int
+    outputs: MissionOutputs
+    plan: ApproachPlan
+    team: TeamPresence
+    life: MissionPhase
+    link: LinkWatch
+    flight: TargetFlight
+    say: Say
+    round: MissionRound | None = None
+    #: A snapshot of what this UAV settled of its mission (`Settled`), replaced as it
+    #: changes: the bus threads drop the assignment reports it covers by their header.
+    settled: Settled | None = None
+    catch_up: CatchUp = field(init=False)
+    _early_results: list[UavResult] = field(default_factory=list)
+    _aborted: set[int] = field(default_factory=set)
+    _abort: MissionAbort | None = None  #: the abort this UAV obeyed last (relayed by query)
+
+    def __post_init__(self) -> None:
+        self.flight.mission = self
+        self.catch_up = CatchUp(self.outputs, lambda: self.round.mission if self.round else None)
+
+    # ---- what the flight asks of its mission ------------------------------------------------
+    def superseded(self, mission: int) -> bool:
+        """A command's answer arrived after its mission was replaced or aborted."""
+        return self.round is None or self.round.mission != mission or mission in self._aborted
+
+    def decided(self) -> bool:
+        return self.round is not None and self.round.committed is not None
+
+    def publish_outcome(self, phase: Phase, reason: str | None) -> None:
+        if self.round is None:
+            return
+        outcome = TargetOutcome(
+            mission=self.round.mission,
+            uav=self.uav_id,
+            target=self.flight.target,
+            phase=phase,
+            reason=reason,
+        )
+        self.round.outcome = outcome
+        self.outputs.publish(keys.mission_outcome(outcome.mission, self.uav_id), outcome)
+
+    # ---- a mission's targets -----------------------------------------------------------------
+    def on_targets(self, targets: MissionTargets, now: float, *, replayed: bool = False) -> None:
+        """A mission's targets, heard live or (`replayed`) in reply to a catch-up."""
+        if self.uav_id not in targets.team:
+            return
+        current = self.round.mission if self.round else None
+        if current is not None and targets.mission <= current:
+            return  # a repeat of the current mission, or a stale one
+        if targets.mission in self._aborted:
+            # Its abort came first (this UAV was away when the mission was sent): the
+            # mission still replaces the old one, as on every teammate, and shows aborted.
+            self._start_round(targets, now)
+            self.life.observe(Observation.ABORTED)
+            self.say(f"mission {targets.mission} arrived already aborted: not flying it", now)
+            return
+        problem = _refusal(targets)
+        if problem is not None:
+            # Bad input never disturbs the mission in progress.
+            self.say(f"error: mission {targets.mission} refused: {problem}", now)
+            return
+        # Heard just after this module was suspended, a mission may have been sent
+        # while it was: its teammates may have decided on it already.
+        late = replayed or self.catch_up.resumed(now)
+        self._start_round(targets, now, late=late)
+        if late:
+            # Learnt from a catch-up (a late join, a restart) or after a freeze: the
+            # team may have decided on it already, and this UAV adopts that. A mission
+            # heard live is as new to the team as to this UAV: asking would cost every
+            # teammate three queries while they all plan.
+            self.outputs.fetch_assignments(targets.mission)
+        if self.link.gps is None:
+            self._decline(f"mission {targets.mission}: no GPS telemetry yet", now)
+        elif self.link.lost(now):
+            self._decline(f"mission {targets.mission}: autopilot link lost", now)
+        elif not self.flight.enabled:
+            self.say(f"mission {targets.mission}: module off, not taking part", now)
+            self._publish_result(tuple(None for _ in targets.targets), now)
+        else:
+            self._start_planning(now)
+
+    def _decline(self, why: str, now: float) -> None:
+        """Take no part in the current mission: an all-None result says so to the team."""
+        assert self.round is not None
+        self.say(f"warning: {why}: not taking part", now)
+        self._publish_result(tuple(None for _ in self.round.targets.targets), now)
+        self.life.reason = why
+
+    def _start_round(self, targets: MissionTargets, now: float, *, late: bool = False) -> None:
+        """Replace the mission in one step: nothing of the old one survives it."""
+        # Cancel first: the resume submitted next must survive the new mission's start.
+        self.flight.restart(f"mission {targets.mission} started", now)
+        self.round = MissionRound(targets, self.uav_id, now, late=late)
+        self.life.observe(Observation.MISSION_STARTED)
+        self.plan.forget()
+        self.flight.hold(None, None)
+        early, self._early_results = self._early_results, []
+        for result in early:
+            if result.mission == targets.mission:
+                self.round.add_result(result)
+            elif result.mission > targets.mission:
+                self._early_results.append(result)
+        self._settle()
+
+    def _settle(self) -> None:
+        """Publish a new snapshot of what this UAV settled (after any change to it)."""
+        mission_round = self.round
+        if mission_round is not None:
+            self.settled = mission_round.settled(mission_round.mission in self._aborted)
+
+    # ---- the plan ------------------------------------------------------------------------------
+    def _start_planning(self, now: float) -> None:
+        gps = self.link.gps
+        assert self.round is not None and gps is not None
+        if not self.plan.start(self.round.targets, gps):
+            self._decline(f"mission {self.round.mission}: the planner refused the request", now)
+            return
+        self.say(
+            f"mission {self.round.mission}: computing approach times to "
+            f"{len(self.round.targets.targets)} targets",
+            now,
+        )
+
+    def collect_plan(self, now: float) -> None:
+        result = self.plan.take()
+        if result is None or self.round is None or self.life.phase != Phase.COMPUTING:
+            return
+        self.say(plan_text(result, self.round.mission), now)
+        self._publish_result(tuple(result.times), now, result.model_times, result.fallback_times)
+
+    def _publish_result(
+        self,
+        times: tuple[float | None, ...],
+        now: float,
+        model_times: int | None = None,
+        fallback_times: int | None = None,
+    ) -> None:
+        assert self.round is not None
+        result = UavResult(
+            mission=self.round.mission,
+            uav=self.uav_id,
+            times=times,
+            model_times=model_times,
+            fallback_times=fallback_times,
+        )
+        self.round.add_result(result)
+        # Teammates are computing too: the first fetch waits one interval.
+        self.round.last_fetch = now
+        self.life.observe(Observation.RESULT_PUBLISHED)
+        self.outputs.publish(keys.mission_result(result.mission, self.uav_id), result)
+        self.outputs.send_ground(result)
+
+    # ---- the team's exchange -------------------------------------------------------------------
+    def on_result(self, result: UavResult, now: float) -> None:
+        mission_round = self.round
+        if mission_round is None or result.mission > mission_round.mission:
+            self._early_results = [*self._early_results, result][-MAX_EARLY_RESULTS:]
+            return
+        if result.uav == self.uav_id or not mission_round.add_result(result):
+            return
+        mission_round.heard(now)
+        if mission_round.committed is not None and mission_round.released:
+            self._replan(now)  # it may have waited for this result
+
+    def on_assignment(self, report: AssignmentReport, now: float) -> None:
+        mission_round = self.round
+        if mission_round is None or report.uav == self.uav_id:
+            return
+        if report.mission != mission_round.mission or report.mission in self._aborted:
+            return
+        problem = assignment_problem(report, mission_round.targets)
+        if problem is not None:
+            log.warning(
+                "mission %d: UAV %d's assignment refused: %s",
+                *(report.mission, report.uav),
+                problem,
+            )
+            return
+        if mission_round.committed is None:
+            self._adopt(report, now)
+        elif mission_round.release(report.released):
+            self._replan(now)
+        elif (followed := mission_round.follow(report)) is not None:
+            self._apply(followed, now)
+        self._settle()
+
+    def _adopt(self, report: AssignmentReport, now: float) -> None:
+        assert self.round is not None
+        adopted = self.round.adopt(report, self.team.alive, now)
+        if adopted is None:
+            unused = sorted(self.round.thinner(report, self.team.alive, now))
+            log.info(
+                "mission %d: UAV %d's assignment not adopted: it was computed without the "
+                "results of %s, which this UAV holds",
+                report.mission,
+                report.uav,
+                ", ".join(map(str, unused)),
+            )
+            return
+        self.say(f"mission {report.mission}: adopted the assignment of UAV {report.uav}", now)
+        self._apply(adopted, now)
+        self._replan_if_released(now)
+
+    def on_outcome(self, outcome: TargetOutcome, now: float) -> None:
+        """A teammate reached its target, or dropped out of the mission (failed, link lost)."""
+        mission_round = self.round
+        if mission_round is None or outcome.uav == self.uav_id:
+            return
+        if outcome.mission != mission_round.mission:
+            return
+        if outcome.phase == Phase.REACHED:
+            mission_round.reached.add(outcome.uav)
+            self._settle()
+            return
+        dropped = outcome.phase in (Phase.FAILED, Phase.LINK_LOST)
+        if dropped and mission_round.release((outcome.uav,)):
+            self.say(
+                f"mission {outcome.mission}: UAV {outcome.uav} dropped out "
+                f"({outcome.reason or outcome.phase}); re-planning its target",
+                now,
+            )
+            self._replan(now)
+            self._settle()
+
+    def on_abort(self, abort: MissionAbort, now: float) -> None:
+        """Abort is final: mission m never commits or flies after this, whatever arrives."""
+        if abort.uav is not None and abort.uav != self.uav_id:
+            return  # a teammate's own abort: this UAV flies on
+        self._aborted.add(abort.mission)
+        self._abort = abort
+        if self.round is None or self.round.mission != abort.mission:
+            return
+        self._settle()
+        if self.life.phase == Phase.ABORTED:
+            return
+        flying = self.life.holds_target()
+        # A resume still pending (a link outage) goes on.
+        self.flight.restart(f"mission {abort.mission} aborted", now)
+        self.life.observe(Observation.ABORTED)
+        course = "back on course" if flying else "it was not flying a target"
+        self.say(f"mission {abort.mission} aborted; {course}", now)
+
+    # ---- the team's liveliness ---------------------------------------------------------------
+    def on_alive(self, uav: int, alive: bool, now: float) -> None:
+        if alive:
+            if self.team.came(uav):
+                self.catch_up.request(now)
+        elif self.team.went(uav, now, committed=self.decided()):
+            self.release_gone(now)  # at once when there is no grace
+
+    def release_gone(self, now: float) -> None:
+        """Release the committed teammates whose liveliness stayed gone past the grace."""
+        for uav in self.team.gone_past_grace(now):
+            self._release_lost(uav, now)
+
+    def _release_lost(self, uav: int, now: float) -> None:
+        mission_round = self.round
+        if mission_round is None or mission_round.committed is None:
+            return  # before the commitment, the consensus itself leaves it out
+        if mission_round.mission in self._aborted:
+            return
+        if mission_round.release((uav,)):
+            self.say(
+                f"mission {mission_round.mission}: UAV {uav} lost (liveliness gone); "
+                "re-planning its target",
+                now,
+            )
+            self._replan(now)
+            self._settle()
+
+    # ---- the decision ------------------------------------------------------------------------
+    def tick(self, now: float) -> None:
+        """Fetch the results still missing, and decide once the round is ready."""
+        mission_round = self.round
+        if (
+            mission_round is None
+            or mission_round.committed is not None
+            or mission_round.mission in self._aborted
+        ):
+            return
+        if mission_round.should_fetch(now, self.team.alive):
+            mission_round.last_fetch = now
+            missing = mission_round.missing(self.team.alive) - {self.uav_id}
+            self.outputs.fetch_results(mission_round.mission, tuple(sorted(missing)))
+        if mission_round.ready(now, self.team.alive):
+            self._decide_or_ask(mission_round, now)
+
+    def _decide_or_ask(self, mission_round: MissionRound, now: float) -> None:
+        """Decide, unless the decision might not be the team's: then ask the team what
+        it decided first, and decide ASK_GRACE_S later if no answer was adopted (or at
+        once, if what made it uncertain is gone: a missing result arrived)."""
+        if not mission_round.must_ask(self.team.alive):
+            self._decide(mission_round, now)
+        elif mission_round.asked_at is None:
+            mission_round.asked_at = now
+            excluded = sorted(mission_round.excluded(self.team.alive))
+            log.info(
+                "mission %d: asking the team what it decided before deciding (%s)",
+                mission_round.mission,
+                f"without {', '.join(map(str, excluded))}" if excluded else "the mission came late",
+            )
+            self.outputs.fetch_assignments(mission_round.mission)
+        elif not mission_round.asking(now):
+            self._decide(mission_round, now)
+
+    def _decide(self, mission_round: MissionRound, now: float) -> None:
+        missing = mission_round.missing(self.team.alive)
+        report = mission_round.decide(self.team.alive)
+        if missing:
+            self.say(
+                f"warning: mission {mission_round.mission}: deadline passed without "
+                f"{', '.join(map(str, sorted(missing)))}; assigned without them",
+                now,
+            )
+        self._apply(report, now)
+        self._replan_if_released(now)
+
+    # ---- the assignment ----------------------------------------------------------------------
+    def _replan_if_released(self, now: float) -> None:
+        """Teammates released before this UAV committed: re-plan at once."""
+        mission_round = self.round
+        if mission_round is None or mission_round.base is None:
+            return
+        if mission_round.released & set(mission_round.base.team):
+            self._replan(now)
+
+    def _replan(self, now: float) -> None:
+        """Re-assign the targets of released UAVs, or fetch the results that needs."""
+        mission_round = self.round
+        if mission_round is None or mission_round.mission in self._aborted:
+            return
+        if self.life.phase == Phase.ABORTED:
+            return
+        missing = mission_round.replan_missing()
+        if missing:
+            self.outputs.fetch_results(mission_round.mission, missing)
+            return
+        report = mission_round.replan()
+        if report is None:
+            return
+        self.say(
+            f"mission {report.mission}: re-plan epoch {report.epoch} without "
+            f"{', '.join(map(str, report.released))}",
+            now,
+        )
+        self._apply(report, now)
+
+    def _apply(self, report: AssignmentReport, now: float) -> None:
+        """Publish the assignment this UAV follows now and fly what it says."""
+        self._settle()
+        self.outputs.publish(keys.mission_assignment(report.mission, self.uav_id), report)
+        if report.epoch > 0:
+            # Teammates hear re-plans on a key of their own: the N - 1 epoch-0
+            # commitments each UAV would otherwise hear change nothing once it committed
+            # (docs/lifecycle.md, "Who hears which assignment").
+            self.outputs.publish(keys.mission_replan(report.mission, self.uav_id), report)
+        flight = self.flight
+        if report.target == flight.target:
+            if report.target is None and self.life.phase in (Phase.COMPUTING, Phase.WAITING):
+                self.life.observe(Observation.ASSIGNED_NONE)
+                self.say(f"mission {report.mission}: no target assigned; keeping course", now)
+            if report.target is None:
+                flight.leave_stale_target(now)
+            return
+        if flight.target is not None and self.life.holds_target():
+            # Released, or handed another orphan by a later epoch: off the old target.
+            flight.give_up(f"mission {report.mission} epoch {report.epoch}", now)
+            self.life.observe(Observation.RELEASED, f"re-planned at epoch {report.epoch}")
+        if report.target is None or self.uav_id in report.released:
+            flight.hold(None, None)
+            self.life.observe(Observation.ASSIGNED_NONE)
+            flight.leave_stale_target(now)
+            return
+        self._commit(report, report.target, now)
+
+    def _commit(self, report: AssignmentReport, target_index: int, now: float) -> None:
+        assert self.round is not None
+        if advance(self.life.phase, Observation.ASSIGNED_TARGET) != Phase.COMMITTED:
+            self._refuse_orphan(report, target_index, now)
+            return
+        self.flight.commit(target_index, self.round.targets.targets[target_index], now)
+        eta = f"{report.eta_s:.0f} s" if report.eta_s is not None else "unknown"
+        self.say(f"mission {report.mission}: target {target_index} chosen, ETA {eta}", now)
+        self.life.observe(Observation.ASSIGNED_TARGET)
+        if not self.flight.enabled:
+            return
+        if self.link.lost(now) and report.epoch > 0:
+            self._failed("handed an orphaned target while its autopilot link is lost", now)
+            return
+        self.flight.write_target(report.mission, now)
+
+    def _refuse_orphan(self, report: AssignmentReport, target_index: int, now: float) -> None:
+        """A re-plan handed an orphan to a UAV whose part is over (the operator took it
+        off its target, or it failed): it does not fly it, and drops out like a failed
+        UAV, so that the next epoch hands the orphan on instead of leaving it unflown."""
+        why = f"handed target {target_index} at epoch {report.epoch} while {self.life.phase}"
+        self.say(f"warning: mission {report.mission}: {why}: not flying it", now)
+        if self.round is None:
+            return
+        outcome = TargetOutcome(report.mission, self.uav_id, target_index, Phase.FAILED, why)
+        self.round.outcome = outcome
+        self.outputs.publish(keys.mission_outcome(report.mission, self.uav_id), outcome)
+        if self.round.release((self.uav_id,)):
+            self._replan(now)
+
+    def check_target(self, now: float) -> None:
+        """Give up a target the autopilot cannot be made to fly: it is re-planned."""
+        failure = self.flight.failure(now)
+        if failure is not None:
+            why, cause = failure
+            self._failed(why, now, cause)
+
+    def _failed(self, why: str, now: float, cause: Phase = Phase.FAILED) -> None:
+        """This UAV cannot fly its target: say so, resume course, and release the target."""
+        self.flight.give_up(why, now)
+        lost = cause == Phase.LINK_LOST
+        self.life.observe(Observation.LINK_LOST if lost else Observation.COMMAND_FAILED, why)
+        mission = self.round.mission if self.round else "?"
+        self.say(f"error: mission {mission}: cannot fly target {self.flight.target}: {why}", now)
+        self.publish_outcome(cause, why)
+        if self.round is not None and self.round.release((self.uav_id,)):
+            self._replan(now)
+
+    def abort_of(self, mission: int) -> MissionAbort | None:
+        """The abort of `mission` this UAV obeyed, for a teammate that missed it."""
+        if self._abort is None or self._abort.mission != mission:
+            return None
+        return self._abort
+
+
+def _refusal(targets: MissionTargets) -> str | None:
+    """Why a mission's targets are refused, if they are."""
+    try:
+        encode_targets(targets.targets, source=f"mission {targets.mission}")
+    except TargetsFileError as error:
+        return f"target {error.index}: {error.problem}" if targets.targets else error.problem
+    if not math.isfinite(targets.deadline_s) or targets.deadline_s <= 0:
+        return f"deadline {targets.deadline_s!r} s is not a positive number"
+    return None

@@ -1,0 +1,284 @@
+"""Flying a target (thesis 4.3): the waypoint writes, their echoes, arrival, giving up.
+
+Write waypoint TARGET_WAYPOINT at the target with `next` = the waypoint the aircraft was
+tracking, then track it; when the autopilot moves on from it, the aircraft is back on
+its original course by itself. `flying` once the autopilot echoed the track command,
+`reached` once telemetry put the aircraft within REACHED_RADIUS_M of the target,
+`preempted` when the autopilot left the target route anywhere else or the ground
+commanded it directly. A target that cannot be flown (`failure`) is the mission's to
+release (onboard.mission_participation).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import msgspec
+
+from fleet.geo.mercator import distance_m
+from fleet.mission import keys
+from fleet.mission.lifecycle import Observation
+from fleet.mission.messages import CommandResult, Target
+from fleet.mission.phase import Phase
+from fleet.piccolo.track import Track
+from fleet.piccolo.waypoint import Waypoint
+from onboard.autopilot_commands import AutopilotCommand, CommandTracker, Completion
+from onboard.link_watch import LinkWatch
+from onboard.mission_phase import MissionPhase
+from onboard.state_report import Say
+
+log = logging.getLogger(__name__)
+
+#: The waypoint index the module writes a target into (the flight plan keeps the rest).
+TARGET_WAYPOINT = 90
+#: Within this distance (m) of its target by telemetry, a UAV has reached it: the
+#: autopilot's own acceptance radius (60 m in the simulator) plus what the aircraft
+#: flies between two telemetry packets at top speed and 5 Hz.
+REACHED_RADIUS_M = 75.0
+#: A target not confirmed by the autopilot this long after the commitment (the writes
+#: are retried all along, across link outages) is given up: `failed`, and released.
+CONFIRM_LIMIT_S = 20.0
+#: A UAV holding a target whose autopilot link stays lost this long is released.
+LINK_RELEASE_S = 20.0
+
+
+class FlightOutputs(Protocol):
+    def send_autopilot(self, command: AutopilotCommand) -> None: ...
+    def publish(self, key: str, message: msgspec.Struct) -> None: ...
+
+
+class FlightMission(Protocol):
+    """What flying a target needs of the mission it is part of."""
+
+    def superseded(self, mission: int) -> bool:
+        """A command's answer arrived after its mission was replaced or aborted."""
+        ...
+
+    def decided(self) -> bool:
+        """This UAV committed to an assignment of the current mission."""
+        ...
+
+    def publish_outcome(self, phase: Phase, reason: str | None) -> None: ...
+
+
+@dataclass
+class TargetFlight:
+    uav_id: int
+    outputs: FlightOutputs
+    life: MissionPhase
+    link: LinkWatch
+    say: Say
+    #: The module is on: it writes to the autopilot (OPM).
+    enabled: bool = True
+    #: A target not echoed this long after the commitment is given up (CONFIRM_LIMIT_S).
+    confirm_limit_s: float = CONFIRM_LIMIT_S
+    #: A held target whose autopilot link stays lost this long is released (LINK_RELEASE_S).
+    link_release_s: float = LINK_RELEASE_S
+    tracked_waypoint: int | None = None
+    original_waypoint: int | None = None
+    commands: CommandTracker = field(init=False)
+    #: The mission this flight is part of: attached by it (onboard.mission_participation).
+    mission: FlightMission = field(init=False)
+    target: int | None = None  #: the target this UAV holds (committed or flying to)
+    _target_at: Target | None = None
+    _committed_at: float = 0.0
+    _target_tracked: bool = False  #: the autopilot echoed the track to the target waypoint
+    resuming: bool = False  #: a resume of the course is sent and not echoed yet
+    _operator_track: bool = False  #: the ground commanded the target waypoint or its track
+
+    def __post_init__(self) -> None:
+        self.commands = CommandTracker(send=self.outputs.send_autopilot)
+
+    def hold(self, target: int | None, where: Target | None) -> None:
+        """Hold `target` (at `where`), or none; its route not echoed yet."""
+        self.target, self._target_at = target, where
+        self._target_tracked = False
+
+    # ---- what the autopilot says -------------------------------------------------------
+    def on_telemetry(self, now: float) -> None:
+        if self.life.holds_target():
+            distance = self._target_distance()
+            if distance is not None and distance <= REACHED_RADIUS_M:
+                self._reached(distance, now)
+
+    def _target_distance(self) -> float | None:
+        """Metres from the latest GPS fix to the held target; None if either is unknown."""
+        gps = self.link.gps
+        if self.target is None or gps is None or self._target_at is None:
+            return None
+        return distance_m((gps.lat, gps.lon), (self._target_at.lat, self._target_at.lon))
+
+    def _reached(self, distance: float, now: float) -> None:
+        # Reached before the track was echoed (it passed by): the target writes still
+        # pending would only turn it back to where it has been.
+        self.commands.cancel_where(_is_target_write, f"target {self.target} reached")
+        self.life.observe(Observation.WITHIN_RADIUS)
+        self.say(f"reached target {self.target} ({distance:.0f} m from it)", now)
+        self.mission.publish_outcome(Phase.REACHED, None)
+
+    def on_track(self, track: Track, now: float) -> None:
+        self.commands.on_echo(track, now)
+        previous, self.tracked_waypoint = self.tracked_waypoint, track.waypoint
+        if previous != track.waypoint:
+            self.outputs.publish(keys.track(self.uav_id), track)
+        if track.waypoint == TARGET_WAYPOINT:
+            if previous != TARGET_WAYPOINT and self.target is None:
+                self.leave_stale_target(now)  # a restart's first track, after the re-plan
+            return
+        flying = self.life.phase == Phase.FLYING
+        if flying and self._target_tracked and previous == TARGET_WAYPOINT:
+            self._left_target_route(track.waypoint, now)
+        if not self.life.holds_target():
+            self.original_waypoint = track.waypoint  # the course to come back to
+
+    def _left_target_route(self, waypoint: int, now: float) -> None:
+        """The autopilot stopped tracking the target: arrival if telemetry says so."""
+        distance = self._target_distance()
+        if distance is not None and distance <= REACHED_RADIUS_M:
+            self._reached(distance, now)
+            return
+        where = "unknown distance" if distance is None else f"{distance:.0f} m"
+        why = f"autopilot left the target route for waypoint {waypoint} at {where}"
+        self.life.observe(Observation.LEFT_ROUTE, why)
+        self.say(f"warning: target not reached: {why}", now)
+
+    def on_waypoint(self, waypoint: Waypoint, now: float) -> None:
+        self.commands.on_echo(waypoint, now)
+        self.outputs.publish(keys.waypoint(self.uav_id, waypoint.index), waypoint)
+
+    # ---- what the ground commands --------------------------------------------------------
+    def command_autopilot(self, command: AutopilotCommand, now: float, on_done: Completion) -> None:
+        """A waypoint or track asked for by the ground; refused while the module is off.
+
+        Commanding the track, or the target waypoint, while holding a target takes the
+        aircraft off it: the mission's part is `preempted` at once, with that reason.
+        """
+        if not self.enabled:
+            on_done(CommandResult(False, "module is off: it does not write to the autopilot"))
+            return
+        retasks = isinstance(command, Track) or command.index == TARGET_WAYPOINT
+        self._operator_track = isinstance(command, Track) and command.waypoint == TARGET_WAYPOINT
+        if retasks and self.life.holds_target():
+            what = (
+                f"track to waypoint {command.waypoint}"
+                if isinstance(command, Track)
+                else f"waypoint {command.index}"
+            )
+            why = f"the ground commanded the autopilot directly ({what})"
+            self.commands.cancel_all(why)
+            self.life.observe(Observation.OPERATOR_COMMAND, why)
+            self.say(f"warning: target {self.target} given up: {why}", now)
+        self.commands.submit(command, now, on_done)
+
+    # ---- flying the mission's target -------------------------------------------------------
+    def commit(self, target: int, where: Target, now: float) -> None:
+        """Hold `target` from `now`: the confirm limit runs from here."""
+        self.hold(target, where)
+        self._committed_at = now
+
+    def write_target(self, mission: int, now: float) -> None:
+        """Write the held target's waypoint, then track it; both retried until echoed."""
+        target_index, target = self.target, self._target_at
+        assert target_index is not None and target is not None
+        self._operator_track = False  # the module's own target route from now on
+        # on_track never records the target waypoint as the course; 0 before any track.
+        back_to = 0 if self.original_waypoint is None else self.original_waypoint
+        waypoint = Waypoint(
+            index=TARGET_WAYPOINT,
+            next_index=back_to,
+            lat=target.lat,
+            lon=target.lon,
+            alt=target.alt,
+        )
+
+        def track_target(result: CommandResult) -> None:
+            if result.ok and self._still_committed(mission, target_index):
+                self.commands.submit(Track(TARGET_WAYPOINT), now, tracked, persistent=True)
+
+        def tracked(result: CommandResult) -> None:
+            if not result.ok or self.mission.superseded(mission) or self.target != target_index:
+                return
+            self._target_tracked = True
+            if self.life.observe(Observation.TRACK_ECHOED):
+                self.say(f"mission {mission}: flying to target {target_index}", now)
+
+        self.commands.submit(waypoint, now, track_target, persistent=True)
+
+    def _still_committed(self, mission: int, target_index: int) -> bool:
+        return (
+            not self.mission.superseded(mission)
+            and self.target == target_index
+            and self.life.phase == Phase.COMMITTED
+        )
+
+    def leave_stale_target(self, now: float) -> None:
+        """Holding no target, yet the autopilot tracks the target waypoint: left there by
+        this module before a restart, and the target is another UAV's now (a re-plan
+        released this one while it was away). Back to the course, or it flies it too."""
+        if self.tracked_waypoint != TARGET_WAYPOINT or self.resuming or self._operator_track:
+            return
+        if not self.mission.decided():
+            return  # nothing decided yet: it may still be handed that very target
+        self.say(
+            "warning: the autopilot still tracks the target waypoint of a target this UAV "
+            "no longer holds; resuming the course",
+            now,
+        )
+        self.resume_course(now)
+
+    def failure(self, now: float) -> tuple[str, Phase] | None:
+        """Why the held target cannot be flown (and the phase that says so), if it cannot:
+        its link stayed lost, or the autopilot never echoed its writes in time."""
+        if not self.life.holds_target() or self.link.telemetry_at is None:
+            return None
+        silent = now - self.link.telemetry_at
+        if silent > self.link_release_s:
+            return f"autopilot link lost for {silent:.0f} s", Phase.LINK_LOST
+        if self.life.phase == Phase.COMMITTED and now - self._committed_at > self.confirm_limit_s:
+            attempts = "over a lost link" if self.link.lost(now) else "with the link up"
+            why = (
+                f"target writes not echoed by the autopilot within {self.confirm_limit_s:g} s "
+                f"(retried {attempts})"
+            )
+            return why, Phase.FAILED
+        return None
+
+    def resume_course(self, now: float) -> None:
+        """Track the course again; resent until echoed, across a link outage too, for an
+        aircraft left tracking a target it gave up would fly it beside its new holder.
+        Only a newer track (a new target, the operator's) or a cancel ends it early."""
+        if not self.enabled:
+            return
+        # No course seen yet (a restart on the target route): the flight plan's start,
+        # as the target waypoint's own `next` is then (see `write_target`).
+        back = 0 if self.original_waypoint is None else self.original_waypoint
+
+        def done(result: CommandResult) -> None:
+            self.resuming = False
+            if not result.ok:
+                log.info("resume of waypoint %d ended: %s", back, result.detail)
+
+        self.resuming = True
+        self.commands.submit(Track(back), now, done, persistent=True)
+
+    def give_up(self, why: str, now: float) -> None:
+        """Off the target: every write cancelled, back to the course."""
+        self.commands.cancel_all(why)
+        self.resume_course(now)
+
+    def restart(self, why: str, now: float) -> None:
+        """A new mission, or an abort: every write cancelled; back to the course if a
+        target was held or a resume was still pending (a link outage): it goes on."""
+        resuming = self.resuming
+        self.commands.cancel_all(why)
+        if self.life.holds_target() or resuming:
+            self.resume_course(now)
+
+
+def _is_target_write(command: AutopilotCommand) -> bool:
+    """The target waypoint's write or the track to it (a mission's own target writes)."""
+    if isinstance(command, Track):
+        return command.waypoint == TARGET_WAYPOINT
+    return command.index == TARGET_WAYPOINT

@@ -1,0 +1,48 @@
+"""Asking the planner for the approach times (onboard.approach_plan)."""
+
+from __future__ import annotations
+
+from fleet.mission import keys
+from fleet.mission.messages import (
+    MissionTargets,
+    UavResult,
+)
+from onboard.core import (
+    OnboardCore,
+)
+from tests.link_samples import sample_telemetry
+from tests.onboard.core_harness import (
+    TARGETS,
+    TWO_TARGETS,
+    HeldPlanner,
+    Recorder,
+    ScriptedPlanner,
+    make_core,
+)
+
+
+def test_a_stale_plan_is_never_used_for_the_next_mission() -> None:
+    planner = HeldPlanner()
+    out = Recorder()
+    core = OnboardCore(uav_id=112, outputs=out, planner=planner)
+    core.on_telemetry(sample_telemetry(), 0.0)
+    core.on_targets(MissionTargets(mission=1, team=(112,), targets=TWO_TARGETS), 0.0)
+    core.on_targets(MissionTargets(mission=2, team=(112,), targets=TWO_TARGETS), 0.05)
+    first, second = planner.requests
+    planner.answer(first, (1.0, 2.0))  # mission 1's answer, same target count
+    core.tick(0.1)
+    assert out.on(keys.mission_result(2, 112)) == []
+    planner.answer(second, (7.0, 8.0))
+    core.tick(0.2)
+    assert out.on(keys.mission_result(2, 112)) == [
+        UavResult(2, 112, (7.0, 8.0), model_times=2, fallback_times=0)
+    ]
+
+
+def test_the_planning_budget_grows_with_the_missions_deadline() -> None:
+    core, _ = make_core()
+    planner = core.planner
+    assert isinstance(planner, ScriptedPlanner)
+    core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS, deadline_s=3.0), 0.0)
+    core.on_targets(MissionTargets(mission=2, team=(112,), targets=TARGETS, deadline_s=30.0), 1.0)
+    assert [r.budget_s for r in planner.requests] == [2.0, 15.0]

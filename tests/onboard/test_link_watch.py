@@ -1,0 +1,46 @@
+"""Watching the autopilot link (onboard.link_watch)."""
+
+from __future__ import annotations
+
+from fleet.mission import keys
+from fleet.mission.messages import (
+    MissionTargets,
+    UavResult,
+)
+from fleet.mission.phase import Phase
+from onboard.core import (
+    LINK_LOST_S,
+)
+from onboard.link_watch import LinkWatch
+from tests.link_samples import sample_telemetry
+from tests.onboard.core_harness import (
+    TARGETS,
+    make_core,
+)
+
+
+def test_lost_telemetry_is_link_lost_and_declines_a_mission() -> None:
+    core, out = make_core()  # telemetry at t=0
+    core.tick(LINK_LOST_S + 1.0)
+    state = core.state(LINK_LOST_S + 1.0)
+    assert state.phase == Phase.LINK_LOST and state.reason is not None
+    assert any(s.startswith("error: autopilot link lost") for s in out.statuses())
+    core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), LINK_LOST_S + 2)
+    assert out.on(keys.mission_result(1, 112)) == [UavResult(1, 112, (None, None, None))]
+    assert out.autopilot == []
+    core.on_telemetry(sample_telemetry(), LINK_LOST_S + 3)
+    assert core.state(LINK_LOST_S + 3).phase != Phase.LINK_LOST
+
+
+def test_the_watch_says_lost_once_and_back_once() -> None:
+    said: list[str] = []
+    watch = LinkWatch(lambda text, now: said.append(text))
+    assert watch.lost(0.0)  # no telemetry ever came
+    watch.check(10.0)
+    assert said == []  # nothing flowed yet, so nothing stopped
+    watch.on_telemetry(sample_telemetry(), 1.0)
+    assert not watch.lost(1.0 + LINK_LOST_S) and watch.lost(1.1 + LINK_LOST_S)
+    watch.check(2.0 + LINK_LOST_S)
+    watch.check(3.0 + LINK_LOST_S)
+    watch.on_telemetry(sample_telemetry(), 4.0 + LINK_LOST_S)
+    assert [s.split(":")[0] for s in said] == ["error", "autopilot link back"]

@@ -1,0 +1,36 @@
+"""Reporting status and state (onboard.state_report)."""
+
+from __future__ import annotations
+
+from fleet.mission.messages import (
+    StatusText,
+)
+from fleet.mission.phase import Phase, Severity
+from onboard.core import (
+    LINK_LOST_S,
+)
+from onboard.state_report import overall_phase
+from tests.onboard.core_harness import (
+    make_core,
+)
+
+
+def test_status_messages_carry_their_severity() -> None:
+    core, out = make_core()
+    core.tick(LINK_LOST_S + 1.0)
+    severities = {m.text: m.severity for _, m in out.published if isinstance(m, StatusText)}
+    assert Severity.ERROR in severities.values()
+
+
+def test_off_and_link_lost_outrank_the_missions_phase() -> None:
+    mission = (Phase.FLYING, None)
+    shown = overall_phase(enabled=False, silent_s=9.0, link_lost=True, mission=mission)
+    assert shown[0] == Phase.OFF
+    shown = overall_phase(enabled=True, silent_s=9.0, link_lost=True, mission=mission)
+    assert shown == (Phase.LINK_LOST, "no telemetry from the autopilot for 9.0 s")
+    # Never any telemetry: the mission's phase (the mission declines by itself).
+    assert overall_phase(enabled=True, silent_s=None, link_lost=True, mission=mission) == mission
+    assert overall_phase(enabled=True, silent_s=0.1, link_lost=False, mission=None) == (
+        Phase.IDLE,
+        None,
+    )
