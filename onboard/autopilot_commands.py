@@ -1,7 +1,7 @@
 """Autopilot commands confirmed by their echo, retried, or reported failed.
 
-The Piccolo echoes a WAYPOINT it stored and reports the TRACK it switched to (piccolo-
-link.md 3): that echo is the only confirmation a sender gets. A command is resent
+The Piccolo echoes a WAYPOINT it stored and reports the TRACK it switched to (docs/protocol.md,
+the autopilot packets): that echo is the only confirmation a sender gets. A command is resent
 until its echo arrives or `max_attempts` are spent; a mission's own writes are resent
 until their echo arrives or the mission cancels them (`persistent`), so a link outage
 delays them but never loses them. The interval between attempts follows the echo

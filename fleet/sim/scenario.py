@@ -193,15 +193,8 @@ def _uav(table: _UavTable, where: str, limits: AircraftLimits) -> UavSpec:
             f"{where}.airspeed: expected a number in [{limits.min_airspeed:g}, "
             f"{limits.max_airspeed:g}], got {table.airspeed!r}"
         )
-    return UavSpec(
-        piccolo_id=table.id,
-        lat=table.lat,
-        lon=table.lon,
-        alt=table.alt,
-        heading=table.heading,
-        airspeed=table.airspeed,
-        plan=tuple(table.plan) if table.plan is not None else None,
-    )
+    plan = tuple(table.plan) if table.plan is not None else None
+    return UavSpec(table.id, table.lat, table.lon, table.alt, table.heading, table.airspeed, plan)
 
 
 def _checked(data: _ScenarioFile, source: str, base_dir: Path | None, name: str) -> Scenario:
