@@ -9,11 +9,12 @@ from dataclasses import dataclass
 import pytest
 import zenoh
 
+from fleet.launch.launcher import free_port
 from fleet.mission import keys
 from fleet.mission.messages import MissionTargets
 from fleet.transport.bus_codec import ENCODING, encode
-from tests.ground_view import GroundView
-from tests.processes import Fleet, client_session, free_port, router_session
+from tests.support.ground_view import GroundView
+from tests.support.processes import Fleet, client_session, router_session
 
 
 @dataclass

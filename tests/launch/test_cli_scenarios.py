@@ -12,7 +12,8 @@ import sys
 from importlib.resources import files
 from pathlib import Path
 
-from tests.processes import free_port, start
+from fleet.launch.launcher import free_port
+from tests.support.processes import start
 
 TIMEOUT_S = 120
 

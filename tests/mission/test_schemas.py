@@ -12,7 +12,7 @@ from fleet.mission.messages import (
     UavResult,
 )
 from fleet.mission.schemas import MESSAGES, check_all, main, render
-from tests.link_samples import sample_telemetry
+from tests.support.link_samples import sample_telemetry
 
 #: The committed schemas, beside the tests in the repository.
 SCHEMA_DIR = Path(__file__).resolve().parents[2] / "schemas"

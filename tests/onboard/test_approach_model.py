@@ -11,7 +11,6 @@ import time
 
 import pytest
 
-from bench.bench_approach import fly_pure_pursuit
 from fleet.geo.aircraft import AircraftLimits, turn_radius
 from onboard.approach_model import (
     ApproachTimeModel,
@@ -19,6 +18,7 @@ from onboard.approach_model import (
     TargetStatus,
     default_steps,
 )
+from tests.support.pure_pursuit import fly_pure_pursuit
 
 LIMITS = AircraftLimits()
 V = LIMITS.max_airspeed

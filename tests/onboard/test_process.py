@@ -15,6 +15,7 @@ import msgspec
 import pytest
 import zenoh
 
+from fleet.launch.launcher import SimEndpoints, free_port
 from fleet.mission import keys
 from fleet.mission.messages import (
     MISSION_MANAGER,
@@ -36,16 +37,9 @@ from fleet.planning.link import PiccoloLink, PlanningEvent
 from fleet.planning.protocol import encode_message
 from fleet.transport.bus_codec import ENCODING, encode
 from onboard.process import _Outputs
-from tests.ground_view import GroundView
-from tests.processes import (
-    Child,
-    Fleet,
-    SimEndpoints,
-    client_session,
-    free_port,
-    router_session,
-    wait_until,
-)
+from tests.support.ground_view import GroundView
+from tests.support.processes import Child, Fleet, client_session, router_session
+from tests.support.waiting import wait_until
 
 UAV = 112
 

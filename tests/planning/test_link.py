@@ -3,7 +3,6 @@ from pathlib import Path
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.mixed_stream import mixed_stream
 from fleet.mission.messages import (
     BROADCAST,
     MISSION_MANAGER,
@@ -18,7 +17,8 @@ from fleet.piccolo.telemetry import Telemetry, decode_telemetry, encode_telemetr
 from fleet.piccolo.waypoint import Waypoint
 from fleet.planning.link import AutopilotEvent, PiccoloLink, PlanningEvent
 from fleet.planning.protocol import PlanningMessage, encode_message
-from tests.link_samples import sample_telemetry, sample_waypoint, tracks, waypoints
+from tests.support.link_samples import sample_telemetry, sample_waypoint, tracks, waypoints
+from tests.support.mixed_stream import mixed_stream
 
 FIXTURES = Path(__file__).parent.parent / "fixtures"
 

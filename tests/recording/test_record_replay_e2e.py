@@ -20,11 +20,13 @@ from pathlib import Path
 import zenoh
 from mcap.reader import make_reader
 
+from fleet.launch.launcher import free_port
 from fleet.mission import keys
 from fleet.recording import channels
 from fleet.recording.reader import read_recording
 from fleet.sim.autopilot import DEFAULT_TELEMETRY_HZ
-from tests.processes import Child, client_session, free_port, start, wait_until
+from tests.support.processes import Child, client_session, start
+from tests.support.waiting import wait_until
 
 TIMEOUT_S = 120
 FLEET = ("-m", "ground.fleet_cli")

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import zenoh
 
+from fleet.launch.launcher import free_port
 from fleet.mission import keys
 from fleet.mission.messages import StatusText
 from fleet.recording.reader import read_recording
@@ -16,7 +17,8 @@ from fleet.recording.recorder import Recorder
 from fleet.recording.replay import replayable
 from fleet.recording.writer import McapSink
 from fleet.transport.bus_codec import ENCODING, encode
-from tests.processes import client_session, free_port, router_session, wait_until
+from tests.support.processes import client_session, router_session
+from tests.support.waiting import wait_until
 
 
 def test_records_puts_and_tokens_and_drops_what_is_not_json(tmp_path: Path) -> None:

@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 import zenoh
 
+from fleet.launch.launcher import free_port
 from fleet.mission import keys
 from fleet.transport.cli import (
     ExitCode,
@@ -32,7 +33,8 @@ from fleet.transport.cli import (
     zenoh_config,
 )
 from fleet.transport.zenoh_config import CONFIG_ENV, CONNECT_ENV, endpoints
-from tests.processes import free_port, router_session, wait_until
+from tests.support.processes import router_session
+from tests.support.waiting import wait_until
 
 REPO = Path(__file__).resolve().parents[2]
 CLI_TIMEOUT_S = 60.0

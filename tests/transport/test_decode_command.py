@@ -9,7 +9,7 @@ from fleet.mission.messages import MISSION_MANAGER, StatusText
 from fleet.planning.link import PiccoloLink
 from fleet.planning.protocol import encode_message
 from fleet.transport.cli import ExitCode
-from tests.link_samples import sample_telemetry
+from tests.support.link_samples import sample_telemetry
 
 FIXTURES = Path(__file__).parent.parent / "fixtures"
 

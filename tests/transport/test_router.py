@@ -10,7 +10,6 @@ from __future__ import annotations
 import os
 import shlex
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -32,38 +31,10 @@ from fleet.launch.launcher import (
 from fleet.mission import keys
 from fleet.transport.router import Router, RouterError
 from fleet.transport.zenoh_config import make_config
+from tests.support.fake_onboard import FAKE_ONBOARD
+from tests.support.processes import free_endpoint
 
 REPO = Path(__file__).resolve().parents[2]
-
-#: A test double of `onboard`: joins Zenoh, declares its liveliness token, publishes a
-#: telemetry sample with a GPS fix five times a second (what the launcher waits for), and
-#: exits cleanly on SIGTERM. Nothing else. With --silent it publishes no telemetry.
-FAKE_ONBOARD = """
-import argparse, signal, threading, zenoh
-from fleet.mission import keys
-from fleet.piccolo.telemetry import GpsBlock, Telemetry
-from fleet.transport import bus_codec
-from fleet.transport.zenoh_config import make_config
-parser = argparse.ArgumentParser()
-parser.add_argument("--id", type=int, required=True)
-parser.add_argument("--connect", required=True)
-parser.add_argument("--silent", action="store_true")
-args, _ = parser.parse_known_args()
-stop = threading.Event()
-signal.signal(signal.SIGTERM, lambda *_: stop.set())
-fix = Telemetry(system_time_ms=0, gps=GpsBlock(35.72, -120.76, 600.0, 0.0, 22.0, 0.0))
-with zenoh.open(make_config("client", [args.connect])) as session:
-    token = session.liveliness().declare_token(keys.alive(args.id))
-    while not stop.wait(0.2):
-        if not args.silent:
-            session.put(keys.telemetry(args.id), bus_codec.encode(fix))
-"""
-
-
-def free_endpoint() -> str:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return f"tcp/127.0.0.1:{s.getsockname()[1]}"
 
 
 def alive(pid: int) -> bool:

@@ -27,11 +27,13 @@ import pytest
 import zenoh
 
 from fleet.geo.mercator import MercatorProjection
+from fleet.launch.launcher import free_port
 from fleet.mission import keys
 from fleet.mission.messages import MissionTargets
 from fleet.transport.targets_io import read_targets
-from tests.ground_view import GroundView
-from tests.processes import Child, client_session, free_port, start, wait_until
+from tests.support.ground_view import GroundView
+from tests.support.processes import Child, client_session, start
+from tests.support.waiting import wait_until
 
 webdriver = pytest.importorskip("selenium.webdriver")
 from selenium.webdriver.chrome.service import Service  # noqa: E402
