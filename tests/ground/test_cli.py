@@ -65,6 +65,7 @@ def run_cli(*args: str, endpoint: str | None) -> subprocess.CompletedProcess[str
 
 
 # ---- against a router with two fake UAVs --------------------------------------------------------
+@pytest.mark.e2e
 def test_uavs_json_lists_the_live_uavs(router: str, fakes: dict[int, FakeOnboard]) -> None:
     done = run_cli("uavs", "--json", endpoint=router)
     assert done.returncode == 0, done.stderr
@@ -80,6 +81,7 @@ def test_uavs_json_lists_the_live_uavs(router: str, fakes: dict[int, FakeOnboard
         assert rows[uav]["enabled"] is True
 
 
+@pytest.mark.e2e
 def test_uavs_table(router: str, fakes: dict[int, FakeOnboard]) -> None:
     done = run_cli("uavs", endpoint=router)
     assert done.returncode == 0, done.stderr
@@ -88,6 +90,7 @@ def test_uavs_table(router: str, fakes: dict[int, FakeOnboard]) -> None:
     assert [line.split()[0] for line in lines[1:]] == ["74", "112"]
 
 
+@pytest.mark.e2e
 def test_send_targets_wait_json(router: str, fakes: dict[int, FakeOnboard], tmp_path: Path) -> None:
     path = tmp_path / "targets.bin"
     write_targets(path, TARGETS)
@@ -132,6 +135,7 @@ def test_send_targets_wait_json(router: str, fakes: dict[int, FakeOnboard], tmp_
     assert wait_until(lambda: any(t.mission == mission + 1 for t in fakes[74].targets))
 
 
+@pytest.mark.e2e
 def test_send_targets_names_who_disagreed(
     router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
 ) -> None:
@@ -162,6 +166,7 @@ def test_send_targets_names_who_disagreed(
         (struct.pack("<6d", 35.7, -120.7, 600.0, 35.7, -120.7, -1e9), "altitude -1000000000.0"),
     ],
 )
+@pytest.mark.e2e
 def test_bad_targets_file_is_refused_and_nothing_sent(
     router: str, fakes: dict[int, FakeOnboard], tmp_path: Path, data: bytes, where: str
 ) -> None:
@@ -189,6 +194,7 @@ def test_bad_targets_file_is_refused_and_nothing_sent(
     }
 
 
+@pytest.mark.e2e
 def test_keys_shows_telemetry_state_and_token(router: str, fakes: dict[int, FakeOnboard]) -> None:
     done = run_cli(
         "keys", "fleet/uav/74/**", "--json", "--window", "0.5", "--admin", endpoint=router
@@ -210,6 +216,7 @@ def test_keys_shows_telemetry_state_and_token(router: str, fakes: dict[int, Fake
     assert any(line.startswith("fleet/uav/112/telemetry = {") for line in text.stdout.splitlines())
 
 
+@pytest.mark.e2e
 def test_opm_arrives_with_its_payload(router: str, fakes: dict[int, FakeOnboard]) -> None:
     done = run_cli("opm", "74", "off", "--status-rate", "2.5", endpoint=router)
     assert done.returncode == 0, done.stderr
@@ -239,6 +246,7 @@ def send_mission(router: str, fakes: dict[int, FakeOnboard], tmp_path: Path) -> 
     return mission
 
 
+@pytest.mark.e2e
 def test_uavs_json_gives_each_uav_its_mission_target_phase_and_link_age(
     router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
 ) -> None:
@@ -257,6 +265,7 @@ def test_uavs_json_gives_each_uav_its_mission_target_phase_and_link_age(
         assert "link_age_s" in row and row["link_age_s"] is None
 
 
+@pytest.mark.e2e
 def test_abort_arrives_for_the_current_or_named_mission(
     router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
 ) -> None:
@@ -280,6 +289,7 @@ def test_abort_arrives_for_the_current_or_named_mission(
     assert MissionAbort(4242) not in fakes[112].aborts
 
 
+@pytest.mark.e2e
 def test_abort_of_one_uav_leaves_its_teammate_on_the_mission(
     router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
 ) -> None:
@@ -292,6 +302,7 @@ def test_abort_of_one_uav_leaves_its_teammate_on_the_mission(
     assert MissionAbort(mission, uav=74) in fakes[112].aborts  # seen, and not obeyed
 
 
+@pytest.mark.e2e
 def test_watch_shows_the_table_and_status_messages(
     router: str, fakes: dict[int, FakeOnboard]
 ) -> None:
@@ -304,6 +315,7 @@ def test_watch_shows_the_table_and_status_messages(
     assert any("UAV 74: fake 74 tick" in line for line in lines), done.stdout
 
 
+@pytest.mark.e2e
 def test_watch_keeps_a_warning_in_view_while_info_streams_past(
     router: str, fakes: dict[int, FakeOnboard]
 ) -> None:
@@ -341,6 +353,7 @@ def test_watch_keeps_a_warning_in_view_while_info_streams_past(
 
 
 # ---- without a router ---------------------------------------------------------------------
+@pytest.mark.e2e
 def test_no_router_is_a_clear_error_not_a_hang() -> None:
     endpoint = free_endpoint()
     for command in (["uavs"], ["keys"], ["abort", "--mission", "1"]):
@@ -350,6 +363,7 @@ def test_no_router_is_a_clear_error_not_a_hang() -> None:
         assert "Traceback" not in done.stderr
 
 
+@pytest.mark.e2e
 def test_connect_comes_from_the_environment() -> None:
     endpoint = free_endpoint()
     env = {**os.environ, CONNECT_ENV: endpoint}

@@ -25,6 +25,8 @@ from fleet.transport.zenoh_config import make_config
 from tests.ground.test_cli import TARGETS, run_cli
 from tests.support.fake_onboard import FakeOnboard
 
+pytestmark = pytest.mark.e2e
+
 DEPTH = 50_000  #: 300 kB: under the size limit, far over any nesting limit
 PAYLOADS = {
     "nested": b'{"a":' * DEPTH + b"1" + b"}" * DEPTH,

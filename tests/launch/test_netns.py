@@ -27,6 +27,8 @@ from fleet.transport.targets_io import write_targets
 from tests.support.processes import Child, start
 from tests.support.targets import ring_targets
 
+pytestmark = pytest.mark.e2e
+
 UAVS = (101, 102, 103)
 VICTIM = 103
 ROUTER_PORT = 7447

@@ -28,6 +28,8 @@ from fleet.launch.topology import fallbacks, ring_links
 from fleet.transport.certs import write_identities
 from tests.support.processes import Child, start
 
+pytestmark = pytest.mark.e2e
+
 TIMEOUT_S = 120
 TARGETS = str(files("fleet") / "scenarios" / "head_on_targets.bin")
 

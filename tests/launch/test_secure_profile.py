@@ -216,6 +216,7 @@ def attack(uav74: zenoh.Session, mission: int) -> None:
     put(uav74, keys.mission_abort(mission), MissionAbort(mission))
 
 
+@pytest.mark.e2e
 def test_the_issues_attacks_are_refused_and_the_mission_completes_unchanged(
     secure_fleet: SecureFleet, uav74: zenoh.Session
 ) -> None:
@@ -263,6 +264,7 @@ def test_the_issues_attacks_are_refused_and_the_mission_completes_unchanged(
     assert states[112]["alt"] > 550.0  # not sent down toward the rogue's 368 m
 
 
+@pytest.mark.e2e
 def test_the_grounds_abort_and_opm_commands_go_through(secure_fleet: SecureFleet) -> None:
     targets = str(files("fleet") / "scenarios" / "head_on_targets.bin")
     sent = secure_fleet.ground_cli("send-targets", targets, "--json")

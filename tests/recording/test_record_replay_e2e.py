@@ -17,6 +17,7 @@ from collections import Counter
 from importlib.resources import files
 from pathlib import Path
 
+import pytest
 import zenoh
 from mcap.reader import make_reader
 
@@ -27,6 +28,8 @@ from fleet.recording.reader import read_recording
 from fleet.sim.autopilot import DEFAULT_TELEMETRY_HZ
 from tests.support.processes import Child, client_session, start
 from tests.support.waiting import wait_until
+
+pytestmark = pytest.mark.e2e
 
 TIMEOUT_S = 120
 FLEET = ("-m", "ground.fleet_cli")

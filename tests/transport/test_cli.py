@@ -184,6 +184,7 @@ def test_a_malformed_endpoint_is_refused() -> None:
         zenoh_config(parse("--connect", "localhost"))
 
 
+@pytest.mark.e2e
 def test_ground_cli_uses_the_config_file(router: tuple[zenoh.Session, str], tmp_path: Path) -> None:
     _, endpoint = router
     path = write_config(tmp_path / "zenoh.json5", endpoint)
@@ -193,6 +194,7 @@ def test_ground_cli_uses_the_config_file(router: tuple[zenoh.Session, str], tmp_
 
 
 @pytest.mark.parametrize("program", ["ground.cli", "onboard.main"])
+@pytest.mark.e2e
 def test_a_bad_config_file_exits_2_with_the_reason(program: str, tmp_path: Path) -> None:
     bad = tmp_path / "bad.json5"
     bad.write_text("{ mode: ")

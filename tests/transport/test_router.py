@@ -90,6 +90,7 @@ def test_router_needs_an_endpoint() -> None:
         Router([])
 
 
+@pytest.mark.e2e
 def test_router_process_stops_on_sigterm() -> None:
     endpoint = free_endpoint()
     process = subprocess.Popen(
@@ -146,6 +147,7 @@ def test_ring_scenario_is_a_valid_scenario() -> None:
     assert len({u.alt for u in scenario.uavs}) == 5
 
 
+@pytest.mark.e2e
 def test_fleet_starts_waits_for_liveliness_and_stops_everything(tmp_path: Path) -> None:
     spec = FleetSpec(
         scenario="head_on",
@@ -177,6 +179,7 @@ def test_fleet_starts_waits_for_liveliness_and_stops_everything(tmp_path: Path) 
             kill_if_alive(child.pid)
 
 
+@pytest.mark.e2e
 def test_fleet_is_not_ready_until_telemetry_flows(tmp_path: Path) -> None:
     # Alive but silent (no serial link, no telemetry): the start must not report it ready.
     spec = FleetSpec(
@@ -199,6 +202,7 @@ def test_fleet_is_not_ready_until_telemetry_flows(tmp_path: Path) -> None:
             kill_if_alive(child.pid)
 
 
+@pytest.mark.e2e
 def test_fleet_reports_an_onboard_that_dies_at_start(tmp_path: Path) -> None:
     spec = FleetSpec(
         scenario="single_uav",
@@ -221,6 +225,7 @@ def test_fleet_reports_an_onboard_that_dies_at_start(tmp_path: Path) -> None:
             kill_if_alive(child.pid)
 
 
+@pytest.mark.e2e
 def test_fleet_up_command_stops_every_child_on_sigterm(tmp_path: Path) -> None:
     endpoint = free_endpoint()
     errors = (tmp_path / "up.stderr").open("w")

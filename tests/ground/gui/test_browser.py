@@ -48,11 +48,14 @@ ON_TRACK_M = 60.0
 #: Wall seconds for the UAVs to reach their targets at speedup 10 (simulated ~170 s).
 REACH_TIMEOUT_S = 120.0
 
-pytestmark = pytest.mark.skipif(
-    not (Path(CHROMIUM).exists() and Path(CHROMEDRIVER).exists()),
-    reason=f"no {CHROMIUM} / {CHROMEDRIVER}: `apt-get install chromium chromium-driver` "
-    "(.ci/run does it when missing)",
-)
+pytestmark = [
+    pytest.mark.e2e,
+    pytest.mark.skipif(
+        not (Path(CHROMIUM).exists() and Path(CHROMEDRIVER).exists()),
+        reason=f"no {CHROMIUM} / {CHROMEDRIVER}: `apt-get install chromium chromium-driver` "
+        "(.ci/run does it when missing)",
+    ),
+]
 
 #: The page's map elements, read in one script (the page redraws them at every push).
 READ_MAP = """

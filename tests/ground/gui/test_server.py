@@ -22,6 +22,8 @@ from tests.support.fake_onboard import FakeOnboard
 from tests.support.processes import Child, start
 from tests.support.waiting import wait_until
 
+pytestmark = pytest.mark.e2e
+
 TARGETS = [Target(42.36, -71.09, 120.0), Target(42.365, -71.1, 110.0)]
 TOKEN = "s3cret-token"
 
