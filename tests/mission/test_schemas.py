@@ -1,6 +1,7 @@
 import json
 from pathlib import Path
 
+import jsonschema
 import msgspec
 import pytest
 
@@ -85,7 +86,6 @@ def test_unwritable_directory_is_a_clear_error(
 
 
 def test_published_telemetry_validates_against_its_schema() -> None:
-    jsonschema = pytest.importorskip("jsonschema")
     schema = json.loads((SCHEMA_DIR / "telemetry.schema.json").read_text())
     jsonschema.validate(json.loads(msgspec.json.encode(sample_telemetry())), schema)
 
