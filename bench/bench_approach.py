@@ -34,10 +34,10 @@ import pyomo.environ as pyo
 from pyomo.contrib.solver.common.factory import SolverFactory
 
 from fleet.geo.aircraft import AircraftLimits, turn_radius
-from fleet.geo.angles import wrap_pi
 from fleet.geo.dubins import dubins_time_to_point
 from onboard.approach_model import ApproachTimeModel, LpBackend, along_velocity_bounds
 from onboard.approach_pyomo import PyomoLp, build_point_mass
+from tests.support.pure_pursuit import fly_pure_pursuit
 
 logger = logging.getLogger(__name__)
 
@@ -49,42 +49,6 @@ _TARGET_COUNTS = (1, 4, 10, 50)
 _RING_BEARINGS_DEG = tuple(range(0, 360, 15))
 _RING_RANGES_M = (1000.0, 2000.0, 3000.0)
 _NEAR_RANGES_M = (300.0, 600.0)
-
-
-def fly_pure_pursuit(
-    position: Point,
-    velocity: Point,
-    target: Point,
-    limits: AircraftLimits,
-    dt: float = 0.02,
-    max_time_s: float = 3000.0,
-) -> float | None:
-    """Seconds a constant-airspeed, bank-limited aircraft takes to reach `target`.
-
-    The heading turns toward the target at the bank-limit rate (g tan(bank) / V) until
-    it points at it, then holds; the airspeed is |velocity| clamped to the limits. The
-    arrival is interpolated inside the last step. None if the target is not reached
-    within `max_time_s` (e.g. inside the turn circle, where pure pursuit orbits).
-    """
-    speed = limits.clamp_airspeed(math.hypot(velocity[0], velocity[1]))
-    heading = math.atan2(velocity[1], velocity[0])
-    rate = limits.max_accel / speed
-    x, y = position
-    t = 0.0
-    while t < max_time_s:
-        dx = target[0] - x
-        dy = target[1] - y
-        dist = math.hypot(dx, dy)
-        if dist <= speed * dt:
-            return t + dist / speed
-        error = wrap_pi(math.atan2(dy, dx) - heading)
-        turn = max(-rate * dt, min(rate * dt, error))
-        mid = heading + 0.5 * turn  # midpoint heading: second-order accurate arcs
-        heading += turn
-        x += speed * dt * math.cos(mid)
-        y += speed * dt * math.sin(mid)
-        t += dt
-    return None
 
 
 def milp_arrival_node(

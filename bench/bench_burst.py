@@ -55,8 +55,8 @@ from fleet.transport.memory import memory_link_pair
 from onboard.bus_edge import PresenceEvent
 from onboard.planner_worker import PlanRequest, PlanResult
 from onboard.process import OnboardProcess, OnboardSettings
-from tests.link_samples import sample_telemetry
-from tests.onboard.test_multi_uav import ring_targets
+from tests.support.link_samples import sample_telemetry
+from tests.support.targets import ring_targets
 
 #: The UAV measured; its teammates are 2..N (Piccolo IDs 1..N).
 OWN = 1

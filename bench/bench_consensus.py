@@ -23,12 +23,13 @@ from pathlib import Path
 import msgspec
 import zenoh
 
-from fleet.launch.launcher import ring_scenario
+from fleet.launch.launcher import free_port, ring_scenario
 from fleet.mission import keys
 from fleet.mission.messages import AssignmentReport, MissionTargets, UavResult
 from fleet.transport.bus_codec import ENCODING, encode
-from tests.onboard.test_multi_uav import ring_targets
-from tests.processes import Fleet, client_session, free_port, router_session, wait_until
+from tests.support.processes import Fleet, client_session, router_session
+from tests.support.targets import ring_targets
+from tests.support.waiting import wait_until
 
 
 class Arrivals:

@@ -71,7 +71,7 @@ from fleet.mission.messages import (
 from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.zenoh_bus import direct
 from fleet.transport.zenoh_config import make_config
-from tests.onboard.test_multi_uav import ring_targets
+from tests.support.targets import ring_targets
 
 REPO = Path(__file__).resolve().parent.parent
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")

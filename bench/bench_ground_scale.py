@@ -1,6 +1,6 @@
 """Ground-side cost at N UAVs: watch frame period and the page's push rate.
 
-N FakeOnboards (tests/ground/test_cli.py) on an in-process router, each publishing
+N FakeOnboards (tests/support/fake_onboard.py) on an in-process router, each publishing
 telemetry at 10 Hz and a status line every 0.5 s; then
   * `ground-cli watch --count F --interval 0.5` (appended output): wall time per frame,
     UAV rows in the last frame;
@@ -23,7 +23,8 @@ import time
 import aiohttp
 
 from fleet.transport.router import Router
-from tests.ground.test_cli import FakeOnboard, free_endpoint
+from tests.support.fake_onboard import FakeOnboard
+from tests.support.processes import free_endpoint
 
 FRAMES = 10
 

@@ -26,9 +26,10 @@ from dataclasses import dataclass, field
 
 import zenoh
 
+from fleet.launch.launcher import free_port
 from fleet.launch.topology import fallbacks, ring_links
 from fleet.transport.zenoh_config import make_config
-from tests.processes import free_port, wait_until
+from tests.support.waiting import wait_until
 
 KEY = "bench/heal/seq"
 

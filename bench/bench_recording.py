@@ -20,10 +20,10 @@ from pathlib import Path
 
 import zenoh
 
+from fleet.launch.launcher import free_port
 from fleet.recording.reader import read_recording
 from fleet.transport.router import Router
 from fleet.transport.zenoh_config import make_config
-from tests.processes import free_port
 
 PERIOD_S = 0.0025
 

@@ -32,11 +32,11 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
-from typing import IO, Self
+from typing import IO, Any, Protocol, Self
 
 import zenoh
 
@@ -115,7 +115,8 @@ def _host_port(endpoint: str) -> tuple[str, int]:
     return host.strip("[]"), int(port)
 
 
-def _free_port(host: str) -> int:
+def free_port(host: str = "127.0.0.1") -> int:
+    """A TCP port free on `host` right now (the OS picks it; someone may take it after)."""
     with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as probe:
         probe.bind((host, 0))
         port: int = probe.getsockname()[1]
@@ -187,7 +188,18 @@ class Child:
         return "\n".join(text.splitlines()[-lines:])
 
 
-def stop_children(children: list[Child], grace_s: float = STOP_GRACE_S) -> None:
+class Stoppable(Protocol):
+    """What `stop_children` needs of a child: the launcher's, or a test's."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def process(self) -> subprocess.Popen[Any]: ...
+    @property
+    def pid(self) -> int: ...
+
+
+def stop_children(children: Sequence[Stoppable], grace_s: float = STOP_GRACE_S) -> None:
     """SIGTERM each child by PID, wait up to `grace_s` in all, then SIGKILL the rest."""
     for child in children:
         if child.process.poll() is None:
@@ -328,7 +340,7 @@ class Fleet:
         proto = self.spec.listen.partition("/")[0]
         host = _host_port(self.connect)[0]
         for uav in self.uav_ids:
-            self.uav_routers[uav] = f"{proto}/{host}:{_free_port(host)}"
+            self.uav_routers[uav] = f"{proto}/{host}:{free_port(host)}"
         for uav, neighbours in ring_links(self.uav_ids).items():
             connect = [self.connect, *(self.uav_routers[n] for n in neighbours)]
             self._start_router(f"router-{uav}", self.uav_routers[uav], connect, deadline)

@@ -7,6 +7,8 @@ import random
 import subprocess
 import sys
 
+import pytest
+
 from fleet.consensus.digest import sha256
 
 
@@ -20,6 +22,7 @@ def test_same_digests_as_hashlib() -> None:
         assert split.digest() == hashlib.sha256(data).digest()
 
 
+@pytest.mark.e2e
 def test_onboard_process_loads_neither_hashlib_nor_openssl() -> None:
     code = (
         "import sys, onboard.process, fleet.consensus.replan;"

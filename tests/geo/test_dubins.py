@@ -8,9 +8,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.bench_approach import fly_pure_pursuit
 from fleet.geo.aircraft import AircraftLimits, turn_radius
 from fleet.geo.dubins import dubins_path_length, dubins_time_to_point
+from tests.support.pure_pursuit import fly_pure_pursuit
 
 LIMITS = AircraftLimits()
 V = LIMITS.max_airspeed

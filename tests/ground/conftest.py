@@ -11,7 +11,8 @@ import zenoh
 from fleet.transport.router import Router
 from fleet.transport.zenoh_bus import ZenohBus
 from fleet.transport.zenoh_config import make_config
-from tests.ground.test_cli import FakeOnboard, free_endpoint
+from tests.support.fake_onboard import FakeOnboard
+from tests.support.processes import free_endpoint
 
 
 @pytest.fixture(scope="module")

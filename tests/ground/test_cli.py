@@ -1,12 +1,6 @@
 """`ground-cli` end to end: the real CLI in a subprocess, a real Zenoh router on loopback,
-and `FakeOnboard`, a test double of the onboard process, in the test process.
-
-FakeOnboard does what the ground relies on and nothing more: it declares its liveliness
-token, publishes telemetry and status, answers state queries with a UavState, records
-what the ground sends it (MissionTargets, OpmCommand, MissionAbort), and answers a
-mission by publishing a UavResult and an AssignmentReport (and serving both by query).
-Its approach times are a fixed function of (Piccolo ID, target index), so every fake
-computes every teammate's row itself and the consensus is the real greedy.
+and `FakeOnboard` (tests/support/fake_onboard.py), a test double of the onboard process,
+in the test process.
 """
 
 from __future__ import annotations
@@ -14,37 +8,33 @@ from __future__ import annotations
 import itertools
 import json
 import os
-import socket
 import struct
 import subprocess
 import sys
-import threading
-import time
 from pathlib import Path
 
-import msgspec
 import pytest
 import zenoh
 
-from fleet.consensus.assignment import greedy_assign, results_digest
+from fleet.consensus.assignment import greedy_assign
 from fleet.mission import keys
 from fleet.mission.messages import (
     AssignmentReport,
     MissionAbort,
-    MissionProgress,
     MissionTargets,
     OpmCommand,
     StatusText,
     Target,
     UavResult,
-    UavState,
 )
 from fleet.mission.phase import Phase, Severity
-from fleet.piccolo.telemetry import GpsBlock, SensorBlock, Telemetry
 from fleet.transport import bus_codec
 from fleet.transport.targets_io import write_targets
 from fleet.transport.zenoh_config import CONNECT_ENV, make_config
 from ground.mission_outcome import MissionOutcome, check_agreement
+from tests.support.fake_onboard import FakeOnboard, approach_time
+from tests.support.processes import free_endpoint
+from tests.support.waiting import wait_until
 
 REPO = Path(__file__).resolve().parents[2]
 CLI_TIMEOUT_S = 30.0
@@ -53,150 +43,6 @@ TARGETS = (
     Target(42.3650, -71.1000, 110.0),
     Target(42.3550, -71.0950, 130.0),
 )
-
-
-def free_endpoint() -> str:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return f"tcp/127.0.0.1:{s.getsockname()[1]}"
-
-
-def approach_time(uav: int, target: int) -> float:
-    """The fake's approach-time model: arbitrary, but the same on every fake."""
-    return 20.0 + float((uav * 7 + target * 13) % 41)
-
-
-class FakeOnboard:
-    """Test double of the `onboard` process, as seen from Zenoh."""
-
-    def __init__(self, endpoint: str, uav_id: int, lat: float, lon: float, alt: float) -> None:
-        self.uav_id = uav_id
-        self.lat, self.lon, self.alt = lat, lon, alt
-        self.targets: list[MissionTargets] = []
-        self.opms: list[OpmCommand] = []
-        self.aborts: list[MissionAbort] = []
-        self.publish_assignment = True  #: False: serve it by query only
-        self.disagree = False  #: True: commit a different assignment from the others
-        self.enabled = True
-        self.mission: MissionProgress | None = None
-        self._served: dict[str, bytes] = {}
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
-        self.session = zenoh.open(make_config("client", [endpoint]))
-        try:
-            self._declared = [
-                self.session.liveliness().declare_token(keys.alive(uav_id)),
-                self.session.declare_queryable(keys.state(uav_id), self._on_state_query),
-                self.session.declare_queryable(
-                    f"{keys.PREFIX}/mission/*/**", self._on_mission_query
-                ),
-                self.session.declare_subscriber(keys.ALL_MISSION_TARGETS, self._on_targets),
-                self.session.declare_subscriber(keys.ALL_MISSION_ABORTS, self._on_abort),
-                self.session.declare_subscriber(keys.opm(uav_id), self._on_opm),
-            ]
-            self._thread = threading.Thread(target=self._publish_loop, daemon=True)
-            self._thread.start()
-        except BaseException:
-            self.session.close()
-            raise
-
-    def close(self) -> None:
-        self._stop.set()
-        self._thread.join(timeout=5)
-        self.session.close()
-
-    def telemetry(self) -> Telemetry:
-        return Telemetry(
-            system_time_ms=int(time.monotonic() * 1000) % 2**32,
-            gps=GpsBlock(self.lat, self.lon, self.alt, vel_north=0.0, vel_east=20.0, vel_down=0.0),
-            sensor=SensorBlock(roll=0.0, pitch=0.0, yaw=90.0, indicated_airspeed=21.0),
-        )
-
-    def put(self, key: str, message: msgspec.Struct) -> None:
-        self.session.put(key, bus_codec.encode(message), encoding=bus_codec.ENCODING)
-
-    def _publish_loop(self) -> None:
-        ticks = 0
-        while not self._stop.wait(0.1):
-            self.put(keys.telemetry(self.uav_id), self.telemetry())
-            ticks += 1
-            if ticks % 5 == 0:
-                self.put(keys.status(self.uav_id), StatusText(f"fake {self.uav_id} tick {ticks}"))
-
-    def state(self) -> UavState:
-        return UavState(
-            uav=self.uav_id,
-            enabled=self.enabled,
-            status_rate_hz=1.0,
-            tracked_waypoint=3,
-            telemetry=self.telemetry(),
-            link=None,
-            mission=self.mission,
-        )
-
-    def _on_state_query(self, query: zenoh.Query) -> None:
-        query.reply(
-            keys.state(self.uav_id), bus_codec.encode(self.state()), encoding=bus_codec.ENCODING
-        )
-
-    def _on_mission_query(self, query: zenoh.Query) -> None:
-        with self._lock:
-            served = dict(self._served)
-        for key, payload in served.items():
-            if query.key_expr.intersects(key):
-                query.reply(key, payload, encoding=bus_codec.ENCODING)
-
-    def _on_targets(self, sample: zenoh.Sample) -> None:
-        targets = msgspec.json.decode(sample.payload.to_bytes(), type=MissionTargets)
-        with self._lock:
-            self.targets.append(targets)
-        if self.uav_id not in targets.team:
-            return
-        m, n = targets.mission, len(targets.targets)
-        rows = {u: [approach_time(u, i) for i in range(n)] for u in targets.team}
-        result = UavResult(mission=m, uav=self.uav_id, times=tuple(rows[self.uav_id]))
-        assignment = greedy_assign(rows, n)
-        pairs = {str(u): t for u, t in assignment.pairs.items()}
-        digest = results_digest(rows)
-        if self.disagree:
-            pairs = {u: (t + 1) % n for u, t in pairs.items()}
-            digest = "0" * 16
-        report = AssignmentReport(
-            mission=m,
-            uav=self.uav_id,
-            target=pairs.get(str(self.uav_id)),
-            pairs=pairs,
-            unassigned=assignment.unassigned_targets,
-            team=targets.team,
-            digest=digest,
-            eta_s=rows[self.uav_id][t] if (t := pairs.get(str(self.uav_id))) is not None else None,
-        )
-        with self._lock:
-            self._served[keys.mission_result(m, self.uav_id)] = bus_codec.encode(result)
-            self._served[keys.mission_assignment(m, self.uav_id)] = bus_codec.encode(report)
-            self.mission = MissionProgress(m, Phase.COMMITTED, n, result, report)
-        self.put(keys.mission_result(m, self.uav_id), result)
-        if self.publish_assignment:
-            self.put(keys.mission_assignment(m, self.uav_id), report)
-
-    def _on_abort(self, sample: zenoh.Sample) -> None:
-        abort = msgspec.json.decode(sample.payload.to_bytes(), type=MissionAbort)
-        with self._lock:
-            self.aborts.append(abort)
-            mine = abort.uav is None or abort.uav == self.uav_id
-            if mine and self.mission is not None and self.mission.mission == abort.mission:
-                self.mission = msgspec.structs.replace(self.mission, phase=Phase.ABORTED)
-
-    def _on_opm(self, sample: zenoh.Sample) -> None:
-        command = msgspec.json.decode(sample.payload.to_bytes(), type=OpmCommand)
-        with self._lock:
-            self.opms.append(command)
-        self.enabled = command.enabled
-        self.put(
-            keys.status(self.uav_id),
-            StatusText(f"module {'on' if command.enabled else 'off'}, status every 1 s"),
-        )
-
 
 #: Mission ids of markers no command uses, a new one each time.
 MARKER_MISSIONS = itertools.count(0xFFFF_0000)
@@ -218,17 +64,8 @@ def run_cli(*args: str, endpoint: str | None) -> subprocess.CompletedProcess[str
     )
 
 
-def wait_until(condition: object, timeout_s: float = 5.0) -> bool:
-    assert callable(condition)
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        time.sleep(0.05)
-    return bool(condition())
-
-
 # ---- against a router with two fake UAVs --------------------------------------------------------
+@pytest.mark.e2e
 def test_uavs_json_lists_the_live_uavs(router: str, fakes: dict[int, FakeOnboard]) -> None:
     done = run_cli("uavs", "--json", endpoint=router)
     assert done.returncode == 0, done.stderr
@@ -244,6 +81,7 @@ def test_uavs_json_lists_the_live_uavs(router: str, fakes: dict[int, FakeOnboard
         assert rows[uav]["enabled"] is True
 
 
+@pytest.mark.e2e
 def test_uavs_table(router: str, fakes: dict[int, FakeOnboard]) -> None:
     done = run_cli("uavs", endpoint=router)
     assert done.returncode == 0, done.stderr
@@ -252,6 +90,7 @@ def test_uavs_table(router: str, fakes: dict[int, FakeOnboard]) -> None:
     assert [line.split()[0] for line in lines[1:]] == ["74", "112"]
 
 
+@pytest.mark.e2e
 def test_send_targets_wait_json(router: str, fakes: dict[int, FakeOnboard], tmp_path: Path) -> None:
     path = tmp_path / "targets.bin"
     write_targets(path, TARGETS)
@@ -296,6 +135,7 @@ def test_send_targets_wait_json(router: str, fakes: dict[int, FakeOnboard], tmp_
     assert wait_until(lambda: any(t.mission == mission + 1 for t in fakes[74].targets))
 
 
+@pytest.mark.e2e
 def test_send_targets_names_who_disagreed(
     router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
 ) -> None:
@@ -326,6 +166,7 @@ def test_send_targets_names_who_disagreed(
         (struct.pack("<6d", 35.7, -120.7, 600.0, 35.7, -120.7, -1e9), "altitude -1000000000.0"),
     ],
 )
+@pytest.mark.e2e
 def test_bad_targets_file_is_refused_and_nothing_sent(
     router: str, fakes: dict[int, FakeOnboard], tmp_path: Path, data: bytes, where: str
 ) -> None:
@@ -353,6 +194,7 @@ def test_bad_targets_file_is_refused_and_nothing_sent(
     }
 
 
+@pytest.mark.e2e
 def test_keys_shows_telemetry_state_and_token(router: str, fakes: dict[int, FakeOnboard]) -> None:
     done = run_cli(
         "keys", "fleet/uav/74/**", "--json", "--window", "0.5", "--admin", endpoint=router
@@ -374,6 +216,7 @@ def test_keys_shows_telemetry_state_and_token(router: str, fakes: dict[int, Fake
     assert any(line.startswith("fleet/uav/112/telemetry = {") for line in text.stdout.splitlines())
 
 
+@pytest.mark.e2e
 def test_opm_arrives_with_its_payload(router: str, fakes: dict[int, FakeOnboard]) -> None:
     done = run_cli("opm", "74", "off", "--status-rate", "2.5", endpoint=router)
     assert done.returncode == 0, done.stderr
@@ -403,6 +246,7 @@ def send_mission(router: str, fakes: dict[int, FakeOnboard], tmp_path: Path) -> 
     return mission
 
 
+@pytest.mark.e2e
 def test_uavs_json_gives_each_uav_its_mission_target_phase_and_link_age(
     router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
 ) -> None:
@@ -421,6 +265,7 @@ def test_uavs_json_gives_each_uav_its_mission_target_phase_and_link_age(
         assert "link_age_s" in row and row["link_age_s"] is None
 
 
+@pytest.mark.e2e
 def test_abort_arrives_for_the_current_or_named_mission(
     router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
 ) -> None:
@@ -444,6 +289,7 @@ def test_abort_arrives_for_the_current_or_named_mission(
     assert MissionAbort(4242) not in fakes[112].aborts
 
 
+@pytest.mark.e2e
 def test_abort_of_one_uav_leaves_its_teammate_on_the_mission(
     router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
 ) -> None:
@@ -456,6 +302,7 @@ def test_abort_of_one_uav_leaves_its_teammate_on_the_mission(
     assert MissionAbort(mission, uav=74) in fakes[112].aborts  # seen, and not obeyed
 
 
+@pytest.mark.e2e
 def test_watch_shows_the_table_and_status_messages(
     router: str, fakes: dict[int, FakeOnboard]
 ) -> None:
@@ -468,6 +315,7 @@ def test_watch_shows_the_table_and_status_messages(
     assert any("UAV 74: fake 74 tick" in line for line in lines), done.stdout
 
 
+@pytest.mark.e2e
 def test_watch_keeps_a_warning_in_view_while_info_streams_past(
     router: str, fakes: dict[int, FakeOnboard]
 ) -> None:
@@ -505,6 +353,7 @@ def test_watch_keeps_a_warning_in_view_while_info_streams_past(
 
 
 # ---- without a router ---------------------------------------------------------------------
+@pytest.mark.e2e
 def test_no_router_is_a_clear_error_not_a_hang() -> None:
     endpoint = free_endpoint()
     for command in (["uavs"], ["keys"], ["abort", "--mission", "1"]):
@@ -514,6 +363,7 @@ def test_no_router_is_a_clear_error_not_a_hang() -> None:
         assert "Traceback" not in done.stderr
 
 
+@pytest.mark.e2e
 def test_connect_comes_from_the_environment() -> None:
     endpoint = free_endpoint()
     env = {**os.environ, CONNECT_ENV: endpoint}

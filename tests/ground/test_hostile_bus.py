@@ -22,7 +22,10 @@ from fleet.mission.phase import Phase
 from fleet.transport.bus_codec import MAX_PAYLOAD_BYTES, encode
 from fleet.transport.targets_io import write_targets
 from fleet.transport.zenoh_config import make_config
-from tests.ground.test_cli import TARGETS, FakeOnboard, run_cli
+from tests.ground.test_cli import TARGETS, run_cli
+from tests.support.fake_onboard import FakeOnboard
+
+pytestmark = pytest.mark.e2e
 
 DEPTH = 50_000  #: 300 kB: under the size limit, far over any nesting limit
 PAYLOADS = {

@@ -15,7 +15,7 @@ from tests.ground.mission_samples import (
     TIMEOUT_S,
     mission,
 )
-from tests.processes import wait_until
+from tests.support.waiting import wait_until
 
 
 def test_a_later_mission_for_the_team_supersedes_the_followed_one(

@@ -16,9 +16,11 @@ from onboard.autopilot_commands import MAX_RETRY_INTERVAL
 from onboard.core import LINK_LOST_S, TARGET_WAYPOINT
 from tests.conftest import Ground
 from tests.ground.test_truth import finish, ground_cli, targets_file
-from tests.onboard.test_multi_uav import ring_targets, start_ring, wait_for_telemetry
-from tests.processes import Fleet, wait_until
-from tests.tcp_proxy import cuttable_proxy
+from tests.onboard.test_multi_uav import start_ring, wait_for_telemetry
+from tests.support.processes import Fleet
+from tests.support.targets import ring_targets
+from tests.support.tcp_proxy import cuttable_proxy
+from tests.support.waiting import wait_until
 
 #: Slow enough that the victim cannot reach its target before it is killed.
 SPEEDUP = 3.0

@@ -22,11 +22,10 @@ from fleet.transport.bus_codec import encode
 from fleet.transport.targets_io import write_targets
 from onboard.core import TARGET_WAYPOINT
 from tests.conftest import Ground
-from tests.onboard.test_multi_uav import (
-    ring_targets,
-    start_ring,
-)
-from tests.processes import Fleet, wait_until
+from tests.onboard.test_multi_uav import start_ring
+from tests.support.processes import Fleet
+from tests.support.targets import ring_targets
+from tests.support.waiting import wait_until
 
 #: A long consensus deadline and --wait timeout, so a prompt answer is the fault being
 #: noticed, not a timer running out.

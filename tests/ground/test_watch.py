@@ -13,7 +13,7 @@ from fleet.mission.phase import Severity
 from fleet.transport.zenoh_bus import client_bus
 from ground.alerts import StatusRecord
 from ground.watch import alerts_box, status_line, watch
-from tests.ground.test_cli import FakeOnboard
+from tests.support.fake_onboard import FakeOnboard
 
 
 def test_each_status_line_starts_with_its_severity() -> None:

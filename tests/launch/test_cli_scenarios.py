@@ -12,7 +12,12 @@ import sys
 from importlib.resources import files
 from pathlib import Path
 
-from tests.processes import free_port, start
+import pytest
+
+from fleet.launch.launcher import free_port
+from tests.support.processes import start
+
+pytestmark = pytest.mark.e2e
 
 TIMEOUT_S = 120
 

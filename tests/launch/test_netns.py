@@ -24,8 +24,10 @@ import pytest
 
 from fleet.launch.launcher import ring_scenario
 from fleet.transport.targets_io import write_targets
-from tests.onboard.test_multi_uav import ring_targets
-from tests.processes import Child, start
+from tests.support.processes import Child, start
+from tests.support.targets import ring_targets
+
+pytestmark = pytest.mark.e2e
 
 UAVS = (101, 102, 103)
 VICTIM = 103

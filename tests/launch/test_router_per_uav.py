@@ -23,9 +23,12 @@ from typing import Any
 
 import pytest
 
+from fleet.launch.launcher import free_port
 from fleet.launch.topology import fallbacks, ring_links
 from fleet.transport.certs import write_identities
-from tests.processes import Child, free_port, start
+from tests.support.processes import Child, start
+
+pytestmark = pytest.mark.e2e
 
 TIMEOUT_S = 120
 TARGETS = str(files("fleet") / "scenarios" / "head_on_targets.bin")

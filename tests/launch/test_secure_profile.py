@@ -23,6 +23,7 @@ from pathlib import Path
 import pytest
 import zenoh
 
+from fleet.launch.launcher import free_port
 from fleet.mission import keys
 from fleet.mission.messages import AssignmentReport, MissionAbort, MissionTargets, Target, UavResult
 from fleet.piccolo.track import Track
@@ -30,7 +31,8 @@ from fleet.piccolo.waypoint import Waypoint
 from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.certs import write_identities
 from fleet.transport.zenoh_config import build_config, make_config
-from tests.processes import Child, free_port, start, wait_until
+from tests.support.processes import Child, start
+from tests.support.waiting import wait_until
 
 TIMEOUT_S = 120
 ROGUE_MISSION = 0xFFFF_FFFF
@@ -214,6 +216,7 @@ def attack(uav74: zenoh.Session, mission: int) -> None:
     put(uav74, keys.mission_abort(mission), MissionAbort(mission))
 
 
+@pytest.mark.e2e
 def test_the_issues_attacks_are_refused_and_the_mission_completes_unchanged(
     secure_fleet: SecureFleet, uav74: zenoh.Session
 ) -> None:
@@ -261,6 +264,7 @@ def test_the_issues_attacks_are_refused_and_the_mission_completes_unchanged(
     assert states[112]["alt"] > 550.0  # not sent down toward the rogue's 368 m
 
 
+@pytest.mark.e2e
 def test_the_grounds_abort_and_opm_commands_go_through(secure_fleet: SecureFleet) -> None:
     targets = str(files("fleet") / "scenarios" / "head_on_targets.bin")
     sent = secure_fleet.ground_cli("send-targets", targets, "--json")

@@ -22,15 +22,18 @@ def _python(code: str, prefix: str | None) -> subprocess.CompletedProcess[str]:
     )
 
 
+@pytest.mark.e2e
 def test_the_default_prefix_is_fleet() -> None:
     assert _python(SHOW, None).stdout.split() == ["fleet/uav/7/telemetry", "fleet/uav/*/alive"]
 
 
+@pytest.mark.e2e
 def test_the_prefix_comes_from_the_environment() -> None:
     done = _python(SHOW, "replay")
     assert done.stdout.split() == ["replay/uav/7/telemetry", "replay/uav/*/alive"]
 
 
+@pytest.mark.e2e
 def test_a_bad_prefix_is_refused_with_the_reason() -> None:
     done = _python(SHOW, "a/b")
     assert done.returncode != 0 and "one key chunk" in done.stderr

@@ -1,6 +1,7 @@
 import json
 from pathlib import Path
 
+import jsonschema
 import msgspec
 import pytest
 
@@ -12,7 +13,7 @@ from fleet.mission.messages import (
     UavResult,
 )
 from fleet.mission.schemas import MESSAGES, check_all, main, render
-from tests.link_samples import sample_telemetry
+from tests.support.link_samples import sample_telemetry
 
 #: The committed schemas, beside the tests in the repository.
 SCHEMA_DIR = Path(__file__).resolve().parents[2] / "schemas"
@@ -85,7 +86,6 @@ def test_unwritable_directory_is_a_clear_error(
 
 
 def test_published_telemetry_validates_against_its_schema() -> None:
-    jsonschema = pytest.importorskip("jsonschema")
     schema = json.loads((SCHEMA_DIR / "telemetry.schema.json").read_text())
     jsonschema.validate(json.loads(msgspec.json.encode(sample_telemetry())), schema)
 

@@ -23,7 +23,7 @@ from onboard.core import (
     OnboardCore,
 )
 from onboard.planner_worker import PlanRequest, PlanResult
-from tests.link_samples import sample_telemetry
+from tests.support.link_samples import sample_telemetry
 
 TARGETS = (Target(42.37, -71.08, 120.0), Target(42.35, -71.10, 130.0), Target(42.36, -71.05, 90.0))
 

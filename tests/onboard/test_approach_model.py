@@ -11,7 +11,6 @@ import time
 
 import pytest
 
-from bench.bench_approach import fly_pure_pursuit
 from fleet.geo.aircraft import AircraftLimits, turn_radius
 from onboard.approach_model import (
     ApproachTimeModel,
@@ -19,6 +18,7 @@ from onboard.approach_model import (
     TargetStatus,
     default_steps,
 )
+from tests.support.pure_pursuit import fly_pure_pursuit
 
 LIMITS = AircraftLimits()
 V = LIMITS.max_airspeed
@@ -214,6 +214,7 @@ def test_the_lp_on_highs_gives_the_pyomo_models_times() -> None:
         assert got == expected
 
 
+@pytest.mark.e2e
 def test_the_onboard_model_loads_neither_pyomo_nor_numpy() -> None:
     probe = (
         "import sys; from onboard.approach_model import ApproachTimeModel;"
@@ -227,6 +228,7 @@ def test_the_onboard_model_loads_neither_pyomo_nor_numpy() -> None:
     assert set(out.stdout.split("'")[1::2]) == {"highspy"}
 
 
+@pytest.mark.e2e
 def test_highspy_imported_after_the_core_reuses_it() -> None:
     """Pyomo's `import highspy` after the onboard loaded the core alone (as in these tests)."""
     probe = (

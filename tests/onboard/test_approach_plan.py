@@ -10,7 +10,6 @@ from fleet.mission.messages import (
 from onboard.core import (
     OnboardCore,
 )
-from tests.link_samples import sample_telemetry
 from tests.onboard.core_harness import (
     TARGETS,
     TWO_TARGETS,
@@ -19,6 +18,7 @@ from tests.onboard.core_harness import (
     ScriptedPlanner,
     make_core,
 )
+from tests.support.link_samples import sample_telemetry
 
 
 def test_a_stale_plan_is_never_used_for_the_next_mission() -> None:

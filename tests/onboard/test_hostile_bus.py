@@ -16,7 +16,8 @@ from fleet.mission.messages import MissionTargets, UavResult, UavState
 from fleet.transport.bus_codec import MAX_PAYLOAD_BYTES, encode
 from fleet.transport.targets_io import read_targets
 from tests.conftest import Ground
-from tests.processes import Fleet, wait_until
+from tests.support.processes import Fleet
+from tests.support.waiting import wait_until
 
 DEPTH = 50_000  #: 300 kB: under the size limit, far over any nesting limit
 NESTED = b'{"a":' * DEPTH + b"1" + b"}" * DEPTH

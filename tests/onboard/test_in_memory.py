@@ -35,7 +35,7 @@ from fleet.transport.memory import MemoryBus, MemoryNetwork, memory_link_pair
 from fleet.transport.targets_io import read_targets
 from onboard.core import TARGET_WAYPOINT
 from onboard.process import OnboardProcess, OnboardSettings
-from tests.processes import wait_until
+from tests.support.waiting import wait_until
 
 UAV = 112
 #: Simulated seconds per wall second.

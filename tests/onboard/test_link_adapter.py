@@ -19,7 +19,7 @@ from fleet.planning.protocol import encode_message
 from fleet.transport.memory import MemoryLink, memory_link_pair
 from fleet.transport.serial_port import SerialLink
 from onboard.link_adapter import ONBOARD_ADDRESS, LinkAdapter
-from tests.processes import wait_until
+from tests.support.waiting import wait_until
 
 UAV = 112
 TELEMETRY = Telemetry(system_time_ms=1000, gps=GpsBlock(35.72, -120.76, 600.0, 0.0, 22.0, 0.0))

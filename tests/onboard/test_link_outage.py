@@ -12,9 +12,11 @@ from fleet.launch.launcher import ring_scenario
 from fleet.mission.messages import MissionTargets
 from onboard.core import CONFIRM_LIMIT_S, LINK_LOST_S, TARGET_WAYPOINT
 from tests.conftest import Ground
-from tests.onboard.test_multi_uav import ring_targets, wait_for_telemetry
-from tests.processes import Fleet, wait_until
-from tests.tcp_proxy import cuttable_proxy
+from tests.onboard.test_multi_uav import wait_for_telemetry
+from tests.support.processes import Fleet
+from tests.support.targets import ring_targets
+from tests.support.tcp_proxy import cuttable_proxy
+from tests.support.waiting import wait_until
 
 #: Longer than the old give-up (4 attempts, 2 s) and than LINK_LOST_S; shorter than
 #: the limit after which the target is given up.

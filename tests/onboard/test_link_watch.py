@@ -12,11 +12,11 @@ from onboard.core import (
     LINK_LOST_S,
 )
 from onboard.link_watch import LinkWatch
-from tests.link_samples import sample_telemetry
 from tests.onboard.core_harness import (
     TARGETS,
     make_core,
 )
+from tests.support.link_samples import sample_telemetry
 
 
 def test_lost_telemetry_is_link_lost_and_declines_a_mission() -> None:

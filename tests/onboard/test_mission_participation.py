@@ -21,7 +21,6 @@ from onboard.core import (
     LINK_LOST_S,
     TARGET_WAYPOINT,
 )
-from tests.link_samples import sample_telemetry
 from tests.onboard.core_harness import (
     TARGETS,
     TWO_TARGETS,
@@ -32,6 +31,7 @@ from tests.onboard.core_harness import (
     run_with_telemetry,
     telemetry_at,
 )
+from tests.support.link_samples import sample_telemetry
 
 
 def test_abort_while_waiting_for_a_teammate_is_final() -> None:

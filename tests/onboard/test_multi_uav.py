@@ -4,38 +4,26 @@ autopilots over real serial links (socket://), the test as the ground station.
 
 from __future__ import annotations
 
-import math
-import random
 import signal
 import sys
 import time
 from collections.abc import Iterable
 from pathlib import Path
 
-from fleet.geo.mercator import MercatorProjection
-from fleet.launch.launcher import GENERATED_CENTRE, ring_scenario
-from fleet.mission.messages import AssignmentReport, MissionTargets, Target
+from fleet.launch.launcher import SimEndpoints, ring_scenario
+from fleet.mission.messages import AssignmentReport, MissionTargets
 from fleet.sim.scenario import shipped_scenario
 from onboard.core import TARGET_WAYPOINT
 from tests.conftest import Ground
-from tests.processes import Fleet, SimEndpoints, start, wait_until
+from tests.support.processes import Fleet, start
+from tests.support.targets import ring_targets
+from tests.support.waiting import wait_until
 
 #: The killed-UAV mission's deadline: long, so that committing early is clearly the
 #: liveliness exclusion and not the deadline.
 KILLED_DEADLINE_S = 30.0
 #: How long a UAV stays frozen (SIGSTOP) while the mission is sent: past Zenoh's lease.
 FROZEN_S = 15.0
-
-
-def ring_targets(count: int, seed: int) -> tuple[Target, ...]:
-    rng = random.Random(seed)
-    projection = MercatorProjection(*GENERATED_CENTRE)
-    points = []
-    for _ in range(count):
-        bearing, distance = rng.uniform(0, 2 * math.pi), rng.uniform(500.0, 2500.0)
-        lat, lon = projection.to_latlon(distance * math.sin(bearing), distance * math.cos(bearing))
-        points.append(Target(lat, lon, 600.0))
-    return tuple(points)
 
 
 def assert_agreed(reports: dict[int, AssignmentReport], team: set[int], n_targets: int) -> None:

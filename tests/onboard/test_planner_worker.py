@@ -276,6 +276,7 @@ def test_prepare_builds_the_model_at_cruise_speed_before_the_first_run(
     assert not [r for r in caplog.records if "rebuilt" in r.getMessage()]
 
 
+@pytest.mark.e2e
 def test_an_idle_onboard_process_does_not_import_pyomo_or_highspy() -> None:
     probe = (
         "import sys, onboard.process, onboard.main;"

@@ -15,6 +15,7 @@ import msgspec
 import pytest
 import zenoh
 
+from fleet.launch.launcher import SimEndpoints, free_port
 from fleet.mission import keys
 from fleet.mission.messages import (
     MISSION_MANAGER,
@@ -36,16 +37,9 @@ from fleet.planning.link import PiccoloLink, PlanningEvent
 from fleet.planning.protocol import encode_message
 from fleet.transport.bus_codec import ENCODING, encode
 from onboard.process import _Outputs
-from tests.ground_view import GroundView
-from tests.processes import (
-    Child,
-    Fleet,
-    SimEndpoints,
-    client_session,
-    free_port,
-    router_session,
-    wait_until,
-)
+from tests.support.ground_view import GroundView
+from tests.support.processes import Child, Fleet, client_session, router_session
+from tests.support.waiting import wait_until
 
 UAV = 112
 
@@ -93,6 +87,7 @@ def get_one(session: zenoh.Session, key: str, payload: bytes | None = None) -> z
     return replies[0]
 
 
+@pytest.mark.e2e
 def test_state_query_answers_with_telemetry_and_link_health(rig: Rig) -> None:
     reply = get_one(rig.ground, keys.state(UAV))
     assert reply.ok is not None and str(reply.ok.encoding).startswith("application/json")
@@ -106,6 +101,7 @@ def test_state_query_answers_with_telemetry_and_link_health(rig: Rig) -> None:
     assert state.tracked_waypoint == rig.seen.latest_track(UAV)
 
 
+@pytest.mark.e2e
 def test_commands_are_confirmed_by_the_autopilot_echo(rig: Rig) -> None:
     waypoint = Waypoint(index=42, next_index=0, lat=35.73, lon=-120.77, alt=650.0)
     reply = get_one(rig.ground, keys.command(UAV, "waypoint"), encode(waypoint))
@@ -118,6 +114,7 @@ def test_commands_are_confirmed_by_the_autopilot_echo(rig: Rig) -> None:
     wait_until(lambda: rig.seen.latest_track(UAV) == 42, 10.0, "tracking waypoint 42")
 
 
+@pytest.mark.e2e
 def test_bad_command_and_bad_messages_are_refused_and_the_module_keeps_serving(rig: Rig) -> None:
     reply = get_one(rig.ground, keys.command(UAV, "track"), b'{"waypoint": "north"}')
     assert reply.err is not None and b"not a valid Track" in reply.err.payload.to_bytes()
@@ -144,6 +141,7 @@ def test_bad_command_and_bad_messages_are_refused_and_the_module_keeps_serving(r
     assert state.enabled and state.mission is None
 
 
+@pytest.mark.e2e
 def test_module_off_refuses_to_write_and_says_so(rig: Rig) -> None:
     rig.ground.put(keys.opm(UAV), encode(OpmCommand(False, 2.0)), encoding=ENCODING)
     wait_until(
@@ -155,6 +153,7 @@ def test_module_off_refuses_to_write_and_says_so(rig: Rig) -> None:
     assert not result.ok and "off" in result.detail
 
 
+@pytest.mark.e2e
 def test_malformed_targets_give_a_status_error_naming_the_problem(rig: Rig) -> None:
     bad = MissionTargets(mission=5, team=(UAV,), targets=(Target(35.7, 200.0, 600.0),))
     rig.ground.put(keys.mission_targets(5), encode(bad), encoding=ENCODING)
@@ -164,6 +163,7 @@ def test_malformed_targets_give_a_status_error_naming_the_problem(rig: Rig) -> N
     assert UAV not in rig.seen.assignments
 
 
+@pytest.mark.e2e
 def test_targets_from_a_radio_only_ground_station_on_the_payload_port(rig: Rig) -> None:
     """The thesis's path: PAYLOAD_TARGETS in through the Piccolo payload stream."""
     host, port = rig.sim.ground.removeprefix("socket://").split(":")
@@ -197,6 +197,7 @@ def test_targets_from_a_radio_only_ground_station_on_the_payload_port(rig: Rig) 
     assert msgspec.json.decode(assigned.ok.payload.to_bytes(), type=AssignmentReport).target == 0
 
 
+@pytest.mark.e2e
 def test_link_drop_is_reported_and_the_adapter_reconnects(rig: Rig) -> None:
     health: list[LinkHealth] = []
     subscriber = rig.ground.declare_subscriber(
@@ -223,6 +224,7 @@ def test_link_drop_is_reported_and_the_adapter_reconnects(rig: Rig) -> None:
         subscriber.undeclare()
 
 
+@pytest.mark.e2e
 def test_state_says_when_the_model_is_built_at_the_cruise_speed(rig: Rig) -> None:
     def state() -> UavState:
         answer = get_one(rig.ground, keys.state(UAV)).ok
@@ -236,6 +238,7 @@ def test_state_says_when_the_model_is_built_at_the_cruise_speed(rig: Rig) -> Non
     assert built.model_speed == pytest.approx(cruise, abs=1.0)
 
 
+@pytest.mark.e2e
 def test_telemetry_reaches_the_bus_at_the_rate_asked_for() -> None:
     """20 Hz from the autopilot, --telemetry-hz 2 on the bus: about one sample in ten."""
     fleet = Fleet()

@@ -13,8 +13,10 @@ from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.mercator import distance_m
 from fleet.mission.messages import MissionTargets, Target
 from tests.conftest import Ground
-from tests.onboard.test_multi_uav import assert_agreed, ring_targets, start_ring
-from tests.processes import Fleet, wait_until
+from tests.onboard.test_multi_uav import assert_agreed, start_ring
+from tests.support.processes import Fleet
+from tests.support.targets import ring_targets
+from tests.support.waiting import wait_until
 
 GAP_S = 0.05
 

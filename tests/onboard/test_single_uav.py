@@ -15,7 +15,8 @@ from fleet.mission.messages import MissionTargets, UavState
 from fleet.transport.targets_io import read_targets
 from onboard.core import TARGET_WAYPOINT
 from tests.conftest import Ground
-from tests.processes import Fleet, wait_until
+from tests.support.processes import Fleet
+from tests.support.waiting import wait_until
 
 ACCEPTANCE_RADIUS_M = 60.0  # the simulator's default
 

@@ -23,7 +23,6 @@ from onboard.core import (
     TARGET_WAYPOINT,
     OnboardCore,
 )
-from tests.link_samples import sample_telemetry
 from tests.onboard.core_harness import (
     TARGETS,
     TWO_TARGETS,
@@ -35,6 +34,7 @@ from tests.onboard.core_harness import (
     telemetry_at,
     tick_without_telemetry,
 )
+from tests.support.link_samples import sample_telemetry
 
 
 def test_single_uav_flies_to_the_fastest_target_then_resumes() -> None:

@@ -15,13 +15,13 @@ from onboard.core import (
     LIVELINESS_GRACE_S,
 )
 from onboard.team_presence import TeamPresence
-from tests.link_samples import sample_telemetry
 from tests.onboard.core_harness import (
     TARGETS,
     TWO_TARGETS,
     commit_three_uav_team,
     make_core,
 )
+from tests.support.link_samples import sample_telemetry
 
 
 def test_dead_teammate_is_left_out_and_deadline_commits() -> None:

@@ -26,7 +26,7 @@ from fleet.piccolo.telemetry import (
 )
 from fleet.piccolo.track import Track, decode_track
 from fleet.piccolo.waypoint import Waypoint, decode_waypoint, encode_waypoint
-from tests.link_samples import sample_telemetry, tracks, waypoints
+from tests.support.link_samples import sample_telemetry, tracks, waypoints
 
 i16 = st.integers(-0x8000, 0x7FFF)
 u16 = st.integers(0, 0xFFFF)

@@ -17,14 +17,19 @@ from collections import Counter
 from importlib.resources import files
 from pathlib import Path
 
+import pytest
 import zenoh
 from mcap.reader import make_reader
 
+from fleet.launch.launcher import free_port
 from fleet.mission import keys
 from fleet.recording import channels
 from fleet.recording.reader import read_recording
 from fleet.sim.autopilot import DEFAULT_TELEMETRY_HZ
-from tests.processes import Child, client_session, free_port, start, wait_until
+from tests.support.processes import Child, client_session, start
+from tests.support.waiting import wait_until
+
+pytestmark = pytest.mark.e2e
 
 TIMEOUT_S = 120
 FLEET = ("-m", "ground.fleet_cli")

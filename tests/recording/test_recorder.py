@@ -7,8 +7,10 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 import zenoh
 
+from fleet.launch.launcher import free_port
 from fleet.mission import keys
 from fleet.mission.messages import StatusText
 from fleet.recording.reader import read_recording
@@ -16,7 +18,8 @@ from fleet.recording.recorder import Recorder
 from fleet.recording.replay import replayable
 from fleet.recording.writer import McapSink
 from fleet.transport.bus_codec import ENCODING, encode
-from tests.processes import client_session, free_port, router_session, wait_until
+from tests.support.processes import client_session, router_session
+from tests.support.waiting import wait_until
 
 
 def test_records_puts_and_tokens_and_drops_what_is_not_json(tmp_path: Path) -> None:
@@ -66,6 +69,7 @@ def _fleet(*argv: str) -> subprocess.CompletedProcess[str]:
     )
 
 
+@pytest.mark.e2e
 def test_record_without_a_router_says_so(tmp_path: Path) -> None:
     done = _fleet("record", str(tmp_path / "x.mcap"), "--connect", f"tcp/127.0.0.1:{free_port()}")
     assert done.returncode == 2
@@ -73,6 +77,7 @@ def test_record_without_a_router_says_so(tmp_path: Path) -> None:
     assert not (tmp_path / "x.mcap").exists()
 
 
+@pytest.mark.e2e
 def test_record_for_a_duration_then_recover_a_killed_copy(tmp_path: Path) -> None:
     port = free_port()
     out = tmp_path / "d.mcap"
@@ -98,6 +103,7 @@ def test_record_for_a_duration_then_recover_a_killed_copy(tmp_path: Path) -> Non
     assert refused.returncode == 1 and "not an MCAP recording" in refused.stderr
 
 
+@pytest.mark.e2e
 def test_record_refuses_a_path_it_cannot_write_and_a_bad_expression(tmp_path: Path) -> None:
     port = free_port()
     (tmp_path / "file").write_text("")
@@ -111,6 +117,7 @@ def test_record_refuses_a_path_it_cannot_write_and_a_bad_expression(tmp_path: Pa
     assert "cannot subscribe to fleet//x" in bad_expr.stderr
 
 
+@pytest.mark.e2e
 def test_a_full_disk_stops_the_recorder_with_the_reason(tmp_path: Path) -> None:
     port = free_port()
     with router_session(port):

@@ -444,6 +444,9 @@ def test_garbage_on_the_port_leaves_the_aircraft_undisturbed(
     assert "uav 112: program port dropped so far" in caplog.text
 
 
+# e2e though it starts no process: the flat-out simulation and its replay by the reference
+# model take 25 s to minutes of CPU on a shared machine, too slow for the fast tier.
+@pytest.mark.e2e
 def test_speedup_zero_runs_as_fast_as_it_can_and_stays_exact() -> None:
     with (
         running([autopilot_for(SINGLE)], speedup=0.0) as (server, endpoints),
@@ -560,6 +563,7 @@ def read_until_ready(process: subprocess.Popen[bytes]) -> list[str]:
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+@pytest.mark.e2e
 def test_fleet_sim_subprocess_serves_every_uav_and_exits_cleanly(sig: signal.Signals) -> None:
     command = [sys.executable, "-m", "fleet.sim.command", "head_on", "--speedup", "20"]
     command += ["--program-port", "0", "--payload-port", "0", "--ground-port", "0"]

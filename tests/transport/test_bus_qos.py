@@ -6,6 +6,7 @@ import queue
 
 import zenoh
 
+from fleet.launch.launcher import free_port
 from fleet.mission import keys
 from fleet.mission.key_space import KeySpace
 from fleet.transport import bus_qos
@@ -13,7 +14,7 @@ from fleet.transport.bus_codec import ENCODING
 from fleet.transport.bus_qos import ORDINARY, TELEMETRY, URGENT, qos_for
 from fleet.transport.zenoh_bus import ZenohBus
 from fleet.transport.zenoh_config import make_config
-from tests.processes import client_session, free_port, router_session
+from tests.support.processes import client_session, router_session
 
 
 def test_mission_messages_and_commands_are_urgent_and_never_dropped() -> None:

@@ -8,13 +8,14 @@ from collections.abc import Iterator
 
 import pytest
 
+from fleet.launch.launcher import free_port
 from fleet.mission.messages import StatusText
 from fleet.transport import bus_codec
 from fleet.transport.bus import Bus, BusReply, BusSample
 from fleet.transport.memory import MemoryNetwork
 from fleet.transport.router import Router
 from fleet.transport.zenoh_bus import BusConnectError, client_bus, connect
-from tests.processes import free_port, wait_until
+from tests.support.waiting import wait_until
 
 TIMEOUT_S = 2.0
 

@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 import zenoh
 
+from fleet.launch.launcher import free_port
 from fleet.mission import keys
 from fleet.transport.cli import (
     ExitCode,
@@ -32,7 +33,8 @@ from fleet.transport.cli import (
     zenoh_config,
 )
 from fleet.transport.zenoh_config import CONFIG_ENV, CONNECT_ENV, endpoints
-from tests.processes import free_port, router_session, wait_until
+from tests.support.processes import router_session
+from tests.support.waiting import wait_until
 
 REPO = Path(__file__).resolve().parents[2]
 CLI_TIMEOUT_S = 60.0
@@ -182,6 +184,7 @@ def test_a_malformed_endpoint_is_refused() -> None:
         zenoh_config(parse("--connect", "localhost"))
 
 
+@pytest.mark.e2e
 def test_ground_cli_uses_the_config_file(router: tuple[zenoh.Session, str], tmp_path: Path) -> None:
     _, endpoint = router
     path = write_config(tmp_path / "zenoh.json5", endpoint)
@@ -191,6 +194,7 @@ def test_ground_cli_uses_the_config_file(router: tuple[zenoh.Session, str], tmp_
 
 
 @pytest.mark.parametrize("program", ["ground.cli", "onboard.main"])
+@pytest.mark.e2e
 def test_a_bad_config_file_exits_2_with_the_reason(program: str, tmp_path: Path) -> None:
     bad = tmp_path / "bad.json5"
     bad.write_text("{ mode: ")

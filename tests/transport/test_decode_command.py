@@ -5,11 +5,15 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from fleet.mission.messages import MISSION_MANAGER, StatusText
 from fleet.planning.link import PiccoloLink
 from fleet.planning.protocol import encode_message
 from fleet.transport.cli import ExitCode
-from tests.link_samples import sample_telemetry
+from tests.support.link_samples import sample_telemetry
+
+pytestmark = pytest.mark.e2e
 
 FIXTURES = Path(__file__).parent.parent / "fixtures"
 

@@ -10,7 +10,6 @@ from __future__ import annotations
 import os
 import shlex
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -32,38 +31,10 @@ from fleet.launch.launcher import (
 from fleet.mission import keys
 from fleet.transport.router import Router, RouterError
 from fleet.transport.zenoh_config import make_config
+from tests.support.fake_onboard import FAKE_ONBOARD
+from tests.support.processes import free_endpoint
 
 REPO = Path(__file__).resolve().parents[2]
-
-#: A test double of `onboard`: joins Zenoh, declares its liveliness token, publishes a
-#: telemetry sample with a GPS fix five times a second (what the launcher waits for), and
-#: exits cleanly on SIGTERM. Nothing else. With --silent it publishes no telemetry.
-FAKE_ONBOARD = """
-import argparse, signal, threading, zenoh
-from fleet.mission import keys
-from fleet.piccolo.telemetry import GpsBlock, Telemetry
-from fleet.transport import bus_codec
-from fleet.transport.zenoh_config import make_config
-parser = argparse.ArgumentParser()
-parser.add_argument("--id", type=int, required=True)
-parser.add_argument("--connect", required=True)
-parser.add_argument("--silent", action="store_true")
-args, _ = parser.parse_known_args()
-stop = threading.Event()
-signal.signal(signal.SIGTERM, lambda *_: stop.set())
-fix = Telemetry(system_time_ms=0, gps=GpsBlock(35.72, -120.76, 600.0, 0.0, 22.0, 0.0))
-with zenoh.open(make_config("client", [args.connect])) as session:
-    token = session.liveliness().declare_token(keys.alive(args.id))
-    while not stop.wait(0.2):
-        if not args.silent:
-            session.put(keys.telemetry(args.id), bus_codec.encode(fix))
-"""
-
-
-def free_endpoint() -> str:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return f"tcp/127.0.0.1:{s.getsockname()[1]}"
 
 
 def alive(pid: int) -> bool:
@@ -119,6 +90,7 @@ def test_router_needs_an_endpoint() -> None:
         Router([])
 
 
+@pytest.mark.e2e
 def test_router_process_stops_on_sigterm() -> None:
     endpoint = free_endpoint()
     process = subprocess.Popen(
@@ -173,6 +145,7 @@ def test_ring_scenario_is_a_valid_scenario() -> None:
     assert len({u.alt for u in scenario.uavs}) == 5
 
 
+@pytest.mark.e2e
 def test_fleet_starts_waits_for_liveliness_and_stops_everything(tmp_path: Path) -> None:
     spec = FleetSpec(
         scenario="head_on",
@@ -204,6 +177,7 @@ def test_fleet_starts_waits_for_liveliness_and_stops_everything(tmp_path: Path) 
             kill_if_alive(child.pid)
 
 
+@pytest.mark.e2e
 def test_fleet_is_not_ready_until_telemetry_flows(tmp_path: Path) -> None:
     # Alive but silent (no serial link, no telemetry): the start must not report it ready.
     spec = FleetSpec(
@@ -226,6 +200,7 @@ def test_fleet_is_not_ready_until_telemetry_flows(tmp_path: Path) -> None:
             kill_if_alive(child.pid)
 
 
+@pytest.mark.e2e
 def test_fleet_reports_an_onboard_that_dies_at_start(tmp_path: Path) -> None:
     spec = FleetSpec(
         scenario="single_uav",
@@ -248,6 +223,7 @@ def test_fleet_reports_an_onboard_that_dies_at_start(tmp_path: Path) -> None:
             kill_if_alive(child.pid)
 
 
+@pytest.mark.e2e
 def test_fleet_up_command_stops_every_child_on_sigterm(tmp_path: Path) -> None:
     endpoint = free_endpoint()
     errors = (tmp_path / "up.stderr").open("w")

@@ -11,8 +11,9 @@ from collections.abc import Iterator
 
 import pytest
 
+from fleet.launch.launcher import free_port
 from fleet.transport.serial_port import Backoff, SerialLink
-from tests.processes import free_port, wait_until
+from tests.support.waiting import wait_until
 
 
 def test_backoff_doubles_up_to_its_maximum_and_resets() -> None:

@@ -8,9 +8,9 @@ import threading
 import pytest
 import zenoh
 
+from fleet.launch.launcher import free_port
 from fleet.transport.router import Router
 from fleet.transport.zenoh_config import MODES, make_config
-from tests.processes import free_port
 
 
 @pytest.mark.parametrize("mode", MODES)

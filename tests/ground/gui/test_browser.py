@@ -27,11 +27,13 @@ import pytest
 import zenoh
 
 from fleet.geo.mercator import MercatorProjection
+from fleet.launch.launcher import free_port
 from fleet.mission import keys
 from fleet.mission.messages import MissionTargets
 from fleet.transport.targets_io import read_targets
-from tests.ground_view import GroundView
-from tests.processes import Child, client_session, free_port, start, wait_until
+from tests.support.ground_view import GroundView
+from tests.support.processes import Child, client_session, start
+from tests.support.waiting import wait_until
 
 webdriver = pytest.importorskip("selenium.webdriver")
 from selenium.webdriver.chrome.service import Service  # noqa: E402
@@ -46,11 +48,14 @@ ON_TRACK_M = 60.0
 #: Wall seconds for the UAVs to reach their targets at speedup 10 (simulated ~170 s).
 REACH_TIMEOUT_S = 120.0
 
-pytestmark = pytest.mark.skipif(
-    not (Path(CHROMIUM).exists() and Path(CHROMEDRIVER).exists()),
-    reason=f"no {CHROMIUM} / {CHROMEDRIVER}: `apt-get install chromium chromium-driver` "
-    "(.ci/run does it when missing)",
-)
+pytestmark = [
+    pytest.mark.e2e,
+    pytest.mark.skipif(
+        not (Path(CHROMIUM).exists() and Path(CHROMEDRIVER).exists()),
+        reason=f"no {CHROMIUM} / {CHROMEDRIVER}: `apt-get install chromium chromium-driver` "
+        "(.ci/run does it when missing)",
+    ),
+]
 
 #: The page's map elements, read in one script (the page redraws them at every push).
 READ_MAP = """

@@ -14,10 +14,15 @@ from typing import Any
 import aiohttp
 import pytest
 
+from fleet.launch.launcher import free_port
 from fleet.mission.messages import Target
 from fleet.mission.targets_file import encode_targets
-from tests.ground.test_cli import FakeOnboard, run_cli, wait_until
-from tests.processes import Child, free_port, start
+from tests.ground.test_cli import run_cli
+from tests.support.fake_onboard import FakeOnboard
+from tests.support.processes import Child, start
+from tests.support.waiting import wait_until
+
+pytestmark = pytest.mark.e2e
 
 TARGETS = [Target(42.36, -71.09, 120.0), Target(42.365, -71.1, 110.0)]
 TOKEN = "s3cret-token"

@@ -1,8 +1,11 @@
 """Real processes and real Zenoh sessions for the end-to-end tests, always cleaned up.
 
 Every child is started in its own session (process group) and stopped by PID: SIGTERM,
-then SIGKILL after a grace period. Zenoh sessions opened here are closed by the
-fixtures that open them. All traffic stays on 127.0.0.1.
+then SIGKILL after a grace period (the launcher's `stop_children`). Zenoh sessions opened
+here are closed by the fixtures that open them. All traffic stays on 127.0.0.1.
+
+Unlike the launcher's children, whose output goes to log files, a test's child's output
+lines are read as they come, so a test can wait for one.
 """
 
 from __future__ import annotations
@@ -10,8 +13,6 @@ from __future__ import annotations
 import contextlib
 import os
 import queue
-import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -21,14 +22,13 @@ from dataclasses import dataclass, field
 
 import zenoh
 
+from fleet.launch.launcher import SimEndpoints, free_port, parse_sim_line, stop_children
 from fleet.transport.zenoh_config import make_config
 
 
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port: int = probe.getsockname()[1]
-        return port
+def free_endpoint() -> str:
+    """A Zenoh endpoint on a free loopback port."""
+    return f"tcp/127.0.0.1:{free_port()}"
 
 
 @dataclass
@@ -56,14 +56,12 @@ class Child:
             + "\n".join(self.history[-30:])
         )
 
+    @property
+    def pid(self) -> int:
+        return self.process.pid
+
     def stop(self, grace: float = 5.0) -> int:
-        if self.process.poll() is None:
-            self.process.send_signal(signal.SIGTERM)
-            try:
-                self.process.wait(grace)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait(grace)
+        stop_children([self], grace)
         return self.process.returncode
 
     def kill(self) -> None:
@@ -95,19 +93,6 @@ def start(name: str, argv: list[str], env: dict[str, str] | None = None) -> Chil
     return child
 
 
-@dataclass(frozen=True)
-class SimEndpoints:
-    program: str
-    payload: str
-    ground: str
-
-
-def parse_sim_line(line: str) -> tuple[int, SimEndpoints]:
-    words = line.split()
-    fields = dict(word.split("=", 1) for word in words[2:])
-    return int(words[1]), SimEndpoints(fields["program"], fields["payload"], fields["ground"])
-
-
 class Fleet:
     """Children of one test: stopped together, in reverse order, whatever happens."""
 
@@ -131,8 +116,9 @@ class Fleet:
             line = child.wait_for_line(lambda s: s.startswith(("uav ", "ready")), 30.0)
             if line == "ready":
                 return endpoints
-            uav, where = parse_sim_line(line)
-            endpoints[uav] = where
+            where = parse_sim_line(line)
+            assert where is not None, f"fleet sim printed {line!r}"
+            endpoints[where.piccolo_id] = where
 
     def onboard(self, uav: int, where: SimEndpoints, router: str, *extra: str) -> Child:
         child = start(
@@ -180,12 +166,3 @@ def client_session(port: int) -> Iterator[zenoh.Session]:
         yield session
     finally:
         session.close()
-
-
-def wait_until(predicate: Callable[[], bool], timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return
-        time.sleep(0.05)
-    raise AssertionError(f"timed out after {timeout} s waiting for {what}")

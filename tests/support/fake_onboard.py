@@ -1,0 +1,191 @@
+"""Test doubles of the onboard process, as the ground and the launcher see it over Zenoh.
+
+`FakeOnboard` runs in the test's process (the ground's tests and bench_ground_scale);
+`FAKE_ONBOARD` is a script the launcher runs in place of `onboard.main` (`python -c`).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import msgspec
+import zenoh
+
+from fleet.consensus.assignment import greedy_assign, results_digest
+from fleet.mission import keys
+from fleet.mission.messages import (
+    AssignmentReport,
+    MissionAbort,
+    MissionProgress,
+    MissionTargets,
+    OpmCommand,
+    StatusText,
+    UavResult,
+    UavState,
+)
+from fleet.mission.phase import Phase
+from fleet.piccolo.telemetry import GpsBlock, SensorBlock, Telemetry
+from fleet.transport import bus_codec
+from fleet.transport.zenoh_config import make_config
+
+#: A test double of `onboard`: joins Zenoh, declares its liveliness token, publishes a
+#: telemetry sample with a GPS fix five times a second (what the launcher waits for), and
+#: exits cleanly on SIGTERM. Nothing else. With --silent it publishes no telemetry.
+FAKE_ONBOARD = """
+import argparse, signal, threading, zenoh
+from fleet.mission import keys
+from fleet.piccolo.telemetry import GpsBlock, Telemetry
+from fleet.transport import bus_codec
+from fleet.transport.zenoh_config import make_config
+parser = argparse.ArgumentParser()
+parser.add_argument("--id", type=int, required=True)
+parser.add_argument("--connect", required=True)
+parser.add_argument("--silent", action="store_true")
+args, _ = parser.parse_known_args()
+stop = threading.Event()
+signal.signal(signal.SIGTERM, lambda *_: stop.set())
+fix = Telemetry(system_time_ms=0, gps=GpsBlock(35.72, -120.76, 600.0, 0.0, 22.0, 0.0))
+with zenoh.open(make_config("client", [args.connect])) as session:
+    token = session.liveliness().declare_token(keys.alive(args.id))
+    while not stop.wait(0.2):
+        if not args.silent:
+            session.put(keys.telemetry(args.id), bus_codec.encode(fix))
+"""
+
+
+def approach_time(uav: int, target: int) -> float:
+    """The fake's approach-time model: arbitrary, but the same on every fake."""
+    return 20.0 + float((uav * 7 + target * 13) % 41)
+
+
+class FakeOnboard:
+    """Test double of the `onboard` process, as seen from Zenoh."""
+
+    def __init__(self, endpoint: str, uav_id: int, lat: float, lon: float, alt: float) -> None:
+        self.uav_id = uav_id
+        self.lat, self.lon, self.alt = lat, lon, alt
+        self.targets: list[MissionTargets] = []
+        self.opms: list[OpmCommand] = []
+        self.aborts: list[MissionAbort] = []
+        self.publish_assignment = True  #: False: serve it by query only
+        self.disagree = False  #: True: commit a different assignment from the others
+        self.enabled = True
+        self.mission: MissionProgress | None = None
+        self._served: dict[str, bytes] = {}
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self.session = zenoh.open(make_config("client", [endpoint]))
+        try:
+            self._declared = [
+                self.session.liveliness().declare_token(keys.alive(uav_id)),
+                self.session.declare_queryable(keys.state(uav_id), self._on_state_query),
+                self.session.declare_queryable(
+                    f"{keys.PREFIX}/mission/*/**", self._on_mission_query
+                ),
+                self.session.declare_subscriber(keys.ALL_MISSION_TARGETS, self._on_targets),
+                self.session.declare_subscriber(keys.ALL_MISSION_ABORTS, self._on_abort),
+                self.session.declare_subscriber(keys.opm(uav_id), self._on_opm),
+            ]
+            self._thread = threading.Thread(target=self._publish_loop, daemon=True)
+            self._thread.start()
+        except BaseException:
+            self.session.close()
+            raise
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=5)
+        self.session.close()
+
+    def telemetry(self) -> Telemetry:
+        return Telemetry(
+            system_time_ms=int(time.monotonic() * 1000) % 2**32,
+            gps=GpsBlock(self.lat, self.lon, self.alt, vel_north=0.0, vel_east=20.0, vel_down=0.0),
+            sensor=SensorBlock(roll=0.0, pitch=0.0, yaw=90.0, indicated_airspeed=21.0),
+        )
+
+    def put(self, key: str, message: msgspec.Struct) -> None:
+        self.session.put(key, bus_codec.encode(message), encoding=bus_codec.ENCODING)
+
+    def _publish_loop(self) -> None:
+        ticks = 0
+        while not self._stop.wait(0.1):
+            self.put(keys.telemetry(self.uav_id), self.telemetry())
+            ticks += 1
+            if ticks % 5 == 0:
+                self.put(keys.status(self.uav_id), StatusText(f"fake {self.uav_id} tick {ticks}"))
+
+    def state(self) -> UavState:
+        return UavState(
+            uav=self.uav_id,
+            enabled=self.enabled,
+            status_rate_hz=1.0,
+            tracked_waypoint=3,
+            telemetry=self.telemetry(),
+            link=None,
+            mission=self.mission,
+        )
+
+    def _on_state_query(self, query: zenoh.Query) -> None:
+        query.reply(
+            keys.state(self.uav_id), bus_codec.encode(self.state()), encoding=bus_codec.ENCODING
+        )
+
+    def _on_mission_query(self, query: zenoh.Query) -> None:
+        with self._lock:
+            served = dict(self._served)
+        for key, payload in served.items():
+            if query.key_expr.intersects(key):
+                query.reply(key, payload, encoding=bus_codec.ENCODING)
+
+    def _on_targets(self, sample: zenoh.Sample) -> None:
+        targets = msgspec.json.decode(sample.payload.to_bytes(), type=MissionTargets)
+        with self._lock:
+            self.targets.append(targets)
+        if self.uav_id not in targets.team:
+            return
+        m, n = targets.mission, len(targets.targets)
+        rows = {u: [approach_time(u, i) for i in range(n)] for u in targets.team}
+        result = UavResult(mission=m, uav=self.uav_id, times=tuple(rows[self.uav_id]))
+        assignment = greedy_assign(rows, n)
+        pairs = {str(u): t for u, t in assignment.pairs.items()}
+        digest = results_digest(rows)
+        if self.disagree:
+            pairs = {u: (t + 1) % n for u, t in pairs.items()}
+            digest = "0" * 16
+        report = AssignmentReport(
+            mission=m,
+            uav=self.uav_id,
+            target=pairs.get(str(self.uav_id)),
+            pairs=pairs,
+            unassigned=assignment.unassigned_targets,
+            team=targets.team,
+            digest=digest,
+            eta_s=rows[self.uav_id][t] if (t := pairs.get(str(self.uav_id))) is not None else None,
+        )
+        with self._lock:
+            self._served[keys.mission_result(m, self.uav_id)] = bus_codec.encode(result)
+            self._served[keys.mission_assignment(m, self.uav_id)] = bus_codec.encode(report)
+            self.mission = MissionProgress(m, Phase.COMMITTED, n, result, report)
+        self.put(keys.mission_result(m, self.uav_id), result)
+        if self.publish_assignment:
+            self.put(keys.mission_assignment(m, self.uav_id), report)
+
+    def _on_abort(self, sample: zenoh.Sample) -> None:
+        abort = msgspec.json.decode(sample.payload.to_bytes(), type=MissionAbort)
+        with self._lock:
+            self.aborts.append(abort)
+            mine = abort.uav is None or abort.uav == self.uav_id
+            if mine and self.mission is not None and self.mission.mission == abort.mission:
+                self.mission = msgspec.structs.replace(self.mission, phase=Phase.ABORTED)
+
+    def _on_opm(self, sample: zenoh.Sample) -> None:
+        command = msgspec.json.decode(sample.payload.to_bytes(), type=OpmCommand)
+        with self._lock:
+            self.opms.append(command)
+        self.enabled = command.enabled
+        self.put(
+            keys.status(self.uav_id),
+            StatusText(f"module {'on' if command.enabled else 'off'}, status every 1 s"),
+        )
