@@ -4,7 +4,6 @@ its target and never reports the mission failed."""
 
 from __future__ import annotations
 
-import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -39,7 +38,13 @@ def test_target_writes_are_retried_across_a_serial_outage_at_the_commitment(
         proxy.cut()  # the fault: the link drops as the UAV plans and commits
         wait_until(lambda: uav in seen.assignments, 30.0, "the commitment")
         assert seen.latest_track(uav) != TARGET_WAYPOINT  # not echoed: the link is down
-        time.sleep(OUTAGE_S)  # the outage lasts; the module keeps retrying meanwhile
+        # The outage lasts until the module has seen it (LINK_LOST_S without telemetry),
+        # well within the confirm limit; the module keeps retrying meanwhile.
+        wait_until(
+            lambda: any("autopilot link lost" in s for s in seen.statuses(uav)),
+            OUTAGE_S,
+            "the outage seen by the module",
+        )
         proxy.restore()
         wait_until(
             lambda: any("flying to target 0" in s for s in seen.statuses(uav)),

@@ -11,6 +11,7 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from fleet.launch.launcher import SimEndpoints, ring_scenario
+from fleet.mission import keys
 from fleet.mission.messages import AssignmentReport, MissionTargets
 from fleet.sim.scenario import shipped_scenario
 from onboard.core import TARGET_WAYPOINT
@@ -22,8 +23,14 @@ from tests.support.waiting import wait_until
 #: The killed-UAV mission's deadline: long, so that committing early is clearly the
 #: liveliness exclusion and not the deadline.
 KILLED_DEADLINE_S = 30.0
-#: How long a UAV stays frozen (SIGSTOP) while the mission is sent: past Zenoh's lease.
-FROZEN_S = 15.0
+#: Zenoh's lease (10 s by default): a UAV frozen (SIGSTOP) while the mission is sent stays
+#: frozen until the router has dropped its liveliness token, which takes about this long.
+FROZEN_S = 10.0
+
+
+def token_present(ground: Ground, key: str) -> bool:
+    """Whether the router holds the liveliness token `key` now."""
+    return any(reply.ok is not None for reply in ground.session.liveliness().get(key, timeout=2.0))
 
 
 def assert_agreed(reports: dict[int, AssignmentReport], team: set[int], n_targets: int) -> None:
@@ -236,7 +243,12 @@ def test_a_uav_frozen_while_the_mission_was_sent_falls_in_line_when_it_resumes(
         ground.send(mission)
         awake = set(team[:-1])
         wait_until(lambda: awake <= set(seen.assignments), 60.0, "the others' commitments")
-        time.sleep(FROZEN_S - 5.0)  # it stays frozen past Zenoh's lease
+        # It stays frozen past Zenoh's lease: the router drops its liveliness token.
+        wait_until(
+            lambda: not token_present(ground, keys.alive(team[-1])),
+            FROZEN_S + 15.0,
+            "the frozen UAV's token gone",
+        )
     finally:
         frozen.process.send_signal(signal.SIGCONT)
     try:
