@@ -29,8 +29,9 @@ from fleet.mission.messages import (
     UavResult,
 )
 from fleet.mission.phase import Phase
+from fleet.mission.status_kind import StatusKind
 from fleet.mission.targets_file import TargetsFileError, encode_targets
-from onboard.approach_plan import ApproachPlan, plan_text
+from onboard.approach_plan import ApproachPlan, plan_status
 from onboard.catch_up import CatchUp
 from onboard.link_watch import LinkWatch
 from onboard.mission_phase import MissionPhase
@@ -83,6 +84,9 @@ class MissionParticipation:
     def decided(self) -> bool:
         return self.round is not None and self.round.committed is not None
 
+    def current(self) -> int | None:
+        return self.round.mission if self.round else None
+
     def publish_outcome(self, phase: Phase, reason: str | None) -> None:
         if self.round is None:
             return
@@ -109,12 +113,14 @@ class MissionParticipation:
             # mission still replaces the old one, as on every teammate, and shows aborted.
             self._start_round(targets, now)
             self.life.observe(Observation.ABORTED)
-            self.say(f"mission {targets.mission} arrived already aborted: not flying it", now)
+            text = f"mission {targets.mission} arrived already aborted: not flying it"
+            self.say(StatusKind.ARRIVED_ABORTED, text, now, mission=targets.mission)
             return
         problem = _refusal(targets)
         if problem is not None:
             # Bad input never disturbs the mission in progress.
-            self.say(f"error: mission {targets.mission} refused: {problem}", now)
+            text = f"error: mission {targets.mission} refused: {problem}"
+            self.say(StatusKind.MISSION_REFUSED, text, now, mission=targets.mission)
             return
         # Heard just after this module was suspended, a mission may have been sent
         # while it was: its teammates may have decided on it already.
@@ -131,7 +137,8 @@ class MissionParticipation:
         elif self.link.lost(now):
             self._decline(f"mission {targets.mission}: autopilot link lost", now)
         elif not self.flight.enabled:
-            self.say(f"mission {targets.mission}: module off, not taking part", now)
+            text = f"mission {targets.mission}: module off, not taking part"
+            self.say(StatusKind.SITTING_OUT, text, now, mission=targets.mission)
             self._publish_result(tuple(None for _ in targets.targets), now)
         else:
             self._start_planning(now)
@@ -139,7 +146,8 @@ class MissionParticipation:
     def _decline(self, why: str, now: float) -> None:
         """Take no part in the current mission: an all-None result says so to the team."""
         assert self.round is not None
-        self.say(f"warning: {why}: not taking part", now)
+        text = f"warning: {why}: not taking part"
+        self.say(StatusKind.NOT_TAKING_PART, text, now, mission=self.round.mission)
         self._publish_result(tuple(None for _ in self.round.targets.targets), now)
         self.life.reason = why
 
@@ -173,16 +181,19 @@ class MissionParticipation:
             self._decline(f"mission {self.round.mission}: the planner refused the request", now)
             return
         self.say(
+            StatusKind.COMPUTING,
             f"mission {self.round.mission}: computing approach times to "
             f"{len(self.round.targets.targets)} targets",
             now,
+            mission=self.round.mission,
         )
 
     def collect_plan(self, now: float) -> None:
         result = self.plan.take()
         if result is None or self.round is None or self.life.phase != Phase.COMPUTING:
             return
-        self.say(plan_text(result, self.round.mission), now)
+        kind, text = plan_status(result, self.round.mission)
+        self.say(kind, text, now, mission=self.round.mission)
         self._publish_result(tuple(result.times), now, result.model_times, result.fallback_times)
 
     def _publish_result(
@@ -254,7 +265,8 @@ class MissionParticipation:
                 ", ".join(map(str, unused)),
             )
             return
-        self.say(f"mission {report.mission}: adopted the assignment of UAV {report.uav}", now)
+        text = f"mission {report.mission}: adopted the assignment of UAV {report.uav}"
+        self.say(StatusKind.ADOPTED, text, now, mission=report.mission)
         self._apply(adopted, now)
         self._replan_if_released(now)
 
@@ -272,9 +284,12 @@ class MissionParticipation:
         dropped = outcome.phase in (Phase.FAILED, Phase.LINK_LOST)
         if dropped and mission_round.release((outcome.uav,)):
             self.say(
+                StatusKind.TEAMMATE_DROPPED,
                 f"mission {outcome.mission}: UAV {outcome.uav} dropped out "
                 f"({outcome.reason or outcome.phase}); re-planning its target",
                 now,
+                mission=outcome.mission,
+                target=outcome.target,
             )
             self._replan(now)
             self._settle()
@@ -295,7 +310,12 @@ class MissionParticipation:
         self.flight.restart(f"mission {abort.mission} aborted", now)
         self.life.observe(Observation.ABORTED)
         course = "back on course" if flying else "it was not flying a target"
-        self.say(f"mission {abort.mission} aborted; {course}", now)
+        self.say(
+            StatusKind.ABORTED,
+            f"mission {abort.mission} aborted; {course}",
+            now,
+            mission=abort.mission,
+        )
 
     # ---- the team's liveliness ---------------------------------------------------------------
     def on_alive(self, uav: int, alive: bool, now: float) -> None:
@@ -318,9 +338,11 @@ class MissionParticipation:
             return
         if mission_round.release((uav,)):
             self.say(
+                StatusKind.TEAMMATE_LOST,
                 f"mission {mission_round.mission}: UAV {uav} lost (liveliness gone); "
                 "re-planning its target",
                 now,
+                mission=mission_round.mission,
             )
             self._replan(now)
             self._settle()
@@ -365,9 +387,11 @@ class MissionParticipation:
         report = mission_round.decide(self.team.alive)
         if missing:
             self.say(
+                StatusKind.DEADLINE_PASSED,
                 f"warning: mission {mission_round.mission}: deadline passed without "
                 f"{', '.join(map(str, sorted(missing)))}; assigned without them",
                 now,
+                mission=mission_round.mission,
             )
         self._apply(report, now)
         self._replan_if_released(now)
@@ -396,9 +420,11 @@ class MissionParticipation:
         if report is None:
             return
         self.say(
+            StatusKind.REPLANNED,
             f"mission {report.mission}: re-plan epoch {report.epoch} without "
             f"{', '.join(map(str, report.released))}",
             now,
+            mission=report.mission,
         )
         self._apply(report, now)
 
@@ -415,7 +441,8 @@ class MissionParticipation:
         if report.target == flight.target:
             if report.target is None and self.life.phase in (Phase.COMPUTING, Phase.WAITING):
                 self.life.observe(Observation.ASSIGNED_NONE)
-                self.say(f"mission {report.mission}: no target assigned; keeping course", now)
+                text = f"mission {report.mission}: no target assigned; keeping course"
+                self.say(StatusKind.NO_TARGET, text, now, mission=report.mission)
             if report.target is None:
                 flight.leave_stale_target(now)
             return
@@ -437,7 +464,13 @@ class MissionParticipation:
             return
         self.flight.commit(target_index, self.round.targets.targets[target_index], now)
         eta = f"{report.eta_s:.0f} s" if report.eta_s is not None else "unknown"
-        self.say(f"mission {report.mission}: target {target_index} chosen, ETA {eta}", now)
+        self.say(
+            StatusKind.TARGET_CHOSEN,
+            f"mission {report.mission}: target {target_index} chosen, ETA {eta}",
+            now,
+            mission=report.mission,
+            target=target_index,
+        )
         self.life.observe(Observation.ASSIGNED_TARGET)
         if not self.flight.enabled:
             return
@@ -451,7 +484,13 @@ class MissionParticipation:
         off its target, or it failed): it does not fly it, and drops out like a failed
         UAV, so that the next epoch hands the orphan on instead of leaving it unflown."""
         why = f"handed target {target_index} at epoch {report.epoch} while {self.life.phase}"
-        self.say(f"warning: mission {report.mission}: {why}: not flying it", now)
+        self.say(
+            StatusKind.ORPHAN_REFUSED,
+            f"warning: mission {report.mission}: {why}: not flying it",
+            now,
+            mission=report.mission,
+            target=target_index,
+        )
         if self.round is None:
             return
         outcome = TargetOutcome(report.mission, self.uav_id, target_index, Phase.FAILED, why)
@@ -472,8 +511,15 @@ class MissionParticipation:
         self.flight.give_up(why, now)
         lost = cause == Phase.LINK_LOST
         self.life.observe(Observation.LINK_LOST if lost else Observation.COMMAND_FAILED, why)
-        mission = self.round.mission if self.round else "?"
-        self.say(f"error: mission {mission}: cannot fly target {self.flight.target}: {why}", now)
+        mission = self.current()
+        self.say(
+            StatusKind.CANNOT_FLY,
+            f"error: mission {'?' if mission is None else mission}: "
+            f"cannot fly target {self.flight.target}: {why}",
+            now,
+            mission=mission,
+            target=self.flight.target,
+        )
         self.publish_outcome(cause, why)
         if self.round is not None and self.round.release((self.uav_id,)):
             self._replan(now)

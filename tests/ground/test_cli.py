@@ -39,7 +39,8 @@ from fleet.mission.messages import (
     UavResult,
     UavState,
 )
-from fleet.mission.phase import Phase, Severity
+from fleet.mission.phase import Phase
+from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock, SensorBlock, Telemetry
 from fleet.transport import bus_codec
 from fleet.transport.targets_io import write_targets
@@ -485,7 +486,7 @@ def test_watch_keeps_a_warning_in_view_while_info_streams_past(
         first = watch.stdout.readline()  # the first frame: watch is subscribed
         assert first.startswith("-- "), first
         # The severity the message carries counts, not its wording.
-        fakes[112].put(keys.status(112), StatusText("GPS fix degraded", Severity.WARNING))
+        fakes[112].put(keys.status(112), StatusText("GPS fix degraded", StatusKind.WARNING))
         out, err = watch.communicate(timeout=CLI_TIMEOUT_S)
     finally:
         if watch.poll() is None:
