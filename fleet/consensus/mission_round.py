@@ -53,22 +53,20 @@ def assignment_problem(report: AssignmentReport, targets: MissionTargets) -> str
     """Why a teammate's assignment cannot be this mission's (None if it can be).
 
     The schema bounds each index by MAX_TARGETS only; here every pair must name a UAV of
-    the mission's team (its Piccolo ID written in decimal, as `decide` writes it) and a
-    target of this mission, no target twice, so that a hostile or corrupt report is
-    refused whole instead of being indexed, flown or re-planned.
+    the mission's team and a target of this mission, no target twice, so that a hostile or
+    corrupt report is refused whole instead of being indexed, flown or re-planned.
     """
     count = len(targets.targets)
-    team, names = _team_sets(targets.team)
+    team = _team_set(targets.team)
     pairs = report.pairs
-    # A team member's decimal name is exactly one of `names`: a set comparison in C
-    # checks every pair's UAV at once (the ground checks N reports of N pairs per mission,
-    # a UAV every re-plan it hears).
-    if not names >= pairs.keys() or (pairs and max(pairs.values()) >= count):
-        for key, index in pairs.items():  # name the first bad pair
-            if not key.isdecimal() or str(int(key)) != key or int(key) not in team:
-                return f"pair {key!r}: not a UAV of mission {targets.mission}'s team"
+    # A set comparison in C checks every pair's UAV at once (the ground checks N reports
+    # of N pairs per mission, a UAV every re-plan it hears).
+    if not team >= pairs.keys() or (pairs and max(pairs.values()) >= count):
+        for uav, index in pairs.items():  # name the first bad pair
+            if uav not in team:
+                return f"pair {uav}: not a UAV of mission {targets.mission}'s team"
             if index >= count:
-                return f"UAV {key}'s target {index}: mission {targets.mission} has {count}"
+                return f"UAV {uav}'s target {index}: mission {targets.mission} has {count}"
     if len(set(pairs.values())) != len(pairs):
         return "two UAVs paired with the same target"
     if report.target is not None and report.target >= count:
@@ -81,9 +79,9 @@ def assignment_problem(report: AssignmentReport, targets: MissionTargets) -> str
 
 
 @functools.lru_cache(maxsize=8)
-def _team_sets(team: tuple[int, ...]) -> tuple[frozenset[int], frozenset[str]]:
-    """A team's Piccolo IDs, and their decimal names (a few recent teams are kept)."""
-    return frozenset(team), frozenset(map(str, team))
+def _team_set(team: tuple[int, ...]) -> frozenset[int]:
+    """A team's Piccolo IDs (a few recent teams are kept)."""
+    return frozenset(team)
 
 
 @dataclass(frozen=True, slots=True)
@@ -152,7 +150,7 @@ class MissionRound:
     team: frozenset[int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        self.team = _team_sets(self.targets.team)[0]
+        self.team = _team_set(self.targets.team)
 
     @property
     def mission(self) -> int:
@@ -251,7 +249,7 @@ class MissionRound:
             mission=self.mission,
             uav=self.own_id,
             target=target,
-            pairs={str(uav): index for uav, index in sorted(outcome.pairs.items())},
+            pairs=dict(sorted(outcome.pairs.items())),
             unassigned=tuple(outcome.unassigned_targets),
             team=tuple(sorted(used)),
             digest=results_digest(used),
@@ -311,7 +309,7 @@ class MissionRound:
         return self.committed
 
     def _own_copy(self, report: AssignmentReport) -> AssignmentReport:
-        target = report.pairs.get(str(self.own_id))
+        target = report.pairs.get(self.own_id)
         own = self.results.get(self.own_id)
         return AssignmentReport(
             mission=self.mission,
@@ -353,7 +351,7 @@ class MissionRound:
             mission=self.mission,
             uav=self.own_id,
             target=target,
-            pairs={str(uav): index for uav, index in plan.pairs.items()},
+            pairs=dict(plan.pairs),
             unassigned=plan.unassigned,
             team=self.base.team,
             digest=plan.digest,

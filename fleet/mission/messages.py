@@ -149,8 +149,8 @@ class AssignmentReport(msgspec.Struct, frozen=True):
     mission: MissionId
     uav: PiccoloId
     target: TargetIndex | None  #: index of this UAV's target in the mission, None if idle
-    #: every UAV's target index, keyed by Piccolo ID as a string
-    pairs: Annotated[dict[str, TargetIndex], Meta(max_length=MAX_TEAM)]
+    #: every UAV's target index, keyed by Piccolo ID (a string in JSON: `{"74": 0}`)
+    pairs: Annotated[dict[PiccoloId, TargetIndex], Meta(max_length=MAX_TEAM)]
     unassigned: Annotated[tuple[TargetIndex, ...], Meta(max_length=MAX_TARGETS)]
     team: Team  #: the UAVs whose results were used
     digest: str

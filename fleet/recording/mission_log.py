@@ -152,7 +152,7 @@ class _Said:
 
 
 def _said(t: float, uav: int, value: dict[str, Any]) -> _Said:
-    status = msgspec.convert(value, StatusText)
+    status = msgspec.convert(value, StatusText, str_keys=True)
     if "kind" in value:
         reached, severity = status.kind is StatusKind.REACHED, status.severity
     else:  # recorded before status kinds (see the module's docstring)
@@ -236,7 +236,7 @@ class _Builder:
 
     def _add_mission(self, t: float, kind: str, value: Any) -> None:
         if kind == "targets":
-            targets = msgspec.convert(value, MissionTargets)
+            targets = msgspec.convert(value, MissionTargets, str_keys=True)
             if not all(_on_earth(p.lat, p.lon) for p in targets.targets):
                 raise ValueError("a target not on Earth")
             if targets.mission not in self.missions:
@@ -244,11 +244,11 @@ class _Builder:
                     targets.mission, targets.team, targets.targets, sent=t, end=t
                 )
         elif kind == "result":
-            result = msgspec.convert(value, UavResult)
+            result = msgspec.convert(value, UavResult, str_keys=True)
             if (log := self.missions.get(result.mission)) is not None:
                 log.results.setdefault(result.uav, result)
         elif kind == "assignment":
-            report = msgspec.convert(value, AssignmentReport)
+            report = msgspec.convert(value, AssignmentReport, str_keys=True)
             if (log := self.missions.get(report.mission)) is not None:
                 if report.target is not None and not 0 <= report.target < len(log.targets):
                     raise ValueError(f"target {report.target} is not one of the mission's")

@@ -157,7 +157,7 @@ class FakeOnboard:
         rows = {u: [approach_time(u, i) for i in range(n)] for u in targets.team}
         result = UavResult(mission=m, uav=self.uav_id, times=tuple(rows[self.uav_id]))
         assignment = greedy_assign(rows, n)
-        pairs = {str(u): t for u, t in assignment.pairs.items()}
+        pairs = dict(assignment.pairs)
         digest = results_digest(rows)
         if self.disagree:
             pairs = {u: (t + 1) % n for u, t in pairs.items()}
@@ -165,12 +165,12 @@ class FakeOnboard:
         report = AssignmentReport(
             mission=m,
             uav=self.uav_id,
-            target=pairs.get(str(self.uav_id)),
+            target=pairs.get(self.uav_id),
             pairs=pairs,
             unassigned=assignment.unassigned_targets,
             team=targets.team,
             digest=digest,
-            eta_s=rows[self.uav_id][t] if (t := pairs.get(str(self.uav_id))) is not None else None,
+            eta_s=rows[self.uav_id][t] if (t := pairs.get(self.uav_id)) is not None else None,
         )
         with self._lock:
             self._served[keys.mission_result(m, self.uav_id)] = bus_codec.encode(result)
@@ -557,11 +557,11 @@ def test_targets_make_and_show(tmp_path: Path, capsys: pytest.CaptureFixture[str
 
 
 # ---- agreement (pure) ------------------------------------------------------------------------
-def _report(uav: int, digest: str, pairs: dict[str, int]) -> AssignmentReport:
+def _report(uav: int, digest: str, pairs: dict[int, int]) -> AssignmentReport:
     return AssignmentReport(
         mission=1,
         uav=uav,
-        target=pairs.get(str(uav)),
+        target=pairs.get(uav),
         pairs=pairs,
         unassigned=(),
         team=(1, 2, 3),
@@ -570,7 +570,7 @@ def _report(uav: int, digest: str, pairs: dict[str, int]) -> AssignmentReport:
 
 
 def test_agreement_names_the_minority_and_the_missing() -> None:
-    pairs = {"1": 0, "2": 1, "3": 2}
+    pairs = {1: 0, 2: 1, 3: 2}
     reports = {1: _report(1, "a", pairs), 2: _report(2, "a", pairs), 3: _report(3, "b", pairs)}
     agreement = check_agreement((1, 2, 3), reports)
     assert not agreement.agreed

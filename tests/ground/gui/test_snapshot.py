@@ -21,7 +21,7 @@ def _report(uav: int, target: int | None) -> AssignmentReport:
         mission=3,
         uav=uav,
         target=target,
-        pairs={"74": 0, "112": 1},
+        pairs={74: 0, 112: 1},
         unassigned=(2,),
         team=(74, 112),
         digest="d",
