@@ -43,7 +43,7 @@ from onboard.catch_up import CATCH_UP_INTERVAL_S
 from onboard.link_watch import LINK_LOST_S, LinkWatch
 from onboard.mission_participation import MissionParticipation
 from onboard.mission_phase import MissionPhase
-from onboard.state_report import StateReport, overall_phase
+from onboard.state_report import Say, StateReport, overall_phase
 from onboard.target_flight import CONFIRM_LIMIT_S, LINK_RELEASE_S, TARGET_WAYPOINT, TargetFlight
 from onboard.team_presence import LIVELINESS_GRACE_S, TeamPresence
 
@@ -211,16 +211,10 @@ class OnboardCore:
             self.publish_state(now)
 
     # ---- reporting ---------------------------------------------------------------------------
-    def status(
-        self,
-        kind: StatusKind,
-        text: str,
-        now: float,
-        *,
-        mission: int | None = None,
-        target: int | None = None,
-    ) -> None:
-        self.report.status(kind, text, now, mission=mission, target=target)
+    @property
+    def status(self) -> Say:
+        """Say a status message (`StateReport.status`)."""
+        return self.report.status
 
     def publish_state(self, now: float) -> None:
         self.report.publish_state(self.state(now), now)

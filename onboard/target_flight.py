@@ -65,7 +65,7 @@ class FlightMission(Protocol):
         """The current mission's id (None: none)."""
         ...
 
-    def publish_outcome(self, phase: Phase, reason: str | None) -> None: ...
+    def publish_outcome(self, phase: Phase, reason: str | None, target: int | None) -> None: ...
 
 
 @dataclass
@@ -127,7 +127,7 @@ class TargetFlight:
             mission=self.mission.current(),
             target=self.target,
         )
-        self.mission.publish_outcome(Phase.REACHED, None)
+        self.mission.publish_outcome(Phase.REACHED, None, self.target)
 
     def on_track(self, track: Track, now: float) -> None:
         self.commands.on_echo(track, now)

@@ -27,6 +27,7 @@ Pure: no I/O, time comes in as `now`.
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
@@ -39,6 +40,7 @@ from fleet.mission.messages import (
     TargetOutcome,
     UavResult,
 )
+from fleet.mission.targets_file import TargetsFileError, encode_targets
 
 FETCH_INTERVAL = 1.0
 #: A teammate's assignment that arrives this soon (s) after this UAV started the round
@@ -75,6 +77,17 @@ def assignment_problem(report: AssignmentReport, targets: MissionTargets) -> str
         return f"an unassigned target beyond mission {targets.mission}'s {count}"
     if not team.issuperset(report.team):
         return f"results of UAVs outside mission {targets.mission}'s team"
+    return None
+
+
+def targets_problem(targets: MissionTargets) -> str | None:
+    """Why a mission's targets cannot be flown (None if they can be)."""
+    try:
+        encode_targets(targets.targets, source=f"mission {targets.mission}")
+    except TargetsFileError as error:
+        return f"target {error.index}: {error.problem}" if targets.targets else error.problem
+    if not math.isfinite(targets.deadline_s) or targets.deadline_s <= 0:
+        return f"deadline {targets.deadline_s!r} s is not a positive number"
     return None
 
 

@@ -2,17 +2,14 @@
 
 from __future__ import annotations
 
-from fleet.mission.messages import MissionTargets, StatusText
+from fleet.mission.messages import StatusText
 from fleet.mission.phase import Phase, Severity
 from fleet.mission.status_kind import StatusKind
-from fleet.piccolo.track import Track
-from fleet.piccolo.waypoint import Waypoint
 from onboard.core import (
     LINK_LOST_S,
-    TARGET_WAYPOINT,
 )
 from onboard.state_report import overall_phase
-from tests.onboard.core_harness import TARGETS, make_core, telemetry_at
+from tests.onboard.core_harness import TARGETS, fly_target_1, make_core, telemetry_at
 
 
 def test_status_messages_carry_their_severity() -> None:
@@ -24,12 +21,7 @@ def test_status_messages_carry_their_severity() -> None:
 
 def test_status_messages_carry_their_kind_mission_and_target() -> None:
     core, out = make_core()
-    core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 1.0)
-    core.tick(1.1)
-    (waypoint,) = out.autopilot
-    assert isinstance(waypoint, Waypoint)
-    core.on_waypoint(waypoint, 1.5)
-    core.on_track(Track(TARGET_WAYPOINT), 2.0)
+    fly_target_1(core, out)
     core.on_telemetry(telemetry_at(TARGETS[1].lat + 0.0005, TARGETS[1].lon), 59.0)
     said = [(m.kind, m.mission, m.target) for _, m in out.published if isinstance(m, StatusText)]
     assert said == [
