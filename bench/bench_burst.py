@@ -163,7 +163,7 @@ def mission_traffic(
     decided = consensus.decide(set(team))
     reports = []
     for uav in team[1:]:
-        target = decided.pairs.get(str(uav))
+        target = decided.pairs.get(uav)
         times = results[uav].times
         report = msgspec.structs.replace(
             decided,

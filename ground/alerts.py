@@ -1,16 +1,16 @@
 """Warnings and errors kept in view: which status messages the status box pins.
 
-Status messages carry a severity (`fleet.mission.phase.Severity`). Info messages
-stream past; a UAV's warnings and errors are *pinned*, shown apart from the stream,
-until one of these happens:
+Status messages carry a kind (`fleet.mission.status_kind.StatusKind`), and the kind
+its severity. Info messages stream past; a UAV's warnings and errors are *pinned*,
+shown apart from the stream, until one of these happens:
 
-* a later message of the same UAV says the condition cleared:
-  - `autopilot link back ...` clears that UAV's `autopilot link lost` alert;
-  - `module on|off ...` (the answer to an OPM command) clears an `error: OPM ...` alert;
-  - a message naming a later mission (`mission N ...`, N above the mission the alert
-    was about) clears every other alert of that UAV: a new mission supersedes what went
-    wrong in the old one. An alert that names no mission is about the mission the UAV
-    last named before it (or none, and then any mission named later clears it);
+* a later message of the same UAV says the condition cleared (`CLEARED_BY`):
+  - a `link_back` message clears that UAV's `link_lost` alert (and nothing else does);
+  - a `module_set` message (the answer to an OPM command) clears an `opm_refused` alert;
+  - a message about a later mission (its `mission` above the mission the alert was
+    about) clears every other alert of that UAV: a new mission supersedes what went
+    wrong in the old one. An alert about no mission is about the mission the UAV last
+    named before it (or none, and then any mission named later clears it);
 * the UAV raised `PER_UAV` newer warnings or errors (the oldest goes);
 * the box holds at most `MAX_PINNED` alerts (the oldest goes).
 
@@ -20,19 +20,23 @@ Pure: no I/O, no clock; the caller stamps each message.
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 
 from fleet.mission.phase import Severity
+from fleet.mission.status_kind import StatusKind
 
 #: Alerts kept per UAV.
 PER_UAV = 3
 #: Alerts kept in all.
 MAX_PINNED = 12
 
-_MISSION = re.compile(r"\bmission (\d+)\b")
-_LINK_LOST = "autopilot link lost"
-_LINK_BACK = "autopilot link back"
+#: The alert kinds a later message of one kind clears (whatever the missions).
+CLEARED_BY: dict[StatusKind, StatusKind] = {
+    StatusKind.LINK_LOST: StatusKind.LINK_BACK,
+    StatusKind.OPM_REFUSED: StatusKind.MODULE_SET,
+}
+#: Alert kinds only their own clearing message clears: a lost link outlives missions.
+_ONLY_CLEARED_BY_KIND = frozenset({StatusKind.LINK_LOST})
 
 
 @dataclass(frozen=True)
@@ -42,17 +46,16 @@ class StatusRecord:
     time: float  #: wall clock, seconds since the epoch
     uav: int
     text: str
-    severity: Severity = Severity.INFO
+    kind: StatusKind = StatusKind.INFO
+    mission: int | None = None  #: the mission the message is about, if any
+
+    @property
+    def severity(self) -> Severity:
+        return self.kind.severity
 
     @property
     def alert(self) -> bool:
         return self.severity is not Severity.INFO
-
-
-def mission_named(text: str) -> int | None:
-    """The first mission id a status text names (`mission 3: ...`), if any."""
-    match = _MISSION.search(text)
-    return int(match.group(1)) if match else None
 
 
 @dataclass(frozen=True)
@@ -61,15 +64,13 @@ class _Pinned:
     mission: int | None  #: the mission the alert is about (named, or the UAV's last)
 
 
-def _clears(pinned: _Pinned, later: StatusRecord, later_mission: int | None) -> bool:
-    text = pinned.record.text
-    if _LINK_LOST in text:
-        return later.text.startswith(_LINK_BACK)
-    if text.startswith("error: OPM") and later.text.startswith("module "):
+def _clears(pinned: _Pinned, later: StatusRecord) -> bool:
+    kind = pinned.record.kind
+    if CLEARED_BY.get(kind) is later.kind:
         return True
-    if later_mission is None:
+    if kind in _ONLY_CLEARED_BY_KIND or later.mission is None:
         return False
-    return pinned.mission is None or later_mission > pinned.mission
+    return pinned.mission is None or later.mission > pinned.mission
 
 
 class Alerts:
@@ -82,9 +83,9 @@ class Alerts:
         self._last_mission: dict[int, int] = {}  #: the latest mission each UAV named
 
     def add(self, record: StatusRecord) -> None:
-        named = mission_named(record.text)
+        named = record.mission
         self._pinned = [
-            p for p in self._pinned if p.record.uav != record.uav or not _clears(p, record, named)
+            p for p in self._pinned if p.record.uav != record.uav or not _clears(p, record)
         ]
         if record.alert:
             about = named if named is not None else self._last_mission.get(record.uav)

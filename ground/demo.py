@@ -36,6 +36,7 @@ from fleet.mission.messages import (
     TargetOutcome,
     UavResult,
 )
+from fleet.mission.status_kind import StatusKind
 from fleet.recording.mission_log import build_timeline
 from fleet.recording.plot import PlotError, render
 from fleet.recording.reader import RecordingError, read_recording
@@ -262,7 +263,7 @@ def _watch_arrivals(
 ) -> dict[int, Arrival]:
     """Wait until every assigned UAV reached its target; returns who did, and how.
 
-    Three signs, any of which counts: a status message of that UAV saying "reached"
+    Three signs, any of which counts: a `reached` status message of that UAV
     (sent after the mission went out), its state's mission phase "reached", or its
     track leaving the waypoint it wrote at the target (the waypoint echo within
     TARGET_WAYPOINT_MATCH_M of the target).
@@ -286,8 +287,8 @@ def _watch_arrivals(
                 continue
             how = None
             if any(
-                who == uav and when >= sent_wall and "reached" in text.lower()
-                for when, who, text in view.recent_statuses()
+                record.uav == uav and record.time >= sent_wall and record.kind is StatusKind.REACHED
+                for record in view.recent_records()
             ):
                 how = "status"
             elif (

@@ -9,6 +9,7 @@ import threading
 
 from fleet.mission import keys
 from fleet.mission.messages import StatusText
+from fleet.mission.status_kind import StatusKind
 from fleet.transport.bus import BusSample, decode_sample
 from fleet.transport.cli import ExitCode
 from fleet.transport.zenoh_bus import client_bus
@@ -19,6 +20,8 @@ from ground.watch import watch
 
 #: How long `opm` waits for the UAV's status message confirming the change.
 OPM_CONFIRM_S = 2.0
+#: The status kinds a UAV answers an OPM command with: applied, or refused.
+OPM_ANSWERS = frozenset({StatusKind.MODULE_SET, StatusKind.OPM_REFUSED})
 
 
 def cmd_uavs(args: argparse.Namespace) -> int:
@@ -61,7 +64,7 @@ def cmd_opm(args: argparse.Namespace) -> int:
 
         def on_status(sample: BusSample) -> None:
             status = decode_sample(sample, StatusText)
-            if status is not None and status.text.startswith(("module", "error: OPM")):
+            if status is not None and status.kind in OPM_ANSWERS:
                 answer.append(status.text)
                 confirmed.set()
 

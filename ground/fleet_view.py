@@ -188,7 +188,6 @@ class FleetView(Declarations):
         self._lock = threading.Lock()
         self._changed = threading.Condition(self._lock)
         self._uavs: dict[int, _Uav] = {}
-        self.statuses: deque[tuple[float, int, str]] = deque(maxlen=STATUS_HISTORY)
         self._records: deque[StatusRecord] = deque(maxlen=STATUS_HISTORY)
         self._alerts = Alerts()
         super().__init__()
@@ -254,11 +253,10 @@ class FleetView(Declarations):
         status = decode_sample(sample, StatusText)
         if uav_id is None or status is None:
             return
-        record = StatusRecord(time.time(), uav_id, status.text, status.severity)
+        record = StatusRecord(time.time(), uav_id, status.text, status.kind, status.mission)
         with self._changed:
             entry = self._entry(uav_id)
             entry.view = replace(entry.view, last_status=status.text)
-            self.statuses.append((record.time, uav_id, status.text))
             self._records.append(record)
             self._alerts.add(record)
             self._changed.notify_all()
@@ -317,13 +315,8 @@ class FleetView(Declarations):
             entry = self._uavs.get(uav_id)
             return list(entry.track_history) if entry else []
 
-    def recent_statuses(self, count: int = STATUS_HISTORY) -> list[tuple[float, int, str]]:
-        """The last `count` status messages as (wall time, Piccolo ID, text), oldest first."""
-        with self._lock:
-            return list(self.statuses)[-count:]
-
     def recent_records(self, count: int = STATUS_HISTORY) -> list[StatusRecord]:
-        """The last `count` status messages with their severity, oldest first."""
+        """The last `count` status messages with their kind, oldest first."""
         with self._lock:
             return list(self._records)[-count:]
 
@@ -334,7 +327,7 @@ class FleetView(Declarations):
 
     def statuses_of(self, uav_id: int) -> list[str]:
         with self._lock:
-            return [text for _, uav, text in self.statuses if uav == uav_id]
+            return [record.text for record in self._records if record.uav == uav_id]
 
     def wait_changed(self, timeout_s: float) -> None:
         """Block until a callback changed something, or `timeout_s` passed."""

@@ -35,7 +35,7 @@ from fleet.mission.phase import Phase
 log = logging.getLogger(__name__)
 
 
-def _report_identity(report: AssignmentReport) -> tuple[str, tuple[tuple[str, int], ...]]:
+def _report_identity(report: AssignmentReport) -> tuple[str, tuple[tuple[int, int], ...]]:
     return report.digest, tuple(sorted(report.pairs.items()))
 
 
@@ -52,7 +52,7 @@ def check_agreement(team: Iterable[int], assignments: dict[int, AssignmentReport
     team = sorted(set(team))
     committed = [uav for uav in team if uav in assignments]
     missing = tuple(uav for uav in team if uav not in assignments)
-    groups: dict[tuple[str, tuple[tuple[str, int], ...]], list[int]] = {}
+    groups: dict[tuple[str, tuple[tuple[int, int], ...]], list[int]] = {}
     for uav in committed:
         groups.setdefault(_report_identity(assignments[uav]), []).append(uav)
     if not groups:

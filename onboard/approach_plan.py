@@ -12,6 +12,7 @@ from typing import Protocol
 
 from fleet.geo.mercator import MercatorProjection
 from fleet.mission.messages import MissionTargets
+from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock
 from onboard.planner_worker import PlanRequest, PlanResult
 
@@ -68,8 +69,8 @@ class ApproachPlan:
         return result
 
 
-def plan_text(plan: PlanResult, mission: int | str) -> str:
-    """The status message that reports `plan`."""
+def plan_status(plan: PlanResult, mission: int | str) -> tuple[StatusKind, str]:
+    """The status message that reports `plan`: its kind and text."""
     fallbacks = sum(plan.fallback)
     text = f"mission {mission}: approach times in {plan.solve_seconds:.2f} s"
     text += f" ({plan.cpu_seconds:.3f} s of CPU)"
@@ -77,5 +78,5 @@ def plan_text(plan: PlanResult, mission: int | str) -> str:
         budget = plan.request.budget_s
         text += f"; {fallbacks} by the Dubins fallback (budget {budget:g} s)"
     if plan.error:
-        text = f"warning: {text}; solver error: {plan.error}"
-    return text
+        return StatusKind.SOLVER_DEGRADED, f"warning: {text}; solver error: {plan.error}"
+    return StatusKind.APPROACH_TIMES, text

@@ -33,6 +33,7 @@ from fleet.mission.messages import (
     UavState,
 )
 from fleet.mission.phase import Phase
+from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
@@ -42,7 +43,7 @@ from onboard.catch_up import CATCH_UP_INTERVAL_S
 from onboard.link_watch import LINK_LOST_S, LinkWatch
 from onboard.mission_participation import MissionParticipation
 from onboard.mission_phase import MissionPhase
-from onboard.state_report import StateReport, overall_phase
+from onboard.state_report import Say, StateReport, overall_phase
 from onboard.target_flight import CONFIRM_LIMIT_S, LINK_RELEASE_S, TARGET_WAYPOINT, TargetFlight
 from onboard.team_presence import LIVELINESS_GRACE_S, TeamPresence
 
@@ -156,7 +157,8 @@ class OnboardCore:
     # ---- ground commands ---------------------------------------------------------------------
     def on_opm(self, command: OpmCommand, now: float) -> None:
         if not math.isfinite(command.status_rate_hz) or command.status_rate_hz < 0:
-            self.report.status(f"error: OPM status rate {command.status_rate_hz!r} refused", now)
+            text = f"error: OPM status rate {command.status_rate_hz!r} refused"
+            self.report.status(StatusKind.OPM_REFUSED, text, now)
             return
         changed = command.enabled != self.flight.enabled
         self.flight.enabled = command.enabled
@@ -165,6 +167,7 @@ class OnboardCore:
             self.flight.commands.cancel_all("module turned off")
         rate = self.report.rate_hz
         self.report.status(
+            StatusKind.MODULE_SET,
             f"module {'on' if self.flight.enabled else 'off'}, state every "
             + (f"{1 / rate:.3g} s" if rate else "change"),
             now,
@@ -208,8 +211,10 @@ class OnboardCore:
             self.publish_state(now)
 
     # ---- reporting ---------------------------------------------------------------------------
-    def status(self, text: str, now: float) -> None:
-        self.report.status(text, now)
+    @property
+    def status(self) -> Say:
+        """Say a status message (`StateReport.status`)."""
+        return self.report.status
 
     def publish_state(self, now: float) -> None:
         self.report.publish_state(self.state(now), now)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from onboard.state_report import Say
 
@@ -28,7 +29,7 @@ class LinkWatch:
         self.telemetry_at = now
         if self._said_lost:
             self._said_lost = False
-            self.say("autopilot link back: telemetry flowing again", now)
+            self.say(StatusKind.LINK_BACK, "autopilot link back: telemetry flowing again", now)
 
     @property
     def gps(self) -> GpsBlock | None:
@@ -43,4 +44,5 @@ class LinkWatch:
         if self.telemetry_at is None or self._said_lost or not self.lost(now):
             return
         self._said_lost = True
-        self.say(f"error: autopilot link lost: no telemetry for over {LINK_LOST_S:g} s", now)
+        text = f"error: autopilot link lost: no telemetry for over {LINK_LOST_S:g} s"
+        self.say(StatusKind.LINK_LOST, text, now)

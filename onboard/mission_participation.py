@@ -1,9 +1,9 @@
-"""Taking part in a mission: its targets, the plan, the decision, re-plans, an abort.
+"""Taking part in a mission: its targets, the team's exchange, re-plans, an abort.
 
 A mission's targets start a round (fleet.consensus.mission_round): this UAV computes
-its approach times (the planner), publishes them, hears its teammates', and decides (or
-adopts a teammate's decision, or asks the team first); it then flies the target it is
-assigned (onboard.target_flight). A target that cannot be flown is `failed` and
+its approach times and publishes them (onboard.own_result), hears its teammates', and
+decides (onboard.mission_decision) or adopts a teammate's decision; it then flies the
+target it is assigned (onboard.target_flight). A target that cannot be flown is `failed` and
 released, and the UAVs still in the mission re-plan it (fleet.consensus.replan); so is
 one of a teammate that dropped out or whose liveliness stayed gone.
 """
@@ -11,13 +11,17 @@ one of a teammate that dropped out or whose liveliness stayed gone.
 from __future__ import annotations
 
 import logging
-import math
 from dataclasses import dataclass, field
 from typing import Protocol
 
 import msgspec
 
-from fleet.consensus.mission_round import MissionRound, Settled, assignment_problem
+from fleet.consensus.mission_round import (
+    MissionRound,
+    Settled,
+    assignment_problem,
+    targets_problem,
+)
 from fleet.mission import keys
 from fleet.mission.lifecycle import Observation, advance
 from fleet.mission.messages import (
@@ -29,11 +33,13 @@ from fleet.mission.messages import (
     UavResult,
 )
 from fleet.mission.phase import Phase
-from fleet.mission.targets_file import TargetsFileError, encode_targets
-from onboard.approach_plan import ApproachPlan, plan_text
+from fleet.mission.status_kind import StatusKind
+from onboard.approach_plan import ApproachPlan
 from onboard.catch_up import CatchUp
 from onboard.link_watch import LinkWatch
+from onboard.mission_decision import MissionDecision
 from onboard.mission_phase import MissionPhase
+from onboard.own_result import OwnResult
 from onboard.state_report import Say
 from onboard.target_flight import TargetFlight
 from onboard.team_presence import TeamPresence
@@ -67,6 +73,8 @@ class MissionParticipation:
     #: changes: the bus threads drop the assignment reports it covers by their header.
     settled: Settled | None = None
     catch_up: CatchUp = field(init=False)
+    decision: MissionDecision = field(init=False)
+    own: OwnResult = field(init=False)
     _early_results: list[UavResult] = field(default_factory=list)
     _aborted: set[int] = field(default_factory=set)
     _abort: MissionAbort | None = None  #: the abort this UAV obeyed last (relayed by query)
@@ -74,6 +82,8 @@ class MissionParticipation:
     def __post_init__(self) -> None:
         self.flight.mission = self
         self.catch_up = CatchUp(self.outputs, lambda: self.round.mission if self.round else None)
+        self.decision = MissionDecision(self.uav_id, self.outputs, self.team, self.say)
+        self.own = OwnResult(self.uav_id, self.outputs, self.plan, self.life, self.say)
 
     # ---- what the flight asks of its mission ------------------------------------------------
     def superseded(self, mission: int) -> bool:
@@ -83,16 +93,13 @@ class MissionParticipation:
     def decided(self) -> bool:
         return self.round is not None and self.round.committed is not None
 
-    def publish_outcome(self, phase: Phase, reason: str | None) -> None:
+    def current(self) -> int | None:
+        return self.round.mission if self.round else None
+
+    def publish_outcome(self, phase: Phase, reason: str | None, target: int | None) -> None:
         if self.round is None:
             return
-        outcome = TargetOutcome(
-            mission=self.round.mission,
-            uav=self.uav_id,
-            target=self.flight.target,
-            phase=phase,
-            reason=reason,
-        )
+        outcome = TargetOutcome(self.round.mission, self.uav_id, target, phase, reason)
         self.round.outcome = outcome
         self.outputs.publish(keys.mission_outcome(outcome.mission, self.uav_id), outcome)
 
@@ -109,17 +116,19 @@ class MissionParticipation:
             # mission still replaces the old one, as on every teammate, and shows aborted.
             self._start_round(targets, now)
             self.life.observe(Observation.ABORTED)
-            self.say(f"mission {targets.mission} arrived already aborted: not flying it", now)
+            text = f"mission {targets.mission} arrived already aborted: not flying it"
+            self.say(StatusKind.ARRIVED_ABORTED, text, now, mission=targets.mission)
             return
-        problem = _refusal(targets)
+        problem = targets_problem(targets)
         if problem is not None:
             # Bad input never disturbs the mission in progress.
-            self.say(f"error: mission {targets.mission} refused: {problem}", now)
+            text = f"error: mission {targets.mission} refused: {problem}"
+            self.say(StatusKind.MISSION_REFUSED, text, now, mission=targets.mission)
             return
         # Heard just after this module was suspended, a mission may have been sent
         # while it was: its teammates may have decided on it already.
         late = replayed or self.catch_up.resumed(now)
-        self._start_round(targets, now, late=late)
+        mission_round = self._start_round(targets, now, late=late)
         if late:
             # Learnt from a catch-up (a late join, a restart) or after a freeze: the
             # team may have decided on it already, and this UAV adopts that. A mission
@@ -131,25 +140,29 @@ class MissionParticipation:
         elif self.link.lost(now):
             self._decline(f"mission {targets.mission}: autopilot link lost", now)
         elif not self.flight.enabled:
-            self.say(f"mission {targets.mission}: module off, not taking part", now)
-            self._publish_result(tuple(None for _ in targets.targets), now)
+            text = f"mission {targets.mission}: module off, not taking part"
+            self.say(StatusKind.SITTING_OUT, text, now, mission=targets.mission)
+            self.own.publish_none(mission_round, now)
         else:
             self._start_planning(now)
 
     def _decline(self, why: str, now: float) -> None:
         """Take no part in the current mission: an all-None result says so to the team."""
         assert self.round is not None
-        self.say(f"warning: {why}: not taking part", now)
-        self._publish_result(tuple(None for _ in self.round.targets.targets), now)
+        text = f"warning: {why}: not taking part"
+        self.say(StatusKind.NOT_TAKING_PART, text, now, mission=self.round.mission)
+        self.own.publish_none(self.round, now)
         self.life.reason = why
 
-    def _start_round(self, targets: MissionTargets, now: float, *, late: bool = False) -> None:
+    def _start_round(
+        self, targets: MissionTargets, now: float, *, late: bool = False
+    ) -> MissionRound:
         """Replace the mission in one step: nothing of the old one survives it."""
         # Cancel first: the resume submitted next must survive the new mission's start.
         self.flight.restart(f"mission {targets.mission} started", now)
         self.round = MissionRound(targets, self.uav_id, now, late=late)
         self.life.observe(Observation.MISSION_STARTED)
-        self.plan.forget()
+        self.own.plan.forget()
         self.flight.hold(None, None)
         early, self._early_results = self._early_results, []
         for result in early:
@@ -158,6 +171,7 @@ class MissionParticipation:
             elif result.mission > targets.mission:
                 self._early_results.append(result)
         self._settle()
+        return self.round
 
     def _settle(self) -> None:
         """Publish a new snapshot of what this UAV settled (after any change to it)."""
@@ -169,43 +183,11 @@ class MissionParticipation:
     def _start_planning(self, now: float) -> None:
         gps = self.link.gps
         assert self.round is not None and gps is not None
-        if not self.plan.start(self.round.targets, gps):
+        if not self.own.start(self.round, gps, now):
             self._decline(f"mission {self.round.mission}: the planner refused the request", now)
-            return
-        self.say(
-            f"mission {self.round.mission}: computing approach times to "
-            f"{len(self.round.targets.targets)} targets",
-            now,
-        )
 
     def collect_plan(self, now: float) -> None:
-        result = self.plan.take()
-        if result is None or self.round is None or self.life.phase != Phase.COMPUTING:
-            return
-        self.say(plan_text(result, self.round.mission), now)
-        self._publish_result(tuple(result.times), now, result.model_times, result.fallback_times)
-
-    def _publish_result(
-        self,
-        times: tuple[float | None, ...],
-        now: float,
-        model_times: int | None = None,
-        fallback_times: int | None = None,
-    ) -> None:
-        assert self.round is not None
-        result = UavResult(
-            mission=self.round.mission,
-            uav=self.uav_id,
-            times=times,
-            model_times=model_times,
-            fallback_times=fallback_times,
-        )
-        self.round.add_result(result)
-        # Teammates are computing too: the first fetch waits one interval.
-        self.round.last_fetch = now
-        self.life.observe(Observation.RESULT_PUBLISHED)
-        self.outputs.publish(keys.mission_result(result.mission, self.uav_id), result)
-        self.outputs.send_ground(result)
+        self.own.collect(self.round, now)
 
     # ---- the team's exchange -------------------------------------------------------------------
     def on_result(self, result: UavResult, now: float) -> None:
@@ -254,7 +236,8 @@ class MissionParticipation:
                 ", ".join(map(str, unused)),
             )
             return
-        self.say(f"mission {report.mission}: adopted the assignment of UAV {report.uav}", now)
+        text = f"mission {report.mission}: adopted the assignment of UAV {report.uav}"
+        self.say(StatusKind.ADOPTED, text, now, mission=report.mission)
         self._apply(adopted, now)
         self._replan_if_released(now)
 
@@ -272,9 +255,12 @@ class MissionParticipation:
         dropped = outcome.phase in (Phase.FAILED, Phase.LINK_LOST)
         if dropped and mission_round.release((outcome.uav,)):
             self.say(
+                StatusKind.TEAMMATE_DROPPED,
                 f"mission {outcome.mission}: UAV {outcome.uav} dropped out "
                 f"({outcome.reason or outcome.phase}); re-planning its target",
                 now,
+                mission=outcome.mission,
+                target=outcome.target,
             )
             self._replan(now)
             self._settle()
@@ -295,7 +281,12 @@ class MissionParticipation:
         self.flight.restart(f"mission {abort.mission} aborted", now)
         self.life.observe(Observation.ABORTED)
         course = "back on course" if flying else "it was not flying a target"
-        self.say(f"mission {abort.mission} aborted; {course}", now)
+        self.say(
+            StatusKind.ABORTED,
+            f"mission {abort.mission} aborted; {course}",
+            now,
+            mission=abort.mission,
+        )
 
     # ---- the team's liveliness ---------------------------------------------------------------
     def on_alive(self, uav: int, alive: bool, now: float) -> None:
@@ -318,9 +309,11 @@ class MissionParticipation:
             return
         if mission_round.release((uav,)):
             self.say(
+                StatusKind.TEAMMATE_LOST,
                 f"mission {mission_round.mission}: UAV {uav} lost (liveliness gone); "
                 "re-planning its target",
                 now,
+                mission=mission_round.mission,
             )
             self._replan(now)
             self._settle()
@@ -335,42 +328,10 @@ class MissionParticipation:
             or mission_round.mission in self._aborted
         ):
             return
-        if mission_round.should_fetch(now, self.team.alive):
-            mission_round.last_fetch = now
-            missing = mission_round.missing(self.team.alive) - {self.uav_id}
-            self.outputs.fetch_results(mission_round.mission, tuple(sorted(missing)))
-        if mission_round.ready(now, self.team.alive):
-            self._decide_or_ask(mission_round, now)
-
-    def _decide_or_ask(self, mission_round: MissionRound, now: float) -> None:
-        """Decide, unless the decision might not be the team's: then ask the team what
-        it decided first, and decide ASK_GRACE_S later if no answer was adopted (or at
-        once, if what made it uncertain is gone: a missing result arrived)."""
-        if not mission_round.must_ask(self.team.alive):
-            self._decide(mission_round, now)
-        elif mission_round.asked_at is None:
-            mission_round.asked_at = now
-            excluded = sorted(mission_round.excluded(self.team.alive))
-            log.info(
-                "mission %d: asking the team what it decided before deciding (%s)",
-                mission_round.mission,
-                f"without {', '.join(map(str, excluded))}" if excluded else "the mission came late",
-            )
-            self.outputs.fetch_assignments(mission_round.mission)
-        elif not mission_round.asking(now):
-            self._decide(mission_round, now)
-
-    def _decide(self, mission_round: MissionRound, now: float) -> None:
-        missing = mission_round.missing(self.team.alive)
-        report = mission_round.decide(self.team.alive)
-        if missing:
-            self.say(
-                f"warning: mission {mission_round.mission}: deadline passed without "
-                f"{', '.join(map(str, sorted(missing)))}; assigned without them",
-                now,
-            )
-        self._apply(report, now)
-        self._replan_if_released(now)
+        report = self.decision.tick(mission_round, now)
+        if report is not None:
+            self._apply(report, now)
+            self._replan_if_released(now)
 
     # ---- the assignment ----------------------------------------------------------------------
     def _replan_if_released(self, now: float) -> None:
@@ -388,19 +349,9 @@ class MissionParticipation:
             return
         if self.life.phase == Phase.ABORTED:
             return
-        missing = mission_round.replan_missing()
-        if missing:
-            self.outputs.fetch_results(mission_round.mission, missing)
-            return
-        report = mission_round.replan()
-        if report is None:
-            return
-        self.say(
-            f"mission {report.mission}: re-plan epoch {report.epoch} without "
-            f"{', '.join(map(str, report.released))}",
-            now,
-        )
-        self._apply(report, now)
+        report = self.decision.replan(mission_round, now)
+        if report is not None:
+            self._apply(report, now)
 
     def _apply(self, report: AssignmentReport, now: float) -> None:
         """Publish the assignment this UAV follows now and fly what it says."""
@@ -415,7 +366,8 @@ class MissionParticipation:
         if report.target == flight.target:
             if report.target is None and self.life.phase in (Phase.COMPUTING, Phase.WAITING):
                 self.life.observe(Observation.ASSIGNED_NONE)
-                self.say(f"mission {report.mission}: no target assigned; keeping course", now)
+                text = f"mission {report.mission}: no target assigned; keeping course"
+                self.say(StatusKind.NO_TARGET, text, now, mission=report.mission)
             if report.target is None:
                 flight.leave_stale_target(now)
             return
@@ -437,7 +389,13 @@ class MissionParticipation:
             return
         self.flight.commit(target_index, self.round.targets.targets[target_index], now)
         eta = f"{report.eta_s:.0f} s" if report.eta_s is not None else "unknown"
-        self.say(f"mission {report.mission}: target {target_index} chosen, ETA {eta}", now)
+        self.say(
+            StatusKind.TARGET_CHOSEN,
+            f"mission {report.mission}: target {target_index} chosen, ETA {eta}",
+            now,
+            mission=report.mission,
+            target=target_index,
+        )
         self.life.observe(Observation.ASSIGNED_TARGET)
         if not self.flight.enabled:
             return
@@ -451,13 +409,15 @@ class MissionParticipation:
         off its target, or it failed): it does not fly it, and drops out like a failed
         UAV, so that the next epoch hands the orphan on instead of leaving it unflown."""
         why = f"handed target {target_index} at epoch {report.epoch} while {self.life.phase}"
-        self.say(f"warning: mission {report.mission}: {why}: not flying it", now)
-        if self.round is None:
-            return
-        outcome = TargetOutcome(report.mission, self.uav_id, target_index, Phase.FAILED, why)
-        self.round.outcome = outcome
-        self.outputs.publish(keys.mission_outcome(report.mission, self.uav_id), outcome)
-        if self.round.release((self.uav_id,)):
+        self.say(
+            StatusKind.ORPHAN_REFUSED,
+            f"warning: mission {report.mission}: {why}: not flying it",
+            now,
+            mission=report.mission,
+            target=target_index,
+        )
+        self.publish_outcome(Phase.FAILED, why, target_index)
+        if self.round is not None and self.round.release((self.uav_id,)):
             self._replan(now)
 
     def check_target(self, now: float) -> None:
@@ -472,9 +432,16 @@ class MissionParticipation:
         self.flight.give_up(why, now)
         lost = cause == Phase.LINK_LOST
         self.life.observe(Observation.LINK_LOST if lost else Observation.COMMAND_FAILED, why)
-        mission = self.round.mission if self.round else "?"
-        self.say(f"error: mission {mission}: cannot fly target {self.flight.target}: {why}", now)
-        self.publish_outcome(cause, why)
+        mission = self.current()
+        self.say(
+            StatusKind.CANNOT_FLY,
+            f"error: mission {'?' if mission is None else mission}: "
+            f"cannot fly target {self.flight.target}: {why}",
+            now,
+            mission=mission,
+            target=self.flight.target,
+        )
+        self.publish_outcome(cause, why, self.flight.target)
         if self.round is not None and self.round.release((self.uav_id,)):
             self._replan(now)
 
@@ -483,14 +450,3 @@ class MissionParticipation:
         if self._abort is None or self._abort.mission != mission:
             return None
         return self._abort
-
-
-def _refusal(targets: MissionTargets) -> str | None:
-    """Why a mission's targets are refused, if they are."""
-    try:
-        encode_targets(targets.targets, source=f"mission {targets.mission}")
-    except TargetsFileError as error:
-        return f"target {error.index}: {error.problem}" if targets.targets else error.problem
-    if not math.isfinite(targets.deadline_s) or targets.deadline_s <= 0:
-        return f"deadline {targets.deadline_s!r} s is not a positive number"
-    return None

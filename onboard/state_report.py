@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -18,12 +17,25 @@ import msgspec
 from fleet.mission import keys
 from fleet.mission.messages import MissionProgress, StatusText, UavResult, UavState
 from fleet.mission.phase import Phase, Severity
+from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import Telemetry
 
 log = logging.getLogger(__name__)
 
-#: How a role says something: a status message, at `now`.
-Say = Callable[[str, float], None]
+
+class Say(Protocol):
+    """How a role says something: a status message of `kind`, at `now`, about `mission`
+    and its `target` index when it concerns them."""
+
+    def __call__(
+        self,
+        kind: StatusKind,
+        text: str,
+        now: float,
+        *,
+        mission: int | None = None,
+        target: int | None = None,
+    ) -> None: ...
 
 
 class ReportOutputs(Protocol):
@@ -40,12 +52,19 @@ class StateReport:
     last_status: str | None = None
     _last_state_at: float = -math.inf
 
-    def status(self, text: str, now: float) -> None:
+    def status(
+        self,
+        kind: StatusKind,
+        text: str,
+        now: float,
+        *,
+        mission: int | None = None,
+        target: int | None = None,
+    ) -> None:
         """A status message: sent on change only (the periodic report is the state)."""
         self.last_status = text
-        severity = Severity.of_text(text)
-        (log.info if severity == Severity.INFO else log.warning)("%s", text)
-        message = StatusText(text, severity)
+        message = StatusText(text, kind, mission, target)
+        (log.info if message.severity == Severity.INFO else log.warning)("%s", text)
         self.outputs.publish(keys.status(self.uav_id), message)
         self.outputs.send_ground(message)
 

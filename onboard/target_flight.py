@@ -22,6 +22,7 @@ from fleet.mission import keys
 from fleet.mission.lifecycle import Observation
 from fleet.mission.messages import CommandResult, Target
 from fleet.mission.phase import Phase
+from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from onboard.autopilot_commands import AutopilotCommand, CommandTracker, Completion
@@ -60,7 +61,11 @@ class FlightMission(Protocol):
         """This UAV committed to an assignment of the current mission."""
         ...
 
-    def publish_outcome(self, phase: Phase, reason: str | None) -> None: ...
+    def current(self) -> int | None:
+        """The current mission's id (None: none)."""
+        ...
+
+    def publish_outcome(self, phase: Phase, reason: str | None, target: int | None) -> None: ...
 
 
 @dataclass
@@ -115,8 +120,14 @@ class TargetFlight:
         # pending would only turn it back to where it has been.
         self.commands.cancel_where(_is_target_write, f"target {self.target} reached")
         self.life.observe(Observation.WITHIN_RADIUS)
-        self.say(f"reached target {self.target} ({distance:.0f} m from it)", now)
-        self.mission.publish_outcome(Phase.REACHED, None)
+        self.say(
+            StatusKind.REACHED,
+            f"reached target {self.target} ({distance:.0f} m from it)",
+            now,
+            mission=self.mission.current(),
+            target=self.target,
+        )
+        self.mission.publish_outcome(Phase.REACHED, None, self.target)
 
     def on_track(self, track: Track, now: float) -> None:
         self.commands.on_echo(track, now)
@@ -142,7 +153,13 @@ class TargetFlight:
         where = "unknown distance" if distance is None else f"{distance:.0f} m"
         why = f"autopilot left the target route for waypoint {waypoint} at {where}"
         self.life.observe(Observation.LEFT_ROUTE, why)
-        self.say(f"warning: target not reached: {why}", now)
+        self.say(
+            StatusKind.NOT_REACHED,
+            f"warning: target not reached: {why}",
+            now,
+            mission=self.mission.current(),
+            target=self.target,
+        )
 
     def on_waypoint(self, waypoint: Waypoint, now: float) -> None:
         self.commands.on_echo(waypoint, now)
@@ -169,7 +186,13 @@ class TargetFlight:
             why = f"the ground commanded the autopilot directly ({what})"
             self.commands.cancel_all(why)
             self.life.observe(Observation.OPERATOR_COMMAND, why)
-            self.say(f"warning: target {self.target} given up: {why}", now)
+            self.say(
+                StatusKind.TARGET_GIVEN_UP,
+                f"warning: target {self.target} given up: {why}",
+                now,
+                mission=self.mission.current(),
+                target=self.target,
+            )
         self.commands.submit(command, now, on_done)
 
     # ---- flying the mission's target -------------------------------------------------------
@@ -202,7 +225,13 @@ class TargetFlight:
                 return
             self._target_tracked = True
             if self.life.observe(Observation.TRACK_ECHOED):
-                self.say(f"mission {mission}: flying to target {target_index}", now)
+                self.say(
+                    StatusKind.FLYING_TO_TARGET,
+                    f"mission {mission}: flying to target {target_index}",
+                    now,
+                    mission=mission,
+                    target=target_index,
+                )
 
         self.commands.submit(waypoint, now, track_target, persistent=True)
 
@@ -222,6 +251,7 @@ class TargetFlight:
         if not self.mission.decided():
             return  # nothing decided yet: it may still be handed that very target
         self.say(
+            StatusKind.STALE_TARGET_LEFT,
             "warning: the autopilot still tracks the target waypoint of a target this UAV "
             "no longer holds; resuming the course",
             now,

@@ -27,6 +27,7 @@ Pure: no I/O, time comes in as `now`.
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
@@ -39,6 +40,7 @@ from fleet.mission.messages import (
     TargetOutcome,
     UavResult,
 )
+from fleet.mission.targets_file import TargetsFileError, encode_targets
 
 FETCH_INTERVAL = 1.0
 #: A teammate's assignment that arrives this soon (s) after this UAV started the round
@@ -53,22 +55,20 @@ def assignment_problem(report: AssignmentReport, targets: MissionTargets) -> str
     """Why a teammate's assignment cannot be this mission's (None if it can be).
 
     The schema bounds each index by MAX_TARGETS only; here every pair must name a UAV of
-    the mission's team (its Piccolo ID written in decimal, as `decide` writes it) and a
-    target of this mission, no target twice, so that a hostile or corrupt report is
-    refused whole instead of being indexed, flown or re-planned.
+    the mission's team and a target of this mission, no target twice, so that a hostile or
+    corrupt report is refused whole instead of being indexed, flown or re-planned.
     """
     count = len(targets.targets)
-    team, names = _team_sets(targets.team)
+    team = _team_set(targets.team)
     pairs = report.pairs
-    # A team member's decimal name is exactly one of `names`: a set comparison in C
-    # checks every pair's UAV at once (the ground checks N reports of N pairs per mission,
-    # a UAV every re-plan it hears).
-    if not names >= pairs.keys() or (pairs and max(pairs.values()) >= count):
-        for key, index in pairs.items():  # name the first bad pair
-            if not key.isdecimal() or str(int(key)) != key or int(key) not in team:
-                return f"pair {key!r}: not a UAV of mission {targets.mission}'s team"
+    # A set comparison in C checks every pair's UAV at once (the ground checks N reports
+    # of N pairs per mission, a UAV every re-plan it hears).
+    if not team >= pairs.keys() or (pairs and max(pairs.values()) >= count):
+        for uav, index in pairs.items():  # name the first bad pair
+            if uav not in team:
+                return f"pair {uav}: not a UAV of mission {targets.mission}'s team"
             if index >= count:
-                return f"UAV {key}'s target {index}: mission {targets.mission} has {count}"
+                return f"UAV {uav}'s target {index}: mission {targets.mission} has {count}"
     if len(set(pairs.values())) != len(pairs):
         return "two UAVs paired with the same target"
     if report.target is not None and report.target >= count:
@@ -80,10 +80,21 @@ def assignment_problem(report: AssignmentReport, targets: MissionTargets) -> str
     return None
 
 
+def targets_problem(targets: MissionTargets) -> str | None:
+    """Why a mission's targets cannot be flown (None if they can be)."""
+    try:
+        encode_targets(targets.targets, source=f"mission {targets.mission}")
+    except TargetsFileError as error:
+        return f"target {error.index}: {error.problem}" if targets.targets else error.problem
+    if not math.isfinite(targets.deadline_s) or targets.deadline_s <= 0:
+        return f"deadline {targets.deadline_s!r} s is not a positive number"
+    return None
+
+
 @functools.lru_cache(maxsize=8)
-def _team_sets(team: tuple[int, ...]) -> tuple[frozenset[int], frozenset[str]]:
-    """A team's Piccolo IDs, and their decimal names (a few recent teams are kept)."""
-    return frozenset(team), frozenset(map(str, team))
+def _team_set(team: tuple[int, ...]) -> frozenset[int]:
+    """A team's Piccolo IDs (a few recent teams are kept)."""
+    return frozenset(team)
 
 
 @dataclass(frozen=True, slots=True)
@@ -152,7 +163,7 @@ class MissionRound:
     team: frozenset[int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        self.team = _team_sets(self.targets.team)[0]
+        self.team = _team_set(self.targets.team)
 
     @property
     def mission(self) -> int:
@@ -251,7 +262,7 @@ class MissionRound:
             mission=self.mission,
             uav=self.own_id,
             target=target,
-            pairs={str(uav): index for uav, index in sorted(outcome.pairs.items())},
+            pairs=dict(sorted(outcome.pairs.items())),
             unassigned=tuple(outcome.unassigned_targets),
             team=tuple(sorted(used)),
             digest=results_digest(used),
@@ -311,7 +322,7 @@ class MissionRound:
         return self.committed
 
     def _own_copy(self, report: AssignmentReport) -> AssignmentReport:
-        target = report.pairs.get(str(self.own_id))
+        target = report.pairs.get(self.own_id)
         own = self.results.get(self.own_id)
         return AssignmentReport(
             mission=self.mission,
@@ -353,7 +364,7 @@ class MissionRound:
             mission=self.mission,
             uav=self.own_id,
             target=target,
-            pairs={str(uav): index for uav, index in plan.pairs.items()},
+            pairs=dict(plan.pairs),
             unassigned=plan.unassigned,
             team=self.base.team,
             digest=plan.digest,

@@ -51,13 +51,13 @@ class Replan:
 def orphaned_targets(base: AssignmentReport, released: Iterable[int]) -> tuple[int, ...]:
     """Targets whose epoch-0 holder is released, ascending."""
     gone = set(released)
-    return tuple(sorted(t for uav, t in base.pairs.items() if int(uav) in gone))
+    return tuple(sorted(t for uav, t in base.pairs.items() if uav in gone))
 
 
 def candidates(base: AssignmentReport, released: Iterable[int]) -> tuple[int, ...]:
     """UAVs of the epoch-0 team, not released, that had no target at epoch 0."""
     gone = set(released)
-    holders = {int(uav) for uav in base.pairs}
+    holders = set(base.pairs)
     return tuple(sorted(u for u in base.team if u not in gone and u not in holders))
 
 
@@ -86,7 +86,7 @@ def replan(
     gone = tuple(sorted(set(released) & set(base.team)))
     orphans = orphaned_targets(base, gone)
     pool = candidates(base, gone)
-    kept = {int(uav): t for uav, t in base.pairs.items() if int(uav) not in gone}
+    kept = {uav: t for uav, t in base.pairs.items() if uav not in gone}
     if orphans and pool:
         # KeyError for a candidate whose times are missing: the caller fetches them.
         rows = {

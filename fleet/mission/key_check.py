@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from collections.abc import Set as AbstractSet
 from dataclasses import dataclass
 from typing import Any
 
@@ -136,14 +135,6 @@ def _team(key: str, team: tuple[int, ...]) -> None:
             raise WrongKey(f"{key}: team member {uav} is not a Piccolo ID")
 
 
-def _piccolo_id_texts(key: str, texts: AbstractSet[str]) -> None:
-    """WrongKey naming the first of `texts` that is not a Piccolo ID in decimal."""
-    if _PICCOLO_IDS.keys() >= texts:
-        return  # all known valid: one set operation in C
-    for text in texts:
-        _piccolo_id(text, key)
-
-
 def check_key(key: str, message: object) -> None:
     """Raise WrongKey unless `message` may travel on `key`."""
     ids = parse_key(key)
@@ -177,7 +168,7 @@ def _check_report(key: str, ids: KeyIds, message: AssignmentReport) -> None:
         indices.append(message.target)
     if indices and not (min(indices) >= 0 and max(indices) <= MAX_TARGET_INDEX):
         raise WrongKey(f"{key}: a target index outside 0-{MAX_TARGET_INDEX}")
-    _piccolo_id_texts(key, message.pairs.keys())
+    _team(key, tuple(message.pairs))
 
 
 def _check_targets(key: str, ids: KeyIds, message: MissionTargets) -> None:

@@ -14,6 +14,7 @@ import msgspec
 from msgspec import Meta
 
 from fleet.mission.phase import Phase, Severity
+from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import Telemetry
 
 #: Planning-protocol address of every UAV (thesis 2.9).
@@ -57,14 +58,26 @@ class OpmCommand(msgspec.Struct, frozen=True):
 
 
 class StatusText(msgspec.Struct, frozen=True):
-    """PAYLOAD_STATUS: a text status message from a UAV to the Mission Manager.
+    """PAYLOAD_STATUS: a status message from a UAV to the Mission Manager.
 
-    The binary payload link carries the text alone; its severity is then read from the
-    text's `error:` / `warning:` prefix (`Severity.of_text`).
+    `kind` says what happened; `mission` and `target` are the mission and the target
+    index it concerns, when it concerns one. Receivers act on these, never on `text`,
+    which is for people. `severity` is on the wire for tools that read the JSON alone;
+    it is always `kind.severity` (set here, whatever a sender passes).
+
+    The binary payload link carries the text alone: its edge gives it a generic kind
+    (`fleet.planning.bodies.decode_status`). A message recorded before kinds existed
+    decodes as `INFO`; `fleet.recording.mission_log` reads such records by their text.
     """
 
     text: str
+    kind: StatusKind = StatusKind.INFO
+    mission: MissionId | None = None
+    target: TargetIndex | None = None
     severity: Severity = Severity.INFO
+
+    def __post_init__(self) -> None:
+        msgspec.structs.force_setattr(self, "severity", self.kind.severity)
 
 
 class MissionTargets(msgspec.Struct, frozen=True):
@@ -136,8 +149,8 @@ class AssignmentReport(msgspec.Struct, frozen=True):
     mission: MissionId
     uav: PiccoloId
     target: TargetIndex | None  #: index of this UAV's target in the mission, None if idle
-    #: every UAV's target index, keyed by Piccolo ID as a string
-    pairs: Annotated[dict[str, TargetIndex], Meta(max_length=MAX_TEAM)]
+    #: every UAV's target index, keyed by Piccolo ID (a string in JSON: `{"74": 0}`)
+    pairs: Annotated[dict[PiccoloId, TargetIndex], Meta(max_length=MAX_TEAM)]
     unassigned: Annotated[tuple[TargetIndex, ...], Meta(max_length=MAX_TARGETS)]
     team: Team  #: the UAVs whose results were used
     digest: str

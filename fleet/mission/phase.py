@@ -31,17 +31,8 @@ FINAL_PHASES = frozenset({Phase.REACHED, Phase.PREEMPTED, Phase.ABORTED, Phase.F
 
 
 class Severity(StrEnum):
-    """How much a status message matters to the operator."""
+    """How much a status message matters to the operator (`StatusKind.severity`)."""
 
     INFO = "info"
     WARNING = "warning"
     ERROR = "error"
-
-    @classmethod
-    def of_text(cls, text: str) -> Severity:
-        """The severity a status text declares by its prefix (`error: ...`, `warning: ...`)."""
-        if text.startswith("error"):
-            return cls.ERROR
-        if text.startswith("warning"):
-            return cls.WARNING
-        return cls.INFO

@@ -23,7 +23,7 @@ from fleet.mission.messages import (
     Target,
     UavResult,
 )
-from fleet.mission.phase import Severity
+from fleet.mission.status_kind import StatusKind
 from fleet.planning.framing import (
     MAX_PAYLOAD_SIZE,
     PAYLOAD_UAV,
@@ -220,9 +220,20 @@ def decode_opm(body: bytes) -> OpmCommand:
 def decode_status(body: bytes) -> StatusText:
     try:
         text = body.decode("utf-8")
-        return StatusText(text=text, severity=Severity.of_text(text))
     except UnicodeDecodeError:
         raise Malformed("status text is not UTF-8") from None
+    return StatusText(text, status_kind_of_text(text))
+
+
+def status_kind_of_text(text: str) -> StatusKind:
+    """The kind of a status text that arrived without one: the payload link carries the
+    text alone, and its `error:` / `warning:` prefix (the onboard convention) says which
+    generic kind it is. The only place a status text's prefix is read."""
+    if text.startswith("error"):
+        return StatusKind.ERROR
+    if text.startswith("warning"):
+        return StatusKind.WARNING
+    return StatusKind.INFO
 
 
 def _decode_targets(data: bytes) -> MissionTargets:

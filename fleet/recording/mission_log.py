@@ -6,13 +6,19 @@ Every event is one observed in the recording, never inferred from a plan:
 * committed: a UAV's assignment report was heard (the mission's: the last team UAV's);
 * course change: the UAV's first track change after its commitment (it turned to its
   target waypoint, as its autopilot echoed);
-* reached: the UAV said so (status "reached", or state phase "reached"), or its track
-  left the target waypoint (the autopilot passed it), whichever was heard first;
+* reached: the UAV said so (a `reached` status message, or state phase "reached"), or
+  its track left the target waypoint (the autopilot passed it), whichever was heard
+  first;
 * resumed: that track change back to its own course.
 
 Flown time is measured on the aircraft's own clock (telemetry `system_time_ms`) from
 the UAV's commitment to its arrival, so it compares with the predicted ETA whatever
 the simulator's speedup. Times are seconds since the recording's first message.
+
+A status message recorded before status messages had a kind (no `kind` field) still
+reads: it said its UAV arrived when its text starts with "reached" (what the onboard
+said then, "reached target N ..."), and it is a fault when the severity it carried is
+a warning or an error.
 """
 
 from __future__ import annotations
@@ -25,7 +31,15 @@ from typing import Any
 
 import msgspec
 
-from fleet.mission.messages import AssignmentReport, MissionTargets, Target, UavResult
+from fleet.mission.messages import (
+    AssignmentReport,
+    MissionTargets,
+    StatusText,
+    Target,
+    UavResult,
+)
+from fleet.mission.phase import Severity
+from fleet.mission.status_kind import StatusKind
 from fleet.recording.reader import RecordedMessage
 
 NS = 1_000_000_000
@@ -126,6 +140,27 @@ class Timeline:
 
 
 # ---- reading the messages ----------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Said:
+    """A status message, as much of it as the timeline needs."""
+
+    t: float
+    uav: int
+    text: str
+    reached: bool  #: it says the UAV arrived at its target
+    fault: bool  #: a warning or an error
+
+
+def _said(t: float, uav: int, value: dict[str, Any]) -> _Said:
+    status = msgspec.convert(value, StatusText, str_keys=True)
+    if "kind" in value:
+        reached, severity = status.kind is StatusKind.REACHED, status.severity
+    else:  # recorded before status kinds (see the module's docstring)
+        reached = status.text.startswith("reached")
+        severity = msgspec.convert(value.get("severity", Severity.INFO), Severity)
+    return _Said(t, uav, status.text, reached, severity is not Severity.INFO)
+
+
 def _leaf(topic: str) -> list[str]:
     return topic.split("/")[1:]
 
@@ -146,7 +181,7 @@ class _Builder:
     tracks: dict[int, Track] = field(default_factory=dict)
     missions: dict[int, MissionLog] = field(default_factory=dict)
     track_changes: dict[int, list[tuple[float, int]]] = field(default_factory=dict)
-    statuses: list[tuple[float, int, str]] = field(default_factory=list)
+    statuses: list[_Said] = field(default_factory=list)
     phases: list[tuple[float, int, int, str]] = field(default_factory=list)
     gone: list[tuple[float, int]] = field(default_factory=list)
     link_down: list[tuple[float, int, str]] = field(default_factory=list)
@@ -186,7 +221,7 @@ class _Builder:
         elif leaf == "track":
             self.track_changes.setdefault(uav, []).append((t, int(value["waypoint"])))
         elif leaf == "status":
-            self.statuses.append((t, uav, str(value["text"])))
+            self.statuses.append(_said(t, uav, value))
         elif leaf == "state":
             mission = value.get("mission")
             if isinstance(mission, dict):
@@ -201,7 +236,7 @@ class _Builder:
 
     def _add_mission(self, t: float, kind: str, value: Any) -> None:
         if kind == "targets":
-            targets = msgspec.convert(value, MissionTargets)
+            targets = msgspec.convert(value, MissionTargets, str_keys=True)
             if not all(_on_earth(p.lat, p.lon) for p in targets.targets):
                 raise ValueError("a target not on Earth")
             if targets.mission not in self.missions:
@@ -209,11 +244,11 @@ class _Builder:
                     targets.mission, targets.team, targets.targets, sent=t, end=t
                 )
         elif kind == "result":
-            result = msgspec.convert(value, UavResult)
+            result = msgspec.convert(value, UavResult, str_keys=True)
             if (log := self.missions.get(result.mission)) is not None:
                 log.results.setdefault(result.uav, result)
         elif kind == "assignment":
-            report = msgspec.convert(value, AssignmentReport)
+            report = msgspec.convert(value, AssignmentReport, str_keys=True)
             if (log := self.missions.get(report.mission)) is not None:
                 if report.target is not None and not 0 <= report.target < len(log.targets):
                     raise ValueError(f"target {report.target} is not one of the mission's")
@@ -243,9 +278,9 @@ class _Builder:
                 if back:
                     log.resumed[uav] = back[0][0]
             said = [
-                (t, "status")
-                for t, who, text in self.statuses
-                if who == uav and committed <= t <= log.end and "reached" in text.lower()
+                (status.t, "status")
+                for status in self.statuses
+                if status.uav == uav and status.reached and committed <= status.t <= log.end
             ]
             said += [
                 (t, "phase")
@@ -270,9 +305,9 @@ class _Builder:
     def _faults(self, log: MissionLog) -> None:
         team = set(log.team)
         window = (log.sent, log.end)
-        for t, uav, text in self.statuses:
-            if uav in team and _within(t, window) and text.lower().startswith(("error", "warn")):
-                log.faults.append((t, f"UAV {uav}: {text}"))
+        for said in self.statuses:
+            if said.uav in team and said.fault and _within(said.t, window):
+                log.faults.append((said.t, f"UAV {said.uav}: {said.text}"))
         for t, uav in self.gone:
             if uav in team and _within(t, window) and t < self.end - SHUTDOWN_S:
                 log.faults.append((t, f"UAV {uav} left (liveliness token gone)"))

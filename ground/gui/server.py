@@ -139,7 +139,7 @@ class GuiServer:
                     await ws.close()
 
     def _on_status(self, status: StatusRecord) -> None:
-        self.model.add_status(status.uav, status.text, status.time, status.severity)
+        self.model.add_status(status)
         if self._coalescer is not None:
             self._coalescer.mark()
 

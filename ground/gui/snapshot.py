@@ -19,7 +19,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import time
 from collections import deque
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
@@ -53,17 +52,6 @@ class TargetState(StrEnum):
     REACHED = "reached"
     UNSERVED = "unserved"  #: every UAV committed and none took it
     ABORTED = "aborted"
-
-
-def severity_of(text: str) -> Severity:
-    """The status text's own prefix ("error: ...", "warning: ..."), the onboard convention,
-    for a message that carries no severity of its own."""
-    lower = text.lower()
-    if lower.startswith("error"):
-        return Severity.ERROR
-    if lower.startswith("warning"):
-        return Severity.WARNING
-    return Severity.INFO
 
 
 @dataclass(frozen=True)
@@ -135,19 +123,12 @@ class GuiModel:
     #: The warnings and errors the page keeps in view (`ground.alerts`).
     alerts: Alerts = field(default_factory=Alerts)
 
-    def add_status(
-        self,
-        uav: int,
-        text: str,
-        wall_time: float | None = None,
-        severity: Severity | None = None,
-    ) -> None:
-        """A status message; its severity as it carried it, else read from its text."""
+    def add_status(self, record: StatusRecord) -> None:
+        """A status message as the ground received it; its kind says its severity."""
         self._seq += 1
-        when = time.time() if wall_time is None else wall_time
-        level = severity if severity is not None else severity_of(text)
-        self.statuses.append(StatusEntry(self._seq, when, uav, text, level))
-        self.alerts.add(StatusRecord(when, uav, text, level))
+        entry = StatusEntry(self._seq, record.time, record.uav, record.text, record.severity)
+        self.statuses.append(entry)
+        self.alerts.add(record)
 
     def alerts_json(self) -> list[dict[str, Any]]:
         """The pinned warnings and errors, oldest first."""

@@ -92,7 +92,7 @@ def test_decide_runs_the_greedy_on_the_live_results_and_commits() -> None:
     assert report.mission == 7
     assert report.uav == 112
     assert report.target == 1
-    assert report.pairs == {"74": 0, "112": 1}
+    assert report.pairs == {74: 0, 112: 1}
     assert report.unassigned == ()
     assert report.team == (74, 112)
     assert report.digest == results_digest({74: TIMES[74], 112: TIMES[112]})
@@ -179,18 +179,16 @@ def test_a_commitment_without_a_held_teammate_result_is_refused() -> None:
 
 
 def test_an_assignment_that_cannot_be_this_missions_is_named() -> None:
-    def report(pairs: dict[str, int], **extra: object) -> AssignmentReport:
+    def report(pairs: dict[int, int], **extra: object) -> AssignmentReport:
         fields: dict[str, object] = {"target": None, "unassigned": (), "team": (74, 112)}
         fields.update(extra)
         return AssignmentReport(7, 74, pairs=pairs, digest="d", **fields)  # type: ignore[arg-type]
 
-    assert assignment_problem(report({"74": 0, "112": 1}), TARGETS) is None
+    assert assignment_problem(report({74: 0, 112: 1}), TARGETS) is None
     for bad, why in [
-        (report({"74": 2}), "has 2"),
-        (report({"abc": 0}), "not a UAV"),
-        (report({"074": 0}), "not a UAV"),
-        (report({"999": 0}), "not a UAV"),
-        (report({"74": 0, "112": 0}), "same target"),
+        (report({74: 2}), "has 2"),
+        (report({999: 0}), "not a UAV"),
+        (report({74: 0, 112: 0}), "same target"),
         (report({}, target=5), "has 2"),
         (report({}, unassigned=(3,)), "beyond"),
         (report({}, team=(74, 999)), "outside"),
@@ -252,7 +250,7 @@ def test_settled_covers_only_reports_that_change_nothing() -> None:
 def test_settled_without_epoch_zero_takes_later_epochs() -> None:
     mission_round = round_of(112)  # restarted: no result of its own
     report = AssignmentReport(
-        mission=7, uav=74, target=0, pairs={"74": 0, "112": 1}, unassigned=(),
+        mission=7, uav=74, target=0, pairs={74: 0, 112: 1}, unassigned=(),
         team=(74, 112), digest="d", epoch=1, released=(200,),
     )  # fmt: skip
     assert mission_round.follow(report) is None

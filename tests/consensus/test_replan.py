@@ -24,7 +24,7 @@ def base_report(times: dict[int, tuple[float | None, ...]] = TIMES) -> Assignmen
         mission=1,
         uav=74,
         target=outcome.pairs.get(74),
-        pairs={str(u): t for u, t in outcome.pairs.items()},
+        pairs=dict(outcome.pairs),
         unassigned=outcome.unassigned_targets,
         team=tuple(sorted(times)),
         digest=results_digest(times),
@@ -33,7 +33,7 @@ def base_report(times: dict[int, tuple[float | None, ...]] = TIMES) -> Assignmen
 
 def test_the_idle_uav_takes_the_target_of_a_released_holder() -> None:
     base = base_report()
-    assert base.pairs == {"74": 0, "112": 1}
+    assert base.pairs == {74: 0, 112: 1}
     assert orphaned_targets(base, {112}) == (1,)
     assert candidates(base, {112}) == (200,)
     plan = replan(base, TIMES, {112})

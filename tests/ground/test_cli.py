@@ -27,7 +27,8 @@ from fleet.mission.messages import (
     Target,
     UavResult,
 )
-from fleet.mission.phase import Phase, Severity
+from fleet.mission.phase import Phase
+from fleet.mission.status_kind import StatusKind
 from fleet.transport import bus_codec
 from fleet.transport.targets_io import write_targets
 from fleet.transport.zenoh_config import CONNECT_ENV, make_config
@@ -333,7 +334,7 @@ def test_watch_keeps_a_warning_in_view_while_info_streams_past(
         first = watch.stdout.readline()  # the first frame: watch is subscribed
         assert first.startswith("-- "), first
         # The severity the message carries counts, not its wording.
-        fakes[112].put(keys.status(112), StatusText("GPS fix degraded", Severity.WARNING))
+        fakes[112].put(keys.status(112), StatusText("GPS fix degraded", StatusKind.WARNING))
         out, err = watch.communicate(timeout=CLI_TIMEOUT_S)
     finally:
         if watch.poll() is None:
@@ -406,11 +407,11 @@ def test_targets_make_and_show(tmp_path: Path, capsys: pytest.CaptureFixture[str
 
 
 # ---- agreement (pure) ------------------------------------------------------------------------
-def _report(uav: int, digest: str, pairs: dict[str, int]) -> AssignmentReport:
+def _report(uav: int, digest: str, pairs: dict[int, int]) -> AssignmentReport:
     return AssignmentReport(
         mission=1,
         uav=uav,
-        target=pairs.get(str(uav)),
+        target=pairs.get(uav),
         pairs=pairs,
         unassigned=(),
         team=(1, 2, 3),
@@ -419,7 +420,7 @@ def _report(uav: int, digest: str, pairs: dict[str, int]) -> AssignmentReport:
 
 
 def test_agreement_names_the_minority_and_the_missing() -> None:
-    pairs = {"1": 0, "2": 1, "3": 2}
+    pairs = {1: 0, 2: 1, 3: 2}
     reports = {1: _report(1, "a", pairs), 2: _report(2, "a", pairs), 3: _report(3, "b", pairs)}
     agreement = check_agreement((1, 2, 3), reports)
     assert not agreement.agreed

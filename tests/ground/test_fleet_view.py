@@ -5,6 +5,7 @@ from __future__ import annotations
 from fleet.mission import keys
 from fleet.mission.messages import StatusText
 from fleet.mission.phase import Severity
+from fleet.mission.status_kind import StatusKind
 from fleet.transport.memory import MemoryNetwork
 from ground.alerts import StatusRecord
 from ground.fleet_view import FleetView, fleet_snapshot, live_uav_ids, query_states
@@ -41,7 +42,7 @@ def test_the_live_view_follows_tokens_and_status_messages() -> None:
         assert view.live_ids() == [5]  # a token present before the view is seen at once
         late = MemoryUav(network, 6)
         assert view.live_ids() == [5, 6]
-        late.bus.publish(keys.status(6), StatusText("link slow", Severity.WARNING))
+        late.bus.publish(keys.status(6), StatusText("link slow", StatusKind.WARNING))
         assert [(s.uav, s.text, s.severity) for s in statuses] == [
             (6, "link slow", Severity.WARNING)
         ]

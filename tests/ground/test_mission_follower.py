@@ -63,7 +63,7 @@ def test_results_and_commitments_are_collected_and_a_lost_uav_is_not_waited_for(
     heard: list[str] = []
     with MissionFollower(network.bus(), 60, lambda kind, _: heard.append(kind), (7, 8)) as f:
         seven.bus.publish(keys.mission_result(60, 7), UavResult(60, 7, (1.0,)))
-        report = AssignmentReport(60, 7, 0, {"7": 0}, (), (7,), "d")
+        report = AssignmentReport(60, 7, 0, {7: 0}, (), (7,), "d")
         seven.bus.publish(keys.mission_assignment(60, 7), report)
         assert heard == ["result", "assignment"]
         assert f.wait_committed((7, 8), timeout_s=0.1, fetch_every_s=0.05) is False

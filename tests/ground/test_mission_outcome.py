@@ -27,7 +27,7 @@ def test_the_summary_says_superseded() -> None:
 
 def test_after_a_re_plan_a_target_belongs_to_its_latest_epoch_holder() -> None:
     def report(uav: int, target: int | None, epoch: int) -> AssignmentReport:
-        pairs = {"101": 0, "102": 1} if epoch == 0 else {"102": 1, "103": 0}
+        pairs = {101: 0, 102: 1} if epoch == 0 else {102: 1, 103: 0}
         released = () if epoch == 0 else (101,)
         return AssignmentReport(
             1, uav, target, pairs, (), (101, 102, 103), "d", epoch=epoch, released=released

@@ -111,7 +111,7 @@ def test_two_holders_killed_at_once_their_targets_go_to_the_two_idle_uavs(
     report = json.loads(out)
     states = {s["index"]: s for s in report["target_states"]}
     for uav in idle:
-        target = first.pairs[str(uav)]
+        target = first.pairs[uav]
         assert states[target] == {"index": target, "state": "reached", "uav": uav}, err
         place = ring_targets(2, seed=7)[target]
         assert seen.closest_approach(uav, place.lat, place.lon) <= 75.0

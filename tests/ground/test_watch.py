@@ -9,7 +9,7 @@ import time
 
 from fleet.mission import keys
 from fleet.mission.messages import StatusText
-from fleet.mission.phase import Severity
+from fleet.mission.status_kind import StatusKind
 from fleet.transport.zenoh_bus import client_bus
 from ground.alerts import StatusRecord
 from ground.watch import alerts_box, status_line, watch
@@ -17,18 +17,21 @@ from tests.support.fake_onboard import FakeOnboard
 
 
 def test_each_status_line_starts_with_its_severity() -> None:
-    assert status_line(StatusRecord(0.0, 74, "reached target 0", Severity.INFO)).startswith(
+    assert status_line(StatusRecord(0.0, 74, "reached target 0", StatusKind.INFO)).startswith(
         "info    "
     )
-    line = status_line(StatusRecord(0.0, 74, "link slow", Severity.WARNING))
+    line = status_line(StatusRecord(0.0, 74, "link slow", StatusKind.WARNING))
     assert line.startswith("warning ") and line.endswith(" UAV 74: link slow")
-    assert status_line(StatusRecord(0.0, 7, "x", Severity.ERROR)).startswith("error   ")
+    assert status_line(StatusRecord(0.0, 7, "x", StatusKind.ERROR)).startswith("error   ")
 
 
 def test_the_pinned_box_lists_newest_first_and_is_absent_when_empty() -> None:
     assert alerts_box([]) == []
     box = alerts_box(
-        [StatusRecord(0.0, 1, "old", Severity.WARNING), StatusRecord(1.0, 2, "new", Severity.ERROR)]
+        [
+            StatusRecord(0.0, 1, "old", StatusKind.WARNING),
+            StatusRecord(1.0, 2, "new", StatusKind.ERROR),
+        ]
     )
     assert box[0] == "warnings and errors (pinned):"
     assert "UAV 2: new" in box[1] and "UAV 1: old" in box[2]
@@ -53,7 +56,9 @@ def test_on_a_terminal_each_frame_redraws_table_pinned_alerts_and_stream(
                 if time.monotonic() > deadline:
                     return
                 time.sleep(0.02)
-            fakes[74].put(keys.status(74), StatusText("error: autopilot link lost", Severity.ERROR))
+            fakes[74].put(
+                keys.status(74), StatusText("error: autopilot link lost", StatusKind.LINK_LOST)
+            )
             seen.set()
 
         thread = threading.Thread(target=warn_once_watching)

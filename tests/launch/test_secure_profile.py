@@ -201,7 +201,7 @@ def test_uav_74_cannot_declare_another_uavs_liveliness(
 
 # ---- the attacks of the issue, replayed during a real mission ------------------------------
 def attack(uav74: zenoh.Session, mission: int) -> None:
-    everyone_to_2 = {"74": 2, "112": 2}
+    everyone_to_2 = {74: 2, 112: 2}
     forged = AssignmentReport(mission, 112, 2, everyone_to_2, (0, 1), (74, 112), "rogue")
     put(uav74, keys.mission_assignment(mission, 112), forged)
     # Not forged: 74's own assignment. A holder of UAV 74's key speaks for UAV 74, and its

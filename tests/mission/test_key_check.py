@@ -24,7 +24,7 @@ TARGETS = (Target(35.7, -120.7, 600.0),)
 
 def report(uav: int, mission: int = 5, **changes: object) -> AssignmentReport:
     fields: dict[str, object] = {
-        "mission": mission, "uav": uav, "target": 0, "pairs": {str(uav): 0},
+        "mission": mission, "uav": uav, "target": 0, "pairs": {uav: 0},
         "unassigned": (), "team": (uav,), "digest": "d",
     }  # fmt: skip
     fields.update(changes)
@@ -60,7 +60,7 @@ def test_a_message_on_its_own_key_passes(key: str, message: object) -> None:
         (keys.mission_targets(5), MissionTargets(5, (74, 0), TARGETS), "member 0"),
         (keys.mission_targets(2**32), MissionTargets(2**32, (74,), TARGETS), "outside"),
         (keys.mission_assignment(5, 74), report(74, target=70000), "target index"),
-        (keys.mission_assignment(5, 74), report(74, pairs={"x": 0}), "not a decimal"),
+        (keys.mission_assignment(5, 74), report(74, pairs={0: 0}), "member 0"),
         (keys.state(999), state(74), "UAV 74, not the key's 999"),
         (keys.state(74), state(74, MissionProgress(2**40, Phase.IDLE, 0)), "not a u32"),
         (

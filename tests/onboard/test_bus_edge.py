@@ -122,7 +122,7 @@ def test_close_withdraws_the_token(harness: Harness) -> None:
 
 def _report(uav: int, mission: int = 3, **changes: object) -> AssignmentReport:
     fields: dict[str, object] = {
-        "mission": mission, "uav": uav, "target": 0, "pairs": {str(uav): 0},
+        "mission": mission, "uav": uav, "target": 0, "pairs": {uav: 0},
         "unassigned": (), "team": (UAV, 74), "digest": "d",
     }  # fmt: skip
     fields.update(changes)

@@ -37,7 +37,7 @@ def test_a_mission_heard_live_just_after_a_freeze_asks_the_team_at_once(
     mission = MissionTargets(mission=8, team=(74, 112), targets=TARGETS)
     core.on_targets(mission, 20.1)
     assert 8 in out.assignment_fetches
-    committed = AssignmentReport(8, 112, 1, {"74": 0, "112": 1}, (2,), (74, 112), "abc")
+    committed = AssignmentReport(8, 112, 1, {74: 0, 112: 1}, (2,), (74, 112), "abc")
     core.on_result(UavResult(8, 112, (50.0, 10.0, 50.0)), 20.15)
     core.on_assignment(committed, 20.2)  # the answer
     (report,) = out.on(keys.mission_assignment(8, 74))
@@ -53,7 +53,7 @@ def test_a_uav_back_from_a_freeze_adopts_the_team_decision_made_without_it() -> 
     core.on_targets(MissionTargets(mission=8, team=(74, 112), targets=TARGETS), 20.0)
     core.on_result(UavResult(8, 112, (50.0, 10.0, 50.0)), 20.1)
     core.tick(20.2)  # its own result; it asks before deciding
-    without = AssignmentReport(8, 112, 0, {"112": 0}, (1, 2), (112,), "without-74")
+    without = AssignmentReport(8, 112, 0, {112: 0}, (1, 2), (112,), "without-74")
     core.on_assignment(without, 20.2 + JOIN_GRACE_S + 0.1)
     (report,) = out.on(keys.mission_assignment(8, 74))
     assert isinstance(report, AssignmentReport) and report.digest == "without-74"

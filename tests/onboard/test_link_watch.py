@@ -34,7 +34,7 @@ def test_lost_telemetry_is_link_lost_and_declines_a_mission() -> None:
 
 def test_the_watch_says_lost_once_and_back_once() -> None:
     said: list[str] = []
-    watch = LinkWatch(lambda text, now: said.append(text))
+    watch = LinkWatch(lambda kind, text, now, **_: said.append(text))
     assert watch.lost(0.0)  # no telemetry ever came
     watch.check(10.0)
     assert said == []  # nothing flowed yet, so nothing stopped

@@ -42,7 +42,7 @@ def assert_agreed(reports: dict[int, AssignmentReport], team: set[int], n_target
             first.digest,
             first.unassigned,
         ), f"UAV {report.uav} disagrees"
-        assert report.target == first.pairs.get(str(report.uav))
+        assert report.target == first.pairs.get(report.uav)
     targets = list(first.pairs.values())
     assert len(targets) == len(set(targets)) == min(len(team), n_targets)
     assert sorted([*targets, *first.unassigned]) == list(range(n_targets))
@@ -98,7 +98,7 @@ def test_head_on_two_uavs_take_distinct_targets_reach_them_and_resume(
     wait_until(lambda: len(seen.assignments) == 2, 30.0, "both assignments")
     assert_agreed(dict(seen.assignments), {74, 112}, len(targets))
     pairs = seen.assignments[74].pairs
-    assert pairs == {"74": 0, "112": 1}  # the contested target goes to the faster UAV
+    assert pairs == {74: 0, 112: 1}  # the contested target goes to the faster UAV
 
     def back_on_course(uav: int) -> bool:
         tracks = seen.tracks.get(uav, [])
@@ -109,7 +109,7 @@ def test_head_on_two_uavs_take_distinct_targets_reach_them_and_resume(
 
     wait_until(lambda: back_on_course(74) and back_on_course(112), 90.0, "both resumed")
     for uav in (74, 112):
-        target = targets[pairs[str(uav)]]
+        target = targets[pairs[uav]]
         assert seen.closest_approach(uav, target.lat, target.lon) <= 75.0
         tracks = seen.tracks[uav]
         assert tracks[tracks.index(TARGET_WAYPOINT) + 1] == original[uav]
@@ -261,4 +261,4 @@ def test_a_uav_frozen_while_the_mission_was_sent_falls_in_line_when_it_resumes(
     reference = seen.assignments[team[0]]
     assert resumed.mission == 1
     assert (resumed.digest, resumed.pairs) == (reference.digest, reference.pairs)
-    assert resumed.target == reference.pairs.get(str(team[-1]))
+    assert resumed.target == reference.pairs.get(team[-1])

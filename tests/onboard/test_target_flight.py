@@ -196,7 +196,7 @@ def test_a_restarted_uav_left_on_the_target_route_leaves_it_when_the_re_plan_rel
         core.on_alive(uav, True, 0.0)
     core.on_targets(MissionTargets(mission=3, team=(74, 112, 200), targets=TWO_TARGETS), 0.1)
     epoch_1 = AssignmentReport(
-        3, 74, 0, {"74": 0, "200": 1}, (), (74, 112, 200), "r", epoch=1, released=(112,)
+        3, 74, 0, {74: 0, 200: 1}, (), (74, 112, 200), "r", epoch=1, released=(112,)
     )
     core.on_assignment(epoch_1, 0.2)  # fetched at start: it was released meanwhile
     if not track_first:

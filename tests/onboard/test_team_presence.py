@@ -53,7 +53,7 @@ def test_an_idle_uav_flies_the_target_of_a_holder_lost_after_the_commitment() ->
     assert out.on(keys.mission_replan(3, 200)) == [second]  # and re-plans live too
     assert isinstance(second, AssignmentReport)
     assert (second.target, second.epoch, second.released) == (1, 1, (112,))
-    assert second.pairs == {"74": 0, "200": 1}
+    assert second.pairs == {74: 0, 200: 1}
     assert core.state(5.0).phase == Phase.COMMITTED
     (waypoint,) = [c for c in out.autopilot if isinstance(c, Waypoint)]
     assert (waypoint.lat, waypoint.lon) == (TWO_TARGETS[1].lat, TWO_TARGETS[1].lon)

@@ -15,6 +15,7 @@ from fleet.mission.messages import (
     Target,
     UavResult,
 )
+from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from fleet.piccolo.track import Track
 from fleet.recording import channels
@@ -50,7 +51,7 @@ def report(uav: int, target: int, eta: float, digest: str = "d1") -> AssignmentR
         mission=5,
         uav=uav,
         target=target,
-        pairs={"1": 0, "2": 1},
+        pairs={1: 0, 2: 1},
         unassigned=(),
         team=TEAM,
         digest=digest,
@@ -74,7 +75,9 @@ def mission_messages(digest_2: str = "d1") -> list[RecordedMessage]:
         message(6.0, "fleet/uav/2/link", LinkHealth(False, True, 3, {}, None)),
         message(6.5, "fleet/uav/2/link", LinkHealth(False, True, 3, {}, None)),
         message(7.0, "fleet/uav/1/track", Track(0)),
-        message(7.1, "fleet/uav/1/status", StatusText("reached target 0; resuming course")),
+        message(
+            7.1, "fleet/uav/1/status", StatusText("reached target 0", StatusKind.REACHED, 5, 0)
+        ),
     ]
     return found
 
@@ -94,6 +97,37 @@ def test_the_mission_events_come_from_what_was_heard() -> None:
     assert list(log.events()) == ["sent", "committed", "course change", "reached", "resumed"]
     faults = [what for _, what in log.faults]
     assert faults == ["UAV 2: program link down", "UAV 2 not seen to reach its target"]
+
+
+def raw(t: float, key: str, json: bytes) -> RecordedMessage:
+    spec = channels.channel_for(key)
+    return RecordedMessage(key, spec.pattern, spec.schema_name, round(t * NS), round(t * NS), json)
+
+
+def test_arrival_and_faults_are_read_from_the_status_kind_not_its_text() -> None:
+    said = [
+        message(3.5, "fleet/uav/2/status", StatusText("target reached?", StatusKind.INFO)),
+        message(
+            4.0,
+            "fleet/uav/2/status",
+            StatusText("warning: target not reached: x", StatusKind.NOT_REACHED, 5, 1),
+        ),
+        message(5.0, "fleet/uav/1/status", StatusText("arrived", StatusKind.REACHED, 5, 0)),
+    ]
+    (log,) = build_timeline([*mission_messages(), *said]).missions
+    assert log.reached == {1: 5.0} and log.reached_how == {1: "status"}
+    assert "UAV 2: warning: target not reached: x" in [what for _, what in log.faults]
+
+
+def test_a_status_recorded_before_status_kinds_still_reads() -> None:
+    """No `kind`: its text says an arrival, the severity it carried says a fault."""
+    said = [
+        raw(4.0, "fleet/uav/2/status", b'{"text": "GPS degraded", "severity": "warning"}'),
+        raw(5.0, "fleet/uav/1/status", b'{"text": "reached target 0", "severity": "info"}'),
+    ]
+    (log,) = build_timeline([*mission_messages(), *said]).missions
+    assert log.reached == {1: 5.0} and log.reached_how == {1: "status"}
+    assert "UAV 2: GPS degraded" in [what for _, what in log.faults]
 
 
 def test_disagreeing_digests_are_a_fault() -> None:

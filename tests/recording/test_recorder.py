@@ -53,7 +53,8 @@ def test_records_puts_and_tokens_and_drops_what_is_not_json(tmp_path: Path) -> N
             recorder.stop()
     recording = read_recording(tmp_path / "r.mcap")
     values = [(m.topic, m.value()) for m in recording.messages]
-    assert ("fleet/uav/7/status", {"text": "hello", "severity": "info"}) in values
+    hello = {"text": "hello", "kind": "info", "mission": None, "target": None, "severity": "info"}
+    assert ("fleet/uav/7/status", hello) in values
     alive = [value for topic, value in values if topic == "fleet/uav/7/alive"]
     assert alive == [{"alive": True}, {"alive": False}] and len(values) == 3
     assert recording.channels["fleet/uav/7/alive"].schema_name == "fleet.Liveliness"

@@ -149,7 +149,7 @@ class FakeOnboard:
         rows = {u: [approach_time(u, i) for i in range(n)] for u in targets.team}
         result = UavResult(mission=m, uav=self.uav_id, times=tuple(rows[self.uav_id]))
         assignment = greedy_assign(rows, n)
-        pairs = {str(u): t for u, t in assignment.pairs.items()}
+        pairs = dict(assignment.pairs)
         digest = results_digest(rows)
         if self.disagree:
             pairs = {u: (t + 1) % n for u, t in pairs.items()}
@@ -157,12 +157,12 @@ class FakeOnboard:
         report = AssignmentReport(
             mission=m,
             uav=self.uav_id,
-            target=pairs.get(str(self.uav_id)),
+            target=pairs.get(self.uav_id),
             pairs=pairs,
             unassigned=assignment.unassigned_targets,
             team=targets.team,
             digest=digest,
-            eta_s=rows[self.uav_id][t] if (t := pairs.get(str(self.uav_id))) is not None else None,
+            eta_s=rows[self.uav_id][t] if (t := pairs.get(self.uav_id)) is not None else None,
         )
         with self._lock:
             self._served[keys.mission_result(m, self.uav_id)] = bus_codec.encode(result)

@@ -59,7 +59,13 @@ def test_fleet_decode_names_kinds_in_si_units() -> None:
     assert telemetry["kind"] == "telemetry"
     gps = telemetry["message"]["gps"]  # type: ignore[index]
     assert abs(gps["lat"] - 42.36) < 1e-6 and gps["vel_east"] == 21.5
-    assert status["kind"] == "status" and status["message"] == {"text": "hello", "severity": "info"}
+    assert status["kind"] == "status" and status["message"] == {
+        "text": "hello",
+        "kind": "info",  # the payload edge's generic kind
+        "mission": None,
+        "target": None,
+        "severity": "info",
+    }
     assert drops["packets"] == 2
 
 

@@ -7,9 +7,10 @@ import threading
 import time
 
 from fleet.mission.messages import AssignmentReport, Target, UavResult
-from fleet.mission.phase import Severity
+from fleet.mission.status_kind import StatusKind
+from ground.alerts import StatusRecord
 from ground.fleet_view import UavView
-from ground.gui.snapshot import Coalescer, GuiModel, severity_of, target_states
+from ground.gui.snapshot import Coalescer, GuiModel, target_states
 from ground.mission_outcome import MissionOutcome
 
 TARGETS = (Target(35.72, -120.76, 600.0), Target(35.71, -120.75, 600.0), Target(35.7, -120.7, 0))
@@ -20,7 +21,7 @@ def _report(uav: int, target: int | None) -> AssignmentReport:
         mission=3,
         uav=uav,
         target=target,
-        pairs={"74": 0, "112": 1},
+        pairs={74: 0, 112: 1},
         unassigned=(2,),
         team=(74, 112),
         digest="d",
@@ -57,22 +58,18 @@ def test_a_target_is_reached_when_its_uav_says_so_and_stays_reached() -> None:
     assert _states(both, {}, reached={112}, aborted=True) == ["aborted", "reached", "unserved"]
 
 
-def test_severity_comes_from_the_status_prefix() -> None:
-    assert severity_of("error: could not resume waypoint 3") is Severity.ERROR
-    assert severity_of("Warning: link slow") is Severity.WARNING
-    assert severity_of("module on; tracking waypoint 0") is Severity.INFO
-
-
-def test_the_page_keeps_warnings_and_errors_in_view_by_the_severity_carried() -> None:
+def test_the_page_keeps_warnings_and_errors_in_view_by_the_kind_carried() -> None:
     model = GuiModel()
-    model.add_status(74, "mission 1: flying to target 0", 0.5, Severity.INFO)
-    model.add_status(74, "GPS fix degraded", 1.0, Severity.WARNING)
+    flying = StatusKind.FLYING_TO_TARGET
+    model.add_status(StatusRecord(0.5, 74, "mission 1: flying to target 0", flying, 1))
+    model.add_status(StatusRecord(1.0, 74, "GPS fix degraded", StatusKind.WARNING))
     for tick in range(600):  # more than the status history holds
-        model.add_status(74, f"mission 1: tick {tick}", 2.0 + tick, Severity.INFO)
+        model.add_status(StatusRecord(2.0 + tick, 74, f"mission 1: tick {tick}", flying, 1))
     assert [(a["uav"], a["text"], a["severity"]) for a in model.alerts_json()] == [
         (74, "GPS fix degraded", "warning")
     ]
-    model.add_status(74, "mission 2: computing", 700.0, Severity.INFO)  # a later mission
+    later = StatusRecord(700.0, 74, "mission 2: computing", StatusKind.COMPUTING, 2)
+    model.add_status(later)  # a later mission
     assert model.alerts_json() == []
 
 
@@ -82,7 +79,7 @@ def test_the_model_keeps_trails_statuses_and_reached_uavs() -> None:
         model.note_views([UavView(id=74, lat=lat, lon=-120.0, mission=3, phase="reached")])
     assert model.uav_json(UavView(id=74))["trail"] == [[35.0, -120.0], [35.001, -120.0]]
     assert (3, 74) in model.reached
-    model.add_status(74, "error: boom", 1.0)
+    model.add_status(StatusRecord(1.0, 74, "boom", StatusKind.CANNOT_FLY, 3))
     assert [s["severity"] for s in model.new_statuses()] == ["error"]
     assert model.new_statuses() == []
     assert model.uav_json(UavView(id=74, telemetry_age_s=9.0))["link_lost"] is True

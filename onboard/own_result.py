@@ -1,0 +1,87 @@
+"""This UAV's result in a mission: its approach times, computed and published.
+
+The planner (onboard.approach_plan) computes them off the main loop; the result goes to
+the team on its key and to the ground over the payload port. A UAV that takes no part
+publishes an all-None result, so that its teammates need not wait for it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import msgspec
+
+from fleet.consensus.mission_round import MissionRound
+from fleet.mission import keys
+from fleet.mission.lifecycle import Observation
+from fleet.mission.messages import StatusText, UavResult
+from fleet.mission.phase import Phase
+from fleet.mission.status_kind import StatusKind
+from fleet.piccolo.telemetry import GpsBlock
+from onboard.approach_plan import ApproachPlan, plan_status
+from onboard.mission_phase import MissionPhase
+from onboard.state_report import Say
+
+
+class ResultOutputs(Protocol):
+    def publish(self, key: str, message: msgspec.Struct) -> None: ...
+    def send_ground(self, message: StatusText | UavResult) -> None: ...
+
+
+@dataclass
+class OwnResult:
+    uav_id: int
+    outputs: ResultOutputs
+    plan: ApproachPlan
+    life: MissionPhase
+    say: Say
+
+    def start(self, mission_round: MissionRound, gps: GpsBlock, now: float) -> bool:
+        """Start computing the approach times; False if the planner refused."""
+        if not self.plan.start(mission_round.targets, gps):
+            return False
+        self.say(
+            StatusKind.COMPUTING,
+            f"mission {mission_round.mission}: computing approach times to "
+            f"{len(mission_round.targets.targets)} targets",
+            now,
+            mission=mission_round.mission,
+        )
+        return True
+
+    def collect(self, mission_round: MissionRound | None, now: float) -> None:
+        """Publish the approach times once the planner has them."""
+        result = self.plan.take()
+        if result is None or mission_round is None or self.life.phase != Phase.COMPUTING:
+            return
+        kind, text = plan_status(result, mission_round.mission)
+        self.say(kind, text, now, mission=mission_round.mission)
+        times = tuple(result.times)
+        self.publish(mission_round, times, now, result.model_times, result.fallback_times)
+
+    def publish_none(self, mission_round: MissionRound, now: float) -> None:
+        """Take no part: an all-None result says so to the team."""
+        self.publish(mission_round, tuple(None for _ in mission_round.targets.targets), now)
+
+    def publish(
+        self,
+        mission_round: MissionRound,
+        times: tuple[float | None, ...],
+        now: float,
+        model_times: int | None = None,
+        fallback_times: int | None = None,
+    ) -> None:
+        result = UavResult(
+            mission=mission_round.mission,
+            uav=self.uav_id,
+            times=times,
+            model_times=model_times,
+            fallback_times=fallback_times,
+        )
+        mission_round.add_result(result)
+        # Teammates are computing too: the first fetch waits one interval.
+        mission_round.last_fetch = now
+        self.life.observe(Observation.RESULT_PUBLISHED)
+        self.outputs.publish(keys.mission_result(result.mission, self.uav_id), result)
+        self.outputs.send_ground(result)
