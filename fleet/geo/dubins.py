@@ -19,6 +19,7 @@ from east), so a left turn increases the angle.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 from fleet.geo.angles import TWO_PI, wrap_two_pi
 
@@ -37,17 +38,22 @@ def _ccw(angle: float) -> float:
     return 0.0 if wrapped > TWO_PI - _ARC_EPS else wrapped
 
 
-def _turn_then_straight(
-    centre: tuple[float, float],
-    start_angle: float,
-    direction: float,
-    target: tuple[float, float],
-    radius: float,
-) -> float:
-    """Length of the CS path on the circle `centre` turning `direction` (+1 left, -1 right).
+class _Turn(NamedTuple):
+    """The first turn of a path: on the circle `centre` of `radius`, from the point seen
+    at `start_angle` from the centre, turning `direction` (+1 left, -1 right)."""
+
+    centre: tuple[float, float]
+    start_angle: float
+    direction: float
+    radius: float
+
+
+def _turn_then_straight(turn: _Turn, target: tuple[float, float]) -> float:
+    """Length of the CS path that starts with `turn`.
 
     Returns inf if the target lies inside the circle (no tangent exists).
     """
+    centre, start_angle, direction, radius = turn
     dx = target[0] - centre[0]
     dy = target[1] - centre[1]
     dist = math.hypot(dx, dy)
@@ -64,20 +70,14 @@ def _turn_then_straight(
     return radius * arc + straight
 
 
-def _turn_then_turn(
-    centre: tuple[float, float],
-    start_angle: float,
-    direction: float,
-    target: tuple[float, float],
-    radius: float,
-) -> float:
-    """Length of the shortest CC path starting on `centre` turning `direction`.
+def _turn_then_turn(turn: _Turn, target: tuple[float, float]) -> float:
+    """Length of the shortest CC path that starts with `turn`.
 
     The second circle touches the first one on the far side of the switching point, so
     its centre lies at 2r from the first centre, and it must pass through the target:
     its centre is at r from the target. Returns inf when those circles do not meet.
     """
-    cx, cy = centre
+    (cx, cy), start_angle, direction, radius = turn
     dx = target[0] - cx
     dy = target[1] - cy
     d = math.hypot(dx, dy)
@@ -133,11 +133,8 @@ def dubins_path_length(
             position[1] + direction * radius * math.cos(heading),
         )
         start_angle = math.atan2(position[1] - centre[1], position[0] - centre[0])
-        best = min(
-            best,
-            _turn_then_straight(centre, start_angle, direction, target, radius),
-            _turn_then_turn(centre, start_angle, direction, target, radius),
-        )
+        turn = _Turn(centre, start_angle, direction, radius)
+        best = min(best, _turn_then_straight(turn, target), _turn_then_turn(turn, target))
     return best
 
 

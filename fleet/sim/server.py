@@ -106,6 +106,16 @@ class _Channel:
     def fileno(self) -> int:
         return self.sock.fileno() if self.sock is not None else self.fd
 
+    def recv(self) -> bytes:
+        if self.sock is not None:
+            return self.sock.recv(_READ_SIZE)
+        return os.read(self.fd, _READ_SIZE)
+
+    def send(self, data: bytes) -> int:
+        if self.sock is not None:
+            return self.sock.send(data)
+        return os.write(self.fd, data)
+
 
 @dataclass(eq=False)
 class _Uav:
@@ -366,10 +376,7 @@ class SimServer:
     def _read(self, channel: _Channel) -> None:
         assert channel.uav is not None
         try:
-            if channel.sock is not None:
-                data = channel.sock.recv(_READ_SIZE)
-            else:
-                data = os.read(channel.fd, _READ_SIZE)
+            data = channel.recv()
         except (BlockingIOError, InterruptedError):
             return
         except OSError as error:
@@ -407,10 +414,7 @@ class SimServer:
     def _write(self, channel: _Channel) -> None:
         data = bytes(channel.output.view())
         try:
-            if channel.sock is not None:
-                sent = channel.sock.send(data)
-            else:
-                sent = os.write(channel.fd, data)
+            sent = channel.send(data)
         except (BlockingIOError, InterruptedError):
             return  # the reader is slow: the bounded buffer keeps the newest bytes
         except OSError as error:

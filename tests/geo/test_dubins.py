@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from fleet.geo.aircraft import AircraftLimits, turn_radius
@@ -82,7 +82,10 @@ def test_dubins_bounds_and_invariance(
     # straight line from anywhere on the turn circle.
     assert length >= dist - 1e-6
     assert length <= dist + (2.0 * math.pi + 2.0) * radius + 1e-6
-    # Translating and rotating the whole picture changes nothing.
+    # Translating and rotating the whole picture changes nothing, except at the "already
+    # there" threshold (1e-6 radius), where the length jumps from a loop to zero and the
+    # moved picture's rounding may put a point on either side (found by hypothesis).
+    assume(abs(dist - 1e-6 * radius) > 1e-9)
     c, s = math.cos(0.7), math.sin(0.7)
     moved = dubins_path_length(
         (c * px - s * py + 100.0, s * px + c * py - 50.0),

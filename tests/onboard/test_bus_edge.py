@@ -6,6 +6,7 @@ from __future__ import annotations
 import logging
 import queue
 from collections.abc import Iterator
+from contextlib import closing
 
 import pytest
 
@@ -40,11 +41,8 @@ class Harness:
 @pytest.fixture
 def harness() -> Iterator[Harness]:
     h = Harness()
-    try:
+    with closing(h.ground), closing(h.node):  # closed in reverse: the node first
         yield h
-    finally:
-        h.node.close()
-        h.ground.close()
 
 
 def test_it_is_alive_and_sees_itself(harness: Harness) -> None:

@@ -20,10 +20,12 @@ from fleet.piccolo.waypoint import Waypoint
 from onboard.core import (
     LINK_LOST_S,
     TARGET_WAYPOINT,
+    OnboardCore,
 )
 from tests.onboard.core_harness import (
     TARGETS,
     TWO_TARGETS,
+    Recorder,
     commit_four_uav_team,
     commit_three_uav_team,
     fly_target_1,
@@ -32,6 +34,15 @@ from tests.onboard.core_harness import (
     telemetry_at,
 )
 from tests.support.link_samples import sample_telemetry
+
+
+def uav_200_given_two_targets(mission: int) -> tuple[OnboardCore, Recorder]:
+    """UAV 200, its teammates 74 and 112 alive, given `mission` over two targets."""
+    core, out = make_core(200, (30.0, 35.0))
+    for uav in (74, 112):
+        core.on_alive(uav, True, 0.0)
+    core.on_targets(MissionTargets(mission=mission, team=(74, 112, 200), targets=TWO_TARGETS), 0.0)
+    return core, out
 
 
 def test_abort_while_waiting_for_a_teammate_is_final() -> None:
@@ -264,10 +275,7 @@ def test_a_teammates_later_epoch_is_merged_and_re_planned_identically() -> None:
 
 
 def test_a_thinner_commitment_is_not_adopted() -> None:
-    core, out = make_core(200, (30.0, 35.0))
-    for uav in (74, 112):
-        core.on_alive(uav, True, 0.0)
-    core.on_targets(MissionTargets(mission=4, team=(74, 112, 200), targets=TWO_TARGETS), 0.0)
+    core, out = uav_200_given_two_targets(mission=4)
     core.on_result(UavResult(4, 112, (40.0, 20.0)), 0.1)
     core.tick(0.2)  # own result out; 74's missing
     thin = AssignmentReport(4, 74, 0, {74: 0}, (1,), (74,), "thin")
@@ -282,10 +290,7 @@ def test_a_thinner_commitment_is_not_adopted() -> None:
 
 # ---- review of issue 10: hostile reports, finished candidates, writes after arrival --
 def test_an_assignment_naming_a_target_beyond_the_mission_is_refused_never_indexed() -> None:
-    core, out = make_core(200, (30.0, 35.0))
-    for uav in (74, 112):
-        core.on_alive(uav, True, 0.0)
-    core.on_targets(MissionTargets(mission=3, team=(74, 112, 200), targets=TWO_TARGETS), 0.0)
+    core, out = uav_200_given_two_targets(mission=3)
     bad = AssignmentReport(3, 74, 0, {74: 0, 200: 7}, (), (74, 112, 200), "x")
     core.on_assignment(bad, 0.2)  # raised IndexError, then every telemetry did
     core.on_telemetry(sample_telemetry(), 0.5)
@@ -332,10 +337,7 @@ def test_a_preempted_candidate_handed_another_orphan_drops_out_and_it_is_handed_
 
 
 def test_a_restarted_idle_uav_follows_the_re_plan_that_hands_it_the_orphan() -> None:
-    core, out = make_core(200, (30.0, 35.0))
-    for uav in (74, 112):
-        core.on_alive(uav, True, 0.0)
-    core.on_targets(MissionTargets(mission=3, team=(74, 112, 200), targets=TWO_TARGETS), 0.0)
+    core, out = uav_200_given_two_targets(mission=3)
     base = AssignmentReport(3, 74, 0, {74: 0, 112: 1}, (), (74, 112, 200), "d0")
     core.on_assignment(base, 0.05)  # fetched at once: adopted before its own result
     core.tick(0.1)

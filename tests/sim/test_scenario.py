@@ -9,18 +9,18 @@ import pytest
 
 from fleet.consensus.assignment import greedy_assign
 from fleet.geo.mercator import MercatorProjection
-from fleet.sim.aircraft import AircraftState
-from fleet.sim.guidance import fly_to_point
-from fleet.sim.scenario import (
+from fleet.sim import (
+    AircraftState,
     Scenario,
     ScenarioError,
+    UavSpec,
+    fly_to_point,
     load_scenario,
     resolve_scenario,
     shipped_scenario,
     shipped_scenario_names,
     shipped_scenario_path,
 )
-from fleet.sim.uav_spec import UavSpec
 
 VALID = """\
 description = "test"

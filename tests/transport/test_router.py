@@ -14,7 +14,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -145,82 +145,76 @@ def test_ring_scenario_is_a_valid_scenario() -> None:
     assert len({u.alt for u in scenario.uavs}) == 5
 
 
-@pytest.mark.e2e
-def test_fleet_starts_waits_for_liveliness_and_stops_everything(tmp_path: Path) -> None:
-    spec = FleetSpec(
-        scenario="head_on",
-        listen=free_endpoint(),
-        speedup=5.0,
-        log_dir=tmp_path,
-        start_timeout_s=30.0,
-        onboard_command=("-c", FAKE_ONBOARD),
-    )
-    fleet = Fleet(spec)
-    try:
-        with fleet:
-            assert sorted(fleet.uav_ids) == [74, 112]
-            assert all(e.program.startswith("socket://127.0.0.1:") for e in fleet.endpoints)
-            with zenoh.open(make_config("client", [fleet.connect])) as session:
-                tokens = [
-                    str(r.ok.key_expr)
-                    for r in session.liveliness().get(keys.ALL_ALIVE, timeout=2.0)
-                    if r.ok is not None
-                ]
-            assert sorted(tokens) == ["fleet/uav/112/alive", "fleet/uav/74/alive"]
-            pids = [c.pid for c in fleet.children]
-            assert len(pids) == 3
-        assert all(c.process.returncode is not None for c in fleet.children)
-        assert not any(alive(pid) for pid in pids)
-        assert "ready" in (tmp_path / "sim.log").read_text()
-    finally:
+@pytest.fixture
+def make_fleet(tmp_path: Path) -> Iterator[Callable[..., Fleet]]:
+    """Fleets on a free endpoint, logging into tmp_path; none leaves a child behind."""
+    fleets: list[Fleet] = []
+
+    def make(
+        scenario: str,
+        onboard_command: tuple[str, ...],
+        start_timeout_s: float,
+        speedup: float = 1.0,
+    ) -> Fleet:
+        spec = FleetSpec(
+            scenario=scenario,
+            listen=free_endpoint(),
+            speedup=speedup,
+            log_dir=tmp_path,
+            start_timeout_s=start_timeout_s,
+            onboard_command=onboard_command,
+        )
+        fleets.append(Fleet(spec))
+        return fleets[-1]
+
+    yield make
+    for fleet in fleets:
         for child in fleet.children:
             kill_if_alive(child.pid)
 
 
 @pytest.mark.e2e
-def test_fleet_is_not_ready_until_telemetry_flows(tmp_path: Path) -> None:
+def test_fleet_starts_waits_for_liveliness_and_stops_everything(
+    tmp_path: Path, make_fleet: Callable[..., Fleet]
+) -> None:
+    fleet = make_fleet("head_on", ("-c", FAKE_ONBOARD), start_timeout_s=30.0, speedup=5.0)
+    with fleet:
+        assert sorted(fleet.uav_ids) == [74, 112]
+        assert all(e.program.startswith("socket://127.0.0.1:") for e in fleet.endpoints)
+        with zenoh.open(make_config("client", [fleet.connect])) as session:
+            tokens = [
+                str(r.ok.key_expr)
+                for r in session.liveliness().get(keys.ALL_ALIVE, timeout=2.0)
+                if r.ok is not None
+            ]
+        assert sorted(tokens) == ["fleet/uav/112/alive", "fleet/uav/74/alive"]
+        pids = [c.pid for c in fleet.children]
+        assert len(pids) == 3
+    assert all(c.process.returncode is not None for c in fleet.children)
+    assert not any(alive(pid) for pid in pids)
+    assert "ready" in (tmp_path / "sim.log").read_text()
+
+
+@pytest.mark.e2e
+def test_fleet_is_not_ready_until_telemetry_flows(make_fleet: Callable[..., Fleet]) -> None:
     # Alive but silent (no serial link, no telemetry): the start must not report it ready.
-    spec = FleetSpec(
-        scenario="single_uav",
-        listen=free_endpoint(),
-        log_dir=tmp_path,
-        start_timeout_s=15.0,
-        onboard_command=("-c", FAKE_ONBOARD, "--silent"),
-    )
-    fleet = Fleet(spec)
-    try:
-        with (
-            pytest.raises(LaunchError, match="telemetry with a GPS fix from UAV 112") as caught,
-            fleet,
-        ):
-            pass
-        assert "liveliness" not in str(caught.value)  # it was alive: only telemetry lacked
-    finally:
-        for child in fleet.children:
-            kill_if_alive(child.pid)
+    fleet = make_fleet("single_uav", ("-c", FAKE_ONBOARD, "--silent"), start_timeout_s=15.0)
+    with (
+        pytest.raises(LaunchError, match="telemetry with a GPS fix from UAV 112") as caught,
+        fleet,
+    ):
+        pass
+    assert "liveliness" not in str(caught.value)  # it was alive: only telemetry lacked
 
 
 @pytest.mark.e2e
-def test_fleet_reports_an_onboard_that_dies_at_start(tmp_path: Path) -> None:
-    spec = FleetSpec(
-        scenario="single_uav",
-        listen=free_endpoint(),
-        log_dir=tmp_path,
-        start_timeout_s=30.0,
-        onboard_command=(
-            "-c",
-            "import sys; print('no autopilot here', file=sys.stderr); sys.exit(3)",
-        ),
-    )
-    fleet = Fleet(spec)
-    try:
-        with pytest.raises(LaunchError, match="exited with status 3") as caught, fleet:
-            pass
-        assert "no autopilot here" in str(caught.value)
-        assert all(c.process.returncode is not None for c in fleet.children)
-    finally:
-        for child in fleet.children:
-            kill_if_alive(child.pid)
+def test_fleet_reports_an_onboard_that_dies_at_start(make_fleet: Callable[..., Fleet]) -> None:
+    dies = ("-c", "import sys; print('no autopilot here', file=sys.stderr); sys.exit(3)")
+    fleet = make_fleet("single_uav", dies, start_timeout_s=30.0)
+    with pytest.raises(LaunchError, match="exited with status 3") as caught, fleet:
+        pass
+    assert "no autopilot here" in str(caught.value)
+    assert all(c.process.returncode is not None for c in fleet.children)
 
 
 @pytest.mark.e2e
