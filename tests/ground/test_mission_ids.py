@@ -33,6 +33,7 @@ from tests.ground.mission_samples import (
     maker,
     mission,
 )
+from tests.support.waiting import wait_until
 
 
 def test_a_fresh_key_space_is_claimed_at_once_and_served_while_open(
@@ -50,12 +51,15 @@ def test_a_fresh_key_space_is_claimed_at_once_and_served_while_open(
 def test_a_given_mission_id_another_ground_serves_is_refused(
     session: ZenohBus, rival: ZenohBus
 ) -> None:
-    with (
-        TargetsServer(rival, mission(902, OTHER_TARGETS)),
-        pytest.raises(MissionError, match="902 is already in use"),
-        claim_mission(session, lambda m: mission(m), TIMEOUT_S, mission=902),
-    ):
-        pass
+    with TargetsServer(rival, mission(902, OTHER_TARGETS)):
+        # Declared a moment ago, the rival's queryable may not have reached the router
+        # yet: the test is about a claim this ground can see.
+        wait_until(lambda: rival_claims(session, mission(902), TIMEOUT_S) == 1, 10.0, "the claim")
+        with (
+            pytest.raises(MissionError, match="902 is already in use"),
+            claim_mission(session, lambda m: mission(m), TIMEOUT_S, mission=902),
+        ):
+            pass
 
 
 class Squatter:
