@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from fleet.planning.link import PiccoloLink
+from fleet.payload.link import PiccoloLink
 from tests.support.mixed_stream import mixed_stream
 
 LINE_RATE_BYTES_PER_S = 57_600 / 10  # 8N1: ten bits a byte

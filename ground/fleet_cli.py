@@ -11,10 +11,10 @@ from fleet.transport.cli import add_verbose_argument, setup_logging
 
 #: Each subcommand lives in its own module with `add_parser(subparsers)`.
 SUBCOMMANDS = (
-    "fleet.transport.decode_command",
+    "fleet.tools.decode_command",
     "fleet.sim.command",
     "fleet.launch.up_command",
-    "fleet.transport.certs_command",
+    "fleet.tools.certs_command",
     "ground.demo",
     "fleet.recording.commands",
 )

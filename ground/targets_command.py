@@ -11,10 +11,10 @@ import json
 import sys
 
 from fleet.errors import FleetError
+from fleet.files.targets_io import read_targets, write_targets
 from fleet.mission.messages import Target
 from fleet.mission.targets_file import TargetsFileError
 from fleet.transport.cli import ExitCode
-from fleet.transport.targets_io import read_targets, write_targets
 
 
 class TargetSyntaxError(FleetError, ValueError):

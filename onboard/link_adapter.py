@@ -24,9 +24,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from fleet.mission.messages import LinkHealth
+from fleet.payload.link import LinkEvent, PiccoloLink
 from fleet.piccolo.autopilot_messages import AutopilotMessage
 from fleet.piccolo.stream_packet import ALL_OPERATOR_INTERFACES
-from fleet.planning.link import LinkEvent, PiccoloLink
 from fleet.transport.link import Link
 from onboard.native_thread import name_native_thread
 

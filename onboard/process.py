@@ -38,12 +38,12 @@ from fleet.mission.messages import (
     UavResult,
     UavState,
 )
+from fleet.payload.link import AutopilotEvent, LinkEvent, PlanningEvent
+from fleet.payload.protocol import encode_message
 from fleet.piccolo.stream_packet import ALL_GROUND_STATIONS
 from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
-from fleet.planning.link import AutopilotEvent, LinkEvent, PlanningEvent
-from fleet.planning.protocol import encode_message
 from fleet.transport import bus_codec
 from fleet.transport.bus import Bus, BusQuery
 from fleet.transport.bus_codec import BadMessage, decode

@@ -14,8 +14,8 @@ import ground
 import onboard
 from fleet.errors import CodecError, FleetError
 from fleet.mission.targets_file import decode_targets
+from fleet.payload.framing import encode_packet
 from fleet.piccolo.stream_packet import StreamPacket, encode_stream_packet
-from fleet.planning.framing import encode_packet
 
 
 def _project_exceptions() -> list[type[BaseException]]:

@@ -41,13 +41,13 @@ from typing import IO, Any, Protocol, Self
 import zenoh
 
 from fleet.errors import FleetError
+from fleet.files.certs import CertError
 from fleet.geo.mercator import MercatorProjection
 from fleet.launch.topology import Topology, fallbacks, ring_links
 from fleet.mission import keys
 from fleet.piccolo.telemetry import Telemetry
 from fleet.recording.recorder import READY_LINE
 from fleet.transport import bus_codec
-from fleet.transport.certs import CertError
 from fleet.transport.router import Router
 from fleet.transport.secure import SecureProfile
 from fleet.transport.zenoh_config import DEFAULT_ROUTER, build_config, make_config

@@ -1,7 +1,7 @@
 """Typed planning-level messages, shared by the binary planning protocol and Zenoh.
 
 One struct per application message. The binary onboard planning protocol
-(`fleet.planning.protocol`) encodes these to the payload stream; the Zenoh layer
+(`fleet.payload.protocol`) encodes these to the payload stream; the Zenoh layer
 publishes the very same structs as JSON. A command therefore has one type whichever
 path it travelled.
 """
@@ -66,7 +66,7 @@ class StatusText(msgspec.Struct, frozen=True):
     it is always `kind.severity` (set here, whatever a sender passes).
 
     The binary payload link carries the text alone: its edge gives it a generic kind
-    (`fleet.planning.bodies.decode_status`). A message recorded before kinds existed
+    (`fleet.payload.bodies.decode_status`). A message recorded before kinds existed
     decodes as `INFO`; `fleet.recording.mission_log` reads such records by their text.
     """
 

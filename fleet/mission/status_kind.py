@@ -2,7 +2,7 @@
 
 Receivers act on a status message's kind (and the mission and target it names), never
 on its text: the text is for people. The binary payload link carries the text alone;
-its edge (`fleet.planning.bodies.decode_status`) maps it to one of the generic kinds
+its edge (`fleet.payload.bodies.decode_status`) maps it to one of the generic kinds
 `INFO`, `WARNING` or `ERROR` by its `error:` / `warning:` prefix, the only place a
 prefix is read.
 """

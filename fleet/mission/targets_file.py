@@ -14,7 +14,7 @@ CSV, say) is named as such rather than read as numbers. Encoding validates the s
 way, so a bad target list is refused before anything is written.
 
 This is the pure codec; reading and atomically writing the file are
-`fleet.transport.targets_io`'s.
+`fleet.files.targets_io`'s.
 """
 
 from __future__ import annotations

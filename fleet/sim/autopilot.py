@@ -36,13 +36,13 @@ from dataclasses import dataclass, field
 from fleet.geo.aircraft import GRAVITY, AircraftLimits
 from fleet.geo.angles import wrap_pi
 from fleet.geo.mercator import MercatorProjection
+from fleet.payload.link import AutopilotEvent, PiccoloLink
 from fleet.piccolo.autopilot_messages import AutopilotMessage, UnknownAutopilotMessage
 from fleet.piccolo.stream_packet import ALL_OPERATOR_INTERFACES, BROADCAST_AVIONICS
 from fleet.piccolo.stream_queue import StreamQueue
 from fleet.piccolo.telemetry import GpsBlock, RawBlock, SensorBlock, Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
-from fleet.planning.link import AutopilotEvent, PiccoloLink
 from fleet.sim.aircraft import CALM, AircraftState, Wind
 from fleet.sim.aircraft import step as aircraft_step
 from fleet.sim.flight_plan import FlightPlan, FlightPlanError, check_indices

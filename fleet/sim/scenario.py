@@ -42,6 +42,7 @@ from typing import Annotated
 import msgspec
 
 from fleet.errors import FleetError
+from fleet.files.targets_io import read_targets
 from fleet.geo.aircraft import AircraftLimits
 from fleet.mission.messages import Target
 from fleet.mission.targets_file import TargetsFileError
@@ -49,7 +50,6 @@ from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
 from fleet.piccolo.waypoint import MAX_INDEX
 from fleet.sim.aircraft import Wind
 from fleet.sim.uav_spec import UavSpec
-from fleet.transport.targets_io import read_targets
 
 __all__ = [
     "Scenario",

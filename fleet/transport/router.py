@@ -24,7 +24,7 @@ from typing import Self
 import zenoh
 
 from fleet.errors import FleetError
-from fleet.transport.certs import CertError
+from fleet.files.certs import CertError
 from fleet.transport.cli import ExitCode, add_verbose_argument, fail, setup_logging, stop_on_signals
 from fleet.transport.secure import SecureProfile
 from fleet.transport.zenoh_config import DEFAULT_ROUTER, make_config

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import zenoh
 
+from fleet.files.certs import CertError, IdentityFiles, tls_settings
 from fleet.mission.access import GROUND, ROUTER, fleet_policy, uav_identity
 from fleet.transport.acl import access_control
-from fleet.transport.certs import CertError, IdentityFiles, tls_settings
 
 _UAV_CERT = re.compile(r"^uav-(\d+)\.pem$")
 

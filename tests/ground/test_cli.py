@@ -17,6 +17,7 @@ import pytest
 import zenoh
 
 from fleet.consensus.assignment import greedy_assign
+from fleet.files.targets_io import write_targets
 from fleet.mission import keys
 from fleet.mission.messages import (
     AssignmentReport,
@@ -30,7 +31,6 @@ from fleet.mission.messages import (
 from fleet.mission.phase import Phase
 from fleet.mission.status_kind import StatusKind
 from fleet.transport import bus_codec
-from fleet.transport.targets_io import write_targets
 from fleet.transport.zenoh_config import CONNECT_ENV, make_config
 from ground.mission_outcome import MissionOutcome, check_agreement
 from tests.support.fake_onboard import FakeOnboard, approach_time

@@ -16,11 +16,11 @@ from typing import Any
 import pytest
 import zenoh
 
+from fleet.files.targets_io import write_targets
 from fleet.mission import keys
 from fleet.mission.messages import MissionProgress, UavResult, UavState
 from fleet.mission.phase import Phase
 from fleet.transport.bus_codec import MAX_PAYLOAD_BYTES, encode
-from fleet.transport.targets_io import write_targets
 from fleet.transport.zenoh_config import make_config
 from tests.ground.test_cli import TARGETS, run_cli
 from tests.support.fake_onboard import FakeOnboard

@@ -15,11 +15,11 @@ from pathlib import Path
 import msgspec
 import pytest
 
+from fleet.files.targets_io import write_targets
 from fleet.mission import keys
 from fleet.mission.messages import CommandResult, MissionTargets, Target
 from fleet.piccolo.track import Track
 from fleet.transport.bus_codec import encode
-from fleet.transport.targets_io import write_targets
 from onboard.core import TARGET_WAYPOINT
 from tests.conftest import Ground
 from tests.onboard.test_multi_uav import start_ring

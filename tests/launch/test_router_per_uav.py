@@ -23,9 +23,9 @@ from typing import Any
 
 import pytest
 
+from fleet.files.certs import write_identities
 from fleet.launch.launcher import free_port
 from fleet.launch.topology import fallbacks, ring_links
-from fleet.transport.certs import write_identities
 from tests.support.processes import Child, start
 
 pytestmark = pytest.mark.e2e

@@ -23,13 +23,13 @@ from pathlib import Path
 import pytest
 import zenoh
 
+from fleet.files.certs import write_identities
 from fleet.launch.launcher import free_port
 from fleet.mission import keys
 from fleet.mission.messages import AssignmentReport, MissionAbort, MissionTargets, Target, UavResult
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from fleet.transport.bus_codec import ENCODING, encode
-from fleet.transport.certs import write_identities
 from fleet.transport.zenoh_config import build_config, make_config
 from tests.support.processes import Child, start
 from tests.support.waiting import wait_until

@@ -8,7 +8,7 @@ import pytest
 from fleet.mission.messages import StatusText
 from fleet.mission.phase import Severity
 from fleet.mission.status_kind import StatusKind
-from fleet.planning.bodies import decode_status, status_kind_of_text
+from fleet.payload.bodies import decode_status, status_kind_of_text
 
 ERRORS = {
     StatusKind.ERROR,

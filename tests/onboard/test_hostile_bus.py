@@ -11,10 +11,10 @@ from importlib.resources import files
 import msgspec
 import zenoh
 
+from fleet.files.targets_io import read_targets
 from fleet.mission import keys
 from fleet.mission.messages import MissionTargets, UavResult, UavState
 from fleet.transport.bus_codec import MAX_PAYLOAD_BYTES, encode
-from fleet.transport.targets_io import read_targets
 from tests.conftest import Ground
 from tests.support.processes import Fleet
 from tests.support.waiting import wait_until

@@ -16,6 +16,7 @@ from importlib.resources import files
 import msgspec
 import pytest
 
+from fleet.files.targets_io import read_targets
 from fleet.mission import keys
 from fleet.mission.messages import (
     AssignmentReport,
@@ -32,7 +33,6 @@ from fleet.sim.scenario import resolve_scenario
 from fleet.transport import bus_codec
 from fleet.transport.bus import BusSample
 from fleet.transport.memory import MemoryBus, MemoryNetwork, memory_link_pair
-from fleet.transport.targets_io import read_targets
 from onboard.core import TARGET_WAYPOINT
 from onboard.process import OnboardProcess, OnboardSettings
 from tests.support.waiting import wait_until

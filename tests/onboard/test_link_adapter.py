@@ -11,11 +11,11 @@ from collections.abc import Iterator
 import pytest
 
 from fleet.mission.messages import MISSION_MANAGER, StatusText
+from fleet.payload.link import AutopilotEvent, LinkEvent, PiccoloLink, PlanningEvent
+from fleet.payload.protocol import encode_message
 from fleet.piccolo.stream_packet import ALL_GROUND_STATIONS, ALL_OPERATOR_INTERFACES
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from fleet.piccolo.track import Track
-from fleet.planning.link import AutopilotEvent, LinkEvent, PiccoloLink, PlanningEvent
-from fleet.planning.protocol import encode_message
 from fleet.transport.memory import MemoryLink, memory_link_pair
 from fleet.transport.serial_port import SerialLink
 from onboard.link_adapter import ONBOARD_ADDRESS, LinkAdapter

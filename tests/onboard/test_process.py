@@ -31,10 +31,10 @@ from fleet.mission.messages import (
     UavResult,
     UavState,
 )
+from fleet.payload.link import PiccoloLink, PlanningEvent
+from fleet.payload.protocol import encode_message
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
-from fleet.planning.link import PiccoloLink, PlanningEvent
-from fleet.planning.protocol import encode_message
 from fleet.transport.bus_codec import ENCODING, encode
 from onboard.process import _Outputs
 from tests.support.ground_view import GroundView

@@ -10,9 +10,9 @@ from importlib.resources import files
 import msgspec
 import zenoh
 
+from fleet.files.targets_io import read_targets
 from fleet.mission import keys
 from fleet.mission.messages import MissionTargets, UavState
-from fleet.transport.targets_io import read_targets
 from onboard.core import TARGET_WAYPOINT
 from tests.conftest import Ground
 from tests.support.processes import Fleet

@@ -6,11 +6,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from fleet.payload.protocol import PlanningDecoder
+from fleet.payload.resync import PlanningStreamDecoder
 from fleet.piccolo.autopilot_packet import AutopilotPacketDecoder
 from fleet.piccolo.decoder import Decoder, Reject, ResyncDecoder
 from fleet.piccolo.stream_packet import StreamDecoder
-from fleet.planning.protocol import PlanningDecoder
-from fleet.planning.resync import PlanningStreamDecoder
 
 
 class LengthPrefixed(ResyncDecoder[bytes]):

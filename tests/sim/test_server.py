@@ -30,12 +30,12 @@ from hypothesis import strategies as st
 
 from fleet.geo.angles import wrap_pi
 from fleet.geo.mercator import MercatorProjection
+from fleet.payload.link import AutopilotEvent, PiccoloLink
 from fleet.piccolo.autopilot_packet import encode_autopilot_packet
 from fleet.piccolo.stream_packet import STREAM_AUTOPILOT, StreamPacket, encode_stream_packet
 from fleet.piccolo.telemetry import Telemetry, decode_telemetry, encode_telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint, decode_waypoint, encode_waypoint
-from fleet.planning.link import AutopilotEvent, PiccoloLink
 from fleet.sim.autopilot import (
     STEP_MS,
     AutopilotSettings,

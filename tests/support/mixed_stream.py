@@ -12,12 +12,12 @@ import random
 from dataclasses import dataclass
 
 from fleet.mission.messages import MISSION_MANAGER, MissionTargets, StatusText, Target, UavResult
+from fleet.payload.link import PiccoloLink
+from fleet.payload.protocol import encode_message
 from fleet.piccolo.stream_packet import ALL_OPERATOR_INTERFACES, BROADCAST_AVIONICS, MAX_PACKET
 from fleet.piccolo.telemetry import GpsBlock, SensorBlock, Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
-from fleet.planning.link import PiccoloLink
-from fleet.planning.protocol import encode_message
 
 
 @dataclass(frozen=True)

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
+from fleet.files.certs import CertError, write_identities
 from fleet.launch.launcher import Fleet, FleetSpec, LaunchError
-from fleet.transport.certs import CertError, write_identities
 from fleet.transport.router import main as router_main
 from fleet.transport.secure import SecureProfile
 

@@ -26,11 +26,11 @@ import msgspec
 import pytest
 import zenoh
 
+from fleet.files.targets_io import read_targets
 from fleet.geo.mercator import MercatorProjection
 from fleet.launch.launcher import free_port
 from fleet.mission import keys
 from fleet.mission.messages import MissionTargets
-from fleet.transport.targets_io import read_targets
 from tests.support.ground_view import GroundView
 from tests.support.processes import Child, client_session, start
 from tests.support.waiting import wait_until

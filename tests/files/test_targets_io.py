@@ -1,4 +1,4 @@
-"""Tests for reading and atomically writing targets.bin files (fleet.transport.targets_io)."""
+"""Tests for reading and atomically writing targets.bin files (fleet.files.targets_io)."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 from hypothesis import given
 
+from fleet.files.targets_io import read_targets, write_targets
 from fleet.mission.messages import Target
 from fleet.mission.targets_file import TargetsFileError, encode_targets
-from fleet.transport.targets_io import read_targets, write_targets
 from tests.mission.targets_samples import (
     BOSTON,
     HANSCOM,

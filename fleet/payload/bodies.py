@@ -4,7 +4,7 @@ The thesis fixes the three packet types but leaves every body layout and the `us
 codes open; this module makes those choices. PAYLOAD_OPM and PAYLOAD_STATUS bodies fit
 one packet; a PAYLOAD_UAV application message (targets, result, abort, or an unknown
 `user` code passed through) may span several, and is cut and put back together by
-`fleet.planning.reassembly`.
+`fleet.payload.reassembly`.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from fleet.mission.messages import (
     UavResult,
 )
 from fleet.mission.status_kind import StatusKind
-from fleet.planning.framing import (
+from fleet.payload.framing import (
     MAX_PAYLOAD_SIZE,
     PAYLOAD_UAV,
     Malformed,

@@ -1,4 +1,4 @@
-"""Tests of resynchronisation on the payload stream (fleet.planning.resync)."""
+"""Tests of resynchronisation on the payload stream (fleet.payload.resync)."""
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -9,10 +9,10 @@ from fleet.mission.messages import (
     MissionAbort,
     StatusText,
 )
-from fleet.planning.bodies import (
+from fleet.payload.bodies import (
     PlanningMessage,
 )
-from fleet.planning.framing import (
+from fleet.payload.framing import (
     HEADER_SIZE,
     MAX_PACKET_SIZE,
     PAYLOAD_OPM,
@@ -21,13 +21,13 @@ from fleet.planning.framing import (
     SYNC,
     encode_packet,
 )
-from fleet.planning.protocol import (
+from fleet.payload.protocol import (
     Envelope,
     PlanningDecoder,
     encode_message,
 )
-from fleet.planning.resync import PlanningStreamDecoder
-from tests.planning.planning_samples import (
+from fleet.payload.resync import PlanningStreamDecoder
+from tests.payload.planning_samples import (
     ABORT_7,
     STATUS_OK,
     envelopes,

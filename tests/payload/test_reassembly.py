@@ -1,4 +1,4 @@
-"""Tests of segmenting and reassembling PAYLOAD_UAV messages (fleet.planning.reassembly)."""
+"""Tests of segmenting and reassembling PAYLOAD_UAV messages (fleet.payload.reassembly)."""
 
 import math
 import random
@@ -11,24 +11,24 @@ from fleet.mission.messages import (
     MISSION_MANAGER,
     MissionTargets,
 )
-from fleet.planning.bodies import (
+from fleet.payload.bodies import (
     PAYLOAD_ABORT,
     UnknownPlanningMessage,
 )
-from fleet.planning.framing import (
+from fleet.payload.framing import (
     MAX_PACKET_SIZE,
     PAYLOAD_STATUS,
     PAYLOAD_UAV,
     PlanningPacket,
     encode_packet,
 )
-from fleet.planning.protocol import (
+from fleet.payload.protocol import (
     Envelope,
     PlanningDecoder,
     encode_packets,
 )
-from fleet.planning.reassembly import MAX_FRAGMENT_SIZE, MAX_MESSAGE_SIZE, SegmentReassembler
-from tests.planning.planning_samples import (
+from fleet.payload.reassembly import MAX_FRAGMENT_SIZE, MAX_MESSAGE_SIZE, SegmentReassembler
+from tests.payload.planning_samples import (
     big_mission,
     no_drops,
 )

@@ -34,8 +34,7 @@ import struct
 from dataclasses import dataclass
 
 from fleet.mission.messages import OpmCommand, StatusText
-from fleet.piccolo.decoder import Chunk, Decoder
-from fleet.planning.bodies import (
+from fleet.payload.bodies import (
     PlanningMessage,
     UnknownPlanningMessage,
     decode_application,
@@ -45,7 +44,7 @@ from fleet.planning.bodies import (
     encode_opm,
     encode_status,
 )
-from fleet.planning.framing import (
+from fleet.payload.framing import (
     PAYLOAD_OPM,
     PAYLOAD_STATUS,
     Malformed,
@@ -53,8 +52,9 @@ from fleet.planning.framing import (
     check_uint,
     encode_packet,
 )
-from fleet.planning.reassembly import MAX_MESSAGE_SIZE, SegmentReassembler, segment
-from fleet.planning.resync import PlanningStreamDecoder
+from fleet.payload.reassembly import MAX_MESSAGE_SIZE, SegmentReassembler, segment
+from fleet.payload.resync import PlanningStreamDecoder
+from fleet.piccolo.decoder import Chunk, Decoder
 
 # The messages and the error that appear in this API are re-exported with it.
 __all__ = [

@@ -2,7 +2,7 @@
 
 Writes `DIR/ca.pem`, and per identity NAME (`router`, `ground`, `uav-74`, ...)
 `DIR/NAME.pem`, `DIR/NAME.key` and `DIR/NAME.json5` (a Zenoh client configuration for
-`--zenoh-config`); see `fleet.transport.certs` and docs/security.md.
+`--zenoh-config`); see `fleet.files.certs` and docs/security.md.
 """
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from fleet.files.certs import DEFAULT_VALID_DAYS, CertError, write_identities
 from fleet.mission.access import GROUND, ROUTER, uav_identity
-from fleet.transport.certs import DEFAULT_VALID_DAYS, CertError, write_identities
 from fleet.transport.cli import ExitCode, bounded_int, fail, piccolo_ids
 
 DEFAULT_SECURE_ROUTER = "tls/127.0.0.1:7447"

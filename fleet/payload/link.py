@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from fleet.payload.protocol import Envelope, PlanningDecoder
 from fleet.piccolo.autopilot_messages import (
     AutopilotMessage,
     decode_autopilot_message,
@@ -32,7 +33,6 @@ from fleet.piccolo.stream_packet import (
     encode_stream_packet,
 )
 from fleet.piccolo.stream_queue import StreamQueue
-from fleet.planning.protocol import Envelope, PlanningDecoder
 
 
 @dataclass(frozen=True, slots=True)

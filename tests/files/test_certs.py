@@ -12,7 +12,7 @@ import zenoh
 from cryptography import x509
 from cryptography.x509.oid import NameOID
 
-from fleet.transport.certs import IdentityFiles, common_name, endpoint_host
+from fleet.files.certs import IdentityFiles, common_name, endpoint_host
 from ground.fleet_cli import main as fleet_main
 
 

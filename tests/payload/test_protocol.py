@@ -16,14 +16,14 @@ from fleet.mission.messages import (
     Target,
     UavResult,
 )
-from fleet.planning.bodies import (
+from fleet.payload.bodies import (
     PAYLOAD_ABORT,
     PAYLOAD_TARGETS,
     PAYLOAD_UAVRESULT,
     PlanningMessage,
     UnknownPlanningMessage,
 )
-from fleet.planning.framing import (
+from fleet.payload.framing import (
     HEADER_SIZE,
     MAX_PACKET_SIZE,
     MAX_PAYLOAD_SIZE,
@@ -34,15 +34,15 @@ from fleet.planning.framing import (
     PlanningProtocolError,
     encode_packet,
 )
-from fleet.planning.protocol import (
+from fleet.payload.protocol import (
     Envelope,
     PlanningDecoder,
     encode_message,
     encode_packets,
 )
-from fleet.planning.reassembly import MAX_FRAGMENT_SIZE, MAX_MESSAGE_SIZE
-from fleet.planning.resync import PlanningStreamDecoder
-from tests.planning.planning_samples import (
+from fleet.payload.reassembly import MAX_FRAGMENT_SIZE, MAX_MESSAGE_SIZE
+from fleet.payload.resync import PlanningStreamDecoder
+from tests.payload.planning_samples import (
     ABORT_7,
     RESULT_74,
     STATUS_OK,

@@ -9,15 +9,14 @@ from __future__ import annotations
 
 import struct
 
-from fleet.piccolo.decoder import Reject, ResyncDecoder
-from fleet.planning.bodies import (
+from fleet.payload.bodies import (
     KNOWN_USER_CODES,
     OPM_BODY_SIZE,
     decode_application,
     decode_opm,
     decode_status,
 )
-from fleet.planning.framing import (
+from fleet.payload.framing import (
     HEADER,
     HEADER_SIZE,
     PACKET_TYPES,
@@ -28,7 +27,8 @@ from fleet.planning.framing import (
     Malformed,
     PlanningPacket,
 )
-from fleet.planning.reassembly import SEGMENT_HEADER_SIZE, split_segment
+from fleet.payload.reassembly import SEGMENT_HEADER_SIZE, split_segment
+from fleet.piccolo.decoder import Reject, ResyncDecoder
 
 __all__ = ["PlanningStreamDecoder"]
 

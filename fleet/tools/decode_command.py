@@ -4,7 +4,7 @@ A diagnostic for a user with a serial capture: every decoded packet is printed w
 stream header and its decoded autopilot or planning-protocol message (or the raw bytes
 of an unknown type); the last line holds the drop counters. Garbage is counted, never
 fatal: the exit code is 0 whatever the stream holds; 2 if the capture cannot be read.
-Runnable on its own as ``python -m fleet.transport.decode_command``.
+Runnable on its own as ``python -m fleet.tools.decode_command``.
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from typing import IO, Any
 import msgspec
 
 from fleet.mission.messages import MissionAbort, MissionTargets, OpmCommand, StatusText, UavResult
+from fleet.payload.link import AutopilotEvent, LinkEvent, PiccoloLink, StreamHeader
+from fleet.payload.protocol import UnknownPlanningMessage
 from fleet.piccolo.autopilot_messages import UnknownAutopilotMessage
-from fleet.planning.link import AutopilotEvent, LinkEvent, PiccoloLink, StreamHeader
-from fleet.planning.protocol import UnknownPlanningMessage
 from fleet.transport.cli import ExitCode, fail, run_standalone
 
 CHUNK = 65536

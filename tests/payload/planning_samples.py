@@ -10,14 +10,14 @@ from fleet.mission.messages import (
     Target,
     UavResult,
 )
-from fleet.planning.bodies import (
+from fleet.payload.bodies import (
     PlanningMessage,
     UnknownPlanningMessage,
 )
-from fleet.planning.framing import (
+from fleet.payload.framing import (
     PAYLOAD_UAV,
 )
-from fleet.planning.protocol import (
+from fleet.payload.protocol import (
     Envelope,
     PlanningDecoder,
     encode_message,

@@ -11,12 +11,12 @@ from fleet.mission.messages import (
     Target,
     UavResult,
 )
+from fleet.payload.link import AutopilotEvent, PiccoloLink, PlanningEvent
+from fleet.payload.protocol import PlanningMessage, encode_message
 from fleet.piccolo.autopilot_messages import UnknownAutopilotMessage
 from fleet.piccolo.stream_packet import ALL_OPERATOR_INTERFACES, StreamDecoder
 from fleet.piccolo.telemetry import Telemetry, decode_telemetry, encode_telemetry
 from fleet.piccolo.waypoint import Waypoint
-from fleet.planning.link import AutopilotEvent, PiccoloLink, PlanningEvent
-from fleet.planning.protocol import PlanningMessage, encode_message
 from tests.support.link_samples import sample_telemetry, sample_waypoint, tracks, waypoints
 from tests.support.mixed_stream import mixed_stream
 

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 from fleet.mission.messages import MISSION_MANAGER, StatusText
-from fleet.planning.link import PiccoloLink
-from fleet.planning.protocol import encode_message
+from fleet.payload.link import PiccoloLink
+from fleet.payload.protocol import encode_message
 from fleet.transport.cli import ExitCode
 from tests.support.link_samples import sample_telemetry
 

@@ -13,7 +13,7 @@ from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import Final
 
-from fleet.planning.framing import (
+from fleet.payload.framing import (
     MAX_PAYLOAD_SIZE,
     PAYLOAD_UAV,
     Malformed,
