@@ -231,7 +231,8 @@ class FleetSpec:
     secure_dir: Path | None = None
     #: One router (the ground's) or a router per UAV (fleet.launch.topology).
     topology: Topology = Topology.STAR
-    #: How to run one UAV's onboard module after `python`; tests put a double here.
+    #: How to run one UAV's onboard module after `python` (another build of it, say); a
+    #: library setting, not a `fleet up` flag.
     onboard_command: tuple[str, ...] = ("-m", "onboard.main")
     #: Where `fleet record` writes the run's recording; None: not recorded.
     record: Path | None = None

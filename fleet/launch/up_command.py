@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import logging
-import shlex
 import sys
 import threading
 from pathlib import Path
@@ -141,7 +140,6 @@ def add_up_parser(
     parser.set_defaults(run=run_up, func=run_up)
     # For tests: run this (shell-quoted, after the Python interpreter) instead of
     # `-m onboard.main`, e.g. a liveliness-only double of the onboard process.
-    parser.add_argument("--onboard-command", help=argparse.SUPPRESS)
     return parser
 
 
@@ -173,8 +171,6 @@ def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
         secure_dir=args.secure,
         topology=args.topology,
     )
-    if args.onboard_command:
-        spec.onboard_command = tuple(shlex.split(args.onboard_command))
     fleet = Fleet(spec, stop_requested=stop, progress=_print_progress)
     if args.uavs is not None:
         path = fleet.log_dir / f"ring-{args.uavs}.toml"
