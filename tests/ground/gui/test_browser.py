@@ -12,6 +12,7 @@ screenshot taken mid-mission is kept in the test's tmp dir (and shown in docs/gu
 from __future__ import annotations
 
 import math
+import re
 import signal
 import sys
 import threading
@@ -212,6 +213,23 @@ def click_at(driver: Any, lat: float, lon: float) -> None:
     ).click().perform()
 
 
+def contrast(driver: Any, element_id: str) -> float:
+    """The WCAG contrast ratio of an element's text against its own background."""
+    colours = driver.execute_script(
+        "const s = getComputedStyle(document.getElementById(arguments[0]));"
+        "return [s.color, s.backgroundColor];",
+        element_id,
+    )
+
+    def luminance(css: str) -> float:
+        channels = [int(c) / 255.0 for c in re.findall(r"\d+", css)[:3]]
+        linear = [c / 12.92 if c <= 0.03928 else ((c + 0.055) / 1.055) ** 2.4 for c in channels]
+        return 0.2126 * linear[0] + 0.7152 * linear[1] + 0.0722 * linear[2]
+
+    light, dark = sorted((luminance(colours[0]), luminance(colours[1])), reverse=True)
+    return (light + 0.05) / (dark + 0.05)
+
+
 def distance_m(a: tuple[float, float], b: tuple[float, float]) -> float:
     return math.hypot(*MercatorProjection(*a).to_xy(*b))
 
@@ -247,6 +265,9 @@ def test_the_thesis_scenario_from_the_page(
             assert "bad.bin: target 1 at byte offset 24" in error.text
             assert "nothing loaded" in error.text
             assert not target_marks(browser.execute_script(READ_MAP))
+            # The header's notice says so too, and can be read: not red on red.
+            assert "Load refused" in text_of(browser, "notice")
+            assert contrast(browser, "notice") >= 4.5
 
             # The thesis's three targets, by clicking the map (zoomed out: a view that
             # no longer follows the fleet, so the clicks land where they are aimed).
