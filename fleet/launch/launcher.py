@@ -173,8 +173,11 @@ class Child:
     name: str
     process: subprocess.Popen[bytes]
     log_path: Path
-    #: Whether the fleet stops when this child dies (a router of a mesh is not).
+    #: Whether the fleet stops when this child dies (a router of a mesh, or a UAV's
+    #: onboard module, is not: the others fly on).
     essential: bool = True
+    #: The command it was started with, for a restart (fleet.launch.supervisor).
+    argv: tuple[str, ...] = ()
 
     @property
     def pid(self) -> int:
@@ -372,7 +375,7 @@ class Fleet:
             stderr=log_file,
             start_new_session=True,
         )
-        child = Child(name, process, log_path)
+        child = Child(name, process, log_path, argv=tuple(argv))
         self.children.append(child)
         log.info("started %s (pid %d): %s", name, process.pid, " ".join(argv[1:]))
         return child
@@ -463,7 +466,7 @@ class Fleet:
                 zenoh_args += ["--zenoh-config", str(self.secure.uav_config(endpoints.piccolo_id))]
             except CertError as error:
                 raise LaunchError(f"UAV {endpoints.piccolo_id} has no identity: {error}") from None
-        self._spawn(
+        child = self._spawn(
             f"onboard-{endpoints.piccolo_id}",
             [
                 self.spec.python,
@@ -480,6 +483,8 @@ class Fleet:
                 *self.spec.onboard_args,
             ],
         )
+        # A UAV lost is one the team re-plans around, as with a container per UAV.
+        child.essential = False
 
     def start_gui(self, listen: str) -> Child:
         """Serve the Mission Manager's page (`ground-cli gui`) on `listen` (HOST:PORT).
@@ -491,6 +496,19 @@ class Fleet:
         child = self._spawn("gui", [*argv, "gui", "--listen", listen])
         self._write_pids()
         return child
+
+    def restart(self, child: Child) -> Child:
+        """Start `child` again with its own command; it takes the dead one's place."""
+        if child.process.poll() is None or not child.argv:
+            raise LaunchError(f"{child.name} is running or cannot be restarted")
+        index = self.children.index(child)
+        self.children.remove(child)
+        again = self._spawn(child.name, list(child.argv))
+        again.essential = child.essential
+        self.children.remove(again)
+        self.children.insert(index, again)
+        self._write_pids()
+        return again
 
     def _write_pids(self) -> None:
         lines = [f"{child.pid} {child.name}" for child in self.children]
@@ -635,28 +653,3 @@ def _waiting_for(expected: set[int], alive: set[int], flowing: set[int]) -> str:
         quiet = ", ".join(map(str, sorted(expected - flowing)))
         parts.append(f"telemetry with a GPS fix from UAV {quiet}")
     return " and ".join(parts) or "nothing"
-
-
-def wait_until_stopped(
-    fleet: Fleet, stop: threading.Event, on_death: Callable[[Child], None] | None = None
-) -> bool:
-    """Block until `stop` is set (True) or an essential child dies (False, after `on_death`).
-
-    A router of a mesh may die: the others route around it (logged once).
-    """
-    reported: set[str] = set()
-    while not stop.wait(0.5):
-        for child in fleet.dead_children():
-            if not child.essential and child.name not in reported:
-                reported.add(child.name)
-                log.warning(
-                    "%s exited with status %s; the mesh routes around it",
-                    child.name,
-                    child.process.returncode,
-                )
-        dead = fleet.dead_children(essential_only=True)
-        if dead:
-            if on_death is not None:
-                on_death(dead[0])
-            return False
-    return True

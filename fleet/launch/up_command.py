@@ -12,6 +12,7 @@ import argparse
 import logging
 import sys
 import threading
+import time
 from pathlib import Path
 
 from fleet.launch.launcher import (
@@ -21,8 +22,8 @@ from fleet.launch.launcher import (
     FleetSpec,
     LaunchError,
     ring_scenario,
-    wait_until_stopped,
 )
+from fleet.launch.supervisor import ChildLost, RestartPolicy, supervise
 from fleet.launch.topology import Topology
 from fleet.mission import keys
 from fleet.mission.access import GROUND
@@ -136,10 +137,14 @@ def add_up_parser(
         help="star: one router (default); router-per-uav: a router per UAV on a ring, "
         "each also linked to the ground's router (docs/security.md)",
     )
+    parser.add_argument(
+        "--restart",
+        action="store_true",
+        help="start a UAV's onboard module again when it dies (back-off 1 s, doubling to "
+        "30 s); without it a dead module is reported and the rest of the fleet flies on",
+    )
     common_arguments(parser, speedup=1.0)
     parser.set_defaults(run=run_up, func=run_up)
-    # For tests: run this (shell-quoted, after the Python interpreter) instead of
-    # `-m onboard.main`, e.g. a liveliness-only double of the onboard process.
     return parser
 
 
@@ -198,7 +203,8 @@ def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
                     file=sys.stderr,
                 )
 
-            stopped_cleanly = wait_until_stopped(fleet, stop, on_death)
+            policy = RestartPolicy() if args.restart else None
+            stopped_cleanly = supervise(fleet, stop, on_death, _print_lost, policy)
             print("fleet up: stopping", flush=True)
     except LaunchError as error:
         if stop.is_set():
@@ -208,6 +214,18 @@ def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
     if spec.record is not None:
         print(f"fleet up: recorded to {spec.record}")
     return ExitCode.OK if stopped_cleanly else ExitCode.FAILED
+
+
+def _print_lost(lost: ChildLost) -> None:
+    then = "the rest of the fleet flies on"
+    if lost.restart_at is not None:
+        then += f"; restarting it in {max(0.0, lost.restart_at - time.monotonic()):.0f} s"
+    print(
+        f"fleet up: {lost.child.name} exited with status {lost.status}; {then}. "
+        f"Last lines of {lost.child.log_path}:\n{lost.child.tail()}",
+        file=sys.stderr,
+        flush=True,
+    )
 
 
 def _print_progress(text: str) -> None:

@@ -1,0 +1,115 @@
+"""`fleet up` supervises: a UAV's onboard module that dies is reported (which, its exit
+status, the last lines of its log) and the rest of the fleet flies on, its target
+re-planned by a teammate; with `--restart` the module is started again."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+from pathlib import Path
+
+import pytest
+
+from fleet.files.targets_io import write_targets
+from fleet.launch.launcher import free_port
+from tests.support.ground_view import GroundView
+from tests.support.processes import Child, client_session, start
+from tests.support.targets import ring_targets
+from tests.support.waiting import wait_until
+
+pytestmark = pytest.mark.e2e
+
+CLI_TIMEOUT_S = 60.0
+
+
+def fleet_up(tmp_path: Path, port: int, *extra: str) -> Child:
+    up = start(
+        "fleet up",
+        [sys.executable, "-m", "ground.fleet_cli", "up", "--uavs", "3",
+         "--listen", f"tcp/127.0.0.1:{port}", "--speedup", "3", "--no-record",
+         "--log-dir", str(tmp_path), *extra],
+    )  # fmt: skip
+    up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+    return up
+
+
+def onboard_pids(tmp_path: Path) -> dict[int, int]:
+    """Piccolo ID -> pid of its onboard module, from `fleet up`'s pids file."""
+    pids = {}
+    for line in (tmp_path / "pids").read_text().splitlines():
+        pid, name = line.split()
+        if name.startswith("onboard-"):
+            pids[int(name.removeprefix("onboard-"))] = int(pid)
+    return pids
+
+
+def stop(up: Child) -> None:
+    up.process.send_signal(signal.SIGTERM)
+    assert up.process.wait(30) == 0
+
+
+def test_a_dead_onboard_is_reported_and_the_team_re_plans_its_target(tmp_path: Path) -> None:
+    port = free_port()
+    up = fleet_up(tmp_path, port)
+    try:
+        with client_session(port) as session:
+            seen = GroundView(session)
+            try:
+                team = sorted(onboard_pids(tmp_path))
+                path = tmp_path / "two.bin"
+                write_targets(path, ring_targets(2, seed=7))
+                send = start(
+                    "send-targets",
+                    [sys.executable, "-m", "ground.cli", "--connect", f"tcp/127.0.0.1:{port}",
+                     "send-targets", str(path), "--wait", "--timeout", "60"],
+                )  # fmt: skip
+                assert send.process.wait(CLI_TIMEOUT_S) == 0, send.history
+                wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "every commitment")
+                pairs = seen.assignments[team[0]].pairs
+                (idle,) = set(team) - set(pairs)
+                victim = max(pairs)
+
+                os.kill(
+                    onboard_pids(tmp_path)[victim], signal.SIGKILL
+                )  # the fault: one UAV's module dies
+                told = up.wait_for_line(lambda line: f"onboard-{victim} exited" in line, 30.0)
+                assert "status -9" in told and "the rest of the fleet flies on" in told
+                wait_until(
+                    lambda: seen.assignments[idle].epoch == 1, 30.0, f"UAV {idle} re-planning"
+                )
+                assert seen.assignments[idle].target == pairs[victim]
+                assert seen.assignments[idle].released == (victim,)
+                assert up.process.poll() is None  # the fleet flies on
+                others = set(team) - {victim}
+                heard = {uav: len(seen.telemetry.get(uav, [])) for uav in others}
+                wait_until(
+                    lambda: all(len(seen.telemetry.get(u, [])) > n for u, n in heard.items()),
+                    10.0,
+                    "telemetry from the others",
+                )
+            finally:
+                seen.close()
+    finally:
+        stop(up)
+
+
+def test_restart_brings_a_dead_onboard_back(tmp_path: Path) -> None:
+    port = free_port()
+    up = fleet_up(tmp_path, port, "--restart")
+    try:
+        victim = min(onboard_pids(tmp_path))
+        before = onboard_pids(tmp_path)[victim]
+        os.kill(before, signal.SIGKILL)
+        told = up.wait_for_line(lambda line: f"onboard-{victim} exited" in line, 30.0)
+        assert "restarting it in 1 s" in told
+        wait_until(lambda: onboard_pids(tmp_path).get(victim, before) != before, 30.0, "a new pid")
+        with client_session(port) as session:
+            seen = GroundView(session)
+            try:
+                wait_until(lambda: victim in seen.telemetry, 60.0, "the restarted UAV's telemetry")
+            finally:
+                seen.close()
+        assert up.process.poll() is None
+    finally:
+        stop(up)
