@@ -22,6 +22,9 @@ class LinkWatch:
     say: Say
     telemetry: Telemetry | None = None
     telemetry_at: float | None = None  #: when the latest telemetry arrived
+    #: How many times telemetry that was flowing stopped: what happened meanwhile
+    #: (an arrival, say) was not seen by telemetry.
+    outages: int = 0
     _said_lost: bool = False
 
     def on_telemetry(self, telemetry: Telemetry, now: float) -> None:
@@ -44,5 +47,6 @@ class LinkWatch:
         if self.telemetry_at is None or self._said_lost or not self.lost(now):
             return
         self._said_lost = True
+        self.outages += 1
         text = f"error: autopilot link lost: no telemetry for over {LINK_LOST_S:g} s"
         self.say(StatusKind.LINK_LOST, text, now)

@@ -3,9 +3,11 @@
 Write waypoint TARGET_WAYPOINT at the target with `next` = the waypoint the aircraft was
 tracking, then track it; when the autopilot moves on from it, the aircraft is back on
 its original course by itself. `flying` once the autopilot echoed the track command,
-`reached` once telemetry put the aircraft within REACHED_RADIUS_M of the target,
-`preempted` when the autopilot left the target route anywhere else or the ground
-commanded it directly. A target that cannot be flown (`failure`) is the mission's to
+`reached` once telemetry put the aircraft within REACHED_RADIUS_M of the target, or
+once the autopilot moved on from the target waypoint to its `next` after a link outage
+hid the arrival (the autopilot sequences only on reaching a waypoint: its echo is the
+observation), `preempted` when the autopilot left the target route anywhere else or
+the ground commanded it directly. A target that cannot be flown (`failure`) is the mission's to
 release (onboard.mission_participation).
 """
 
@@ -90,6 +92,8 @@ class TargetFlight:
     _target_at: Target | None = None
     _committed_at: float = 0.0
     _target_tracked: bool = False  #: the autopilot echoed the track to the target waypoint
+    _target_next: int | None = None  #: where the target waypoint sends the autopilot on
+    _outages_when_tracked: int = 0  #: link outages before the target route was echoed
     resuming: bool = False  #: a resume of the course is sent and not echoed yet
     _operator_track: bool = False  #: the ground commanded the target waypoint or its track
 
@@ -115,14 +119,14 @@ class TargetFlight:
             return None
         return distance_m((gps.lat, gps.lon), (self._target_at.lat, self._target_at.lon))
 
-    def _reached(self, distance: float, now: float) -> None:
+    def _reached(self, distance: float, now: float, how: str = "") -> None:
         # Reached before the track was echoed (it passed by): the target writes still
         # pending would only turn it back to where it has been.
         self.commands.cancel_where(_is_target_write, f"target {self.target} reached")
         self.life.observe(Observation.WITHIN_RADIUS)
         self.say(
             StatusKind.REACHED,
-            f"reached target {self.target} ({distance:.0f} m from it)",
+            f"reached target {self.target} ({how}{distance:.0f} m from it)",
             now,
             mission=self.mission.current(),
             target=self.target,
@@ -149,6 +153,14 @@ class TargetFlight:
         distance = self._target_distance()
         if distance is not None and distance <= REACHED_RADIUS_M:
             self._reached(distance, now)
+            return
+        if (
+            waypoint == self._target_next
+            and self.link.outages > self._outages_when_tracked
+            and distance is not None
+        ):
+            how = f"the autopilot moved on to waypoint {waypoint} during a link outage; now "
+            self._reached(distance, now, how)
             return
         where = "unknown distance" if distance is None else f"{distance:.0f} m"
         why = f"autopilot left the target route for waypoint {waypoint} at {where}"
@@ -208,6 +220,7 @@ class TargetFlight:
         self._operator_track = False  # the module's own target route from now on
         # on_track never records the target waypoint as the course; 0 before any track.
         back_to = 0 if self.original_waypoint is None else self.original_waypoint
+        self._target_next = back_to
         waypoint = Waypoint(
             index=TARGET_WAYPOINT,
             next_index=back_to,
@@ -224,6 +237,7 @@ class TargetFlight:
             if not result.ok or self.mission.superseded(mission) or self.target != target_index:
                 return
             self._target_tracked = True
+            self._outages_when_tracked = self.link.outages
             if self.life.observe(Observation.TRACK_ECHOED):
                 self.say(
                     StatusKind.FLYING_TO_TARGET,

@@ -213,6 +213,13 @@ class SimulatedAutopilot:
                 )
             return
         self.counters["arrivals"] += 1
+        # The simulator's own record of an arrival, whatever the link let the module see.
+        logger.info(
+            "uav %d: reached waypoint %d, on to %d",
+            self.piccolo_id,
+            self.tracked,
+            reached.next_index,
+        )
         self._track(reached.next_index)
         self._send(Track(self.tracked), ALL_OPERATOR_INTERFACES)
 

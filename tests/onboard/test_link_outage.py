@@ -1,15 +1,21 @@
-"""A serial outage right at the commitment, end to end: the target writes are retried
-across it and confirmed by the autopilot's echo once the link is back; the UAV reaches
-its target and never reports the mission failed."""
+"""Serial outages, end to end. At the commitment: the target writes are retried across
+it and confirmed by the autopilot's echo once the link is back; the UAV reaches its
+target and never reports the mission failed. Just before the arrival: the autopilot
+moving on from the target waypoint is the arrival, reported as reached."""
 
 from __future__ import annotations
 
+import math
+import time
 from dataclasses import replace
 from pathlib import Path
 
+from fleet.geo.mercator import MercatorProjection
 from fleet.launch.launcher import ring_scenario
-from fleet.mission.messages import MissionTargets
+from fleet.mission.messages import MissionTargets, Target
+from fleet.mission.phase import Phase
 from onboard.core import CONFIRM_LIMIT_S, LINK_LOST_S, TARGET_WAYPOINT
+from onboard.target_flight import REACHED_RADIUS_M
 from tests.conftest import Ground
 from tests.onboard.test_multi_uav import wait_for_telemetry
 from tests.support.processes import Fleet
@@ -20,6 +26,8 @@ from tests.support.waiting import wait_until
 #: Longer than the old give-up (4 attempts, 2 s) and than LINK_LOST_S; shorter than
 #: the limit after which the target is given up.
 OUTAGE_S = 8.0
+#: How long an outage lasts after the simulator logged an arrival (wall seconds).
+PAST_S = 4.0
 
 
 def test_target_writes_are_retried_across_a_serial_outage_at_the_commitment(
@@ -59,3 +67,57 @@ def test_target_writes_are_retried_across_a_serial_outage_at_the_commitment(
     assert not any("cannot fly" in s or "not confirmed" in s for s in statuses), statuses
     target = targets[0]
     assert seen.closest_approach(uav, target.lat, target.lon) <= 75.0
+
+
+def test_a_target_reached_during_a_link_outage_is_reported_reached(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    scenario = tmp_path / "ring.toml"
+    scenario.write_text(ring_scenario(1))
+    ((uav, where),) = fleet.sim(str(scenario), 3.0, 5.0).items()
+    seen = ground.seen
+    with cuttable_proxy(where.program) as proxy:
+        fleet.onboard(uav, replace(where, program=proxy.url), ground.router)
+        wait_for_telemetry(ground, [uav])
+        # A target 1.5 km dead ahead: the route to it is straight.
+        gps = seen.telemetry[uav][-1].gps
+        assert gps is not None
+        course = math.atan2(gps.vel_north, gps.vel_east)
+        lat, lon = MercatorProjection(gps.lat, gps.lon).to_latlon(
+            1500.0 * math.cos(course), 1500.0 * math.sin(course)
+        )
+        target = Target(lat, lon, gps.alt)
+        ground.send(MissionTargets(mission=1, team=(uav,), targets=(target,)))
+        wait_until(
+            lambda: any("flying to target 0" in s for s in seen.statuses(uav)), 30.0, "flying"
+        )
+        wait_until(
+            lambda: seen.closest_approach(uav, lat, lon) < 400.0, 60.0, "400 m from the target"
+        )
+        proxy.cut()  # the fault: the link drops just before the arrival
+        # The outage lasts until the simulator's own log says the aircraft arrived and
+        # its autopilot moved on (60 m short of the target), and then for as long as it
+        # takes to fly on past it: PAST_S at 66 m/s is 200 m beyond the telemetry's
+        # 75 m radius. The module has noticed the link lost meanwhile.
+        sim = fleet.children[0]
+        arrived = f"uav {uav}: reached waypoint {TARGET_WAYPOINT}"
+        wait_until(lambda: any(arrived in line for line in sim.history), 30.0, "the arrival")
+        arrived_at = time.monotonic()
+        wait_until(
+            lambda: (
+                time.monotonic() - arrived_at > PAST_S
+                and any("autopilot link lost" in s for s in seen.statuses(uav))
+            ),
+            30.0,
+            "the aircraft past its target, unseen",
+        )
+        proxy.restore()
+        wait_until(
+            lambda: any("reached target 0" in s for s in seen.statuses(uav)), 60.0, "reached"
+        )
+    statuses = seen.statuses(uav)
+    assert not any("target not reached" in s for s in statuses), statuses
+    reached = next(s for s in statuses if "reached target 0" in s)
+    assert "during a link outage" in reached  # the autopilot's word: no fix was near it
+    assert seen.closest_approach(uav, lat, lon) > REACHED_RADIUS_M  # telemetry never saw it
+    assert any(o.phase == Phase.REACHED for o in seen.outcomes_of(uav))

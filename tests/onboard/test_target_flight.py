@@ -73,6 +73,26 @@ def test_leaving_the_target_route_far_from_it_is_preempted_not_reached() -> None
     assert not any("reached" in s and "not reached" not in s for s in out.statuses())
 
 
+def test_moving_on_to_the_next_waypoint_during_a_link_outage_is_an_arrival() -> None:
+    core, out = make_core()
+    fly_target_1(core, out)  # the target waypoint leads back to waypoint 2
+    now = tick_without_telemetry(core, 2.0, 8.0)  # the link drops: "autopilot link lost"
+    core.on_telemetry(telemetry_at(TARGETS[1].lat + 0.0034, TARGETS[1].lon), now)  # ~375 m
+    core.on_track(Track(2), now + 0.2)  # it moved on while nobody could see it arrive
+    assert core.state(now + 0.2).phase == Phase.REACHED
+    reached = [s for s in out.statuses() if s.startswith("reached target 1")]
+    assert reached and "moved on to waypoint 2 during a link outage" in reached[0]
+
+
+def test_moving_on_to_the_next_waypoint_far_from_it_with_the_link_up_is_preempted() -> None:
+    core, out = make_core()
+    fly_target_1(core, out)
+    now = run_with_telemetry(core, 2.0, 8.0)  # telemetry all along: no arrival was missed
+    core.on_telemetry(telemetry_at(TARGETS[1].lat + 0.0034, TARGETS[1].lon), now)
+    core.on_track(Track(2), now + 0.2)
+    assert core.state(now + 0.2).phase == Phase.PREEMPTED
+
+
 def test_a_stale_resume_echo_before_the_track_echo_is_not_an_arrival() -> None:
     core, _ = make_core()
     core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 1.0)
