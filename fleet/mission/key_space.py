@@ -203,6 +203,20 @@ class KeySpace:
         return self.key(reg.OUTCOME)
 
 
+def uav_id_of(key: str) -> int:
+    """The Piccolo ID in a `{prefix}/uav/{id}/...` or `{prefix}/mission/{m}/.../{id}` key
+    (not checked: fleet.mission.key_check does that); ValueError or IndexError if none."""
+    parts = key.split("/")
+    if len(parts) >= 3 and parts[1] == "uav":
+        return int(parts[2])
+    return int(parts[-1])
+
+
+def mission_of(key: str) -> int:
+    """The mission id in a `{prefix}/mission/{m}/...` key."""
+    return int(key.split("/")[2])
+
+
 #: The fleet's keys under the default prefix.
 DEFAULT_SPACE = KeySpace()
 
