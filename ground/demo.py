@@ -218,23 +218,23 @@ def _fly_demo(
         if isinstance(message, AssignmentReport):
             say(f"demo: UAV {message.uav} committed target {message.target}")
 
-    with client_bus(fleet.connect) as bus, FleetView(bus, on_status) as view:
+    with client_bus(fleet.connect) as bus, FleetView(bus, args.key_space, on_status) as view:
         # A UAV refuses a mission before its first GPS fix, so wait for telemetry.
         deadline = time.monotonic() + args.start_timeout
         while not stop.is_set() and time.monotonic() < deadline:
             if all(v.lat is not None for v in view.snapshot()) and view.live_ids() == list(team):
                 break
             view.wait_changed(0.5)
-        mission = next_mission_id(bus, 1.0)
+        mission = next_mission_id(bus, args.key_space, 1.0)
         message = MissionTargets(mission=mission, team=team, targets=targets)
         outcome = MissionOutcome(mission=mission, team=team, targets=targets)
         arrivals: dict[int, Arrival] = {}
         with (
-            MissionFollower(bus, mission, on_message) as follower,
-            TargetsServer(bus, message),
+            MissionFollower(bus, args.key_space, mission, on_message) as follower,
+            TargetsServer(bus, args.key_space, message),
         ):
             sent_wall = time.time()
-            publish_targets(bus, message)
+            publish_targets(bus, args.key_space, message)
             say(f"demo: mission {mission}: {len(targets)} targets sent to the team")
             committed = follower.wait_committed(
                 team, min(DEMO_COMMIT_TIMEOUT_S, args.timeout), fetch_every_s=1.0

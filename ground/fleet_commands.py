@@ -7,7 +7,6 @@ import json
 import sys
 import threading
 
-from fleet.mission import keys
 from fleet.mission.messages import StatusText
 from fleet.mission.status_kind import StatusKind
 from fleet.transport.bus import BusSample, decode_sample
@@ -26,7 +25,7 @@ OPM_ANSWERS = frozenset({StatusKind.MODULE_SET, StatusKind.OPM_REFUSED})
 
 def cmd_uavs(args: argparse.Namespace) -> int:
     with client_bus(args.zenoh) as bus:
-        views = fleet_snapshot(bus, args.query_timeout)
+        views = fleet_snapshot(bus, args.key_space, args.query_timeout)
     if args.json:
         print(json.dumps([v.to_json() for v in views]))
     elif views:
@@ -40,6 +39,7 @@ def cmd_watch(args: argparse.Namespace) -> int:
     with client_bus(args.zenoh) as bus:
         watch(
             bus,
+            args.key_space,
             sys.stdout,
             count=args.count,
             duration_s=args.duration,
@@ -51,10 +51,11 @@ def cmd_watch(args: argparse.Namespace) -> int:
 
 def cmd_opm(args: argparse.Namespace) -> int:
     enabled = args.state == "on"
+    space = args.key_space
     with client_bus(args.zenoh) as bus:
-        if not bus.live_tokens(keys.alive(args.uav), args.query_timeout):
+        if not bus.live_tokens(space.alive(args.uav), args.query_timeout):
             print(
-                f"error: UAV {args.uav} is not live (no {keys.alive(args.uav)} token); "
+                f"error: UAV {args.uav} is not live (no {space.alive(args.uav)} token); "
                 "nothing sent",
                 file=sys.stderr,
             )
@@ -69,9 +70,9 @@ def cmd_opm(args: argparse.Namespace) -> int:
                 confirmed.set()
 
         # Listen before sending: the UAV answers with a status message at once.
-        subscription = bus.subscribe(keys.status(args.uav), on_status)
+        subscription = bus.subscribe(space.status(args.uav), on_status)
         try:
-            send_opm(bus, args.uav, enabled, args.status_rate)
+            send_opm(bus, space, args.uav, enabled, args.status_rate)
             print(f"UAV {args.uav}: planning module {args.state} sent")
             if confirmed.wait(OPM_CONFIRM_S):
                 print(f"UAV {args.uav}: {answer[0]}")
@@ -86,7 +87,7 @@ def cmd_keys(args: argparse.Namespace) -> int:
     with client_bus(args.zenoh) as bus:
         values = keyspace.collect(
             bus,
-            args.expr or keyspace.default_expr(),
+            args.expr or keyspace.default_expr(args.key_space),
             window_s=args.window,
             timeout_s=args.query_timeout,
             admin=args.admin,

@@ -23,8 +23,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from fleet.mission import keys
 from fleet.mission.key_check import WrongKey, uav_of
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import StatusText, UavState
 from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
@@ -134,27 +134,27 @@ def view_from_state(state: UavState) -> UavView:
     return view
 
 
-def live_uav_ids(bus: Bus, timeout_s: float) -> list[int]:
+def live_uav_ids(bus: Bus, space: KeySpace, timeout_s: float) -> list[int]:
     """The Piccolo IDs whose liveliness token `fleet/uav/{id}/alive` is declared."""
     ids: set[int] = set()
-    for key in bus.live_tokens(keys.ALL_ALIVE, timeout_s):
+    for key in bus.live_tokens(space.all_alive, timeout_s):
         try:
-            ids.add(uav_of(key))
+            ids.add(uav_of(key, space))
         except WrongKey as error:
             log.warning("ignored liveliness token: %s", refuse(str(error), DropReason.WRONG_KEY))
     return sorted(ids)
 
 
-def query_states(bus: Bus, timeout_s: float) -> dict[int, UavState]:
+def query_states(bus: Bus, space: KeySpace, timeout_s: float) -> dict[int, UavState]:
     return {
-        state.uav: state for _, state in bus.query_messages(keys.ALL_STATE, UavState, timeout_s)
+        state.uav: state for _, state in bus.query_messages(space.all_state, UavState, timeout_s)
     }
 
 
-def fleet_snapshot(bus: Bus, timeout_s: float) -> list[UavView]:
+def fleet_snapshot(bus: Bus, space: KeySpace, timeout_s: float) -> list[UavView]:
     """Every live UAV, with what its state query said (just its id if it did not answer)."""
-    ids = live_uav_ids(bus, timeout_s)
-    states = query_states(bus, timeout_s) if ids else {}
+    ids = live_uav_ids(bus, space, timeout_s)
+    states = query_states(bus, space, timeout_s) if ids else {}
     return [view_from_state(states[i]) if i in states else UavView(id=i) for i in ids]
 
 
@@ -179,10 +179,12 @@ class FleetView(Declarations):
     def __init__(
         self,
         bus: Bus,
+        space: KeySpace,
         on_status: Callable[[StatusRecord], None] | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self._bus = bus
+        self._space = space
         self._on_status = on_status
         self._clock = clock
         self._lock = threading.Lock()
@@ -193,12 +195,12 @@ class FleetView(Declarations):
         super().__init__()
 
     def _declare(self, enter: Enter) -> None:
-        bus = self._bus
-        enter(bus.subscribe_presence(keys.ALL_ALIVE, self._on_alive))
-        enter(bus.subscribe(keys.ALL_TELEMETRY, self._on_telemetry))
-        enter(bus.subscribe(keys.ALL_TRACK, self._on_track))
-        enter(bus.subscribe(keys.ALL_WAYPOINTS, self._on_waypoint))
-        enter(bus.subscribe(keys.ALL_STATUS, self._on_status_sample))
+        bus, space = self._bus, self._space
+        enter(bus.subscribe_presence(space.all_alive, self._on_alive))
+        enter(bus.subscribe(space.all_telemetry, self._on_telemetry))
+        enter(bus.subscribe(space.all_track, self._on_track))
+        enter(bus.subscribe(space.all_waypoints, self._on_waypoint))
+        enter(bus.subscribe(space.all_status, self._on_status_sample))
 
     # ---- callbacks (Zenoh threads) ------------------------------------------------
     def _entry(self, uav_id: int) -> _Uav:
@@ -208,7 +210,7 @@ class FleetView(Declarations):
         return entry
 
     def _on_alive(self, key: str, alive: bool) -> None:
-        uav_id = _uav_of(key)
+        uav_id = _uav_of(key, self._space)
         if uav_id is None:
             return
         with self._changed:
@@ -217,7 +219,7 @@ class FleetView(Declarations):
         log.info("UAV %d %s", uav_id, "joined" if alive else "left")
 
     def _on_telemetry(self, sample: BusSample) -> None:
-        uav_id = _uav_of(sample.key)
+        uav_id = _uav_of(sample.key, self._space)
         telemetry = decode_sample(sample, Telemetry)
         if uav_id is None or telemetry is None:
             return
@@ -228,7 +230,7 @@ class FleetView(Declarations):
             self._changed.notify_all()
 
     def _on_track(self, sample: BusSample) -> None:
-        uav_id = _uav_of(sample.key)
+        uav_id = _uav_of(sample.key, self._space)
         track = decode_sample(sample, Track)
         if uav_id is None or track is None:
             return
@@ -240,7 +242,7 @@ class FleetView(Declarations):
             self._changed.notify_all()
 
     def _on_waypoint(self, sample: BusSample) -> None:
-        uav_id = _uav_of(sample.key)
+        uav_id = _uav_of(sample.key, self._space)
         waypoint = decode_sample(sample, Waypoint)
         if uav_id is None or waypoint is None:
             return
@@ -249,7 +251,7 @@ class FleetView(Declarations):
             self._changed.notify_all()
 
     def _on_status_sample(self, sample: BusSample) -> None:
-        uav_id = _uav_of(sample.key)
+        uav_id = _uav_of(sample.key, self._space)
         status = decode_sample(sample, StatusText)
         if uav_id is None or status is None:
             return
@@ -266,7 +268,7 @@ class FleetView(Declarations):
     # ---- queries and readers (caller's thread) --------------------------------------
     def refresh_states(self, timeout_s: float) -> None:
         """Fill in what is only in state answers (module on/off, mission phase, target)."""
-        states = query_states(self._bus, timeout_s)
+        states = query_states(self._bus, self._space, timeout_s)
         with self._changed:
             for uav_id, state in states.items():
                 entry = self._entry(uav_id)
@@ -345,9 +347,9 @@ class FleetView(Declarations):
             self.wait_changed(min(remaining, 0.5))
 
 
-def _uav_of(key: str) -> int | None:
+def _uav_of(key: str, space: KeySpace) -> int | None:
     try:
-        return uav_of(key)
+        return uav_of(key, space)
     except WrongKey as error:
         log.warning("ignored: %s", refuse(str(error), DropReason.WRONG_KEY))
         return None

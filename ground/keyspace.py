@@ -22,16 +22,16 @@ from typing import Any
 
 import msgspec
 
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.transport import bus_codec
 from fleet.transport.bus import JSON_ENCODING, Bus, BusReply, BusSample
 
 log = logging.getLogger(__name__)
 
 
-def default_expr() -> str:
+def default_expr(space: KeySpace) -> str:
     """Everything under the key prefix."""
-    return f"{keys.PREFIX}/**"
+    return space.everything
 
 
 ADMIN_EXPR = "@/**"

@@ -7,6 +7,7 @@ import json
 import sys
 import time
 
+from fleet.mission.key_space import KeySpace
 from fleet.mission.phase import Phase
 from fleet.transport.bus import Bus
 from fleet.transport.cli import ExitCode
@@ -24,12 +25,14 @@ def cmd_mission(args: argparse.Namespace) -> int:
     with client_bus(args.zenoh) as bus:
         mission = args.mission
         if mission is None:
-            mission = current_mission_id(bus, args.query_timeout)
+            mission = current_mission_id(bus, args.key_space, args.query_timeout)
         if mission is None:
             print("error: no mission seen (give --mission)", file=sys.stderr)
             return ExitCode.FAILED
         try:
-            outcome = mission_status(bus, mission, args.query_timeout, args.until_reached)
+            outcome = mission_status(
+                bus, args.key_space, mission, args.query_timeout, args.until_reached
+            )
         except MissionError as error:
             print(f"error: {error}", file=sys.stderr)
             return ExitCode.FAILED
@@ -45,7 +48,7 @@ def cmd_mission(args: argparse.Namespace) -> int:
 
 def cmd_abort(args: argparse.Namespace) -> int:
     with client_bus(args.zenoh) as bus:
-        seen = missions_seen(bus, args.query_timeout)
+        seen = missions_seen(bus, args.key_space, args.query_timeout)
         mission = args.mission
         if mission is None:
             mission = max(seen, default=None)
@@ -60,13 +63,15 @@ def cmd_abort(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
             return ExitCode.FAILED
-        send_abort(bus, mission, args.uav)
+        send_abort(bus, args.key_space, mission, args.uav)
         to = "" if args.uav is None else f" to UAV {args.uav}"
         print(f"mission {mission}: abort sent{to}")
-        return _confirm_abort(bus, mission, args.uav, args.query_timeout)
+        return _confirm_abort(bus, args.key_space, mission, args.uav, args.query_timeout)
 
 
-def _confirm_abort(bus: Bus, mission: int, uav: int | None, timeout_s: float) -> int:
+def _confirm_abort(
+    bus: Bus, space: KeySpace, mission: int, uav: int | None, timeout_s: float
+) -> int:
     """Wait until every UAV aborted (the mission's team, or `uav` alone) reports it.
 
     A team UAV that does not answer at all (frozen, cut off) has not confirmed: it is
@@ -74,13 +79,13 @@ def _confirm_abort(bus: Bus, mission: int, uav: int | None, timeout_s: float) ->
     """
     deadline = time.monotonic() + max(ABORT_CONFIRM_S, timeout_s)
     try:
-        team = set(mission_targets_of(bus, mission, timeout_s).team)
+        team = set(mission_targets_of(bus, space, mission, timeout_s).team)
     except MissionError:
         team = set()  # nobody serves the targets: judge by the states alone
     expected = {uav} if uav is not None else team
     pending: dict[int, str] = {}
     while True:
-        states = query_states(bus, timeout_s)
+        states = query_states(bus, space, timeout_s)
         on_mission = {
             piccolo_id
             for piccolo_id, state in states.items()

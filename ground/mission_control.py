@@ -20,7 +20,7 @@ import time
 from collections.abc import Iterable
 
 from fleet.errors import FleetError
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     MissionAbort,
     MissionTargets,
@@ -39,8 +39,8 @@ class MissionError(FleetError, RuntimeError):
     """A mission operation that cannot go ahead (no team, no mission to abort, ...)."""
 
 
-def publish_targets(bus: Bus, targets: MissionTargets) -> None:
-    bus.publish(keys.mission_targets(targets.mission), targets)
+def publish_targets(bus: Bus, space: KeySpace, targets: MissionTargets) -> None:
+    bus.publish(space.mission_targets(targets.mission), targets)
     log.info(
         "mission %d: %d targets sent to %s",
         targets.mission,
@@ -49,48 +49,52 @@ def publish_targets(bus: Bus, targets: MissionTargets) -> None:
     )
 
 
-def delivered_to(bus: Bus, mission: int, timeout_s: float) -> set[int]:
+def delivered_to(bus: Bus, space: KeySpace, mission: int, timeout_s: float) -> set[int]:
     """The UAVs whose state says they have seen `mission` (or a later one)."""
     return {
         uav
-        for uav, state in query_states(bus, timeout_s).items()
+        for uav, state in query_states(bus, space, timeout_s).items()
         if state.mission is not None and state.mission.mission >= mission
     }
 
 
-def wait_delivered(bus: Bus, mission: int, team: Iterable[int], timeout_s: float) -> set[int]:
+def wait_delivered(
+    bus: Bus, space: KeySpace, mission: int, team: Iterable[int], timeout_s: float
+) -> set[int]:
     """Poll the UAVs' states until each of `team` has the mission; returns those that do."""
     members = set(team)
     deadline = time.monotonic() + timeout_s
     got: set[int] = set()
     while True:
         remaining = deadline - time.monotonic()
-        got |= delivered_to(bus, mission, max(0.1, min(1.0, remaining)))
+        got |= delivered_to(bus, space, mission, max(0.1, min(1.0, remaining)))
         if members <= got or remaining <= 0:
             return got & members
         time.sleep(min(0.2, max(0.0, deadline - time.monotonic())))
 
 
 # ---- commands ----------------------------------------------------------------------------
-def send_abort(bus: Bus, mission: int, uav: int | None = None) -> MissionAbort:
+def send_abort(bus: Bus, space: KeySpace, mission: int, uav: int | None = None) -> MissionAbort:
     """Abort `mission` for its whole team, or for UAV `uav` alone."""
     abort = MissionAbort(mission=mission, uav=uav)
-    bus.publish(keys.mission_abort(mission), abort)
+    bus.publish(space.mission_abort(mission), abort)
     log.info("mission %d: abort sent to %s", mission, "the team" if uav is None else uav)
     return abort
 
 
-def send_opm(bus: Bus, uav: int, enabled: bool, status_rate_hz: float) -> OpmCommand:
+def send_opm(
+    bus: Bus, space: KeySpace, uav: int, enabled: bool, status_rate_hz: float
+) -> OpmCommand:
     command = OpmCommand(enabled=enabled, status_rate_hz=status_rate_hz)
-    bus.publish(keys.opm(uav), command)
+    bus.publish(space.opm(uav), command)
     log.info("UAV %d: planning module %s", uav, "on" if enabled else "off")
     return command
 
 
 # ---- a mission's status, after the fact --------------------------------------------------
-def mission_targets_of(bus: Bus, mission: int, timeout_s: float) -> MissionTargets:
+def mission_targets_of(bus: Bus, space: KeySpace, mission: int, timeout_s: float) -> MissionTargets:
     """The mission's targets and team, as the UAVs (or a ground still sending) serve them."""
-    for _, targets in bus.query_messages(keys.mission_targets(mission), MissionTargets, timeout_s):
+    for _, targets in bus.query_messages(space.mission_targets(mission), MissionTargets, timeout_s):
         if targets.mission == mission:
             return targets
     raise MissionError(f"mission {mission}: no UAV or ground answers for it")
@@ -98,6 +102,7 @@ def mission_targets_of(bus: Bus, mission: int, timeout_s: float) -> MissionTarge
 
 def mission_status(
     bus: Bus,
+    space: KeySpace,
     mission: int,
     timeout_s: float,
     until_reached_s: float | None = None,
@@ -105,9 +110,9 @@ def mission_status(
     """Mission `mission` as the fleet reports it now: results, the latest epoch's
     assignment, outcomes; with `until_reached_s`, first wait that long at most for every
     target to be reached. MissionError if nothing answers for the mission."""
-    targets = mission_targets_of(bus, mission, timeout_s)
+    targets = mission_targets_of(bus, space, mission, timeout_s)
     outcome = MissionOutcome(mission=mission, team=targets.team, targets=targets.targets)
-    with MissionFollower(bus, mission) as follower:
+    with MissionFollower(bus, space, mission) as follower:
         follower.fetch(timeout_s)
         if until_reached_s is not None:
             everything = set(range(len(targets.targets)))
@@ -119,7 +124,7 @@ def mission_status(
             follower.wait_until(all_reached, until_reached_s, fetch_every_s=1.0)
         outcome.results, outcome.assignments = follower.snapshot()
         outcome.outcomes = follower.outcome_snapshot()
-    states = query_states(bus, timeout_s)
+    states = query_states(bus, space, timeout_s)
     outcome.lost = {uav for uav in targets.team if uav not in states}
     for uav, state in states.items():
         if uav in outcome.team:

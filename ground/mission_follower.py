@@ -15,7 +15,7 @@ import time
 from collections.abc import Callable, Iterable
 from typing import Any
 
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace, uav_id_of
 from fleet.mission.messages import (
     AssignmentReport,
     MissionTargets,
@@ -47,11 +47,13 @@ class MissionFollower(Declarations):
     def __init__(
         self,
         bus: Bus,
+        space: KeySpace,
         mission: int,
         listener: Listener | None = None,
         team: Iterable[int] = (),
     ) -> None:
         self._bus = bus
+        self._space = space
         self.mission = mission
         self._listener = listener
         self._team = frozenset(team)
@@ -64,17 +66,17 @@ class MissionFollower(Declarations):
         super().__init__()
 
     def _declare(self, enter: Enter) -> None:
-        bus, mission = self._bus, self.mission
-        enter(bus.subscribe(keys.mission_results(mission), self._on_result_sample))
-        enter(bus.subscribe(keys.mission_assignments(mission), self._on_assignment_sample))
-        enter(bus.subscribe(keys.mission_outcomes(mission), self._on_outcome_sample))
+        bus, space, mission = self._bus, self._space, self.mission
+        enter(bus.subscribe(space.mission_results(mission), self._on_result_sample))
+        enter(bus.subscribe(space.mission_assignments(mission), self._on_assignment_sample))
+        enter(bus.subscribe(space.mission_outcomes(mission), self._on_outcome_sample))
         # The tokens present now are reported too: each is a UAV not lost, a no-op.
-        enter(bus.subscribe_presence(keys.ALL_ALIVE, self._on_alive))
-        enter(bus.subscribe(keys.ALL_MISSION_TARGETS, self._on_targets_sample))
+        enter(bus.subscribe_presence(space.all_alive, self._on_alive))
+        enter(bus.subscribe(space.all_mission_targets, self._on_targets_sample))
 
     def _on_alive(self, key: str, alive: bool) -> None:
         try:
-            uav = keys.uav_id_of(key)
+            uav = uav_id_of(key)
         except (ValueError, IndexError):
             return
         with self._changed:
@@ -157,20 +159,20 @@ class MissionFollower(Declarations):
     def fetch(self, timeout_s: float) -> None:
         """Query what the UAVs serve, to catch anything the subscriptions missed."""
         for _, result in self._bus.query_messages(
-            keys.mission_results(self.mission), UavResult, timeout_s
+            self._space.mission_results(self.mission), UavResult, timeout_s
         ):
             self.add_result(result)
         for _, report in self._bus.query_messages(
-            keys.mission_assignments(self.mission), AssignmentReport, timeout_s
+            self._space.mission_assignments(self.mission), AssignmentReport, timeout_s
         ):
             self.add_assignment(report)
         for _, outcome in self._bus.query_messages(
-            keys.mission_outcomes(self.mission), TargetOutcome, timeout_s
+            self._space.mission_outcomes(self.mission), TargetOutcome, timeout_s
         ):
             self.add_outcome(outcome)
         # The UAVs serve their current mission's targets: a later one supersedes ours.
         for _, targets in self._bus.query_messages(
-            keys.ALL_MISSION_TARGETS, MissionTargets, timeout_s
+            self._space.all_mission_targets, MissionTargets, timeout_s
         ):
             self.note_targets(targets)
 

@@ -17,7 +17,7 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
     MissionAbort,
@@ -66,7 +66,7 @@ def _mission_message(reply: BusReply) -> MissionMessage | None:
         return None
 
 
-def missions_seen(bus: Bus, timeout_s: float) -> set[int]:
+def missions_seen(bus: Bus, space: KeySpace, timeout_s: float) -> set[int]:
     """Every mission id anything in the key space still answers for.
 
     The UAVs serve their current mission's targets, results and assignments by query,
@@ -74,24 +74,24 @@ def missions_seen(bus: Bus, timeout_s: float) -> set[int]:
     that sent it has gone.
     """
     seen: set[int] = set()
-    for reply in bus.query(keys.ALL_MISSION_KEYS, timeout_s):
+    for reply in bus.query(space.all_mission_keys, timeout_s):
         message = _mission_message(reply)
         if message is not None:
             seen.add(message.mission)
-    for state in query_states(bus, timeout_s).values():
+    for state in query_states(bus, space, timeout_s).values():
         if state.mission is not None:
             seen.add(state.mission.mission)
     return seen
 
 
-def next_mission_id(bus: Bus, timeout_s: float) -> int:
+def next_mission_id(bus: Bus, space: KeySpace, timeout_s: float) -> int:
     """One more than the highest mission id seen, or 1 on a fresh fleet.
 
     A UAV ignores a mission id not above its current one (a higher id supersedes a
     lower one), and every UAV reports its current mission, so max + 1 is always new to
     every live UAV, stays small and readable, and survives a ground restart.
     """
-    seen = missions_seen(bus, timeout_s)
+    seen = missions_seen(bus, space, timeout_s)
     mission = max(seen, default=0) + 1
     if mission > MAX_MISSION_ID:
         raise MissionError(f"mission id {mission} does not fit in 32 bits")
@@ -107,7 +107,7 @@ CLAIM_BACKOFF_S = (0.02, 0.2)
 CLAIM_STEP = 4
 
 
-def rival_claims(bus: Bus, targets: MissionTargets, timeout_s: float) -> int:
+def rival_claims(bus: Bus, space: KeySpace, targets: MissionTargets, timeout_s: float) -> int:
     """How many others serve a different MissionTargets under `targets`' mission id.
 
     Every reply is kept (no consolidation: two grounds serving the same key must both
@@ -115,7 +115,7 @@ def rival_claims(bus: Bus, targets: MissionTargets, timeout_s: float) -> int:
     that already holds this very mission.
     """
     rivals = 0
-    key = keys.mission_targets(targets.mission)
+    key = space.mission_targets(targets.mission)
     # The query carries our candidate: a ground already serving this id learns that it
     # was contested (TargetsServer.contested).
     candidate = bus_codec.encode(targets)
@@ -129,6 +129,7 @@ def rival_claims(bus: Bus, targets: MissionTargets, timeout_s: float) -> int:
 @contextmanager
 def claim_mission(
     bus: Bus,
+    space: KeySpace,
     make: Callable[[int], MissionTargets],
     timeout_s: float,
     *,
@@ -152,11 +153,11 @@ def claim_mission(
     a mission of the rival may then supersede this one at any moment (`contest_grace_s`).
     """
     rng = rng if rng is not None else random.Random()
-    chosen = mission if mission is not None else next_mission_id(bus, timeout_s)
+    chosen = mission if mission is not None else next_mission_id(bus, space, timeout_s)
     for attempt in range(1, attempts + 1):
         targets = make(chosen)
-        with TargetsServer(bus, targets) as server:
-            rivals = rival_claims(bus, targets, timeout_s)
+        with TargetsServer(bus, space, targets) as server:
+            rivals = rival_claims(bus, space, targets, timeout_s)
             if not rivals:
                 if attempt > 1:
                     log.warning("mission %d: claimed at attempt %d", chosen, attempt)
@@ -179,7 +180,7 @@ def claim_mission(
             attempts,
         )
         time.sleep(pause)  # a random back-off, so the two grounds do not collide again
-        chosen = max(next_mission_id(bus, timeout_s), chosen + 1) + rng.randrange(CLAIM_STEP)
+        chosen = max(next_mission_id(bus, space, timeout_s), chosen + 1) + rng.randrange(CLAIM_STEP)
         if chosen > MAX_MISSION_ID:
             raise MissionError(f"mission id {chosen} does not fit in 32 bits")
     raise MissionError(
@@ -193,8 +194,8 @@ def contest_grace_s(timeout_s: float) -> float:
     return CLAIM_BACKOFF_S[1] + 3 * timeout_s
 
 
-def current_mission_id(bus: Bus, timeout_s: float) -> int | None:
-    seen = missions_seen(bus, timeout_s)
+def current_mission_id(bus: Bus, space: KeySpace, timeout_s: float) -> int | None:
+    seen = missions_seen(bus, space, timeout_s)
     return max(seen) if seen else None
 
 
@@ -204,10 +205,10 @@ class TargetsServer(Declarations):
     A UAV that starts, or reconnects, after the put can still fetch the mission.
     """
 
-    def __init__(self, bus: Bus, targets: MissionTargets) -> None:
+    def __init__(self, bus: Bus, space: KeySpace, targets: MissionTargets) -> None:
         self._bus = bus
         self.targets = targets
-        self._key = keys.mission_targets(targets.mission)
+        self._key = space.mission_targets(targets.mission)
         self._payload = bus_codec.encode(targets)
         #: Another ground asked for this id with other targets (see `claim_mission`).
         self.contested = threading.Event()

@@ -14,6 +14,7 @@ import threading
 from typing import TextIO
 
 from fleet.consensus.deadline import consensus_deadline
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import AssignmentReport, MissionTargets, TargetOutcome, UavResult
 from fleet.transport.bus import Bus
 from fleet.transport.cli import ExitCode
@@ -93,7 +94,9 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
             return MissionTargets(mission, team, targets, deadline_s=deadline_s)
 
         try:
-            with claim_mission(bus, make, args.query_timeout, mission=args.mission) as server:
+            with claim_mission(
+                bus, args.key_space, make, args.query_timeout, mission=args.mission
+            ) as server:
                 outcome = _send_and_follow(bus, server, args, progress)
         except MissionError as error:
             print(f"error: {error}; nothing sent", file=sys.stderr)
@@ -116,8 +119,8 @@ def _send_and_follow(
     mission, team, targets = message.mission, message.team, message.targets
     listener = _progress_printer(progress, team) if args.wait else None
     outcome = MissionOutcome(mission=mission, team=team, targets=targets)
-    with MissionFollower(bus, mission, listener, team) as follower:
-        publish_targets(bus, message)
+    with MissionFollower(bus, args.key_space, mission, listener, team) as follower:
+        publish_targets(bus, args.key_space, message)
         print(
             f"mission {mission}: {len(targets)} targets from {args.file} sent to "
             f"{', '.join(map(str, team))}",
@@ -137,19 +140,21 @@ def _send_and_follow(
                 )
                 follower.wait_superseded(grace)
         else:
-            _report_delivery(bus, message, min(DELIVERY_WAIT_S, args.timeout), progress)
+            _report_delivery(
+                bus, args.key_space, message, min(DELIVERY_WAIT_S, args.timeout), progress
+            )
         follower.fetch(args.query_timeout)
         outcome.results, outcome.assignments = follower.snapshot()
         outcome.outcomes = follower.outcome_snapshot()
         outcome.lost = set(follower.lost) & set(team)
         if args.wait:
-            _read_phases(bus, outcome, follower, args.query_timeout)
+            _read_phases(bus, args.key_space, outcome, follower, args.query_timeout)
     return outcome
 
 
 def _team(bus: Bus, args: argparse.Namespace) -> tuple[int, ...]:
     """`--team`, or every live UAV; team members not live now are warned about."""
-    live = live_uav_ids(bus, args.query_timeout)
+    live = live_uav_ids(bus, args.key_space, args.query_timeout)
     if not args.team:
         return tuple(live)
     absent = [uav for uav in args.team if uav not in live]
@@ -162,9 +167,11 @@ def _team(bus: Bus, args: argparse.Namespace) -> tuple[int, ...]:
     return tuple(args.team)
 
 
-def _report_delivery(bus: Bus, message: MissionTargets, timeout_s: float, out: TextIO) -> None:
+def _report_delivery(
+    bus: Bus, space: KeySpace, message: MissionTargets, timeout_s: float, out: TextIO
+) -> None:
     """Without --wait: say which team UAVs have not acknowledged the mission yet."""
-    got = wait_delivered(bus, message.mission, message.team, timeout_s)
+    got = wait_delivered(bus, space, message.mission, message.team, timeout_s)
     missing = [uav for uav in message.team if uav not in got]
     if missing:
         print(
@@ -174,11 +181,15 @@ def _report_delivery(bus: Bus, message: MissionTargets, timeout_s: float, out: T
 
 
 def _read_phases(
-    bus: Bus, outcome: MissionOutcome, follower: MissionFollower, timeout_s: float
+    bus: Bus,
+    space: KeySpace,
+    outcome: MissionOutcome,
+    follower: MissionFollower,
+    timeout_s: float,
 ) -> None:
     """Each team UAV's phase (and reason) as its own state query answers it; a team UAV
     on a later mission means this one was superseded."""
-    for uav, state in query_states(bus, timeout_s).items():
+    for uav, state in query_states(bus, space, timeout_s).items():
         if uav in outcome.team:
             outcome.phases[uav] = str(state.phase)
             if state.reason:

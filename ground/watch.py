@@ -18,6 +18,7 @@ import threading
 import time
 from typing import TextIO
 
+from fleet.mission.key_space import KeySpace
 from fleet.transport.bus import Bus
 from ground.alerts import StatusRecord
 from ground.fleet_view import FleetView, format_table
@@ -44,6 +45,7 @@ def alerts_box(alerts: list[StatusRecord]) -> list[str]:
 
 def watch(
     bus: Bus,
+    space: KeySpace,
     out: TextIO,
     *,
     count: int | None,
@@ -67,7 +69,7 @@ def watch(
 
     started = time.monotonic()
     frames = 0
-    with FleetView(bus, on_status=on_status) as view:
+    with FleetView(bus, space, on_status=on_status) as view:
         try:
             while count is None or frames < count:
                 view.refresh_states(query_timeout_s)

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import msgspec
 
 from fleet.consensus.mission_round import Settled
-from fleet.mission import keys
 from fleet.mission.key_check import WrongKey, parse_key
+from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.mission.messages import (
     AssignmentHeader,
     AssignmentReport,
@@ -54,16 +54,15 @@ class PresenceEvent:
 Sink = Callable[[BusEvent | PresenceEvent], None]
 
 
-def _mission_subscriptions() -> tuple[tuple[str, type[msgspec.Struct]], ...]:
-    # Built when used: the key prefix is a setting (`--key-prefix`), read at use.
+def _mission_subscriptions(space: KeySpace) -> tuple[tuple[str, type[msgspec.Struct]], ...]:
     return (
-        (keys.ALL_MISSION_TARGETS, MissionTargets),
-        (keys.ALL_MISSION_RESULTS, UavResult),
+        (space.all_mission_targets, MissionTargets),
+        (space.all_mission_results, UavResult),
         # Re-plans only: a teammate's epoch-0 commitment changes nothing for a UAV that
         # committed too, and one that has not learns it by query (`fetch`).
-        (keys.ALL_MISSION_REPLANS, AssignmentReport),
-        (keys.ALL_MISSION_ABORTS, MissionAbort),
-        (keys.ALL_MISSION_OUTCOMES, TargetOutcome),
+        (space.all_mission_replans, AssignmentReport),
+        (space.all_mission_aborts, MissionAbort),
+        (space.all_mission_outcomes, TargetOutcome),
     )
 
 
@@ -77,11 +76,13 @@ class BusEdge:
         sink: Sink,
         wake: Callable[[], None] | None = None,
         settled: Callable[[], Settled | None] | None = None,
+        key_space: KeySpace = DEFAULT_SPACE,
     ) -> None:
         """`sink` gets every event; `wake` is called when a query waits to be served;
         `settled` gives the module's latest `Settled` snapshot, if any: an assignment
         report it covers changes nothing, and is dropped on its header alone."""
         self.uav_id = uav_id
+        self.key_space = key_space
         self.sink = sink
         self.wake = wake
         self.settled = settled
@@ -94,34 +95,34 @@ class BusEdge:
             raise
 
     def _declare(self) -> None:
-        bus = self.bus
-        self.token = bus.declare_token(keys.alive(self.uav_id))
-        self._declared.append(bus.subscribe_presence(keys.ALL_ALIVE, self._on_presence))
+        bus, space = self.bus, self.key_space
+        self.token = bus.declare_token(space.alive(self.uav_id))
+        self._declared.append(bus.subscribe_presence(space.all_alive, self._on_presence))
         subscriptions: tuple[tuple[str, type[msgspec.Struct]], ...] = (
-            (keys.opm(self.uav_id), OpmCommand),
-            *_mission_subscriptions(),
+            (space.opm(self.uav_id), OpmCommand),
+            *_mission_subscriptions(space),
         )
         for key, kind in subscriptions:
             self._declared.append(bus.subscribe(key, self._decoder(kind)))
-        self.state_queries = bus.declare_queryable(keys.state(self.uav_id), self.wake)
-        self.command_queries = bus.declare_queryable(keys.command(self.uav_id, "*"), self.wake)
+        self.state_queries = bus.declare_queryable(space.state(self.uav_id), self.wake)
+        self.command_queries = bus.declare_queryable(space.command(self.uav_id, "*"), self.wake)
         # Each UAV answers for the targets and the abort of its current mission, and for
         # its own result, assignment and outcome only, so
         # a teammate's query for a missing result reaches the UAV that owes it.
         self.mission_queries = [
             bus.declare_queryable(key, self.wake)
             for key in (
-                keys.ALL_MISSION_TARGETS,
-                keys.ALL_MISSION_ABORTS,
-                f"{keys.PREFIX}/mission/*/result/{self.uav_id}",
-                f"{keys.PREFIX}/mission/*/assignment/{self.uav_id}",
-                f"{keys.PREFIX}/mission/*/outcome/{self.uav_id}",
+                space.all_mission_targets,
+                space.all_mission_aborts,
+                space.results_of(self.uav_id),
+                space.assignments_of(self.uav_id),
+                space.outcomes_of(self.uav_id),
             )
         ]
 
     def _on_presence(self, key: str, alive: bool) -> None:
         try:
-            uav = parse_key(key).uav
+            uav = parse_key(key, self.key_space).uav
         except WrongKey as error:
             log.warning("dropped liveliness token: %s", refuse(str(error), DropReason.WRONG_KEY))
             return

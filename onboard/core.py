@@ -21,6 +21,7 @@ from typing import Protocol
 import msgspec
 
 from fleet.consensus.mission_round import MissionRound, Settled
+from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
     MissionAbort,
@@ -86,15 +87,17 @@ class OnboardCore:
         confirm_limit_s: float = CONFIRM_LIMIT_S,
         link_release_s: float = LINK_RELEASE_S,
         liveliness_grace_s: float = LIVELINESS_GRACE_S,
+        key_space: KeySpace = DEFAULT_SPACE,
     ) -> None:
         self.uav_id = uav_id
         self.planner = planner
-        self.report = StateReport(uav_id, outputs, status_rate_hz)
+        self.report = StateReport(uav_id, key_space, outputs, status_rate_hz)
         say = self.report.status
         self.life = MissionPhase()
         self.link = LinkWatch(say)
         self.flight = TargetFlight(
             uav_id,
+            key_space,
             outputs,
             self.life,
             self.link,
@@ -105,6 +108,7 @@ class OnboardCore:
         )
         self.mission = MissionParticipation(
             uav_id,
+            key_space,
             outputs,
             ApproachPlan(planner, planning_budget_s),
             TeamPresence(uav_id, liveliness_grace_s),

@@ -89,6 +89,7 @@ def settings_from(args: argparse.Namespace, config: zenoh.Config) -> OnboardSett
         confirm_limit_s=args.confirm_limit,
         link_release_s=args.link_release,
         telemetry_hz=args.telemetry_hz,
+        key_space=args.key_space,
     )
 
 

@@ -22,7 +22,7 @@ from fleet.consensus.mission_round import (
     assignment_problem,
     targets_problem,
 )
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.lifecycle import Observation, advance
 from fleet.mission.messages import (
     AssignmentReport,
@@ -61,6 +61,7 @@ class MissionOutputs(Protocol):
 @dataclass
 class MissionParticipation:
     uav_id: int
+    key_space: KeySpace
     outputs: MissionOutputs
     plan: ApproachPlan
     team: TeamPresence
@@ -83,7 +84,9 @@ class MissionParticipation:
         self.flight.mission = self
         self.catch_up = CatchUp(self.outputs, lambda: self.round.mission if self.round else None)
         self.decision = MissionDecision(self.uav_id, self.outputs, self.team, self.say)
-        self.own = OwnResult(self.uav_id, self.outputs, self.plan, self.life, self.say)
+        self.own = OwnResult(
+            self.uav_id, self.key_space, self.outputs, self.plan, self.life, self.say
+        )
 
     # ---- what the flight asks of its mission ------------------------------------------------
     def superseded(self, mission: int) -> bool:
@@ -101,7 +104,7 @@ class MissionParticipation:
             return
         outcome = TargetOutcome(self.round.mission, self.uav_id, target, phase, reason)
         self.round.outcome = outcome
-        self.outputs.publish(keys.mission_outcome(outcome.mission, self.uav_id), outcome)
+        self.outputs.publish(self.key_space.mission_outcome(outcome.mission, self.uav_id), outcome)
 
     # ---- a mission's targets -----------------------------------------------------------------
     def on_targets(self, targets: MissionTargets, now: float, *, replayed: bool = False) -> None:
@@ -356,12 +359,12 @@ class MissionParticipation:
     def _apply(self, report: AssignmentReport, now: float) -> None:
         """Publish the assignment this UAV follows now and fly what it says."""
         self._settle()
-        self.outputs.publish(keys.mission_assignment(report.mission, self.uav_id), report)
+        self.outputs.publish(self.key_space.mission_assignment(report.mission, self.uav_id), report)
         if report.epoch > 0:
             # Teammates hear re-plans on a key of their own: the N - 1 epoch-0
             # commitments each UAV would otherwise hear change nothing once it committed
             # (docs/lifecycle.md, "Who hears which assignment").
-            self.outputs.publish(keys.mission_replan(report.mission, self.uav_id), report)
+            self.outputs.publish(self.key_space.mission_replan(report.mission, self.uav_id), report)
         flight = self.flight
         if report.target == flight.target:
             if report.target is None and self.life.phase in (Phase.COMPUTING, Phase.WAITING):

@@ -13,7 +13,7 @@ from typing import Protocol
 import msgspec
 
 from fleet.consensus.mission_round import MissionRound
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.lifecycle import Observation
 from fleet.mission.messages import StatusText, UavResult
 from fleet.mission.phase import Phase
@@ -32,6 +32,7 @@ class ResultOutputs(Protocol):
 @dataclass
 class OwnResult:
     uav_id: int
+    key_space: KeySpace
     outputs: ResultOutputs
     plan: ApproachPlan
     life: MissionPhase
@@ -83,5 +84,5 @@ class OwnResult:
         # Teammates are computing too: the first fetch waits one interval.
         mission_round.last_fetch = now
         self.life.observe(Observation.RESULT_PUBLISHED)
-        self.outputs.publish(keys.mission_result(result.mission, self.uav_id), result)
+        self.outputs.publish(self.key_space.mission_result(result.mission, self.uav_id), result)
         self.outputs.send_ground(result)

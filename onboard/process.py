@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import msgspec
 import zenoh
 
-from fleet.mission import keys
+from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.mission.messages import (
     BROADCAST,
     MISSION_MANAGER,
@@ -83,6 +83,8 @@ class OnboardSettings:
     link_release_s: float = LINK_RELEASE_S
     #: Telemetry published on the bus at most this often; None: every packet relayed.
     telemetry_hz: float | None = None
+    #: The fleet's keys ($FLEET_KEY_PREFIX or --key-prefix).
+    key_space: KeySpace = DEFAULT_SPACE
 
 
 @dataclass
@@ -107,18 +109,18 @@ class _Outputs:
     def fetch_results(self, mission: int, uavs: tuple[int, ...]) -> None:
         """Ask for the missing results only, each from the teammate that owes it."""
         for uav in uavs:
-            self.process.node.fetch(keys.mission_result(mission, uav), UavResult)
+            self.process.node.fetch(self.process.space.mission_result(mission, uav), UavResult)
 
     def fetch_assignments(self, mission: int) -> None:
         """What the team decided on `mission` while this UAV was away: the assignments,
         the outcomes (who reached its target: never released later; who dropped out)
         and an abort (which teammates relay by query)."""
-        self.process.node.fetch(keys.mission_assignments(mission), AssignmentReport)
-        self.process.node.fetch(keys.mission_outcomes(mission), TargetOutcome)
-        self.process.node.fetch(keys.mission_abort(mission), MissionAbort)
+        self.process.node.fetch(self.process.space.mission_assignments(mission), AssignmentReport)
+        self.process.node.fetch(self.process.space.mission_outcomes(mission), TargetOutcome)
+        self.process.node.fetch(self.process.space.mission_abort(mission), MissionAbort)
 
     def fetch_missions(self) -> None:
-        self.process.node.fetch(keys.ALL_MISSION_TARGETS, MissionTargets)
+        self.process.node.fetch(self.process.space.all_mission_targets, MissionTargets)
 
 
 class OnboardProcess:
@@ -136,6 +138,7 @@ class OnboardProcess:
         bus: Bus | None = None,
     ) -> None:
         self.settings = settings
+        self.space = settings.key_space
         #: None only wakes the loop (a query or a planner result waits for it).
         self.events: queue.SimpleQueue[Event | None] = queue.SimpleQueue()
         self.stop_requested = threading.Event()
@@ -149,6 +152,7 @@ class OnboardProcess:
             status_rate_hz=settings.status_rate_hz,
             confirm_limit_s=settings.confirm_limit_s,
             link_release_s=settings.link_release_s,
+            key_space=settings.key_space,
         )
         program, payload = links or (
             SerialLink("program", settings.program_url, settings.baud),
@@ -174,6 +178,7 @@ class OnboardProcess:
             wake=self._wake,
             # The core replaces its snapshot whole: a bus thread reads one or the other.
             settled=lambda: self.core.settled,
+            key_space=settings.key_space,
         )
 
     def run(self) -> None:
@@ -190,7 +195,7 @@ class OnboardProcess:
                 self.core.tick(now)
                 if now >= next_health:
                     next_health = now + LINK_HEALTH_PERIOD
-                    self.node.publish(keys.link(self.settings.uav_id), self._link_health(now))
+                    self.node.publish(self.space.link(self.settings.uav_id), self._link_health(now))
                 self._drain_events(min(now + TICK_PERIOD, next_health))
         finally:
             self.close()
@@ -239,7 +244,7 @@ class OnboardProcess:
         if hz and now - self._telemetry_published_at < 1.0 / hz:
             return  # the bus gets telemetry at its own rate, not the autopilot's
         self._telemetry_published_at = now
-        self.node.publish(keys.telemetry(self.settings.uav_id), telemetry)
+        self.node.publish(self.space.telemetry(self.settings.uav_id), telemetry)
 
     def _take_telemetry(self) -> None:
         """Hand the module the latest telemetry, if any arrived since the last turn."""
@@ -285,15 +290,15 @@ class OnboardProcess:
         uav = self.settings.uav_id
         if isinstance(message, OpmCommand):
             if via_payload:
-                self.node.publish(keys.opm(uav), message)
+                self.node.publish(self.space.opm(uav), message)
             core.on_opm(message, now)
         elif isinstance(message, MissionTargets):
             if via_payload and uav in message.team:
-                self.node.publish(keys.mission_targets(message.mission), message)
+                self.node.publish(self.space.mission_targets(message.mission), message)
             core.on_targets(message, now, replayed=replayed)
         elif isinstance(message, UavResult):
             if via_payload:
-                self.node.publish(keys.mission_result(message.mission, message.uav), message)
+                self.node.publish(self.space.mission_result(message.mission, message.uav), message)
             core.on_result(message, now)
         elif isinstance(message, AssignmentReport):
             core.on_assignment(message, now)
@@ -301,7 +306,7 @@ class OnboardProcess:
             core.on_outcome(message, now)
         elif isinstance(message, MissionAbort):
             if via_payload:
-                self.node.publish(keys.mission_abort(message.mission), message)
+                self.node.publish(self.space.mission_abort(message.mission), message)
             core.on_abort(message, now)
         else:
             log.info("ignored %r", message)
@@ -309,7 +314,10 @@ class OnboardProcess:
     # ---- queries --------------------------------------------------------------------
     def _serve_queries(self, now: float) -> None:
         while (query := self.node.state_queries.try_recv()) is not None:
-            query.reply(keys.state(self.settings.uav_id), self.with_link(self.core.state(now), now))
+            query.reply(
+                self.space.state(self.settings.uav_id),
+                self.with_link(self.core.state(now), now),
+            )
             query.drop()
         while (query := self.node.command_queries.try_recv()) is not None:
             self._on_command_query(query, now)
@@ -349,7 +357,7 @@ class OnboardProcess:
             query.reply_err(str(error))
             query.drop()
             return
-        reply_key = keys.command(self.settings.uav_id, name)
+        reply_key = self.space.command(self.settings.uav_id, name)
 
         def done(result: CommandResult) -> None:
             query.reply(reply_key, result)
@@ -364,14 +372,20 @@ class OnboardProcess:
             return
         mission = targets.mission
         answers: list[tuple[str, msgspec.Struct | None]] = [
-            (keys.mission_targets(mission), targets),
-            (keys.mission_result(mission, self.settings.uav_id), self.core.own_result(mission)),
+            (self.space.mission_targets(mission), targets),
             (
-                keys.mission_assignment(mission, self.settings.uav_id),
+                self.space.mission_result(mission, self.settings.uav_id),
+                self.core.own_result(mission),
+            ),
+            (
+                self.space.mission_assignment(mission, self.settings.uav_id),
                 self.core.own_assignment(mission),
             ),
-            (keys.mission_outcome(mission, self.settings.uav_id), self.core.own_outcome(mission)),
-            (keys.mission_abort(mission), self.core.abort_of(mission)),
+            (
+                self.space.mission_outcome(mission, self.settings.uav_id),
+                self.core.own_outcome(mission),
+            ),
+            (self.space.mission_abort(mission), self.core.abort_of(mission)),
         ]
         for key, message in answers:
             # Reply with the concrete key, or consolidation would merge the replies.

@@ -14,7 +14,7 @@ from typing import Protocol
 
 import msgspec
 
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionProgress, StatusText, UavResult, UavState
 from fleet.mission.phase import Phase, Severity
 from fleet.mission.status_kind import StatusKind
@@ -46,6 +46,7 @@ class ReportOutputs(Protocol):
 @dataclass
 class StateReport:
     uav_id: int
+    key_space: KeySpace
     outputs: ReportOutputs
     #: How often the UAV's state is published on its state key (0: only on query).
     rate_hz: float = 1.0
@@ -65,7 +66,7 @@ class StateReport:
         self.last_status = text
         message = StatusText(text, kind, mission, target)
         (log.info if message.severity == Severity.INFO else log.warning)("%s", text)
-        self.outputs.publish(keys.status(self.uav_id), message)
+        self.outputs.publish(self.key_space.status(self.uav_id), message)
         self.outputs.send_ground(message)
 
     def due(self, now: float) -> bool:
@@ -75,7 +76,7 @@ class StateReport:
     def publish_state(self, state: UavState, now: float) -> None:
         """The UAV's state on its state key: the periodic report, kept out of the status box."""
         self._last_state_at = now
-        self.outputs.publish(keys.state(self.uav_id), state)
+        self.outputs.publish(self.key_space.state(self.uav_id), state)
 
     def state(
         self,

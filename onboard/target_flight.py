@@ -20,7 +20,7 @@ from typing import Protocol
 import msgspec
 
 from fleet.geo.mercator import distance_m
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.lifecycle import Observation
 from fleet.mission.messages import CommandResult, Target
 from fleet.mission.phase import Phase
@@ -73,6 +73,7 @@ class FlightMission(Protocol):
 @dataclass
 class TargetFlight:
     uav_id: int
+    key_space: KeySpace
     outputs: FlightOutputs
     life: MissionPhase
     link: LinkWatch
@@ -137,7 +138,7 @@ class TargetFlight:
         self.commands.on_echo(track, now)
         previous, self.tracked_waypoint = self.tracked_waypoint, track.waypoint
         if previous != track.waypoint:
-            self.outputs.publish(keys.track(self.uav_id), track)
+            self.outputs.publish(self.key_space.track(self.uav_id), track)
         if track.waypoint == TARGET_WAYPOINT:
             if previous != TARGET_WAYPOINT and self.target is None:
                 self.leave_stale_target(now)  # a restart's first track, after the re-plan
@@ -175,7 +176,7 @@ class TargetFlight:
 
     def on_waypoint(self, waypoint: Waypoint, now: float) -> None:
         self.commands.on_echo(waypoint, now)
-        self.outputs.publish(keys.waypoint(self.uav_id, waypoint.index), waypoint)
+        self.outputs.publish(self.key_space.waypoint(self.uav_id, waypoint.index), waypoint)
 
     # ---- what the ground commands --------------------------------------------------------
     def command_autopilot(self, command: AutopilotCommand, now: float, on_done: Completion) -> None:

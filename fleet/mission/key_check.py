@@ -114,9 +114,9 @@ def _ids_by_place(key: str, space: KeySpace) -> tuple[str | None, str | None, st
     raise WrongKey(f"{key}: not a fleet message key")
 
 
-def uav_of(key: str) -> int:
+def uav_of(key: str, space: KeySpace | None = None) -> int:
     """The Piccolo ID a `{prefix}/uav/{id}/...` or `.../{id}` key names; WrongKey if none."""
-    uav = parse_key(key).uav
+    uav = parse_key(key, space).uav
     if uav is None:
         raise WrongKey(f"{key}: names no UAV")
     return uav

@@ -141,6 +141,17 @@ class KeySpace:
     def mission_abort(self, mission: int) -> str:
         return self.key(reg.ABORT, m=mission)
 
+    # --- one UAV's keys in every mission ---
+
+    def results_of(self, uav_id: int) -> str:
+        return self.key(reg.RESULT, id=uav_id)
+
+    def assignments_of(self, uav_id: int) -> str:
+        return self.key(reg.ASSIGNMENT, id=uav_id)
+
+    def outcomes_of(self, uav_id: int) -> str:
+        return self.key(reg.OUTCOME, id=uav_id)
+
     # --- wildcards over every UAV or mission ---
 
     @property
@@ -190,6 +201,24 @@ class KeySpace:
     @property
     def all_mission_outcomes(self) -> str:
         return self.key(reg.OUTCOME)
+
+
+def uav_id_of(key: str) -> int:
+    """The Piccolo ID in a `{prefix}/uav/{id}/...` or `{prefix}/mission/{m}/.../{id}` key
+    (not checked: fleet.mission.key_check does that); ValueError or IndexError if none."""
+    parts = key.split("/")
+    if len(parts) >= 3 and parts[1] == "uav":
+        return int(parts[2])
+    return int(parts[-1])
+
+
+def mission_of(key: str) -> int:
+    """The mission id in a `{prefix}/mission/{m}/...` key."""
+    return int(key.split("/")[2])
+
+
+#: The fleet's keys under the default prefix.
+DEFAULT_SPACE = KeySpace()
 
 
 def _placeholder(chunk: str) -> str | None:

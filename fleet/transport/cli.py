@@ -24,6 +24,8 @@ from typing import Any
 import zenoh
 
 from fleet.mission import keys
+from fleet.mission.key_registry import DEFAULT_PREFIX
+from fleet.mission.key_space import KeySpace
 from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
 from fleet.transport.zenoh_config import (
     CONFIG_ENV,
@@ -103,8 +105,20 @@ def piccolo_ids(text: str) -> tuple[int, ...]:
 
 
 # ---- Zenoh flags --------------------------------------------------------------------------------
+#: The environment variable a process's key prefix is read from, and passed to its children.
+PREFIX_ENV = "FLEET_KEY_PREFIX"
+
+
+def key_space(text: str) -> KeySpace:
+    """`replay` -> KeySpace("replay"); a usage error unless it is one key chunk."""
+    try:
+        return KeySpace(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
 class _UseKeyPrefix(argparse.Action):
-    """`--key-prefix P`: the key prefix of this process and of the processes it starts."""
+    """`--key-prefix P`: the key space of this process and of the processes it starts."""
 
     def __call__(
         self,
@@ -113,22 +127,26 @@ class _UseKeyPrefix(argparse.Action):
         values: str | Sequence[Any] | None,
         option_string: str | None = None,
     ) -> None:
-        try:
-            keys.use_prefix(str(values))
-        except ValueError as error:
-            parser.error(str(error))
-        os.environ[keys.PREFIX_ENV] = keys.PREFIX  # inherited by child processes
+        assert isinstance(values, KeySpace)  # converted by its type, `key_space`
+        setattr(namespace, self.dest, values)
+        keys.use_prefix(values.prefix)
+        os.environ[PREFIX_ENV] = values.prefix  # inherited by child processes
 
 
 def add_key_prefix_argument(parser: argparse.ArgumentParser) -> None:
-    """`--key-prefix P`, applied as soon as it is parsed (before any key is used)."""
+    """`--key-prefix P`: `args.key_space`, the KeySpace every key of the command is built by
+    ($FLEET_KEY_PREFIX, read when the arguments are parsed, by default)."""
     parser.add_argument(
         "--key-prefix",
+        dest="key_space",
         action=_UseKeyPrefix,
-        default=argparse.SUPPRESS,
+        type=key_space,
+        # A string default goes through `type` when parsed: a bad $FLEET_KEY_PREFIX is a
+        # usage error too.
+        default=os.environ.get(PREFIX_ENV, DEFAULT_PREFIX),
         metavar="P",
-        help=f"the fleet's key prefix, one key chunk (default ${keys.PREFIX_ENV} or "
-        f"{keys.DEFAULT_PREFIX}; e.g. replay, to see a `fleet replay`)",
+        help=f"the fleet's key prefix, one key chunk (default ${PREFIX_ENV} or "
+        f"{DEFAULT_PREFIX}; e.g. replay, to see a `fleet replay`)",
     )
 
 
@@ -231,6 +249,7 @@ def fail(prog: str, message: str, code: ExitCode = ExitCode.USAGE) -> ExitCode:
 
 
 __all__ = [
+    "PREFIX_ENV",
     "ExitCode",
     "ZenohConfigError",
     "add_key_prefix_argument",

@@ -95,7 +95,7 @@ def _config(args: argparse.Namespace) -> GuiConfig | str:
                 "missions and aborts. Add --allow-remote (a token is then required)."
             )
         token = token or secrets.token_urlsafe(24)
-    return GuiConfig(host, port, token, args.rate, args.query_timeout)
+    return GuiConfig(host, port, token, args.rate, args.query_timeout, args.key_space)
 
 
 def cmd_gui(args: argparse.Namespace) -> int:

@@ -26,7 +26,7 @@ import msgspec
 
 from fleet.consensus.deadline import MAX_DEADLINE_S, consensus_deadline
 from fleet.errors import CodecError
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, Target
 from fleet.mission.targets_file import TargetsFileError, encode_targets
 from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
@@ -99,8 +99,9 @@ class MissionDesk:
     thread) whenever a result or an assignment arrives.
     """
 
-    def __init__(self, bus: Bus, on_change: Callable[[], None]) -> None:
+    def __init__(self, bus: Bus, space: KeySpace, on_change: Callable[[], None]) -> None:
         self._bus = bus
+        self.space = space
         self._on_change = on_change
         self._lock = threading.Lock()
         self._stack = ExitStack()
@@ -111,10 +112,12 @@ class MissionDesk:
         """Follow `message`'s mission from now on (caller holds the lock)."""
         self._stack.close()
         self._stack = ExitStack()
-        follower = MissionFollower(self._bus, message.mission, lambda kind, _: self._on_change())
+        follower = MissionFollower(
+            self._bus, self.space, message.mission, lambda kind, _: self._on_change()
+        )
         self._follower = self._stack.enter_context(follower)
         if serve:
-            self._stack.enter_context(TargetsServer(self._bus, message))
+            self._stack.enter_context(TargetsServer(self._bus, self.space, message))
         self._targets = message
 
     def send(self, team: tuple[int, ...], targets: tuple[Target, ...], deadline_s: float) -> int:
@@ -127,11 +130,11 @@ class MissionDesk:
 
         with self._lock:
             claim = ExitStack()
-            message = claim.enter_context(claim_mission(self._bus, make, 1.0)).targets
+            message = claim.enter_context(claim_mission(self._bus, self.space, make, 1.0)).targets
             self._follow(message, serve=False)
             # The claimed id's targets server stays open as long as the mission is followed.
             self._stack.push(claim)
-            publish_targets(self._bus, message)
+            publish_targets(self._bus, self.space, message)
         self._on_change()
         return message.mission
 
@@ -142,7 +145,9 @@ class MissionDesk:
 
     def adopt(self, mission: int, timeout_s: float) -> bool:
         """Follow `mission` (sent by another ground), if some UAV serves its targets."""
-        found = self._bus.query_messages(keys.mission_targets(mission), MissionTargets, timeout_s)
+        found = self._bus.query_messages(
+            self.space.mission_targets(mission), MissionTargets, timeout_s
+        )
         with self._lock:
             if self._targets is not None and self._targets.mission >= mission:
                 return False
@@ -202,10 +207,10 @@ def _abort(bus: Bus, desk: MissionDesk, command: AbortCommand) -> Reply:
     if mission is None:
         mission = desk.mission
     if mission is None:
-        mission = current_mission_id(bus, 1.0)
+        mission = current_mission_id(bus, desk.space, 1.0)
     if mission is None:
         return Reply(command.id, False, "no mission to abort (none seen)")
-    send_abort(bus, mission, command.uav)
+    send_abort(bus, desk.space, mission, command.uav)
     if command.uav is not None:
         return Reply(command.id, True, f"mission {mission}: abort sent to UAV {command.uav}")
     return Reply(
@@ -221,7 +226,7 @@ def execute(bus: Bus, desk: MissionDesk, command: Command, live: set[int]) -> Re
         return _abort(bus, desk, command)
     if command.uav not in live:
         return Reply(command.id, False, f"UAV {command.uav} is not live; nothing sent")
-    send_opm(bus, command.uav, command.enabled, command.status_rate_hz)
+    send_opm(bus, desk.space, command.uav, command.enabled, command.status_rate_hz)
     state = "on" if command.enabled else "off"
     return Reply(
         command.id,

@@ -42,7 +42,7 @@ from typing import Any
 import msgspec
 from aiohttp import WSMsgType, web
 
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import Target
 from fleet.transport.bus import Bus
 from ground import targets_formats
@@ -71,6 +71,7 @@ class GuiConfig:
     token: str | None  #: required on every request when set
     rate_hz: float
     query_timeout_s: float
+    key_space: KeySpace  #: the fleet's keys (--key-prefix)
 
 
 def is_loopback(host: str) -> bool:
@@ -88,6 +89,7 @@ class GuiServer:
     def __init__(self, bus: Bus, config: GuiConfig) -> None:
         self.bus = bus
         self.config = config
+        self.space = config.key_space
         self.model = GuiModel()
         self.sockets: set[web.WebSocketResponse] = set()
         self.commands_refused = 0
@@ -116,14 +118,14 @@ class GuiServer:
             loop.call_soon_threadsafe(self._on_status, status)
 
         with contextlib.ExitStack() as stack:
-            self._view = stack.enter_context(FleetView(self.bus, on_status))
+            self._view = stack.enter_context(FleetView(self.bus, self.space, on_status))
             # Anything of the fleet changing wakes the pusher; the coalescer bounds the rate.
-            everything = f"{keys.PREFIX}/**"
+            everything = self.space.everything
             changes = self.bus.subscribe(everything, lambda _: coalescer.mark_threadsafe())
             stack.callback(changes.undeclare)
             tokens = self.bus.subscribe_presence(everything, lambda *_: coalescer.mark_threadsafe())
             stack.callback(tokens.undeclare)
-            self._desk = MissionDesk(self.bus, coalescer.mark_threadsafe)
+            self._desk = MissionDesk(self.bus, self.space, coalescer.mark_threadsafe)
             stack.callback(self._desk.close)
             tasks = [
                 asyncio.create_task(coalescer.run()),

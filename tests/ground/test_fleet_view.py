@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import StatusText
 from fleet.mission.phase import Severity
 from fleet.mission.status_kind import StatusKind
@@ -11,38 +11,40 @@ from ground.alerts import StatusRecord
 from ground.fleet_view import FleetView, fleet_snapshot, live_uav_ids, query_states
 from tests.ground.memory_fleet import MemoryUav
 
+SPACE = KeySpace()
+
 
 def test_the_live_uavs_are_those_holding_a_token_with_what_their_state_says() -> None:
     network = MemoryNetwork()
     ground = network.bus()
     uavs = [MemoryUav(network, 112), MemoryUav(network, 74)]
-    assert live_uav_ids(ground, 0.1) == [74, 112]
-    assert sorted(query_states(ground, 0.1)) == [74, 112]
-    views = fleet_snapshot(ground, 0.1)
+    assert live_uav_ids(ground, SPACE, 0.1) == [74, 112]
+    assert sorted(query_states(ground, SPACE, 0.1)) == [74, 112]
+    views = fleet_snapshot(ground, SPACE, 0.1)
     assert [(v.id, v.enabled, v.status_rate_hz) for v in views] == [
         (74, True, 1.0),
         (112, True, 1.0),
     ]
     uavs[0].leave()
-    assert live_uav_ids(ground, 0.1) == [74]
+    assert live_uav_ids(ground, SPACE, 0.1) == [74]
 
 
 def test_a_token_that_is_no_uav_is_ignored() -> None:
     network = MemoryNetwork()
-    network.bus().declare_token(f"{keys.PREFIX}/uav/x/alive")
+    network.bus().declare_token(f"{SPACE.prefix}/uav/x/alive")
     MemoryUav(network, 7)
-    assert live_uav_ids(network.bus(), 0.1) == [7]
+    assert live_uav_ids(network.bus(), SPACE, 0.1) == [7]
 
 
 def test_the_live_view_follows_tokens_and_status_messages() -> None:
     network = MemoryNetwork()
     statuses: list[StatusRecord] = []
     early = MemoryUav(network, 5)
-    with FleetView(network.bus(), on_status=statuses.append) as view:
+    with FleetView(network.bus(), SPACE, on_status=statuses.append) as view:
         assert view.live_ids() == [5]  # a token present before the view is seen at once
         late = MemoryUav(network, 6)
         assert view.live_ids() == [5, 6]
-        late.bus.publish(keys.status(6), StatusText("link slow", StatusKind.WARNING))
+        late.bus.publish(SPACE.status(6), StatusText("link slow", StatusKind.WARNING))
         assert [(s.uav, s.text, s.severity) for s in statuses] == [
             (6, "link slow", Severity.WARNING)
         ]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionAbort, MissionTargets, OpmCommand, UavResult
 from fleet.transport import bus_codec
 from fleet.transport.bus import BusSample
@@ -21,6 +21,8 @@ from ground.mission_control import (
 from tests.ground.memory_fleet import MemoryUav
 from tests.ground.mission_samples import mission
 
+SPACE = KeySpace()
+
 
 def heard(network: MemoryNetwork, key_expr: str) -> list[BusSample]:
     samples: list[BusSample] = []
@@ -31,11 +33,15 @@ def heard(network: MemoryNetwork, key_expr: str) -> list[BusSample]:
 def test_the_commands_are_put_on_their_keys() -> None:
     network = MemoryNetwork()
     ground = network.bus()
-    samples = heard(network, f"{keys.PREFIX}/**")
-    publish_targets(ground, mission(4))
-    send_abort(ground, 4, uav=7)
-    send_opm(ground, 7, False, 0.5)
-    assert [s.key for s in samples] == [keys.mission_targets(4), keys.mission_abort(4), keys.opm(7)]
+    samples = heard(network, f"{SPACE.prefix}/**")
+    publish_targets(ground, SPACE, mission(4))
+    send_abort(ground, SPACE, 4, uav=7)
+    send_opm(ground, SPACE, 7, False, 0.5)
+    assert [s.key for s in samples] == [
+        SPACE.mission_targets(4),
+        SPACE.mission_abort(4),
+        SPACE.opm(7),
+    ]
     assert bus_codec.decode(samples[0].payload, MissionTargets, samples[0].key) == mission(4)
     assert bus_codec.decode(samples[1].payload, MissionAbort, samples[1].key) == MissionAbort(4, 7)
     opm = bus_codec.decode(samples[2].payload, OpmCommand, samples[2].key)
@@ -47,20 +53,20 @@ def test_delivery_is_read_from_the_uavs_states() -> None:
     ground = network.bus()
     seven, eight = MemoryUav(network, 7), MemoryUav(network, 8)
     seven.fly(mission(9))
-    assert wait_delivered(ground, 9, (7, 8), 0.1) == {7}
+    assert wait_delivered(ground, SPACE, 9, (7, 8), 0.1) == {7}
     eight.fly(mission(10))  # a later mission counts as delivered
-    assert wait_delivered(ground, 9, (7, 8), 0.1) == {7, 8}
+    assert wait_delivered(ground, SPACE, 9, (7, 8), 0.1) == {7, 8}
 
 
 def test_a_missions_status_is_what_the_team_serves() -> None:
     network = MemoryNetwork()
     ground = network.bus()
     with pytest.raises(MissionError, match="mission 5: no UAV or ground answers"):
-        mission_targets_of(ground, 5, 0.1)
+        mission_targets_of(ground, SPACE, 5, 0.1)
     result = UavResult(5, 7, (12.0, 30.0))
     MemoryUav(network, 7).fly(mission(5), result)
-    assert mission_targets_of(ground, 5, 0.1) == mission(5)
-    outcome = mission_status(ground, 5, 0.1)
+    assert mission_targets_of(ground, SPACE, 5, 0.1) == mission(5)
+    outcome = mission_status(ground, SPACE, 5, 0.1)
     assert outcome.results == {7: result}
     assert outcome.lost == {8}  # on the team, but no state answers for it
     assert outcome.phases == {7: "computing"}

@@ -3,7 +3,7 @@ on loopback, with other Zenoh sessions standing in for another ground and the UA
 
 from __future__ import annotations
 
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import AssignmentReport, UavResult
 from fleet.transport import bus_codec
 from fleet.transport.memory import MemoryNetwork
@@ -17,14 +17,16 @@ from tests.ground.mission_samples import (
 )
 from tests.support.waiting import wait_until
 
+SPACE = KeySpace()
+
 
 def test_a_later_mission_for_the_team_supersedes_the_followed_one(
     session: ZenohBus, rival: ZenohBus
 ) -> None:
-    with MissionFollower(session, 40, team=(7, 8)) as follower:
+    with MissionFollower(session, SPACE, 40, team=(7, 8)) as follower:
         # Another team's later mission is no concern of this one.
         rival.session.put(
-            keys.mission_targets(41),
+            SPACE.mission_targets(41),
             bus_codec.encode(mission(41, team=(9,))),
             encoding=bus_codec.ENCODING,
         )
@@ -33,7 +35,7 @@ def test_a_later_mission_for_the_team_supersedes_the_followed_one(
             # Put again until heard: the follower's subscription reaches the router
             # asynchronously, and a put before it arrives is not delivered.
             rival.session.put(
-                keys.mission_targets(43),
+                SPACE.mission_targets(43),
                 bus_codec.encode(mission(43, team=(8, 9))),
                 encoding=bus_codec.ENCODING,
             )
@@ -48,8 +50,8 @@ def test_a_later_mission_for_the_team_supersedes_the_followed_one(
 def test_a_later_mission_the_uavs_serve_is_found_by_the_fetch(
     session: ZenohBus, rival: ZenohBus
 ) -> None:
-    with MissionFollower(session, 50, team=(7,)) as follower:
-        with TargetsServer(rival, mission(52, team=(7,))):
+    with MissionFollower(session, SPACE, 50, team=(7,)) as follower:
+        with TargetsServer(rival, SPACE, mission(52, team=(7,))):
             follower.fetch(TIMEOUT_S)
         assert follower.superseded_by == 52
         follower.note_later_mission(51)  # an older later one changes nothing
@@ -61,10 +63,10 @@ def test_results_and_commitments_are_collected_and_a_lost_uav_is_not_waited_for(
     network = MemoryNetwork()
     seven, eight = MemoryUav(network, 7), MemoryUav(network, 8)
     heard: list[str] = []
-    with MissionFollower(network.bus(), 60, lambda kind, _: heard.append(kind), (7, 8)) as f:
-        seven.bus.publish(keys.mission_result(60, 7), UavResult(60, 7, (1.0,)))
+    with MissionFollower(network.bus(), SPACE, 60, lambda kind, _: heard.append(kind), (7, 8)) as f:
+        seven.bus.publish(SPACE.mission_result(60, 7), UavResult(60, 7, (1.0,)))
         report = AssignmentReport(60, 7, 0, {7: 0}, (), (7,), "d")
-        seven.bus.publish(keys.mission_assignment(60, 7), report)
+        seven.bus.publish(SPACE.mission_assignment(60, 7), report)
         assert heard == ["result", "assignment"]
         assert f.wait_committed((7, 8), timeout_s=0.1, fetch_every_s=0.05) is False
         eight.leave()
@@ -76,7 +78,7 @@ def test_a_fetch_collects_what_the_uavs_serve() -> None:
     network = MemoryNetwork()
     result = UavResult(61, 7, (2.0, 3.0))
     MemoryUav(network, 7).fly(mission(61), result)
-    with MissionFollower(network.bus(), 61) as follower:
+    with MissionFollower(network.bus(), SPACE, 61) as follower:
         follower.fetch(0.1)
         assert follower.snapshot() == ({7: result}, {})
         assert follower.superseded_by is None

@@ -10,7 +10,7 @@ import threading
 import pytest
 import zenoh
 
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace, mission_of
 from fleet.mission.messages import MissionTargets
 from fleet.transport import bus_codec
 from fleet.transport.memory import MemoryNetwork
@@ -35,29 +35,33 @@ from tests.ground.mission_samples import (
 )
 from tests.support.waiting import wait_until
 
+SPACE = KeySpace()
+
 
 def test_a_fresh_key_space_is_claimed_at_once_and_served_while_open(
     session: ZenohBus, rival: ZenohBus
 ) -> None:
-    with claim_mission(session, lambda m: mission(m), TIMEOUT_S, mission=901) as server:
+    with claim_mission(session, SPACE, lambda m: mission(m), TIMEOUT_S, mission=901) as server:
         assert server.targets == mission(901)
         # Served to others while claimed: a second ground sees the claim as a rival.
-        assert rival_claims(rival, mission(901, OTHER_TARGETS), TIMEOUT_S) == 1
+        assert rival_claims(rival, SPACE, mission(901, OTHER_TARGETS), TIMEOUT_S) == 1
         # The same content is no rival (a UAV holding this very mission, say).
-        assert rival_claims(rival, mission(901), TIMEOUT_S) == 0
-    assert rival_claims(rival, mission(901, OTHER_TARGETS), TIMEOUT_S) == 0
+        assert rival_claims(rival, SPACE, mission(901), TIMEOUT_S) == 0
+    assert rival_claims(rival, SPACE, mission(901, OTHER_TARGETS), TIMEOUT_S) == 0
 
 
 def test_a_given_mission_id_another_ground_serves_is_refused(
     session: ZenohBus, rival: ZenohBus
 ) -> None:
-    with TargetsServer(rival, mission(902, OTHER_TARGETS)):
+    with TargetsServer(rival, SPACE, mission(902, OTHER_TARGETS)):
         # Declared a moment ago, the rival's queryable may not have reached the router
         # yet: the test is about a claim this ground can see.
-        wait_until(lambda: rival_claims(session, mission(902), TIMEOUT_S) == 1, 10.0, "the claim")
+        wait_until(
+            lambda: rival_claims(session, SPACE, mission(902), TIMEOUT_S) == 1, 10.0, "the claim"
+        )
         with (
             pytest.raises(MissionError, match="902 is already in use"),
-            claim_mission(session, lambda m: mission(m), TIMEOUT_S, mission=902),
+            claim_mission(session, SPACE, lambda m: mission(m), TIMEOUT_S, mission=902),
         ):
             pass
 
@@ -71,13 +75,13 @@ class Squatter:
     def __init__(self, session: zenoh.Session, limit: int) -> None:
         self.asked: list[int] = []
         self._limit = limit
-        self._queryable = session.declare_queryable(keys.ALL_MISSION_TARGETS, self._on_query)
+        self._queryable = session.declare_queryable(SPACE.all_mission_targets, self._on_query)
 
     def _on_query(self, query: zenoh.Query) -> None:
         key = str(query.key_expr)
         if "*" in key:
             return
-        m = keys.mission_of(key)
+        m = mission_of(key)
         if m not in self.asked:
             self.asked.append(m)
         if self.asked.index(m) < self._limit:
@@ -94,7 +98,7 @@ def test_a_collision_moves_on_to_a_higher_id_and_says_so(
     squatter = Squatter(rival.session, limit=1)
     caplog.set_level(logging.WARNING, logger="ground.mission_ids")
     try:
-        with claim_mission(session, lambda m: mission(m), TIMEOUT_S) as server:
+        with claim_mission(session, SPACE, lambda m: mission(m), TIMEOUT_S) as server:
             chosen = server.targets.mission
     finally:
         squatter.close()
@@ -110,7 +114,7 @@ def test_running_out_of_attempts_is_an_error(session: ZenohBus, rival: ZenohBus)
     try:
         with (
             pytest.raises(MissionError, match="no free mission id after 3 attempts"),
-            claim_mission(session, lambda m: mission(m), TIMEOUT_S, attempts=3),
+            claim_mission(session, SPACE, lambda m: mission(m), TIMEOUT_S, attempts=3),
         ):
             pass
     finally:
@@ -139,7 +143,7 @@ def claim_together(sessions: list[ZenohBus]) -> dict[int, int]:
     def claim(index: int) -> None:
         targets = TARGETS if index == 0 else OTHER_TARGETS
         start.wait()
-        with claim_mission(sessions[index], maker(targets), TIMEOUT_S) as server:
+        with claim_mission(sessions[index], SPACE, maker(targets), TIMEOUT_S) as server:
             claimed[index] = server.targets.mission
             held.wait(30)
 
@@ -156,35 +160,35 @@ def claim_together(sessions: list[ZenohBus]) -> dict[int, int]:
 def test_the_next_id_is_above_every_mission_served_or_reported() -> None:
     network = MemoryNetwork()
     ground = network.bus()
-    assert next_mission_id(ground, 0.1) == 1
+    assert next_mission_id(ground, SPACE, 0.1) == 1
     uav = MemoryUav(network, 7)
     uav.fly(mission(12))
-    assert missions_seen(ground, 0.1) == {12}
-    assert next_mission_id(ground, 0.1) == 13
-    assert current_mission_id(ground, 0.1) == 12
+    assert missions_seen(ground, SPACE, 0.1) == {12}
+    assert next_mission_id(ground, SPACE, 0.1) == 13
+    assert current_mission_id(ground, SPACE, 0.1) == 12
 
 
 def test_a_targets_server_answers_and_notes_a_contested_id() -> None:
     network = MemoryNetwork()
     ground, rival = network.bus(), network.bus()
-    with TargetsServer(ground, mission(20)) as server:
-        assert rival.query_messages(keys.mission_targets(20), MissionTargets, 0.1) == [
-            (keys.mission_targets(20), mission(20))
+    with TargetsServer(ground, SPACE, mission(20)) as server:
+        assert rival.query_messages(SPACE.mission_targets(20), MissionTargets, 0.1) == [
+            (SPACE.mission_targets(20), mission(20))
         ]
         assert not server.contested.is_set()
-        assert rival_claims(rival, mission(20, OTHER_TARGETS), 0.1) == 1
+        assert rival_claims(rival, SPACE, mission(20, OTHER_TARGETS), 0.1) == 1
         assert server.contested.is_set()
-    assert rival_claims(rival, mission(20, OTHER_TARGETS), 0.1) == 0
+    assert rival_claims(rival, SPACE, mission(20, OTHER_TARGETS), 0.1) == 0
 
 
 def test_a_claim_on_the_memory_bus_skips_an_id_a_uav_holds_with_other_targets() -> None:
     network = MemoryNetwork()
     MemoryUav(network, 7).fly(mission(30, OTHER_TARGETS))
     rng = random.Random(1)
-    with claim_mission(network.bus(), lambda m: mission(m), 0.1, rng=rng) as server:
+    with claim_mission(network.bus(), SPACE, lambda m: mission(m), 0.1, rng=rng) as server:
         assert server.targets.mission > 30
     with (
         pytest.raises(MissionError, match="30 is already in use"),
-        claim_mission(network.bus(), lambda m: mission(m), 0.1, mission=30),
+        claim_mission(network.bus(), SPACE, lambda m: mission(m), 0.1, mission=30),
     ):
         pass

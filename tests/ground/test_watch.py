@@ -7,13 +7,15 @@ import io
 import threading
 import time
 
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import StatusText
 from fleet.mission.status_kind import StatusKind
 from fleet.transport.zenoh_bus import client_bus
 from ground.alerts import StatusRecord
 from ground.watch import alerts_box, status_line, watch
 from tests.support.fake_onboard import FakeOnboard
+
+SPACE = KeySpace()
 
 
 def test_each_status_line_starts_with_its_severity() -> None:
@@ -57,13 +59,13 @@ def test_on_a_terminal_each_frame_redraws_table_pinned_alerts_and_stream(
                     return
                 time.sleep(0.02)
             fakes[74].put(
-                keys.status(74), StatusText("error: autopilot link lost", StatusKind.LINK_LOST)
+                SPACE.status(74), StatusText("error: autopilot link lost", StatusKind.LINK_LOST)
             )
             seen.set()
 
         thread = threading.Thread(target=warn_once_watching)
         thread.start()
-        frames = watch(session, screen, count=5, duration_s=None, interval_s=0.3)
+        frames = watch(session, SPACE, screen, count=5, duration_s=None, interval_s=0.3)
         thread.join(10)
     assert frames == 5 and seen.is_set()
     last = screen.getvalue().rsplit("\x1b[H\x1b[2J", 1)[1]

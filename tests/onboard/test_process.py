@@ -264,7 +264,7 @@ def test_telemetry_reaches_the_bus_at_the_rate_asked_for() -> None:
 def test_a_catch_up_fetches_the_assignments_outcomes_and_abort() -> None:
     asked: list[tuple[str, type]] = []
     node = SimpleNamespace(fetch=lambda key, kind: asked.append((key, kind)))
-    _Outputs(SimpleNamespace(node=node)).fetch_assignments(5)  # type: ignore[arg-type]
+    _Outputs(SimpleNamespace(node=node, space=keys.current())).fetch_assignments(5)  # type: ignore[arg-type]
     # A restarted UAV learns who reached its target, so it never releases that UAV later
     # (which would put it at an epoch its teammates never reach).
     assert asked == [
