@@ -13,6 +13,7 @@ import argparse
 import logging
 import sys
 
+from fleet.mission.target_checks import DEFAULT_MAX_REACH_M
 from fleet.transport import bus_codec
 from fleet.transport.cli import (
     ExitCode,
@@ -114,6 +115,20 @@ def _add_send_targets(commands: argparse._SubParsersAction[argparse.ArgumentPars
         type=_mission_id,
         metavar="M",
         help="mission id (default: one more than the highest mission seen)",
+    )
+    send.add_argument(
+        "--max-reach-km",
+        type=positive_float,
+        default=DEFAULT_MAX_REACH_M / 1000.0,
+        metavar="KM",
+        help="refuse a target farther than this from every team UAV with a fix "
+        "(default %(default)g km)",
+    )
+    send.add_argument(
+        "--force",
+        action="store_true",
+        help="send a target set that fails the checks (two targets within the acceptance "
+        "radius, beyond reach, the far side of the Earth) all the same",
     )
     send.add_argument("--json", action="store_true", help="print the outcome as one JSON object")
     send.set_defaults(handler=cmd_send_targets)

@@ -15,7 +15,14 @@ from typing import TextIO
 
 from fleet.consensus.deadline import consensus_deadline
 from fleet.mission.key_space import KeySpace
-from fleet.mission.messages import AssignmentReport, MissionTargets, TargetOutcome, UavResult
+from fleet.mission.messages import (
+    AssignmentReport,
+    MissionTargets,
+    Target,
+    TargetOutcome,
+    UavResult,
+)
+from fleet.mission.target_checks import target_set_problems
 from fleet.transport.bus import Bus
 from fleet.transport.cli import ExitCode
 from fleet.transport.zenoh_bus import client_bus
@@ -88,6 +95,8 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
             print("error: no live UAV to send to (name the team with --team)", file=sys.stderr)
             return ExitCode.FAILED
 
+        if not _targets_pass_checks(bus, args, targets, team):
+            return ExitCode.FAILED
         deadline_s = args.deadline or consensus_deadline(len(team))
 
         def make(mission: int) -> MissionTargets:
@@ -165,6 +174,26 @@ def _team(bus: Bus, args: argparse.Namespace) -> tuple[int, ...]:
             file=sys.stderr,
         )
     return tuple(args.team)
+
+
+def _targets_pass_checks(
+    bus: Bus, args: argparse.Namespace, targets: tuple[Target, ...], team: tuple[int, ...]
+) -> bool:
+    """The set's checks against the team's positions now; each problem said, and False
+    unless --force (then they are warnings)."""
+    positions = {
+        uav: (state.telemetry.gps.lat, state.telemetry.gps.lon)
+        for uav, state in query_states(bus, args.key_space, args.query_timeout).items()
+        if uav in team and state.telemetry is not None and state.telemetry.gps is not None
+    }
+    problems = target_set_problems(targets, positions, args.max_reach_km * 1000.0)
+    severity = "warning" if args.force else "error"
+    for problem in problems:
+        print(f"{severity}: {args.file}: {problem}", file=sys.stderr)
+    if problems and not args.force:
+        print("error: nothing sent (--force sends it all the same)", file=sys.stderr)
+        return False
+    return True
 
 
 def _report_delivery(
