@@ -25,6 +25,7 @@ from fleet.mission.lifecycle import Observation
 from fleet.mission.messages import CommandResult, Target
 from fleet.mission.phase import Phase
 from fleet.mission.status_kind import StatusKind
+from fleet.mission.target_checks import REACHED_RADIUS_M
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from onboard.autopilot_commands import AutopilotCommand, CommandTracker, Completion
@@ -36,10 +37,6 @@ log = logging.getLogger(__name__)
 
 #: The waypoint index the module writes a target into (the flight plan keeps the rest).
 TARGET_WAYPOINT = 90
-#: Within this distance (m) of its target by telemetry, a UAV has reached it: the
-#: autopilot's own acceptance radius (60 m in the simulator) plus what the aircraft
-#: flies between two telemetry packets at top speed and 5 Hz.
-REACHED_RADIUS_M = 75.0
 #: A target not confirmed by the autopilot this long after the commitment (the writes
 #: are retried all along, across link outages) is given up: `failed`, and released.
 CONFIRM_LIMIT_S = 20.0

@@ -19,8 +19,9 @@ from enum import StrEnum
 from fleet.geo.great_circle import EARTH_RADIUS_M, great_circle_m
 from fleet.mission.messages import Target
 
-#: Telemetry within this distance of a target counts as reaching it (the onboard's
-#: acceptance radius).
+#: Within this distance (m) of its target by telemetry, a UAV has reached it (the
+#: onboard's acceptance radius): the autopilot's own (60 m in the simulator) plus what
+#: the aircraft flies between two telemetry packets at top speed and 5 Hz.
 REACHED_RADIUS_M = 75.0
 #: How far from the nearest team UAV a target may be by default: an hour and a half at
 #: a Piccolo-class cruise of 22 m/s, well within the endurance of such an aircraft.
