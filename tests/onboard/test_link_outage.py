@@ -14,8 +14,8 @@ from fleet.geo.mercator import MercatorProjection
 from fleet.launch.launcher import ring_scenario
 from fleet.mission.messages import MissionTargets, Target
 from fleet.mission.phase import Phase
+from fleet.mission.target_checks import REACHED_RADIUS_M
 from onboard.core import CONFIRM_LIMIT_S, LINK_LOST_S, TARGET_WAYPOINT
-from onboard.target_flight import REACHED_RADIUS_M
 from tests.conftest import Ground
 from tests.onboard.test_multi_uav import wait_for_telemetry
 from tests.support.processes import Fleet
