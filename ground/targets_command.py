@@ -9,12 +9,15 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 
 from fleet.errors import FleetError
-from fleet.files.targets_io import read_targets, write_targets
+from fleet.files.targets_io import write_targets
 from fleet.mission.messages import Target
 from fleet.mission.targets_file import TargetsFileError
 from fleet.transport.cli import ExitCode
+from ground import targets_formats
+from ground.targets_formats import TargetsFormatError
 
 
 class TargetSyntaxError(FleetError, ValueError):
@@ -42,8 +45,10 @@ def make(path: str, texts: list[str]) -> list[Target]:
 
 
 def show(path: str) -> list[Target]:
-    """Read and validate `path`; raises TargetsFileError or OSError."""
-    return read_targets(path)
+    """Read and validate `path`, in the format its name implies (.csv, .geojson/.json,
+    else the thesis's binary format: the files the page loads); raises
+    TargetsFormatError or OSError."""
+    return targets_formats.decode(Path(path).read_bytes(), path)
 
 
 def targets_json(targets: list[Target]) -> str:
@@ -77,7 +82,7 @@ def read_or_say(path: str, consequence: str = "") -> list[Target] | None:
     after = f"; {consequence}" if consequence else ""
     try:
         return show(path)
-    except TargetsFileError as error:
+    except TargetsFormatError as error:
         print(f"error: {error}{after}", file=sys.stderr)
     except OSError as error:
         print(f"error: cannot read {path}: {error.strerror}{after}", file=sys.stderr)

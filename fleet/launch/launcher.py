@@ -604,9 +604,11 @@ class Fleet:
         log.info("every UAV is alive with telemetry: %s", ", ".join(map(str, sorted(expected))))
 
     def _report(self, text: str) -> None:
-        log.info("%s", text)
+        # Said once: to the progress callback (`fleet up` prints it), else to the log.
         if self.progress is not None:
             self.progress(text)
+        else:
+            log.info("%s", text)
 
     # ---- running and stopping ----------------------------------------------------------
     def dead_children(self, essential_only: bool = False) -> list[Child]:

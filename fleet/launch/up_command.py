@@ -106,7 +106,9 @@ def add_up_parser(
         help="run a simulated fleet: router, simulator and one onboard per UAV",
         description="Run a simulated fleet on this machine until Ctrl-C or SIGTERM.",
     )
-    which = parser.add_mutually_exclusive_group(required=True)
+    # Not required by argparse: `fleet up --gui head_on` reads the scenario as the page's
+    # address, and run_up says so rather than argparse's 'SCENARIO or --uavs is required'.
+    which = parser.add_mutually_exclusive_group()
     which.add_argument(
         "scenario", nargs="?", metavar="SCENARIO", help="a shipped scenario name or a TOML file"
     )
@@ -166,7 +168,21 @@ def run_up(args: argparse.Namespace) -> int:
         return _run_up(args, stop)
 
 
+def _scenario_from_gui(args: argparse.Namespace) -> str | None:
+    """Why neither a scenario nor --uavs was given, or None once one is: `--gui NAME`
+    (no HOST:PORT) took the scenario as the page's address, so it is moved back."""
+    if args.scenario is not None or args.uavs is not None:
+        return None
+    if args.gui is not None and ":" not in args.gui:
+        args.scenario, args.gui = args.gui, DEFAULT_GUI_LISTEN
+        return None
+    return "give a SCENARIO (a shipped name or a TOML file) or --uavs N"
+
+
 def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
+    problem = _scenario_from_gui(args)
+    if problem is not None:
+        return fail("fleet up", problem)
     spec = FleetSpec(
         scenario="",
         listen=args.listen,

@@ -36,7 +36,14 @@ def _rate(text: str) -> float:
 
 
 def host_port(text: str) -> tuple[str, int]:
-    """`HOST:PORT` (IPv6 as `[::1]:PORT`) -> (host, port)."""
+    """`HOST:PORT` (IPv6 as `[::1]:PORT`; a Zenoh-style `tcp/HOST:PORT` too) -> (host, port)."""
+    scheme, slash, rest = text.partition("/")
+    if slash:
+        if scheme != "tcp":
+            raise argparse.ArgumentTypeError(
+                f"{text!r}: the page is served over TCP: expected HOST:PORT, e.g. {DEFAULT_LISTEN}"
+            )
+        text = rest
     host, sep, port = text.rpartition(":")
     if not sep or not host:
         raise argparse.ArgumentTypeError(f"{text!r}: expected HOST:PORT, e.g. {DEFAULT_LISTEN}")

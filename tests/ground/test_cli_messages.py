@@ -1,0 +1,67 @@
+"""What the command lines accept and say (issue 25, case 10): the targets files the page
+loads (CSV, GeoJSON) are read by `ground-cli` too; `ground-cli gui --listen` takes a
+`tcp/` endpoint; `fleet up --gui SCENARIO` is the scenario, not the page's address."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import pytest
+
+from fleet.launch.up_command import DEFAULT_GUI_LISTEN, _scenario_from_gui, add_up_parser
+from fleet.mission.messages import Target
+from ground import targets_formats
+from ground.cli import main
+from ground.gui.cli import host_port
+
+TARGETS = [Target(35.73, -120.75, 600.0), Target(35.70, -120.79, 610.0)]
+
+
+@pytest.mark.parametrize("fmt", [targets_formats.TargetsFormat.CSV, "geojson"])
+def test_targets_show_reads_the_files_the_page_loads(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], fmt: str
+) -> None:
+    path = tmp_path / f"targets.{fmt}"
+    path.write_bytes(targets_formats.encode(TARGETS, targets_formats.TargetsFormat(fmt)))
+    assert main(["targets", "show", str(path), "--json"]) == 0
+    shown = json.loads(capsys.readouterr().out)
+    assert [(t["lat"], t["lon"], t["alt"]) for t in shown] == [
+        (t.lat, t.lon, t.alt) for t in TARGETS
+    ]
+
+
+def test_a_bad_csv_is_refused_naming_file_and_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "bad.csv"
+    path.write_text("lat,lon,alt\n35.7,-120.7,600\n35.7,east,600\n")
+    assert main(["targets", "show", str(path)]) == 1
+    error = capsys.readouterr().err
+    assert error.startswith(f"error: {path}") and "line 3" in error, error
+
+
+def test_the_page_listens_on_a_tcp_endpoint_too() -> None:
+    assert host_port("tcp/127.0.0.1:8321") == ("127.0.0.1", 8321)
+    assert host_port("[::1]:8321") == ("::1", 8321)
+    with pytest.raises(argparse.ArgumentTypeError, match="served over TCP"):
+        host_port("udp/127.0.0.1:8321")
+
+
+def _up_args(*argv: str) -> argparse.Namespace:
+    parser = argparse.ArgumentParser()
+    add_up_parser(parser.add_subparsers())
+    return parser.parse_args(["up", *argv])
+
+
+def test_fleet_up_gui_then_a_scenario_runs_the_scenario_with_the_page() -> None:
+    args = _up_args("--gui", "head_on")
+    assert _scenario_from_gui(args) is None
+    assert (args.scenario, args.gui) == ("head_on", DEFAULT_GUI_LISTEN)
+    args = _up_args("head_on", "--gui", "127.0.0.1:9000")
+    assert _scenario_from_gui(args) is None
+    assert (args.scenario, args.gui) == ("head_on", "127.0.0.1:9000")
+    assert _scenario_from_gui(_up_args("--gui")) == (
+        "give a SCENARIO (a shipped name or a TOML file) or --uavs N"
+    )
