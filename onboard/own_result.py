@@ -8,32 +8,25 @@ publishes an all-None result, so that its teammates need not wait for it.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
-
-import msgspec
 
 from fleet.consensus.mission_round import MissionRound
 from fleet.mission.key_space import KeySpace
 from fleet.mission.lifecycle import Observation
-from fleet.mission.messages import StatusText, UavResult
+from fleet.mission.messages import UavResult
 from fleet.mission.phase import Phase
 from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock
 from onboard.approach_plan import ApproachPlan, plan_status
 from onboard.mission_phase import MissionPhase
-from onboard.state_report import Say
-
-
-class ResultOutputs(Protocol):
-    def publish(self, key: str, message: msgspec.Struct) -> None: ...
-    def send_ground(self, message: StatusText | UavResult) -> None: ...
+from onboard.state_report import ReportOutputs, Say
 
 
 @dataclass
 class OwnResult:
     uav_id: int
     key_space: KeySpace
-    outputs: ResultOutputs
+    #: Where the result goes: the bus and the payload link, as the state report's.
+    outputs: ReportOutputs
     plan: ApproachPlan
     life: MissionPhase
     say: Say

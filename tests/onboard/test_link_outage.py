@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 
@@ -20,7 +22,7 @@ from tests.conftest import Ground
 from tests.onboard.test_multi_uav import wait_for_telemetry
 from tests.support.processes import Fleet
 from tests.support.targets import ring_targets
-from tests.support.tcp_proxy import cuttable_proxy
+from tests.support.tcp_proxy import CuttableProxy, cuttable_proxy
 from tests.support.waiting import wait_until
 
 #: Longer than the old give-up (4 attempts, 2 s) and than LINK_LOST_S; shorter than
@@ -30,17 +32,27 @@ OUTAGE_S = 8.0
 PAST_S = 4.0
 
 
+@contextmanager
+def one_uav_behind_a_proxy(
+    fleet: Fleet, ground: Ground, tmp_path: Path, speedup: float
+) -> Iterator[tuple[int, CuttableProxy]]:
+    """One simulated UAV whose onboard reaches its autopilot through a proxy the test
+    can cut; yielded once its telemetry flows."""
+    scenario = tmp_path / "ring.toml"
+    scenario.write_text(ring_scenario(1))
+    ((uav, where),) = fleet.sim(str(scenario), speedup, 5.0).items()
+    with cuttable_proxy(where.program) as proxy:
+        fleet.onboard(uav, replace(where, program=proxy.url), ground.router)
+        wait_for_telemetry(ground, [uav])
+        yield uav, proxy
+
+
 def test_target_writes_are_retried_across_a_serial_outage_at_the_commitment(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
     assert LINK_LOST_S < OUTAGE_S < CONFIRM_LIMIT_S
-    scenario = tmp_path / "ring.toml"
-    scenario.write_text(ring_scenario(1))
-    ((uav, where),) = fleet.sim(str(scenario), 2.0, 5.0).items()
     seen = ground.seen
-    with cuttable_proxy(where.program) as proxy:
-        fleet.onboard(uav, replace(where, program=proxy.url), ground.router)
-        wait_for_telemetry(ground, [uav])
+    with one_uav_behind_a_proxy(fleet, ground, tmp_path, 2.0) as (uav, proxy):
         targets = ring_targets(1, seed=4)
         ground.send(MissionTargets(mission=1, team=(uav,), targets=targets))
         proxy.cut()  # the fault: the link drops as the UAV plans and commits
@@ -72,13 +84,8 @@ def test_target_writes_are_retried_across_a_serial_outage_at_the_commitment(
 def test_a_target_reached_during_a_link_outage_is_reported_reached(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    scenario = tmp_path / "ring.toml"
-    scenario.write_text(ring_scenario(1))
-    ((uav, where),) = fleet.sim(str(scenario), 3.0, 5.0).items()
     seen = ground.seen
-    with cuttable_proxy(where.program) as proxy:
-        fleet.onboard(uav, replace(where, program=proxy.url), ground.router)
-        wait_for_telemetry(ground, [uav])
+    with one_uav_behind_a_proxy(fleet, ground, tmp_path, 3.0) as (uav, proxy):
         # A target 1.5 km dead ahead: the route to it is straight.
         gps = seen.telemetry[uav][-1].gps
         assert gps is not None
