@@ -38,18 +38,7 @@ from enum import Enum, Flag, auto
 
 import msgspec
 
-from fleet.mission.messages import (
-    AssignmentReport,
-    CommandResult,
-    LinkHealth,
-    MissionAbort,
-    MissionTargets,
-    OpmCommand,
-    StatusText,
-    TargetOutcome,
-    UavResult,
-    UavState,
-)
+from fleet.mission import messages
 from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
@@ -150,50 +139,54 @@ ALIVE = KeySpec("uav/{id}/alive", None, carriage=Carriage.TOKEN, recording=Recor
 TELEMETRY = KeySpec("uav/{id}/telemetry", Telemetry, urgency=Urgency.TELEMETRY)
 TRACK = KeySpec("uav/{id}/track", Track)
 WAYPOINT = KeySpec("uav/{id}/waypoint/{index}", Waypoint)
-STATUS = KeySpec("uav/{id}/status", StatusText)
-LINK = KeySpec("uav/{id}/link", LinkHealth)
+STATUS = KeySpec("uav/{id}/status", messages.StatusText)
+LINK = KeySpec("uav/{id}/link", messages.LinkHealth)
 STATE = KeySpec(
-    "uav/{id}/state", UavState, carriage=Carriage.PUT | Carriage.QUERY, reply=UavState,
-    servers=_OWN, uavs_fetch=True, note="put at the OPM status rate; query reply",
+    "uav/{id}/state", messages.UavState, carriage=Carriage.PUT | Carriage.QUERY,
+    reply=messages.UavState, servers=_OWN, uavs_fetch=True,
+    note="put at the OPM status rate; query reply",
 )  # fmt: skip
 OPM = KeySpec(
-    "uav/{id}/opm", OpmCommand, role=Role.COMMAND, writer=Party.GROUND, urgency=Urgency.URGENT
-)
+    "uav/{id}/opm", messages.OpmCommand, role=Role.COMMAND, writer=Party.GROUND,
+    urgency=Urgency.URGENT,
+)  # fmt: skip
 CMD_WAYPOINT = KeySpec(
     "uav/{id}/cmd/waypoint", Waypoint, role=Role.COMMAND, carriage=Carriage.QUERY,
-    writer=Party.GROUND, recording=Recording.UNHEARD, reply=CommandResult, servers=_OWN,
+    writer=Party.GROUND, recording=Recording.UNHEARD, reply=messages.CommandResult, servers=_OWN,
 )  # fmt: skip
 CMD_TRACK = KeySpec(
     "uav/{id}/cmd/track", Track, role=Role.COMMAND, carriage=Carriage.QUERY,
-    writer=Party.GROUND, recording=Recording.UNHEARD, reply=CommandResult, servers=_OWN,
+    writer=Party.GROUND, recording=Recording.UNHEARD, reply=messages.CommandResult, servers=_OWN,
 )  # fmt: skip
 #: The ground serves a mission's targets; every UAV relays them to a teammate that was away.
 TARGETS = KeySpec(
-    "mission/{m}/targets", MissionTargets, role=Role.COMMAND,
+    "mission/{m}/targets", messages.MissionTargets, role=Role.COMMAND,
     carriage=Carriage.PUT | Carriage.QUERY, writer=Party.GROUND, urgency=Urgency.URGENT,
-    reply=MissionTargets, servers=frozenset({Party.GROUND, Party.ANY_UAV}), uavs_fetch=True,
+    reply=messages.MissionTargets, servers=frozenset({Party.GROUND, Party.ANY_UAV}),
+    uavs_fetch=True,
 )  # fmt: skip
 RESULT = KeySpec(
-    "mission/{m}/result/{id}", UavResult, carriage=Carriage.PUT | Carriage.QUERY,
-    urgency=Urgency.URGENT, reply=UavResult, servers=_OWN, uavs_fetch=True,
+    "mission/{m}/result/{id}", messages.UavResult, carriage=Carriage.PUT | Carriage.QUERY,
+    urgency=Urgency.URGENT, reply=messages.UavResult, servers=_OWN, uavs_fetch=True,
 )  # fmt: skip
 ASSIGNMENT = KeySpec(
-    "mission/{m}/assignment/{id}", AssignmentReport, carriage=Carriage.PUT | Carriage.QUERY,
-    urgency=Urgency.URGENT, reply=AssignmentReport, servers=_OWN, uavs_fetch=True,
+    "mission/{m}/assignment/{id}", messages.AssignmentReport,
+    carriage=Carriage.PUT | Carriage.QUERY, urgency=Urgency.URGENT,
+    reply=messages.AssignmentReport, servers=_OWN, uavs_fetch=True,
 )  # fmt: skip
 #: Heard by subscription only: a teammate that missed one fetches the assignment instead.
 REPLAN = KeySpec(
-    "mission/{m}/replan/{id}", AssignmentReport, urgency=Urgency.URGENT, note="epoch > 0"
+    "mission/{m}/replan/{id}", messages.AssignmentReport, urgency=Urgency.URGENT, note="epoch > 0"
 )
 OUTCOME = KeySpec(
-    "mission/{m}/outcome/{id}", TargetOutcome, carriage=Carriage.PUT | Carriage.QUERY,
-    urgency=Urgency.URGENT, reply=TargetOutcome, servers=_OWN, uavs_fetch=True,
+    "mission/{m}/outcome/{id}", messages.TargetOutcome, carriage=Carriage.PUT | Carriage.QUERY,
+    urgency=Urgency.URGENT, reply=messages.TargetOutcome, servers=_OWN, uavs_fetch=True,
 )  # fmt: skip
 #: Every UAV relays its current mission's abort to a teammate that was away.
 ABORT = KeySpec(
-    "mission/{m}/abort", MissionAbort, role=Role.COMMAND,
+    "mission/{m}/abort", messages.MissionAbort, role=Role.COMMAND,
     carriage=Carriage.PUT | Carriage.QUERY, writer=Party.GROUND, urgency=Urgency.URGENT,
-    reply=MissionAbort, servers=frozenset({Party.ANY_UAV}), uavs_fetch=True,
+    reply=messages.MissionAbort, servers=frozenset({Party.ANY_UAV}), uavs_fetch=True,
 )  # fmt: skip
 
 #: Every key of the fleet. Order is kept wherever keys are listed (schemas, grants).
@@ -207,14 +200,14 @@ SCHEMA_FILES: dict[type[msgspec.Struct], str] = {
     Telemetry: "telemetry",
     Track: "track",
     Waypoint: "waypoint",
-    StatusText: "status",
-    LinkHealth: "link_health",
-    UavState: "uav_state",
-    OpmCommand: "opm_command",
-    CommandResult: "command_result",
-    MissionTargets: "mission_targets",
-    UavResult: "uav_result",
-    AssignmentReport: "assignment_report",
-    MissionAbort: "mission_abort",
-    TargetOutcome: "target_outcome",
+    messages.StatusText: "status",
+    messages.LinkHealth: "link_health",
+    messages.UavState: "uav_state",
+    messages.OpmCommand: "opm_command",
+    messages.CommandResult: "command_result",
+    messages.MissionTargets: "mission_targets",
+    messages.UavResult: "uav_result",
+    messages.AssignmentReport: "assignment_report",
+    messages.MissionAbort: "mission_abort",
+    messages.TargetOutcome: "target_outcome",
 }
