@@ -121,21 +121,13 @@ def test_a_valid_file_loads(tmp_path: Path) -> None:
         ("id = 7", "id = 0", r"uav\[0\]\.id: expected `int` >= 1"),
         ("id = 7\n", "", r"uav\[0\]: object missing required field `id`"),
         ("[[42.01", "[[142.01", r"uav\[0\]\.plan\[0\]\[0\]: expected `float` <= 85\.0"),
-        (
-            "[42.01, -70.99, 310.0]",
-            "[42.01, -70.99]",
-            r"uav\[0\]\.plan\[1\]: expected `array` of length 3, got 2",
-        ),
+        ("-70.99, 310.0]", "-70.99]", r"uav\[0\]\.plan\[1\]: expected `array` of length 3, got 2"),
         ("east = -2.0", "east = -20.0", r"wind: speed 20\.0 m/s must be below"),
         ("east = -2.0", "west = -2.0", r"wind: object contains unknown field `west`"),
         ('description = "test"', 'targets = "missing.bin"', r"targets: no such file"),
         ('description = "test"', "colour = 3", r"contains unknown field `colour`"),
         ("[[uav]]", "[uav]", r"uav: expected `array`, got `object`"),
-        (
-            "alt = 300.0",
-            "alt = 300.0\n[[uav.extra]]",
-            r"uav\[0\]: object contains unknown field `extra`",
-        ),
+        ("alt = 300.0", "alt = 1.0\n[[uav.extra]]", r"uav\[0\]: .* unknown field `extra`"),
     ],
 )
 def test_errors_name_the_file_and_the_field(
