@@ -27,11 +27,13 @@ from fleet.launch.launcher import (
     parse_sim_line,
     ring_scenario,
 )
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.transport.router import Router, RouterError
 from fleet.transport.zenoh_config import make_config
 from tests.support.fake_onboard import FAKE_ONBOARD
 from tests.support.processes import free_endpoint
+
+SPACE = KeySpace()
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -183,7 +185,7 @@ def test_fleet_starts_waits_for_liveliness_and_stops_everything(
         with zenoh.open(make_config("client", [fleet.connect])) as session:
             tokens = [
                 str(r.ok.key_expr)
-                for r in session.liveliness().get(keys.ALL_ALIVE, timeout=2.0)
+                for r in session.liveliness().get(SPACE.all_alive, timeout=2.0)
                 if r.ok is not None
             ]
         assert sorted(tokens) == ["fleet/uav/112/alive", "fleet/uav/74/alive"]
