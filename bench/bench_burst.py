@@ -46,7 +46,7 @@ import msgspec
 from bench.bench_fleet_scale import baseline_tree
 from fleet.consensus.assignment import greedy_assign, results_digest
 from fleet.consensus.mission_round import MissionRound
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import AssignmentReport, MissionTargets, UavResult
 from fleet.piccolo.track import Track
 from fleet.transport import bus_codec
@@ -57,6 +57,8 @@ from onboard.planner_worker import PlanRequest, PlanResult
 from onboard.process import OnboardProcess, OnboardSettings
 from tests.support.link_samples import sample_telemetry
 from tests.support.targets import ring_targets
+
+SPACE = KeySpace()
 
 #: The UAV measured; its teammates are 2..N (Piccolo IDs 1..N).
 OWN = 1
@@ -171,9 +173,9 @@ def mission_traffic(
             target=target,
             eta_s=times[target] if target is not None else None,
         )
-        reports.append((keys.mission_assignment(mission, uav), bus_codec.encode(report)))
+        reports.append((SPACE.mission_assignment(mission, uav), bus_codec.encode(report)))
     result_bytes = [
-        (keys.mission_result(mission, uav), bus_codec.encode(results[uav])) for uav in team[1:]
+        (SPACE.mission_result(mission, uav), bus_codec.encode(results[uav])) for uav in team[1:]
     ]
     return bus_codec.encode(targets), result_bytes, reports, results[OWN].times
 
@@ -198,10 +200,10 @@ def measure_bursts(n: int, bursts: int, first_mission: int) -> dict[str, list[fl
         core.on_track(Track(2), now)
         for uav in range(2, n + 1):
             process._on_event(PresenceEvent(uav, True), now)
-        on_targets = bus.subscriptions[keys.ALL_MISSION_TARGETS]
-        on_result = bus.subscriptions[keys.ALL_MISSION_RESULTS]
+        on_targets = bus.subscriptions[SPACE.all_mission_targets]
+        on_result = bus.subscriptions[SPACE.all_mission_results]
         # None since the onboard hears its teammates' re-plans only (a baseline may).
-        on_report = bus.subscriptions.get(keys.ALL_MISSION_ASSIGNMENTS)
+        on_report = bus.subscriptions.get(SPACE.all_mission_assignments)
         events = process.events
         handle = process._on_event
         figures: dict[str, list[float]] = {"results": [], "reports": []}
@@ -211,7 +213,7 @@ def measure_bursts(n: int, bursts: int, first_mission: int) -> dict[str, list[fl
             # The own result as the teammates' reports counted it (None included).
             planner.times = cast(tuple[float, ...], own_times)
             now = time.monotonic()
-            on_targets(BusSample(keys.mission_targets(mission), targets))
+            on_targets(BusSample(SPACE.mission_targets(mission), targets))
             handle(events.get_nowait(), now)
             core.tick(now)  # the own result, published
             assert core.round is not None and OWN in core.round.results

@@ -24,12 +24,14 @@ import msgspec
 import zenoh
 
 from fleet.launch.launcher import free_port, ring_scenario
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace, uav_id_of
 from fleet.mission.messages import AssignmentReport, MissionTargets, UavResult
 from fleet.transport.bus_codec import ENCODING, encode
 from tests.support.processes import Fleet, client_session, router_session
 from tests.support.targets import ring_targets
 from tests.support.waiting import wait_until
+
+SPACE = KeySpace()
 
 
 class Arrivals:
@@ -40,9 +42,9 @@ class Arrivals:
         self.digests: dict[int, set[str]] = {}
         self.live: set[int] = set()
         self.subscribers = [
-            session.declare_subscriber(keys.ALL_MISSION_RESULTS, self.on_result),
-            session.declare_subscriber(f"{keys.PREFIX}/mission/*/assignment/*", self.on_commit),
-            session.declare_subscriber(f"{keys.PREFIX}/uav/*/link", self.on_link),
+            session.declare_subscriber(SPACE.all_mission_results, self.on_result),
+            session.declare_subscriber(SPACE.all_mission_assignments, self.on_commit),
+            session.declare_subscriber(SPACE.uav("*", "link"), self.on_link),
         ]
 
     def on_result(self, sample: zenoh.Sample) -> None:
@@ -60,7 +62,7 @@ class Arrivals:
 
     def on_link(self, sample: zenoh.Sample) -> None:
         with self.lock:
-            self.live.add(keys.uav_id_of(str(sample.key_expr)))
+            self.live.add(uav_id_of(str(sample.key_expr)))
 
     def close(self) -> None:
         for subscriber in self.subscribers:
@@ -86,7 +88,7 @@ def measure(size: int, missions: int, workdir: Path) -> list[tuple[float, float,
             for mission in range(1, missions + 1):
                 message = MissionTargets(mission, team, ring_targets(10, seed=mission))
                 sent = time.perf_counter()
-                ground.put(keys.mission_targets(mission), encode(message), encoding=ENCODING)
+                ground.put(SPACE.mission_targets(mission), encode(message), encoding=ENCODING)
 
                 def committed(mission: int = mission) -> bool:
                     return all((mission, u) in arrivals.commits for u in team)

@@ -60,7 +60,7 @@ import zenoh
 
 from bench.proc_threads import by_kind, snapshot
 from fleet.launch.launcher import Fleet, FleetSpec, ring_scenario
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace, uav_id_of
 from fleet.mission.messages import (
     AssignmentReport,
     MissionTargets,
@@ -72,6 +72,8 @@ from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.zenoh_bus import direct
 from fleet.transport.zenoh_config import make_config
 from tests.support.targets import ring_targets
+
+SPACE = KeySpace()
 
 REPO = Path(__file__).resolve().parent.parent
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
@@ -184,12 +186,10 @@ class Observer:
         self.commits: dict[tuple[int, int], tuple[float, AssignmentReport]] = {}
         self.fallbacks: dict[tuple[int, int], tuple[int, int]] = {}  # from status texts
         self.subscribers = [
-            session.declare_subscriber(f"{keys.PREFIX}/uav/*/telemetry", direct(self.on_telemetry)),
-            session.declare_subscriber(keys.ALL_MISSION_RESULTS, direct(self.on_result)),
-            session.declare_subscriber(
-                f"{keys.PREFIX}/mission/*/assignment/*", direct(self.on_commit)
-            ),
-            session.declare_subscriber(f"{keys.PREFIX}/uav/*/status", direct(self.on_status)),
+            session.declare_subscriber(SPACE.all_telemetry, direct(self.on_telemetry)),
+            session.declare_subscriber(SPACE.all_mission_results, direct(self.on_result)),
+            session.declare_subscriber(SPACE.all_mission_assignments, direct(self.on_commit)),
+            session.declare_subscriber(SPACE.all_status, direct(self.on_status)),
         ]
 
     def on_telemetry(self, sample: zenoh.Sample) -> None:
@@ -197,7 +197,7 @@ class Observer:
         if not self.recording:
             return
         stamp = msgspec.json.decode(sample.payload.to_bytes(), type=_Stamp)
-        uav = keys.uav_id_of(str(sample.key_expr))
+        uav = uav_id_of(str(sample.key_expr))
         with self.lock:
             self.offsets.setdefault(uav, []).append(now - stamp.system_time_ms / 1000.0)
 
@@ -218,7 +218,7 @@ class Observer:
         match = _FALLBACK_STATUS.search(text)
         if match is None:
             return
-        uav = keys.uav_id_of(str(sample.key_expr))
+        uav = uav_id_of(str(sample.key_expr))
         with self.lock:
             self.fallbacks[(int(match[1]), uav)] = (0, int(match[2] or 0))
 
@@ -290,7 +290,7 @@ def wait_models_built(session: zenoh.Session, team: set[int], limit_s: float) ->
     give_up = time.monotonic() + limit_s
     while time.monotonic() < give_up:
         built = set()
-        for reply in session.get(f"{keys.PREFIX}/uav/*/state", timeout=5.0):
+        for reply in session.get(SPACE.all_state, timeout=5.0):
             if reply.ok is not None:
                 raw = msgspec.json.decode(reply.ok.payload.to_bytes())
                 if isinstance(raw, dict) and "model_speed" not in raw:
@@ -321,7 +321,7 @@ def run_missions(
         message = MissionTargets(mission, team, ring_targets(len(team), seed=mission), deadline_s)
         threads0, sim0, own0 = snapshot(onboards), snapshot([sim]), time.process_time()
         sent = time.time()
-        session.put(keys.mission_targets(mission), encode(message), encoding=ENCODING)
+        session.put(SPACE.mission_targets(mission), encode(message), encoding=ENCODING)
         limit = time.monotonic() + deadline_s + 30.0
         while time.monotonic() < limit:
             with observer.lock:

@@ -32,8 +32,10 @@ import zenoh
 from bench.bench_fleet_scale import Config, baseline_tree, child_environment
 from bench.proc_threads import KINDS, Snapshot, by_kind, snapshot
 from fleet.launch.launcher import Fleet, FleetSpec, ring_scenario
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.transport.zenoh_config import make_config
+
+SPACE = KeySpace()
 
 
 def per_onboard(
@@ -91,7 +93,7 @@ def main() -> None:
                 for endpoint in routers.values():
                     session = stack.enter_context(zenoh.open(make_config("client", [endpoint])))
                     subscribers.append(
-                        session.declare_subscriber(f"{keys.PREFIX}/uav/*/telemetry", lambda _: None)
+                        session.declare_subscriber(SPACE.all_telemetry, lambda _: None)
                     )
                 time.sleep(1.0)  # the subscriptions reach the publishers
             case = "subscribed" if subscribed else "no subscriber"

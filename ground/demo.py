@@ -141,6 +141,7 @@ def _run_demo(args: argparse.Namespace, stop: threading.Event) -> int:
         speedup=args.speedup,
         log_dir=args.log_dir,
         start_timeout_s=args.start_timeout,
+        key_space=args.key_space,
     )
     say = _sayer(sys.stderr if args.json else sys.stdout)
     fleet = Fleet(spec, stop_requested=stop)

@@ -20,11 +20,13 @@ import pytest
 import zenoh
 
 from fleet.launch.launcher import free_port
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets
 from fleet.transport.bus_codec import ENCODING, encode
 from tests.support.ground_view import GroundView
 from tests.support.processes import Fleet, client_session, router_session
+
+SPACE = KeySpace()
 
 E2E = "e2e"
 #: Fixtures that start processes, or stand in for the ground of a test that does.
@@ -79,7 +81,7 @@ class Ground:
     seen: GroundView
 
     def send(self, mission: MissionTargets) -> None:
-        self.session.put(keys.mission_targets(mission.mission), encode(mission), encoding=ENCODING)
+        self.session.put(SPACE.mission_targets(mission.mission), encode(mission), encoding=ENCODING)
 
 
 @pytest.fixture

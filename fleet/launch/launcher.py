@@ -24,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
+import os
 import re
 import signal
 import socket
@@ -44,10 +45,11 @@ from fleet.errors import FleetError
 from fleet.files.certs import CertError
 from fleet.geo.mercator import MercatorProjection
 from fleet.launch.topology import Topology, fallbacks, ring_links
-from fleet.mission import keys
+from fleet.mission.key_space import DEFAULT_SPACE, KeySpace, uav_id_of
 from fleet.piccolo.telemetry import Telemetry
 from fleet.recording.recorder import READY_LINE
 from fleet.transport import bus_codec
+from fleet.transport.cli import PREFIX_ENV
 from fleet.transport.router import Router
 from fleet.transport.secure import SecureProfile
 from fleet.transport.zenoh_config import DEFAULT_ROUTER, build_config, make_config
@@ -239,6 +241,9 @@ class FleetSpec:
     onboard_command: tuple[str, ...] = ("-m", "onboard.main")
     #: Where `fleet record` writes the run's recording; None: not recorded.
     record: Path | None = None
+    #: The fleet's keys: the router's access policy, the start's watch, and every child's
+    #: (handed down in $FLEET_KEY_PREFIX).
+    key_space: KeySpace = DEFAULT_SPACE
 
 
 @dataclass
@@ -362,7 +367,7 @@ class Fleet:
             raise LaunchError(
                 f"the secure profile listens on tls/ endpoints, not {self.spec.listen}"
             )
-        return SecureProfile.load(self.spec.secure_dir)
+        return SecureProfile.load(self.spec.secure_dir, self.spec.key_space)
 
     def _spawn(self, name: str, argv: list[str], stdout: int | IO[bytes] | None = None) -> Child:
         log_path = self.log_dir / f"{name}.log"
@@ -374,6 +379,7 @@ class Fleet:
             stdout=log_file if stdout is None else stdout,
             stderr=log_file,
             start_new_session=True,
+            env={**os.environ, PREFIX_ENV: self.spec.key_space.prefix},
         )
         child = Child(name, process, log_path, argv=tuple(argv))
         self.children.append(child)
@@ -587,8 +593,10 @@ class Fleet:
                 changed.set()
 
         with (
-            session.liveliness().declare_subscriber(keys.ALL_ALIVE, on_token, history=True),
-            session.declare_subscriber(keys.ALL_TELEMETRY, on_telemetry),
+            session.liveliness().declare_subscriber(
+                self.spec.key_space.all_alive, on_token, history=True
+            ),
+            session.declare_subscriber(self.spec.key_space.all_telemetry, on_telemetry),
         ):
             reported, next_report = (-1, -1), 0.0
             while not expected <= alive & flowing:
@@ -641,7 +649,7 @@ class Fleet:
 
 def _uav_of(sample: zenoh.Sample) -> int | None:
     try:
-        return keys.uav_id_of(str(sample.key_expr))
+        return uav_id_of(str(sample.key_expr))
     except ValueError:
         return None
 

@@ -25,10 +25,11 @@ from fleet.launch.launcher import (
 )
 from fleet.launch.supervisor import ChildLost, RestartPolicy, supervise
 from fleet.launch.topology import Topology
-from fleet.mission import keys
 from fleet.mission.access import GROUND
+from fleet.mission.key_registry import DEFAULT_PREFIX
 from fleet.sim.scenario import ScenarioError, resolve_scenario
 from fleet.transport.cli import (
+    PREFIX_ENV,
     ExitCode,
     add_key_prefix_argument,
     bounded_int,
@@ -191,6 +192,7 @@ def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
         start_timeout_s=args.start_timeout,
         secure_dir=args.secure,
         topology=args.topology,
+        key_space=args.key_space,
     )
     fleet = Fleet(spec, stop_requested=stop, progress=_print_progress)
     if args.uavs is not None:
@@ -251,9 +253,8 @@ def _print_progress(text: str) -> None:
 def _print_banner(fleet: Fleet, targets_path: Path | None, gui_line: str | None) -> None:
     ids = ", ".join(map(str, fleet.uav_ids))
     targets = str(targets_path) if targets_path is not None else "TARGETS.bin"
-    prefix = (
-        [f"  export {keys.PREFIX_ENV}={keys.PREFIX}"] if keys.PREFIX != keys.DEFAULT_PREFIX else []
-    )
+    space = fleet.spec.key_space
+    prefix = [f"  export {PREFIX_ENV}={space.prefix}"] if space.prefix != DEFAULT_PREFIX else []
     if fleet.secure is not None:
         identity = fleet.secure.identity(GROUND).client_config
         connect = [f"  export {CONFIG_ENV}={identity}", f"  export {CONNECT_ENV}={fleet.connect}"]

@@ -26,18 +26,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import StrEnum
 
-from fleet.mission import keys
 from fleet.mission.key_registry import REGISTRY, Carriage, KeySpec, Party, Role
 from fleet.mission.key_space import KeySpace
 
 GROUND = "ground"
 ROUTER = "router"
 ADMIN_SPACE = "@/**"
-
-
-def all_fleet(space: KeySpace | None = None) -> str:
-    """Every key of the fleet (of the process's key space by default)."""
-    return (space or keys.current()).everything
 
 
 def uav_identity(uav_id: int) -> str:
@@ -164,13 +158,12 @@ def _ground_grants(space: KeySpace) -> list[Grant]:
     ]
 
 
-def fleet_policy(uav_ids: list[int], space: KeySpace | None = None) -> list[Grant]:
+def fleet_policy(uav_ids: list[int], space: KeySpace) -> list[Grant]:
     """Every grant of a fleet of `uav_ids` with one ground and its routers, on the keys
-    of `space` (the process's by default).
+    of `space`.
 
     Everything else is denied.
     """
-    space = space or keys.current()
     members = (GROUND, *(uav_identity(u) for u in uav_ids))
     both = (Flow.INGRESS, Flow.EGRESS)
     grants = [

@@ -16,8 +16,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from fleet.errors import FleetError
-from fleet.mission import keys
-from fleet.mission.key_space import KeySpace
+from fleet.mission.key_space import KeySpace, space_of
 from fleet.mission.messages import (
     AssignmentHeader,
     AssignmentReport,
@@ -82,9 +81,18 @@ def _piccolo_id(text: str, key: str) -> int:
 
 
 def parse_key(key: str, space: KeySpace | None = None) -> KeyIds:
-    """The ids in a `{prefix}/uav/{id}/...` or `{prefix}/mission/{m}/...` key of `space`
-    (the process's by default); WrongKey if bad."""
-    return _parse_key(key, space or keys.current())
+    """The ids in a `{prefix}/uav/{id}/...` or `{prefix}/mission/{m}/...` key of `space`;
+    WrongKey if bad.
+
+    Without `space`, the key's own prefix (its first chunk) is taken: a key that arrives
+    is parsed this way, and every subscription of a process is under its own prefix, so
+    it is the process's. A first chunk that is not a key prefix is a wrong key.
+    """
+    if space is None:
+        space = space_of(key)
+        if space is None:
+            raise WrongKey(f"{key}: not a fleet message key")
+    return _parse_key(key, space)
 
 
 @functools.lru_cache(maxsize=PARSED_KEYS)
@@ -136,7 +144,8 @@ def _team(key: str, team: tuple[int, ...]) -> None:
 
 
 def check_key(key: str, message: object) -> None:
-    """Raise WrongKey unless `message` may travel on `key`."""
+    """Raise WrongKey unless `message` may travel on `key` (under the key's own prefix:
+    see `parse_key`)."""
     ids = parse_key(key)
     # One lookup by type instead of a chain of isinstance checks (every message a
     # process decodes comes through here); a subclass finds its base's checks.

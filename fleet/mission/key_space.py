@@ -220,6 +220,19 @@ def mission_of(key: str) -> int:
 #: The fleet's keys under the default prefix.
 DEFAULT_SPACE = KeySpace()
 
+#: Key spaces kept by `space_of`: a process sees one prefix, a few at most.
+SPACES = 16
+
+
+def space_of(key: str) -> KeySpace | None:
+    """The KeySpace `key` is under, by its first chunk; None if that is not a key prefix."""
+    return _space(key.partition("/")[0])
+
+
+@functools.lru_cache(maxsize=SPACES)
+def _space(prefix: str) -> KeySpace | None:
+    return KeySpace(prefix) if _CHUNK.match(prefix) else None
+
 
 def _placeholder(chunk: str) -> str | None:
     return chunk[1:-1] if chunk.startswith("{") else None

@@ -16,7 +16,8 @@ from pathlib import Path
 
 import zenoh
 
-from fleet.mission import keys
+from fleet.mission.key_registry import DEFAULT_PREFIX
+from fleet.mission.key_space import checked_prefix
 from fleet.recording.mission_log import build_timeline
 from fleet.recording.plot import PlotError, parse_at, render
 from fleet.recording.reader import Recording, RecordingError, read_recording, recover
@@ -25,6 +26,7 @@ from fleet.recording.replay import DEFAULT_REPLAY_PREFIX, Replayer
 from fleet.recording.report import report_json, report_lines
 from fleet.recording.writer import McapSink, Rotation
 from fleet.transport.cli import (
+    PREFIX_ENV,
     ExitCode,
     add_verbose_argument,
     add_zenoh_arguments,
@@ -42,7 +44,7 @@ log = logging.getLogger(__name__)
 
 def _replay_prefix(text: str) -> str:
     try:
-        return keys.checked_prefix(text)
+        return checked_prefix(text)
     except ValueError as error:
         raise argparse.ArgumentTypeError(str(error)) from None
 
@@ -97,7 +99,7 @@ def _replay_parser(parser: argparse.ArgumentParser) -> None:
         default=DEFAULT_REPLAY_PREFIX,
         metavar="P",
         help="key prefix to replay under (default %(default)s; the live fleet's is "
-        f"{keys.DEFAULT_PREFIX})",
+        f"{DEFAULT_PREFIX})",
     )
     parser.add_argument(
         "--hold",
@@ -177,6 +179,7 @@ def run_record(args: argparse.Namespace) -> int:
             session,
             McapSink(args.out, rotation),
             expr=args.expr,
+            key_space=args.key_space,
             state_every_s=args.state_every,
             on_failure=stop,
         )
@@ -237,7 +240,7 @@ def run_replay(args: argparse.Namespace) -> int:
         replayer = Replayer(session, recording, prefix=args.prefix, rate=args.rate, stop=stop)
         print(
             f"fleet replay: {len(recording.messages)} messages at {args.rate:g}x under "
-            f"{args.prefix}/** (see it with {keys.PREFIX_ENV}={args.prefix} ground-cli watch)",
+            f"{args.prefix}/** (see it with {PREFIX_ENV}={args.prefix} ground-cli watch)",
             flush=True,
         )
         try:

@@ -30,7 +30,7 @@ from typing import Any
 import msgspec
 import zenoh
 
-from fleet.mission import keys
+from fleet.mission.key_space import DEFAULT_SPACE, KeySpace, uav_id_of
 from fleet.recording import channels
 from fleet.recording.writer import McapSink
 from fleet.transport import bus_codec
@@ -81,13 +81,13 @@ class Recorder:
         sink: McapSink,
         *,
         expr: str | None = None,
-        prefix: str | None = None,
+        key_space: KeySpace = DEFAULT_SPACE,
         state_every_s: float = DEFAULT_STATE_EVERY_S,
         on_failure: threading.Event | None = None,
     ) -> None:
         self._session = session
         self.sink = sink
-        self.prefix = prefix or keys.PREFIX
+        self.prefix = key_space.prefix
         self.expr = expr or f"{self.prefix}/**"
         self._state_every_s = state_every_s
         self._queue: queue.Queue[Heard | None] = queue.Queue()
@@ -215,7 +215,7 @@ class Recorder:
         if spec.topic.endswith(f"/{channels.ALIVE_LEAF}"):
             # Not a UAV's token: recorded as it is, without a schema.
             with contextlib.suppress(ValueError, IndexError):
-                spec = channels.alive_channel(self.prefix, keys.uav_id_of(heard.key))
+                spec = channels.alive_channel(self.prefix, uav_id_of(heard.key))
         self.sink.write(spec, heard.payload, heard.time_ns, heard.time_ns)
         self.stats.recorded[spec.pattern] += 1
         if spec.pattern.endswith("/telemetry") and isinstance(value, dict):
@@ -223,7 +223,7 @@ class Recorder:
 
     def _write_fix(self, heard: Heard, telemetry: dict[str, object]) -> None:
         try:
-            uav = keys.uav_id_of(heard.key)
+            uav = uav_id_of(heard.key)
         except (ValueError, IndexError):
             return
         fix = channels.location_fix(telemetry, uav, heard.time_ns)

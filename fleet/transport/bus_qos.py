@@ -20,9 +20,8 @@ from dataclasses import dataclass
 
 import zenoh
 
-from fleet.mission import keys
 from fleet.mission.key_registry import Urgency
-from fleet.mission.key_space import KeySpace
+from fleet.mission.key_space import KeySpace, space_of
 from fleet.transport.bus_codec import ENCODING
 
 
@@ -43,8 +42,13 @@ _QOS = {Urgency.URGENT: URGENT, Urgency.TELEMETRY: TELEMETRY, Urgency.ORDINARY: 
 
 def qos_for(key: str, space: KeySpace | None = None) -> Qos:
     """The priority and congestion control of a publication on `key`: ORDINARY for a key
-    the registry does not know under `space`'s prefix (the process's by default)."""
-    parsed = (space or keys.current()).parse(key)
+    the registry does not know under `space`'s prefix.
+
+    Without `space`, the key's own prefix (its first chunk) is taken: a process publishes
+    under its own prefix only, so it is the process's.
+    """
+    space = space or space_of(key)
+    parsed = space.parse(key) if space is not None else None
     return _QOS[parsed.spec.urgency] if parsed is not None else ORDINARY
 
 

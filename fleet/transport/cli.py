@@ -23,7 +23,6 @@ from typing import Any
 
 import zenoh
 
-from fleet.mission import keys
 from fleet.mission.key_registry import DEFAULT_PREFIX
 from fleet.mission.key_space import KeySpace
 from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
@@ -129,7 +128,6 @@ class _UseKeyPrefix(argparse.Action):
     ) -> None:
         assert isinstance(values, KeySpace)  # converted by its type, `key_space`
         setattr(namespace, self.dest, values)
-        keys.use_prefix(values.prefix)
         os.environ[PREFIX_ENV] = values.prefix  # inherited by child processes
 
 

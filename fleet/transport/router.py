@@ -25,7 +25,14 @@ import zenoh
 
 from fleet.errors import FleetError
 from fleet.files.certs import CertError
-from fleet.transport.cli import ExitCode, add_verbose_argument, fail, setup_logging, stop_on_signals
+from fleet.transport.cli import (
+    ExitCode,
+    add_key_prefix_argument,
+    add_verbose_argument,
+    fail,
+    setup_logging,
+    stop_on_signals,
+)
 from fleet.transport.secure import SecureProfile
 from fleet.transport.zenoh_config import DEFAULT_ROUTER, make_config
 
@@ -116,6 +123,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="DIR",
         help="mutual TLS and access control with the identities in DIR (`fleet certs make`)",
     )
+    add_key_prefix_argument(parser)  # the keys the access control covers
     add_verbose_argument(parser)
     return parser
 
@@ -125,7 +133,9 @@ def main(argv: list[str] | None = None) -> int:
     setup_logging(args.verbose)
     stop = threading.Event()
     try:
-        secure = SecureProfile.load(args.secure) if args.secure is not None else None
+        secure = (
+            SecureProfile.load(args.secure, args.key_space) if args.secure is not None else None
+        )
         router = Router(args.listen or [DEFAULT_ROUTER], args.connect, secure)
         with stop_on_signals(stop.set), router:
             # A bounded wait in a loop, so the signal handler runs promptly.

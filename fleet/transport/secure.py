@@ -17,6 +17,7 @@ import zenoh
 
 from fleet.files.certs import CertError, IdentityFiles, tls_settings
 from fleet.mission.access import GROUND, ROUTER, fleet_policy, uav_identity
+from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.transport.acl import access_control
 
 _UAV_CERT = re.compile(r"^uav-(\d+)\.pem$")
@@ -26,17 +27,20 @@ _UAV_CERT = re.compile(r"^uav-(\d+)\.pem$")
 class SecureProfile:
     directory: Path
     uav_ids: tuple[int, ...]
+    #: The keys the access policy covers.
+    key_space: KeySpace = DEFAULT_SPACE
 
     @classmethod
-    def load(cls, directory: Path) -> SecureProfile:
-        """The profile of the identities in `directory`; CertError names what is missing."""
+    def load(cls, directory: Path, key_space: KeySpace = DEFAULT_SPACE) -> SecureProfile:
+        """The profile of the identities in `directory`, its policy on the keys of
+        `key_space`; CertError names what is missing."""
         directory = directory.resolve()
         if not directory.is_dir():
             raise CertError(f"{directory}: no such directory (make it with `fleet certs make`)")
         uav_ids = sorted(
             int(match[1]) for path in directory.iterdir() if (match := _UAV_CERT.match(path.name))
         )
-        profile = cls(directory, tuple(uav_ids))
+        profile = cls(directory, tuple(uav_ids), key_space)
         profile.identity(ROUTER).check()
         return profile
 
@@ -58,5 +62,5 @@ class SecureProfile:
         """Make `config` a secure router's: mTLS with the router's identity, and the ACL."""
         tls = tls_settings(self.identity(ROUTER))
         config.insert_json5("transport/link/tls", json.dumps(tls))
-        policy = fleet_policy(list(self.uav_ids))
+        policy = fleet_policy(list(self.uav_ids), self.key_space)
         config.insert_json5("access_control", json.dumps(access_control(policy)))

@@ -8,11 +8,13 @@ from collections.abc import Callable
 
 import msgspec
 
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionProgress, MissionTargets, UavResult, UavState
 from fleet.mission.phase import Phase
 from fleet.transport.bus import Queryable
 from fleet.transport.memory import MemoryBus, MemoryNetwork
+
+SPACE = KeySpace()
 
 
 class MemoryUav:
@@ -22,16 +24,16 @@ class MemoryUav:
         self.uav = uav
         self.bus: MemoryBus = network.bus()
         self.state = UavState(uav, True, 1.0, None, None, None, None)
-        self.bus.declare_token(keys.alive(uav))
-        self._serve(keys.state(uav), lambda: self.state)
+        self.bus.declare_token(SPACE.alive(uav))
+        self._serve(SPACE.state(uav), lambda: self.state)
 
     def fly(self, targets: MissionTargets, result: UavResult | None = None) -> None:
         """Hold `targets` as the current mission (with `result`), as a UAV that got it."""
         progress = MissionProgress(targets.mission, Phase.COMPUTING, len(targets.targets), result)
         self.state = msgspec.structs.replace(self.state, mission=progress, phase=Phase.COMPUTING)
-        self._serve(keys.mission_targets(targets.mission), lambda: targets)
+        self._serve(SPACE.mission_targets(targets.mission), lambda: targets)
         if result is not None:
-            self._serve(keys.mission_result(targets.mission, self.uav), lambda: result)
+            self._serve(SPACE.mission_result(targets.mission, self.uav), lambda: result)
 
     def _serve(self, key: str, value: Callable[[], msgspec.Struct]) -> None:
         def answer() -> None:

@@ -18,7 +18,7 @@ import zenoh
 
 from fleet.consensus.assignment import greedy_assign
 from fleet.files.targets_io import write_targets
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
     MissionAbort,
@@ -36,6 +36,8 @@ from ground.mission_outcome import MissionOutcome, check_agreement
 from tests.support.fake_onboard import FakeOnboard, approach_time
 from tests.support.processes import free_endpoint
 from tests.support.waiting import wait_until
+
+SPACE = KeySpace()
 
 REPO = Path(__file__).resolve().parents[2]
 CLI_TIMEOUT_S = 30.0
@@ -185,7 +187,7 @@ def test_bad_targets_file_is_refused_and_nothing_sent(
     marker = MissionTargets(mission=next(MARKER_MISSIONS), team=(1,), targets=())
     with zenoh.open(make_config("client", [router])) as session:
         session.put(
-            keys.mission_targets(marker.mission),
+            SPACE.mission_targets(marker.mission),
             bus_codec.encode(marker),
             encoding=bus_codec.ENCODING,
         )
@@ -334,7 +336,7 @@ def test_watch_keeps_a_warning_in_view_while_info_streams_past(
         first = watch.stdout.readline()  # the first frame: watch is subscribed
         assert first.startswith("-- "), first
         # The severity the message carries counts, not its wording.
-        fakes[112].put(keys.status(112), StatusText("GPS fix degraded", StatusKind.WARNING))
+        fakes[112].put(SPACE.status(112), StatusText("GPS fix degraded", StatusKind.WARNING))
         out, err = watch.communicate(timeout=CLI_TIMEOUT_S)
     finally:
         if watch.poll() is None:

@@ -17,13 +17,15 @@ import pytest
 import zenoh
 
 from fleet.files.targets_io import write_targets
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionProgress, UavResult, UavState
 from fleet.mission.phase import Phase
 from fleet.transport.bus_codec import MAX_PAYLOAD_BYTES, encode
 from fleet.transport.zenoh_config import make_config
 from tests.ground.test_cli import TARGETS, run_cli
 from tests.support.fake_onboard import FakeOnboard
+
+SPACE = KeySpace()
 
 pytestmark = pytest.mark.e2e
 
@@ -48,9 +50,9 @@ class Rogue:
         self.session = zenoh.open(make_config("client", [endpoint]))
         self.stop = threading.Event()
         self.declared: list[Any] = [
-            self.session.declare_queryable(keys.state(999), self._answer),
+            self.session.declare_queryable(SPACE.state(999), self._answer),
             self.session.declare_queryable("fleet/mission/**", self._answer),
-            self.session.liveliness().declare_token(keys.alive(999)),
+            self.session.liveliness().declare_token(SPACE.alive(999)),
             self.session.liveliness().declare_token("fleet/uav/abc/alive"),
         ]
         self.thread = threading.Thread(target=self._publish, daemon=True)
@@ -58,10 +60,10 @@ class Rogue:
 
     def _answer(self, query: zenoh.Query) -> None:
         answers = (
-            keys.state(999),
+            SPACE.state(999),
             "fleet/uav/abc/state",
-            keys.mission_result(7, 74),
-            keys.mission_targets(2**32 - 1),  # would make the next mission id 2^32
+            SPACE.mission_result(7, 74),
+            SPACE.mission_targets(2**32 - 1),  # would make the next mission id 2^32
         )
         for key in answers:
             if query.key_expr.intersects(zenoh.KeyExpr(key)):
@@ -71,9 +73,9 @@ class Rogue:
         forged = encode(UavResult(7, 112, (1.0, 1.0, 1.0)))
         while not self.stop.wait(0.2):
             for leaf in ("telemetry", "track", "waypoint/3", "status"):
-                self.session.put(keys.uav(999, leaf), self.payload)
-            self.session.put(keys.mission_result(7, 74), forged)
-            self.session.put(keys.mission_assignment(7, 999), self.payload)
+                self.session.put(SPACE.uav(999, leaf), self.payload)
+            self.session.put(SPACE.mission_result(7, 74), forged)
+            self.session.put(SPACE.mission_assignment(7, 999), self.payload)
 
     def close(self) -> None:
         self.stop.set()

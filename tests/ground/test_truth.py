@@ -16,7 +16,7 @@ import msgspec
 import pytest
 
 from fleet.files.targets_io import write_targets
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import CommandResult, MissionTargets, Target
 from fleet.piccolo.track import Track
 from fleet.transport.bus_codec import encode
@@ -26,6 +26,8 @@ from tests.onboard.test_multi_uav import start_ring
 from tests.support.processes import Fleet
 from tests.support.targets import ring_targets
 from tests.support.waiting import wait_until
+
+SPACE = KeySpace()
 
 #: A long consensus deadline and --wait timeout, so a prompt answer is the fault being
 #: noticed, not a timer running out.
@@ -168,7 +170,7 @@ def test_an_operator_retasking_a_uav_in_flight_is_preempted_not_reached_and_abor
     assert finish(ground_cli(ground.router, "send-targets", str(path)), 60)[0] == 0
     wait_until(lambda: any("flying to target 0" in s for s in seen.statuses(uav)), 60.0, "flying")
     # The fault: an operator re-tasks the aircraft to waypoint 1 while it flies.
-    (reply,) = ground.session.get(keys.command(uav, "track"), payload=encode(Track(1)), timeout=10)
+    (reply,) = ground.session.get(SPACE.command(uav, "track"), payload=encode(Track(1)), timeout=10)
     assert reply.ok is not None
     answer = msgspec.json.decode(reply.ok.payload.to_bytes(), type=CommandResult)
     assert answer.ok, answer

@@ -25,7 +25,7 @@ import zenoh
 
 from fleet.files.certs import write_identities
 from fleet.launch.launcher import free_port
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace, mission_of
 from fleet.mission.messages import AssignmentReport, MissionAbort, MissionTargets, Target, UavResult
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
@@ -33,6 +33,8 @@ from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.zenoh_config import build_config, make_config
 from tests.support.processes import Child, start
 from tests.support.waiting import wait_until
+
+SPACE = KeySpace()
 
 TIMEOUT_S = 120
 ROGUE_MISSION = 0xFFFF_FFFF
@@ -116,8 +118,8 @@ def put(session: zenoh.Session, key: str, message: object) -> None:
 
 def marker(session: zenoh.Session, seen: Seen, text: str) -> None:
     """A status from UAV 74's identity: everything it sent before has been routed."""
-    session.put(keys.status(74), text.encode())
-    wait_until(lambda: seen.keys.get(keys.status(74)) == text.encode(), 10.0, text)
+    session.put(SPACE.status(74), text.encode())
+    wait_until(lambda: seen.keys.get(SPACE.status(74)) == text.encode(), 10.0, text)
 
 
 # ---- who can connect ----------------------------------------------------------------------
@@ -155,20 +157,20 @@ def test_uav_74_cannot_write_for_uav_112_or_command(
 ) -> None:
     _, seen = ground
     forged = {
-        keys.telemetry(112): b'{"forged": true}',
-        keys.status(112): b"forged status",
-        keys.mission_targets(90): encode(
+        SPACE.telemetry(112): b'{"forged": true}',
+        SPACE.status(112): b"forged status",
+        SPACE.mission_targets(90): encode(
             MissionTargets(90, (74, 112), (Target(35.7, -120.7, 600),))
         ),
-        keys.mission_abort(90): encode(MissionAbort(90)),
-        keys.opm(112): b'{"enabled": false}',
-        keys.mission_result(90, 112): encode(UavResult(90, 112, (1.0,))),
+        SPACE.mission_abort(90): encode(MissionAbort(90)),
+        SPACE.opm(112): b'{"enabled": false}',
+        SPACE.mission_result(90, 112): encode(UavResult(90, 112, (1.0,))),
     }
     for key, payload in forged.items():
         uav74.put(key, payload, encoding=ENCODING)
-    put(uav74, keys.mission_result(90, 74), UavResult(90, 74, (5.0,)))
+    put(uav74, SPACE.mission_result(90, 74), UavResult(90, 74, (5.0,)))
     marker(uav74, seen, "after the forgeries")
-    assert keys.mission_result(90, 74) in seen.keys  # its own result goes through
+    assert SPACE.mission_result(90, 74) in seen.keys  # its own result goes through
     # UAV 112 publishes its own telemetry and status: compare what arrived, not keys.
     assert not [key for key, payload in forged.items() if seen.keys.get(key) == payload]
 
@@ -177,7 +179,7 @@ def test_uav_74_cannot_command_uav_112_but_the_ground_can(
     ground: tuple[zenoh.Session, Seen], uav74: zenoh.Session
 ) -> None:
     session, _ = ground
-    selector = keys.command(112, "waypoint")
+    selector = SPACE.command(112, "waypoint")
     # Not a waypoint: the UAV refuses it with an error reply, which proves it arrived.
     answers = [r for r in session.get(selector, payload=b"{}", timeout=5.0)]
     assert answers and answers[0].err is not None
@@ -189,11 +191,11 @@ def test_uav_74_cannot_declare_another_uavs_liveliness(
     ground: tuple[zenoh.Session, Seen], uav74: zenoh.Session
 ) -> None:
     session, _ = ground
-    forged = uav74.liveliness().declare_token(keys.alive(299))
-    own = uav74.liveliness().declare_token(keys.alive(74))
+    forged = uav74.liveliness().declare_token(SPACE.alive(299))
+    own = uav74.liveliness().declare_token(SPACE.alive(74))
     try:
-        alive = {str(r.ok.key_expr) for r in session.liveliness().get(keys.ALL_ALIVE) if r.ok}
-        assert alive == {keys.alive(74), keys.alive(112)}
+        alive = {str(r.ok.key_expr) for r in session.liveliness().get(SPACE.all_alive) if r.ok}
+        assert alive == {SPACE.alive(74), SPACE.alive(112)}
     finally:
         forged.undeclare()
         own.undeclare()
@@ -203,17 +205,17 @@ def test_uav_74_cannot_declare_another_uavs_liveliness(
 def attack(uav74: zenoh.Session, mission: int) -> None:
     everyone_to_2 = {74: 2, 112: 2}
     forged = AssignmentReport(mission, 112, 2, everyone_to_2, (0, 1), (74, 112), "rogue")
-    put(uav74, keys.mission_assignment(mission, 112), forged)
+    put(uav74, SPACE.mission_assignment(mission, 112), forged)
     # Not forged: 74's own assignment. A holder of UAV 74's key speaks for UAV 74, and its
     # teammates adopt a committed assignment (docs/security.md: what is not protected).
     rogue_point = Waypoint(index=50, next_index=50, lat=35.75, lon=-120.80, alt=368.0)
     for command in (rogue_point, Track(waypoint=50)):
-        for _ in uav74.get(keys.command(112, type(command).__name__.lower()),
+        for _ in uav74.get(SPACE.command(112, type(command).__name__.lower()),
                            payload=encode(command), timeout=1.0):  # fmt: skip
             raise AssertionError("UAV 112 answered a command from UAV 74's certificate")
-    put(uav74, keys.mission_targets(ROGUE_MISSION),
+    put(uav74, SPACE.mission_targets(ROGUE_MISSION),
         MissionTargets(ROGUE_MISSION, (74, 112), (Target(35.75, -120.80, 600.0),)))  # fmt: skip
-    put(uav74, keys.mission_abort(mission), MissionAbort(mission))
+    put(uav74, SPACE.mission_abort(mission), MissionAbort(mission))
 
 
 @pytest.mark.e2e
@@ -227,7 +229,7 @@ def test_the_issues_attacks_are_refused_and_the_mission_completes_unchanged(
         if attacked.is_set():
             return
         attacked.set()
-        mission = keys.mission_of(str(sample.key_expr))
+        mission = mission_of(str(sample.key_expr))
 
         def run() -> None:
             try:
@@ -237,8 +239,8 @@ def test_the_issues_attacks_are_refused_and_the_mission_completes_unchanged(
 
         threading.Thread(target=run, daemon=True).start()
 
-    token = uav74.liveliness().declare_token(keys.alive(299))
-    subscriber = uav74.declare_subscriber(keys.ALL_MISSION_TARGETS, on_targets)
+    token = uav74.liveliness().declare_token(SPACE.alive(299))
+    subscriber = uav74.declare_subscriber(SPACE.all_mission_targets, on_targets)
     try:
         targets = str(files("fleet") / "scenarios" / "head_on_targets.bin")
         sent = secure_fleet.ground_cli(

@@ -6,11 +6,13 @@ from __future__ import annotations
 import pytest
 import zenoh
 
-from fleet.mission import keys
 from fleet.mission.access import GROUND, Flow, Message, fleet_policy, uav_identity
+from fleet.mission.key_registry import DEFAULT_PREFIX
 from fleet.mission.key_space import KeySpace
 
-POLICY = fleet_policy([74, 112])
+SPACE = KeySpace()
+
+POLICY = fleet_policy([74, 112], SPACE)
 
 
 def allowed(identity: str, flow: Flow, message: Message, key: str) -> bool:
@@ -31,13 +33,13 @@ def puts(identity: str, key: str) -> bool:
 @pytest.mark.parametrize(
     "key",
     [
-        keys.mission_targets(5),
-        keys.mission_abort(5),
-        keys.opm(112),
-        keys.telemetry(112),
-        keys.mission_result(5, 112),
-        keys.mission_assignment(5, 112),
-        keys.mission_replan(5, 112),
+        SPACE.mission_targets(5),
+        SPACE.mission_abort(5),
+        SPACE.opm(112),
+        SPACE.telemetry(112),
+        SPACE.mission_result(5, 112),
+        SPACE.mission_assignment(5, 112),
+        SPACE.mission_replan(5, 112),
         "fleet/other",
     ],
 )
@@ -48,10 +50,10 @@ def test_uav_74_cannot_write_for_others_or_command(key: str) -> None:
 @pytest.mark.parametrize(
     "key",
     [
-        keys.telemetry(74),
-        keys.mission_result(5, 74),
-        keys.mission_assignment(5, 74),
-        keys.mission_replan(5, 74),
+        SPACE.telemetry(74),
+        SPACE.mission_result(5, 74),
+        SPACE.mission_assignment(5, 74),
+        SPACE.mission_replan(5, 74),
     ],
 )
 def test_uav_74_writes_its_own_keys(key: str) -> None:
@@ -59,30 +61,30 @@ def test_uav_74_writes_its_own_keys(key: str) -> None:
 
 
 def test_only_the_ground_commands() -> None:
-    for key in (keys.mission_targets(5), keys.mission_abort(5), keys.opm(74)):
+    for key in (SPACE.mission_targets(5), SPACE.mission_abort(5), SPACE.opm(74)):
         assert puts(GROUND, key)
-    command = keys.command(112, "waypoint")
+    command = SPACE.command(112, "waypoint")
     assert allowed(GROUND, Flow.INGRESS, Message.QUERY, command)
     assert not allowed(uav_identity(74), Flow.INGRESS, Message.QUERY, command)
-    assert not puts(GROUND, keys.mission_result(5, 74))
+    assert not puts(GROUND, SPACE.mission_result(5, 74))
 
 
 def test_liveliness_only_for_ones_own_token() -> None:
     token = Message.LIVELINESS_TOKEN
-    assert allowed(uav_identity(74), Flow.INGRESS, token, keys.alive(74))
-    assert not allowed(uav_identity(74), Flow.INGRESS, token, keys.alive(299))
-    assert not allowed(GROUND, Flow.INGRESS, token, keys.alive(74))
+    assert allowed(uav_identity(74), Flow.INGRESS, token, SPACE.alive(74))
+    assert not allowed(uav_identity(74), Flow.INGRESS, token, SPACE.alive(299))
+    assert not allowed(GROUND, Flow.INGRESS, token, SPACE.alive(74))
 
 
 def test_everyone_reads_the_whole_tree_so_a_fleet_wide_subscription_is_allowed() -> None:
     for identity in (GROUND, uav_identity(74), uav_identity(112)):
         assert allowed(identity, Flow.INGRESS, Message.DECLARE_SUBSCRIBER, "fleet/**")
-        assert allowed(identity, Flow.EGRESS, Message.PUT, keys.telemetry(74))
-    assert not allowed("uav-999", Flow.EGRESS, Message.PUT, keys.telemetry(74))
+        assert allowed(identity, Flow.EGRESS, Message.PUT, SPACE.telemetry(74))
+    assert not allowed("uav-999", Flow.EGRESS, Message.PUT, SPACE.telemetry(74))
 
 
 def test_the_policy_follows_the_key_space_given() -> None:
     lab = KeySpace("lab")
     exprs = {expr for grant in fleet_policy([74], lab) for expr in grant.key_exprs}
     assert "lab/uav/74/**" in exprs and "lab/mission/*/targets" in exprs
-    assert not any(expr.startswith(f"{keys.DEFAULT_PREFIX}/") for expr in exprs)
+    assert not any(expr.startswith(f"{DEFAULT_PREFIX}/") for expr in exprs)

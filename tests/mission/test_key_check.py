@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from fleet.mission import key_check, keys
+from fleet.mission import key_check
 from fleet.mission.key_check import WrongKey, check_key, parse_key, uav_of
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     AssignmentHeader,
     AssignmentReport,
@@ -18,6 +19,8 @@ from fleet.mission.messages import (
 )
 from fleet.mission.phase import Phase
 from fleet.piccolo.waypoint import Waypoint
+
+SPACE = KeySpace()
 
 TARGETS = (Target(35.7, -120.7, 600.0),)
 
@@ -38,12 +41,12 @@ def state(uav: int, mission: MissionProgress | None = None) -> UavState:
 @pytest.mark.parametrize(
     ("key", "message"),
     [
-        (keys.mission_result(5, 74), UavResult(5, 74, (1.0,))),
-        (keys.mission_assignment(5, 74), report(74)),
-        (keys.mission_targets(5), MissionTargets(5, (74, 112), TARGETS)),
-        (keys.mission_abort(0xFFFF_FFFF), MissionAbort(0xFFFF_FFFF)),
-        (keys.state(74), state(74, MissionProgress(5, Phase.COMMITTED, 1, None, report(74)))),
-        (keys.waypoint(74, 3), Waypoint(3, 4, 35.7, -120.7, 600.0)),
+        (SPACE.mission_result(5, 74), UavResult(5, 74, (1.0,))),
+        (SPACE.mission_assignment(5, 74), report(74)),
+        (SPACE.mission_targets(5), MissionTargets(5, (74, 112), TARGETS)),
+        (SPACE.mission_abort(0xFFFF_FFFF), MissionAbort(0xFFFF_FFFF)),
+        (SPACE.state(74), state(74, MissionProgress(5, Phase.COMMITTED, 1, None, report(74)))),
+        (SPACE.waypoint(74, 3), Waypoint(3, 4, 35.7, -120.7, 600.0)),
     ],
 )
 def test_a_message_on_its_own_key_passes(key: str, message: object) -> None:
@@ -53,26 +56,26 @@ def test_a_message_on_its_own_key_passes(key: str, message: object) -> None:
 @pytest.mark.parametrize(
     ("key", "message", "why"),
     [
-        (keys.mission_result(5, 74), UavResult(5, 112, (1.0,)), "UAV 112, not the key's 74"),
-        (keys.mission_assignment(5, 74), report(112), "UAV 112, not the key's 74"),
-        (keys.mission_result(6, 74), UavResult(5, 74, (1.0,)), "mission 5, not the key's 6"),
-        (keys.mission_abort(6), MissionAbort(7), "mission 7"),
-        (keys.mission_targets(5), MissionTargets(5, (74, 0), TARGETS), "member 0"),
-        (keys.mission_targets(2**32), MissionTargets(2**32, (74,), TARGETS), "outside"),
-        (keys.mission_assignment(5, 74), report(74, target=70000), "target index"),
-        (keys.mission_assignment(5, 74), report(74, pairs={0: 0}), "member 0"),
-        (keys.state(999), state(74), "UAV 74, not the key's 999"),
-        (keys.state(74), state(74, MissionProgress(2**40, Phase.IDLE, 0)), "not a u32"),
+        (SPACE.mission_result(5, 74), UavResult(5, 112, (1.0,)), "UAV 112, not the key's 74"),
+        (SPACE.mission_assignment(5, 74), report(112), "UAV 112, not the key's 74"),
+        (SPACE.mission_result(6, 74), UavResult(5, 74, (1.0,)), "mission 5, not the key's 6"),
+        (SPACE.mission_abort(6), MissionAbort(7), "mission 7"),
+        (SPACE.mission_targets(5), MissionTargets(5, (74, 0), TARGETS), "member 0"),
+        (SPACE.mission_targets(2**32), MissionTargets(2**32, (74,), TARGETS), "outside"),
+        (SPACE.mission_assignment(5, 74), report(74, target=70000), "target index"),
+        (SPACE.mission_assignment(5, 74), report(74, pairs={0: 0}), "member 0"),
+        (SPACE.state(999), state(74), "UAV 74, not the key's 999"),
+        (SPACE.state(74), state(74, MissionProgress(2**40, Phase.IDLE, 0)), "not a u32"),
         (
-            keys.state(74),
+            SPACE.state(74),
             state(74, MissionProgress(5, Phase.WAITING, 1, UavResult(5, 112, ()))),
             "112",
         ),
-        (keys.waypoint(74, 3), Waypoint(4, 5, 35.7, -120.7, 600.0), "index 4"),
+        (SPACE.waypoint(74, 3), Waypoint(4, 5, 35.7, -120.7, 600.0), "index 4"),
         ("fleet/uav/abc/state", state(74), "'abc' is not a decimal"),
         ("fleet/uav/+74/state", state(74), "not a decimal"),
         ("fleet/uav/70000/state", state(70000), "outside 1-65520"),
-        ("other/uav/74/state", state(74), "not a fleet message key"),
+        ("o.ther/uav/74/state", state(74), "not a fleet message key"),  # not a prefix
     ],
 )
 def test_a_message_its_key_does_not_vouch_for_is_refused(
@@ -83,19 +86,19 @@ def test_a_message_its_key_does_not_vouch_for_is_refused(
 
 
 def test_uav_of_and_parse_key() -> None:
-    assert uav_of(keys.alive(299)) == 299
-    assert uav_of(keys.mission_result(5, 74)) == 74
-    assert parse_key(keys.mission_targets(9)).mission == 9
+    assert uav_of(SPACE.alive(299)) == 299
+    assert uav_of(SPACE.mission_result(5, 74)) == 74
+    assert parse_key(SPACE.mission_targets(9)).mission == 9
     with pytest.raises(WrongKey, match="names no UAV"):
-        uav_of(keys.mission_targets(9))
+        uav_of(SPACE.mission_targets(9))
 
 
 def test_an_assignment_header_is_checked_against_its_key() -> None:
-    check_key(keys.mission_assignment(5, 74), AssignmentHeader(5, 74, 1, (112,)))
+    check_key(SPACE.mission_assignment(5, 74), AssignmentHeader(5, 74, 1, (112,)))
     for key, header, why in [
-        (keys.mission_assignment(5, 74), AssignmentHeader(5, 112), "UAV 112"),
-        (keys.mission_assignment(6, 74), AssignmentHeader(5, 74), "mission 5"),
-        (keys.mission_assignment(5, 74), AssignmentHeader(5, 74, 1, (0,)), "member 0"),
+        (SPACE.mission_assignment(5, 74), AssignmentHeader(5, 112), "UAV 112"),
+        (SPACE.mission_assignment(6, 74), AssignmentHeader(5, 74), "mission 5"),
+        (SPACE.mission_assignment(5, 74), AssignmentHeader(5, 74, 1, (0,)), "member 0"),
     ]:
         with pytest.raises(WrongKey, match=why):
             check_key(key, header)
@@ -104,18 +107,21 @@ def test_an_assignment_header_is_checked_against_its_key() -> None:
 def test_parsed_keys_are_remembered_within_a_bound() -> None:
     assert key_check.PARSED_KEYS <= 1024
     for mission in range(3 * key_check.PARSED_KEYS):
-        assert parse_key(keys.mission_result(mission, 74)).mission == mission
+        assert parse_key(SPACE.mission_result(mission, 74)).mission == mission
     assert len(key_check._PICCOLO_IDS) <= key_check.PARSED_KEYS
     with pytest.raises(WrongKey):  # a refused key stays refused, each time
         parse_key("fleet/uav/0/state")
     with pytest.raises(WrongKey):
         parse_key("fleet/uav/0/state")
-    # Under another prefix a key remembered under the old one is not the fleet's.
-    original = keys.PREFIX
-    parse_key(keys.mission_result(5, 74))
-    keys.use_prefix("replay" if original != "replay" else "fleet")
-    try:
+    # Under another prefix a key remembered under its own is not the fleet's.
+    parse_key(SPACE.mission_result(5, 74))
+    with pytest.raises(WrongKey, match="not a fleet message key"):
+        parse_key(SPACE.mission_result(5, 74), KeySpace("replay"))
+
+
+def test_a_key_is_parsed_under_its_own_prefix() -> None:
+    replay = KeySpace("replay").mission_result(5, 74)
+    assert parse_key(replay) == parse_key(SPACE.mission_result(5, 74))
+    for key in ("re play/uav/74/state", "/uav/74/state", "fl.eet/mission/5/result/74"):
         with pytest.raises(WrongKey, match="not a fleet message key"):
-            parse_key(f"{original}/mission/5/result/74")
-    finally:
-        keys.use_prefix(original)
+            parse_key(key)

@@ -12,6 +12,7 @@ import pytest
 
 from fleet.mission.access import fleet_policy
 from fleet.mission.key_check import KeyIds, parse_key
+from fleet.mission.key_space import DEFAULT_SPACE
 from fleet.recording import channels
 from fleet.transport.bus_qos import ORDINARY, TELEMETRY, URGENT, Qos, qos_for
 
@@ -135,6 +136,6 @@ def test_the_access_policy_grants_what_it_always_granted() -> None:
             tuple(str(message) for message in grant.messages),
             set(grant.key_exprs),
         )
-        for grant in fleet_policy([74])
+        for grant in fleet_policy([74], DEFAULT_SPACE)
     ]
     assert found == POLICY_74

@@ -8,9 +8,9 @@ import msgspec
 import pytest
 
 from fleet.mission import key_registry as reg
-from fleet.mission import keys, messages
+from fleet.mission import messages
 from fleet.mission.key_registry import REGISTRY, KeySpec
-from fleet.mission.key_space import KeySpace
+from fleet.mission.key_space import KeySpace, checked_prefix, space_of
 
 SAMPLE_IDS = {reg.UAV_ID: 74, reg.MISSION_ID: 5, reg.INDEX: 3}
 #: Structs of messages.py that only travel inside another (or decode part of one).
@@ -69,21 +69,24 @@ def test_a_keyspace_builds_the_keys_and_wildcards_the_compatibility_layer_does()
     assert space.all_mission_keys == "lab/mission/**"
     assert space.everything == "lab/**"
     assert space.uav_tree(7) == "lab/uav/7/**"
-    try:
-        keys.use_prefix("lab")
-        assert keys.current() == space
-        assert (keys.telemetry(7), keys.ALL_ALIVE, keys.PREFIX) == (
-            space.telemetry(7),
-            space.all_alive,
-            "lab",
-        )
-    finally:
-        keys.use_prefix(keys.DEFAULT_PREFIX)
+    replay = KeySpace("replay")
+    assert replay.all_mission_assignments == "replay/mission/*/assignment/*"
+    assert replay.mission_targets(3) == "replay/mission/3/targets"
 
 
-def test_a_keyspace_refuses_a_prefix_that_is_not_one_chunk() -> None:
+@pytest.mark.parametrize("bad", ["", "a/b", "x*", "**"])
+def test_a_keyspace_refuses_a_prefix_that_is_not_one_chunk(bad: str) -> None:
     with pytest.raises(ValueError, match="one key chunk"):
-        KeySpace("a/b")
+        checked_prefix(bad)
+    with pytest.raises(ValueError, match="one key chunk"):
+        KeySpace(bad)
+
+
+def test_a_key_is_in_the_space_its_first_chunk_names() -> None:
+    assert space_of("replay/uav/7/telemetry") == KeySpace("replay")
+    assert space_of("lab/anything") is space_of("lab/else")  # one per prefix, kept
+    assert space_of("re.play/uav/7/telemetry") is None
+    assert space_of("/uav/7/telemetry") is None
 
 
 def test_unregistered_keys_parse_to_nothing() -> None:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     MissionTargets,
     UavResult,
@@ -20,6 +20,8 @@ from tests.onboard.core_harness import (
 )
 from tests.support.link_samples import sample_telemetry
 
+SPACE = KeySpace()
+
 
 def test_a_stale_plan_is_never_used_for_the_next_mission() -> None:
     planner = HeldPlanner()
@@ -31,10 +33,10 @@ def test_a_stale_plan_is_never_used_for_the_next_mission() -> None:
     first, second = planner.requests
     planner.answer(first, (1.0, 2.0))  # mission 1's answer, same target count
     core.tick(0.1)
-    assert out.on(keys.mission_result(2, 112)) == []
+    assert out.on(SPACE.mission_result(2, 112)) == []
     planner.answer(second, (7.0, 8.0))
     core.tick(0.2)
-    assert out.on(keys.mission_result(2, 112)) == [
+    assert out.on(SPACE.mission_result(2, 112)) == [
         UavResult(2, 112, (7.0, 8.0), model_times=2, fallback_times=0)
     ]
 

@@ -11,11 +11,13 @@ from contextlib import closing
 import pytest
 
 from fleet.consensus.mission_round import MissionRound
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import AssignmentReport, MissionTargets, OpmCommand, Target, UavResult
 from fleet.transport import bus_codec
 from fleet.transport.memory import MemoryBus, MemoryNetwork
 from onboard.bus_edge import BusEdge, BusEvent, PresenceEvent
+
+SPACE = KeySpace()
 
 UAV = 112
 MISSION = MissionTargets(mission=3, team=(UAV, 74), targets=(Target(35.7, -120.7, 600.0),))
@@ -48,30 +50,30 @@ def harness() -> Iterator[Harness]:
 def test_it_is_alive_and_sees_itself(harness: Harness) -> None:
     assert harness.next_event() == PresenceEvent(UAV, True)
     seen: list[tuple[str, bool]] = []
-    harness.ground.subscribe_presence(keys.ALL_ALIVE, lambda key, alive: seen.append((key, alive)))
-    assert seen == [(keys.alive(UAV), True)]
+    harness.ground.subscribe_presence(SPACE.all_alive, lambda key, alive: seen.append((key, alive)))
+    assert seen == [(SPACE.alive(UAV), True)]
 
 
 def test_teammates_coming_and_going_are_events(harness: Harness) -> None:
     harness.drain()
     teammate = MemoryBus(harness.network)
-    token = teammate.declare_token(keys.alive(74))
+    token = teammate.declare_token(SPACE.alive(74))
     assert harness.next_event() == PresenceEvent(74, True)
     token.undeclare()
     assert harness.next_event() == PresenceEvent(74, False)
-    teammate.declare_token(keys.alive(75))
+    teammate.declare_token(SPACE.alive(75))
     teammate.close()  # a crashed teammate: its token goes with its session
     assert harness.drain() == [PresenceEvent(75, True), PresenceEvent(75, False)]
 
 
 def test_messages_are_decoded_for_the_main_loop(harness: Harness) -> None:
     harness.drain()
-    harness.ground.publish(keys.mission_targets(3), MISSION)
-    harness.ground.publish(keys.opm(UAV), OpmCommand(enabled=False, status_rate_hz=0.0))
-    harness.ground.publish(keys.opm(74), OpmCommand(enabled=False))  # not ours
+    harness.ground.publish(SPACE.mission_targets(3), MISSION)
+    harness.ground.publish(SPACE.opm(UAV), OpmCommand(enabled=False, status_rate_hz=0.0))
+    harness.ground.publish(SPACE.opm(74), OpmCommand(enabled=False))  # not ours
     assert harness.drain() == [
-        BusEvent(keys.mission_targets(3), MISSION),
-        BusEvent(keys.opm(UAV), OpmCommand(enabled=False, status_rate_hz=0.0)),
+        BusEvent(SPACE.mission_targets(3), MISSION),
+        BusEvent(SPACE.opm(UAV), OpmCommand(enabled=False, status_rate_hz=0.0)),
     ]
 
 
@@ -80,8 +82,8 @@ def test_a_bad_message_is_dropped_and_logged(
 ) -> None:
     harness.drain()
     with caplog.at_level(logging.WARNING, logger="onboard.bus_edge"):
-        harness.ground.put(keys.mission_targets(4), b'{"mission": "four"}')
-        harness.ground.put(keys.mission_result(4, 74), b"\xff not json")
+        harness.ground.put(SPACE.mission_targets(4), b'{"mission": "four"}')
+        harness.ground.put(SPACE.mission_result(4, 74), b"\xff not json")
     assert harness.drain() == []
     assert "fleet/mission/4/targets: not a valid MissionTargets" in caplog.text
     assert "fleet/mission/4/result/74: not a valid UavResult" in caplog.text
@@ -90,32 +92,32 @@ def test_a_bad_message_is_dropped_and_logged(
 def test_fetch_replies_arrive_like_publications_marked_replayed(harness: Harness) -> None:
     harness.drain()
     result = UavResult(mission=3, uav=74, times=(12.5,))
-    answers = harness.ground.declare_queryable(keys.mission_result(3, 74))
-    harness.node.fetch(keys.mission_results(3), UavResult)
+    answers = harness.ground.declare_queryable(SPACE.mission_result(3, 74))
+    harness.node.fetch(SPACE.mission_results(3), UavResult)
     query = answers.try_recv()
-    assert query is not None and query.intersects(keys.mission_result(3, 74))
-    query.reply(keys.mission_result(3, 74), result)
+    assert query is not None and query.intersects(SPACE.mission_result(3, 74))
+    query.reply(SPACE.mission_result(3, 74), result)
     query.drop()
     # Marked: a mission learnt this way may be under way (the core then asks what the
     # team decided on it); one heard live is not.
-    assert harness.drain() == [BusEvent(keys.mission_result(3, 74), result, replayed=True)]
+    assert harness.drain() == [BusEvent(SPACE.mission_result(3, 74), result, replayed=True)]
 
 
 def test_queries_to_it_wait_for_its_loop(harness: Harness) -> None:
     answers: list[str] = []
-    harness.ground.get(keys.state(UAV), lambda sample: answers.append(sample.key), timeout=1.0)
+    harness.ground.get(SPACE.state(UAV), lambda sample: answers.append(sample.key), timeout=1.0)
     query = harness.node.state_queries.try_recv()
-    assert query is not None and query.key == keys.state(UAV)
+    assert query is not None and query.key == SPACE.state(UAV)
     assert harness.node.state_queries.try_recv() is None
-    query.reply_bytes(keys.state(UAV), b"{}")
-    assert answers == [keys.state(UAV)]
+    query.reply_bytes(SPACE.state(UAV), b"{}")
+    assert answers == [SPACE.state(UAV)]
 
 
 def test_close_withdraws_the_token(harness: Harness) -> None:
     seen: list[tuple[str, bool]] = []
-    harness.ground.subscribe_presence(keys.ALL_ALIVE, lambda key, alive: seen.append((key, alive)))
+    harness.ground.subscribe_presence(SPACE.all_alive, lambda key, alive: seen.append((key, alive)))
     harness.node.close()
-    assert seen == [(keys.alive(UAV), True), (keys.alive(UAV), False)]
+    assert seen == [(SPACE.alive(UAV), True), (SPACE.alive(UAV), False)]
 
 
 def _report(uav: int, mission: int = 3, **changes: object) -> AssignmentReport:
@@ -142,19 +144,19 @@ def test_a_settled_uav_drops_reports_that_change_nothing_on_their_header() -> No
             events.get_nowait()
         before = bus_codec.DROPPED.counts()
         # An epoch 0 on the re-plan key (no teammate puts one there) changes nothing.
-        ground.publish(keys.mission_replan(3, 74), _report(74))
+        ground.publish(SPACE.mission_replan(3, 74), _report(74))
         assert events.empty()
         assert bus_codec.DROPPED.counts() == before
         replan = _report(74, epoch=1, released=(UAV,))  # a re-plan: it matters
-        ground.publish(keys.mission_replan(3, 74), replan)
-        assert events.get_nowait() == BusEvent(keys.mission_replan(3, 74), replan)
+        ground.publish(SPACE.mission_replan(3, 74), replan)
+        assert events.get_nowait() == BusEvent(SPACE.mission_replan(3, 74), replan)
         newer = _report(74, mission=4)
-        ground.publish(keys.mission_replan(4, 74), newer)
-        assert events.get_nowait() == BusEvent(keys.mission_replan(4, 74), newer)
+        ground.publish(SPACE.mission_replan(4, 74), newer)
+        assert events.get_nowait() == BusEvent(SPACE.mission_replan(4, 74), newer)
         # A header its key does not vouch for, or that does not decode, is refused and
         # counted as before: on the full decode.
-        ground.publish(keys.mission_replan(3, 75), _report(74))
-        ground.put(keys.mission_replan(3, 74), b'{"mission": 3, "uav": "74"}')
+        ground.publish(SPACE.mission_replan(3, 75), _report(74))
+        ground.put(SPACE.mission_replan(3, 74), b'{"mission": 3, "uav": "74"}')
         assert events.empty()
         after = bus_codec.DROPPED.counts()
         assert after.get("wrong_key", 0) == before.get("wrong_key", 0) + 1
@@ -170,22 +172,22 @@ def test_a_uav_hears_its_teammates_re_plans_live_and_their_commitments_by_query(
     node = BusEdge(UAV, network.bus(), events.put)
     teammate = network.bus()
     commitment = _report(74)
-    served = teammate.declare_queryable(keys.mission_assignment(3, 74))
+    served = teammate.declare_queryable(SPACE.mission_assignment(3, 74))
     try:
         while not events.empty():
             events.get_nowait()
-        teammate.publish(keys.mission_assignment(3, 74), commitment)
+        teammate.publish(SPACE.mission_assignment(3, 74), commitment)
         assert events.empty()  # N - 1 of these per mission would reach every UAV
         replan = _report(74, epoch=1, released=(UAV,))
-        teammate.publish(keys.mission_replan(3, 74), replan)
-        assert events.get_nowait() == BusEvent(keys.mission_replan(3, 74), replan)
-        node.fetch(keys.mission_assignments(3), AssignmentReport)
+        teammate.publish(SPACE.mission_replan(3, 74), replan)
+        assert events.get_nowait() == BusEvent(SPACE.mission_replan(3, 74), replan)
+        node.fetch(SPACE.mission_assignments(3), AssignmentReport)
         query = served.try_recv()
         assert query is not None
-        query.reply(keys.mission_assignment(3, 74), commitment)
+        query.reply(SPACE.mission_assignment(3, 74), commitment)
         query.drop()
         assert events.get_nowait() == BusEvent(
-            keys.mission_assignment(3, 74), commitment, replayed=True
+            SPACE.mission_assignment(3, 74), commitment, replayed=True
         )
     finally:
         served.undeclare()

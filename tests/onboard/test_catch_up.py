@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from fleet.consensus.mission_round import JOIN_GRACE_S
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
     MissionTargets,
@@ -21,6 +21,8 @@ from tests.onboard.core_harness import (
     Recorder,
     make_core,
 )
+
+SPACE = KeySpace()
 
 
 @pytest.mark.parametrize("tick_first", [False, True])
@@ -40,7 +42,7 @@ def test_a_mission_heard_live_just_after_a_freeze_asks_the_team_at_once(
     committed = AssignmentReport(8, 112, 1, {74: 0, 112: 1}, (2,), (74, 112), "abc")
     core.on_result(UavResult(8, 112, (50.0, 10.0, 50.0)), 20.15)
     core.on_assignment(committed, 20.2)  # the answer
-    (report,) = out.on(keys.mission_assignment(8, 74))
+    (report,) = out.on(SPACE.mission_assignment(8, 74))
     assert isinstance(report, AssignmentReport) and report.digest == "abc"
 
 
@@ -55,7 +57,7 @@ def test_a_uav_back_from_a_freeze_adopts_the_team_decision_made_without_it() -> 
     core.tick(20.2)  # its own result; it asks before deciding
     without = AssignmentReport(8, 112, 0, {112: 0}, (1, 2), (112,), "without-74")
     core.on_assignment(without, 20.2 + JOIN_GRACE_S + 0.1)
-    (report,) = out.on(keys.mission_assignment(8, 74))
+    (report,) = out.on(SPACE.mission_assignment(8, 74))
     assert isinstance(report, AssignmentReport) and report.digest == "without-74"
     assert report.target is None
 

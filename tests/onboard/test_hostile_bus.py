@@ -12,12 +12,14 @@ import msgspec
 import zenoh
 
 from fleet.files.targets_io import read_targets
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, UavResult, UavState
 from fleet.transport.bus_codec import MAX_PAYLOAD_BYTES, encode
 from tests.conftest import Ground
 from tests.support.processes import Fleet
 from tests.support.waiting import wait_until
+
+SPACE = KeySpace()
 
 DEPTH = 50_000  #: 300 kB: under the size limit, far over any nesting limit
 NESTED = b'{"a":' * DEPTH + b"1" + b"}" * DEPTH
@@ -25,7 +27,7 @@ HUGE = b'"' + b"x" * (2 * MAX_PAYLOAD_BYTES) + b'"'
 
 
 def state_of(ground: Ground, uav: int) -> UavState | None:
-    for reply in ground.session.get(keys.state(uav), timeout=2.0):
+    for reply in ground.session.get(SPACE.state(uav), timeout=2.0):
         if reply.ok is not None:
             return msgspec.json.decode(reply.ok.payload.to_bytes(), type=UavState)
     return None
@@ -45,14 +47,14 @@ def test_onboard_refuses_counts_and_keeps_flying(fleet: Fleet, ground: Ground) -
     session = ground.session
     token = session.liveliness().declare_token("fleet/uav/99999/alive")
     try:
-        for key in (keys.mission_targets(5), keys.mission_abort(5), keys.opm(112)):
+        for key in (SPACE.mission_targets(5), SPACE.mission_abort(5), SPACE.opm(112)):
             for payload in (NESTED, HUGE):
                 # Blocking: a large put may otherwise be dropped when the queue is full.
                 session.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK)
-        session.put(keys.mission_result(5, 74), encode(UavResult(5, 112, (1.0,))))
-        session.put(keys.mission_targets(6), b'{"mission": "six"}')
+        session.put(SPACE.mission_result(5, 74), encode(UavResult(5, 112, (1.0,))))
+        session.put(SPACE.mission_targets(6), b'{"mission": "six"}')
         for payload in (NESTED, HUGE):
-            replies = list(session.get(keys.command(112, "waypoint"), payload=payload, timeout=5))
+            replies = list(session.get(SPACE.command(112, "waypoint"), payload=payload, timeout=5))
             assert replies and replies[0].err is not None  # refused, with the reason
         expected = {"bus_too_deep", "bus_too_large", "bus_wrong_key", "bus_invalid"}
         wait_until(lambda: expected <= set(bus_drops(ground, 112)), 20.0, "the drops counted")

@@ -17,7 +17,7 @@ import msgspec
 import pytest
 
 from fleet.files.targets_io import read_targets
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
     CommandResult,
@@ -37,6 +37,8 @@ from onboard.core import TARGET_WAYPOINT
 from onboard.process import OnboardProcess, OnboardSettings
 from tests.support.waiting import wait_until
 
+SPACE = KeySpace()
+
 UAV = 112
 #: Simulated seconds per wall second.
 SPEEDUP = 10.0
@@ -54,7 +56,7 @@ class Seen:
 
     def on_sample(self, sample: BusSample) -> None:
         with self.lock:
-            if sample.key == keys.telemetry(UAV):
+            if sample.key == SPACE.telemetry(UAV):
                 self.telemetry.append(msgspec.json.decode(sample.payload, type=Telemetry))
             elif "/result/" in sample.key:
                 result = msgspec.json.decode(sample.payload, type=UavResult)
@@ -96,10 +98,10 @@ def world() -> Iterator[World]:
     network = MemoryNetwork()
     ground = network.bus()
     seen = Seen()
-    ground.subscribe(keys.telemetry(UAV), seen.on_sample)
-    ground.subscribe(keys.ALL_MISSION_RESULTS, seen.on_sample)
-    ground.subscribe(f"{keys.PREFIX}/mission/*/assignment/*", seen.on_sample)
-    ground.subscribe_presence(keys.ALL_ALIVE, seen.on_token)
+    ground.subscribe(SPACE.telemetry(UAV), seen.on_sample)
+    ground.subscribe(SPACE.all_mission_results, seen.on_sample)
+    ground.subscribe(f"{SPACE.prefix}/mission/*/assignment/*", seen.on_sample)
+    ground.subscribe_presence(SPACE.all_alive, seen.on_token)
     settings = OnboardSettings(uav_id=UAV, program_url="memory", payload_url="memory")
     process = OnboardProcess(settings, links=(program_onboard, payload_onboard), bus=network.bus())
     stop = threading.Event()
@@ -122,11 +124,11 @@ def world() -> Iterator[World]:
 
 def test_one_uav_mission_round_in_memory(world: World) -> None:
     seen = world.seen
-    wait_until(lambda: seen.tokens.get(keys.alive(UAV)) is True, 10.0, "the UAV's token")
+    wait_until(lambda: seen.tokens.get(SPACE.alive(UAV)) is True, 10.0, "the UAV's token")
     wait_until(lambda: len(seen.telemetry) >= 2, 30.0, "telemetry relayed from the autopilot")
     states: list[UavState] = []
     world.ground.get(
-        keys.state(UAV),
+        SPACE.state(UAV),
         lambda sample: states.append(msgspec.json.decode(sample.payload, type=UavState)),
         timeout=1.0,
     )
@@ -135,7 +137,7 @@ def test_one_uav_mission_round_in_memory(world: World) -> None:
 
     targets = tuple(read_targets(str(files("fleet") / "scenarios" / "single_uav_targets.bin")))
     mission = MissionTargets(mission=1, team=(UAV,), targets=targets, deadline_s=10.0)
-    world.ground.publish(keys.mission_targets(1), mission)
+    world.ground.publish(SPACE.mission_targets(1), mission)
 
     wait_until(lambda: UAV in seen.assignments, 60.0, "the UAV's assignment")
     times = seen.results[UAV].times
@@ -157,16 +159,16 @@ def test_one_uav_mission_round_in_memory(world: World) -> None:
 
 def test_closing_the_uav_bus_withdraws_its_token(world: World) -> None:
     seen = world.seen
-    wait_until(lambda: seen.tokens.get(keys.alive(UAV)) is True, 10.0, "the UAV's token")
+    wait_until(lambda: seen.tokens.get(SPACE.alive(UAV)) is True, 10.0, "the UAV's token")
     world.process.stop_requested.set()
-    wait_until(lambda: seen.tokens.get(keys.alive(UAV)) is False, 10.0, "the token to go")
+    wait_until(lambda: seen.tokens.get(SPACE.alive(UAV)) is False, 10.0, "the token to go")
 
 
 def test_a_command_query_is_answered_after_the_autopilot_echo(world: World) -> None:
     wait_until(lambda: len(world.seen.telemetry) >= 1, 30.0, "telemetry (the link is up)")
     answers: list[CommandResult] = []
     world.ground.get(
-        keys.command(UAV, "track"),
+        SPACE.command(UAV, "track"),
         lambda sample: answers.append(msgspec.json.decode(sample.payload, type=CommandResult)),
         timeout=5.0,
         payload=bus_codec.encode(Track(2)),

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     MissionTargets,
     UavResult,
@@ -18,6 +18,8 @@ from tests.onboard.core_harness import (
 )
 from tests.support.link_samples import sample_telemetry
 
+SPACE = KeySpace()
+
 
 def test_lost_telemetry_is_link_lost_and_declines_a_mission() -> None:
     core, out = make_core()  # telemetry at t=0
@@ -26,7 +28,7 @@ def test_lost_telemetry_is_link_lost_and_declines_a_mission() -> None:
     assert state.phase == Phase.LINK_LOST and state.reason is not None
     assert any(s.startswith("error: autopilot link lost") for s in out.statuses())
     core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), LINK_LOST_S + 2)
-    assert out.on(keys.mission_result(1, 112)) == [UavResult(1, 112, (None, None, None))]
+    assert out.on(SPACE.mission_result(1, 112)) == [UavResult(1, 112, (None, None, None))]
     assert out.autopilot == []
     core.on_telemetry(sample_telemetry(), LINK_LOST_S + 3)
     assert core.state(LINK_LOST_S + 3).phase != Phase.LINK_LOST

@@ -5,7 +5,7 @@ Outputs and a scripted planner (tests.onboard.core_harness)."""
 from __future__ import annotations
 
 from fleet.consensus.mission_round import ASK_GRACE_S
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
     MissionAbort,
@@ -35,6 +35,8 @@ from tests.onboard.core_harness import (
 )
 from tests.support.link_samples import sample_telemetry
 
+SPACE = KeySpace()
+
 
 def uav_200_given_two_targets(mission: int) -> tuple[OnboardCore, Recorder]:
     """UAV 200, its teammates 74 and 112 alive, given `mission` over two targets."""
@@ -55,7 +57,7 @@ def test_abort_while_waiting_for_a_teammate_is_final() -> None:
     for step in range(4, 30):
         core.on_telemetry(sample_telemetry(), float(step))
         core.tick(float(step))  # well past the 10 s deadline
-    assert out.on(keys.mission_assignment(1, 112)) == []
+    assert out.on(SPACE.mission_assignment(1, 112)) == []
     assert out.autopilot == []
     assert core.state(30.0).phase == Phase.ABORTED
 
@@ -80,12 +82,12 @@ def test_team_waits_for_the_teammate_then_both_agree() -> None:
     mission = MissionTargets(mission=5, team=(74, 112), targets=TARGETS, deadline_s=10.0)
     core.on_targets(mission, 0.0)
     core.tick(0.1)
-    assert out.on(keys.mission_assignment(5, 112)) == []
+    assert out.on(SPACE.mission_assignment(5, 112)) == []
     core.tick(1.2)
     assert out.fetches == [5]  # a missing result is fetched before it is given up on
     core.on_result(UavResult(5, 74, (50.0, 30.0, 70.0)), 1.3)
     core.tick(1.4)
-    (report,) = out.on(keys.mission_assignment(5, 112))
+    (report,) = out.on(SPACE.mission_assignment(5, 112))
     assert isinstance(report, AssignmentReport)
     assert report.pairs == {74: 1, 112: 2} and report.target == 2
 
@@ -109,12 +111,12 @@ def test_silent_teammate_is_dropped_at_the_deadline() -> None:
     core.on_alive(74, True, 0.0)
     core.on_targets(MissionTargets(mission=7, team=(74, 112), targets=TARGETS, deadline_s=3.0), 0.0)
     core.tick(2.9)
-    assert out.on(keys.mission_assignment(7, 112)) == []
+    assert out.on(SPACE.mission_assignment(7, 112)) == []
     core.tick(3.1)
     assert out.assignment_fetches == [7]  # the team is asked what it decided first
-    assert out.on(keys.mission_assignment(7, 112)) == []
+    assert out.on(SPACE.mission_assignment(7, 112)) == []
     core.tick(3.1 + ASK_GRACE_S)
-    (report,) = out.on(keys.mission_assignment(7, 112))
+    (report,) = out.on(SPACE.mission_assignment(7, 112))
     assert isinstance(report, AssignmentReport) and report.team == (112,) and report.target == 1
     assert any("without 74" in s for s in out.statuses())
     assert out.assignment_fetches == [7]
@@ -133,11 +135,11 @@ def test_at_the_deadline_a_teammates_commitment_with_the_missing_result_is_adopt
     pairs = {74: 0, 75: 1, 112: 2}
     committed = AssignmentReport(7, 74, 0, pairs, (), team, "with-75")
     core.on_assignment(committed, 3.2)  # the answer to the query
-    (report,) = out.on(keys.mission_assignment(7, 112))
+    (report,) = out.on(SPACE.mission_assignment(7, 112))
     assert isinstance(report, AssignmentReport)
     assert (report.digest, report.target) == ("with-75", 2)
     core.tick(3.1 + ASK_GRACE_S)
-    assert len(out.on(keys.mission_assignment(7, 112))) == 1
+    assert len(out.on(SPACE.mission_assignment(7, 112))) == 1
 
 
 def test_a_teammate_gone_before_its_result_reached_this_uav_makes_it_ask_first() -> None:
@@ -153,10 +155,10 @@ def test_a_teammate_gone_before_its_result_reached_this_uav_makes_it_ask_first()
     core.on_alive(112, False, 0.3)
     core.tick(0.4)
     assert out.assignment_fetches == [4]
-    assert out.on(keys.mission_assignment(4, 200)) == []
+    assert out.on(SPACE.mission_assignment(4, 200)) == []
     pairs = {74: 0, 112: 1, 200: 2}
     core.on_assignment(AssignmentReport(4, 74, 0, pairs, (), team, "with-112"), 0.5)
-    (report,) = out.on(keys.mission_assignment(4, 200))
+    (report,) = out.on(SPACE.mission_assignment(4, 200))
     assert isinstance(report, AssignmentReport) and report.digest == "with-112"
 
 
@@ -173,10 +175,10 @@ def test_a_restarted_uav_asks_again_before_deciding_on_its_new_times() -> None:
     core.on_result(UavResult(9, 112, (50.0, 50.0, 20.0)), 0.2)
     core.tick(0.3)
     assert out.assignment_fetches == [9, 9]
-    assert out.on(keys.mission_assignment(9, 74)) == []
+    assert out.on(SPACE.mission_assignment(9, 74)) == []
     old = AssignmentReport(9, 112, 2, {74: 1, 112: 2}, (0,), team, "old-times")
     core.on_assignment(old, 0.4)
-    (report,) = out.on(keys.mission_assignment(9, 74))
+    (report,) = out.on(SPACE.mission_assignment(9, 74))
     assert isinstance(report, AssignmentReport) and report.digest == "old-times"
 
 
@@ -188,7 +190,7 @@ def test_a_missing_result_arriving_while_asking_is_decided_on_at_once() -> None:
     assert out.assignment_fetches == [7]
     core.on_result(UavResult(7, 74, (50.0, 30.0, 70.0)), 3.2)
     core.tick(3.2)  # every result held, heard live: nothing to wait for
-    (report,) = out.on(keys.mission_assignment(7, 112))
+    (report,) = out.on(SPACE.mission_assignment(7, 112))
     assert isinstance(report, AssignmentReport) and report.team == (74, 112)
 
 
@@ -198,7 +200,7 @@ def test_late_joiner_adopts_the_committed_assignment() -> None:
     committed = AssignmentReport(8, 112, 1, {74: 0, 112: 1}, (2,), (74, 112), "abc")
     core.on_targets(mission, 0.0)
     core.on_assignment(committed, 0.05)
-    (report,) = out.on(keys.mission_assignment(8, 74))
+    (report,) = out.on(SPACE.mission_assignment(8, 74))
     assert isinstance(report, AssignmentReport) and report.target == 0 and report.digest == "abc"
 
 
@@ -212,8 +214,8 @@ def test_stale_messages_are_ignored_and_a_new_mission_supersedes() -> None:
     assert core.round.mission == 10
     core.tick(0.4)
     published = {key for key, _ in out.published}
-    assert keys.mission_result(8, 112) not in published
-    assert keys.mission_result(10, 112) in published
+    assert SPACE.mission_result(8, 112) not in published
+    assert SPACE.mission_result(10, 112) in published
 
 
 def test_abort_returns_to_the_original_course() -> None:
@@ -242,10 +244,10 @@ def test_a_teammates_failure_outcome_releases_it_and_a_reached_one_does_not() ->
     commit_three_uav_team(core)
     core.on_outcome(TargetOutcome(3, 74, 0, Phase.REACHED), 4.0)
     core.on_alive(74, False, 5.0)  # gone after reaching: nothing orphaned
-    assert out.on(keys.mission_assignment(3, 200))[-1].epoch == 0  # type: ignore[attr-defined]
+    assert out.on(SPACE.mission_assignment(3, 200))[-1].epoch == 0  # type: ignore[attr-defined]
     core.on_telemetry(sample_telemetry(), 6.0)
     core.on_outcome(TargetOutcome(3, 112, 1, Phase.FAILED, "waypoint not echoed"), 6.0)
-    report = out.on(keys.mission_assignment(3, 200))[-1]
+    report = out.on(SPACE.mission_assignment(3, 200))[-1]
     assert isinstance(report, AssignmentReport) and report.target == 1
     assert report.released == (112,)
 
@@ -254,10 +256,10 @@ def test_an_orphan_handed_to_a_uav_without_autopilot_link_is_released_again() ->
     core, out = make_core(200, (30.0, 35.0))
     commit_three_uav_team(core)
     core.on_alive(112, False, LINK_LOST_S + 1.0)  # no telemetry since t=0
-    report = out.on(keys.mission_assignment(3, 200))[-1]
+    report = out.on(SPACE.mission_assignment(3, 200))[-1]
     assert isinstance(report, AssignmentReport)
     assert (report.epoch, report.released, report.target) == (2, (112, 200), None)
-    (outcome,) = out.on(keys.mission_outcome(3, 200))
+    (outcome,) = out.on(SPACE.mission_outcome(3, 200))
     assert isinstance(outcome, TargetOutcome) and outcome.phase == Phase.FAILED
 
 
@@ -269,7 +271,7 @@ def test_a_teammates_later_epoch_is_merged_and_re_planned_identically() -> None:
     )
     core.on_telemetry(sample_telemetry(), 5.0)
     core.on_assignment(theirs, 5.0)
-    report = out.on(keys.mission_assignment(3, 200))[-1]
+    report = out.on(SPACE.mission_assignment(3, 200))[-1]
     assert isinstance(report, AssignmentReport)
     assert (report.epoch, report.released, report.target) == (1, (112,), 1)
 
@@ -280,10 +282,10 @@ def test_a_thinner_commitment_is_not_adopted() -> None:
     core.tick(0.2)  # own result out; 74's missing
     thin = AssignmentReport(4, 74, 0, {74: 0}, (1,), (74,), "thin")
     core.on_assignment(thin, 0.3)  # 74 committed on its own result alone
-    assert out.on(keys.mission_assignment(4, 200)) == []
+    assert out.on(SPACE.mission_assignment(4, 200)) == []
     core.on_result(UavResult(4, 74, (10.0, 50.0)), 0.4)
     core.tick(0.5)
-    (own,) = out.on(keys.mission_assignment(4, 200))
+    (own,) = out.on(SPACE.mission_assignment(4, 200))
     assert isinstance(own, AssignmentReport) and own.team == (74, 112, 200)
     assert own.digest != "thin"  # the disagreement is visible to the ground
 
@@ -294,7 +296,7 @@ def test_an_assignment_naming_a_target_beyond_the_mission_is_refused_never_index
     bad = AssignmentReport(3, 74, 0, {74: 0, 200: 7}, (), (74, 112, 200), "x")
     core.on_assignment(bad, 0.2)  # raised IndexError, then every telemetry did
     core.on_telemetry(sample_telemetry(), 0.5)
-    assert core.phase == Phase.COMPUTING and out.on(keys.mission_assignment(3, 200)) == []
+    assert core.phase == Phase.COMPUTING and out.on(SPACE.mission_assignment(3, 200)) == []
     later = AssignmentReport(
         3, 74, 0, {200: 9}, (), (74, 112, 200), "y", epoch=2, released=(74, 112)
     )
@@ -310,7 +312,7 @@ def test_a_candidate_that_reached_its_orphan_flies_the_next_one_and_shows_it() -
     core.on_telemetry(telemetry_at(TWO_TARGETS[1].lat, TWO_TARGETS[1].lon), 2.0)
     assert core.phase == Phase.REACHED
     core.on_alive(10, False, 3.0)  # epoch 2 hands 30 target 0
-    report = out.on(keys.mission_assignment(5, 30))[-1]
+    report = out.on(SPACE.mission_assignment(5, 30))[-1]
     assert isinstance(report, AssignmentReport) and (report.epoch, report.target) == (2, 0)
     waypoint = [c for c in out.autopilot if isinstance(c, Waypoint)][-1]
     assert (waypoint.lat, waypoint.lon) == (TWO_TARGETS[0].lat, TWO_TARGETS[0].lon)
@@ -327,10 +329,10 @@ def test_a_preempted_candidate_handed_another_orphan_drops_out_and_it_is_handed_
     core.on_alive(10, False, 3.0)  # epoch 2 would hand 30 target 0
     assert len([c for c in out.autopilot if isinstance(c, Waypoint)]) == writes  # not flown
     assert core.state(3.0).phase == Phase.PREEMPTED
-    outcome = out.on(keys.mission_outcome(5, 30))[-1]
+    outcome = out.on(SPACE.mission_outcome(5, 30))[-1]
     assert isinstance(outcome, TargetOutcome)
     assert (outcome.phase, outcome.target) == (Phase.FAILED, 0)
-    report = out.on(keys.mission_assignment(5, 30))[-1]
+    report = out.on(SPACE.mission_assignment(5, 30))[-1]
     assert isinstance(report, AssignmentReport)
     assert (report.epoch, report.released) == (3, (10, 20, 30))
     assert report.pairs == {40: 0}  # the orphan went on to 40, not left with 30
@@ -347,7 +349,7 @@ def test_a_restarted_idle_uav_follows_the_re_plan_that_hands_it_the_orphan() -> 
         3, 74, 0, {74: 0, 200: 1}, (), (74, 112, 200), "d1", epoch=1, released=(112,)
     )
     core.on_assignment(epoch_1, 1.2)  # it used to stay at epoch 0, waiting for itself
-    mine = out.on(keys.mission_assignment(3, 200))[-1]
+    mine = out.on(SPACE.mission_assignment(3, 200))[-1]
     assert isinstance(mine, AssignmentReport)
     assert (mine.epoch, mine.target, mine.digest) == (1, 1, "d1")
     assert core.state(1.2).phase == Phase.COMMITTED
@@ -361,4 +363,4 @@ def test_a_mission_whose_abort_came_first_shows_aborted_and_is_never_flown() -> 
     state = core.state(4.0)
     assert state.phase == Phase.ABORTED
     assert state.mission is not None and state.mission.mission == 5
-    assert out.autopilot == [] and out.on(keys.mission_result(5, 112)) == []
+    assert out.autopilot == [] and out.on(SPACE.mission_result(5, 112)) == []

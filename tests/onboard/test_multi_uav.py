@@ -11,7 +11,7 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from fleet.launch.launcher import SimEndpoints, ring_scenario
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import AssignmentReport, MissionTargets
 from fleet.sim.scenario import shipped_scenario
 from onboard.core import TARGET_WAYPOINT
@@ -19,6 +19,8 @@ from tests.conftest import Ground
 from tests.support.processes import Fleet, start
 from tests.support.targets import ring_targets
 from tests.support.waiting import wait_until
+
+SPACE = KeySpace()
 
 #: The killed-UAV mission's deadline: long, so that committing early is clearly the
 #: liveliness exclusion and not the deadline.
@@ -245,7 +247,7 @@ def test_a_uav_frozen_while_the_mission_was_sent_falls_in_line_when_it_resumes(
         wait_until(lambda: awake <= set(seen.assignments), 60.0, "the others' commitments")
         # It stays frozen past Zenoh's lease: the router drops its liveliness token.
         wait_until(
-            lambda: not token_present(ground, keys.alive(team[-1])),
+            lambda: not token_present(ground, SPACE.alive(team[-1])),
             FROZEN_S + 15.0,
             "the frozen UAV's token gone",
         )

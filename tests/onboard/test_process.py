@@ -16,7 +16,7 @@ import pytest
 import zenoh
 
 from fleet.launch.launcher import SimEndpoints, free_port
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     MISSION_MANAGER,
     AssignmentReport,
@@ -40,6 +40,8 @@ from onboard.process import _Outputs
 from tests.support.ground_view import GroundView
 from tests.support.processes import Child, Fleet, client_session, router_session
 from tests.support.waiting import wait_until
+
+SPACE = KeySpace()
 
 UAV = 112
 
@@ -89,9 +91,9 @@ def get_one(session: zenoh.Session, key: str, payload: bytes | None = None) -> z
 
 @pytest.mark.e2e
 def test_state_query_answers_with_telemetry_and_link_health(rig: Rig) -> None:
-    reply = get_one(rig.ground, keys.state(UAV))
+    reply = get_one(rig.ground, SPACE.state(UAV))
     assert reply.ok is not None and str(reply.ok.encoding).startswith("application/json")
-    answer = get_one(rig.ground, keys.state(UAV)).ok
+    answer = get_one(rig.ground, SPACE.state(UAV)).ok
     assert answer is not None
     state = msgspec.json.decode(answer.payload.to_bytes(), type=UavState)
     assert state.uav == UAV and state.enabled
@@ -104,11 +106,11 @@ def test_state_query_answers_with_telemetry_and_link_health(rig: Rig) -> None:
 @pytest.mark.e2e
 def test_commands_are_confirmed_by_the_autopilot_echo(rig: Rig) -> None:
     waypoint = Waypoint(index=42, next_index=0, lat=35.73, lon=-120.77, alt=650.0)
-    reply = get_one(rig.ground, keys.command(UAV, "waypoint"), encode(waypoint))
+    reply = get_one(rig.ground, SPACE.command(UAV, "waypoint"), encode(waypoint))
     assert reply.ok is not None
     result = msgspec.json.decode(reply.ok.payload.to_bytes(), type=CommandResult)
     assert result.ok and result.attempts >= 1
-    reply = get_one(rig.ground, keys.command(UAV, "track"), encode(Track(42)))
+    reply = get_one(rig.ground, SPACE.command(UAV, "track"), encode(Track(42)))
     assert reply.ok is not None
     assert msgspec.json.decode(reply.ok.payload.to_bytes(), type=CommandResult).ok
     wait_until(lambda: rig.seen.latest_track(UAV) == 42, 10.0, "tracking waypoint 42")
@@ -116,11 +118,11 @@ def test_commands_are_confirmed_by_the_autopilot_echo(rig: Rig) -> None:
 
 @pytest.mark.e2e
 def test_bad_command_and_bad_messages_are_refused_and_the_module_keeps_serving(rig: Rig) -> None:
-    reply = get_one(rig.ground, keys.command(UAV, "track"), b'{"waypoint": "north"}')
+    reply = get_one(rig.ground, SPACE.command(UAV, "track"), b'{"waypoint": "north"}')
     assert reply.err is not None and b"not a valid Track" in reply.err.payload.to_bytes()
     bad = {
-        "OpmCommand": (keys.opm(UAV), b"\xff not json"),
-        "MissionTargets": (keys.mission_targets(77), b'{"mission": 77}'),
+        "OpmCommand": (SPACE.opm(UAV), b"\xff not json"),
+        "MissionTargets": (SPACE.mission_targets(77), b'{"mission": 77}'),
     }
     for kind, (key, payload) in bad.items():
 
@@ -135,7 +137,7 @@ def test_bad_command_and_bad_messages_are_refused_and_the_module_keeps_serving(r
                 break
         assert dropped(), f"the bad {kind} was never reported dropped"
     assert rig.onboard.process.poll() is None
-    answer = get_one(rig.ground, keys.state(UAV)).ok
+    answer = get_one(rig.ground, SPACE.state(UAV)).ok
     assert answer is not None
     state = msgspec.json.decode(answer.payload.to_bytes(), type=UavState)
     assert state.enabled and state.mission is None
@@ -143,11 +145,11 @@ def test_bad_command_and_bad_messages_are_refused_and_the_module_keeps_serving(r
 
 @pytest.mark.e2e
 def test_module_off_refuses_to_write_and_says_so(rig: Rig) -> None:
-    rig.ground.put(keys.opm(UAV), encode(OpmCommand(False, 2.0)), encoding=ENCODING)
+    rig.ground.put(SPACE.opm(UAV), encode(OpmCommand(False, 2.0)), encoding=ENCODING)
     wait_until(
         lambda: any("module off" in s for s in rig.seen.statuses(UAV)), 10.0, "the off status"
     )
-    reply = get_one(rig.ground, keys.command(UAV, "track"), encode(Track(1)))
+    reply = get_one(rig.ground, SPACE.command(UAV, "track"), encode(Track(1)))
     assert reply.ok is not None
     result = msgspec.json.decode(reply.ok.payload.to_bytes(), type=CommandResult)
     assert not result.ok and "off" in result.detail
@@ -156,7 +158,7 @@ def test_module_off_refuses_to_write_and_says_so(rig: Rig) -> None:
 @pytest.mark.e2e
 def test_malformed_targets_give_a_status_error_naming_the_problem(rig: Rig) -> None:
     bad = MissionTargets(mission=5, team=(UAV,), targets=(Target(35.7, 200.0, 600.0),))
-    rig.ground.put(keys.mission_targets(5), encode(bad), encoding=ENCODING)
+    rig.ground.put(SPACE.mission_targets(5), encode(bad), encoding=ENCODING)
     wait_until(
         lambda: any("longitude 200.0" in s for s in rig.seen.statuses(UAV)), 10.0, "the error"
     )
@@ -189,10 +191,10 @@ def test_targets_from_a_radio_only_ground_station_on_the_payload_port(rig: Rig) 
         assert UavResult(9, UAV, rig.seen.results[UAV].times) in heard
         assert any(isinstance(m, StatusText) for m in heard)
     # ...and the mission was published on its key for Zenoh observers.
-    reply = get_one(rig.ground, keys.mission_targets(9))
+    reply = get_one(rig.ground, SPACE.mission_targets(9))
     assert reply.ok is not None
     assert msgspec.json.decode(reply.ok.payload.to_bytes(), type=MissionTargets) == mission
-    assigned = get_one(rig.ground, keys.mission_assignment(9, UAV))
+    assigned = get_one(rig.ground, SPACE.mission_assignment(9, UAV))
     assert assigned.ok is not None
     assert msgspec.json.decode(assigned.ok.payload.to_bytes(), type=AssignmentReport).target == 0
 
@@ -201,7 +203,7 @@ def test_targets_from_a_radio_only_ground_station_on_the_payload_port(rig: Rig) 
 def test_link_drop_is_reported_and_the_adapter_reconnects(rig: Rig) -> None:
     health: list[LinkHealth] = []
     subscriber = rig.ground.declare_subscriber(
-        keys.link(UAV),
+        SPACE.link(UAV),
         lambda s: health.append(msgspec.json.decode(s.payload.to_bytes(), type=LinkHealth)),
     )
     try:
@@ -209,7 +211,7 @@ def test_link_drop_is_reported_and_the_adapter_reconnects(rig: Rig) -> None:
         assert sim.name == "fleet sim"
         assert sim.stop() == 0
         wait_until(lambda: bool(health) and not health[-1].program_up, 10.0, "link down")
-        alive = list(rig.ground.liveliness().get(keys.alive(UAV), timeout=2.0))
+        alive = list(rig.ground.liveliness().get(SPACE.alive(UAV), timeout=2.0))
         assert len(alive) == 1  # still present on Zenoh meanwhile
         program_port = int(rig.sim.program.rsplit(":", 1)[1])
         payload_port = int(rig.sim.payload.rsplit(":", 1)[1])
@@ -227,7 +229,7 @@ def test_link_drop_is_reported_and_the_adapter_reconnects(rig: Rig) -> None:
 @pytest.mark.e2e
 def test_state_says_when_the_model_is_built_at_the_cruise_speed(rig: Rig) -> None:
     def state() -> UavState:
-        answer = get_one(rig.ground, keys.state(UAV)).ok
+        answer = get_one(rig.ground, SPACE.state(UAV)).ok
         assert answer is not None
         return msgspec.json.decode(answer.payload.to_bytes(), type=UavState)
 
@@ -264,11 +266,11 @@ def test_telemetry_reaches_the_bus_at_the_rate_asked_for() -> None:
 def test_a_catch_up_fetches_the_assignments_outcomes_and_abort() -> None:
     asked: list[tuple[str, type]] = []
     node = SimpleNamespace(fetch=lambda key, kind: asked.append((key, kind)))
-    _Outputs(SimpleNamespace(node=node, space=keys.current())).fetch_assignments(5)  # type: ignore[arg-type]
+    _Outputs(SimpleNamespace(node=node, space=SPACE)).fetch_assignments(5)  # type: ignore[arg-type]
     # A restarted UAV learns who reached its target, so it never releases that UAV later
     # (which would put it at an epoch its teammates never reach).
     assert asked == [
-        (keys.mission_assignments(5), AssignmentReport),
-        (keys.mission_outcomes(5), TargetOutcome),
-        (keys.mission_abort(5), MissionAbort),
+        (SPACE.mission_assignments(5), AssignmentReport),
+        (SPACE.mission_outcomes(5), TargetOutcome),
+        (SPACE.mission_abort(5), MissionAbort),
     ]

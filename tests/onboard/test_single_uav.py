@@ -11,12 +11,14 @@ import msgspec
 import zenoh
 
 from fleet.files.targets_io import read_targets
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, UavState
 from onboard.core import TARGET_WAYPOINT
 from tests.conftest import Ground
 from tests.support.processes import Fleet
 from tests.support.waiting import wait_until
+
+SPACE = KeySpace()
 
 ACCEPTANCE_RADIUS_M = 60.0  # the simulator's default
 
@@ -79,7 +81,7 @@ def test_status_is_sent_on_change_and_the_periodic_report_is_the_state(
     def on_state(sample: zenoh.Sample) -> None:
         states.append(msgspec.json.decode(sample.payload.to_bytes(), type=UavState))
 
-    with ground.session.declare_subscriber(keys.state(112), on_state):
+    with ground.session.declare_subscriber(SPACE.state(112), on_state):
         # Three periodic reports (1 s apart at the default rate) of an idle UAV...
         wait_until(lambda: len(states) >= 3, 30.0, "three periodic state reports")
     assert all(state.uav == 112 and state.telemetry is not None for state in states)

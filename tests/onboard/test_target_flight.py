@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
     MissionAbort,
@@ -36,15 +36,17 @@ from tests.onboard.core_harness import (
 )
 from tests.support.link_samples import sample_telemetry
 
+SPACE = KeySpace()
+
 
 def test_single_uav_flies_to_the_fastest_target_then_resumes() -> None:
     core, out = make_core()
     core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 1.0)
     core.tick(1.1)
-    assert out.on(keys.mission_result(1, 112)) == [
+    assert out.on(SPACE.mission_result(1, 112)) == [
         UavResult(1, 112, (80.0, 40.0, 60.0), model_times=3, fallback_times=0)
     ]
-    (report,) = out.on(keys.mission_assignment(1, 112))
+    (report,) = out.on(SPACE.mission_assignment(1, 112))
     assert isinstance(report, AssignmentReport) and report.target == 1 and report.eta_s == 40.0
     (waypoint,) = out.autopilot
     assert isinstance(waypoint, Waypoint)
@@ -112,7 +114,7 @@ def test_an_unechoed_target_is_retried_until_the_limit_then_failed_and_released(
     state = core.state(now)
     assert state.phase == Phase.FAILED
     assert state.reason is not None and "not echoed" in state.reason
-    (outcome,) = out.on(keys.mission_outcome(1, 112))
+    (outcome,) = out.on(SPACE.mission_outcome(1, 112))
     assert outcome == TargetOutcome(1, 112, 1, Phase.FAILED, state.reason)
     assert any(s.startswith("error: mission 1: cannot fly target 1") for s in out.statuses())
 
@@ -146,7 +148,7 @@ def test_module_off_never_writes_to_the_autopilot() -> None:
     core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 1.0)
     core.tick(2.0)
     assert out.autopilot == []
-    assert out.on(keys.mission_result(1, 112)) == [UavResult(1, 112, (None, None, None))]
+    assert out.on(SPACE.mission_result(1, 112)) == [UavResult(1, 112, (None, None, None))]
     results: list[object] = []
     core.command_autopilot(Track(3), 3.0, results.append)
     assert out.autopilot == [] and not results[0].ok  # type: ignore[attr-defined]
@@ -221,7 +223,7 @@ def test_a_restarted_uav_left_on_the_target_route_leaves_it_when_the_re_plan_rel
     core.on_assignment(epoch_1, 0.2)  # fetched at start: it was released meanwhile
     if not track_first:
         core.on_track(Track(TARGET_WAYPOINT), 0.3)  # the autopilot's first report, later
-    mine = recorder.on(keys.mission_assignment(3, 112))[-1]
+    mine = recorder.on(SPACE.mission_assignment(3, 112))[-1]
     assert isinstance(mine, AssignmentReport) and (mine.epoch, mine.target) == (1, None)
     # 200 flies target 1 now: this aircraft must not fly it too.
     assert recorder.autopilot and recorder.autopilot[-1] == Track(0)

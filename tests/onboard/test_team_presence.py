@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from fleet.consensus.mission_round import ASK_GRACE_S
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
     MissionTargets,
@@ -23,6 +23,8 @@ from tests.onboard.core_harness import (
 )
 from tests.support.link_samples import sample_telemetry
 
+SPACE = KeySpace()
+
 
 def test_dead_teammate_is_left_out_and_deadline_commits() -> None:
     core, out = make_core(112)
@@ -36,21 +38,21 @@ def test_dead_teammate_is_left_out_and_deadline_commits() -> None:
     core.tick(1.1)
     assert out.assignment_fetches == [6]  # 74 may have committed with 75's result
     core.tick(1.1 + ASK_GRACE_S)
-    (report,) = out.on(keys.mission_assignment(6, 112))
+    (report,) = out.on(SPACE.mission_assignment(6, 112))
     assert isinstance(report, AssignmentReport) and report.team == (74, 112)
 
 
 def test_an_idle_uav_flies_the_target_of_a_holder_lost_after_the_commitment() -> None:
     core, out = make_core(200, (30.0, 35.0))
     commit_three_uav_team(core)
-    (first,) = out.on(keys.mission_assignment(3, 200))
+    (first,) = out.on(SPACE.mission_assignment(3, 200))
     assert isinstance(first, AssignmentReport) and first.target is None and first.epoch == 0
-    assert out.on(keys.mission_replan(3, 200)) == []  # teammates hear epoch 0 by query
+    assert out.on(SPACE.mission_replan(3, 200)) == []  # teammates hear epoch 0 by query
     assert core.state(0.2).phase == Phase.IDLE
     core.on_telemetry(sample_telemetry(), 5.0)
     core.on_alive(112, False, 5.0)  # the holder of target 1 is killed
-    second = out.on(keys.mission_assignment(3, 200))[-1]
-    assert out.on(keys.mission_replan(3, 200)) == [second]  # and re-plans live too
+    second = out.on(SPACE.mission_assignment(3, 200))[-1]
+    assert out.on(SPACE.mission_replan(3, 200)) == [second]  # and re-plans live too
     assert isinstance(second, AssignmentReport)
     assert (second.target, second.epoch, second.released) == (1, 1, (112,))
     assert second.pairs == {74: 0, 200: 1}
@@ -67,7 +69,7 @@ def test_a_liveliness_blip_after_the_commitment_releases_nobody() -> None:
     core.tick(5.1)
     core.on_alive(112, True, 5.2)
     core.tick(5.0 + LIVELINESS_GRACE_S + 1.0)
-    reports = out.on(keys.mission_assignment(3, 200))
+    reports = out.on(SPACE.mission_assignment(3, 200))
     assert [r.epoch for r in reports] == [0]  # type: ignore[attr-defined]
 
 
@@ -77,10 +79,10 @@ def test_a_teammate_gone_past_the_grace_is_released_at_the_next_tick() -> None:
     core.on_telemetry(sample_telemetry(), 5.0)
     core.on_alive(112, False, 5.0)
     core.tick(5.0 + LIVELINESS_GRACE_S / 2)
-    assert out.on(keys.mission_assignment(3, 200))[-1].epoch == 0  # type: ignore[attr-defined]
+    assert out.on(SPACE.mission_assignment(3, 200))[-1].epoch == 0  # type: ignore[attr-defined]
     core.on_telemetry(sample_telemetry(), 5.0 + LIVELINESS_GRACE_S)
     core.tick(5.0 + LIVELINESS_GRACE_S)
-    report = out.on(keys.mission_assignment(3, 200))[-1]
+    report = out.on(SPACE.mission_assignment(3, 200))[-1]
     assert isinstance(report, AssignmentReport)
     assert (report.target, report.epoch, report.released) == (1, 1, (112,))
 

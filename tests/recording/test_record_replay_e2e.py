@@ -22,12 +22,15 @@ import zenoh
 from mcap.reader import make_reader
 
 from fleet.launch.launcher import free_port
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.recording import channels
 from fleet.recording.reader import read_recording
 from fleet.sim.autopilot import DEFAULT_TELEMETRY_HZ
+from fleet.transport.cli import PREFIX_ENV
 from tests.support.processes import Child, client_session, start
 from tests.support.waiting import wait_until
+
+SPACE = KeySpace()
 
 pytestmark = pytest.mark.e2e
 
@@ -37,7 +40,7 @@ TEAM = {74, 112}
 
 
 def run(*argv: str, prefix: str | None = None) -> subprocess.CompletedProcess[str]:
-    env = None if prefix is None else {**os.environ, keys.PREFIX_ENV: prefix}
+    env = None if prefix is None else {**os.environ, PREFIX_ENV: prefix}
     return subprocess.run(
         [sys.executable, *argv],
         capture_output=True,

@@ -11,7 +11,7 @@ import pytest
 import zenoh
 
 from fleet.launch.launcher import free_port
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import StatusText
 from fleet.recording.reader import read_recording
 from fleet.recording.recorder import Recorder
@@ -21,6 +21,8 @@ from fleet.transport.bus_codec import ENCODING, encode
 from tests.support.processes import client_session, router_session
 from tests.support.waiting import wait_until
 
+SPACE = KeySpace()
+
 
 def test_records_puts_and_tokens_and_drops_what_is_not_json(tmp_path: Path) -> None:
     port = free_port()
@@ -28,12 +30,12 @@ def test_records_puts_and_tokens_and_drops_what_is_not_json(tmp_path: Path) -> N
         recorder = Recorder(ground, McapSink(tmp_path / "r.mcap"), state_every_s=0)
         recorder.start()
         try:
-            token = fleet.liveliness().declare_token(keys.alive(7))
-            fleet.put(keys.status(7), encode(StatusText("hello")), encoding=ENCODING)
-            fleet.put(keys.status(7), b"\xff\x00 not json")
+            token = fleet.liveliness().declare_token(SPACE.alive(7))
+            fleet.put(SPACE.status(7), encode(StatusText("hello")), encoding=ENCODING)
+            fleet.put(SPACE.status(7), b"\xff\x00 not json")
             nested = b'{"a":' * 50_000 + b"1" + b"}" * 50_000
             # Blocking: a large put may otherwise be dropped when the queue is full.
-            fleet.put(keys.status(7), nested, congestion_control=zenoh.CongestionControl.BLOCK)
+            fleet.put(SPACE.status(7), nested, congestion_control=zenoh.CongestionControl.BLOCK)
             wait_until(
                 lambda: (
                     recorder.stats.dropped["not JSON"] == 1

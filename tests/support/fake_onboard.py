@@ -13,7 +13,7 @@ import msgspec
 import zenoh
 
 from fleet.consensus.assignment import greedy_assign, results_digest
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
     MissionAbort,
@@ -29,12 +29,14 @@ from fleet.piccolo.telemetry import GpsBlock, SensorBlock, Telemetry
 from fleet.transport import bus_codec
 from fleet.transport.zenoh_config import make_config
 
+SPACE = KeySpace()
+
 #: A test double of `onboard`: joins Zenoh, declares its liveliness token, publishes a
 #: telemetry sample with a GPS fix five times a second (what the launcher waits for), and
 #: exits cleanly on SIGTERM. Nothing else. With --silent it publishes no telemetry.
 FAKE_ONBOARD = """
 import argparse, signal, threading, zenoh
-from fleet.mission import keys
+from fleet.transport.cli import add_key_prefix_argument
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from fleet.transport import bus_codec
 from fleet.transport.zenoh_config import make_config
@@ -42,15 +44,16 @@ parser = argparse.ArgumentParser()
 parser.add_argument("--id", type=int, required=True)
 parser.add_argument("--connect", required=True)
 parser.add_argument("--silent", action="store_true")
+add_key_prefix_argument(parser)  # $FLEET_KEY_PREFIX, as onboard
 args, _ = parser.parse_known_args()
 stop = threading.Event()
 signal.signal(signal.SIGTERM, lambda *_: stop.set())
 fix = Telemetry(system_time_ms=0, gps=GpsBlock(35.72, -120.76, 600.0, 0.0, 22.0, 0.0))
 with zenoh.open(make_config("client", [args.connect])) as session:
-    token = session.liveliness().declare_token(keys.alive(args.id))
+    token = session.liveliness().declare_token(args.key_space.alive(args.id))
     while not stop.wait(0.2):
         if not args.silent:
-            session.put(keys.telemetry(args.id), bus_codec.encode(fix))
+            session.put(args.key_space.telemetry(args.id), bus_codec.encode(fix))
 """
 
 
@@ -78,14 +81,14 @@ class FakeOnboard:
         self.session = zenoh.open(make_config("client", [endpoint]))
         try:
             self._declared = [
-                self.session.liveliness().declare_token(keys.alive(uav_id)),
-                self.session.declare_queryable(keys.state(uav_id), self._on_state_query),
+                self.session.liveliness().declare_token(SPACE.alive(uav_id)),
+                self.session.declare_queryable(SPACE.state(uav_id), self._on_state_query),
                 self.session.declare_queryable(
-                    f"{keys.PREFIX}/mission/*/**", self._on_mission_query
+                    f"{SPACE.prefix}/mission/*/**", self._on_mission_query
                 ),
-                self.session.declare_subscriber(keys.ALL_MISSION_TARGETS, self._on_targets),
-                self.session.declare_subscriber(keys.ALL_MISSION_ABORTS, self._on_abort),
-                self.session.declare_subscriber(keys.opm(uav_id), self._on_opm),
+                self.session.declare_subscriber(SPACE.all_mission_targets, self._on_targets),
+                self.session.declare_subscriber(SPACE.all_mission_aborts, self._on_abort),
+                self.session.declare_subscriber(SPACE.opm(uav_id), self._on_opm),
             ]
             self._thread = threading.Thread(target=self._publish_loop, daemon=True)
             self._thread.start()
@@ -111,10 +114,10 @@ class FakeOnboard:
     def _publish_loop(self) -> None:
         ticks = 0
         while not self._stop.wait(0.1):
-            self.put(keys.telemetry(self.uav_id), self.telemetry())
+            self.put(SPACE.telemetry(self.uav_id), self.telemetry())
             ticks += 1
             if ticks % 5 == 0:
-                self.put(keys.status(self.uav_id), StatusText(f"fake {self.uav_id} tick {ticks}"))
+                self.put(SPACE.status(self.uav_id), StatusText(f"fake {self.uav_id} tick {ticks}"))
 
     def state(self) -> UavState:
         return UavState(
@@ -129,7 +132,7 @@ class FakeOnboard:
 
     def _on_state_query(self, query: zenoh.Query) -> None:
         query.reply(
-            keys.state(self.uav_id), bus_codec.encode(self.state()), encoding=bus_codec.ENCODING
+            SPACE.state(self.uav_id), bus_codec.encode(self.state()), encoding=bus_codec.ENCODING
         )
 
     def _on_mission_query(self, query: zenoh.Query) -> None:
@@ -165,12 +168,12 @@ class FakeOnboard:
             eta_s=rows[self.uav_id][t] if (t := pairs.get(self.uav_id)) is not None else None,
         )
         with self._lock:
-            self._served[keys.mission_result(m, self.uav_id)] = bus_codec.encode(result)
-            self._served[keys.mission_assignment(m, self.uav_id)] = bus_codec.encode(report)
+            self._served[SPACE.mission_result(m, self.uav_id)] = bus_codec.encode(result)
+            self._served[SPACE.mission_assignment(m, self.uav_id)] = bus_codec.encode(report)
             self.mission = MissionProgress(m, Phase.COMMITTED, n, result, report)
-        self.put(keys.mission_result(m, self.uav_id), result)
+        self.put(SPACE.mission_result(m, self.uav_id), result)
         if self.publish_assignment:
-            self.put(keys.mission_assignment(m, self.uav_id), report)
+            self.put(SPACE.mission_assignment(m, self.uav_id), report)
 
     def _on_abort(self, sample: zenoh.Sample) -> None:
         abort = msgspec.json.decode(sample.payload.to_bytes(), type=MissionAbort)
@@ -186,6 +189,6 @@ class FakeOnboard:
             self.opms.append(command)
         self.enabled = command.enabled
         self.put(
-            keys.status(self.uav_id),
+            SPACE.status(self.uav_id),
             StatusText(f"module {'on' if command.enabled else 'off'}, status every 1 s"),
         )

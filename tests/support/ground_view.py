@@ -10,10 +10,12 @@ import msgspec
 import zenoh
 
 from fleet.geo.mercator import MercatorProjection
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace, uav_id_of
 from fleet.mission.messages import AssignmentReport, StatusText, TargetOutcome, UavResult
 from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
+
+SPACE = KeySpace()
 
 
 class GroundView:
@@ -32,18 +34,18 @@ class GroundView:
         #: Every TargetOutcome each UAV published, in order.
         self.outcomes: dict[int, list[TargetOutcome]] = {}
         self.status: dict[int, list[str]] = {}
-        self.subscriber = session.declare_subscriber(f"{keys.PREFIX}/**", self.on_sample)
+        self.subscriber = session.declare_subscriber(SPACE.everything, self.on_sample)
 
     def on_sample(self, sample: zenoh.Sample) -> None:
         key = str(sample.key_expr)
         data = sample.payload.to_bytes()
         with self.lock:
             if key.endswith("/telemetry"):
-                uav = keys.uav_id_of(key)
+                uav = uav_id_of(key)
                 self.telemetry.setdefault(uav, []).append(msgspec.json.decode(data, type=Telemetry))
             elif key.endswith("/track"):
                 track = msgspec.json.decode(data, type=Track)
-                self.tracks.setdefault(keys.uav_id_of(key), []).append(track.waypoint)
+                self.tracks.setdefault(uav_id_of(key), []).append(track.waypoint)
             elif "/assignment/" in key:
                 report = msgspec.json.decode(data, type=AssignmentReport)
                 self.assignments[report.uav] = report
@@ -59,7 +61,7 @@ class GroundView:
                 self.results[result.uav] = result
             elif key.endswith("/status"):
                 text = msgspec.json.decode(data, type=StatusText).text
-                self.status.setdefault(keys.uav_id_of(key), []).append(text)
+                self.status.setdefault(uav_id_of(key), []).append(text)
 
     def latest_track(self, uav: int) -> int | None:
         with self.lock:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import UavResult, UavState
 from fleet.transport.bus_codec import (
     DROPPED,
@@ -15,6 +15,8 @@ from fleet.transport.bus_codec import (
     decode,
     encode,
 )
+
+SPACE = KeySpace()
 
 DEPTH = 100_000
 HOSTILE = {
@@ -34,7 +36,7 @@ HOSTILE = {
 @pytest.mark.parametrize("name", sorted(HOSTILE))
 def test_hostile_payload_is_refused_and_counted(name: str) -> None:
     payload, reason = HOSTILE[name]
-    key = keys.state(999) if reason != DropReason.WRONG_KEY else keys.mission_result(5, 74)
+    key = SPACE.state(999) if reason != DropReason.WRONG_KEY else SPACE.mission_result(5, 74)
     kind: type = UavState if reason != DropReason.WRONG_KEY else UavResult
     before = DROPPED.counts().get(str(reason), 0)
     with pytest.raises(BadMessage, match=key) as raised:
@@ -45,4 +47,4 @@ def test_hostile_payload_is_refused_and_counted(name: str) -> None:
 
 def test_a_good_message_passes() -> None:
     result = UavResult(5, 74, (1.0, None))
-    assert decode(encode(result), UavResult, keys.mission_result(5, 74)) == result
+    assert decode(encode(result), UavResult, SPACE.mission_result(5, 74)) == result

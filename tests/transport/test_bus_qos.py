@@ -7,7 +7,6 @@ import queue
 import zenoh
 
 from fleet.launch.launcher import free_port
-from fleet.mission import keys
 from fleet.mission.key_space import KeySpace
 from fleet.transport import bus_qos
 from fleet.transport.bus_codec import ENCODING
@@ -16,14 +15,16 @@ from fleet.transport.zenoh_bus import ZenohBus
 from fleet.transport.zenoh_config import make_config
 from tests.support.processes import client_session, router_session
 
+SPACE = KeySpace()
+
 
 def test_mission_messages_and_commands_are_urgent_and_never_dropped() -> None:
     for key in (
-        keys.mission_targets(3),
-        keys.mission_result(3, 74),
-        keys.mission_assignment(3, 74),
-        keys.mission_abort(3),
-        keys.opm(74),
+        SPACE.mission_targets(3),
+        SPACE.mission_result(3, 74),
+        SPACE.mission_assignment(3, 74),
+        SPACE.mission_abort(3),
+        SPACE.opm(74),
     ):
         assert qos_for(key) == URGENT, key
     assert URGENT.congestion_control == zenoh.CongestionControl.BLOCK
@@ -32,27 +33,24 @@ def test_mission_messages_and_commands_are_urgent_and_never_dropped() -> None:
 
 
 def test_telemetry_is_least_urgent_and_dropped_under_congestion() -> None:
-    assert qos_for(keys.telemetry(74)) == TELEMETRY
+    assert qos_for(SPACE.telemetry(74)) == TELEMETRY
     assert TELEMETRY.congestion_control == zenoh.CongestionControl.DROP
     assert TELEMETRY.priority == zenoh.Priority.DATA_LOW
-    assert qos_for(keys.status(74)) == ORDINARY
+    assert qos_for(SPACE.status(74)) == ORDINARY
 
 
-def test_the_key_prefix_in_use_decides() -> None:
-    previous = keys.PREFIX
-    try:
-        keys.use_prefix("lab")
-        assert qos_for(keys.mission_targets(1)) == URGENT
-        assert qos_for("fleet/mission/1/targets") == ORDINARY  # another prefix's key
-    finally:
-        keys.use_prefix(previous)
+def test_the_key_own_prefix_decides() -> None:
+    lab = KeySpace("lab")
+    assert qos_for(lab.mission_targets(1)) == URGENT
+    assert qos_for(lab.telemetry(1)) == TELEMETRY
+    assert qos_for("re.play/mission/1/targets") == ORDINARY  # not a key prefix
 
 
 def test_a_key_space_given_decides() -> None:
     lab = KeySpace("lab")
     assert qos_for(lab.mission_targets(1), lab) == URGENT
     assert qos_for(lab.telemetry(1), lab) == TELEMETRY
-    assert qos_for(keys.mission_targets(1), lab) == ORDINARY
+    assert qos_for(SPACE.mission_targets(1), lab) == ORDINARY
 
 
 def test_telemetry_goes_through_one_declared_publisher_with_its_qos() -> None:
@@ -61,19 +59,19 @@ def test_telemetry_goes_through_one_declared_publisher_with_its_qos() -> None:
     port = free_port()
     received: queue.SimpleQueue[zenoh.Sample] = queue.SimpleQueue()
     with router_session(port), client_session(port) as listener:
-        subscriber = listener.declare_subscriber(f"{keys.PREFIX}/uav/*/*", received.put)
+        subscriber = listener.declare_subscriber(f"{SPACE.prefix}/uav/*/*", received.put)
         bus = ZenohBus(zenoh.open(make_config("client", [f"tcp/127.0.0.1:{port}"])))
         try:
-            wait_until_matched(bus, keys.telemetry(74))
+            wait_until_matched(bus, SPACE.telemetry(74))
             for n in range(3):
-                bus.put(keys.telemetry(74), f"{n}".encode())
-            bus.put(keys.status(74), b"status")
+                bus.put(SPACE.telemetry(74), f"{n}".encode())
+            bus.put(SPACE.status(74), b"status")
             samples = [received.get(timeout=5.0) for _ in range(4)]
             assert len(bus._publishers) == 1  # the status line went by session put
         finally:
             bus.close()
             subscriber.undeclare()
-    telemetry = [s for s in samples if str(s.key_expr) == keys.telemetry(74)]
+    telemetry = [s for s in samples if str(s.key_expr) == SPACE.telemetry(74)]
     assert [s.payload.to_bytes() for s in telemetry] == [b"0", b"1", b"2"]
     assert all(s.priority == zenoh.Priority.DATA_LOW for s in telemetry)
     assert all(str(s.encoding) == str(ENCODING) for s in telemetry)

@@ -17,8 +17,10 @@ import pytest
 import zenoh
 
 from fleet.launch.launcher import free_port
-from fleet.mission import keys
+from fleet.mission.key_registry import DEFAULT_PREFIX
+from fleet.mission.key_space import KeySpace
 from fleet.transport.cli import (
+    PREFIX_ENV,
     ExitCode,
     ZenohConfigError,
     add_zenoh_arguments,
@@ -268,25 +270,43 @@ def test_run_standalone_parses_the_command_and_v_then_returns_its_status(
     assert root.level == logging.DEBUG
 
 
-def test_key_prefix_flag_sets_the_prefix_for_this_process_and_its_children(
+def test_key_prefix_flag_sets_the_key_space_for_this_command_and_its_children(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    monkeypatch.setenv(keys.PREFIX_ENV, keys.DEFAULT_PREFIX)  # restored after the test
+    monkeypatch.setenv(PREFIX_ENV, DEFAULT_PREFIX)  # restored after the test
     parser = argparse.ArgumentParser()
     add_zenoh_arguments(parser)
-    try:
-        args = parser.parse_args(["--key-prefix", "replay"])
-        assert "key_prefix" not in vars(args)  # applied, not stored
-        assert keys.ALL_STATE == "replay/uav/*/state"
-        assert os.environ[keys.PREFIX_ENV] == "replay"
-    finally:
-        keys.use_prefix(keys.DEFAULT_PREFIX)
+    args = parser.parse_args(["--key-prefix", "replay"])
+    assert "key_prefix" not in vars(args)  # the KeySpace is stored, not the text
+    assert args.key_space == KeySpace("replay")
+    assert args.key_space.all_state == "replay/uav/*/state"
+    assert os.environ[PREFIX_ENV] == "replay"
 
 
-def test_a_bad_key_prefix_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+def test_the_key_prefix_comes_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv(PREFIX_ENV, raising=False)
+    parser = argparse.ArgumentParser()
+    add_zenoh_arguments(parser)
+    assert parser.parse_args([]).key_space == KeySpace(DEFAULT_PREFIX)
+    monkeypatch.setenv(PREFIX_ENV, "replay")
+    parser = argparse.ArgumentParser()
+    add_zenoh_arguments(parser)
+    assert parser.parse_args([]).key_space.telemetry(7) == "replay/uav/7/telemetry"
+
+
+def test_a_bad_key_prefix_is_a_usage_error(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setenv(PREFIX_ENV, DEFAULT_PREFIX)
     parser = argparse.ArgumentParser()
     add_zenoh_arguments(parser)
     with pytest.raises(SystemExit, match="2"):
         parser.parse_args(["--key-prefix", "a/b"])
     assert "one key chunk" in capsys.readouterr().err
-    assert keys.PREFIX == keys.DEFAULT_PREFIX
+    assert os.environ[PREFIX_ENV] == DEFAULT_PREFIX
+    monkeypatch.setenv(PREFIX_ENV, "a/b")
+    parser = argparse.ArgumentParser()
+    add_zenoh_arguments(parser)
+    with pytest.raises(SystemExit, match="2"):
+        parser.parse_args([])
+    assert "one key chunk" in capsys.readouterr().err

@@ -5,11 +5,13 @@ from __future__ import annotations
 import queue
 import time
 
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import StatusText
 from fleet.transport.bus import BusSample
 from fleet.transport.faulty_bus import FaultRule, FaultyBus
 from fleet.transport.memory import MemoryNetwork
+
+SPACE = KeySpace()
 
 
 def listen(network: MemoryNetwork, key_expr: str) -> queue.SimpleQueue[BusSample]:
@@ -45,12 +47,12 @@ def test_the_first_puts_on_each_matching_key_are_dropped_and_counted() -> None:
 
 def test_publish_goes_through_the_rules() -> None:
     network = MemoryNetwork()
-    heard = listen(network, keys.status(7))
-    bus = FaultyBus(network.bus(), FaultRule(keys.status(7), drop_first=2))
+    heard = listen(network, SPACE.status(7))
+    bus = FaultyBus(network.bus(), FaultRule(SPACE.status(7), drop_first=2))
     for n in range(3):
-        bus.publish(keys.status(7), StatusText(f"status {n}"))
+        bus.publish(SPACE.status(7), StatusText(f"status {n}"))
     assert len(drain(heard)) == 1
-    assert bus.dropped[keys.status(7)] == 2
+    assert bus.dropped[SPACE.status(7)] == 2
 
 
 def test_the_first_matching_rule_decides() -> None:

@@ -27,11 +27,13 @@ from fleet.launch.launcher import (
     parse_sim_line,
     ring_scenario,
 )
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.transport.router import Router, RouterError
 from fleet.transport.zenoh_config import make_config
 from tests.support.fake_onboard import FAKE_ONBOARD
 from tests.support.processes import free_endpoint
+
+SPACE = KeySpace()
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -154,6 +156,7 @@ def make_fleet(tmp_path: Path) -> Iterator[Callable[..., Fleet]]:
         onboard_command: tuple[str, ...],
         start_timeout_s: float,
         speedup: float = 1.0,
+        key_space: KeySpace = SPACE,
     ) -> Fleet:
         spec = FleetSpec(
             scenario=scenario,
@@ -162,6 +165,7 @@ def make_fleet(tmp_path: Path) -> Iterator[Callable[..., Fleet]]:
             log_dir=tmp_path,
             start_timeout_s=start_timeout_s,
             onboard_command=onboard_command,
+            key_space=key_space,
         )
         fleets.append(Fleet(spec))
         return fleets[-1]
@@ -183,7 +187,7 @@ def test_fleet_starts_waits_for_liveliness_and_stops_everything(
         with zenoh.open(make_config("client", [fleet.connect])) as session:
             tokens = [
                 str(r.ok.key_expr)
-                for r in session.liveliness().get(keys.ALL_ALIVE, timeout=2.0)
+                for r in session.liveliness().get(SPACE.all_alive, timeout=2.0)
                 if r.ok is not None
             ]
         assert sorted(tokens) == ["fleet/uav/112/alive", "fleet/uav/74/alive"]
@@ -192,6 +196,22 @@ def test_fleet_starts_waits_for_liveliness_and_stops_everything(
     assert all(c.process.returncode is not None for c in fleet.children)
     assert not any(alive(pid) for pid in pids)
     assert "ready" in (tmp_path / "sim.log").read_text()
+
+
+@pytest.mark.e2e
+def test_a_fleet_under_another_prefix_hands_it_to_its_children(
+    make_fleet: Callable[..., Fleet],
+) -> None:
+    lab = KeySpace("lab")
+    fleet = make_fleet("head_on", ("-c", FAKE_ONBOARD), 30.0, 5.0, lab)
+    with fleet, zenoh.open(make_config("client", [fleet.connect])) as session:
+        # Started: the launcher saw them alive with telemetry under lab/.
+        tokens = [
+            str(r.ok.key_expr)
+            for r in session.liveliness().get(lab.all_alive, timeout=2.0)
+            if r.ok is not None
+        ]
+        assert sorted(tokens) == ["lab/uav/112/alive", "lab/uav/74/alive"]
 
 
 @pytest.mark.e2e

@@ -30,7 +30,7 @@ import zenoh
 from fleet.files.targets_io import read_targets
 from fleet.geo.mercator import MercatorProjection
 from fleet.launch.launcher import free_port
-from fleet.mission import keys
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets
 from tests.support.ground_view import GroundView
 from tests.support.processes import Child, client_session, start
@@ -41,6 +41,8 @@ from selenium.webdriver.chrome.service import Service  # noqa: E402
 from selenium.webdriver.common.action_chains import ActionChains  # noqa: E402
 from selenium.webdriver.common.actions.wheel_input import ScrollOrigin  # noqa: E402
 from selenium.webdriver.common.by import By  # noqa: E402
+
+SPACE = KeySpace()
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMEDRIVER = "/usr/bin/chromedriver"
@@ -122,7 +124,7 @@ class TargetsSeen:
     def __init__(self, session: zenoh.Session) -> None:
         self.lock = threading.Lock()
         self.missions: list[MissionTargets] = []
-        self.subscriber = session.declare_subscriber(keys.ALL_MISSION_TARGETS, self.on_sample)
+        self.subscriber = session.declare_subscriber(SPACE.all_mission_targets, self.on_sample)
 
     def on_sample(self, sample: zenoh.Sample) -> None:
         message = msgspec.json.decode(sample.payload.to_bytes(), type=MissionTargets)
