@@ -21,6 +21,7 @@ from pathlib import Path
 import zenoh
 
 from fleet.launch.launcher import free_port
+from fleet.mission.key_space import DEFAULT_SPACE
 from fleet.recording.reader import read_recording
 from fleet.transport.router import Router
 from fleet.transport.zenoh_config import make_config
@@ -42,7 +43,7 @@ def kill_after(delay_s: float, count: int, directory: Path) -> tuple[int, int]:
             assert recorder.stdout is not None
             recorder.stdout.readline()  # "fleet record: recording ...": it listens
             for i in range(count):
-                session.put("fleet/uav/1/status", b'{"text":"%d"}' % i)
+                session.put(DEFAULT_SPACE.status(1), b'{"text":"%d"}' % i)
                 time.sleep(PERIOD_S)
             time.sleep(delay_s)
             os.kill(recorder.pid, signal.SIGKILL)
