@@ -51,8 +51,14 @@ TARGETS = (
 MARKER_MISSIONS = itertools.count(0xFFFF_0000)
 
 
-def run_cli(*args: str, endpoint: str | None) -> subprocess.CompletedProcess[str]:
+def run_cli(
+    *args: str, endpoint: str | None, env_connect: str | None = None
+) -> subprocess.CompletedProcess[str]:
+    """`ground-cli ARGS` with `--connect endpoint` (None: none), and $FLEET_ZENOH_CONNECT
+    set to `env_connect` (None: unset)."""
     env = {k: v for k, v in os.environ.items() if k != CONNECT_ENV}
+    if env_connect is not None:
+        env[CONNECT_ENV] = env_connect
     command = [sys.executable, "-m", "ground.cli"]
     if endpoint is not None:
         command += ["--connect", endpoint]
@@ -369,16 +375,7 @@ def test_no_router_is_a_clear_error_not_a_hang() -> None:
 @pytest.mark.e2e
 def test_connect_comes_from_the_environment() -> None:
     endpoint = free_endpoint()
-    env = {**os.environ, CONNECT_ENV: endpoint}
-    done = subprocess.run(
-        [sys.executable, "-m", "ground.cli", "uavs"],
-        cwd=REPO,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=CLI_TIMEOUT_S,
-        check=False,
-    )
+    done = run_cli("uavs", endpoint=None, env_connect=endpoint)
     assert done.returncode == 2
     assert endpoint in done.stderr
 

@@ -40,15 +40,22 @@ def commit_ring(
     return team, {int(uav): target for uav, target in pairs.items()}
 
 
+def commit_ring_of_three(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> tuple[dict[int, int], int, int]:
+    """Three UAVs committed to two targets: the holders (UAV -> target), the idle UAV and
+    the victim (the holder with the farther target, so it is still on its way)."""
+    team, holders = commit_ring(fleet, ground, tmp_path, 3, 2)
+    (idle,) = set(team) - set(holders)
+    etas = {uav: ground.seen.assignments[uav].eta_s or 0.0 for uav in holders}
+    return holders, idle, max(holders, key=etas.__getitem__)
+
+
 def test_the_idle_uav_flies_and_reaches_the_target_of_a_holder_killed_after_commit(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    team, holders = commit_ring(fleet, ground, tmp_path, 3, 2)
+    holders, idle, victim = commit_ring_of_three(fleet, ground, tmp_path)
     seen = ground.seen
-    (idle,) = set(team) - set(holders)
-    # The victim: the holder with the farther target, so it is still on its way.
-    etas = {uav: seen.assignments[uav].eta_s or 0.0 for uav in holders}
-    victim = max(holders, key=etas.__getitem__)
     orphan = holders[victim]
     child = fleet.onboard_child(victim)
     child.process.kill()  # liveliness goes with the TCP connection
@@ -196,11 +203,8 @@ def test_a_holder_whose_autopilot_link_is_cut_is_released_and_its_teammate_reach
 def test_a_holder_restarted_after_the_re_plan_adopts_the_latest_epoch_and_leaves_the_target(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    team, holders = commit_ring(fleet, ground, tmp_path, 3, 2)
+    holders, idle, victim = commit_ring_of_three(fleet, ground, tmp_path)
     seen = ground.seen
-    (idle,) = set(team) - set(holders)
-    etas = {uav: seen.assignments[uav].eta_s or 0.0 for uav in holders}
-    victim = max(holders, key=etas.__getitem__)  # still on its way when restarted
     wait_until(lambda: seen.latest_track(victim) == TARGET_WAYPOINT, 30.0, "the victim flying")
     child = fleet.onboard_child(victim)
     child.process.kill()
