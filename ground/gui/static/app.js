@@ -333,76 +333,142 @@ function drawTargets(scale) {
 }
 
 // ---- the side panel -------------------------------------------------------------------------
+// The lists are updated in place, row by row (keyed by Piccolo ID and target index), never
+// rebuilt: a row or button replaced between a press and its release loses the click, and
+// snapshots arrive several times a second. Their clicks are handled once, on the table
+// (onUavListClick, onTargetListClick), from the data attributes of what was pressed.
+function keyedRow(body, key, attribute, make) {
+  let row = body.querySelector(`tr[${attribute}="${key}"]`);
+  if (!row) {
+    row = make();
+    row.setAttribute(attribute, key);
+  }
+  return row;
+}
+
+function setText(node, text) {
+  const value = String(text);
+  if (node.textContent !== value) node.textContent = value;
+}
+
+function setAttributes(node, attributes) {
+  for (const [key, value] of Object.entries(attributes)) {
+    if (node.getAttribute(key) !== String(value)) node.setAttribute(key, value);
+  }
+}
+
+// Rows in `order`, each placed only if it is not where it belongs already; the rest go.
+function placeRows(body, rows) {
+  rows.forEach((row, position) => {
+    if (body.children[position] !== row) body.insertBefore(row, body.children[position] || null);
+  });
+  while (body.children.length > rows.length) body.lastElementChild.remove();
+}
+
+function newUavRow() {
+  const row = html('tr');
+  const swatch = html('span', '', { class: 'swatch' });
+  const first = html('td');
+  first.appendChild(swatch);
+  row.appendChild(first);
+  for (const name of ['id', 'team', 'phase', 'target', 'alt', 'speed', 'link']) {
+    row.appendChild(html('td', '', { 'data-cell': name, ...(name === 'team' ? { class: 'team' } : {}) }));
+  }
+  const opm = html('td', '', { class: 'opm' });
+  opm.appendChild(html('button', '', {
+    type: 'button', 'data-opm': '', title: 'turn the onboard planning module on or off',
+  }));
+  opm.appendChild(html('button', 'abort', {
+    type: 'button', 'data-abort': '', title: 'abort this UAV alone; its teammates fly on',
+  }));
+  row.appendChild(opm);
+  return row;
+}
+
 function drawUavList() {
   const body = $('#uav-list tbody');
-  body.replaceChildren();
   const members = new Set(team());
-  for (const u of state.uavs) {
-    const row = html('tr', '', uavAttributes(u));
+  const m = state.mission;
+  const rows = state.uavs.map((u) => {
+    const row = keyedRow(body, u.id, 'data-uav', newUavRow);
+    setAttributes(row, uavAttributes(u));
     row.classList.toggle('in-team', members.has(u.id));
-    const swatch = html('span', '', { class: 'swatch' });
-    swatch.style.background = colourOf(u.id);
-    const first = html('td');
-    first.appendChild(swatch);
-    row.appendChild(first);
-    row.appendChild(html('td', u.id));
-    row.appendChild(html('td', members.has(u.id) ? '✓' : '', { class: 'team' }));
-    row.appendChild(html('td', phaseOf(u)));
-    row.appendChild(html('td', u.target ?? '-'));
-    row.appendChild(html('td', fixed(u.alt, 0)));
-    row.appendChild(html('td', fixed(u.ground_speed, 1)));
-    row.appendChild(html('td', u.link_lost ? 'LOST' : `${fixed(u.telemetry_age_s, 1)} s`));
-    const opm = html('td', '', { class: 'opm' });
-    const toggle = html('button', u.enabled === false ? 'off → on' : 'on → off', {
-      type: 'button', 'data-opm': u.id, title: 'turn the onboard planning module on or off',
-    });
-    toggle.addEventListener('click', (event) => {
-      event.stopPropagation();
-      command({ cmd: 'opm', uav: u.id, enabled: u.enabled === false });
-    });
-    opm.appendChild(toggle);
-    const m = state.mission;
-    if (m && !m.aborted && m.team.includes(u.id)) {
-      const stop = html('button', 'abort', {
-        type: 'button', 'data-abort': u.id, title: 'abort this UAV alone; its teammates fly on',
-      });
-      stop.addEventListener('click', (event) => {
-        event.stopPropagation();
-        confirmThen(`Abort mission ${m.mission} for UAV ${u.id} alone?`,
-          `UAV ${u.id} leaves its target and resumes its course; the rest of the team flies on.`,
-          () => command({ cmd: 'abort', mission: m.mission, uav: u.id }));
-      });
-      opm.appendChild(stop);
-    }
-    row.appendChild(opm);
-    row.addEventListener('click', () => {
-      if (state.excluded.has(u.id)) state.excluded.delete(u.id);
-      else state.excluded.add(u.id);
-      render();
-    });
-    body.appendChild(row);
-  }
+    row.querySelector('.swatch').style.background = colourOf(u.id);
+    const cell = (name) => row.querySelector(`[data-cell="${name}"]`);
+    setText(cell('id'), u.id);
+    setText(cell('team'), members.has(u.id) ? '✓' : '');
+    setText(cell('phase'), phaseOf(u));
+    setText(cell('target'), u.target ?? '-');
+    setText(cell('alt'), fixed(u.alt, 0));
+    setText(cell('speed'), fixed(u.ground_speed, 1));
+    setText(cell('link'), u.link_lost ? 'LOST' : `${fixed(u.telemetry_age_s, 1)} s`);
+    const toggle = row.querySelector('[data-opm]');
+    setAttributes(toggle, { 'data-opm': u.id });
+    setText(toggle, u.enabled === false ? 'off → on' : 'on → off');
+    const stop = row.querySelector('[data-abort]');
+    setAttributes(stop, { 'data-abort': u.id });
+    // Hidden, not removed, so the layout under the pointer does not shift as missions come.
+    stop.style.visibility = m && !m.aborted && m.team.includes(u.id) ? 'visible' : 'hidden';
+    return row;
+  });
+  placeRows(body, rows);
   updateFilter();
+}
+
+function onUavListClick(event) {
+  const row = event.target.closest('tr[data-uav]');
+  if (!row) return;
+  const id = Number(row.getAttribute('data-uav'));
+  const u = state.uavs.find((v) => v.id === id);
+  if (!u) return;
+  if (event.target.closest('[data-opm]')) {
+    command({ cmd: 'opm', uav: id, enabled: u.enabled === false });
+    return;
+  }
+  if (event.target.closest('[data-abort]')) {
+    const m = state.mission;
+    if (!m || m.aborted || !m.team.includes(id)) return;
+    confirmThen(`Abort mission ${m.mission} for UAV ${id} alone?`,
+      `UAV ${id} leaves its target and resumes its course; the rest of the team flies on.`,
+      () => command({ cmd: 'abort', mission: m.mission, uav: id }));
+    return;
+  }
+  if (state.excluded.has(id)) state.excluded.delete(id);
+  else state.excluded.add(id);
+  render();
+}
+
+function newTargetRow() {
+  const row = html('tr');
+  for (const name of ['index', 'lat', 'lon', 'alt']) row.appendChild(html('td', '', { 'data-cell': name }));
+  row.appendChild(html('td', '', { class: 'state', 'data-cell': 'state' }));
+  const cell = html('td');
+  cell.appendChild(html('button', '✕', { type: 'button', title: 'delete this target', 'data-delete': '' }));
+  row.appendChild(cell);
+  return row;
 }
 
 function drawTargetList() {
   const body = $('#target-list tbody');
-  body.replaceChildren();
-  state.targets.forEach((t, index) => {
+  const rows = state.targets.map((t, index) => {
     const s = targetStateOf(index);
-    const row = html('tr', '', { 'data-target-row': index });
-    row.appendChild(html('td', index));
-    row.appendChild(html('td', t.lat.toFixed(6)));
-    row.appendChild(html('td', t.lon.toFixed(6)));
-    row.appendChild(html('td', t.alt.toFixed(0)));
-    row.appendChild(html('td', s.uav !== null ? `${s.state} (${s.uav})` : s.state, { class: 'state', 'data-state': s.state }));
-    const cell = html('td');
-    const remove = html('button', '✕', { type: 'button', title: 'delete this target', 'data-delete': index });
-    remove.addEventListener('click', () => removeTarget(index));
-    cell.appendChild(remove);
-    row.appendChild(cell);
-    body.appendChild(row);
+    const row = keyedRow(body, index, 'data-target-row', newTargetRow);
+    const cell = (name) => row.querySelector(`[data-cell="${name}"]`);
+    setText(cell('index'), index);
+    setText(cell('lat'), t.lat.toFixed(6));
+    setText(cell('lon'), t.lon.toFixed(6));
+    setText(cell('alt'), t.alt.toFixed(0));
+    setText(cell('state'), s.uav !== null ? `${s.state} (${s.uav})` : s.state);
+    setAttributes(cell('state'), { 'data-state': s.state });
+    setAttributes(row.querySelector('[data-delete]'), { 'data-delete': index });
+    return row;
   });
+  placeRows(body, rows);
+}
+
+function onTargetListClick(event) {
+  const button = event.target.closest('[data-delete]');
+  if (button) removeTarget(Number(button.getAttribute('data-delete')));
 }
 
 function drawMission() {
@@ -696,6 +762,8 @@ function setUpMap() {
 
 function setUpPanel() {
   $('#fit').addEventListener('click', () => { state.autoFit = true; state.view = null; render(); });
+  $('#uav-list tbody').addEventListener('click', onUavListClick);
+  $('#target-list tbody').addEventListener('click', onTargetListClick);
   $('#send').addEventListener('click', sendTargets);
   $('#abort').addEventListener('click', abortTeam);
   $('#clear-targets').addEventListener('click', () => { state.targets = []; render(); });

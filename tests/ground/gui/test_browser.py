@@ -340,3 +340,63 @@ def test_the_thesis_scenario_from_the_page(
         finally:
             sent.subscriber.undeclare()
             seen.close()
+
+
+#: A press as a person makes it: the button held this long while snapshots keep coming.
+PRESS_S = 0.3
+
+
+def press(driver: Any, selector: str) -> None:
+    """A real press of the element `selector` names: pointer down, held, up."""
+    element = driver.find_element(By.CSS_SELECTOR, selector)
+    ActionChains(driver).move_to_element(element).click_and_hold().pause(
+        PRESS_S
+    ).release().perform()
+
+
+def uav_row(driver: Any, uav: int) -> dict[str, Any]:
+    return dict(
+        driver.execute_script(
+            "const r = document.querySelector(`#uav-list tr[data-uav='${arguments[0]}']`);"
+            "return {team: r.classList.contains('in-team'), module: r.dataset.module,"
+            " opm: r.querySelector('[data-opm]').textContent};",
+            uav,
+        )
+    )
+
+
+def test_every_press_takes_effect_the_first_time_while_telemetry_flows(
+    fleet_with_gui: tuple[str, str], browser: Any
+) -> None:
+    url, _ = fleet_with_gui
+    browser.get(url)
+    wait_for(browser, "both UAVs", lambda e: set(uav_icons(e)) == {74, 112}, 30.0)
+    # Team: each press takes UAV 112 out of the team or puts it back, at once (the page's
+    # own state: no round trip to wait for).
+    for expected in (False, True, False, True):
+        press(browser, "#uav-list tr[data-uav='112'] td:nth-child(4)")
+        assert uav_row(browser, 112)["team"] is expected
+    # OPM: one press turns UAV 74's module off, as its own state then says; one back on.
+    for module in ("off", "on"):
+        press(browser, "#uav-list tr[data-uav='74'] [data-opm]")
+        wait_until(lambda m=module: uav_row(browser, 74)["module"] == m, 15.0, f"module {module}")
+    # A target's delete button, on the third of three targets.
+    zoom_out(browser)
+    for lat in (35.70, 35.71, 35.72):
+        click_at(browser, lat, -120.78)
+    wait_for(browser, "3 targets", lambda e: len(target_marks(e)) == 3, 10.0)
+    press(browser, "#target-list [data-delete='2']")
+    assert len(target_marks(browser.execute_script(READ_MAP))) == 2
+    # Per-UAV abort: once a mission is in flight, one press asks to confirm.
+    browser.find_element(By.ID, "send").click()
+    browser.find_element(By.ID, "confirm-ok").click()
+    wait_until(
+        lambda: browser.execute_script(
+            "const b = document.querySelector(\"#uav-list tr[data-uav='112'] [data-abort]\");"
+            "return b && getComputedStyle(b).visibility === 'visible';"
+        ),
+        30.0,
+        "the per-UAV abort button",
+    )
+    press(browser, "#uav-list tr[data-uav='112'] [data-abort]")
+    assert "for UAV 112 alone" in text_of(browser, "confirm-text")
