@@ -220,13 +220,11 @@ class MissionFollower(Declarations):
             with self._changed:
                 self._changed.wait(min(deadline, next_fetch) - now)
 
-    def wait_superseded(self, timeout_s: float) -> int | None:
-        """Wait up to `timeout_s` for a later mission of the team; its id, or None."""
-        deadline = time.monotonic() + timeout_s
-        with self._changed:
-            while self.superseded_by is None:
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    break
-                self._changed.wait(remaining)
-            return self.superseded_by
+    def wait_superseded(self, timeout_s: float, fetch_every_s: float) -> int | None:
+        """Wait up to `timeout_s` for a later mission of the team; its id, or None.
+
+        Queries every `fetch_every_s` as well: a later mission put before this follower
+        subscribed is still what the team's UAVs (and its ground) serve.
+        """
+        self.wait_until(lambda: False, timeout_s, fetch_every_s)
+        return self.superseded_by

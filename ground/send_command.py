@@ -122,8 +122,8 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
 def _send_and_follow(
     bus: Bus, server: TargetsServer, args: argparse.Namespace, progress: TextIO
 ) -> MissionOutcome:
-    """Put the claimed mission and, with --wait, follow it to its commitments (and, when
-    another ground contested its id, for as long as that ground's mission may take)."""
+    """Put the claimed mission and, with --wait, follow it to its commitments and then
+    for as long as a rival ground's later mission may take (`_watch_for_rival`)."""
     message = server.targets
     mission, team, targets = message.mission, message.team, message.targets
     listener = _progress_printer(progress, team) if args.wait else None
@@ -139,15 +139,8 @@ def _send_and_follow(
         if args.wait:
             committed = follower.wait_committed(team, args.timeout, fetch_every_s=1.0)
             outcome.timed_out = not committed and follower.superseded_by is None
-            if committed and server.contested.is_set():
-                grace = contest_grace_s(args.query_timeout)
-                print(
-                    f"mission {mission}: another ground chose this id too; watching "
-                    f"{grace:g} s for its mission",
-                    file=progress,
-                    flush=True,
-                )
-                follower.wait_superseded(grace)
+            if committed:
+                _watch_for_rival(follower, server, args.query_timeout, progress)
         else:
             _report_delivery(
                 bus, args.key_space, message, min(DELIVERY_WAIT_S, args.timeout), progress
@@ -159,6 +152,28 @@ def _send_and_follow(
         if args.wait:
             _read_phases(bus, args.key_space, outcome, follower, args.query_timeout)
     return outcome
+
+
+def _watch_for_rival(
+    follower: MissionFollower, server: TargetsServer, query_timeout_s: float, out: TextIO
+) -> None:
+    """After the team committed, watch for a later mission of the team for as long as
+    another ground started about together with this one may take to send it.
+
+    A team commits a small mission in tens of milliseconds, before a ground started a
+    moment later has even chosen its id (it then chooses a higher one, so the ids need
+    not collide): without this watch both grounds would report success while the team
+    flies only the later mission.
+    """
+    mission = follower.mission
+    grace = contest_grace_s(query_timeout_s)
+    rival = "another ground chose this id too" if server.contested.is_set() else "committed"
+    print(
+        f"mission {mission}: {rival}; watching {grace:g} s for a later mission",
+        file=out,
+        flush=True,
+    )
+    follower.wait_superseded(grace, fetch_every_s=1.0)
 
 
 def _team(bus: Bus, args: argparse.Namespace) -> tuple[int, ...]:

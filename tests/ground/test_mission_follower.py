@@ -39,7 +39,7 @@ def test_a_later_mission_for_the_team_supersedes_the_followed_one(
                 bus_codec.encode(mission(43, team=(8, 9))),
                 encoding=bus_codec.ENCODING,
             )
-            return follower.wait_superseded(0.2) is not None
+            return follower.wait_superseded(0.2, fetch_every_s=1.0) is not None
 
         wait_until(put_later_mission, 10.0, "the later mission")
         assert follower.superseded_by == 43
