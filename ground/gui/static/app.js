@@ -115,11 +115,19 @@ function clock(seconds) {
   return new Date(seconds * 1000).toTimeString().slice(0, 8);
 }
 
+// A notice clears itself: what went well after NOTICE_OK_MS, a refusal after NOTICE_ERROR_MS
+// (long enough to read; the status box keeps what the UAVs said).
+const NOTICE_OK_MS = 6000;
+const NOTICE_ERROR_MS = 15000;
+let noticeTimer = null;
+
 function notice(text, ok) {
   const node = $('#notice');
   node.textContent = text;
   node.className = ok ? 'ok' : 'error';
   node.hidden = false;
+  clearTimeout(noticeTimer);
+  noticeTimer = setTimeout(() => { node.hidden = true; }, ok ? NOTICE_OK_MS : NOTICE_ERROR_MS);
 }
 
 function liveIds() {
@@ -597,12 +605,20 @@ function startTargetDrag(event, index) {
 }
 
 async function loadFile(file) {
+  if (!state.targets.length) return importFile(file);
+  confirmThen(`Replace the ${state.targets.length} target(s) on the map with ${file.name}'s?`,
+    'The targets on the map are not kept (Save them first to keep them).', () => importFile(file));
+}
+
+async function importFile(file) {
   const error = $('#load-error');
   error.hidden = true;
   const response = await fetch(withToken(`api/targets/import?name=${encodeURIComponent(file.name)}`), {
     method: 'POST', body: await file.arrayBuffer(),
   });
-  const answer = await response.json();
+  // A refusal by the web server itself (413: over its upload limit) is plain text.
+  const json = (response.headers.get('content-type') || '').includes('json');
+  const answer = json ? await response.json() : { error: `${file.name}: ${response.status} ${await response.text()}` };
   if (!response.ok) {
     error.textContent = answer.error;
     error.hidden = false;
@@ -651,16 +667,29 @@ function confirmThen(text, warning, action) {
   $('#confirm-cancel').onclick = close;
 }
 
+// What the operator should know before sending: a mission it replaces, targets no UAV will
+// fly, team UAVs that will take no part.
+function sendWarnings(members, count) {
+  const warnings = [];
+  if (missionInFlight()) warnings.push(`Mission ${state.mission.mission} is in flight: this mission replaces it.`);
+  if (count > members.length) {
+    warnings.push(`${count} targets for ${members.length} UAV(s): ${count - members.length} will stay unserved.`);
+  }
+  const off = state.uavs.filter((u) => members.includes(u.id) && u.enabled === false).map((u) => u.id);
+  if (off.length) warnings.push(`Module off on UAV ${off.join(', ')}: it takes no part.`);
+  const lost = state.uavs.filter((u) => members.includes(u.id) && u.link_lost).map((u) => u.id);
+  if (lost.length) warnings.push(`Autopilot link lost on UAV ${lost.join(', ')}: it cannot fly.`);
+  return warnings;
+}
+
 function sendTargets() {
   const members = team();
   if (!members.length) return notice('no team: click UAVs in the list to select them', false);
   if (!state.targets.length) return notice('no targets: click the map to add some', false);
   const targets = state.targets.map((t) => ({ lat: t.lat, lon: t.lon, alt: t.alt }));
-  const warning = missionInFlight()
-    ? `Mission ${state.mission.mission} is in flight: this mission replaces it.` : '';
   confirmThen(
     `Send ${targets.length} target(s) to the team of ${members.length} UAV(s): ${members.join(', ')}?`,
-    warning,
+    sendWarnings(members, targets.length).join(' '),
     () => command({ cmd: 'send', team: members, targets }),
   );
 }

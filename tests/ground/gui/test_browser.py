@@ -32,6 +32,7 @@ from fleet.geo.mercator import MercatorProjection
 from fleet.launch.launcher import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets
+from ground.gui.server import MAX_UPLOAD
 from tests.support.ground_view import GroundView
 from tests.support.processes import Child, client_session, start
 from tests.support.waiting import wait_until
@@ -289,6 +290,9 @@ def test_the_thesis_scenario_from_the_page(
             browser.find_element(By.ID, "send").click()
             question = text_of(browser, "confirm-text")
             assert "3 target(s)" in question and "74, 112" in question
+            assert "3 targets for 2 UAV(s): 1 will stay unserved" in text_of(
+                browser, "confirm-warning"
+            )
             assert not sent.missions, "sent before the operator confirmed"
             browser.find_element(By.ID, "confirm-ok").click()
 
@@ -387,6 +391,13 @@ def test_every_press_takes_effect_the_first_time_while_telemetry_flows(
     wait_for(browser, "3 targets", lambda e: len(target_marks(e)) == 3, 10.0)
     press(browser, "#target-list [data-delete='2']")
     assert len(target_marks(browser.execute_script(READ_MAP))) == 2
+    # Load asks before it replaces targets on the map; a file over the upload limit is
+    # refused with a message, not silently.
+    drop_file(browser, "big.bin", b"\x00" * (MAX_UPLOAD + 24))
+    assert "Replace the 2 target(s) on the map with big.bin's?" in text_of(browser, "confirm-text")
+    browser.find_element(By.ID, "confirm-ok").click()
+    wait_until(lambda: "413" in text_of(browser, "load-error"), 10.0, "the upload limit's refusal")
+    assert len(target_marks(browser.execute_script(READ_MAP))) == 2  # nothing lost
     # Per-UAV abort: once a mission is in flight, one press asks to confirm.
     browser.find_element(By.ID, "send").click()
     browser.find_element(By.ID, "confirm-ok").click()
