@@ -40,7 +40,7 @@ from pathlib import Path
 from typing import Any
 
 import msgspec
-from aiohttp import WSMsgType, web
+from aiohttp import WSCloseCode, WSMsgType, web
 
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import Target
@@ -108,7 +108,14 @@ class GuiServer:
         app.router.add_post("/api/targets/import", self._api_import)
         app.router.add_post("/api/targets/export", self._api_export)
         app.cleanup_ctx.append(self._fleet_context)
+        app.on_shutdown.append(self._close_sockets)
         return app
+
+    async def _close_sockets(self, app: web.Application) -> None:
+        # On shutdown, before the server waits for its handlers to finish: an open page's
+        # socket handler would otherwise hold the stop until its time-out.
+        for ws in list(self.sockets):
+            await ws.close(code=WSCloseCode.GOING_AWAY, message=b"server stopping")
 
     async def _fleet_context(self, app: web.Application) -> AsyncIterator[None]:
         loop = asyncio.get_running_loop()
@@ -137,8 +144,6 @@ class GuiServer:
                 for task in tasks:
                     task.cancel()
                 await asyncio.gather(*tasks, return_exceptions=True)
-                for ws in list(self.sockets):
-                    await ws.close()
 
     def _on_status(self, status: StatusRecord) -> None:
         self.model.add_status(status)

@@ -224,3 +224,30 @@ def test_listening_beyond_loopback_needs_allow_remote() -> None:
     done = run_cli("gui", "--listen", "0.0.0.0:8321", endpoint=None)
     assert done.returncode == 2
     assert "not loopback" in done.stderr and "--allow-remote" in done.stderr
+
+
+def test_sigterm_with_a_page_open_closes_its_socket_as_going_away(
+    router: str, fakes: dict[int, FakeOnboard]
+) -> None:
+    child, url = start_gui(router)
+
+    async def open_page_then_stop() -> tuple[int | None, int]:
+        async with (
+            aiohttp.ClientSession() as session,
+            session.ws_connect(url.replace("http", "ws") + "/ws", origin=url) as ws,
+        ):
+            await ws.receive_json()  # the first snapshot: the page is open
+            child.process.terminate()
+            closing = (aiohttp.WSMsgType.CLOSE, aiohttp.WSMsgType.CLOSED, aiohttp.WSMsgType.CLOSING)
+            for _ in range(10_000):  # snapshots until the close (bounded)
+                if (await ws.receive()).type in closing:
+                    break
+            return ws.close_code, await asyncio.to_thread(child.process.wait, 60)
+
+    try:
+        code, status = asyncio.run(open_page_then_stop())
+    finally:
+        child.stop()
+    # Told it is going away at once, not left until the server's shutdown time-out.
+    assert code == aiohttp.WSCloseCode.GOING_AWAY
+    assert status == 0
