@@ -69,8 +69,10 @@ class CatchUp:
         the last catch-ups' span."""
         return self._ticks_missed(now) or now - self._resumed_at <= CATCH_UP_AFTER_SUSPENSION_S[-1]
 
-    def tick(self, now: float) -> None:
-        if self._ticks_missed(now):
+    def tick(self, now: float) -> bool:
+        """Run the catch-ups due; True if this tick noticed that the module was suspended."""
+        suspended = self._ticks_missed(now)
+        if suspended:
             assert self._ticked_at is not None
             self._resumed_at = now
             # Frozen shorter than Zenoh's lease, no teammate seemed to come back, and
@@ -82,3 +84,4 @@ class CatchUp:
             self._due.pop(0)
             self.request(now, force=True)
         self._ticked_at = now
+        return suspended

@@ -204,7 +204,8 @@ class OnboardCore:
 
     # ---- time --------------------------------------------------------------------------------
     def tick(self, now: float) -> None:
-        self.mission.catch_up.tick(now)
+        if self.mission.catch_up.tick(now) and self.round is not None:
+            self.round.resume(now)  # the catch-up asked the team what it missed
         self.flight.commands.tick(now)
         self.mission.release_gone(now)
         self.mission.collect_plan(now)

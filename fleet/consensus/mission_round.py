@@ -143,6 +143,10 @@ class MissionRound:
     #: suspended, not as it was sent: the team may have decided already, maybe with
     #: this UAV's result from before a restart.
     late: bool = False
+    #: This UAV was suspended (frozen) while the round was open: what the team decided
+    #: or the ground aborted meanwhile may still wait in its bus session's backlog,
+    #: behind the results it handled first (`must_ask`).
+    resumed: bool = False
     results: dict[int, UavResult] = field(default_factory=dict)
     #: The assignment this UAV follows now: epoch 0, or the latest re-plan.
     committed: AssignmentReport | None = None
@@ -229,12 +233,23 @@ class MissionRound:
         """Whether this UAV's own decision now might not be its teammates': it would
         leave a team UAV's result out (a teammate may hold it and have committed with
         it), or the round was learnt late (by catch-up, or after a freeze: the team may
-        have committed without this UAV, or with its result from before a restart).
-        Teammates' commitments are not heard live, so such a UAV asks for them before
-        it decides, and adopts one that is not thinner than what it holds. A UAV that
-        holds every team UAV's result, heard live, decides what its teammates decide
-        from the same results."""
-        return self.late or bool(self.excluded(alive))
+        have committed without this UAV, or with its result from before a restart), or
+        it was open across a freeze (`resumed`: a commitment or an abort sent meanwhile
+        may still be queued behind the results handled first; the question's answers
+        come after that backlog). Teammates' commitments are not heard live, so such a
+        UAV asks for them before it decides, and adopts one that is not thinner than
+        what it holds. A UAV that holds every team UAV's result, heard live, decides
+        what its teammates decide from the same results."""
+        return self.late or self.resumed or bool(self.excluded(alive))
+
+    def resume(self, now: float) -> None:
+        """This UAV was suspended and has just asked its team what it missed (the live
+        mission, its assignments, its abort): an undecided round waits for the answers
+        (`must_ask`, `asking`), which come after the bus session's backlog, so that an
+        abort or a commitment sent meanwhile is handled before it decides."""
+        if self.committed is None:
+            self.resumed = True
+            self.asked_at = now
 
     def asking(self, now: float) -> bool:
         """Still waiting for the answers to the question `must_ask` called for."""

@@ -315,3 +315,48 @@ def test_two_grounds_racing_an_unheld_team_exactly_one_reports_success(
     assert finished[winner][0] == 0, errs
     assert (reports[loser]["success"], reports[loser]["superseded_by"]) == (False, later), errs
     assert finished[loser][0] == 1, errs
+
+
+def test_an_abort_queued_while_a_uav_holding_its_result_is_frozen_is_final(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    # The sleeper publishes its result and is frozen before it holds its teammate's;
+    # the teammate's result and the abort then wait in the sleeper's bus session. On
+    # SIGCONT (within Zenoh's lease: nobody saw it go) the result used to be handled,
+    # and the decision taken on the next tick, before the abort behind it.
+    sleeper, teammate = start_ring(fleet, ground, tmp_path, 2)
+    seen = ground.seen
+    frozen, other = fleet.onboard_child(sleeper), fleet.onboard_child(teammate)
+    other.process.send_signal(signal.SIGSTOP)  # so the sleeper's result comes first
+    try:
+        mission = MissionTargets(
+            mission=1, team=(sleeper, teammate), targets=ring_targets(2, seed=21), deadline_s=60.0
+        )
+        ground.send(mission)
+        wait_until(lambda: sleeper in seen.results, 30.0, f"UAV {sleeper}'s result")
+        frozen.process.send_signal(signal.SIGSTOP)  # the fault: it holds its own result only
+        frozen_at = time.monotonic()
+    finally:
+        other.process.send_signal(signal.SIGCONT)
+    try:
+        wait_until(lambda: teammate in seen.results, 30.0, f"UAV {teammate}'s result")
+        abort = ground_cli(ground.router, "--query-timeout", "0.3", "abort")
+        status, out, err = finish(abort, 30)
+        assert status == 1 and f"{sleeper} (no answer)" in err, out + err  # unconfirmed
+        assert time.monotonic() - frozen_at < 8.0, "frozen past Zenoh's lease"
+    finally:
+        frozen.process.send_signal(signal.SIGCONT)
+
+    def aborted() -> bool:
+        return any(s.startswith("mission 1 aborted") for s in seen.statuses(sleeper))
+
+    # Its statuses and assignments go out in the order it acted: a commitment made
+    # before it handled the abort would be seen before this.
+    wait_until(aborted, 30.0, f"UAV {sleeper} handling the abort")
+    status, out, err = finish(ground_cli(ground.router, "uavs", "--json"), 30)
+    rows = {row["id"]: row for row in json.loads(out)}
+    assert rows[sleeper]["phase"] == "aborted", rows[sleeper]
+    assert rows[sleeper]["tracked_waypoint"] != TARGET_WAYPOINT, rows[sleeper]
+    assert sleeper not in seen.assignments, seen.assignments[sleeper]
+    assert not any("chosen" in s for s in seen.statuses(sleeper)), seen.statuses(sleeper)
+    assert TARGET_WAYPOINT not in seen.tracks.get(sleeper, []), seen.tracks[sleeper]

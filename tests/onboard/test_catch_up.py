@@ -9,9 +9,12 @@ from fleet.consensus.mission_round import JOIN_GRACE_S
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
+    MissionAbort,
     MissionTargets,
     UavResult,
 )
+from fleet.mission.phase import Phase
+from fleet.piccolo.waypoint import Waypoint
 from onboard.catch_up import CatchUp
 from onboard.core import (
     CATCH_UP_INTERVAL_S,
@@ -21,6 +24,7 @@ from tests.onboard.core_harness import (
     Recorder,
     make_core,
 )
+from tests.support.link_samples import sample_telemetry
 
 SPACE = KeySpace()
 
@@ -128,3 +132,27 @@ def test_a_catch_up_asks_for_the_current_missions_assignments_too() -> None:
     mission[0] = 4
     catch_up.request(CATCH_UP_INTERVAL_S, force=True)
     assert (out.mission_fetches, out.assignment_fetches) == (2, [4])
+
+
+def test_a_round_open_across_a_freeze_waits_for_the_team_so_a_queued_abort_is_final() -> None:
+    # Frozen holding its own result; meanwhile the teammate's result and the mission's
+    # abort were sent. On resume the result is handled, then a tick comes before the
+    # abort (still in the bus session's backlog): the decision must not go ahead.
+    core, out = make_core(74, (5.0, 50.0, 50.0))
+    core.on_alive(112, True, 0.0)
+    core.on_targets(MissionTargets(mission=8, team=(74, 112), targets=TARGETS), 0.0)
+    core.tick(0.1)  # its own result is published; 112's is awaited
+    assert core.round is not None and core.round.results.keys() == {74}
+    fetches = len(out.assignment_fetches)
+    core.on_telemetry(sample_telemetry(), 6.1)
+    core.on_result(UavResult(8, 112, (50.0, 10.0, 50.0)), 6.1)  # the first event after it
+    core.tick(6.15)  # ready to decide, but it asked the team what it missed: it waits
+    assert core.round.committed is None
+    assert out.assignment_fetches[fetches:] == [8]  # the abort's relay among them
+    core.on_abort(MissionAbort(8), 6.2)  # the backlog's abort
+    for step in range(25, 60):
+        core.tick(6.0 + step / 10)
+    assert core.phase == Phase.ABORTED
+    assert core.round.committed is None
+    assert not out.on(SPACE.mission_assignment(8, 74))
+    assert not any(isinstance(c, Waypoint) for c in out.autopilot)
