@@ -128,22 +128,27 @@ class MissionOutcome:
 
     def note_state(self, state: UavState) -> None:
         """A team UAV's phase (and reason) as its own state query answered it."""
-        self.phases[state.uav] = str(state.phase)
-        if state.reason:
-            self.reasons[state.uav] = state.reason
-        if state.mission is not None:
-            self.phase_missions[state.uav] = state.mission.mission
+        mission = state.mission.mission if state.mission is not None else None
+        self.note_phase(state.uav, str(state.phase), state.reason, mission)
 
-    def ended_short(self, uav: int, target: int) -> tuple[Phase, str | None] | None:
+    def note_phase(self, uav: int, phase: str, reason: str | None, mission: int | None) -> None:
+        """A team UAV's phase (and reason), reported while in `mission`."""
+        self.phases[uav] = phase
+        if reason:
+            self.reasons[uav] = reason
+        if mission is not None:
+            self.phase_missions[uav] = mission
+
+    def ended_short(self, uav: int, target: int) -> tuple[Phase, str] | None:
         """How `uav`'s part in `target` ended short of reaching it (preempted, failed,
         aborted) and why; None while it still holds the target. Its own TargetOutcome
         for the target says it first; else the phase it reports in this mission."""
         outcome = self.outcomes.get(uav)
         if outcome is not None and outcome.phase in ENDED_SHORT and outcome.target == target:
-            return outcome.phase, outcome.reason
+            return outcome.phase, outcome.reason or f"UAV {uav} {outcome.phase}"
         phase = self.phases.get(uav)
         if phase in ENDED_SHORT and self.phase_missions.get(uav) == self.mission:
-            return Phase(phase), self.reasons.get(uav)
+            return Phase(phase), self.reasons.get(uav) or f"UAV {uav} {phase}"
         return None
 
     def holders(self) -> dict[int, int]:
@@ -179,8 +184,7 @@ class MissionOutcome:
                 if ended is None:
                     states.append({"index": index, "state": "assigned", "uav": holder})
                 else:
-                    phase, reason = ended
-                    why = reason or f"UAV {holder} {phase}"
+                    phase, why = ended
                     states.append(
                         {"index": index, "state": str(phase), "uav": holder, "reason": why}
                     )

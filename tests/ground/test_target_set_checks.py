@@ -21,7 +21,10 @@ pytestmark = pytest.mark.e2e
     [
         (Target(42.3602, -71.0901, 120.0), "targets 0 and 3: 14 m apart"),
         (Target(35.72, -120.76, 600.0), "target 3: 4290 km from the nearest team UAV (74)"),
-        (Target(-42.36, 108.91, 100.0), "target 3: 20014 km from the nearest team UAV (74): on the far side"),
+        (
+            Target(-42.36, 108.91, 100.0),
+            "target 3: 20014 km from the nearest team UAV (74): on the far side",
+        ),
     ],
     ids=["duplicate", "beyond-reach", "antipode"],
 )
