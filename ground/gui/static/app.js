@@ -362,7 +362,9 @@ function drawUavList() {
     });
     opm.appendChild(toggle);
     const m = state.mission;
-    if (m && !m.aborted && m.team.includes(u.id)) {
+    // A UAV already aborted in this mission has nothing left to abort.
+    const done = m && u.mission === m.mission && u.phase === 'aborted';
+    if (m && !m.aborted && !done && m.team.includes(u.id)) {
       const stop = html('button', 'abort', {
         type: 'button', 'data-abort': u.id, title: 'abort this UAV alone; its teammates fly on',
       });
