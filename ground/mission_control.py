@@ -128,7 +128,5 @@ def mission_status(
     outcome.lost = {uav for uav in targets.team if uav not in states}
     for uav, state in states.items():
         if uav in outcome.team:
-            outcome.phases[uav] = str(state.phase)
-            if state.reason:
-                outcome.reasons[uav] = state.reason
+            outcome.note_state(state)
     return outcome

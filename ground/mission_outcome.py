@@ -10,7 +10,9 @@ Taking part: a UAV whose liveliness token went away while the ground waited is *
 one that published a result with no time at all *declined* (module off, link lost, no
 GPS). Neither is waited for nor counted as agreeing; `agreed` is about the UAVs that
 took part, and every target gets a state: `reached` (by whom), `assigned` (to whom, at
-the latest re-plan epoch) or `unserved` (why).
+the latest re-plan epoch), `preempted`, `failed` or `aborted` (its holder's part ended
+there without reaching it: which UAV, why) or `unserved` (why). A target whose holder's
+part ended short of it is not a success: the mission says so until someone reaches it.
 
 Pure: no I/O.
 """
@@ -29,10 +31,15 @@ from fleet.mission.messages import (
     Target,
     TargetOutcome,
     UavResult,
+    UavState,
 )
 from fleet.mission.phase import Phase
 
 log = logging.getLogger(__name__)
+
+#: A holder's phases that end its claim on its target short of reaching it: the target
+#: shows the phase, and the mission is no success while such a target is not reached.
+ENDED_SHORT = frozenset({Phase.PREEMPTED, Phase.FAILED, Phase.ABORTED})
 
 
 def _report_identity(report: AssignmentReport) -> tuple[str, tuple[tuple[int, int], ...]]:
@@ -77,6 +84,9 @@ class MissionOutcome:
     lost: set[int] = field(default_factory=set)  #: liveliness gone while the ground waited
     phases: dict[int, str] = field(default_factory=dict)  #: each UAV's phase at the end
     reasons: dict[int, str] = field(default_factory=dict)
+    #: The mission each UAV's phase is about: a phase of a later mission says nothing
+    #: about this mission's targets.
+    phase_missions: dict[int, int] = field(default_factory=dict)
     #: A higher mission that reached the team while the ground followed this one
     superseded_by: int | None = None
 
@@ -116,6 +126,31 @@ class MissionOutcome:
     def committed(self) -> bool:
         return bool(self.taking_part) and all(uav in self.assignments for uav in self.taking_part)
 
+    def note_state(self, state: UavState) -> None:
+        """A team UAV's phase (and reason) as its own state query answered it."""
+        mission = state.mission.mission if state.mission is not None else None
+        self.note_phase(state.uav, str(state.phase), state.reason, mission)
+
+    def note_phase(self, uav: int, phase: str, reason: str | None, mission: int | None) -> None:
+        """A team UAV's phase (and reason), reported while in `mission`."""
+        self.phases[uav] = phase
+        if reason:
+            self.reasons[uav] = reason
+        if mission is not None:
+            self.phase_missions[uav] = mission
+
+    def ended_short(self, uav: int, target: int) -> tuple[Phase, str] | None:
+        """How `uav`'s part in `target` ended short of reaching it (preempted, failed,
+        aborted) and why; None while it still holds the target. Its own TargetOutcome
+        for the target says it first; else the phase it reports in this mission."""
+        outcome = self.outcomes.get(uav)
+        if outcome is not None and outcome.phase in ENDED_SHORT and outcome.target == target:
+            return outcome.phase, outcome.reason or f"UAV {uav} {outcome.phase}"
+        phase = self.phases.get(uav)
+        if phase in ENDED_SHORT and self.phase_missions.get(uav) == self.mission:
+            return Phase(phase), self.reasons.get(uav) or f"UAV {uav} {phase}"
+        return None
+
     def holders(self) -> dict[int, int]:
         """Target index -> the UAV holding it at the latest epoch: a UAV still showing an
         earlier epoch (dead, or not yet re-planned) holds nothing here."""
@@ -127,7 +162,8 @@ class MissionOutcome:
         }
 
     def target_states(self) -> list[dict[str, Any]]:
-        """Each target's state: reached (by whom), assigned (to whom) or unserved (why;
+        """Each target's state: reached (by whom), assigned (to whom), preempted, failed
+        or aborted (its holder's part ended short of it: who, why) or unserved (why;
         every target not reached is unserved once a later mission superseded this one)."""
         taking_part = set(self.taking_part)
         holders = {t: uav for t, uav in self.holders().items() if uav in taking_part}
@@ -144,7 +180,14 @@ class MissionOutcome:
                 continue
             holder = holders.get(index)
             if holder is not None:
-                states.append({"index": index, "state": "assigned", "uav": holder})
+                ended = self.ended_short(holder, index)
+                if ended is None:
+                    states.append({"index": index, "state": "assigned", "uav": holder})
+                else:
+                    phase, why = ended
+                    states.append(
+                        {"index": index, "state": str(phase), "uav": holder, "reason": why}
+                    )
                 continue
             if not self.committed:
                 why = "the team did not commit"
@@ -157,14 +200,17 @@ class MissionOutcome:
 
     @property
     def succeeded(self) -> bool:
-        """The truth behind the exit code: the team agreed and no target was left unserved
-        while a UAV taking part had none, and no later mission superseded it."""
+        """The truth behind the exit code: the team agreed, no target was left unserved
+        while a UAV taking part had none, no target's holder ended short of it (preempted,
+        failed, aborted) without someone else reaching it, and no later mission
+        superseded it."""
         if self.superseded_by is not None:
             return False
         if not self.committed or not self.agreement.agreed:
             return False
         return not any(
-            s["state"] == "unserved" and "had no target" in s["reason"]
+            (s["state"] == "unserved" and "had no target" in s["reason"])
+            or s["state"] in ENDED_SHORT
             for s in self.target_states()
         )
 

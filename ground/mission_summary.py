@@ -41,6 +41,11 @@ def summary_lines(outcome: MissionOutcome) -> list[str]:
             lines.append(f"  target {target['index']}: unserved: {target['reason']}")
         elif target["state"] == "reached":
             lines.append(f"  target {target['index']}: reached by UAV {target['uav']}")
+        elif target["state"] != "assigned":
+            lines.append(
+                f"  target {target['index']}: {target['state']} (UAV {target['uav']}): "
+                f"{target['reason']}"
+            )
     unassigned = outcome.unassigned()
     lines.append(f"  unassigned targets: {', '.join(map(str, unassigned)) or 'none'}")
     if outcome.superseded_by is not None:

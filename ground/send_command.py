@@ -235,9 +235,7 @@ def _read_phases(
     on a later mission means this one was superseded."""
     for uav, state in query_states(bus, space, timeout_s).items():
         if uav in outcome.team:
-            outcome.phases[uav] = str(state.phase)
-            if state.reason:
-                outcome.reasons[uav] = state.reason
+            outcome.note_state(state)
             if state.mission is not None:
                 follower.note_later_mission(state.mission.mission)
     outcome.superseded_by = follower.superseded_by

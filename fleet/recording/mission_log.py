@@ -9,7 +9,12 @@ Every event is one observed in the recording, never inferred from a plan:
 * reached: the UAV said so (a `reached` status message, or state phase "reached"), or
   its track left the target waypoint (the autopilot passed it), whichever was heard
   first;
-* resumed: that track change back to its own course.
+* resumed: that track change back to its own course;
+* ended short: the UAV's part ended without reaching its target: the ground's abort
+  (of the team, or of this UAV alone) was heard, or the UAV's state said `aborted`,
+  `preempted` or `failed` in this mission. Such a UAV's track change back to its
+  course is the abort (or the operator's re-tasking), not an arrival: it is never
+  counted as reached, and no flown time is given for it.
 
 Flown time is measured on the aircraft's own clock (telemetry `system_time_ms`) from
 the UAV's commitment to its arrival, so it compares with the predicted ETA whatever
@@ -38,11 +43,13 @@ from fleet.mission.messages import (
     Target,
     UavResult,
 )
-from fleet.mission.phase import Severity
+from fleet.mission.phase import Phase, Severity
 from fleet.mission.status_kind import StatusKind
 from fleet.recording.reader import RecordedMessage
 
 NS = 1_000_000_000
+#: The phases (as recorded) that end a UAV's part short of its target.
+_ENDED_SHORT = frozenset({Phase.ABORTED, Phase.PREEMPTED, Phase.FAILED})
 #: Tokens that go in the recording's last seconds are the fleet being stopped, not a fault.
 SHUTDOWN_S = 2.0
 
@@ -86,6 +93,9 @@ class MissionLog:
     reached_how: dict[int, str] = field(default_factory=dict)
     resumed: dict[int, float] = field(default_factory=dict)
     flown_s: dict[int, float] = field(default_factory=dict)
+    #: UAVs whose part ended short of their target: when, and how (aborted, preempted,
+    #: failed); never one that reached.
+    ended: dict[int, tuple[float, str]] = field(default_factory=dict)
     faults: list[tuple[float, str]] = field(default_factory=list)
 
     def target_of(self, uav: int) -> int | None:
@@ -186,6 +196,8 @@ class _Builder:
     gone: list[tuple[float, int]] = field(default_factory=list)
     link_down: list[tuple[float, int, str]] = field(default_factory=list)
     link_was_down: dict[int, bool] = field(default_factory=dict)
+    #: (t, mission, uav): an abort heard; uav None aborts the team
+    aborts: list[tuple[float, int, int | None]] = field(default_factory=list)
     end: float = 0.0
     undecodable: int = 0
 
@@ -255,7 +267,11 @@ class _Builder:
                 log.assignments.setdefault(report.uav, report)
                 log.committed.setdefault(report.uav, t)
         elif kind == "abort" and (log := self.missions.get(int(value["mission"]))) is not None:
-            log.faults.append((t, f"mission {log.mission} aborted by the ground"))
+            alone = value.get("uav")
+            uav = None if alone is None else int(alone)
+            self.aborts.append((t, log.mission, uav))
+            who = "" if uav is None else f" for UAV {uav} alone"
+            log.faults.append((t, f"mission {log.mission} aborted by the ground{who}"))
 
     def finish(self, end: float) -> Timeline:
         self.end = end
@@ -287,12 +303,30 @@ class _Builder:
                 for t, who, mission, phase in self.phases
                 if who == uav and mission == log.mission and phase == "reached" and t <= log.end
             ]
-            if uav in log.resumed:
+            ended = self._ended_short(log, uav)
+            if uav in log.resumed and ended is None:
                 said.append((log.resumed[uav], "track"))
             if said:
                 when, how = min(said)
                 log.reached[uav], log.reached_how[uav] = when, how
                 self._flown(log, uav, committed, when)
+            elif ended is not None:
+                log.ended[uav] = ended
+
+    def _ended_short(self, log: MissionLog, uav: int) -> tuple[float, str] | None:
+        """When and how the UAV's part in the mission ended short of its target, first
+        heard: the ground's abort, or its own state saying aborted, preempted, failed."""
+        heard = [
+            (t, "aborted")
+            for t, mission, who in self.aborts
+            if mission == log.mission and who in (None, uav)
+        ]
+        heard += [
+            (t, phase)
+            for t, who, mission, phase in self.phases
+            if who == uav and mission == log.mission and phase in _ENDED_SHORT and t <= log.end
+        ]
+        return min(heard) if heard else None
 
     def _flown(self, log: MissionLog, uav: int, committed: float, reached: float) -> None:
         track = self.tracks.get(uav)
@@ -317,6 +351,9 @@ class _Builder:
         for uav in log.team:
             if uav not in log.committed:
                 log.faults.append((log.end, f"UAV {uav} never committed"))
+            elif uav in log.ended:
+                t, how = log.ended[uav]
+                log.faults.append((t, f"UAV {uav} {how}: its target not reached"))
             elif log.target_of(uav) is not None and uav not in log.reached:
                 log.faults.append((log.end, f"UAV {uav} not seen to reach its target"))
         if log.committed and all(u in log.committed for u in log.team) and not log.agreed:

@@ -211,6 +211,8 @@ def _targets(
             continue
         if uav in log.reached and log.reached[uav] <= panel.at:
             continue  # reached: the line has done its job
+        if uav in log.ended and log.ended[uav][0] <= panel.at:
+            continue  # aborted, preempted, failed: nobody flies that line any more
         position = track.position(panel.at)
         if position is None:
             continue
@@ -235,8 +237,10 @@ def _arrival_panel(ax: Axes, log: MissionLog, order: list[int]) -> None:
             (width / 2, flown, None, 0.9),
         ):
             if value is None:
+                ended = log.ended.get(uav)
+                missing = "not reached" if ended is None else f"{ended[1]}, not reached"
                 ax.annotate(
-                    "not reached" if offset > 0 else "no ETA",
+                    missing if offset > 0 else "no ETA",
                     (p + offset, 0),
                     ha="center",
                     va="bottom",

@@ -27,6 +27,9 @@ def mission_json(log: MissionLog) -> dict[str, Any]:
         "flown_s": {str(uav): _round(log.flown_s.get(uav)) for uav in log.team},
         "reached": {str(uav): uav in log.reached for uav in log.team},
         "reached_how": {str(uav): how for uav, how in log.reached_how.items()},
+        "ended": {
+            str(uav): {"at_s": round(t, 3), "how": how} for uav, (t, how) in log.ended.items()
+        },
         "sent_at_s": round(log.sent, 3),
         "send_to_commit_s": None if committed is None else round(committed - log.sent, 3),
         "faults": [{"at_s": round(t, 3), "what": what} for t, what in log.faults],
@@ -80,11 +83,14 @@ def _mission_lines(log: MissionLog) -> list[str]:
         arrival = ""
         if target is not None:
             flown = log.flown_s.get(uav)
-            arrival = f"; predicted {_seconds(log.predicted_s(uav))}, " + (
-                f"flown {_seconds(flown)} ({log.reached_how[uav]})"
-                if uav in log.reached
-                else "NOT reached"
-            )
+            if uav in log.reached:
+                outcome = f"flown {_seconds(flown)} ({log.reached_how[uav]})"
+            elif uav in log.ended:
+                at, how = log.ended[uav]
+                outcome = f"{how.upper()} at {at:.1f} s, NOT reached"
+            else:
+                outcome = "NOT reached"
+            arrival = f"; predicted {_seconds(log.predicted_s(uav))}, {outcome}"
         lines.append(f"  UAV {uav}: {choice}; {times}{arrival}")
     lines.append(f"  agreed: {'yes' if log.agreed else 'no'}")
     lines.append(

@@ -51,7 +51,13 @@ class TargetState(StrEnum):
     ASSIGNED = "assigned"
     REACHED = "reached"
     UNSERVED = "unserved"  #: every UAV committed and none took it
-    ABORTED = "aborted"
+    ABORTED = "aborted"  #: the mission, or its holder alone, was aborted short of it
+    FAILED = "failed"  #: its holder could not fly it
+    PREEMPTED = "preempted"  #: its holder's autopilot left the route short of it
+
+
+#: States in which a target has no live claim: no assignment line, no ETA.
+_ENDED = frozenset({TargetState.ABORTED, TargetState.FAILED, TargetState.PREEMPTED})
 
 
 @dataclass(frozen=True)
@@ -78,7 +84,9 @@ def target_states(
     """Each target's state, who it is assigned to and that UAV's ETA.
 
     `reached` holds the UAVs seen to reach their target in this mission (sticky: a
-    UAV's phase moves on after it reached).
+    UAV's phase moves on after it reached). A target whose holder's part ended short of
+    it (its phase noted in `outcome`: aborted alone, failed, preempted) shows that, with
+    the UAV and no ETA: nobody is flying to it.
     """
     owner = outcome.holders()
     reached_by = outcome.reached_by()
@@ -89,23 +97,27 @@ def target_states(
         says_reached = (
             view is not None and view.mission == outcome.mission and view.phase == "reached"
         )
+        ended = outcome.ended_short(uav, index) if uav is not None else None
         if index in reached_by or (uav is not None and (uav in reached or says_reached)):
             state = TargetState.REACHED
         elif uav is None and outcome.committed:
             state = TargetState.UNSERVED
+        elif ended is not None:
+            state = TargetState(str(ended[0]))
         elif aborted:
             state = TargetState.ABORTED
         else:
             state = TargetState.PENDING if uav is None else TargetState.ASSIGNED
         report = outcome.assignments.get(uav) if uav is not None else None
-        states.append(
-            {
-                "index": index,
-                "state": str(state),
-                "uav": uav,
-                "eta_s": report.eta_s if report is not None else None,
-            }
-        )
+        entry: dict[str, Any] = {
+            "index": index,
+            "state": str(state),
+            "uav": uav,
+            "eta_s": report.eta_s if report is not None and state not in _ENDED else None,
+        }
+        if ended is not None and state in _ENDED:
+            entry["reason"] = ended[1]
+        states.append(entry)
     return states
 
 
@@ -163,6 +175,10 @@ class GuiModel:
     ) -> dict[str, Any] | None:
         if outcome is None:
             return None
+        for view in views:
+            # What each UAV reports decides its target's state and the mission's success.
+            if view.id in outcome.team and view.phase is not None:
+                outcome.note_phase(view.id, view.phase, view.reason, view.mission)
         data = outcome.to_json()
         by_id = {view.id: view for view in views}
         reached = {uav for mission, uav in self.reached if mission == outcome.mission}

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fleet.mission.messages import AssignmentReport, TargetOutcome
+from fleet.mission.messages import AssignmentReport, MissionProgress, TargetOutcome, UavState
 from fleet.mission.phase import Phase
 from ground.mission_outcome import MissionOutcome
 from ground.mission_summary import summary_lines
@@ -43,3 +43,62 @@ def test_after_a_re_plan_a_target_belongs_to_its_latest_epoch_holder() -> None:
     outcome.outcomes = {103: TargetOutcome(1, 103, 0, Phase.REACHED)}
     assert outcome.target_states()[0] == {"index": 0, "state": "reached", "uav": 103}
     assert outcome.succeeded
+
+
+def _two_committed(mission: int = 4) -> MissionOutcome:
+    """UAVs 101 and 102 agreed: 101 holds target 0, 102 target 1."""
+    pairs = {101: 0, 102: 1}
+    outcome = MissionOutcome(mission=mission, team=(101, 102), targets=TARGETS[:2])
+    outcome.assignments = {
+        uav: AssignmentReport(mission, uav, target, pairs, (), (101, 102), "d")
+        for uav, target in pairs.items()
+    }
+    return outcome
+
+
+def _state(uav: int, phase: Phase, mission: int, reason: str | None = None) -> UavState:
+    progress = MissionProgress(mission=mission, phase=phase, targets=2)
+    return UavState(uav, True, 1.0, None, None, None, progress, phase=phase, reason=reason)
+
+
+def test_a_target_whose_holder_aborted_reads_aborted_and_the_mission_fails() -> None:
+    outcome = _two_committed()
+    assert outcome.succeeded
+    outcome.note_state(_state(101, Phase.ABORTED, 4))
+    outcome.note_state(_state(102, Phase.FLYING, 4))
+    states = {s["index"]: s for s in outcome.target_states()}
+    assert states[0] == {"index": 0, "state": "aborted", "uav": 101, "reason": "UAV 101 aborted"}
+    assert states[1] == {"index": 1, "state": "assigned", "uav": 102}
+    assert outcome.to_json()["success"] is False
+    assert "  target 0: aborted (UAV 101): UAV 101 aborted" in summary_lines(outcome)
+
+
+def test_a_holder_s_failed_or_preempted_outcome_names_the_phase_and_reason() -> None:
+    outcome = _two_committed()
+    outcome.outcomes = {
+        101: TargetOutcome(4, 101, 0, Phase.FAILED, "no echo"),
+        102: TargetOutcome(4, 102, 1, Phase.PREEMPTED, "left the route"),
+    }
+    states = outcome.target_states()
+    assert [(s["state"], s["uav"], s["reason"]) for s in states] == [
+        ("failed", 101, "no echo"),
+        ("preempted", 102, "left the route"),
+    ]
+    assert not outcome.succeeded
+
+
+def test_an_aborted_target_reached_by_its_holder_stays_reached_and_a_success() -> None:
+    outcome = _two_committed()
+    outcome.outcomes = {
+        101: TargetOutcome(4, 101, 0, Phase.REACHED),
+        102: TargetOutcome(4, 102, 1, Phase.REACHED),
+    }
+    outcome.note_state(_state(101, Phase.ABORTED, 4))
+    assert [s["state"] for s in outcome.target_states()] == ["reached", "reached"]
+    assert outcome.succeeded
+
+
+def test_a_phase_of_a_later_mission_says_nothing_about_this_one() -> None:
+    outcome = _two_committed()
+    outcome.note_state(_state(101, Phase.ABORTED, 5))
+    assert outcome.target_states()[0]["state"] == "assigned"

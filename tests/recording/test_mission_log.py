@@ -10,11 +10,15 @@ import pytest
 from fleet.mission.messages import (
     AssignmentReport,
     LinkHealth,
+    MissionAbort,
+    MissionProgress,
     MissionTargets,
     StatusText,
     Target,
     UavResult,
+    UavState,
 )
+from fleet.mission.phase import Phase
 from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from fleet.piccolo.track import Track
@@ -155,6 +159,41 @@ def test_the_report_per_mission() -> None:
     assert "UAV 1: target 0; approach 40.0, 90.0; predicted 45.0 s, flown 50.0 s" in text
     assert "UAV 2: target 1" in text and "NOT reached" in text
     assert "send -> commit: 1.50 s" in text
+
+
+def test_an_aborted_team_s_turn_back_to_course_is_no_arrival() -> None:
+    """The abort, not an arrival, took UAV 1 off its target waypoint: before, the
+    report said 'flown 50.0 s (track)'."""
+    said = [message(6.8, "fleet/mission/5/abort", MissionAbort(5))]
+    unsaid = [m for m in mission_messages() if not m.topic.endswith("/status")]
+    timeline = build_timeline([*unsaid, *said])
+    (log,) = timeline.missions
+    assert log.reached == {} and log.flown_s == {}
+    assert log.ended == {1: (6.8, "aborted"), 2: (6.8, "aborted")}
+    faults = [what for _, what in log.faults]
+    assert "mission 5 aborted by the ground" in faults
+    assert "UAV 1 aborted: its target not reached" in faults
+    (mission,) = report_json(timeline)["missions"]
+    assert mission["flown_s"] == {"1": None, "2": None}
+    assert mission["reached"] == {"1": False, "2": False}
+    assert mission["ended"]["1"] == {"at_s": 6.8, "how": "aborted"}
+    text = "\n".join(report_lines(timeline))
+    assert "UAV 1: target 0; approach 40.0, 90.0; predicted 45.0 s, ABORTED at 6.8 s" in text
+    assert "flown" not in text.split("agreed")[0].split("UAV 1:")[1]
+
+
+def test_a_uav_aborted_alone_or_preempted_is_not_reached_and_its_teammate_is() -> None:
+    progress = MissionProgress(5, Phase.PREEMPTED, 2)
+    preempted = UavState(2, True, 1.0, 0, None, None, progress, phase=Phase.PREEMPTED)
+    alone = [message(5.0, "fleet/mission/5/abort", MissionAbort(5, uav=2))]
+    (log,) = build_timeline([*mission_messages(), *alone]).missions
+    assert log.reached == {1: 7.0} and 1 in log.flown_s
+    assert log.ended == {2: (5.0, "aborted")} and 2 not in log.flown_s
+    assert "mission 5 aborted by the ground for UAV 2 alone" in [w for _, w in log.faults]
+    back = [message(6.0, "fleet/uav/2/track", Track(0))]  # off the target: not arrived
+    told = [message(6.1, "fleet/uav/2/state", preempted)]
+    (log,) = build_timeline([*mission_messages(), *back, *told]).missions
+    assert log.ended == {2: (6.1, "preempted")} and 2 not in log.reached
 
 
 def test_the_figure_is_a_png(tmp_path: Path) -> None:

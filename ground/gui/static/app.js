@@ -393,6 +393,11 @@ function newUavRow() {
   return row;
 }
 
+function abortable(m, u) {
+  const done = m && u.mission === m.mission && u.phase === 'aborted';
+  return Boolean(m && !m.aborted && !done && m.team.includes(u.id));
+}
+
 function drawUavList() {
   const body = $('#uav-list tbody');
   const members = new Set(team());
@@ -415,8 +420,9 @@ function drawUavList() {
     setText(toggle, u.enabled === false ? 'off → on' : 'on → off');
     const stop = row.querySelector('[data-abort]');
     setAttributes(stop, { 'data-abort': u.id });
-    // Hidden, not removed, so the layout under the pointer does not shift as missions come.
-    stop.style.visibility = m && !m.aborted && m.team.includes(u.id) ? 'visible' : 'hidden';
+    // Hidden, not removed, so the layout under the pointer does not shift as missions come;
+    // a UAV already aborted in this mission has nothing left to abort.
+    stop.style.visibility = abortable(m, u) ? 'visible' : 'hidden';
     return row;
   });
   placeRows(body, rows);
@@ -435,7 +441,7 @@ function onUavListClick(event) {
   }
   if (event.target.closest('[data-abort]')) {
     const m = state.mission;
-    if (!m || m.aborted || !m.team.includes(id)) return;
+    if (!abortable(m, u)) return;
     confirmThen(`Abort mission ${m.mission} for UAV ${id} alone?`,
       `UAV ${id} leaves its target and resumes its course; the rest of the team flies on.`,
       () => command({ cmd: 'abort', mission: m.mission, uav: id }));

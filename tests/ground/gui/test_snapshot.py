@@ -122,3 +122,37 @@ def test_pushes_are_bounded_by_the_rate_whatever_the_marks() -> None:
     marks, pushes, elapsed = asyncio.run(scenario())
     assert marks == 20000
     assert 1 <= pushes <= elapsed * rate_hz + 1
+
+
+def test_a_target_whose_holder_aborted_alone_reads_aborted_with_no_eta() -> None:
+    both = _outcome(_report(74, 0), _report(112, 1))
+    views = [
+        UavView(id=74, mission=3, phase="aborted"),
+        UavView(id=112, mission=3, phase="flying", target=1),
+    ]
+    mission = GuiModel().mission_json(both, views)
+    assert mission is not None
+    first, second, _ = mission["target_states"]
+    assert first == {
+        "index": 0,
+        "state": "aborted",
+        "uav": 74,
+        "eta_s": None,
+        "reason": "UAV 74 aborted",
+    }
+    assert second == {"index": 1, "state": "assigned", "uav": 112, "eta_s": 212.0}
+    assert mission["success"] is False
+
+
+def test_a_failed_or_preempted_holder_s_target_says_so_and_an_aborted_mission_has_no_eta() -> None:
+    both = _outcome(_report(74, 0), _report(112, 1))
+    both.note_phase(74, "failed", "no echo", 3)
+    both.note_phase(112, "preempted", "track to waypoint 1", 3)
+    states = target_states(both, {}, set(), aborted=True)
+    assert [(s["state"], s["reason"], s["eta_s"]) for s in states[:2]] == [
+        ("failed", "no echo", None),
+        ("preempted", "track to waypoint 1", None),
+    ]
+    later = _outcome(_report(74, 0))
+    later.note_phase(74, "aborted", None, 4)  # another mission's phase
+    assert _states(later, {}) == ["assigned", "pending", "pending"]
