@@ -16,8 +16,7 @@ from pathlib import Path
 
 import zenoh
 
-from fleet.mission.key_registry import DEFAULT_PREFIX
-from fleet.mission.key_space import checked_prefix
+from fleet.mission.key_space import KeySpace
 from fleet.recording.mission_log import build_timeline
 from fleet.recording.plot import PlotError, parse_at, render
 from fleet.recording.reader import Recording, RecordingError, read_recording, recover
@@ -40,13 +39,6 @@ from fleet.transport.cli import (
 from fleet.transport.zenoh_config import ZenohConfigError, endpoints, error_text
 
 log = logging.getLogger(__name__)
-
-
-def _replay_prefix(text: str) -> str:
-    try:
-        return checked_prefix(text)
-    except ValueError as error:
-        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -94,14 +86,6 @@ def _replay_parser(parser: argparse.ArgumentParser) -> None:
         "--rate", type=positive_float, default=1.0, metavar="K", help="K x real time (1)"
     )
     parser.add_argument(
-        "--prefix",
-        type=_replay_prefix,
-        default=DEFAULT_REPLAY_PREFIX,
-        metavar="P",
-        help="key prefix to replay under (default %(default)s; the live fleet's is "
-        f"{DEFAULT_PREFIX})",
-    )
-    parser.add_argument(
         "--hold",
         type=non_negative_float,
         default=0.0,
@@ -109,7 +93,9 @@ def _replay_parser(parser: argparse.ArgumentParser) -> None:
         help="keep the UAVs' last state served S seconds after the end (default 0)",
     )
     add_zenoh_arguments(parser)
-    parser.set_defaults(func=run_replay)
+    # One prefix flag, --key-prefix, as every command has; a replay's own default is
+    # `replay`, never $FLEET_KEY_PREFIX, so it is not mistaken for the live fleet.
+    parser.set_defaults(func=run_replay, key_space=KeySpace(DEFAULT_REPLAY_PREFIX))
 
 
 def _plot_parser(parser: argparse.ArgumentParser) -> None:
@@ -237,10 +223,11 @@ def run_replay(args: argparse.Namespace) -> int:
         return ExitCode.USAGE
     stop = threading.Event()
     with session, stop_on_signals(stop.set):
-        replayer = Replayer(session, recording, prefix=args.prefix, rate=args.rate, stop=stop)
+        prefix = args.key_space.prefix
+        replayer = Replayer(session, recording, prefix=prefix, rate=args.rate, stop=stop)
         print(
             f"fleet replay: {len(recording.messages)} messages at {args.rate:g}x under "
-            f"{args.prefix}/** (see it with {PREFIX_ENV}={args.prefix} ground-cli watch)",
+            f"{prefix}/** (see it with {PREFIX_ENV}={prefix} ground-cli watch)",
             flush=True,
         )
         try:

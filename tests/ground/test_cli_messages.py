@@ -1,6 +1,7 @@
 """What the command lines accept and say (issue 25, case 10): the targets files the page
 loads (CSV, GeoJSON) are read by `ground-cli` too; `ground-cli gui --listen` takes a
-`tcp/` endpoint; `fleet up --gui SCENARIO` is the scenario, not the page's address."""
+`tcp/` endpoint; `fleet up --gui SCENARIO` is the scenario, not the page's address;
+`fleet replay` has one prefix flag."""
 
 from __future__ import annotations
 
@@ -11,9 +12,12 @@ from pathlib import Path
 import pytest
 
 from fleet.launch.up_command import DEFAULT_GUI_LISTEN, _scenario_from_gui, add_up_parser
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import Target
+from fleet.transport.cli import PREFIX_ENV
 from ground import targets_formats
 from ground.cli import main
+from ground.fleet_cli import build_parser
 from ground.gui.cli import host_port
 
 TARGETS = [Target(35.73, -120.75, 600.0), Target(35.70, -120.79, 610.0)]
@@ -65,3 +69,16 @@ def test_fleet_up_gui_then_a_scenario_runs_the_scenario_with_the_page() -> None:
     assert _scenario_from_gui(_up_args("--gui")) == (
         "give a SCENARIO (a shipped name or a TOML file) or --uavs N"
     )
+
+
+def test_fleet_replay_has_one_prefix_flag_defaulting_to_replay(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setenv(PREFIX_ENV, "fleet")  # the live fleet's: never a replay's default
+    parser = build_parser()
+    assert parser.parse_args(["replay", "x.mcap"]).key_space == KeySpace("replay")
+    assert parser.parse_args(["replay", "x.mcap", "--key-prefix", "lab"]).key_space == KeySpace(
+        "lab"
+    )
+    with pytest.raises(SystemExit):
+        parser.parse_args(["replay", "x.mcap", "--prefix", "lab"])
