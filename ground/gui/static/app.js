@@ -147,9 +147,7 @@ function targetStateOf(index) {
   const m = state.mission;
   const t = state.targets[index];
   if (m && index < m.targets.length) {
-    const s = m.targets[index];
-    const same = Math.abs(s.lat - t.lat) < 1e-9 && Math.abs(s.lon - t.lon) < 1e-9 && Math.abs(s.alt - t.alt) < 1e-6;
-    if (same && m.target_states) return m.target_states[index];
+    if (sameTarget(m.targets[index], t) && m.target_states) return m.target_states[index];
   }
   return { index, state: 'draft', uav: null, eta_s: null };
 }
@@ -230,6 +228,7 @@ function drawMap() {
   drawTrails();
   drawAssignments(scale);
   drawTargets(scale);
+  drawMissionTargets(scale);
   drawUavs(scale);
 }
 
@@ -338,6 +337,39 @@ function drawTargets(scale) {
       removeTarget(index);
     });
   });
+}
+
+// The followed mission's targets when the operator's list is not that mission (a mission
+// from another ground arrived while the page held draft targets): drawn beside the
+// drafts, read-only, with their states, so what the fleet flies is always on the map.
+function drawMissionTargets(scale) {
+  const layer = $('#layer-mission-targets');
+  layer.replaceChildren();
+  const m = state.mission;
+  if (!m || !m.target_states || missionIsTheList()) return;
+  m.targets.forEach((t, index) => {
+    const [x, y] = toXY(t.lat, t.lon);
+    const s = m.target_states[index];
+    const g = el('g', {
+      class: 'target mission-target', transform: `translate(${x},${y}) scale(${scale})`,
+      'data-mission-target': index, 'data-state': s.state, 'data-assigned': s.uav ?? '',
+    }, layer);
+    el('circle', { class: 'ring', r: 13 }, g);
+    el('path', { class: 'x', d: 'M-8,-8 L8,8 M-8,8 L8,-8' }, g);
+    const label = el('text', { class: 'state', x: 11, y: 16 }, g);
+    label.textContent = `M${m.mission}/${index}: ${s.uav !== null ? `${s.state} (UAV ${s.uav})` : s.state}`;
+  });
+}
+
+function sameTarget(a, b) {
+  return Math.abs(a.lat - b.lat) < 1e-9 && Math.abs(a.lon - b.lon) < 1e-9 && Math.abs(a.alt - b.alt) < 1e-6;
+}
+
+// Whether the operator's list is the followed mission's targets, one for one.
+function missionIsTheList() {
+  const m = state.mission;
+  return m.targets.length === state.targets.length
+    && m.targets.every((t, index) => sameTarget(t, state.targets[index]));
 }
 
 // ---- the side panel -------------------------------------------------------------------------
@@ -717,6 +749,7 @@ function onSnapshot(snapshot) {
     state.seenMission = m.mission;
     // A page opened during a mission (or a mission from another ground) shows its targets.
     if (!state.targets.length) state.targets = m.targets.map((t) => ({ ...t }));
+    else if (!missionIsTheList()) notice(`mission ${m.mission} (${m.targets.length} targets) from elsewhere is drawn beside your draft`, true);
   }
   // The server pins each UAV's warnings and errors until that UAV says they cleared.
   if (Array.isArray(snapshot.alerts)) {

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import re
 import signal
+import subprocess
 import sys
 import threading
 import time
@@ -27,11 +28,11 @@ import msgspec
 import pytest
 import zenoh
 
-from fleet.files.targets_io import read_targets
+from fleet.files.targets_io import read_targets, write_targets
 from fleet.geo.mercator import MercatorProjection
 from fleet.launch.launcher import free_port
 from fleet.mission.key_space import KeySpace
-from fleet.mission.messages import MissionTargets
+from fleet.mission.messages import MissionTargets, Target
 from ground.gui.server import MAX_UPLOAD
 from tests.support.ground_view import GroundView
 from tests.support.processes import Child, client_session, start
@@ -370,9 +371,9 @@ def uav_row(driver: Any, uav: int) -> dict[str, Any]:
 
 
 def test_every_press_takes_effect_the_first_time_while_telemetry_flows(
-    fleet_with_gui: tuple[str, str], browser: Any
+    fleet_with_gui: tuple[str, str], browser: Any, tmp_path: Path
 ) -> None:
-    url, _ = fleet_with_gui
+    url, router = fleet_with_gui
     browser.get(url)
     wait_for(browser, "both UAVs", lambda e: set(uav_icons(e)) == {74, 112}, 30.0)
     # Team: each press takes UAV 112 out of the team or puts it back, at once (the page's
@@ -398,6 +399,25 @@ def test_every_press_takes_effect_the_first_time_while_telemetry_flows(
     browser.find_element(By.ID, "confirm-ok").click()
     wait_until(lambda: "413" in text_of(browser, "load-error"), 10.0, "the upload limit's refusal")
     assert len(target_marks(browser.execute_script(READ_MAP))) == 2  # nothing lost
+    # A mission sent from elsewhere while the page holds drafts is drawn beside them.
+    other = tmp_path / "other.bin"
+    write_targets(other, [Target(35.74, -120.80, 600.0)])
+    sent = subprocess.run(
+        [sys.executable, "-m", "ground.cli", "--connect", router, "send-targets", str(other)],
+        capture_output=True, text=True, timeout=60, check=False,
+    )  # fmt: skip
+    assert sent.returncode == 0, sent.stderr
+    wait_until(
+        lambda: (
+            browser.execute_script(
+                "return document.querySelectorAll('#map [data-mission-target]').length"
+            )
+            == 1
+        ),
+        30.0,
+        "the other ground's mission on the map",
+    )
+    assert len(target_marks(browser.execute_script(READ_MAP))) == 2  # the drafts are kept
     # Per-UAV abort: once a mission is in flight, one press asks to confirm.
     browser.find_element(By.ID, "send").click()
     browser.find_element(By.ID, "confirm-ok").click()
