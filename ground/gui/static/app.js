@@ -484,9 +484,25 @@ function onUavListClick(event) {
   render();
 }
 
+// Latitude, longitude and altitude are edited in place, as numbers (Enter or leaving the
+// field applies it); the range of each is the targets file's (fleet.mission.targets_file).
+const TARGET_FIELDS = {
+  lat: { min: -90, max: 90, step: 0.000001, digits: 6 },
+  lon: { min: -180, max: 180, step: 0.000001, digits: 6 },
+  alt: { min: -500, max: 10000, step: 1, digits: 0 },
+};
+
 function newTargetRow() {
   const row = html('tr');
-  for (const name of ['index', 'lat', 'lon', 'alt']) row.appendChild(html('td', '', { 'data-cell': name }));
+  row.appendChild(html('td', '', { 'data-cell': 'index' }));
+  for (const [name, range] of Object.entries(TARGET_FIELDS)) {
+    const cell = html('td', '', { 'data-cell': name });
+    cell.appendChild(html('input', '', {
+      type: 'number', 'data-field': name, min: range.min, max: range.max, step: range.step,
+      'aria-label': name,
+    }));
+    row.appendChild(cell);
+  }
   row.appendChild(html('td', '', { class: 'state', 'data-cell': 'state' }));
   const cell = html('td');
   cell.appendChild(html('button', '✕', { type: 'button', title: 'delete this target', 'data-delete': '' }));
@@ -501,15 +517,34 @@ function drawTargetList() {
     const row = keyedRow(body, index, 'data-target-row', newTargetRow);
     const cell = (name) => row.querySelector(`[data-cell="${name}"]`);
     setText(cell('index'), index);
-    setText(cell('lat'), t.lat.toFixed(6));
-    setText(cell('lon'), t.lon.toFixed(6));
-    setText(cell('alt'), t.alt.toFixed(0));
+    for (const [name, range] of Object.entries(TARGET_FIELDS)) {
+      const input = cell(name).querySelector('input');
+      // Never under the operator's fingers: a field being edited keeps what is typed.
+      if (document.activeElement !== input) input.value = t[name].toFixed(range.digits);
+    }
     setText(cell('state'), s.uav !== null ? `${s.state} (${s.uav})` : s.state);
     setAttributes(cell('state'), { 'data-state': s.state });
     setAttributes(row.querySelector('[data-delete]'), { 'data-delete': index });
     return row;
   });
   placeRows(body, rows);
+}
+
+function onTargetEdit(event) {
+  const input = event.target.closest('input[data-field]');
+  const row = input && input.closest('tr[data-target-row]');
+  if (!row) return;
+  const index = Number(row.getAttribute('data-target-row'));
+  const name = input.getAttribute('data-field');
+  const range = TARGET_FIELDS[name];
+  const value = Number(input.value);
+  if (input.value === '' || !isFinite(value) || value < range.min || value > range.max) {
+    notice(`target ${index}: ${name} must be a number in [${range.min}, ${range.max}]`, false);
+    input.value = state.targets[index][name].toFixed(range.digits);
+    return;
+  }
+  state.targets[index] = { ...state.targets[index], [name]: value };
+  render();
 }
 
 function onTargetListClick(event) {
@@ -832,6 +867,7 @@ function setUpPanel() {
   $('#fit').addEventListener('click', () => { state.autoFit = true; state.view = null; render(); });
   $('#uav-list tbody').addEventListener('click', onUavListClick);
   $('#target-list tbody').addEventListener('click', onTargetListClick);
+  $('#target-list tbody').addEventListener('change', onTargetEdit);
   $('#send').addEventListener('click', sendTargets);
   $('#abort').addEventListener('click', abortTeam);
   $('#clear-targets').addEventListener('click', () => { state.targets = []; render(); });

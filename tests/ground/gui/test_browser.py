@@ -43,6 +43,7 @@ from selenium.webdriver.chrome.service import Service  # noqa: E402
 from selenium.webdriver.common.action_chains import ActionChains  # noqa: E402
 from selenium.webdriver.common.actions.wheel_input import ScrollOrigin  # noqa: E402
 from selenium.webdriver.common.by import By  # noqa: E402
+from selenium.webdriver.common.keys import Keys  # noqa: E402
 
 SPACE = KeySpace()
 
@@ -392,6 +393,18 @@ def test_every_press_takes_effect_the_first_time_while_telemetry_flows(
     wait_for(browser, "3 targets", lambda e: len(target_marks(e)) == 3, 10.0)
     press(browser, "#target-list [data-delete='2']")
     assert len(target_marks(browser.execute_script(READ_MAP))) == 2
+    # A target's latitude typed in the list moves it on the map.
+    field = browser.find_element(
+        By.CSS_SELECTOR, "#target-list tr[data-target-row='0'] input[data-field='lat']"
+    )
+    field.send_keys(Keys.CONTROL, "a")
+    field.send_keys("35.705")
+    browser.find_element(By.ID, "alt").click()  # leaving the field applies it too
+    wait_until(
+        lambda: float(target_marks(browser.execute_script(READ_MAP))[0]["lat"]) == 35.705,
+        5.0,
+        "target 0 at the typed latitude",
+    )
     # Load asks before it replaces targets on the map; a file over the upload limit is
     # refused with a message, not silently.
     drop_file(browser, "big.bin", b"\x00" * (MAX_UPLOAD + 24))
