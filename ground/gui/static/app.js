@@ -327,9 +327,11 @@ function drawTargets(scale) {
     el('circle', { class: 'hit', r: 12 }, g);
     el('circle', { class: 'ring', r: 13 }, g);
     el('path', { class: 'x', d: 'M-8,-8 L8,8 M-8,8 L8,-8' }, g);
-    const label = el('text', { class: 'index', x: 11, y: -7 }, g);
+    // Left of the X: a UAV's labels are right of its icon, so one over its target
+    // does not cover them.
+    const label = el('text', { class: 'index', x: -11, y: -7, 'text-anchor': 'end' }, g);
     label.textContent = index;
-    const stateLabel = el('text', { class: 'state', x: 11, y: 16 }, g);
+    const stateLabel = el('text', { class: 'state', x: -11, y: 16, 'text-anchor': 'end' }, g);
     stateLabel.textContent = s.uav !== null ? `${s.state} (UAV ${s.uav})` : s.state;
     g.addEventListener('pointerdown', (event) => startTargetDrag(event, index));
     g.addEventListener('contextmenu', (event) => {
@@ -356,7 +358,7 @@ function drawMissionTargets(scale) {
     }, layer);
     el('circle', { class: 'ring', r: 13 }, g);
     el('path', { class: 'x', d: 'M-8,-8 L8,8 M-8,8 L8,-8' }, g);
-    const label = el('text', { class: 'state', x: 11, y: 16 }, g);
+    const label = el('text', { class: 'state', x: -11, y: 16, 'text-anchor': 'end' }, g);
     label.textContent = `M${m.mission}/${index}: ${s.uav !== null ? `${s.state} (UAV ${s.uav})` : s.state}`;
   });
 }

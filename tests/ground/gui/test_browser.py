@@ -442,5 +442,12 @@ def test_every_press_takes_effect_the_first_time_while_telemetry_flows(
         30.0,
         "the per-UAV abort button",
     )
+    # Every per-UAV button lies within the panel: nothing overflows it.
+    assert browser.execute_script(
+        "const panel = document.querySelector('aside');"
+        "const edge = panel.getBoundingClientRect().right;"
+        "return [...document.querySelectorAll('#uav-list button, #target-list button')]"
+        "  .every((b) => b.getBoundingClientRect().right <= edge);"
+    )
     press(browser, "#uav-list tr[data-uav='112'] [data-abort]")
     assert "for UAV 112 alone" in text_of(browser, "confirm-text")
