@@ -127,8 +127,9 @@ def _add_send_targets(commands: argparse._SubParsersAction[argparse.ArgumentPars
     send.add_argument(
         "--force",
         action="store_true",
-        help="send a target set that fails the checks (two targets within the acceptance "
-        "radius, beyond reach, the far side of the Earth) all the same",
+        help="send all the same a target set that fails the checks (two targets within the "
+        "acceptance radius, beyond reach, the far side of the Earth) or a --team naming a "
+        "UAV that is not live",
     )
     send.add_argument("--json", action="store_true", help="print the outcome as one JSON object")
     send.set_defaults(handler=cmd_send_targets)

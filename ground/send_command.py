@@ -92,7 +92,8 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
     with client_bus(args.zenoh) as bus:
         team = _team(bus, args)
         if not team:
-            print("error: no live UAV to send to (name the team with --team)", file=sys.stderr)
+            if not args.team:
+                print("error: no live UAV to send to (name the team with --team)", file=sys.stderr)
             return ExitCode.FAILED
 
         if not _targets_pass_checks(bus, args, targets, team):
@@ -177,15 +178,22 @@ def _watch_for_rival(
 
 
 def _team(bus: Bus, args: argparse.Namespace) -> tuple[int, ...]:
-    """`--team`, or every live UAV; team members not live now are warned about."""
+    """`--team`, or every live UAV; () when a named member is not live (said why), unless
+    --force, when it is warned about: the mission waits for it, which may be forever."""
     live = live_uav_ids(bus, args.key_space, args.query_timeout)
     if not args.team:
         return tuple(live)
-    absent = [uav for uav in args.team if uav not in live]
+    absent = ", ".join(str(uav) for uav in args.team if uav not in live)
+    if absent and not args.force:
+        print(
+            f"error: not live now: {absent} (no liveliness token); nothing sent (--force "
+            "sends to them all the same: a UAV that comes up fetches the mission)",
+            file=sys.stderr,
+        )
+        return ()
     if absent:
         print(
-            f"warning: not live now: {', '.join(map(str, absent))}; they can fetch "
-            "the mission while this command runs",
+            f"warning: not live now: {absent}; they can fetch the mission when they come up",
             file=sys.stderr,
         )
     return tuple(args.team)

@@ -1,6 +1,7 @@
 """`ground-cli send-targets` refuses target sets nobody should fly, naming the targets
-and why, and sends nothing; `--force` sends them all the same. Against a router with
-two fake UAVs near Boston (their positions come from their state)."""
+and why, and sends nothing (so does a team naming a UAV that is not live); `--force`
+sends them all the same. Against a router with two fake UAVs near Boston (their
+positions come from their state)."""
 
 from __future__ import annotations
 
@@ -50,3 +51,19 @@ def test_force_sends_it_all_the_same_with_warnings(
     assert done.returncode == 0, done.stderr
     assert f"warning: {path}: targets 0 and 3: 14 m apart" in done.stderr
     assert "sent to 74, 112" in done.stdout
+
+
+def test_a_team_naming_a_uav_that_is_not_live_is_refused_unless_forced(
+    router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
+) -> None:
+    path = tmp_path / "targets.bin"
+    write_targets(path, TARGETS)
+    before = {uav: len(fake.targets) for uav, fake in fakes.items()}
+    done = run_cli("send-targets", str(path), "--team", "74,999", endpoint=router)
+    assert done.returncode == 1
+    assert "error: not live now: 999 (no liveliness token); nothing sent" in done.stderr
+    assert {uav: len(fake.targets) for uav, fake in fakes.items()} == before
+    forced = run_cli("send-targets", str(path), "--team", "74,999", "--force", endpoint=router)
+    assert forced.returncode == 0, forced.stderr
+    assert "warning: not live now: 999" in forced.stderr
+    assert "sent to 74, 999" in forced.stdout
