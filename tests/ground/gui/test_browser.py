@@ -348,6 +348,16 @@ def test_the_thesis_scenario_from_the_page(
             seen.close()
 
 
+#: Whether every target's labels end left of its centre and every UAV's begin right of it.
+LABELS_APART = """
+const centre = (g) => { const b = g.querySelector('.x, .body').getBoundingClientRect();
+                        return b.x + b.width / 2; };
+const side = (selector, ok) => [...document.querySelectorAll(selector)].every((g) =>
+  [...g.querySelectorAll('text')].every((t) => ok(t.getBoundingClientRect(), centre(g))));
+return side('#map [data-target]', (r, c) => r.right <= c)
+    && side('#map g.uav', (r, c) => r.left >= c);
+"""
+
 #: A press as a person makes it: the button held this long while snapshots keep coming.
 PRESS_S = 0.3
 
@@ -391,6 +401,9 @@ def test_every_press_takes_effect_the_first_time_while_telemetry_flows(
     for lat in (35.70, 35.71, 35.72):
         click_at(browser, lat, -120.78)
     wait_for(browser, "3 targets", lambda e: len(target_marks(e)) == 3, 10.0)
+    # Labels never collide where a UAV sits on its target: a target's lie left of its X,
+    # a UAV's right of its icon.
+    assert browser.execute_script(LABELS_APART)
     press(browser, "#target-list [data-delete='2']")
     assert len(target_marks(browser.execute_script(READ_MAP))) == 2
     # A target's latitude typed in the list moves it on the map.
