@@ -31,6 +31,8 @@ def fleet_up(tmp_path: Path, port: int, *extra: str) -> Child:
          "--log-dir", str(tmp_path), *extra],
     )  # fmt: skip
     up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+    # Each progress line said once (it used to be printed and logged both).
+    assert sum("simulator up with 3 aircraft" in line for line in up.history) == 1, up.history
     return up
 
 
