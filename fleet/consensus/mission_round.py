@@ -243,13 +243,15 @@ class MissionRound:
         return self.late or self.resumed or bool(self.excluded(alive))
 
     def resume(self, now: float) -> None:
-        """This UAV was suspended and has just asked its team what it missed (the live
-        mission, its assignments, its abort): an undecided round waits for the answers
-        (`must_ask`, `asking`), which come after the bus session's backlog, so that an
-        abort or a commitment sent meanwhile is handled before it decides."""
+        """This UAV was suspended: an undecided round asks the team what it decided before
+        deciding (`must_ask`), and waits ASK_GRACE_S for the answers (`asking`), which
+        come after the bus session's backlog, so that an abort or a commitment sent
+        meanwhile is handled before it decides. The question is asked when the round is
+        ready, not here: the catch-up the resume sent may go out before the session has
+        reconnected (past Zenoh's lease), and a question with no answer would let it
+        decide alone once the grace ran out."""
         if self.committed is None:
             self.resumed = True
-            self.asked_at = now
 
     def asking(self, now: float) -> bool:
         """Still waiting for the answers to the question `must_ask` called for."""

@@ -148,7 +148,9 @@ def test_a_round_open_across_a_freeze_waits_for_the_team_so_a_queued_abort_is_fi
     core.on_result(UavResult(8, 112, (50.0, 10.0, 50.0)), 6.1)  # the first event after it
     core.tick(6.15)  # ready to decide, but it asked the team what it missed: it waits
     assert core.round.committed is None
-    assert out.assignment_fetches[fetches:] == [8]  # the abort's relay among them
+    # The catch-up's question (the abort's relay among its answers), then the decision's
+    # own: asked when the round is ready, which a reconnecting session still answers.
+    assert out.assignment_fetches[fetches:] == [8, 8]
     core.on_abort(MissionAbort(8), 6.2)  # the backlog's abort
     for step in range(25, 60):
         core.tick(6.0 + step / 10)
