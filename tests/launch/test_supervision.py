@@ -30,9 +30,14 @@ def fleet_up(tmp_path: Path, port: int, *extra: str) -> Child:
          "--listen", f"tcp/127.0.0.1:{port}", "--speedup", "3", "--no-record",
          "--log-dir", str(tmp_path), *extra],
     )  # fmt: skip
-    up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
-    # Each progress line said once (it used to be printed and logged both).
-    assert sum("simulator up with 3 aircraft" in line for line in up.history) == 1, up.history
+    try:
+        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+        # Each progress line said once (it used to be printed and logged both).
+        said = sum("simulator up with 3 aircraft" in line for line in up.history)
+        assert said == 1, up.history
+    except BaseException:
+        stop(up)  # a start that failed its checks leaves no fleet behind
+        raise
     return up
 
 
