@@ -134,6 +134,10 @@ def decode_geojson(data: bytes, source: str) -> list[Target]:
         document = json.loads(data)
     except (UnicodeDecodeError, ValueError) as error:
         raise TargetsFormatError(f"{source}: not JSON ({error})") from None
+    except RecursionError:
+        # Python's json parser recurses per level: a hostile file nested deeply enough
+        # would otherwise end the command (or the page's request) with a traceback.
+        raise TargetsFormatError(f"{source}: nested too deeply to be GeoJSON") from None
     if not isinstance(document, dict) or document.get("type") != "FeatureCollection":
         raise TargetsFormatError(f"{source}: expected a GeoJSON FeatureCollection of Points")
     features = document.get("features")

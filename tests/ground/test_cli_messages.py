@@ -82,3 +82,12 @@ def test_fleet_replay_has_one_prefix_flag_defaulting_to_replay(
     )
     with pytest.raises(SystemExit):
         parser.parse_args(["replay", "x.mcap", "--prefix", "lab"])
+
+
+def test_a_hostile_geojson_file_is_refused_by_name_not_a_traceback(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "deep.geojson"
+    path.write_bytes(b"[" * 100_000 + b"]" * 100_000)
+    assert main(["targets", "show", str(path)]) == 1
+    assert capsys.readouterr().err == f"error: {path}: nested too deeply to be GeoJSON\n"

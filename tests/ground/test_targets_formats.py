@@ -103,3 +103,8 @@ def test_nothing_unreadable_is_written() -> None:
         TargetsFormatError, match="target 0: latitude is inf, expected a finite number"
     ):
         encode([Target(float("inf"), 0.0, 0.0)], targets_formats.TargetsFormat.GEOJSON)
+
+
+def test_a_deeply_nested_geojson_is_refused_not_a_crash() -> None:
+    with pytest.raises(TargetsFormatError, match=r"deep\.geojson: nested too deeply"):
+        decode(b"[" * 100_000 + b"]" * 100_000, "deep.geojson")
