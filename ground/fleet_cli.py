@@ -1,5 +1,5 @@
 """`fleet`: the shared command line: decode a capture, simulate autopilots, run a fleet,
-record, replay, plot and report on it."""
+record, replay, plot and report on it, serve it to Foxglove."""
 
 from __future__ import annotations
 
@@ -17,6 +17,7 @@ SUBCOMMANDS = (
     "fleet.tools.certs_command",
     "ground.demo",
     "fleet.recording.commands",
+    "ground.foxglove_live.command",
 )
 
 

@@ -1,0 +1,124 @@
+"""`fleet foxglove`: serve the live fleet to Foxglove over its WebSocket protocol.
+
+A client of the fleet, as `ground-cli` is: it connects to the fleet's router with the
+usual Zenoh flags and serves, on 127.0.0.1:8765 by default, the topics `fleet record`
+writes (docs/foxglove.md). Prints `fleet foxglove: serving ws://HOST:PORT` once a client
+can connect, and serves until Ctrl-C/SIGTERM or `--duration`.
+
+Exit status: 0 stopped; 1 cannot listen; 2 usage error or no Zenoh router.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import threading
+
+import foxglove
+
+from fleet.transport.bus import Bus
+from fleet.transport.cli import (
+    ExitCode,
+    ZenohConfigError,
+    add_zenoh_arguments,
+    fail,
+    non_negative_float,
+    positive_float,
+    stop_on_signals,
+    zenoh_config,
+)
+from fleet.transport.zenoh_bus import BusConnectError, client_bus
+from ground.foxglove_live.bridge import DEFAULT_STATE_EVERY_S, FoxgloveBridge
+from ground.gui.cli import host_port
+
+PROG = "fleet foxglove"
+#: Foxglove's own default: its "Open connection" dialog offers ws://localhost:8765.
+DEFAULT_SERVE = "127.0.0.1:8765"
+#: The line printed once clients can connect (tests and scripts wait for it).
+READY_LINE = f"{PROG}: serving"
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parser = subparsers.add_parser(
+        "foxglove",
+        help="serve the live fleet to Foxglove (WebSocket)",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "--serve",
+        type=host_port,
+        default=host_port(DEFAULT_SERVE),
+        metavar="HOST:PORT",
+        help=f"where Foxglove connects (default {DEFAULT_SERVE}; port 0: any free port)",
+    )
+    parser.add_argument(
+        "--allow-remote",
+        action="store_true",
+        help="allow a non-loopback --serve (the protocol has no access control)",
+    )
+    parser.add_argument(
+        "--state-every",
+        type=non_negative_float,
+        default=DEFAULT_STATE_EVERY_S,
+        metavar="S",
+        help="query every UAV's state this often; 0: never (default %(default)g s)",
+    )
+    parser.add_argument("--duration", type=positive_float, metavar="S", help="stop after S s")
+    add_zenoh_arguments(parser)
+    parser.set_defaults(func=run)
+
+
+def _is_loopback(host: str) -> bool:
+    from ground.gui.server import is_loopback  # aiohttp only when asked
+
+    return is_loopback(host)
+
+
+def run(args: argparse.Namespace) -> int:
+    host, port = args.serve
+    if not _is_loopback(host) and not args.allow_remote:
+        return fail(
+            PROG,
+            f"--serve {host}:{port} is not loopback: anyone who reaches it would see the "
+            "fleet (the Foxglove protocol has no access control). Add --allow-remote.",
+        )
+    try:
+        config = zenoh_config(args)
+    except ZenohConfigError as error:
+        return fail(PROG, str(error))
+    try:
+        with client_bus(config) as bus:
+            return _serve(args, bus, host, port)
+    except BusConnectError as error:
+        return fail(PROG, str(error))
+
+
+def _serve(args: argparse.Namespace, bus: Bus, host: str, port: int) -> int:
+    context = foxglove.Context()
+    try:
+        server = foxglove.start_server(name="uav-fleet", host=host, port=port, context=context)
+    except (OSError, RuntimeError) as error:
+        return fail(PROG, f"cannot listen on {host}:{port}: {error}", ExitCode.FAILED)
+    stop = threading.Event()
+    bridge = FoxgloveBridge(bus, context, args.key_space, state_every_s=args.state_every)
+    try:
+        with stop_on_signals(stop.set):
+            bridge.start()
+            where = f"[{host}]" if ":" in host else host
+            print(
+                f"{READY_LINE} ws://{where}:{server.port} for {args.key_space.prefix}/** "
+                f"(pid {os.getpid()})",
+                flush=True,
+            )
+            stop.wait(args.duration)
+    finally:
+        bridge.stop()
+        server.stop()
+    dropped = sum(bridge.dropped.values())
+    print(
+        f"{PROG}: {sum(bridge.published.values())} messages on {len(bridge.topics())} topics"
+        + (f"; {dropped} dropped: {dict(bridge.dropped)}" if dropped else ""),
+        flush=True,
+    )
+    return ExitCode.OK
