@@ -7,7 +7,8 @@
 //   {"event": "open", "protocol": ...}
 //   {"event": "advertise", "topic", "schemaName", "encoding", "schemaEncoding"}
 //   {"event": "message", "topic", "schemaName", "message": {...decoded...}}
-// and exits 0 after --count messages (or 1 on an error, or after --timeout seconds).
+// and exits 0 after --count messages (0: runs until stopped; it exits 1 on an error, or
+// after --timeout seconds with fewer messages).
 //
 // usage: node foxglove_client.mjs ws://127.0.0.1:PORT [--topics REGEX] [--count N]
 //        [--timeout S]
@@ -51,10 +52,13 @@ function decoderFor(channel) {
   throw new Error(`unsupported message encoding ${channel.encoding} on ${channel.topic}`);
 }
 
-const timer = setTimeout(() => {
-  print({ event: "timeout", received });
-  process.exit(1);
-}, timeout * 1000);
+const timer =
+  count > 0
+    ? setTimeout(() => {
+        print({ event: "timeout", received });
+        process.exit(1);
+      }, timeout * 1000)
+    : undefined;
 
 client.on("open", () => print({ event: "open", protocol: ws.protocol }));
 client.on("error", (error) => {
@@ -94,7 +98,7 @@ client.on("message", ({ subscriptionId, data }) => {
     message: channel.decode(bytes),
   });
   received += 1;
-  if (received >= count) {
+  if (count > 0 && received >= count) {
     clearTimeout(timer);
     process.exit(0);
   }

@@ -1,0 +1,189 @@
+"""`fleet foxglove` seen by a third-party Foxglove client, end to end.
+
+Real processes throughout: `fleet up head_on` (router, simulator, two onboards),
+`fleet record` and `fleet foxglove` on its router, `ground-cli send-targets`, and the
+`@foxglove/ws-protocol` client from npm under node (tests/js/foxglove_client.mjs), which
+decodes what the server advertises with protobufjs and JSON.parse, never with the
+project's code. A Zenoh subscriber in the test is the bus observer the client's
+LocationFix messages are compared with.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+import sys
+import threading
+from importlib.resources import files
+from pathlib import Path
+from typing import Any
+
+import msgspec
+import pytest
+import zenoh
+from mcap.reader import make_reader
+
+from fleet.launch.launcher import free_port, stop_children
+from fleet.mission.key_space import KeySpace, uav_id_of
+from fleet.recording.recorder import READY_LINE as RECORD_READY
+from ground.foxglove_live.command import READY_LINE as FOXGLOVE_READY
+from tests.support.processes import Child, client_session, start
+from tests.support.waiting import wait_until
+
+pytestmark = pytest.mark.e2e
+
+SPACE = KeySpace()
+TEAM = {74, 112}
+FLEET = [sys.executable, "-m", "ground.fleet_cli"]
+JS = Path(__file__).resolve().parents[1] / "js"
+FIXES = 60
+TIMEOUT_S = 120.0
+
+
+def node_client(url: str, *args: str) -> Child:
+    """The third-party client on `url`; its output is JSON lines (see the script)."""
+    if shutil.which("node") is None or not (JS / "node_modules" / "@foxglove").is_dir():
+        pytest.fail(f"needs node and `npm ci --prefix {JS}` (.ci/run does both)")
+    return start("foxglove client", ["node", str(JS / "foxglove_client.mjs"), url, *args])
+
+
+def events(child: Child, kind: str) -> list[dict[str, Any]]:
+    found = []
+    for line in list(child.history):
+        if line.startswith("{"):
+            event: dict[str, Any] = json.loads(line)
+            if event["event"] == kind:
+                found.append(event)
+    return found
+
+
+def uav_phases(endpoint: str) -> dict[int, str]:
+    done = subprocess.run(
+        [sys.executable, "-m", "ground.cli", "--connect", endpoint, "uavs", "--json"],
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT_S,
+        check=True,
+    )
+    return {view["id"]: view["phase"] for view in json.loads(done.stdout)}
+
+
+def recorded_topics(path: Path) -> dict[str, str]:
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    names = {key: schema.name for key, schema in summary.schemas.items()}
+    return {c.topic: names.get(c.schema_id, "") for c in summary.channels.values()}
+
+
+class BusObserver:
+    """Every position each UAV's telemetry put on the bus."""
+
+    def __init__(self, session: zenoh.Session) -> None:
+        self.positions: dict[int, set[tuple[float, float, float]]] = {uav: set() for uav in TEAM}
+        self._lock = threading.Lock()
+        self._subscriber = session.declare_subscriber(SPACE.all_telemetry, self._on_sample)
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        gps = msgspec.json.decode(sample.payload.to_bytes()).get("gps")
+        if gps is not None:
+            with self._lock:
+                self.positions.setdefault(uav_id_of(str(sample.key_expr)), set()).add(
+                    (gps["lat"], gps["lon"], gps["alt"])
+                )
+
+    def saw(self, uav: int, position: tuple[float, float, float]) -> bool:
+        with self._lock:
+            return position in self.positions.get(uav, set())
+
+
+def check_fixes(client: Child, observer: BusObserver) -> None:
+    """Each LocationFix the client decoded is a position the UAV published."""
+    assert client.process.wait(TIMEOUT_S) == 0, "\n".join(client.history[-10:])
+    assert events(client, "open")[0]["protocol"] == "foxglove.sdk.v1"
+    fixes = events(client, "message")
+    assert len(fixes) == FIXES
+    seen: set[int] = set()
+    for event in fixes:
+        fix = event["message"]
+        assert event["schemaName"] == "foxglove.LocationFix"
+        uav = int(fix["frameId"].removeprefix("uav"))
+        assert event["topic"] == f"fleet/uav/{uav}/location_fix"
+        position = (fix["latitude"], fix["longitude"], fix["altitude"])
+        wait_until(lambda: observer.saw(uav, position), 10.0, f"UAV {uav} at {position} on the bus")  # noqa: B023
+        seen.add(uav)
+    assert seen == TEAM
+
+
+def reached_on_the_map(client: Child) -> bool:
+    """Whether the latest GeoJSON says targets 0 and 1 were reached."""
+    maps = events(client, "message")
+    if not maps:
+        return False
+    collection = json.loads(maps[-1]["message"]["geojson"])
+    states = {
+        f["properties"]["target"]: f["properties"]["state"]
+        for f in collection["features"]
+        if f["geometry"]["type"] == "Point"
+    }
+    return states.get(0) == states.get(1) == "reached"
+
+
+def test_a_foxglove_client_sees_the_fleet_as_the_bus_and_the_recorder_do(tmp_path: Path) -> None:
+    port = free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    up = start(
+        "fleet up",
+        [*FLEET, "up", "head_on", "--listen", endpoint, "--speedup", "10", "--no-record",
+         "--log-dir", str(tmp_path / "run")],
+    )  # fmt: skip
+    children: list[Child] = []
+    try:
+        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+        with client_session(port) as session:
+            observer = BusObserver(session)
+            record = start("fleet record", [*FLEET, "record", str(tmp_path / "rec.mcap"),
+                                            "--connect", endpoint])  # fmt: skip
+            children.append(record)
+            record.wait_for_line(lambda line: line.startswith(RECORD_READY), 30.0)
+            fox = start("fleet foxglove", [*FLEET, "foxglove", "--serve", "127.0.0.1:0",
+                                           "--connect", endpoint])  # fmt: skip
+            children.append(fox)
+            ready = fox.wait_for_line(lambda line: line.startswith(FOXGLOVE_READY), 30.0)
+            url = re.search(r"ws://\S+", ready)
+            assert url is not None, ready
+            # Advertisements only (subscribed to nothing), until stopped.
+            topics = node_client(url[0], "--topics", "^$", "--count", "0")
+            children.append(topics)
+            fixes = node_client(url[0], "--topics", "/location_fix$", "--count", str(FIXES))
+            children.append(fixes)
+            check_fixes(fixes, observer)
+
+            # A mission: its targets, assignment and arrivals on the map.
+            the_map = node_client(url[0], "--topics", "/map/targets$", "--count", "0")
+            children.append(the_map)
+            targets = str(files("fleet") / "scenarios" / "head_on_targets.bin")
+            sent = subprocess.run(
+                [sys.executable, "-m", "ground.cli", "--connect", endpoint, "send-targets",
+                 targets, "--wait"],
+                capture_output=True, text=True, timeout=TIMEOUT_S, check=False,
+            )  # fmt: skip
+            assert sent.returncode == 0, sent.stdout + sent.stderr
+            wait_until(
+                lambda: set(uav_phases(endpoint).values()) == {"reached"}, 150.0, "both reached"
+            )
+            wait_until(lambda: reached_on_the_map(the_map), 30.0, "the map to show both reached")
+            # Stopped together, so that both heard the same keys.
+            stop_children([record, fox], 10.0)
+            assert record.process.returncode == 0, "\n".join(record.history[-10:])
+            assert fox.process.returncode == 0, "\n".join(fox.history[-10:])
+    finally:
+        stop_children([*reversed(children), up], 10.0)
+
+    live = {e["topic"]: e["schemaName"] for e in events(topics, "advertise")}
+    recorded = recorded_topics(tmp_path / "rec.mcap")
+    assert live == {**recorded, "fleet/map/targets": "foxglove.GeoJSON"}
+    assert {f"fleet/uav/{uav}/location_fix" for uav in TEAM} <= set(live)
+    assert {"fleet/mission/1/targets", "fleet/uav/74/state", "fleet/uav/112/status"} <= set(live)
