@@ -15,6 +15,7 @@ import os
 import threading
 
 import foxglove
+from foxglove.websocket import WebSocketServer
 
 from fleet.transport.bus import Bus
 from fleet.transport.cli import (
@@ -87,24 +88,29 @@ def run(args: argparse.Namespace) -> int:
         config = zenoh_config(args)
     except ZenohConfigError as error:
         return fail(PROG, str(error))
-    try:
-        with client_bus(config) as bus:
-            return _serve(args, bus, host, port)
-    except BusConnectError as error:
-        return fail(PROG, str(error))
-
-
-def _serve(args: argparse.Namespace, bus: Bus, host: str, port: int) -> int:
     context = foxglove.Context()
     try:
         server = foxglove.start_server(name="uav-fleet", host=host, port=port, context=context)
-    except (OSError, RuntimeError) as error:
+    except RuntimeError as error:  # the SDK's FoxgloveError: the port is taken, ...
         return fail(PROG, f"cannot listen on {host}:{port}: {error}", ExitCode.FAILED)
+    try:
+        with client_bus(config) as bus:
+            return _serve(args, bus, context, server)
+    except BusConnectError as error:
+        return fail(PROG, str(error))
+    finally:
+        server.stop()
+
+
+def _serve(
+    args: argparse.Namespace, bus: Bus, context: foxglove.Context, server: WebSocketServer
+) -> int:
     stop = threading.Event()
     bridge = FoxgloveBridge(bus, context, args.key_space, state_every_s=args.state_every)
     try:
         with stop_on_signals(stop.set):
             bridge.start()
+            host = args.serve[0]
             where = f"[{host}]" if ":" in host else host
             print(
                 f"{READY_LINE} ws://{where}:{server.port} for {args.key_space.prefix}/** "
@@ -114,7 +120,6 @@ def _serve(args: argparse.Namespace, bus: Bus, host: str, port: int) -> int:
             stop.wait(args.duration)
     finally:
         bridge.stop()
-        server.stop()
     dropped = sum(bridge.dropped.values())
     print(
         f"{PROG}: {sum(bridge.published.values())} messages on {len(bridge.topics())} topics"

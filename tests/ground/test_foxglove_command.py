@@ -1,0 +1,44 @@
+"""`fleet foxglove`'s command line: what it refuses, and why, before serving anything."""
+
+from __future__ import annotations
+
+import socket
+
+import pytest
+
+from fleet.launch.launcher import free_port
+from fleet.transport.cli import ExitCode
+from ground.fleet_cli import main
+
+
+def test_serving_beyond_loopback_needs_allow_remote(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["foxglove", "--serve", "0.0.0.0:8765"]) == ExitCode.USAGE
+    err = capsys.readouterr().err
+    assert "fleet foxglove: --serve 0.0.0.0:8765 is not loopback" in err
+    assert "--allow-remote" in err
+
+
+def test_a_bad_address_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exited:
+        main(["foxglove", "--serve", "8765"])
+    assert exited.value.code == ExitCode.USAGE
+    assert "expected HOST:PORT" in capsys.readouterr().err
+
+
+def test_a_taken_port_is_said_before_connecting(capsys: pytest.CaptureFixture[str]) -> None:
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        status = main(["foxglove", "--serve", f"127.0.0.1:{port}", "--connect", "tcp/127.0.0.1:1"])
+    assert status == ExitCode.FAILED
+    err = capsys.readouterr().err
+    assert f"fleet foxglove: cannot listen on 127.0.0.1:{port}" in err
+    assert "Address already in use" in err
+
+
+def test_no_router_is_said(capsys: pytest.CaptureFixture[str]) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    status = main(["foxglove", "--serve", "127.0.0.1:0", "--connect", endpoint])
+    assert status == ExitCode.USAGE
+    assert f"no Zenoh router answers at {endpoint}" in capsys.readouterr().err
