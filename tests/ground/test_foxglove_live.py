@@ -103,6 +103,10 @@ def check_fixes(client: Child, observer: BusObserver) -> None:
     """Each LocationFix the client decoded is a position the UAV published."""
     assert client.process.wait(TIMEOUT_S) == 0, "\n".join(client.history[-10:])
     assert events(client, "open")[0]["protocol"] == "foxglove.sdk.v1"
+    info = events(client, "serverInfo")[0]
+    assert info["name"] == "uav-fleet"
+    # Read-only: Foxglove can neither publish to the fleet nor call a service.
+    assert not {"clientPublish", "services"} & set(info["capabilities"])
     fixes = events(client, "message")
     assert len(fixes) == FIXES
     seen: set[int] = set()

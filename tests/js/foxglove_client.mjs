@@ -5,6 +5,7 @@
 // the advertised FileDescriptorSet, JSON with JSON.parse), never with the project's
 // own decoder. It prints one JSON object per line on stdout:
 //   {"event": "open", "protocol": ...}
+//   {"event": "serverInfo", "name", "capabilities"}
 //   {"event": "advertise", "topic", "schemaName", "encoding", "schemaEncoding"}
 //   {"event": "message", "topic", "schemaName", "message": {...decoded...}}
 // and exits 0 after --count messages (0: runs until stopped; it exits 1 on an error, or
@@ -61,6 +62,9 @@ const timer =
     : undefined;
 
 client.on("open", () => print({ event: "open", protocol: ws.protocol }));
+client.on("serverInfo", (info) =>
+  print({ event: "serverInfo", name: info.name, capabilities: info.capabilities }),
+);
 client.on("error", (error) => {
   print({ event: "error", error: String(error) });
   process.exit(1);
