@@ -17,6 +17,7 @@ Two kinds of channel are derived rather than heard on the bus:
 
 from __future__ import annotations
 
+import contextlib
 import json
 from dataclasses import dataclass, field
 from functools import cache
@@ -24,7 +25,7 @@ from typing import Any
 
 from fleet.mission import key_registry, schemas
 from fleet.mission.key_registry import REGISTRY, Recording, Role
-from fleet.mission.key_space import KeySpace
+from fleet.mission.key_space import KeySpace, uav_id_of
 
 SCHEMA_ENCODING = "jsonschema"
 MESSAGE_ENCODING = "json"
@@ -164,6 +165,17 @@ def alive_channel(prefix: str, uav: int) -> ChannelSpec:
     schema = json.dumps(_LIVELINESS_SCHEMA).encode()
     space = KeySpace(prefix)
     return ChannelSpec(space.alive(uav), LIVELINESS, schema, space.all_alive)
+
+
+def heard_channel(prefix: str, key: str) -> ChannelSpec:
+    """The channel of a key heard on the bus, or of a liveliness token (`{"alive": ...}`):
+    `channel_for`, but a UAV's token on its `fleet.Liveliness` channel (another token
+    as it is, without a schema). `fleet foxglove` serves what it hears by this."""
+    spec = channel_for(key)
+    if spec.topic.endswith(f"/{ALIVE_LEAF}"):
+        with contextlib.suppress(ValueError, IndexError):
+            return alive_channel(prefix, uav_id_of(key))
+    return spec
 
 
 def is_derived(spec_schema_name: str) -> bool:

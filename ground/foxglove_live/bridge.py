@@ -22,7 +22,6 @@ once per key; so is a sample beyond the queue's limit, or a key beyond `MAX_CHAN
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import queue
 import threading
@@ -192,10 +191,7 @@ class FoxgloveBridge:
             self._drop("not JSON" if reason is bus_codec.DropReason.INVALID else str(reason))
             self._log_bad_once(heard.key, str(error))
             return
-        spec = channels.channel_for(heard.key)
-        if spec.topic.endswith(f"/{channels.ALIVE_LEAF}"):
-            with contextlib.suppress(ValueError, IndexError):
-                spec = channels.alive_channel(self._space.prefix, uav_id_of(heard.key))
+        spec = channels.heard_channel(self._space.prefix, heard.key)
         channel = self._json_channel(spec)
         if channel is None:
             return
@@ -222,12 +218,10 @@ class FoxgloveBridge:
         if len(self._json) >= MAX_CHANNELS:
             self._drop("too many keys")
             return None
-        schema = (
-            foxglove.Schema(
-                name=spec.schema_name, encoding=channels.SCHEMA_ENCODING, data=spec.schema
-            )
-            if spec.schema_name
-            else None
+        # A key of no known pattern has no schema: named "" as in a recording (the SDK
+        # would make up a name for None).
+        schema = foxglove.Schema(
+            name=spec.schema_name, encoding=channels.SCHEMA_ENCODING, data=spec.schema
         )
         channel = foxglove.Channel(
             spec.topic,

@@ -152,3 +152,12 @@ def test_keys_beyond_the_limit_are_dropped(live: Live, monkeypatch: pytest.Monke
     live.stopped()
     assert len(live.bridge.topics()) == 3
     assert live.bridge.dropped == {"too many keys": 2}
+
+
+def test_a_token_that_is_no_uavs_is_shown_as_heard_without_a_schema(live: Live) -> None:
+    live.fleet.declare_token("fleet/uav/any/alive")
+    written = live.stopped()
+    assert [(name, data) for name, _, data in written["fleet/uav/any/alive"]] == [
+        ("", b'{"alive":true}')
+    ]
+    assert live.bridge.topics() == {"fleet/uav/any/alive": ""}
