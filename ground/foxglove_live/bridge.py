@@ -38,7 +38,6 @@ from fleet.mission import key_registry as reg
 from fleet.mission.key_space import KeySpace, uav_id_of
 from fleet.mission.messages import AssignmentReport, MissionAbort, MissionTargets, TargetOutcome
 from fleet.recording import channels
-from fleet.recording.channels import ChannelSpec
 from fleet.transport import bus_codec
 from fleet.transport.bus import Bus, BusSample, Declaration
 from ground.foxglove_live import map_layers
@@ -97,8 +96,10 @@ class FoxgloveBridge:
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self._declared: list[Declaration] = []
-        self._json: dict[str, foxglove.Channel] = {}
-        self._fixes: dict[int, LocationFixChannel] = {}
+        # Each channel with its pattern, by topic (by UAV for the fixes): a channel's spec
+        # is derived once, when its key is first heard, never per message.
+        self._json: dict[str, tuple[foxglove.Channel, str]] = {}
+        self._fixes: dict[int, tuple[LocationFixChannel, str]] = {}
         self._map_channel: GeoJsonChannel | None = None
         self._bad_keys: set[str] = set()
         self._lock = threading.Lock()
@@ -131,8 +132,8 @@ class FoxgloveBridge:
 
     def topics(self) -> dict[str, str]:
         """Each channel's topic and schema name ("" for none), as a client sees them."""
-        found = {topic: channel.schema_name() or "" for topic, channel in self._json.items()}
-        found.update({channel.topic(): channels.LOCATION_FIX for channel in self._fixes.values()})
+        found = {topic: channel.schema_name() or "" for topic, (channel, _) in self._json.items()}
+        found.update({fix.topic(): channels.LOCATION_FIX for fix, _ in self._fixes.values()})
         if self._map_channel is not None:
             found[self._map_channel.topic()] = GeoJson.get_schema().name
         return found
@@ -191,13 +192,13 @@ class FoxgloveBridge:
             self._drop("not JSON" if reason is bus_codec.DropReason.INVALID else str(reason))
             self._log_bad_once(heard.key, str(error))
             return
-        spec = channels.heard_channel(self._space.prefix, heard.key)
-        channel = self._json_channel(spec)
-        if channel is None:
+        entry = self._json.get(heard.key) or self._json_channel(heard.key)
+        if entry is None:
             return
+        channel, pattern = entry
         channel.log(heard.payload, log_time=heard.time_ns)
-        self._count(spec.pattern)
-        if spec.pattern.endswith(f"/{reg.TELEMETRY.leaf}"):
+        self._count(pattern)
+        if pattern.endswith(f"/{reg.TELEMETRY.leaf}"):
             self._publish_fix(heard, value)
         else:
             self._follow_mission(heard)
@@ -211,13 +212,12 @@ class FoxgloveBridge:
         with self._lock:
             self.published[pattern] += 1
 
-    def _json_channel(self, spec: ChannelSpec) -> foxglove.Channel | None:
-        channel = self._json.get(spec.topic)
-        if channel is not None:
-            return channel
+    def _json_channel(self, key: str) -> tuple[foxglove.Channel, str] | None:
+        """A new channel for `key`; None (counted) past MAX_CHANNELS."""
         if len(self._json) >= MAX_CHANNELS:
             self._drop("too many keys")
             return None
+        spec = channels.heard_channel(self._space.prefix, key)
         # A key of no known pattern has no schema: named "" as in a recording (the SDK
         # would make up a name for None).
         schema = foxglove.Schema(
@@ -230,8 +230,8 @@ class FoxgloveBridge:
             context=self._context,
             metadata=spec.metadata,
         )
-        self._json[spec.topic] = channel
-        return channel
+        self._json[key] = (channel, spec.pattern)
+        return self._json[key]
 
     def _publish_fix(self, heard: Heard, telemetry: object) -> None:
         try:
@@ -241,13 +241,14 @@ class FoxgloveBridge:
         fix = map_layers.fix_of(telemetry, uav, heard.time_ns)
         if fix is None:
             return
-        spec = channels.location_channel(self._space.prefix, uav)
-        channel = self._fixes.get(uav)
-        if channel is None:
+        entry = self._fixes.get(uav)
+        if entry is None:
+            spec = channels.location_channel(self._space.prefix, uav)
             channel = LocationFixChannel(spec.topic, metadata=spec.metadata, context=self._context)
-            self._fixes[uav] = channel
+            entry = self._fixes[uav] = (channel, spec.pattern)
+        channel, pattern = entry
         channel.log(location_fix(fix), log_time=heard.time_ns)
-        self._count(spec.pattern)
+        self._count(pattern)
         self.map.on_fix(fix)
 
     def _follow_mission(self, heard: Heard) -> None:
