@@ -25,6 +25,7 @@ import pytest
 import zenoh
 from mcap.reader import make_reader
 
+from fleet.files.certs import write_identities
 from fleet.launch.launcher import free_port, stop_children
 from fleet.mission.key_space import KeySpace, uav_id_of
 from fleet.recording.recorder import READY_LINE as RECORD_READY
@@ -47,6 +48,16 @@ def node_client(url: str, *args: str) -> Child:
     if shutil.which("node") is None or not (JS / "node_modules" / "@foxglove").is_dir():
         pytest.fail(f"needs node and `npm ci --prefix {JS}` (.ci/run does both)")
     return start("foxglove client", ["node", str(JS / "foxglove_client.mjs"), url, *args])
+
+
+def serve(endpoint: str, *extra: str) -> tuple[Child, str]:
+    """`fleet foxglove` on the fleet at `endpoint`, and the URL it serves."""
+    fox = start("fleet foxglove", [*FLEET, "foxglove", "--serve", "127.0.0.1:0",
+                                   "--connect", endpoint, *extra])  # fmt: skip
+    ready = fox.wait_for_line(lambda line: line.startswith(FOXGLOVE_READY), 30.0)
+    url = re.search(r"ws://\S+", ready)
+    assert url is not None, ready
+    return fox, url[0]
 
 
 def events(child: Child, kind: str) -> list[dict[str, Any]]:
@@ -99,8 +110,8 @@ class BusObserver:
             return position in self.positions.get(uav, set())
 
 
-def check_fixes(client: Child, observer: BusObserver) -> None:
-    """Each LocationFix the client decoded is a position the UAV published."""
+def check_fixes(client: Child, observer: BusObserver | None) -> None:
+    """Each LocationFix the client decoded is a position the UAV published, for each UAV."""
     assert client.process.wait(TIMEOUT_S) == 0, "\n".join(client.history[-10:])
     assert events(client, "open")[0]["protocol"] == "foxglove.sdk.v1"
     info = events(client, "serverInfo")[0]
@@ -116,7 +127,12 @@ def check_fixes(client: Child, observer: BusObserver) -> None:
         uav = int(fix["frameId"].removeprefix("uav"))
         assert event["topic"] == f"fleet/uav/{uav}/location_fix"
         position = (fix["latitude"], fix["longitude"], fix["altitude"])
-        wait_until(lambda: observer.saw(uav, position), 10.0, f"UAV {uav} at {position} on the bus")  # noqa: B023
+        if observer is not None:
+            wait_until(
+                lambda: observer.saw(uav, position),  # noqa: B023
+                10.0,
+                f"UAV {uav} at {position} on the bus",
+            )
         seen.add(uav)
     assert seen == TEAM
 
@@ -152,21 +168,17 @@ def test_a_foxglove_client_sees_the_fleet_as_the_bus_and_the_recorder_do(tmp_pat
                                             "--connect", endpoint])  # fmt: skip
             children.append(record)
             record.wait_for_line(lambda line: line.startswith(RECORD_READY), 30.0)
-            fox = start("fleet foxglove", [*FLEET, "foxglove", "--serve", "127.0.0.1:0",
-                                           "--connect", endpoint])  # fmt: skip
+            fox, url = serve(endpoint)
             children.append(fox)
-            ready = fox.wait_for_line(lambda line: line.startswith(FOXGLOVE_READY), 30.0)
-            url = re.search(r"ws://\S+", ready)
-            assert url is not None, ready
             # Advertisements only (subscribed to nothing), until stopped.
-            topics = node_client(url[0], "--topics", "^$", "--count", "0")
+            topics = node_client(url, "--topics", "^$", "--count", "0")
             children.append(topics)
-            fixes = node_client(url[0], "--topics", "/location_fix$", "--count", str(FIXES))
+            fixes = node_client(url, "--topics", "/location_fix$", "--count", str(FIXES))
             children.append(fixes)
             check_fixes(fixes, observer)
 
             # A mission: its targets, assignment and arrivals on the map.
-            the_map = node_client(url[0], "--topics", "/map/targets$", "--count", "0")
+            the_map = node_client(url, "--topics", "/map/targets$", "--count", "0")
             children.append(the_map)
             targets = str(files("fleet") / "scenarios" / "head_on_targets.bin")
             sent = subprocess.run(
@@ -191,3 +203,29 @@ def test_a_foxglove_client_sees_the_fleet_as_the_bus_and_the_recorder_do(tmp_pat
     assert live == {**recorded, "fleet/map/targets": "foxglove.GeoJSON"}
     assert {f"fleet/uav/{uav}/location_fix" for uav in TEAM} <= set(live)
     assert {"fleet/mission/1/targets", "fleet/uav/74/state", "fleet/uav/112/status"} <= set(live)
+
+
+def test_in_the_secure_profile_it_holds_the_grounds_identity(tmp_path: Path) -> None:
+    certs = tmp_path / "certs"
+    endpoint = f"tls/127.0.0.1:{free_port()}"
+    write_identities(certs, ["router", "ground", "uav-74", "uav-112"], [endpoint])
+    up = start(
+        "fleet up --secure",
+        [*FLEET, "up", "head_on", "--secure", str(certs), "--listen", endpoint,
+         "--speedup", "5", "--no-record", "--log-dir", str(tmp_path / "run")],
+    )  # fmt: skip
+    children: list[Child] = []
+    try:
+        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+        fox, url = serve(endpoint, "--zenoh-config", str(certs / "ground.json5"))
+        children.append(fox)
+        fixes = node_client(url, "--topics", "/location_fix$", "--count", str(FIXES))
+        children.append(fixes)
+        check_fixes(fixes, None)
+        # The state is served to the ground's identity only: it is queried and shown.
+        state = node_client(url, "--topics", "/state$", "--count", "2")
+        children.append(state)
+        assert state.process.wait(TIMEOUT_S) == 0, "\n".join(state.history[-10:])
+        assert {e["message"]["uav"] for e in events(state, "message")} <= TEAM
+    finally:
+        stop_children([*reversed(children), up], 10.0)
