@@ -163,7 +163,10 @@ class FoxgloveBridge:
         every = self._state_every_s if self._state_every_s > 0 else MAP_EVERY_S
         while not self._stop.wait(every):
             if self._state_every_s > 0:
-                self._bus.get(self._space.all_state, self._on_sample, timeout=every)
+                try:
+                    self._bus.get(self._space.all_state, self._on_sample, timeout=every)
+                except Exception as error:  # the session closing under it: try again later
+                    log.warning("state query failed: %s", error)
             self._enqueue(_TICK)
 
     # ---- the publishing thread ------------------------------------------------------------------

@@ -48,8 +48,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     parser.add_argument(
         "--serve",
-        type=host_port,
-        default=host_port(DEFAULT_SERVE),
+        type=_address,
+        default=_address(DEFAULT_SERVE),
         metavar="HOST:PORT",
         help=f"where Foxglove connects (default {DEFAULT_SERVE}; port 0: any free port)",
     )
@@ -68,6 +68,16 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     parser.add_argument("--duration", type=positive_float, metavar="S", help="stop after S s")
     add_zenoh_arguments(parser)
     parser.set_defaults(func=run)
+
+
+def _address(text: str) -> tuple[str, int]:
+    """`HOST:PORT` (IPv6 as `[::1]:PORT`), as `ground-cli gui --listen` takes it."""
+    try:
+        return host_port(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected HOST:PORT with a port 0-65535, e.g. {DEFAULT_SERVE}"
+        ) from None
 
 
 def _is_loopback(host: str) -> bool:

@@ -19,11 +19,12 @@ from fleet.mission.messages import AssignmentReport, MissionTargets, StatusText,
 from fleet.mission.status_kind import StatusKind
 from fleet.recording import channels
 from fleet.transport import bus_codec
-from fleet.transport.bus import BusSample
+from fleet.transport.bus import BusSample, SampleCallback
 from fleet.transport.memory import MemoryBus, MemoryNetwork
 from ground.foxglove_live import bridge as bridge_module
 from ground.foxglove_live.bridge import FoxgloveBridge
 from tests.support.link_samples import sample_telemetry
+from tests.support.waiting import wait_until
 
 SPACE = KeySpace("fleet")
 TARGETS = MissionTargets(5, (74,), (Target(42.36, -71.09, 120.0), Target(42.37, -71.1, 90.0)))
@@ -161,3 +162,29 @@ def test_a_token_that_is_no_uavs_is_shown_as_heard_without_a_schema(live: Live) 
         ("", b'{"alive":true}')
     ]
     assert live.bridge.topics() == {"fleet/uav/any/alive": ""}
+
+
+class FailingQueries(MemoryBus):
+    def get(
+        self, selector: str, callback: SampleCallback, timeout: float, payload: bytes = b""
+    ) -> None:
+        raise RuntimeError("session closing")
+
+
+def test_the_map_is_sent_again_even_when_state_queries_fail(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    network = MemoryNetwork()
+    fleet, ground = network.bus(), FailingQueries(network)
+    context = foxglove.Context()
+    writer = foxglove.open_mcap(tmp_path / "live.mcap", context=context)
+    bridge = FoxgloveBridge(ground, context, SPACE, state_every_s=0.05)
+    bridge.start()
+    try:
+        fleet.put(SPACE.mission_targets(5), bus_codec.encode(TARGETS))
+        # Once when heard, then again at the ticks (at most every MAP_EVERY_S / 2).
+        wait_until(lambda: bridge.published["fleet/map/targets"] >= 3, 10.0, "3 maps")
+    finally:
+        bridge.stop()
+        writer.close()
+    assert any("state query failed: session closing" in r.message for r in caplog.records)

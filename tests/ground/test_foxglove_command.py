@@ -18,11 +18,14 @@ def test_serving_beyond_loopback_needs_allow_remote(capsys: pytest.CaptureFixtur
     assert "--allow-remote" in err
 
 
-def test_a_bad_address_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+@pytest.mark.parametrize("address", ["8765", "localhost:http", "127.0.0.1:65536", ":8765"])
+def test_a_bad_address_is_a_usage_error(address: str, capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as exited:
-        main(["foxglove", "--serve", "8765"])
+        main(["foxglove", "--serve", address])
     assert exited.value.code == ExitCode.USAGE
-    assert "expected HOST:PORT" in capsys.readouterr().err
+    assert f"{address!r}: expected HOST:PORT with a port 0-65535, e.g. 127.0.0.1:8765" in (
+        capsys.readouterr().err
+    )
 
 
 def test_a_taken_port_is_said_before_connecting(capsys: pytest.CaptureFixture[str]) -> None:
