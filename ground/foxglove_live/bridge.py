@@ -131,7 +131,9 @@ class FoxgloveBridge:
         self._threads.clear()
 
     def topics(self) -> dict[str, str]:
-        """Each channel's topic and schema name ("" for none), as a client sees them."""
+        """Each channel's topic and schema name ("" for none), as a client sees them.
+
+        Once stopped: while running, the publishing thread adds channels."""
         found = {topic: channel.schema_name() or "" for topic, (channel, _) in self._json.items()}
         found.update({fix.topic(): channels.LOCATION_FIX for fix, _ in self._fixes.values()})
         if self._map_channel is not None:
@@ -176,15 +178,14 @@ class FoxgloveBridge:
             heard = self._queue.get()
             if heard is None:
                 break
-            if heard is _TICK:
-                if time.monotonic() - last_map >= MAP_EVERY_S / 2:
+            try:
+                if heard is not _TICK:
+                    self._publish(heard)
+                elif time.monotonic() - last_map >= MAP_EVERY_S / 2:
                     self._send_map()
                     last_map = time.monotonic()
-                continue
-            try:
-                self._publish(heard)
             except Exception:  # a bug here must not end the server: log it, go on
-                log.exception("cannot publish %s", heard.key)
+                log.exception("cannot publish %s", heard.key or "the map")
                 self._drop("error")
 
     def _publish(self, heard: Heard) -> None:
