@@ -162,11 +162,15 @@ class FoxgloveBridge:
         self._enqueue(Heard(key, payload, time.time_ns()))
 
     def _tick_loop(self) -> None:
-        every = self._state_every_s if self._state_every_s > 0 else MAP_EVERY_S
+        """The map every MAP_EVERY_S at least, the state query every `state_every_s`."""
+        state_every = self._state_every_s
+        every = min(state_every, MAP_EVERY_S) if state_every > 0 else MAP_EVERY_S
+        next_query = time.monotonic()
         while not self._stop.wait(every):
-            if self._state_every_s > 0:
+            if state_every > 0 and time.monotonic() >= next_query:
+                next_query = time.monotonic() + state_every
                 try:
-                    self._bus.get(self._space.all_state, self._on_sample, timeout=every)
+                    self._bus.get(self._space.all_state, self._on_sample, timeout=state_every)
                 except Exception as error:  # the session closing under it: try again later
                     log.warning("state query failed: %s", error)
             self._enqueue(_TICK)

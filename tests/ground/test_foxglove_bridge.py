@@ -188,3 +188,27 @@ def test_the_map_is_sent_again_even_when_state_queries_fail(
         bridge.stop()
         writer.close()
     assert any("state query failed: session closing" in r.message for r in caplog.records)
+
+
+class CountedQueries(MemoryBus):
+    selectors: list[str]
+
+    def get(
+        self, selector: str, callback: SampleCallback, timeout: float, payload: bytes = b""
+    ) -> None:
+        self.selectors.append(selector)
+
+
+def test_a_slow_state_query_does_not_slow_the_map(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(bridge_module, "MAP_EVERY_S", 0.05)
+    network = MemoryNetwork()
+    fleet, ground = network.bus(), CountedQueries(network)
+    ground.selectors = []
+    bridge = FoxgloveBridge(ground, foxglove.Context(), SPACE, state_every_s=30.0)
+    bridge.start()
+    try:
+        fleet.put(SPACE.mission_targets(5), bus_codec.encode(TARGETS))
+        wait_until(lambda: bridge.published["fleet/map/targets"] >= 4, 10.0, "4 maps")
+    finally:
+        bridge.stop()
+    assert ground.selectors == [SPACE.all_state]  # once, at the first tick
