@@ -164,51 +164,46 @@ def test_a_token_that_is_no_uavs_is_shown_as_heard_without_a_schema(live: Live) 
     assert live.bridge.topics() == {"fleet/uav/any/alive": ""}
 
 
-class FailingQueries(MemoryBus):
-    def get(
-        self, selector: str, callback: SampleCallback, timeout: float, payload: bytes = b""
-    ) -> None:
-        raise RuntimeError("session closing")
+class QueryProbe(MemoryBus):
+    """A ground bus whose queries are noted (and fail with `error`, if given)."""
 
-
-def test_the_map_is_sent_again_even_when_state_queries_fail(
-    tmp_path: Path, caplog: pytest.LogCaptureFixture
-) -> None:
-    network = MemoryNetwork()
-    fleet, ground = network.bus(), FailingQueries(network)
-    context = foxglove.Context()
-    writer = foxglove.open_mcap(tmp_path / "live.mcap", context=context)
-    bridge = FoxgloveBridge(ground, context, SPACE, state_every_s=0.05)
-    bridge.start()
-    try:
-        fleet.put(SPACE.mission_targets(5), bus_codec.encode(TARGETS))
-        # Once when heard, then again at the ticks (at most every MAP_EVERY_S / 2).
-        wait_until(lambda: bridge.published["fleet/map/targets"] >= 3, 10.0, "3 maps")
-    finally:
-        bridge.stop()
-        writer.close()
-    assert any("state query failed: session closing" in r.message for r in caplog.records)
-
-
-class CountedQueries(MemoryBus):
-    selectors: list[str]
+    def __init__(self, network: MemoryNetwork, error: Exception | None = None) -> None:
+        super().__init__(network)
+        self.selectors: list[str] = []
+        self.error = error
 
     def get(
         self, selector: str, callback: SampleCallback, timeout: float, payload: bytes = b""
     ) -> None:
         self.selectors.append(selector)
+        if self.error is not None:
+            raise self.error
+
+
+def maps_sent(ground: QueryProbe, state_every_s: float, count: int) -> None:
+    """Put a mission on a bridge over `ground`; wait until its map was sent `count` times
+    (once when heard, then at the ticks)."""
+    fleet = ground.network.bus()
+    bridge = FoxgloveBridge(ground, foxglove.Context(), SPACE, state_every_s=state_every_s)
+    bridge.start()
+    try:
+        fleet.put(SPACE.mission_targets(5), bus_codec.encode(TARGETS))
+        wait_until(lambda: bridge.published["fleet/map/targets"] >= count, 10.0, f"{count} maps")
+    finally:
+        bridge.stop()
+
+
+def test_the_map_is_sent_again_even_when_state_queries_fail(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    ground = QueryProbe(MemoryNetwork(), RuntimeError("session closing"))
+    maps_sent(ground, 0.05, 3)
+    assert len(ground.selectors) >= 2
+    assert any("state query failed: session closing" in r.message for r in caplog.records)
 
 
 def test_a_slow_state_query_does_not_slow_the_map(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(bridge_module, "MAP_EVERY_S", 0.05)
-    network = MemoryNetwork()
-    fleet, ground = network.bus(), CountedQueries(network)
-    ground.selectors = []
-    bridge = FoxgloveBridge(ground, foxglove.Context(), SPACE, state_every_s=30.0)
-    bridge.start()
-    try:
-        fleet.put(SPACE.mission_targets(5), bus_codec.encode(TARGETS))
-        wait_until(lambda: bridge.published["fleet/map/targets"] >= 4, 10.0, "4 maps")
-    finally:
-        bridge.stop()
+    ground = QueryProbe(MemoryNetwork())
+    maps_sent(ground, 30.0, 4)
     assert ground.selectors == [SPACE.all_state]  # once, at the first tick

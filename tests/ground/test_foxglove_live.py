@@ -51,6 +51,21 @@ def node_client(url: str, *args: str) -> Child:
     return start("foxglove client", ["node", str(JS / "foxglove_client.mjs"), url, *args])
 
 
+def fleet_up(tmp_path: Path, endpoint: str, *extra: str) -> Child:
+    """`fleet up head_on` listening on `endpoint`, once its UAVs are up."""
+    up = start(
+        "fleet up",
+        [*FLEET, "up", "head_on", "--listen", endpoint, "--no-record",
+         "--log-dir", str(tmp_path / "run"), *extra],
+    )  # fmt: skip
+    try:
+        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+    except AssertionError:
+        stop_children([up], 10.0)
+        raise
+    return up
+
+
 def serve(endpoint: str, *extra: str) -> tuple[Child, str]:
     """`fleet foxglove` on the fleet at `endpoint`, and the URL it serves."""
     fox = start("fleet foxglove", [*FLEET, "foxglove", "--serve", "127.0.0.1:0",
@@ -159,14 +174,9 @@ def reached_on_the_map(client: Child) -> bool:
 def test_a_foxglove_client_sees_the_fleet_as_the_bus_and_the_recorder_do(tmp_path: Path) -> None:
     port = free_port()
     endpoint = f"tcp/127.0.0.1:{port}"
-    up = start(
-        "fleet up",
-        [*FLEET, "up", "head_on", "--listen", endpoint, "--speedup", "10", "--no-record",
-         "--log-dir", str(tmp_path / "run")],
-    )  # fmt: skip
+    up = fleet_up(tmp_path, endpoint, "--speedup", "10")
     children: list[Child] = []
     try:
-        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
         with client_session(port) as session:
             observer = BusObserver(session)
             record = start("fleet record", [*FLEET, "record", str(tmp_path / "rec.mcap"),
@@ -224,14 +234,9 @@ def test_in_the_secure_profile_it_holds_the_grounds_identity(tmp_path: Path) -> 
     certs = tmp_path / "certs"
     endpoint = f"tls/127.0.0.1:{free_port()}"
     write_identities(certs, ["router", "ground", "uav-74", "uav-112"], [endpoint])
-    up = start(
-        "fleet up --secure",
-        [*FLEET, "up", "head_on", "--secure", str(certs), "--listen", endpoint,
-         "--speedup", "5", "--no-record", "--log-dir", str(tmp_path / "run")],
-    )  # fmt: skip
+    up = fleet_up(tmp_path, endpoint, "--secure", str(certs), "--speedup", "5")
     children: list[Child] = []
     try:
-        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
         fox, url = serve(endpoint, "--zenoh-config", str(certs / "ground.json5"))
         children.append(fox)
         fixes = node_client(url, "--topics", "/location_fix$", "--count", str(FIXES))
