@@ -25,6 +25,7 @@ import zenoh
 
 from fleet.errors import FleetError
 from fleet.files.certs import CertError
+from fleet.mission.access import ROUTER
 from fleet.transport.cli import (
     ExitCode,
     add_key_prefix_argument,
@@ -123,6 +124,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="DIR",
         help="mutual TLS and access control with the identities in DIR (`fleet certs make`)",
     )
+    parser.add_argument(
+        "--identity",
+        default=ROUTER,
+        metavar="NAME",
+        help="with --secure: the identity in DIR this router presents (default %(default)s; "
+        "a UAV's own router: router-N)",
+    )
     add_key_prefix_argument(parser)  # the keys the access control covers
     add_verbose_argument(parser)
     return parser
@@ -134,7 +142,9 @@ def main(argv: list[str] | None = None) -> int:
     stop = threading.Event()
     try:
         secure = (
-            SecureProfile.load(args.secure, args.key_space) if args.secure is not None else None
+            SecureProfile.load(args.secure, args.key_space, args.identity)
+            if args.secure is not None
+            else None
         )
         router = Router(args.listen or [DEFAULT_ROUTER], args.connect, secure)
         with stop_on_signals(stop.set), router:
