@@ -1,0 +1,81 @@
+"""Who may use the page's server: a Host allow-list and a session token.
+
+DNS rebinding: a site the operator visits (`evil.example`) points its name at this
+machine's address; its scripts then reach the page's server as the same origin
+(`http://evil.example:8321`), and an Origin-equals-Host check passes. Two checks stop it:
+
+* the Host a request names must be the address the server is bound to, or `localhost`
+  (a rebinding page's requests name the attacker's host). A server bound to every
+  interface (`0.0.0.0`, `::`) cannot know its names: it relies on its token
+  (`--allow-remote` requires one);
+* a WebSocket, which carries the commands, must present the session token: random per
+  run, handed only inside the page the server serves (a meta tag, and a SameSite=Strict
+  cookie for this host), which a rebinding page cannot read (its GET of the page is
+  refused by the Host check) and whose cookie its browser never sends to another site.
+
+Each refusal is counted and logged, at most once per `LOG_EVERY_S` with the number
+refused meanwhile, so a flood cannot fill the log.
+"""
+
+from __future__ import annotations
+
+import hmac
+import ipaddress
+import logging
+import secrets
+import time
+
+from aiohttp import web
+
+log = logging.getLogger(__name__)
+
+#: At most one log line about refused requests per this many seconds.
+LOG_EVERY_S = 10.0
+SESSION_META = "fleet-session"
+_WILDCARDS = ("0.0.0.0", "::", "")
+
+
+def _normal(host: str) -> str:
+    host = host.strip().lower().rstrip(".").removeprefix("[").removesuffix("]")
+    try:
+        return str(ipaddress.ip_address(host))
+    except ValueError:
+        return host
+
+
+class Access:
+    """The server's Host allow-list and session token, and what it refused."""
+
+    def __init__(self, bound_host: str) -> None:
+        bound = _normal(bound_host)
+        self.any_host = bound in _WILDCARDS
+        self.allowed_hosts = frozenset({bound, "localhost"})
+        self.session = secrets.token_urlsafe(32)
+        self.refused = 0
+        self._unlogged = 0
+        self._logged_at = float("-inf")
+
+    def host_allowed(self, host: str | None) -> bool:
+        return self.any_host or (host is not None and _normal(host) in self.allowed_hosts)
+
+    def session_matches(self, given: str) -> bool:
+        return hmac.compare_digest(given.encode(), self.session.encode())
+
+    def with_session(self, html: str) -> str:
+        """The page's HTML with this run's session token in a meta tag its script reads."""
+        meta = f'<meta name="{SESSION_META}" content="{self.session}">'
+        return html.replace("<head>", f"<head>\n{meta}", 1)
+
+    def refuse(self, request: web.Request, status: int, reason: str) -> web.Response:
+        """Count and (rate-limited) log a refused request; the answer to send."""
+        self.refused += 1
+        self._unlogged += 1
+        now = time.monotonic()
+        if now - self._logged_at >= LOG_EVERY_S:
+            log.warning(
+                "refused %s %s from %s: %s (%d refused since the last report, %d in all)",
+                request.method, request.path, request.remote, reason, self._unlogged,
+                self.refused,
+            )  # fmt: skip
+            self._logged_at, self._unlogged = now, 0
+        return web.json_response({"error": reason}, status=status)
