@@ -48,6 +48,7 @@ from fleet.transport import bus_codec
 from fleet.transport.bus import Bus, BusQuery
 from fleet.transport.bus_codec import BadMessage, decode
 from fleet.transport.link import Link
+from fleet.transport.refusal_log import RefusalLog
 from fleet.transport.serial_port import DEFAULT_BAUD, SerialLink
 from fleet.transport.zenoh_bus import ZenohBus
 from onboard.autopilot_commands import AutopilotCommand
@@ -57,6 +58,8 @@ from onboard.link_adapter import LinkAdapter
 from onboard.planner_worker import PlannerWorker
 
 log = logging.getLogger(__name__)
+#: Refused input, logged at most every few seconds (a flood cannot fill the log).
+_refusals = RefusalLog(log)
 
 #: What the link and bus threads hand the main loop.
 Event = LinkEvent | BusEvent | PresenceEvent
@@ -353,7 +356,7 @@ class OnboardProcess:
         try:
             command = decode(query.payload, kind, key)
         except BadMessage as error:
-            log.warning("command refused: %s", error)
+            _refusals.warn(f"command refused: {error}")
             query.reply_err(str(error))
             query.drop()
             return

@@ -37,6 +37,8 @@ from fleet.transport import bus_codec
 from fleet.transport.bus_codec import DropReason
 
 log = logging.getLogger(__name__)
+#: How many keys' refusals are logged (each once); the rest are only counted.
+MAX_BAD_KEYS_LOGGED = 1000
 
 DEFAULT_STATE_EVERY_S = 1.0
 #: The line `fleet record` prints once it listens (the launcher waits for it).
@@ -207,7 +209,9 @@ class Recorder:
         except bus_codec.BadMessage as error:
             reason = error.reason
             self.stats.dropped["not JSON" if reason is DropReason.INVALID else str(reason)] += 1
-            if heard.key not in self._bad_keys:
+            # Logged once per key, for a bounded number of keys: a flood on ever new keys
+            # is counted, not remembered.
+            if heard.key not in self._bad_keys and len(self._bad_keys) < MAX_BAD_KEYS_LOGGED:
                 self._bad_keys.add(heard.key)
                 log.warning("not recorded: %s; further ones counted", error)
             return

@@ -13,8 +13,8 @@ machine's address; its scripts then reach the page's server as the same origin
   cookie for this host), which a rebinding page cannot read (its GET of the page is
   refused by the Host check) and whose cookie its browser never sends to another site.
 
-Each refusal is counted and logged, at most once per `LOG_EVERY_S` with the number
-refused meanwhile, so a flood cannot fill the log.
+Each refusal is counted and logged (`RefusalLog`: at most a line every few seconds, with
+the number refused meanwhile, so a flood cannot fill the log).
 """
 
 from __future__ import annotations
@@ -23,14 +23,13 @@ import hmac
 import ipaddress
 import logging
 import secrets
-import time
 
 from aiohttp import web
 
+from fleet.transport.refusal_log import RefusalLog
+
 log = logging.getLogger(__name__)
 
-#: At most one log line about refused requests per this many seconds.
-LOG_EVERY_S = 10.0
 SESSION_META = "fleet-session"
 _WILDCARDS = ("0.0.0.0", "::", "")
 
@@ -52,8 +51,7 @@ class Access:
         self.allowed_hosts = frozenset({bound, "localhost"})
         self.session = secrets.token_urlsafe(32)
         self.refused = 0
-        self._unlogged = 0
-        self._logged_at = float("-inf")
+        self._refusals = RefusalLog(log)
 
     def host_allowed(self, host: str | None) -> bool:
         return self.any_host or (host is not None and _normal(host) in self.allowed_hosts)
@@ -69,13 +67,8 @@ class Access:
     def refuse(self, request: web.Request, status: int, reason: str) -> web.Response:
         """Count and (rate-limited) log a refused request; the answer to send."""
         self.refused += 1
-        self._unlogged += 1
-        now = time.monotonic()
-        if now - self._logged_at >= LOG_EVERY_S:
-            log.warning(
-                "refused %s %s from %s: %s (%d refused since the last report, %d in all)",
-                request.method, request.path, request.remote, reason, self._unlogged,
-                self.refused,
-            )  # fmt: skip
-            self._logged_at, self._unlogged = now, 0
+        self._refusals.warn(
+            f"refused {request.method} {request.path} from {request.remote}: {reason} "
+            f"({self.refused} in all)"
+        )
         return web.json_response({"error": reason}, status=status)
