@@ -40,6 +40,20 @@ from fleet.transport.zenoh_config import DEFAULT_ROUTER, make_config
 log = logging.getLogger(__name__)
 
 
+#: Zenoh's own log: its warnings name each link it refused (no certificate, an unknown
+#: CA, an expired certificate), which Python never sees otherwise. RUST_LOG overrides it.
+ZENOH_LOG_LEVEL = "warn"
+_zenoh_log_on = False
+
+
+def _log_refused_links() -> None:
+    """Turn on Zenoh's warnings on stderr (once per process: Zenoh's logger is global)."""
+    global _zenoh_log_on
+    if not _zenoh_log_on:
+        zenoh.init_log_from_env_or(ZENOH_LOG_LEVEL)
+        _zenoh_log_on = True
+
+
 class RouterError(FleetError, RuntimeError):
     """The router could not open (typically: its listen endpoint is taken or malformed)."""
 
@@ -80,6 +94,7 @@ class Router:
             config = make_config("router", self.connect, self.listen)
             if self.secure is not None:
                 self.secure.apply_to_router(config)
+                _log_refused_links()
             self._session = zenoh.open(config)
         except zenoh.ZError as error:
             raise RouterError(

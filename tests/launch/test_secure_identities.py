@@ -12,6 +12,7 @@ Zenoh clients with the fleet's identities.
 from __future__ import annotations
 
 import datetime
+import json
 import sys
 import threading
 import time
@@ -27,7 +28,7 @@ from fleet.launch.launcher import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, Target
 from fleet.transport.bus_codec import ENCODING, encode
-from fleet.transport.zenoh_config import build_config
+from fleet.transport.zenoh_config import build_config, make_config
 from tests.support.processes import Child, start
 from tests.support.waiting import wait_until
 
@@ -71,12 +72,17 @@ def router(certs: Certs, identity: str, host: str = "127.0.0.1") -> tuple[Child,
 
 
 @pytest.fixture(scope="module")
-def fleet_router(certs: Certs) -> Iterator[str]:
+def fleet_router_child(certs: Certs) -> Iterator[tuple[Child, str]]:
     child, endpoint = router(certs, "router")
     try:
-        yield endpoint
+        yield child, endpoint
     finally:
         child.stop()
+
+
+@pytest.fixture(scope="module")
+def fleet_router(fleet_router_child: tuple[Child, str]) -> str:
+    return fleet_router_child[1]
 
 
 class Heard:
@@ -130,6 +136,19 @@ def test_a_router_certificate_for_another_host_is_refused(certs: Certs) -> None:
 def test_the_real_router_is_accepted(certs: Certs, fleet_router: str) -> None:
     with certs.session("ground", fleet_router) as session:
         assert str(session.zid())
+
+
+def test_a_refused_connection_is_in_the_routers_log(
+    certs: Certs, fleet_router_child: tuple[Child, str]
+) -> None:
+    child, endpoint = fleet_router_child
+    config = make_config("client", [endpoint])
+    config.insert_json5(
+        "transport/link/tls/root_ca_certificate", json.dumps(str(certs.directory / "ca.pem"))
+    )
+    with pytest.raises(zenoh.ZError, match="Unable to connect"):
+        zenoh.open(config)  # no certificate of its own
+    child.wait_for_line(lambda line: "WARN" in line and "certificate" in line, 10.0)
 
 
 # ---- case 3: the router identities used as clients ------------------------------------------
