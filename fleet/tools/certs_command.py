@@ -1,8 +1,10 @@
 """`fleet certs make DIR --uavs 74,112 --ground`: the fleet's identities for mutual TLS.
 
-Writes `DIR/ca.pem`, and per identity NAME (`router`, `ground`, `uav-74`, ...)
-`DIR/NAME.pem`, `DIR/NAME.key` and `DIR/NAME.json5` (a Zenoh client configuration for
-`--zenoh-config`); see `fleet.files.certs` and docs/security.md.
+Writes `DIR/ca.pem`, and per identity NAME (`router`, `ground`, `uav-74`, and
+`router-74` for UAV 74's own router in a router-per-UAV mesh, ...) `DIR/NAME.pem`,
+`DIR/NAME.key` and `DIR/NAME.json5` (a Zenoh client configuration for `--zenoh-config`).
+Only router identities may serve. A DIR that already has a CA is refused unless
+`--force`. See `fleet.files.certs` and docs/security.md.
 """
 
 from __future__ import annotations

@@ -10,7 +10,6 @@ process with UAV 112's identity, the ground's identity asking for its state.
 from __future__ import annotations
 
 import socket
-from collections.abc import Iterator
 from pathlib import Path
 
 import msgspec
@@ -48,15 +47,6 @@ def state_of(ground: zenoh.Session) -> UavState | None:
 def certs(tmp_path: Path) -> Path:
     write_identities(tmp_path, ["router", "ground", f"uav-{UAV}"], [])
     return tmp_path.resolve()
-
-
-@pytest.fixture
-def fleet() -> Iterator[Fleet]:
-    fleet = Fleet()
-    try:
-        yield fleet
-    finally:
-        fleet.stop_all()
 
 
 def test_a_mission_on_the_payload_port_is_refused_in_the_secure_profile(
