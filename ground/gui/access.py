@@ -48,7 +48,13 @@ class Access:
     def __init__(self, bound_host: str) -> None:
         bound = _normal(bound_host)
         self.any_host = bound in _WILDCARDS
-        self.allowed_hosts = frozenset({bound, "localhost"})
+        # A loopback address typed as such is no rebinding (that needs a foreign name).
+        loopback = (
+            {"localhost", "127.0.0.1", "::1"}
+            if bound in ("localhost", "127.0.0.1", "::1")
+            else set()
+        )
+        self.allowed_hosts = frozenset({bound, "localhost", *loopback})
         self.session = secrets.token_urlsafe(32)
         self.refused = 0
         self._refusals = RefusalLog(log)
