@@ -39,6 +39,8 @@ from fleet.transport.bus_codec import DropReason
 log = logging.getLogger(__name__)
 #: How many keys' refusals are logged (each once); the rest are only counted.
 MAX_BAD_KEYS_LOGGED = 1000
+#: How many keys of no known pattern get a channel; samples on further ones are counted.
+MAX_UNKNOWN_KEYS = 1000
 
 DEFAULT_STATE_EVERY_S = 1.0
 #: The line `fleet record` prints once it listens (the launcher waits for it).
@@ -97,6 +99,7 @@ class Recorder:
         self._threads: list[threading.Thread] = []
         self._declared: list[zenoh.Subscriber[None]] = []
         self._bad_keys: set[str] = set()
+        self._unknown_keys: set[str] = set()
         self._uavs_with_fix: set[int] = set()
         self.stats = RecorderStats()
         #: Why writing stopped (the disk is full, ...); `on_failure` is set then.
@@ -216,6 +219,14 @@ class Recorder:
                 log.warning("not recorded: %s; further ones counted", error)
             return
         spec = channels.channel_for(heard.key)
+        if not spec.schema_name and spec.topic not in self._unknown_keys:
+            # A key of no known pattern is a channel of its own; a peer writing on ever new
+            # keys (any UAV may, under its own tree) must not grow the recording's channel
+            # table and counters without bound.
+            if len(self._unknown_keys) >= MAX_UNKNOWN_KEYS:
+                self.stats.dropped["too many unknown keys"] += 1
+                return
+            self._unknown_keys.add(spec.topic)
         if spec.topic.endswith(f"/{channels.ALIVE_LEAF}"):
             # Not a UAV's token: recorded as it is, without a schema.
             with contextlib.suppress(ValueError, IndexError):
