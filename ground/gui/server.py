@@ -50,6 +50,7 @@ from aiohttp import WSCloseCode, WSMsgType, web
 
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import Target
+from fleet.transport import bus_codec
 from fleet.transport.bus import Bus
 from ground import targets_formats
 from ground.alerts import StatusRecord
@@ -257,8 +258,13 @@ class GuiServer:
             "mission": self.model.mission_json(self._desk.outcome(), views),
             "statuses": statuses,
             "alerts": self.model.alerts_json(),
-            # What this server refused: requests (Host, token, origin, session), commands.
-            "refused": {"requests": self.access.refused, "commands": self.commands_refused},
+            # What this server refused: requests (Host, token, origin, session), commands,
+            # and bus messages by reason.
+            "refused": {
+                "requests": self.access.refused,
+                "commands": self.commands_refused,
+                "bus": bus_codec.DROPPED.counts(),
+            },
         }
 
     async def _push(self) -> None:

@@ -252,6 +252,15 @@ def test_a_websocket_without_the_pages_session_token_is_refused(gui: str) -> Non
     assert asyncio.run(status_of(f"{gui}/ws", **same_origin)) == 403
     assert asyncio.run(status_of(f"{gui}/ws?session=guess", **same_origin)) == 403
     assert asyncio.run(status_of(ws_url(gui), **same_origin)) == 101
+
+    async def refused_counts() -> dict[str, Any]:
+        async with aiohttp.ClientSession() as http, http.ws_connect(ws_url(gui)) as ws:
+            snapshot: dict[str, Any] = await ws.receive_json(timeout=10)
+            refused: dict[str, Any] = snapshot["refused"]
+            return refused
+
+    refused = asyncio.run(refused_counts())  # counted, and shown to the page
+    assert refused["requests"] >= 2 and isinstance(refused["bus"], dict)
     # The cookie the page sets: this host only, never sent to another site.
     with urllib.request.urlopen(f"{gui}/", timeout=10) as response:
         cookie = response.headers["Set-Cookie"]
