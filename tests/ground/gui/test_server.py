@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import asyncio
 import json
-import re
 import sys
 import urllib.error
 import urllib.request
@@ -20,6 +19,7 @@ from fleet.mission.messages import Target
 from fleet.mission.targets_file import encode_targets
 from tests.ground.test_cli import run_cli
 from tests.support.fake_onboard import FakeOnboard
+from tests.support.gui_page import websocket_url
 from tests.support.processes import Child, start
 from tests.support.waiting import wait_until
 
@@ -51,11 +51,7 @@ def gui(router: str, fakes: dict[int, FakeOnboard]) -> Iterator[str]:
 
 def ws_url(page: str) -> str:
     """The page's WebSocket, with the session token only the page served holds."""
-    with urllib.request.urlopen(f"{page}/", timeout=10) as response:
-        html = response.read().decode()
-    session = re.search(r'<meta name="fleet-session" content="([^"]+)">', html)
-    assert session is not None, html[:300]
-    return f"{page}/ws?session={session[1]}"
+    return websocket_url(page)
 
 
 def get(url: str, headers: dict[str, str] | None = None) -> tuple[int, Any]:
@@ -293,7 +289,7 @@ def test_sigterm_with_a_page_open_closes_its_socket_as_going_away(
     async def open_page_then_stop() -> tuple[int | None, int]:
         async with (
             aiohttp.ClientSession() as session,
-            session.ws_connect(ws_url(url).replace("http", "ws"), origin=url) as ws,
+            session.ws_connect(ws_url(url), origin=url) as ws,
         ):
             await ws.receive_json()  # the first snapshot: the page is open
             child.process.terminate()
