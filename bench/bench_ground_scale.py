@@ -24,6 +24,7 @@ import aiohttp
 
 from fleet.transport.router import Router
 from tests.support.fake_onboard import FakeOnboard
+from tests.support.gui_page import websocket_url
 from tests.support.processes import free_endpoint
 
 FRAMES = 10
@@ -103,7 +104,7 @@ def measure_gui(router: str) -> str:
         assert gui.stdout is not None
         line = gui.stdout.readline()
         url = line.split("serving on ", 1)[1].strip()
-        ws = url.replace("http://", "ws://").rstrip("/") + "/ws"
+        ws = websocket_url(url)  # with the session token the page holds
         time.sleep(2.0)  # let the trails and states fill
         count, size = asyncio.run(count_snapshots(ws, 5.0))
         rate = count / 5

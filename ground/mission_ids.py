@@ -27,11 +27,14 @@ from fleet.mission.messages import (
 )
 from fleet.transport import bus_codec
 from fleet.transport.bus import Bus, BusQuery, BusReply, Queryable
+from fleet.transport.refusal_log import RefusalLog
 from ground.declarations import Declarations, Enter
 from ground.fleet_view import query_states
 from ground.mission_control import MissionError
 
 log = logging.getLogger(__name__)
+#: Refused input, logged at most every few seconds (a flood cannot fill the log).
+_refusals = RefusalLog(log)
 
 
 #: Mission ids are u32 on the planning protocol.
@@ -62,7 +65,7 @@ def _mission_message(reply: BusReply) -> MissionMessage | None:
     try:
         return bus_codec.decode(reply.payload, kind, reply.key)
     except bus_codec.BadMessage as error:
-        log.warning("ignored reply %s", error)
+        _refusals.warn(f"ignored reply {error}")
         return None
 
 

@@ -29,8 +29,11 @@ from fleet.mission.messages import (
 )
 from fleet.transport.bus import Bus, BusSample, Declaration
 from fleet.transport.bus_codec import BadMessage, DropReason, decode, decode_header, refuse
+from fleet.transport.refusal_log import RefusalLog
 
 log = logging.getLogger(__name__)
+#: Refused input, logged at most every few seconds (a flood cannot fill the log).
+_refusals = RefusalLog(log)
 
 
 @dataclass(frozen=True)
@@ -161,7 +164,7 @@ class BusEdge:
             try:
                 message = decode(sample.payload, kind, sample.key)
             except BadMessage as error:
-                log.warning("dropped: %s", error)
+                _refusals.warn(f"dropped: {error}")
                 return
             self.sink(BusEvent(sample.key, message, replayed))
 

@@ -21,7 +21,7 @@ from fleet.transport.cli import (
     stop_on_signals,
     zenoh_config,
 )
-from fleet.transport.zenoh_config import endpoints, error_text
+from fleet.transport.zenoh_config import endpoints, error_text, uses_mtls
 from onboard.core import CONFIRM_LIMIT_S, LINK_RELEASE_S
 from onboard.process import OnboardProcess, OnboardSettings
 
@@ -90,6 +90,8 @@ def settings_from(args: argparse.Namespace, config: zenoh.Config) -> OnboardSett
         link_release_s=args.link_release,
         telemetry_hz=args.telemetry_hz,
         key_space=args.key_space,
+        # In the secure profile only Zenoh, where each message's sender is known, commands.
+        payload_commands=not uses_mtls(config),
     )
 
 

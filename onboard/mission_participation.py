@@ -33,6 +33,7 @@ from fleet.mission.messages import (
     UavResult,
 )
 from fleet.mission.phase import Phase
+from fleet.mission.recent_ids import RecentIds
 from fleet.mission.status_kind import StatusKind
 from onboard.approach_plan import ApproachPlan
 from onboard.catch_up import CatchUp
@@ -77,7 +78,8 @@ class MissionParticipation:
     decision: MissionDecision = field(init=False)
     own: OwnResult = field(init=False)
     _early_results: list[UavResult] = field(default_factory=list)
-    _aborted: set[int] = field(default_factory=set)
+    #: The missions aborted, the newest only: a stream of aborts cannot grow it forever.
+    _aborted: RecentIds = field(default_factory=RecentIds)
     _abort: MissionAbort | None = None  #: the abort this UAV obeyed last (relayed by query)
 
     def __post_init__(self) -> None:

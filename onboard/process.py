@@ -48,6 +48,7 @@ from fleet.transport import bus_codec
 from fleet.transport.bus import Bus, BusQuery
 from fleet.transport.bus_codec import BadMessage, decode
 from fleet.transport.link import Link
+from fleet.transport.refusal_log import RefusalLog
 from fleet.transport.serial_port import DEFAULT_BAUD, SerialLink
 from fleet.transport.zenoh_bus import ZenohBus
 from onboard.autopilot_commands import AutopilotCommand
@@ -57,6 +58,8 @@ from onboard.link_adapter import LinkAdapter
 from onboard.planner_worker import PlannerWorker
 
 log = logging.getLogger(__name__)
+#: Refused input, logged at most every few seconds (a flood cannot fill the log).
+_refusals = RefusalLog(log)
 
 #: What the link and bus threads hand the main loop.
 Event = LinkEvent | BusEvent | PresenceEvent
@@ -66,6 +69,8 @@ LINK_HEALTH_PERIOD = 1.0
 TICK_PERIOD = 0.25
 #: At most this many queued events are handled before the timers run again.
 MAX_EVENTS_PER_TICK = 200
+#: The state's link drop counting the payload port's messages refused (secure profile).
+PAYLOAD_REFUSED = "payload_commands_refused"
 
 
 @dataclass
@@ -85,6 +90,10 @@ class OnboardSettings:
     telemetry_hz: float | None = None
     #: The fleet's keys ($FLEET_KEY_PREFIX or --key-prefix).
     key_space: KeySpace = DEFAULT_SPACE
+    #: Whether messages heard on the payload port (the ground station's relay) are
+    #: obeyed. Off in the secure profile: anyone on that pipe would command the UAV
+    #: without any identity, so there the ground commands over Zenoh only.
+    payload_commands: bool = True
 
 
 @dataclass
@@ -138,6 +147,7 @@ class OnboardProcess:
         bus: Bus | None = None,
     ) -> None:
         self.settings = settings
+        self.payload_refused = 0  #: messages from the payload port refused
         self.space = settings.key_space
         #: None only wakes the loop (a query or a planner result waits for it).
         self.events: queue.SimpleQueue[Event | None] = queue.SimpleQueue()
@@ -279,6 +289,13 @@ class OnboardProcess:
             envelope = event.envelope
             if envelope.destination not in (self.settings.uav_id, BROADCAST):
                 return
+            if not self.settings.payload_commands:
+                self.payload_refused += 1
+                _refusals.warn(
+                    f"refused {type(envelope.message).__name__} from the payload port: in "
+                    "the secure profile commands come over Zenoh only"
+                )
+                return
             self._on_message(envelope.message, now, via_payload=True)
 
     def _on_message(
@@ -339,6 +356,8 @@ class OnboardProcess:
         """The serial link's health, with the bus messages refused counted as drops too."""
         health = self.link.health(now)
         refused = {f"bus_{reason}": n for reason, n in bus_codec.DROPPED.counts().items()}
+        if self.payload_refused:
+            refused[PAYLOAD_REFUSED] = self.payload_refused
         return msgspec.structs.replace(health, drops={**health.drops, **refused})
 
     def _on_command_query(self, query: BusQuery, now: float) -> None:
@@ -353,7 +372,7 @@ class OnboardProcess:
         try:
             command = decode(query.payload, kind, key)
         except BadMessage as error:
-            log.warning("command refused: %s", error)
+            _refusals.warn(f"command refused: {error}")
             query.reply_err(str(error))
             query.drop()
             return

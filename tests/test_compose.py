@@ -292,9 +292,58 @@ def secure_command(name: str) -> list[str]:
 def test_secure_override_names_only_existing_services_and_every_zenoh_client() -> None:
     assert set(SECURE) <= set(SERVICES)
     clients = {n for n, s in fleet_services().items() if command_of(s)[0] != "fleet"}
-    assert clients <= set(SECURE)  # no client left on the open tcp endpoint
+    assert clients <= {n for n, s in SECURE.items() if "command" in s}  # none left on tcp
+
+
+def mounts(service: dict[str, Any]) -> dict[str, str]:
+    """A service's bind mounts: where in the container -> which file of this host."""
+    found = {}
+    for volume in service.get("volumes", []):
+        source, target, *mode = volume.split(":")
+        assert mode == ["ro"], volume  # nothing the fleet's identities are in is writable
+        found[target] = source
+    return found
+
+
+def identity_of(name: str) -> str | None:
+    argv = secure_command(name)
+    if name == ROUTER:
+        return "router"
+    if not argv:
+        return None  # a simulator: no identity
+    return f"uav-{option(argv, '--id')}" if argv[0] == "onboard" else "ground"
+
+
+def test_each_service_sees_its_own_key_and_no_other() -> None:
     for name, service in SECURE.items():
-        assert f"./certs:{CERTS}:ro" in service.get("volumes", []), name
+        identity = identity_of(name)
+        seen = mounts(service)
+        assert all(source.startswith("./certs/") for source in seen.values()), name
+        assert all(target == f"{CERTS}/{Path(s).name}" for target, s in seen.items()), name
+        keys = {Path(source).name for source in seen.values() if source.endswith(".key")}
+        if identity is None:
+            assert seen == {}, name
+            continue
+        assert keys == {f"{identity}.key"}, name  # never ca.key, never another's
+        assert {f"{CERTS}/ca.pem", f"{CERTS}/{identity}.pem"} <= set(seen), name
+        # Every file its command names under /certs is there.
+        named = {a for a in secure_command(name) if a.startswith(CERTS + "/")}
+        assert named <= set(seen), name
+    assert "./certs:/certs:ro" not in (REPO / "compose.secure.yaml").read_text()
+
+
+def test_each_simulator_is_reachable_from_its_own_onboard_only() -> None:
+    networks = yaml.safe_load((REPO / "compose.secure.yaml").read_text())["networks"]
+    for name, service in fleet_services().items():
+        argv = command_of(service)
+        if argv[:2] != ["fleet", "sim"]:
+            continue
+        uav = option(argv, "--uav")
+        link = f"link-{uav}"
+        assert SECURE[name]["networks"] == [link], name
+        assert networks[link] == {"internal": True}
+        on_link = {n for n, s in SECURE.items() if link in s.get("networks", [])}
+        assert on_link == {name, f"uav-{uav}"}, on_link
 
 
 def test_secure_router_is_ours_with_mtls_and_acl_on_the_same_port() -> None:
@@ -314,7 +363,7 @@ def test_each_secure_client_uses_its_own_identity_over_tls() -> None:
     _, port = router_listen()
     expected = f"tls/{ROUTER}:{port}"
     for name in SECURE:
-        if name == ROUTER:
+        if name == ROUTER or "command" not in SECURE[name]:
             continue
         argv = secure_command(name)
         with accepted_by(_parser_for(argv[0])(), argv[1:], name):

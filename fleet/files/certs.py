@@ -6,8 +6,12 @@ the hosts the fleet is reached at), `DIR/NAME.key` and `DIR/NAME.json5`: a ready
 client configuration for that identity (`--zenoh-config`). Keys are ECDSA P-256, which
 Zenoh's TLS (rustls) accepts; private keys are written readable by their owner only.
 
-Every certificate may serve and connect (both TLS usages): a router presents its own on
-its listen endpoints and when it connects to another router.
+Identities have one role each. Only a router's certificate may serve (TLS server usage,
+and the names of the hosts it is reached at); it may also connect, to another router. Every
+other identity (the ground, a UAV) may only connect: a client checks that the router it
+dialled presents a server certificate for that host, so a stolen UAV key cannot pose as a
+router. Private keys are created owner-only with O_EXCL and never through a symlink; an
+existing CA is replaced only when asked (`force`).
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
 from fleet.errors import FleetError
+from fleet.mission.access import is_router_identity
 
 #: Hosts every certificate names, so endpoints on this machine verify.
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
@@ -70,15 +75,22 @@ def _name(common_name: str) -> x509.Name:
     )
 
 
-def _validity(days: int) -> tuple[datetime.datetime, datetime.datetime]:
+def _validity(lifetime: datetime.timedelta) -> tuple[datetime.datetime, datetime.datetime]:
     now = datetime.datetime.now(datetime.UTC)
     # An hour of slack for clocks that disagree a little.
-    return now - datetime.timedelta(hours=1), now + datetime.timedelta(days=days)
+    return now - datetime.timedelta(hours=1), now + lifetime
+
+
+def _days(days: int) -> datetime.timedelta:
+    return datetime.timedelta(days=days)
+
+
+DEFAULT_LIFETIME = _days(DEFAULT_VALID_DAYS)
 
 
 def make_authority(days: int = DEFAULT_VALID_DAYS) -> Authority:
     key = ec.generate_private_key(ec.SECP256R1())
-    start, end = _validity(days)
+    start, end = _validity(_days(days))
     name = _name("uav-fleet CA")
     certificate = (
         x509.CertificateBuilder()
@@ -110,13 +122,22 @@ def make_authority(days: int = DEFAULT_VALID_DAYS) -> Authority:
 
 
 def issue(
-    authority: Authority, common_name: str, hosts: list[str], days: int = DEFAULT_VALID_DAYS
+    authority: Authority,
+    common_name: str,
+    hosts: list[str],
+    lifetime: datetime.timedelta = DEFAULT_LIFETIME,
 ) -> tuple[x509.Certificate, ec.EllipticCurvePrivateKey]:
-    """A certificate for `common_name`, valid for `hosts`, signed by `authority`."""
+    """A certificate for `common_name` signed by `authority`, valid for `lifetime`.
+
+    A router's (`is_router_identity`) may serve, for `hosts`, and connect; any other
+    identity's may only connect, and names no host.
+    """
     key = ec.generate_private_key(ec.SECP256R1())
-    start, end = _validity(days)
+    start, end = _validity(lifetime)
     ca_key_id = x509.AuthorityKeyIdentifier.from_issuer_public_key(authority.key.public_key())
-    certificate = (
+    router = is_router_identity(common_name)
+    usages = [ExtendedKeyUsageOID.SERVER_AUTH] if router else []
+    builder = (
         x509.CertificateBuilder()
         .subject_name(_name(common_name))
         .issuer_name(authority.certificate.subject)
@@ -125,17 +146,14 @@ def issue(
         .not_valid_before(start)
         .not_valid_after(end)
         .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
-        .add_extension(_san(hosts), critical=False)
         .add_extension(
-            x509.ExtendedKeyUsage(
-                [ExtendedKeyUsageOID.SERVER_AUTH, ExtendedKeyUsageOID.CLIENT_AUTH]
-            ),
-            critical=False,
+            x509.ExtendedKeyUsage([*usages, ExtendedKeyUsageOID.CLIENT_AUTH]), critical=True
         )
         .add_extension(ca_key_id, critical=False)
-        .sign(authority.key, hashes.SHA256())
     )
-    return certificate, key
+    if router:
+        builder = builder.add_extension(_san(hosts), critical=False)
+    return builder.sign(authority.key, hashes.SHA256()), key
 
 
 # ---- files ----------------------------------------------------------------------------------
@@ -152,8 +170,12 @@ def _key_pem(key: ec.EllipticCurvePrivateKey) -> bytes:
 
 
 def _write(path: Path, data: bytes, private: bool = False) -> None:
-    flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC
+    """Write `path` afresh: any old file (or symlink) there is removed first, and the new
+    one is created exclusively without following a link, so a pre-made file's mode or a
+    planted symlink cannot carry a private key elsewhere or leave it readable."""
     try:
+        path.unlink(missing_ok=True)
+        flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
         descriptor = os.open(path, flags, 0o600 if private else 0o644)
         with os.fdopen(descriptor, "wb") as f:
             f.write(data)
@@ -194,7 +216,9 @@ class IdentityFiles:
 
 
 def tls_settings(files: IdentityFiles) -> dict[str, Any]:
-    """`transport/link/tls` for `files`' identity: mutual TLS, listening and connecting."""
+    """`transport/link/tls` for `files`' identity: mutual TLS, listening and connecting,
+    the dialled router's name checked, and every link closed when the certificate at its
+    other end expires."""
     return {
         "root_ca_certificate": str(files.ca),
         "listen_certificate": str(files.certificate),
@@ -202,6 +226,8 @@ def tls_settings(files: IdentityFiles) -> dict[str, Any]:
         "connect_certificate": str(files.certificate),
         "connect_private_key": str(files.key),
         "enable_mtls": True,
+        "verify_name_on_connect": True,
+        "close_link_on_expiration": True,
     }
 
 
@@ -222,25 +248,38 @@ def write_identities(
     connect: list[str],
     days: int = DEFAULT_VALID_DAYS,
     seen_as: Path | None = None,
+    force: bool = False,
+    lifetime: dict[str, datetime.timedelta] | None = None,
 ) -> list[IdentityFiles]:
     """A new CA and, for each of `names`, its certificate, key and client config.
 
     The client configs name the files under `seen_as` when given (where `directory` is
-    mounted on the machines that use them, e.g. `/certs` in a container).
+    mounted on the machines that use them, e.g. `/certs` in a container). An existing CA
+    in `directory` is a CertError unless `force`: replacing it orphans every identity it
+    issued. `lifetime` gives some identities another validity than `days` (tests of
+    expiry).
     """
     directory = directory.resolve()
     try:
         directory.mkdir(parents=True, exist_ok=True)
     except OSError as error:
         raise CertError(f"cannot create {directory}: {error.strerror or error}") from None
+    ca_files = [directory / f"{CA_NAME}.{suffix}" for suffix in ("pem", "key")]
+    existing = [path for path in ca_files if path.is_symlink() or path.exists()]
+    if existing and not force:
+        raise CertError(
+            f"{existing[0]}: a CA is already there; replacing it invalidates every identity "
+            "it issued (use --force to make a new one)"
+        )
     authority = make_authority(days)
-    _write(directory / f"{CA_NAME}.pem", _pem(authority.certificate))
-    _write(directory / f"{CA_NAME}.key", _key_pem(authority.key), private=True)
+    _write(ca_files[0], _pem(authority.certificate))
+    _write(ca_files[1], _key_pem(authority.key), private=True)
     hosts = [*LOCAL_HOSTS, *(endpoint_host(e) for e in connect)]
     written = []
     for name in names:
         files = IdentityFiles(directory, name)
-        certificate, key = issue(authority, name, hosts, days)
+        validity = (lifetime or {}).get(name, _days(days))
+        certificate, key = issue(authority, name, hosts, validity)
         _write(files.certificate, _pem(certificate))
         _write(files.key, _key_pem(key), private=True)
         named = IdentityFiles(seen_as, name) if seen_as is not None else files

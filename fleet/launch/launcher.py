@@ -45,6 +45,7 @@ from fleet.errors import FleetError
 from fleet.files.certs import CertError
 from fleet.geo.mercator import MercatorProjection
 from fleet.launch.topology import Topology, fallbacks, ring_links
+from fleet.mission.access import ROUTER, uav_router_identity
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace, uav_id_of
 from fleet.piccolo.telemetry import Telemetry
 from fleet.recording.recorder import READY_LINE
@@ -332,12 +333,19 @@ class Fleet:
         self._write_pids()
         self._wait_ready(deadline)
 
-    def _start_router(self, name: str, listen: str, connect: list[str], deadline: float) -> None:
+    def _start_router(
+        self, name: str, listen: str, connect: list[str], deadline: float, identity: str = ROUTER
+    ) -> None:
         argv = [self.spec.python, "-m", "fleet.transport.router", "--listen", listen]
         for endpoint in connect:
             argv += ["--connect", endpoint]
         if self.secure is not None:
-            argv += ["--secure", str(self.secure.directory)]
+            # A UAV's router presents its own identity, scoped to that UAV.
+            try:
+                self.secure.identity(identity).check()
+            except CertError as error:
+                raise LaunchError(f"{name} has no identity: {error}") from None
+            argv += ["--secure", str(self.secure.directory), "--identity", identity]
         child = self._spawn(name, argv)
         child.essential = False
         host, port = _host_port(client_endpoint(listen))
@@ -352,7 +360,8 @@ class Fleet:
             self.uav_routers[uav] = f"{proto}/{host}:{free_port(host)}"
         for uav, neighbours in ring_links(self.uav_ids).items():
             connect = [self.connect, *(self.uav_routers[n] for n in neighbours)]
-            self._start_router(f"router-{uav}", self.uav_routers[uav], connect, deadline)
+            identity = uav_router_identity(uav)
+            self._start_router(f"router-{uav}", self.uav_routers[uav], connect, deadline, identity)
 
     def _onboard_connect(self, uav: int) -> list[str]:
         if not self.uav_routers:

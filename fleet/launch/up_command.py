@@ -9,12 +9,14 @@ builds on it.
 from __future__ import annotations
 
 import argparse
+import ipaddress
 import logging
 import sys
 import threading
 import time
 from pathlib import Path
 
+from fleet.files.certs import endpoint_host
 from fleet.launch.launcher import (
     DEFAULT_START_TIMEOUT_S,
     Child,
@@ -133,6 +135,12 @@ def add_up_parser(
         "(`fleet certs make`); needs a tls/ --listen endpoint",
     )
     parser.add_argument(
+        "--insecure",
+        action="store_true",
+        help="allow an open (not tls/) --listen endpoint beyond loopback: anyone who reaches "
+        "it can command the fleet",
+    )
+    parser.add_argument(
         "--topology",
         type=Topology,
         choices=list(Topology),
@@ -180,8 +188,27 @@ def _scenario_from_gui(args: argparse.Namespace) -> str | None:
     return "give a SCENARIO (a shipped name or a TOML file) or --uavs N"
 
 
+def open_listener_problem(listen: str, insecure: bool) -> str | None:
+    """Why `listen` may not be used without `--insecure`, or None: an open (non-TLS)
+    router reachable beyond this host lets anyone who reaches it command the fleet."""
+    if insecure or listen.startswith("tls/"):
+        return None
+    host = endpoint_host(listen)
+    try:
+        loopback = host == "localhost" or ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        loopback = False
+    if loopback:
+        return None
+    return (
+        f"--listen {listen} is an open router beyond this host: anyone who reaches it can "
+        "command the fleet. Use the secure profile (--secure DIR with a tls/ endpoint), "
+        "or say --insecure"
+    )
+
+
 def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
-    problem = _scenario_from_gui(args)
+    problem = open_listener_problem(args.listen, args.insecure) or _scenario_from_gui(args)
     if problem is not None:
         return fail("fleet up", problem)
     spec = FleetSpec(

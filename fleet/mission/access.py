@@ -15,6 +15,12 @@ egress: from the router out to that client):
 * UAV n may only *write* as UAV n: publish under `{prefix}/uav/n/**`, its own mission
   results and assignments, declare its own liveliness token, answer queries for its own
   keys, and serve queries (queryables) for its own keys and the mission space.
+* UAV n's own router (`router-n`, in a router-per-UAV mesh) has UAV n's rights and no
+  more: a captured aircraft's router speaks for that aircraft only;
+* the ground's router (`router`) relays everything, in the ACL of the other routers
+  only: no router grants its own identity anything, so the router identity used by a
+  client of the ground's router gets nothing (and the ground's router is the only one
+  that holds `router.key`).
 
 Zenoh allows a message only when an allow rule *includes* its key expression, so the
 reading grants cover the whole `{prefix}/**` tree: a subscription to `{prefix}/**` would
@@ -37,6 +43,16 @@ ADMIN_SPACE = "@/**"
 def uav_identity(uav_id: int) -> str:
     """A UAV's identity: its certificate's common name."""
     return f"uav-{uav_id}"
+
+
+def uav_router_identity(uav_id: int) -> str:
+    """The identity of UAV `uav_id`'s own router (`--topology router-per-uav`)."""
+    return f"{ROUTER}-{uav_id}"
+
+
+def is_router_identity(name: str) -> bool:
+    """Whether `name` is a router's identity: the only ones whose certificates may serve."""
+    return name == ROUTER or name.startswith(f"{ROUTER}-")
 
 
 class Message(StrEnum):
@@ -86,8 +102,8 @@ def _wildcards(space: KeySpace, specs: list[KeySpec], **ids: int) -> tuple[str, 
     return tuple(space.key(spec, **ids) for spec in specs)
 
 
-def _uav_grants(uav_id: int, space: KeySpace) -> list[Grant]:
-    me = (uav_identity(uav_id),)
+def _uav_grants(uav_id: int, space: KeySpace, own: str) -> list[Grant]:
+    me = tuple(i for i in (uav_identity(uav_id), uav_router_identity(uav_id)) if i != own)
     written = [s for s in REGISTRY if s.writer is Party.OWN_UAV]
     # A UAV owns its whole sub-tree (its replies to the ground's commands and state
     # queries included); under the mission tree only the keys that name it.
@@ -158,21 +174,25 @@ def _ground_grants(space: KeySpace) -> list[Grant]:
     ]
 
 
-def fleet_policy(uav_ids: list[int], space: KeySpace) -> list[Grant]:
-    """Every grant of a fleet of `uav_ids` with one ground and its routers, on the keys
-    of `space`.
+def fleet_policy(uav_ids: list[int], space: KeySpace, own: str = ROUTER) -> list[Grant]:
+    """Every grant the router with identity `own` enforces, in a fleet of `uav_ids` with
+    one ground, its router and maybe a router per UAV, on the keys of `space`.
 
-    Everything else is denied.
+    Everything else is denied; `own` itself is granted nothing.
     """
-    members = (GROUND, *(uav_identity(u) for u in uav_ids))
+    members = tuple(
+        i for u in uav_ids for i in (uav_identity(u), uav_router_identity(u)) if i != own
+    )
+    members = (GROUND, *members)
     both = (Flow.INGRESS, Flow.EGRESS)
+    relays = tuple(i for i in (ROUTER,) if i != own)
     grants = [
-        # Routers relay everything between their clients and each other.
-        Grant("router-relay", (ROUTER,), both, tuple(Message), ("**",)),
+        # The ground's router relays everything, to the UAVs' routers.
+        *([Grant("router-relay", relays, both, tuple(Message), ("**",))] if relays else []),
         Grant("fleet-receive", members, (Flow.EGRESS,), _RECEIVE, (space.everything,)),
         Grant("fleet-read", members, (Flow.INGRESS,), _READ, (space.everything,)),
         *_ground_grants(space),
     ]
     for uav_id in uav_ids:
-        grants += _uav_grants(uav_id, space)
+        grants += _uav_grants(uav_id, space, own)
     return grants

@@ -37,6 +37,10 @@ from fleet.transport import bus_codec
 from fleet.transport.bus_codec import DropReason
 
 log = logging.getLogger(__name__)
+#: How many keys' refusals are logged (each once); the rest are only counted.
+MAX_BAD_KEYS_LOGGED = 1000
+#: How many keys of no known pattern get a channel; samples on further ones are counted.
+MAX_UNKNOWN_KEYS = 1000
 
 DEFAULT_STATE_EVERY_S = 1.0
 #: The line `fleet record` prints once it listens (the launcher waits for it).
@@ -95,6 +99,7 @@ class Recorder:
         self._threads: list[threading.Thread] = []
         self._declared: list[zenoh.Subscriber[None]] = []
         self._bad_keys: set[str] = set()
+        self._unknown_keys: set[str] = set()
         self._uavs_with_fix: set[int] = set()
         self.stats = RecorderStats()
         #: Why writing stopped (the disk is full, ...); `on_failure` is set then.
@@ -207,11 +212,21 @@ class Recorder:
         except bus_codec.BadMessage as error:
             reason = error.reason
             self.stats.dropped["not JSON" if reason is DropReason.INVALID else str(reason)] += 1
-            if heard.key not in self._bad_keys:
+            # Logged once per key, for a bounded number of keys: a flood on ever new keys
+            # is counted, not remembered.
+            if heard.key not in self._bad_keys and len(self._bad_keys) < MAX_BAD_KEYS_LOGGED:
                 self._bad_keys.add(heard.key)
                 log.warning("not recorded: %s; further ones counted", error)
             return
         spec = channels.channel_for(heard.key)
+        if not spec.schema_name and spec.topic not in self._unknown_keys:
+            # A key of no known pattern is a channel of its own; a peer writing on ever new
+            # keys (any UAV may, under its own tree) must not grow the recording's channel
+            # table and counters without bound.
+            if len(self._unknown_keys) >= MAX_UNKNOWN_KEYS:
+                self.stats.dropped["too many unknown keys"] += 1
+                return
+            self._unknown_keys.add(spec.topic)
         if spec.topic.endswith(f"/{channels.ALIVE_LEAF}"):
             # Not a UAV's token: recorded as it is, without a schema.
             with contextlib.suppress(ValueError, IndexError):

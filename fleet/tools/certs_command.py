@@ -1,8 +1,10 @@
 """`fleet certs make DIR --uavs 74,112 --ground`: the fleet's identities for mutual TLS.
 
-Writes `DIR/ca.pem`, and per identity NAME (`router`, `ground`, `uav-74`, ...)
-`DIR/NAME.pem`, `DIR/NAME.key` and `DIR/NAME.json5` (a Zenoh client configuration for
-`--zenoh-config`); see `fleet.files.certs` and docs/security.md.
+Writes `DIR/ca.pem`, and per identity NAME (`router`, `ground`, `uav-74`, and
+`router-74` for UAV 74's own router in a router-per-UAV mesh, ...) `DIR/NAME.pem`,
+`DIR/NAME.key` and `DIR/NAME.json5` (a Zenoh client configuration for `--zenoh-config`).
+Only router identities may serve. A DIR that already has a CA is refused unless
+`--force`. See `fleet.files.certs` and docs/security.md.
 """
 
 from __future__ import annotations
@@ -11,15 +13,21 @@ import argparse
 from pathlib import Path
 
 from fleet.files.certs import DEFAULT_VALID_DAYS, CertError, write_identities
-from fleet.mission.access import GROUND, ROUTER, uav_identity
+from fleet.mission.access import GROUND, ROUTER, uav_identity, uav_router_identity
 from fleet.transport.cli import ExitCode, bounded_int, fail, piccolo_ids
 
 DEFAULT_SECURE_ROUTER = "tls/127.0.0.1:7447"
 
 
 def identity_names(uav_ids: tuple[int, ...], ground: bool) -> list[str]:
-    """The router always, the ground when asked, then one identity per UAV."""
-    return [ROUTER, *([GROUND] if ground else []), *(uav_identity(u) for u in uav_ids)]
+    """The router always, the ground when asked, then one identity per UAV and one for
+    each UAV's own router (used by `fleet up --topology router-per-uav --secure`)."""
+    return [
+        ROUTER,
+        *([GROUND] if ground else []),
+        *(uav_identity(u) for u in uav_ids),
+        *(uav_router_identity(u) for u in uav_ids),
+    ]
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -56,6 +64,11 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         help="where DIR is on the machines that use the configs, e.g. /certs in a "
         "container (default: DIR's absolute path)",
     )
+    make.add_argument(
+        "--force",
+        action="store_true",
+        help="replace the CA already in DIR (every identity it issued stops being trusted)",
+    )
     make.set_defaults(func=run_make)
 
 
@@ -66,7 +79,9 @@ def run_make(args: argparse.Namespace) -> int:
         return fail("fleet certs", f"{bad[0]!r} is not a tls/ endpoint")
     names = identity_names(args.uavs, args.ground)
     try:
-        written = write_identities(args.directory, names, connect, args.days, args.seen_as)
+        written = write_identities(
+            args.directory, names, connect, args.days, args.seen_as, force=args.force
+        )
     except CertError as error:
         return fail("fleet certs", str(error), ExitCode.FAILED)
     directory = written[0].directory

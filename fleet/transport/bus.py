@@ -23,8 +23,11 @@ from typing import Protocol, TypeVar
 import msgspec
 
 from fleet.transport import bus_codec
+from fleet.transport.refusal_log import RefusalLog
 
 log = logging.getLogger(__name__)
+#: Refused input, logged at most every few seconds (a flood cannot fill the log).
+_refusals = RefusalLog(log)
 
 T = TypeVar("T")
 
@@ -61,7 +64,7 @@ def decode_sample(sample: BusSample, kind: type[T]) -> T | None:
     try:
         return bus_codec.decode(sample.payload, kind, sample.key)
     except bus_codec.BadMessage as error:
-        log.warning("ignored %s", error)
+        _refusals.warn(f"ignored {error}")
     return None
 
 
@@ -170,7 +173,7 @@ class Bus(ABC):
             try:
                 found.append((reply.key, bus_codec.decode(reply.payload, kind, reply.key)))
             except bus_codec.BadMessage as error:
-                log.warning("ignored reply %s", error)
+                _refusals.warn(f"ignored reply {error}")
         return found
 
     @abstractmethod

@@ -25,6 +25,7 @@ import zenoh
 
 from fleet.errors import FleetError
 from fleet.files.certs import CertError
+from fleet.mission.access import ROUTER
 from fleet.transport.cli import (
     ExitCode,
     add_key_prefix_argument,
@@ -37,6 +38,20 @@ from fleet.transport.secure import SecureProfile
 from fleet.transport.zenoh_config import DEFAULT_ROUTER, make_config
 
 log = logging.getLogger(__name__)
+
+
+#: Zenoh's own log: its warnings name each link it refused (no certificate, an unknown
+#: CA, an expired certificate), which Python never sees otherwise. RUST_LOG overrides it.
+ZENOH_LOG_LEVEL = "warn"
+_zenoh_log_on = False
+
+
+def _log_refused_links() -> None:
+    """Turn on Zenoh's warnings on stderr (once per process: Zenoh's logger is global)."""
+    global _zenoh_log_on
+    if not _zenoh_log_on:
+        zenoh.init_log_from_env_or(ZENOH_LOG_LEVEL)
+        _zenoh_log_on = True
 
 
 class RouterError(FleetError, RuntimeError):
@@ -79,6 +94,7 @@ class Router:
             config = make_config("router", self.connect, self.listen)
             if self.secure is not None:
                 self.secure.apply_to_router(config)
+                _log_refused_links()
             self._session = zenoh.open(config)
         except zenoh.ZError as error:
             raise RouterError(
@@ -123,6 +139,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="DIR",
         help="mutual TLS and access control with the identities in DIR (`fleet certs make`)",
     )
+    parser.add_argument(
+        "--identity",
+        default=ROUTER,
+        metavar="NAME",
+        help="with --secure: the identity in DIR this router presents (default %(default)s; "
+        "a UAV's own router: router-N)",
+    )
     add_key_prefix_argument(parser)  # the keys the access control covers
     add_verbose_argument(parser)
     return parser
@@ -134,7 +157,9 @@ def main(argv: list[str] | None = None) -> int:
     stop = threading.Event()
     try:
         secure = (
-            SecureProfile.load(args.secure, args.key_space) if args.secure is not None else None
+            SecureProfile.load(args.secure, args.key_space, args.identity)
+            if args.secure is not None
+            else None
         )
         router = Router(args.listen or [DEFAULT_ROUTER], args.connect, secure)
         with stop_on_signals(stop.set), router:

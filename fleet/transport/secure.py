@@ -1,7 +1,8 @@
 """The secure profile: a router on `tls/` endpoints with mutual TLS and access control.
 
 The fleet's identities (`fleet certs make DIR ...`) are the profile: the router presents
-`DIR/router.pem`, accepts only clients with a certificate signed by `DIR/ca.pem`, and
+`DIR/router.pem` (a UAV's own router in a router-per-UAV mesh: `DIR/router-N.pem`),
+accepts only clients with a certificate signed by `DIR/ca.pem`, and
 enforces the access policy (`fleet.mission.access`) for exactly the UAVs that have an
 identity in DIR (`DIR/uav-N.pem`). Each client uses its own `DIR/NAME.json5`.
 """
@@ -29,19 +30,24 @@ class SecureProfile:
     uav_ids: tuple[int, ...]
     #: The keys the access policy covers.
     key_space: KeySpace = DEFAULT_SPACE
+    #: The identity the router presents: the ground's router, or a UAV's own.
+    router_name: str = ROUTER
 
     @classmethod
-    def load(cls, directory: Path, key_space: KeySpace = DEFAULT_SPACE) -> SecureProfile:
+    def load(
+        cls, directory: Path, key_space: KeySpace = DEFAULT_SPACE, router_name: str = ROUTER
+    ) -> SecureProfile:
         """The profile of the identities in `directory`, its policy on the keys of
-        `key_space`; CertError names what is missing."""
+        `key_space`, for the router presenting `router_name`; CertError names what is
+        missing."""
         directory = directory.resolve()
         if not directory.is_dir():
             raise CertError(f"{directory}: no such directory (make it with `fleet certs make`)")
         uav_ids = sorted(
             int(match[1]) for path in directory.iterdir() if (match := _UAV_CERT.match(path.name))
         )
-        profile = cls(directory, tuple(uav_ids), key_space)
-        profile.identity(ROUTER).check()
+        profile = cls(directory, tuple(uav_ids), key_space, router_name)
+        profile.identity(router_name).check()
         return profile
 
     def identity(self, name: str) -> IdentityFiles:
@@ -60,7 +66,7 @@ class SecureProfile:
 
     def apply_to_router(self, config: zenoh.Config) -> None:
         """Make `config` a secure router's: mTLS with the router's identity, and the ACL."""
-        tls = tls_settings(self.identity(ROUTER))
+        tls = tls_settings(self.identity(self.router_name))
         config.insert_json5("transport/link/tls", json.dumps(tls))
-        policy = fleet_policy(list(self.uav_ids), self.key_space)
+        policy = fleet_policy(list(self.uav_ids), self.key_space, own=self.router_name)
         config.insert_json5("access_control", json.dumps(access_control(policy)))

@@ -149,3 +149,12 @@ def _set_endpoints(
             config.insert_json5("listen/endpoints", json.dumps(listen))
     except zenoh.ZError as error:
         raise ZenohConfigError(f"bad Zenoh endpoint: {error_text(error)}") from None
+
+
+def uses_mtls(config: zenoh.Config) -> bool:
+    """Whether `config` is the secure profile's: mutual TLS with an identity of its own."""
+    try:
+        tls = json.loads(config.get_json("transport/link/tls"))
+    except (zenoh.ZError, ValueError):
+        return False
+    return isinstance(tls, dict) and tls.get("enable_mtls") is True

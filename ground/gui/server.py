@@ -20,8 +20,14 @@ The bus's callbacks run on its (Zenoh's) threads; they reach the loop only throu
 Access: the page can send missions and aborts to aircraft, so by default it listens on
 loopback only. Listening anywhere else requires `--allow-remote` and a token (given, or
 generated and printed): every request must carry it (`?token=` or an
-`Authorization: Bearer` header). WebSocket upgrades from another origin are refused in
-every case, so a web page in the operator's browser cannot drive the fleet.
+`Authorization: Bearer` header). In every case, so that a web page in the operator's
+browser cannot drive the fleet (`ground.gui.access`):
+
+* a request whose Host is not the bound address or `localhost` is refused (DNS
+  rebinding: another site's name resolved to this address);
+* a WebSocket upgrade from another origin is refused;
+* a WebSocket must carry this server's session token, which only the page it serves
+  holds (in the HTML and a SameSite=Strict cookie): commands arrive only on such sockets.
 """
 
 from __future__ import annotations
@@ -44,10 +50,12 @@ from aiohttp import WSCloseCode, WSMsgType, web
 
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import Target
+from fleet.transport import bus_codec
 from fleet.transport.bus import Bus
 from ground import targets_formats
 from ground.alerts import StatusRecord
 from ground.fleet_view import FleetView
+from ground.gui.access import Access
 from ground.gui.commands import CommandError, MissionDesk, Reply, decode_command, execute
 from ground.gui.snapshot import Coalescer, GuiModel
 
@@ -59,6 +67,7 @@ STATE_PERIOD_S = 1.0
 #: Largest targets file accepted by Load (bytes): 100,000 targets.
 MAX_UPLOAD = 2_400_000
 TOKEN_COOKIE = "fleet_gui_token"
+SESSION_COOKIE = "fleet_gui_session"
 _targets_decoder = msgspec.json.Decoder(list[Target])
 
 Handler = Callable[[web.Request], Awaitable[web.StreamResponse]]
@@ -93,6 +102,7 @@ class GuiServer:
         self.model = GuiModel()
         self.sockets: set[web.WebSocketResponse] = set()
         self.commands_refused = 0
+        self.access = Access(config.host)
         self._view: FleetView | None = None
         self._desk: MissionDesk | None = None
         self._coalescer: Coalescer | None = None
@@ -171,6 +181,8 @@ class GuiServer:
     # ---- access ------------------------------------------------------------------------
     @web.middleware
     async def _guard(self, request: web.Request, handler: Handler) -> web.StreamResponse:
+        if not self.access.host_allowed(request.url.host):
+            return self.access.refuse(request, 403, f"host {request.host!r} refused")
         token = self.config.token
         if token is not None:
             # The page's own URL carries the token; its stylesheet and script, loaded by
@@ -180,16 +192,22 @@ class GuiServer:
             if header.startswith("Bearer "):
                 given = header.removeprefix("Bearer ")
             if not hmac.compare_digest(given.encode(), token.encode()):
-                return web.json_response({"error": "missing or wrong token"}, status=401)
+                return self.access.refuse(request, 401, "missing or wrong token")
         if request.path == "/ws":
             origin = request.headers.get("Origin")
             if origin is not None and origin.split("://", 1)[-1] != request.host:
-                return web.json_response({"error": f"origin {origin} refused"}, status=403)
+                return self.access.refuse(request, 403, f"origin {origin} refused")
+            session = request.query.get("session") or request.cookies.get(SESSION_COOKIE, "")
+            if not self.access.session_matches(session):
+                return self.access.refuse(request, 403, "missing or wrong session token")
         return await handler(request)
 
     # ---- pages and API -----------------------------------------------------------------
     async def _index(self, request: web.Request) -> web.StreamResponse:
-        response = web.FileResponse(STATIC_DIR / "index.html")
+        html = self.access.with_session((STATIC_DIR / "index.html").read_text())
+        response = web.Response(text=html, content_type="text/html")
+        response.headers["Cache-Control"] = "no-store"  # a token of this run only
+        response.set_cookie(SESSION_COOKIE, self.access.session, httponly=True, samesite="Strict")
         if self.config.token is not None:
             response.set_cookie(TOKEN_COOKIE, self.config.token, httponly=True, samesite="Strict")
         return response
@@ -240,6 +258,13 @@ class GuiServer:
             "mission": self.model.mission_json(self._desk.outcome(), views),
             "statuses": statuses,
             "alerts": self.model.alerts_json(),
+            # What this server refused: requests (Host, token, origin, session), commands,
+            # and bus messages by reason.
+            "refused": {
+                "requests": self.access.refused,
+                "commands": self.commands_refused,
+                "bus": bus_codec.DROPPED.counts(),
+            },
         }
 
     async def _push(self) -> None:

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 import zenoh
 from cryptography import x509
-from cryptography.x509.oid import NameOID
+from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
 from fleet.files.certs import IdentityFiles, common_name, endpoint_host
 from ground.fleet_cli import main as fleet_main
@@ -37,13 +37,14 @@ def test_every_identity_gets_a_certificate_key_and_client_config(tmp_path: Path)
         assert common_name(files.certificate) == name
         certificate = x509.load_pem_x509_certificate(files.certificate.read_bytes())
         certificate.verify_directly_issued_by(ca)
-        assert {"127.0.0.1", "localhost", "router"} <= sans(files.certificate)
         assert stat.S_IMODE(files.key.stat().st_mode) == 0o600
         config = json.loads(files.client_config.read_text())
         assert config["connect"]["endpoints"] == ["tls/router:7447"]
         tls = config["transport"]["link"]["tls"]
         assert tls["connect_certificate"] == str(files.certificate)
         assert tls["enable_mtls"] is True
+        assert tls["verify_name_on_connect"] is True
+        assert tls["close_link_on_expiration"] is True
         assert config["transport"]["shared_memory"] == {"enabled": False}
         zenoh.Config.from_file(str(files.client_config))  # Zenoh itself accepts it
 
@@ -89,3 +90,54 @@ def test_endpoint_host(endpoint: str, host: str) -> None:
     assert endpoint_host(endpoint) == host
     if host[0].isdigit() or ":" in host:
         ipaddress.ip_address(host)
+
+
+def usages(path: Path) -> set[x509.ObjectIdentifier]:
+    certificate = x509.load_pem_x509_certificate(path.read_bytes())
+    return set(certificate.extensions.get_extension_for_class(x509.ExtendedKeyUsage).value)
+
+
+def test_only_routers_may_serve_and_only_they_name_hosts(tmp_path: Path) -> None:
+    assert make(tmp_path, "--connect", "tls/router:7447") == 0
+    for name in ("router", "router-74", "router-112"):
+        assert usages(tmp_path / f"{name}.pem") == {
+            ExtendedKeyUsageOID.SERVER_AUTH,
+            ExtendedKeyUsageOID.CLIENT_AUTH,
+        }
+        assert {"127.0.0.1", "localhost", "router"} <= sans(tmp_path / f"{name}.pem")
+    for name in ("ground", "uav-74", "uav-112"):
+        assert usages(tmp_path / f"{name}.pem") == {ExtendedKeyUsageOID.CLIENT_AUTH}
+        with pytest.raises(x509.ExtensionNotFound):
+            sans(tmp_path / f"{name}.pem")
+
+
+def test_an_existing_ca_is_replaced_only_with_force(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert make(tmp_path) == 0
+    before = (tmp_path / "ca.pem").read_bytes()
+    assert make(tmp_path) == 1
+    assert "a CA is already there" in capsys.readouterr().err
+    assert (tmp_path / "ca.pem").read_bytes() == before
+    assert make(tmp_path, "--force") == 0
+    assert (tmp_path / "ca.pem").read_bytes() != before
+
+
+def test_a_pre_made_readable_key_file_becomes_owner_only(tmp_path: Path) -> None:
+    (tmp_path / "uav-74.key").write_text("old")
+    (tmp_path / "uav-74.key").chmod(0o644)
+    assert make(tmp_path) == 0
+    assert stat.S_IMODE((tmp_path / "uav-74.key").stat().st_mode) == 0o600
+    assert "PRIVATE KEY" in (tmp_path / "uav-74.key").read_text()
+
+
+def test_a_planted_symlink_is_replaced_not_followed(tmp_path: Path) -> None:
+    outside = tmp_path / "outside"
+    outside.write_text("not a key")
+    certs = tmp_path / "certs"
+    certs.mkdir()
+    (certs / "ground.key").symlink_to(outside)
+    assert make(certs) == 0
+    assert outside.read_text() == "not a key"  # the key did not go through the link
+    assert not (certs / "ground.key").is_symlink()
+    assert stat.S_IMODE((certs / "ground.key").stat().st_mode) == 0o600

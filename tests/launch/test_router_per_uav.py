@@ -65,7 +65,8 @@ def mesh(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Mesh]:
     secure: list[str] = []
     identity: list[str] = []
     if request.param == "secure":
-        write_identities(tmp_path / "certs", ["router", "ground", "uav-74", "uav-112"], [ground])
+        names = ["router", "ground", "uav-74", "uav-112", "router-74", "router-112"]
+        write_identities(tmp_path / "certs", names, [ground])
         secure = ["--secure", str(tmp_path / "certs")]
         identity = ["--zenoh-config", str(tmp_path / "certs" / "ground.json5")]
     up = start(

@@ -89,9 +89,8 @@ _READ = ("declare_subscriber", "declare_liveliness_subscriber", "liveliness_quer
 
 #: fleet_policy([74]): (name, subjects, flows, messages, key expressions in any order)
 POLICY_74 = [
-    ("router-relay", ("router",), ("ingress", "egress"), _ALL, {"**"}),
-    ("fleet-receive", ("ground", "uav-74"), ("egress",), _ALL, {"fleet/**"}),
-    ("fleet-read", ("ground", "uav-74"), ("ingress",), _READ, {"fleet/**"}),
+    ("fleet-receive", ("ground", "uav-74", "router-74"), ("egress",), _ALL, {"fleet/**"}),
+    ("fleet-read", ("ground", "uav-74", "router-74"), ("ingress",), _READ, {"fleet/**"}),
     (
         "ground-command", ("ground",), ("ingress",), ("put",),
         {"fleet/mission/*/abort", "fleet/mission/*/targets", "fleet/uav/*/opm"},
@@ -102,23 +101,26 @@ POLICY_74 = [
         {"fleet/mission/*/targets"},
     ),
     (
-        "uav-74-publish", ("uav-74",), ("ingress",), ("put", "reply"),
+        "uav-74-publish", ("uav-74", "router-74"), ("ingress",), ("put", "reply"),
         {
             "fleet/mission/*/assignment/74", "fleet/mission/*/outcome/74",
             "fleet/mission/*/replan/74", "fleet/mission/*/result/74", "fleet/uav/74/**",
         },
     ),
     (
-        "uav-74-relay", ("uav-74",), ("ingress",), ("reply",),
+        "uav-74-relay", ("uav-74", "router-74"), ("ingress",), ("reply",),
         {"fleet/mission/*/abort", "fleet/mission/*/targets"},
     ),
-    ("uav-74-alive", ("uav-74",), ("ingress",), ("liveliness_token",), {"fleet/uav/74/alive"}),
     (
-        "uav-74-serve", ("uav-74",), ("ingress",), ("declare_queryable",),
+        "uav-74-alive", ("uav-74", "router-74"), ("ingress",), ("liveliness_token",),
+        {"fleet/uav/74/alive"},
+    ),
+    (
+        "uav-74-serve", ("uav-74", "router-74"), ("ingress",), ("declare_queryable",),
         {"fleet/mission/**", "fleet/uav/74/**"},
     ),
     (
-        "uav-74-fetch", ("uav-74",), ("ingress",), ("query",),
+        "uav-74-fetch", ("uav-74", "router-74"), ("ingress",), ("query",),
         {
             "fleet/mission/*/abort", "fleet/mission/*/assignment/*", "fleet/mission/*/outcome/*",
             "fleet/mission/*/result/*", "fleet/mission/*/targets", "fleet/uav/*/state",

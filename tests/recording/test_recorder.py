@@ -141,3 +141,25 @@ def test_commands_and_map_fixes_are_never_replayed() -> None:
     assert not replayable(message("fleet/mission/3/abort", "MissionAbort"))
     assert not replayable(message("fleet/uav/1/opm", "OpmCommand"))
     assert not replayable(message("fleet/uav/1/location_fix", "foxglove.LocationFix"))
+
+
+def test_ever_new_unknown_keys_do_not_grow_the_recording_without_bound(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr("fleet.recording.recorder.MAX_UNKNOWN_KEYS", 3)
+    port = free_port()
+    with router_session(port), client_session(port) as fleet, client_session(port) as ground:
+        recorder = Recorder(ground, McapSink(tmp_path / "r.mcap"), state_every_s=0)
+        recorder.start()
+        try:
+            for i in range(5):  # a UAV may write anything under its own tree
+                fleet.put(f"fleet/uav/7/junk-{i}", b"1", encoding=ENCODING)
+            wait_until(
+                lambda: recorder.stats.dropped["too many unknown keys"] == 2,
+                10.0,
+                "the keys beyond the limit counted",
+            )
+        finally:
+            recorder.stop()
+    topics = {m.topic for m in read_recording(tmp_path / "r.mcap").messages}
+    assert len(topics) == 3 and all(t.startswith("fleet/uav/7/junk-") for t in topics)

@@ -46,3 +46,11 @@ def test_fleet_up_secure_needs_a_tls_endpoint(tmp_path: Path) -> None:
         Fleet(spec),
     ):
         pass
+
+
+def test_a_config_with_mutual_tls_is_the_secure_profiles(tmp_path: Path) -> None:
+    from fleet.transport.zenoh_config import build_config, make_config, uses_mtls
+
+    write_identities(tmp_path, ["router", "uav-74"], [])
+    assert uses_mtls(build_config(config_file=str(tmp_path / "uav-74.json5")))
+    assert not uses_mtls(make_config("client", ["tcp/127.0.0.1:7447"]))

@@ -800,6 +800,9 @@ function onSnapshot(snapshot) {
 function connect() {
   const url = new URL(withToken('ws'), location.href);
   url.protocol = location.protocol === 'https:' ? 'wss:' : 'ws:';
+  // This run's session token, which only the page the server served holds.
+  const session = document.querySelector('meta[name="fleet-session"]');
+  if (session) url.searchParams.set('session', session.content);
   const ws = new WebSocket(url);
   state.ws = ws;
   const connection = $('#connection');

@@ -19,6 +19,7 @@ from fleet.mission.messages import Target
 from fleet.mission.targets_file import encode_targets
 from tests.ground.test_cli import run_cli
 from tests.support.fake_onboard import FakeOnboard
+from tests.support.gui_page import websocket_url
 from tests.support.processes import Child, start
 from tests.support.waiting import wait_until
 
@@ -46,6 +47,11 @@ def gui(router: str, fakes: dict[int, FakeOnboard]) -> Iterator[str]:
         yield url
     finally:
         assert child.stop() == 0, "\n".join(child.history[-20:])
+
+
+def ws_url(page: str) -> str:
+    """The page's WebSocket, with the session token only the page served holds."""
+    return websocket_url(page)
 
 
 def get(url: str, headers: dict[str, str] | None = None) -> tuple[int, Any]:
@@ -105,10 +111,18 @@ def test_load_refuses_a_malformed_file_and_save_writes_every_format(gui: str) ->
     assert status == 400 and b"kml" in body
 
 
+def test_a_deeply_nested_geojson_upload_is_a_clear_400(gui: str) -> None:
+    deep = b'{"type": "FeatureCollection", "features": ' + b"[" * 100_000 + b"]" * 100_000 + b"}"
+    status, body = post(f"{gui}/api/targets/import?name=deep.geojson", deep)
+    assert status == 400
+    error = json.loads(body)["error"]
+    assert "deep.geojson" in error and "Traceback" not in error
+
+
 async def _session_with(url: str, commands: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Connects, sends each command and collects its reply; returns the replies."""
     replies = []
-    async with aiohttp.ClientSession() as http, http.ws_connect(f"{url}/ws") as ws:
+    async with aiohttp.ClientSession() as http, http.ws_connect(ws_url(url)) as ws:
         first = await ws.receive_json(timeout=10)
         assert first["type"] == "snapshot"
         assert [uav["id"] for uav in first["uavs"]] == [74, 112]
@@ -161,7 +175,7 @@ def test_opm_from_the_websocket_and_its_confirmation_in_the_snapshot(
     gui: str, fakes: dict[int, FakeOnboard]
 ) -> None:
     async def scenario() -> tuple[dict[str, Any], list[dict[str, Any]]]:
-        async with aiohttp.ClientSession() as http, http.ws_connect(f"{gui}/ws") as ws:
+        async with aiohttp.ClientSession() as http, http.ws_connect(ws_url(gui)) as ws:
             await ws.send_str(json.dumps({"cmd": "opm", "id": 9, "uav": 112, "enabled": False}))
             reply = None
             statuses: list[dict[str, Any]] = []
@@ -183,7 +197,7 @@ def test_opm_from_the_websocket_and_its_confirmation_in_the_snapshot(
 
 def test_a_binary_message_is_refused_and_the_socket_kept(gui: str) -> None:
     async def scenario() -> tuple[dict[str, Any], dict[str, Any]]:
-        async with aiohttp.ClientSession() as http, http.ws_connect(f"{gui}/ws") as ws:
+        async with aiohttp.ClientSession() as http, http.ws_connect(ws_url(gui)) as ws:
             await ws.send_bytes(b"\x00\x01")
             while (refused := await ws.receive_json(timeout=10))["type"] != "reply":
                 pass
@@ -201,12 +215,53 @@ def test_a_websocket_from_another_origin_is_refused(gui: str) -> None:
     async def scenario() -> int:
         async with aiohttp.ClientSession() as http:
             try:
-                async with http.ws_connect(f"{gui}/ws", origin="http://evil.example"):
+                async with http.ws_connect(ws_url(gui), origin="http://evil.example"):
                     return 101
             except aiohttp.WSServerHandshakeError as error:
                 return error.status
 
     assert asyncio.run(scenario()) == 403
+
+
+def test_a_dns_rebinding_page_is_refused(gui: str) -> None:
+    port = gui.rsplit(":", 1)[1]
+    rebound = {"Host": f"evil.example:{port}"}  # another site's name, this address
+    for path in ("/", "/api/fleet", "/api/mission", "/static/app.js"):
+        status, answer = get(f"{gui}{path}", rebound)
+        assert status == 403 and "host" in answer["error"], path
+    # The operator's own names for the page work.
+    assert get(f"{gui}/api/fleet", {"Host": f"localhost:{port}"})[0] == 200
+    assert get(f"{gui}/api/fleet")[0] == 200
+
+
+def test_a_websocket_without_the_pages_session_token_is_refused(gui: str) -> None:
+    async def status_of(url: str, **kwargs: Any) -> int:
+        async with aiohttp.ClientSession() as http:
+            try:
+                async with http.ws_connect(url, **kwargs) as ws:
+                    await ws.receive_json(timeout=10)  # the first snapshot
+                    return 101
+            except aiohttp.WSServerHandshakeError as error:
+                return error.status
+
+    same_origin = {"origin": gui}
+    assert asyncio.run(status_of(f"{gui}/ws", **same_origin)) == 403
+    assert asyncio.run(status_of(f"{gui}/ws?session=guess", **same_origin)) == 403
+    assert asyncio.run(status_of(ws_url(gui), **same_origin)) == 101
+
+    async def refused_counts() -> dict[str, Any]:
+        async with aiohttp.ClientSession() as http, http.ws_connect(ws_url(gui)) as ws:
+            snapshot: dict[str, Any] = await ws.receive_json(timeout=10)
+            refused: dict[str, Any] = snapshot["refused"]
+            return refused
+
+    refused = asyncio.run(refused_counts())  # counted, and shown to the page
+    assert refused["requests"] >= 2 and isinstance(refused["bus"], dict)
+    # The cookie the page sets: this host only, never sent to another site.
+    with urllib.request.urlopen(f"{gui}/", timeout=10) as response:
+        cookie = response.headers["Set-Cookie"]
+    assert "fleet_gui_session=" in cookie and "SameSite=Strict" in cookie
+    assert "HttpOnly" in cookie
 
 
 def test_a_token_when_given_guards_every_request(router: str, fakes: object) -> None:
@@ -234,7 +289,7 @@ def test_sigterm_with_a_page_open_closes_its_socket_as_going_away(
     async def open_page_then_stop() -> tuple[int | None, int]:
         async with (
             aiohttp.ClientSession() as session,
-            session.ws_connect(url.replace("http", "ws") + "/ws", origin=url) as ws,
+            session.ws_connect(ws_url(url), origin=url) as ws,
         ):
             await ws.receive_json()  # the first snapshot: the page is open
             child.process.terminate()

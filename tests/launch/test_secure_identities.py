@@ -1,0 +1,235 @@
+"""Identities with one role each, attacked end to end (issue 26, cases 2, 3 and 6): real
+routers (`python -m fleet.transport.router --secure`) on tls/ loopback endpoints, real
+Zenoh clients with the fleet's identities.
+
+* a rogue router presenting a UAV's certificate (which may not serve) is refused by the
+  ground, and so is a router certificate dialled at a host it does not name;
+* the router identity used as a client gets no rights at all, and a UAV's own router
+  identity (router-per-UAV) no more than that UAV's;
+* a session ends when the certificate at its other end expires.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from fleet.files.certs import write_identities
+from fleet.launch.launcher import free_port
+from fleet.mission.key_space import KeySpace
+from fleet.mission.messages import MissionTargets, Target
+from fleet.transport.bus_codec import ENCODING, encode
+from fleet.transport.zenoh_config import build_config, make_config
+from tests.support.processes import Child, start
+from tests.support.waiting import wait_until
+
+pytestmark = pytest.mark.e2e
+
+SPACE = KeySpace()
+NAMES = ["router", "ground", "uav-74", "uav-112", "router-74", "router-112"]
+#: How long the short-lived identity of the expiry test lives.
+SHORT_LIFE = datetime.timedelta(seconds=20)
+
+
+@dataclass
+class Certs:
+    directory: Path
+
+    def session(self, identity: str, endpoint: str) -> zenoh.Session:
+        config = build_config(
+            config_file=str(self.directory / f"{identity}.json5"), connect=[endpoint]
+        )
+        return zenoh.open(config)
+
+
+@pytest.fixture(scope="module")
+def certs(tmp_path_factory: pytest.TempPathFactory) -> Certs:
+    directory = tmp_path_factory.mktemp("certs")
+    write_identities(directory, NAMES, [])
+    return Certs(directory.resolve())
+
+
+def router(certs: Certs, identity: str, host: str = "127.0.0.1") -> tuple[Child, str]:
+    endpoint = f"tls/{host}:{free_port(host)}"
+    child = start(
+        f"router as {identity}",
+        [
+            sys.executable, "-m", "fleet.transport.router", "--secure", str(certs.directory),
+            "--identity", identity, "--listen", endpoint,
+        ],
+    )  # fmt: skip
+    child.wait_for_line(lambda line: "listening" in line, 30.0)
+    return child, endpoint
+
+
+@pytest.fixture(scope="module")
+def fleet_router_child(certs: Certs) -> Iterator[tuple[Child, str]]:
+    child, endpoint = router(certs, "router")
+    try:
+        yield child, endpoint
+    finally:
+        child.stop()
+
+
+@pytest.fixture(scope="module")
+def fleet_router(fleet_router_child: tuple[Child, str]) -> str:
+    return fleet_router_child[1]
+
+
+class Heard:
+    """What a session subscribed to `fleet/**` received, in order."""
+
+    def __init__(self, session: zenoh.Session) -> None:
+        self.samples: list[tuple[str, bytes]] = []
+        self.lock = threading.Lock()
+        self.subscriber = session.declare_subscriber("fleet/**", self._on_sample)
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        with self.lock:
+            self.samples.append((str(sample.key_expr), sample.payload.to_bytes()))
+
+    def keys(self) -> list[str]:
+        with self.lock:
+            return [key for key, _ in self.samples]
+
+    def last(self, key: str) -> bytes | None:
+        with self.lock:
+            values = [value for k, value in self.samples if k == key]
+        return values[-1] if values else None
+
+
+def mission(mission_id: int) -> bytes:
+    return encode(MissionTargets(mission_id, (74, 112), (Target(42.36, -71.09, 100.0),)))
+
+
+# ---- case 2: only a router's certificate may serve, for the hosts it names -----------------
+@pytest.mark.parametrize("identity", ["uav-74", "ground"])
+def test_a_rogue_router_with_a_client_certificate_is_refused(certs: Certs, identity: str) -> None:
+    rogue, endpoint = router(certs, identity)
+    try:
+        for client in ("ground", "uav-112"):
+            with pytest.raises(zenoh.ZError, match="Unable to connect"):
+                certs.session(client, endpoint)
+    finally:
+        rogue.stop()
+
+
+def test_a_router_certificate_for_another_host_is_refused(certs: Certs) -> None:
+    # 127.0.0.2 reaches this host too, but no certificate names it.
+    rogue, endpoint = router(certs, "router", host="127.0.0.2")
+    try:
+        with pytest.raises(zenoh.ZError, match="Unable to connect"):
+            certs.session("ground", endpoint)
+    finally:
+        rogue.stop()
+
+
+def test_the_real_router_is_accepted(certs: Certs, fleet_router: str) -> None:
+    with certs.session("ground", fleet_router) as session:
+        assert str(session.zid())
+
+
+def test_a_refused_connection_is_in_the_routers_log(
+    certs: Certs, fleet_router_child: tuple[Child, str]
+) -> None:
+    child, endpoint = fleet_router_child
+    config = make_config("client", [endpoint])
+    config.insert_json5(
+        "transport/link/tls/root_ca_certificate", json.dumps(str(certs.directory / "ca.pem"))
+    )
+    with pytest.raises(zenoh.ZError, match="Unable to connect"):
+        zenoh.open(config)  # no certificate of its own
+    child.wait_for_line(lambda line: "WARN" in line and "certificate" in line, 10.0)
+
+
+# ---- case 3: the router identities used as clients ------------------------------------------
+def test_the_router_identity_as_a_client_commands_nothing(certs: Certs, fleet_router: str) -> None:
+    with (
+        certs.session("ground", fleet_router) as ground,
+        certs.session("uav-74", fleet_router) as uav74,
+    ):
+        heard_by_uav = Heard(uav74)
+        with certs.session("router", fleet_router) as rogue:
+            rogue.put(SPACE.mission_targets(900), mission(900), encoding=ENCODING)
+            rogue.put(SPACE.mission_abort(900), b"{}", encoding=ENCODING)
+            rogue.put(SPACE.status(74), b"forged", encoding=ENCODING)
+            # Closing sends what it holds first: the router has read the forged puts
+            # before the ground's mission below is sent.
+        with certs.session("router", fleet_router) as rogue:
+            heard_by_rogue = Heard(rogue)
+            ground.put(SPACE.mission_targets(901), mission(901), encoding=ENCODING)
+            wait_until(
+                lambda: SPACE.mission_targets(901) in heard_by_uav.keys()[:], 10.0, "mission 901"
+            )
+            ground.put(SPACE.mission_targets(902), mission(902), encoding=ENCODING)
+            wait_until(
+                lambda: SPACE.mission_targets(902) in heard_by_uav.keys()[:], 10.0, "mission 902"
+            )
+            # Nothing the rogue said reached UAV 74, and it may not even listen.
+            assert heard_by_uav.keys() == [SPACE.mission_targets(901), SPACE.mission_targets(902)]
+            assert heard_by_rogue.keys() == []
+
+
+def test_a_uavs_router_identity_has_that_uavs_rights_only(certs: Certs, fleet_router: str) -> None:
+    with (
+        certs.session("uav-112", fleet_router) as uav112,
+        certs.session("router-74", fleet_router) as rogue,
+    ):
+        heard = Heard(uav112)
+        rogue.put(SPACE.mission_targets(903), mission(903), encoding=ENCODING)
+        rogue.put(SPACE.opm(112), b"false", encoding=ENCODING)
+        rogue.put(SPACE.status(112), b"forged", encoding=ENCODING)
+        # A status as UAV 74 (its right), after the forgeries on the same session.
+        rogue.put(SPACE.status(74), b"marker", encoding=ENCODING)
+        wait_until(lambda: heard.last(SPACE.status(74)) == b"marker", 10.0, "the marker")
+        assert heard.keys() == [SPACE.status(74)]
+
+
+# ---- case 6: a session ends with its certificate --------------------------------------------
+def test_a_session_ends_when_its_certificate_expires(tmp_path: Path) -> None:
+    expiry = datetime.datetime.now(datetime.UTC) + SHORT_LIFE
+    write_identities(
+        tmp_path, ["router", "ground", "uav-112"], [], lifetime={"uav-112": SHORT_LIFE}
+    )
+    certs = Certs(tmp_path.resolve())
+    child, endpoint = router(certs, "router")
+    with (
+        certs.session("ground", endpoint) as ground,
+        certs.session("uav-112", endpoint) as short,
+    ):
+        heard = Heard(ground)
+        stop = threading.Event()
+
+        def publish() -> None:
+            count = 0
+            while not stop.wait(0.2):  # bounded by stop, set below whatever happens
+                count += 1
+                short.put(SPACE.status(112), str(count).encode())
+
+        publisher = threading.Thread(target=publish, daemon=True)
+        publisher.start()
+        try:
+            wait_until(lambda: heard.last(SPACE.status(112)) is not None, 10.0, "a first status")
+            # Past expiry, the statuses stop: the link closed and cannot reopen.
+            wait_until(lambda: datetime.datetime.now(datetime.UTC) > expiry, 60.0, "the expiry")
+
+            def stalled() -> bool:
+                before = heard.last(SPACE.status(112))
+                time.sleep(2.0)  # five publications: none may arrive
+                return heard.last(SPACE.status(112)) == before
+
+            wait_until(stalled, 60.0, "statuses to stop after the certificate expired")
+            assert publisher.is_alive()  # still publishing: the router no longer hears it
+        finally:
+            stop.set()
+            publisher.join(5)
+            child.stop()
