@@ -2,7 +2,9 @@
 
 Writes `DIR/ca.pem`, and per identity NAME (`router`, `ground`, `uav-74`, ...)
 `DIR/NAME.pem`, `DIR/NAME.key` and `DIR/NAME.json5` (a Zenoh client configuration for
-`--zenoh-config`); see `fleet.files.certs` and docs/security.md.
+`--zenoh-config`), `DIR/NAME.sign` (its key for signed commands) and `DIR/signers.json`
+(the roster of signers, signed by the CA); see `fleet.files.certs`, `fleet.files.signers`
+and docs/security.md. `fleet certs revoke DIR uav-74` withdraws an identity.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ import argparse
 from pathlib import Path
 
 from fleet.files.certs import DEFAULT_VALID_DAYS, CertError, write_identities
+from fleet.files.signers import ROSTER_FILE, RosterError, revoke
 from fleet.mission.access import GROUND, ROUTER, uav_identity
 from fleet.transport.cli import ExitCode, bounded_int, fail, piccolo_ids
 
@@ -57,6 +60,14 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "container (default: DIR's absolute path)",
     )
     make.set_defaults(func=run_make)
+    revoke = actions.add_parser(
+        "revoke",
+        help="withdraw identities (a lost aircraft): its signed messages and connections "
+        "are refused once each process restarts with the new roster",
+    )
+    revoke.add_argument("directory", type=Path, metavar="DIR")
+    revoke.add_argument("names", nargs="+", metavar="NAME", help="identities, e.g. uav-74")
+    revoke.set_defaults(func=run_revoke)
 
 
 def run_make(args: argparse.Namespace) -> int:
@@ -67,11 +78,23 @@ def run_make(args: argparse.Namespace) -> int:
     names = identity_names(args.uavs, args.ground)
     try:
         written = write_identities(args.directory, names, connect, args.days, args.seen_as)
-    except CertError as error:
+    except (CertError, RosterError) as error:
         return fail("fleet certs", str(error), ExitCode.FAILED)
     directory = written[0].directory
     print(f"fleet certs: CA {directory / 'ca.pem'}")
     for files in written:
         made = (files.certificate, files.key, files.client_config)
         print(f"  {files.name}: {' '.join(path.name for path in made)}")
+    return ExitCode.OK
+
+
+def run_revoke(args: argparse.Namespace) -> int:
+    try:
+        roster = revoke(args.directory, list(args.names))
+    except RosterError as error:
+        return fail("fleet certs", str(error), ExitCode.FAILED)
+    print(
+        f"fleet certs: {args.directory / ROSTER_FILE} revokes {', '.join(sorted(roster.revoked))}"
+    )
+    print("  copy it to every machine and restart the router and every process")
     return ExitCode.OK

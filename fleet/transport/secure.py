@@ -3,7 +3,8 @@
 The fleet's identities (`fleet certs make DIR ...`) are the profile: the router presents
 `DIR/router.pem`, accepts only clients with a certificate signed by `DIR/ca.pem`, and
 enforces the access policy (`fleet.mission.access`) for exactly the UAVs that have an
-identity in DIR (`DIR/uav-N.pem`). Each client uses its own `DIR/NAME.json5`.
+identity in DIR (`DIR/uav-N.pem`) and are not revoked in its roster (`signers.json`).
+Each client uses its own `DIR/NAME.json5`.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from pathlib import Path
 import zenoh
 
 from fleet.files.certs import CertError, IdentityFiles, tls_settings
+from fleet.files.signers import RosterError, revoked_identities
 from fleet.mission.access import GROUND, ROUTER, fleet_policy, uav_identity
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.transport.acl import access_control
@@ -40,6 +42,12 @@ class SecureProfile:
         uav_ids = sorted(
             int(match[1]) for path in directory.iterdir() if (match := _UAV_CERT.match(path.name))
         )
+        # A revoked UAV (`fleet certs revoke`) gets no grant: the ACL denies it everything.
+        try:
+            revoked = revoked_identities(directory)
+        except RosterError as error:
+            raise CertError(str(error)) from None
+        uav_ids = [u for u in uav_ids if uav_identity(u) not in revoked]
         profile = cls(directory, tuple(uav_ids), key_space)
         profile.identity(ROUTER).check()
         return profile

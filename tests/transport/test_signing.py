@@ -1,0 +1,180 @@
+"""Signed commands on real Zenoh sessions (a router on loopback, in this process): what
+a `ZenohBus` with `BusSigning` signs, relays and refuses."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from fleet.files.certs import write_identities
+from fleet.files.signers import load_roster, load_signing_key, signing_key_path
+from fleet.launch.launcher import free_port
+from fleet.mission.key_space import KeySpace
+from fleet.mission.messages import MissionAbort, MissionTargets, Target
+from fleet.transport import bus_codec
+from fleet.transport.bus import BusSample
+from fleet.transport.router import Router
+from fleet.transport.signing import BusSigning
+from fleet.transport.zenoh_bus import ZenohBus, client_bus, connect
+from fleet.transport.zenoh_config import build_config
+from tests.support.waiting import wait_until
+
+SPACE = KeySpace()
+TIMEOUT_S = 2.0
+TARGETS = MissionTargets(5, (74, 112), (Target(35.7, -120.7, 600.0),))
+
+
+@pytest.fixture(scope="module")
+def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    where = tmp_path_factory.mktemp("certs")
+    write_identities(where, ["router", "ground", "uav-74", "uav-112"], [])
+    return where
+
+
+@pytest.fixture(scope="module")
+def endpoint() -> Iterator[str]:
+    where = f"tcp/127.0.0.1:{free_port()}"
+    with Router([where]):
+        yield where
+
+
+def signed_bus(certs: Path, endpoint: str, identity: str) -> ZenohBus:
+    bus = connect(endpoint)
+    key = load_signing_key(signing_key_path(certs, identity))
+    bus.signing = BusSigning(identity, key, load_roster(certs))
+    return bus
+
+
+@pytest.fixture
+def buses(certs: Path, endpoint: str) -> Iterator[dict[str, ZenohBus]]:
+    made = {name: signed_bus(certs, endpoint, name) for name in ("ground", "uav-74", "uav-112")}
+    yield made
+    for bus in made.values():
+        bus.close()
+
+
+class Heard:
+    def __init__(self) -> None:
+        self.samples: list[BusSample] = []
+        self.arrived = threading.Event()
+
+    def __call__(self, sample: BusSample) -> None:
+        self.samples.append(sample)
+        self.arrived.set()
+
+
+def refused(reason: str) -> int:
+    return bus_codec.DROPPED.counts().get(reason, 0)
+
+
+def test_the_grounds_mission_is_heard_and_an_unsigned_one_is_refused(
+    buses: dict[str, ZenohBus], endpoint: str
+) -> None:
+    heard = Heard()
+    subscription = buses["uav-112"].subscribe(SPACE.all_mission_targets, heard)
+    ground = buses["ground"]
+    # Until the subscription has reached the router, a put may go unheard.
+
+    def published_and_heard() -> bool:
+        ground.publish(SPACE.mission_targets(5), TARGETS)
+        return bool(heard.samples)
+
+    wait_until(published_and_heard, 5.0, "the subscription in place")
+    before = refused("unsigned")
+    with client_bus(endpoint) as rogue:  # no signing: puts the bytes as they are
+        rogue.publish(SPACE.mission_targets(6), TARGETS)
+        rogue.publish(SPACE.mission_targets(7), TARGETS)
+    wait_until(lambda: refused("unsigned") == before + 2, 5.0, "the rogue's refused")
+    ground.publish(SPACE.mission_targets(8), TARGETS)
+    wait_until(lambda: SPACE.mission_targets(8) in {s.key for s in heard.samples}, 5.0)
+    subscription.undeclare()
+    assert {s.key for s in heard.samples} == {SPACE.mission_targets(5), SPACE.mission_targets(8)}
+
+
+def test_a_uav_relays_the_grounds_mission_and_cannot_serve_its_own(
+    buses: dict[str, ZenohBus],
+) -> None:
+    """Issue 26 case 1 on the bus: a teammate catching up believes the ground's mission
+    whoever relays it, and no mission a UAV made up."""
+    heard = Heard()
+    subscription = buses["uav-74"].subscribe(SPACE.all_mission_targets, heard)
+    buses["ground"].publish(SPACE.mission_targets(7), TARGETS)
+    assert heard.arrived.wait(TIMEOUT_S)
+    subscription.undeclare()
+    queryable = buses["uav-74"].declare_queryable(SPACE.all_mission_keys)
+    forged = MissionTargets(4_000_000_000, (112,), (Target(35.75, -120.8, 600.0),))
+    stop = threading.Event()
+
+    def serve() -> None:
+        while not stop.is_set():
+            query = queryable.try_recv()
+            if query is None:
+                stop.wait(0.01)
+                continue
+            query.reply(SPACE.mission_targets(7), TARGETS)  # re-encoded, relayed as signed
+            query.reply(SPACE.mission_targets(4_000_000_000), forged)  # 74's own making
+            query.reply(SPACE.mission_abort(7), MissionAbort(7))  # never signed by the ground
+            query.drop()
+
+    server = threading.Thread(target=serve, daemon=True)
+    server.start()
+    before = refused("unsigned") + refused("not_entitled")
+    try:
+        replies = buses["uav-112"].query(SPACE.all_mission_keys, TIMEOUT_S)
+    finally:
+        stop.set()
+        server.join()
+        queryable.undeclare()
+    assert [(r.key, r.ok) for r in replies] == [(SPACE.mission_targets(7), True)]
+    assert refused("unsigned") + refused("not_entitled") == before + 2
+
+
+def test_an_autopilot_command_is_obeyed_only_from_the_ground(
+    buses: dict[str, ZenohBus],
+) -> None:
+    queryable = buses["uav-112"].declare_queryable(SPACE.command(112, "*"))
+    answered: list[str] = []
+    stop = threading.Event()
+
+    def serve() -> None:
+        while not stop.is_set():
+            query = queryable.try_recv()
+            if query is None:
+                stop.wait(0.01)
+                continue
+            answered.append(query.payload.decode())
+            query.reply_bytes(SPACE.command(112, "track"), b'{"ok": true, "detail": ""}')
+            query.drop()
+
+    server = threading.Thread(target=serve, daemon=True)
+    server.start()
+    try:
+        from_74 = buses["uav-74"].query(SPACE.command(112, "track"), TIMEOUT_S, b'{"waypoint": 50}')
+        from_ground = buses["ground"].query(
+            SPACE.command(112, "track"), TIMEOUT_S, b'{"waypoint": 90}'
+        )
+    finally:
+        stop.set()
+        server.join()
+        queryable.undeclare()
+    assert [r.ok for r in from_74] == [False]
+    assert b"refused" in from_74[0].payload
+    assert [r.ok for r in from_ground] == [True]  # the UAV's signed answer, believed
+    assert answered == ['{"waypoint": 90}']
+
+
+def test_a_config_of_the_secure_profile_signs_and_others_do_not(certs: Path) -> None:
+    config = build_config(config_file=str(certs / "uav-74.json5"))
+    signing = BusSigning.from_config(config)
+    assert signing is not None and signing.identity == "uav-74"
+    assert BusSigning.from_config(zenoh.Config()) is None
+    (certs / "uav-74.sign").rename(certs / "moved")
+    try:
+        with pytest.raises(Exception, match=r"uav-74\.sign: not a readable signing key"):
+            BusSigning.from_config(config)
+    finally:
+        (certs / "moved").rename(certs / "uav-74.sign")
