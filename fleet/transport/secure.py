@@ -11,14 +11,14 @@ from __future__ import annotations
 
 import json
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import zenoh
 
 from fleet.files.certs import CertError, IdentityFiles, tls_settings
 from fleet.files.signers import RosterError, revoked_identities
-from fleet.mission.access import GROUND, ROUTER, fleet_policy, uav_identity
+from fleet.mission.access import GROUND, ROUTER, Grant, fleet_policy, uav_identity
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.transport.acl import access_control
 
@@ -31,6 +31,8 @@ class SecureProfile:
     uav_ids: tuple[int, ...]
     #: The keys the access policy covers.
     key_space: KeySpace = DEFAULT_SPACE
+    #: Identities withdrawn by the roster (`fleet certs revoke`): granted nothing.
+    revoked: frozenset[str] = frozenset()
 
     @classmethod
     def load(cls, directory: Path, key_space: KeySpace = DEFAULT_SPACE) -> SecureProfile:
@@ -42,13 +44,12 @@ class SecureProfile:
         uav_ids = sorted(
             int(match[1]) for path in directory.iterdir() if (match := _UAV_CERT.match(path.name))
         )
-        # A revoked UAV (`fleet certs revoke`) gets no grant: the ACL denies it everything.
         try:
             revoked = revoked_identities(directory)
         except RosterError as error:
             raise CertError(str(error)) from None
         uav_ids = [u for u in uav_ids if uav_identity(u) not in revoked]
-        profile = cls(directory, tuple(uav_ids), key_space)
+        profile = cls(directory, tuple(uav_ids), key_space, revoked)
         profile.identity(ROUTER).check()
         return profile
 
@@ -70,5 +71,11 @@ class SecureProfile:
         """Make `config` a secure router's: mTLS with the router's identity, and the ACL."""
         tls = tls_settings(self.identity(ROUTER))
         config.insert_json5("transport/link/tls", json.dumps(tls))
-        policy = fleet_policy(list(self.uav_ids), self.key_space)
+        policy = _without(fleet_policy(list(self.uav_ids), self.key_space), self.revoked)
         config.insert_json5("access_control", json.dumps(access_control(policy)))
+
+
+def _without(grants: list[Grant], revoked: frozenset[str]) -> list[Grant]:
+    """`grants` with no `revoked` subject: the ACL denies a revoked identity everything."""
+    kept = [replace(g, subjects=tuple(s for s in g.subjects if s not in revoked)) for g in grants]
+    return [grant for grant in kept if grant.subjects]

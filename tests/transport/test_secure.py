@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
+import zenoh
 
 from fleet.files.certs import CertError, write_identities
+from fleet.files.signers import revoke
 from fleet.launch.launcher import Fleet, FleetSpec, LaunchError
 from fleet.transport.router import main as router_main
 from fleet.transport.secure import SecureProfile
@@ -46,3 +49,15 @@ def test_fleet_up_secure_needs_a_tls_endpoint(tmp_path: Path) -> None:
         Fleet(spec),
     ):
         pass
+
+
+def test_a_revoked_identity_is_granted_nothing(tmp_path: Path) -> None:
+    write_identities(tmp_path, ["router", "ground", "uav-74", "uav-112"], [])
+    revoke(tmp_path, ["uav-74", "ground"])
+    profile = SecureProfile.load(tmp_path)
+    assert profile.uav_ids == (112,)
+    config = zenoh.Config()
+    profile.apply_to_router(config)
+    acl = json.loads(config.get_json("access_control"))
+    named = {name for subject in acl["subjects"] for name in subject["cert_common_names"]}
+    assert named == {"router", "uav-112"}
