@@ -31,7 +31,7 @@ from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.zenoh_config import build_config, make_config
-from tests.support import signed
+from tests.support import secure_clients, signed
 from tests.support.processes import Child, start
 from tests.support.waiting import wait_until
 
@@ -48,17 +48,10 @@ class SecureFleet:
     up: Child
 
     def session(self, identity: str) -> zenoh.Session:
-        config = build_config(
-            config_file=str(self.certs / f"{identity}.json5"), connect=[self.endpoint]
-        )
-        return zenoh.open(config)
+        return secure_clients.session(self.certs, self.endpoint, identity)
 
     def ground_cli(self, *argv: str) -> subprocess.CompletedProcess[str]:
-        return subprocess.run(
-            [sys.executable, "-m", "ground.cli", "--zenoh-config",
-             str(self.certs / "ground.json5"), "--connect", self.endpoint, *argv],
-            capture_output=True, text=True, timeout=TIMEOUT_S, check=False,
-        )  # fmt: skip
+        return secure_clients.ground_cli(self.certs, self.endpoint, *argv)
 
 
 @pytest.fixture(scope="module")

@@ -17,7 +17,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
@@ -41,7 +41,7 @@ from fleet.mission.messages import (
 from fleet.mission.phase import Phase
 from fleet.transport.bus_codec import ENCODING, decode, encode
 from fleet.transport.zenoh_config import build_config
-from tests.support import signed
+from tests.support import secure_clients, signed
 from tests.support.processes import Fleet, start
 from tests.support.waiting import wait_until
 
@@ -64,17 +64,10 @@ class SignedFleet:
     ground: zenoh.Session
 
     def session(self, identity: str) -> zenoh.Session:
-        config = build_config(
-            config_file=str(self.certs / f"{identity}.json5"), connect=[self.endpoint]
-        )
-        return zenoh.open(config)
+        return secure_clients.session(self.certs, self.endpoint, identity)
 
     def ground_cli(self, *argv: str) -> subprocess.CompletedProcess[str]:
-        return subprocess.run(
-            [sys.executable, "-m", "ground.cli", "--zenoh-config",
-             str(self.certs / "ground.json5"), "--connect", self.endpoint, *argv],
-            capture_output=True, text=True, timeout=TIMEOUT_S, check=False,
-        )  # fmt: skip
+        return secure_clients.ground_cli(self.certs, self.endpoint, *argv)
 
     def state(self, uav: int) -> UavState | None:
         for reply in self.ground.get(SPACE.state(uav), timeout=5.0):
@@ -146,6 +139,22 @@ def signed_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SignedFle
         fleet.stop_all()
 
 
+def serve_signed_by_74(
+    secure: SignedFleet, forged: dict[str, bytes], served: list[str]
+) -> Callable[[zenoh.Query], None]:
+    """A queryable's callback answering each key of `forged` that a query asks for,
+    signed with UAV 74's own key (the best a captured aircraft can do)."""
+
+    def on_query(query: zenoh.Query) -> None:
+        for key, payload in forged.items():
+            if query.key_expr.intersects(zenoh.KeyExpr(key)):
+                by_74 = signed.attachment(secure.certs, "uav-74", key, payload)
+                query.reply(key, payload, encoding=ENCODING, attachment=by_74)
+                served.append(key)
+
+    return on_query
+
+
 def onboard_said(secure: SignedFleet, uav: int, text: str) -> bool:
     return any(text in line for line in secure.fleet.onboard_child(uav).history)
 
@@ -166,13 +175,7 @@ def test_a_forged_mission_and_abort_served_to_a_teammate_catching_up_are_refused
         SPACE.mission_abort(mission): encode(MissionAbort(mission)),
     }
     served: list[str] = []
-
-    def on_query(query: zenoh.Query) -> None:
-        for key, payload in forged.items():
-            if query.key_expr.intersects(zenoh.KeyExpr(key)):
-                by_74 = signed.attachment(secure.certs, "uav-74", key, payload)
-                query.reply(key, payload, encoding=ENCODING, attachment=by_74)
-                served.append(key)
+    on_query = serve_signed_by_74(secure, forged, served)
 
     before = secure.refused(112, "not_entitled")
     with secure.session("uav-74") as attacker:
@@ -223,13 +226,7 @@ def test_forged_mission_ids_in_replies_and_state_do_not_stop_the_ground(
         ),
     }
     served: list[str] = []
-
-    def on_query(query: zenoh.Query) -> None:
-        for key, payload in forged.items():
-            if query.key_expr.intersects(zenoh.KeyExpr(key)):
-                by_74 = signed.attachment(secure.certs, "uav-74", key, payload)
-                query.reply(key, payload, encoding=ENCODING, attachment=by_74)
-                served.append(key)
+    on_query = serve_signed_by_74(secure, forged, served)
 
     with secure.session("uav-74") as attacker:
         queryables = [

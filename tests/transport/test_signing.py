@@ -4,7 +4,8 @@ a `ZenohBus` with `BusSigning` signs, relays and refuses."""
 from __future__ import annotations
 
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -16,7 +17,7 @@ from fleet.launch.launcher import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionAbort, MissionTargets, Target
 from fleet.transport import bus_codec
-from fleet.transport.bus import BusSample
+from fleet.transport.bus import BusQuery, BusSample, Queryable
 from fleet.transport.router import Router
 from fleet.transport.signing import BusSigning
 from fleet.transport.zenoh_bus import ZenohBus, client_bus, connect
@@ -67,6 +68,24 @@ class Heard:
         self.arrived.set()
 
 
+@contextmanager
+def serving(bus: ZenohBus, key_expr: str, answer: Callable[[BusQuery], None]) -> Iterator[None]:
+    """Queries on `key_expr` answered by `answer` as they arrive (on the bus's thread)."""
+    holder: list[Queryable] = []
+
+    def on_query() -> None:
+        while holder and (query := holder[0].try_recv()) is not None:
+            answer(query)
+            query.drop()
+
+    holder.append(bus.declare_queryable(key_expr, on_query))
+    on_query()  # any that arrived before the queryable was kept
+    try:
+        yield
+    finally:
+        holder[0].undeclare()
+
+
 def refused(reason: str) -> int:
     return bus_codec.DROPPED.counts().get(reason, 0)
 
@@ -105,30 +124,16 @@ def test_a_uav_relays_the_grounds_mission_and_cannot_serve_its_own(
     buses["ground"].publish(SPACE.mission_targets(7), TARGETS)
     assert heard.arrived.wait(TIMEOUT_S)
     subscription.undeclare()
-    queryable = buses["uav-74"].declare_queryable(SPACE.all_mission_keys)
     forged = MissionTargets(4_000_000_000, (112,), (Target(35.75, -120.8, 600.0),))
-    stop = threading.Event()
 
-    def serve() -> None:
-        while not stop.is_set():
-            query = queryable.try_recv()
-            if query is None:
-                stop.wait(0.01)
-                continue
-            query.reply(SPACE.mission_targets(7), TARGETS)  # re-encoded, relayed as signed
-            query.reply(SPACE.mission_targets(4_000_000_000), forged)  # 74's own making
-            query.reply(SPACE.mission_abort(7), MissionAbort(7))  # never signed by the ground
-            query.drop()
+    def answer(query: BusQuery) -> None:
+        query.reply(SPACE.mission_targets(7), TARGETS)  # re-encoded, relayed as signed
+        query.reply(SPACE.mission_targets(4_000_000_000), forged)  # 74's own making
+        query.reply(SPACE.mission_abort(7), MissionAbort(7))  # never signed by the ground
 
-    server = threading.Thread(target=serve, daemon=True)
-    server.start()
     before = refused("unsigned") + refused("not_entitled")
-    try:
+    with serving(buses["uav-74"], SPACE.all_mission_keys, answer):
         replies = buses["uav-112"].query(SPACE.all_mission_keys, TIMEOUT_S)
-    finally:
-        stop.set()
-        server.join()
-        queryable.undeclare()
     assert [(r.key, r.ok) for r in replies] == [(SPACE.mission_targets(7), True)]
     assert refused("unsigned") + refused("not_entitled") == before + 2
 
@@ -136,31 +141,17 @@ def test_a_uav_relays_the_grounds_mission_and_cannot_serve_its_own(
 def test_an_autopilot_command_is_obeyed_only_from_the_ground(
     buses: dict[str, ZenohBus],
 ) -> None:
-    queryable = buses["uav-112"].declare_queryable(SPACE.command(112, "*"))
     answered: list[str] = []
-    stop = threading.Event()
 
-    def serve() -> None:
-        while not stop.is_set():
-            query = queryable.try_recv()
-            if query is None:
-                stop.wait(0.01)
-                continue
-            answered.append(query.payload.decode())
-            query.reply_bytes(SPACE.command(112, "track"), b'{"ok": true, "detail": ""}')
-            query.drop()
+    def answer(query: BusQuery) -> None:
+        answered.append(query.payload.decode())
+        query.reply_bytes(SPACE.command(112, "track"), b'{"ok": true, "detail": ""}')
 
-    server = threading.Thread(target=serve, daemon=True)
-    server.start()
-    try:
+    with serving(buses["uav-112"], SPACE.command(112, "*"), answer):
         from_74 = buses["uav-74"].query(SPACE.command(112, "track"), TIMEOUT_S, b'{"waypoint": 50}')
         from_ground = buses["ground"].query(
             SPACE.command(112, "track"), TIMEOUT_S, b'{"waypoint": 90}'
         )
-    finally:
-        stop.set()
-        server.join()
-        queryable.undeclare()
     assert [r.ok for r in from_74] == [False]
     assert b"refused" in from_74[0].payload
     assert [r.ok for r in from_ground] == [True]  # the UAV's signed answer, believed
