@@ -349,3 +349,32 @@ def test_a_revoked_uavs_key_commands_nothing(signed_fleet: SignedFleet) -> None:
         wait_until(relayed_and_refused, 30.0, "112 refusing UAV 300")
     assert mission_of(secure.state(112)) == mission
     assert not onboard_said(secure, 112, f"mission {mission + 1}")
+
+
+# ---- what signing must not stop -----------------------------------------------------------------
+def test_a_uav_that_missed_the_mission_believes_it_relayed_by_its_teammate(
+    signed_fleet: SignedFleet,
+) -> None:
+    """112 frozen past Zenoh's lease while the mission is sent (the put is lost to it), the
+    ground gone once it has sent it: on resuming, 112 can only get the mission from 74,
+    which relays it with the ground's signature, and 112 believes it."""
+    secure = signed_fleet
+    refusals = ("unsigned", "not_entitled", "bad_signature")
+    before = {reason: secure.refused(112, reason) for reason in refusals}
+    frozen = secure.fleet.onboard_child(112)
+    frozen.process.send_signal(signal.SIGSTOP)
+    try:
+        sent = secure.ground_cli("send-targets", TARGETS_FILE, "--json")  # exits: no --wait
+        assert sent.returncode == 0, sent.stderr[-3000:]
+        mission = json.loads(sent.stdout)["mission"]
+        wait_until(lambda: mission_of(secure.state(74)) == mission, 30.0, "74 on the mission")
+
+        def token_gone() -> bool:
+            alive = secure.ground.liveliness().get(SPACE.alive(112), timeout=2.0)
+            return not [reply for reply in alive if reply.ok is not None]
+
+        wait_until(token_gone, 30.0, "112's liveliness gone with its lease")
+    finally:
+        frozen.process.send_signal(signal.SIGCONT)
+    wait_until(lambda: mission_of(secure.state(112)) == mission, 60.0, "112 caught up")
+    assert {reason: secure.refused(112, reason) for reason in refusals} == before
