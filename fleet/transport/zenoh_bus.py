@@ -13,6 +13,11 @@ client needs no listen port and is relayed by the router to every UAV. `connect`
 one and fails fast and clearly when nothing answers, never hangs: a refused connection
 fails at once, and an endpoint that accepts TCP but never speaks Zenoh is given up after
 `open_timeout_s` (Zenoh's own handshake timeout, 10 s by default, is shortened).
+
+Opened with the secure profile's config, a bus signs (`fleet.transport.signing`): what
+its identity writes on a command or decision key goes out with a signature in the Zenoh
+attachment, what it relays goes out with its author's, and every signed message that
+arrives (a sample, a reply, a command query) is checked before any callback sees it.
 """
 
 from __future__ import annotations
