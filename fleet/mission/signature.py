@@ -20,7 +20,8 @@ Freshness (`Freshness`): a live message (a put, a command query) must carry a ti
 within `window` of the receiver's clock and newer than the last one accepted from that
 author on that key; a reply to a query (a caught-up message, legitimately old) must
 not come from the future, and a mission's abort must not predate the mission's targets
-(a mission id reused after a fleet restart cannot be aborted by an old abort).
+by more than the window (a mission id reused after a fleet restart cannot be aborted by
+an old abort).
 """
 
 from __future__ import annotations
@@ -213,8 +214,10 @@ class Freshness:
             targets_at = self._missions.get(mission)
             if parsed.spec is TARGETS:
                 self._remember_mission(mission, stamp)
-            elif targets_at is not None and stamp < targets_at:
-                return Refusal.REPLAYED  # an abort made before its mission was sent
+            elif targets_at is not None and stamp < targets_at - self.window_ns:
+                # An abort made before its mission was sent (a window's slack for the
+                # clocks of two ground stations): from before a restart reused the id.
+                return Refusal.REPLAYED
         if how is Delivery.REPLY:
             return None  # a caught-up message is old by nature; its key binds it
         if now_ns - stamp > self.window_ns:

@@ -77,7 +77,9 @@ class BusSigning:
         self._clock = clock
         self._lock = threading.Lock()
         self._freshness = Freshness(window_ns)
-        self._relayed: OrderedDict[str, tuple[bytes, bytes]] = OrderedDict()
+        #: The latest signed message per key, as put by us or received: what a reply on
+        #: that key passes on, so a message keeps its author's signature and first time.
+        self._signed: OrderedDict[str, tuple[bytes, bytes]] = OrderedDict()
         self._refused: Counter[Refusal] = Counter()
         self._last_stamp = 0
 
@@ -131,7 +133,17 @@ class BusSigning:
         space = space_of(key)
         if space is None or author_of(space, key, how) is None:
             return None
-        return self._sign(key, payload)
+        envelope = self._sign(key, payload)
+        if how is Delivery.PUT:
+            self._remember(key, payload, envelope)
+        return envelope
+
+    def _remember(self, key: str, payload: bytes, envelope: bytes) -> None:
+        with self._lock:
+            self._signed[key] = (payload, envelope)
+            self._signed.move_to_end(key)
+            if len(self._signed) > RELAY_CACHE:
+                self._signed.popitem(last=False)
 
     def reply(self, key: str, payload: bytes) -> tuple[bytes, bytes | None]:
         """The payload and envelope of a reply on `key`: signed by us if ours, else the
@@ -140,14 +152,18 @@ class BusSigning:
         author = author_of(space, key, Delivery.REPLY) if space is not None else None
         if author is None:
             return payload, None
-        if author == self.identity:
-            return payload, self._sign(key, payload)
         with self._lock:
-            relayed = self._relayed.get(key)
-        if relayed is None:
+            known = self._signed.get(key)
+        if author == self.identity:
+            # The message as put, with its first signature (a mission served while it
+            # flies keeps the time it was sent), unless this is a new one.
+            if known is not None and known[0] == payload:
+                return known
+            return payload, self._sign(key, payload)
+        if known is None:
             log.debug("no signed %s to relay: replied unsigned", key)
             return payload, None
-        return relayed
+        return known
 
     # ---- incoming ---------------------------------------------------------------------
     def check(self, key: str, payload: bytes, attachment: bytes, how: Delivery) -> bool:
@@ -161,12 +177,9 @@ class BusSigning:
         if refusal is None and envelope is not None:
             with self._lock:
                 refusal = self._freshness.check(key, envelope, how, self._clock())
-                if refusal is None and envelope.author != self.identity:
-                    self._relayed[key] = (payload, attachment)
-                    self._relayed.move_to_end(key)
-                    if len(self._relayed) > RELAY_CACHE:
-                        self._relayed.popitem(last=False)
         if refusal is None:
+            if envelope is not None and envelope.author != self.identity:
+                self._remember(key, payload, attachment)
             return True
         self._refuse(key, refusal, envelope.author if envelope else None, how)
         return False

@@ -136,6 +136,8 @@ def test_a_caught_up_message_may_be_old_but_an_abort_not_older_than_its_mission(
     assert fresh.check(abort, envelope_at(NOW - hour // 2), Delivery.REPLY, NOW) is None
     # An abort of an earlier mission 1 (before a fleet restart reused the id): refused.
     assert fresh.check(abort, envelope_at(NOW - 2 * hour), Delivery.REPLY, NOW) is Refusal.REPLAYED
+    # An abort from a second ground station whose clock is 10 s behind the first's.
+    assert fresh.check(abort, envelope_at(NOW - hour - 10 * S), Delivery.REPLY, NOW) is None
     # Its targets served again later (the ground's server signs each reply) change nothing.
     assert fresh.check(targets, envelope_at(NOW), Delivery.REPLY, NOW) is None
     assert fresh.check(abort, envelope_at(NOW - hour // 2), Delivery.REPLY, NOW) is None

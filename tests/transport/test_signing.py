@@ -16,8 +16,10 @@ from fleet.files.signers import load_roster, load_signing_key, signing_key_path
 from fleet.launch.launcher import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionAbort, MissionTargets, Target
+from fleet.mission.signature import Delivery
 from fleet.transport import bus_codec
 from fleet.transport.bus import BusQuery, BusSample, Queryable
+from fleet.transport.bus_codec import encode
 from fleet.transport.router import Router
 from fleet.transport.signing import BusSigning
 from fleet.transport.zenoh_bus import ZenohBus, client_bus, connect
@@ -169,3 +171,32 @@ def test_a_config_of_the_secure_profile_signs_and_others_do_not(certs: Path) -> 
             BusSigning.from_config(config)
     finally:
         (certs / "moved").rename(certs / "uav-74.sign")
+
+
+def test_a_reply_passes_on_the_message_as_first_signed(certs: Path) -> None:
+    """The ground serving its mission while it flies, and a UAV relaying it, both pass on
+    the put's own envelope: its time is when the mission was sent, not when asked."""
+    now = [1_000]
+    ground = BusSigning(
+        "ground",
+        load_signing_key(signing_key_path(certs, "ground")),
+        load_roster(certs),
+        clock=lambda: now[0],
+    )
+    uav = BusSigning(
+        "uav-74",
+        load_signing_key(signing_key_path(certs, "uav-74")),
+        load_roster(certs),
+        clock=lambda: now[0],
+    )
+    key, payload = SPACE.mission_targets(9), encode(TARGETS)
+    put = ground.attachment(key, payload, Delivery.PUT)
+    assert put is not None and uav.check(key, payload, put, Delivery.PUT)
+    now[0] += 60 * 1_000_000_000
+    assert ground.reply(key, payload) == (payload, put)
+    assert uav.reply(key, payload) == (payload, put)
+    # Other content on the key: signed afresh by its author, never relayed as the ground's.
+    other = encode(MissionTargets(9, (74,), TARGETS.targets))
+    fresh = ground.reply(key, other)
+    assert fresh[0] == other and fresh[1] not in (None, put)
+    assert uav.reply(SPACE.mission_targets(10), payload) == (payload, None)
