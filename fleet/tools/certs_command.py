@@ -13,7 +13,7 @@ import argparse
 from pathlib import Path
 
 from fleet.files.certs import DEFAULT_VALID_DAYS, CertError, write_identities
-from fleet.files.signers import ROSTER_FILE, RosterError, revoke
+from fleet.files.signers import ROSTER_FILE, RosterError, revoke, signing_key_path
 from fleet.mission.access import GROUND, ROUTER, uav_identity
 from fleet.transport.cli import ExitCode, bounded_int, fail, piccolo_ids
 
@@ -81,10 +81,11 @@ def run_make(args: argparse.Namespace) -> int:
     except (CertError, RosterError) as error:
         return fail("fleet certs", str(error), ExitCode.FAILED)
     directory = written[0].directory
-    print(f"fleet certs: CA {directory / 'ca.pem'}")
+    print(f"fleet certs: CA {directory / 'ca.pem'}, signers {directory / ROSTER_FILE}")
     for files in written:
         made = (files.certificate, files.key, files.client_config)
-        print(f"  {files.name}: {' '.join(path.name for path in made)}")
+        signing = signing_key_path(directory, files.name)
+        print(f"  {files.name}: {' '.join(path.name for path in (*made, signing))}")
     return ExitCode.OK
 
 
