@@ -8,17 +8,7 @@ from hypothesis import strategies as st
 
 from fleet.mission import signature
 from fleet.mission.key_space import KeySpace
-from fleet.mission.signature import (
-    MAX_MARKS,
-    Delivery,
-    Envelope,
-    Freshness,
-    Refusal,
-    Roster,
-    author_of,
-    sign,
-    verify,
-)
+from fleet.mission.signature import Delivery, Envelope, Freshness, Refusal, Roster, sign, verify
 
 SPACE = KeySpace()
 S = 1_000_000_000
@@ -48,14 +38,14 @@ def test_any_attachment_decodes_or_is_refused_never_raises(data: bytes) -> None:
 
 def test_who_must_sign_follows_the_registry() -> None:
     put, reply, query = Delivery.PUT, Delivery.REPLY, Delivery.QUERY
-    assert author_of(SPACE, SPACE.mission_targets(5), put) == "ground"
+    assert signature.author_of(SPACE, SPACE.mission_targets(5), put) == "ground"
     # A teammate relaying the mission or its abort relays the ground's message.
-    assert author_of(SPACE, SPACE.mission_targets(5), reply) == "ground"
-    assert author_of(SPACE, SPACE.mission_abort(5), reply) == "ground"
-    assert author_of(SPACE, SPACE.opm(112), put) == "ground"
-    assert author_of(SPACE, SPACE.command(112, "waypoint"), query) == "ground"
+    assert signature.author_of(SPACE, SPACE.mission_targets(5), reply) == "ground"
+    assert signature.author_of(SPACE, SPACE.mission_abort(5), reply) == "ground"
+    assert signature.author_of(SPACE, SPACE.opm(112), put) == "ground"
+    assert signature.author_of(SPACE, SPACE.command(112, "waypoint"), query) == "ground"
     # The autopilot command's result is the UAV's own answer.
-    assert author_of(SPACE, SPACE.command(112, "waypoint"), reply) == "uav-112"
+    assert signature.author_of(SPACE, SPACE.command(112, "waypoint"), reply) == "uav-112"
     for key in (
         SPACE.mission_result(5, 112),
         SPACE.mission_assignment(5, 112),
@@ -63,13 +53,13 @@ def test_who_must_sign_follows_the_registry() -> None:
         SPACE.mission_outcome(5, 112),
         SPACE.state(112),
     ):
-        assert author_of(SPACE, key, put) == "uav-112", key
-        assert author_of(SPACE, key, reply) == "uav-112", key
+        assert signature.author_of(SPACE, key, put) == "uav-112", key
+        assert signature.author_of(SPACE, key, reply) == "uav-112", key
     # Telemetry and the like are not signed; a query's payload is a command only on
     # the command keys; keys outside the registry are not checked here.
-    assert author_of(SPACE, SPACE.telemetry(112), put) is None
-    assert author_of(SPACE, SPACE.mission_targets(5), query) is None
-    assert author_of(SPACE, "fleet/else/where", put) is None
+    assert signature.author_of(SPACE, SPACE.telemetry(112), put) is None
+    assert signature.author_of(SPACE, SPACE.mission_targets(5), query) is None
+    assert signature.author_of(SPACE, "fleet/else/where", put) is None
 
 
 def test_a_message_signed_by_its_author_is_believed() -> None:
@@ -147,9 +137,9 @@ def test_a_caught_up_message_may_be_old_but_an_abort_not_older_than_its_mission(
 
 def test_the_replay_marks_stay_bounded() -> None:
     fresh = Freshness(window_ns=30 * S)
-    for n in range(MAX_MARKS * 2):
+    for n in range(signature.MAX_MARKS * 2):
         assert fresh.check(SPACE.opm(1 + n % 60000), envelope_at(NOW), Delivery.PUT, NOW) is None
-    assert len(fresh._marks) <= MAX_MARKS
+    assert len(fresh._marks) <= signature.MAX_MARKS
     # Marks past the window go as time passes.
     fresh.check(SPACE.opm(1), envelope_at(NOW + 60 * S), Delivery.PUT, NOW + 60 * S)
     assert len(fresh._marks) == 1
