@@ -25,7 +25,7 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from fleet.files.certs import write_identities
+from fleet.files.certs import IdentityFiles, tls_settings, write_identities
 from fleet.files.signers import revoke
 from fleet.launch.launcher import free_port
 from fleet.mission.key_space import KeySpace
@@ -40,7 +40,7 @@ from fleet.mission.messages import (
 )
 from fleet.mission.phase import Phase
 from fleet.transport.bus_codec import ENCODING, decode, encode
-from fleet.transport.zenoh_config import build_config
+from fleet.transport.zenoh_config import build_config, make_config
 from tests.support import secure_clients, signed
 from tests.support.processes import Fleet, start
 from tests.support.waiting import wait_until
@@ -261,13 +261,11 @@ class Recorder:
 
 
 def captured_router(secure: SignedFleet) -> zenoh.Session:
-    """A router presenting the fleet's router identity, meshed with the fleet's router."""
-    config = build_config(
-        config_file=str(secure.certs / "router.json5"),
-        mode="router",
-        connect=[secure.endpoint],
-        listen=[f"tls/127.0.0.1:{free_port()}"],
-    )
+    """A router presenting the fleet's router identity (as the fleet's routers do:
+    `SecureProfile`'s TLS settings), meshed with the fleet's router."""
+    config = make_config("router", [secure.endpoint], [f"tls/127.0.0.1:{free_port()}"])
+    tls = tls_settings(IdentityFiles(secure.certs, "router"))
+    config.insert_json5("transport/link/tls", json.dumps(tls))
     return zenoh.open(config)
 
 
