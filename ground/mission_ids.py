@@ -69,6 +69,10 @@ def _mission_message(reply: BusReply) -> MissionMessage | None:
         return None
 
 
+def _ground_command(message: MissionMessage) -> bool:
+    return isinstance(message, MissionTargets | MissionAbort)
+
+
 def missions_seen(bus: Bus, space: KeySpace, timeout_s: float) -> set[int]:
     """Every mission id anything in the key space still answers for.
 
@@ -79,8 +83,13 @@ def missions_seen(bus: Bus, space: KeySpace, timeout_s: float) -> set[int]:
     seen: set[int] = set()
     for reply in bus.query(space.all_mission_keys, timeout_s):
         message = _mission_message(reply)
-        if message is not None:
+        if message is not None and (_ground_command(message) or not bus.signed):
             seen.add(message.mission)
+    if bus.signed:
+        # A UAV's own result, and its state, are signed by that UAV only: a captured
+        # aircraft could name mission 2^32-1 there. The ground's signed targets and
+        # aborts (which the UAVs relay with the ground's signature) say which ids are taken.
+        return seen
     for state in query_states(bus, space, timeout_s).values():
         if state.mission is not None:
             seen.add(state.mission.mission)

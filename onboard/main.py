@@ -8,6 +8,8 @@ import sys
 
 import zenoh
 
+from fleet.files.certs import CertError
+from fleet.files.signers import RosterError
 from fleet.transport.cli import (
     ExitCode,
     ZenohConfigError,
@@ -108,6 +110,8 @@ def main(argv: list[str] | None = None) -> int:
     except zenoh.ZError as error:
         where = ", ".join(endpoints(config)) or "the configured endpoints"
         return fail("onboard", f"cannot join zenoh at {where}: {error_text(error)}")
+    except (CertError, RosterError) as error:  # its signing key or the roster
+        return fail("onboard", f"cannot sign or check commands: {error}", ExitCode.FAILED)
     with stop_on_signals(process.stop_requested.set):
         process.run()
     return ExitCode.OK

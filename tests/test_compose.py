@@ -320,12 +320,18 @@ def test_each_service_sees_its_own_key_and_no_other() -> None:
         seen = mounts(service)
         assert all(source.startswith("./certs/") for source in seen.values()), name
         assert all(target == f"{CERTS}/{Path(s).name}" for target, s in seen.items()), name
-        keys = {Path(source).name for source in seen.values() if source.endswith(".key")}
+        keys = {Path(s).name for s in seen.values() if s.endswith((".key", ".sign"))}
         if identity is None:
             assert seen == {}, name
             continue
-        assert keys == {f"{identity}.key"}, name  # never ca.key, never another's
-        assert {f"{CERTS}/ca.pem", f"{CERTS}/{identity}.pem"} <= set(seen), name
+        # Never ca.key, never another's key; a signer has its own signing key (the
+        # router signs nothing).
+        own = {f"{identity}.key"} | ({f"{identity}.sign"} if identity != "router" else set())
+        assert keys == own, name
+        # Every process checks signatures (and the router revocations) by the roster.
+        assert {f"{CERTS}/ca.pem", f"{CERTS}/signers.json", f"{CERTS}/{identity}.pem"} <= set(
+            seen
+        ), name
         # Every file its command names under /certs is there.
         named = {a for a in secure_command(name) if a.startswith(CERTS + "/")}
         assert named <= set(seen), name

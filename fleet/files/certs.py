@@ -30,6 +30,7 @@ from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
 from fleet.errors import FleetError
+from fleet.files.signers import write_signers
 from fleet.mission.access import is_router_identity
 
 #: Hosts every certificate names, so endpoints on this machine verify.
@@ -286,6 +287,7 @@ def write_identities(
         config = json.dumps(client_config(named, connect), indent=2) + "\n"
         _write(files.client_config, config.encode())
         written.append(files)
+    write_signers(directory, names, authority.key)  # the signed-commands roster
     return written
 
 

@@ -2,9 +2,11 @@
 
 Writes `DIR/ca.pem`, and per identity NAME (`router`, `ground`, `uav-74`, and
 `router-74` for UAV 74's own router in a router-per-UAV mesh, ...) `DIR/NAME.pem`,
-`DIR/NAME.key` and `DIR/NAME.json5` (a Zenoh client configuration for `--zenoh-config`).
-Only router identities may serve. A DIR that already has a CA is refused unless
-`--force`. See `fleet.files.certs` and docs/security.md.
+`DIR/NAME.key`, `DIR/NAME.json5` (a Zenoh client configuration for `--zenoh-config`) and
+`DIR/NAME.sign` (its key for signed commands), and `DIR/signers.json` (the roster of
+signers, signed by the CA). Only router identities may serve. A DIR that already has a
+CA is refused unless `--force`. `fleet certs revoke DIR uav-74` withdraws an identity.
+See `fleet.files.certs`, `fleet.files.signers` and docs/security.md.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import argparse
 from pathlib import Path
 
 from fleet.files.certs import DEFAULT_VALID_DAYS, CertError, write_identities
+from fleet.files.signers import ROSTER_FILE, RosterError, revoke, signing_key_path
 from fleet.mission.access import GROUND, ROUTER, uav_identity, uav_router_identity
 from fleet.transport.cli import ExitCode, bounded_int, fail, piccolo_ids
 
@@ -70,6 +73,14 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         help="replace the CA already in DIR (every identity it issued stops being trusted)",
     )
     make.set_defaults(func=run_make)
+    revoke = actions.add_parser(
+        "revoke",
+        help="withdraw identities (a lost aircraft): its signed messages and connections "
+        "are refused once each process restarts with the new roster",
+    )
+    revoke.add_argument("directory", type=Path, metavar="DIR")
+    revoke.add_argument("names", nargs="+", metavar="NAME", help="identities, e.g. uav-74")
+    revoke.set_defaults(func=run_revoke)
 
 
 def run_make(args: argparse.Namespace) -> int:
@@ -82,11 +93,24 @@ def run_make(args: argparse.Namespace) -> int:
         written = write_identities(
             args.directory, names, connect, args.days, args.seen_as, force=args.force
         )
-    except CertError as error:
+    except (CertError, RosterError) as error:
         return fail("fleet certs", str(error), ExitCode.FAILED)
     directory = written[0].directory
-    print(f"fleet certs: CA {directory / 'ca.pem'}")
+    print(f"fleet certs: CA {directory / 'ca.pem'}, signers {directory / ROSTER_FILE}")
     for files in written:
         made = (files.certificate, files.key, files.client_config)
-        print(f"  {files.name}: {' '.join(path.name for path in made)}")
+        signing = signing_key_path(directory, files.name)
+        print(f"  {files.name}: {' '.join(path.name for path in (*made, signing))}")
+    return ExitCode.OK
+
+
+def run_revoke(args: argparse.Namespace) -> int:
+    try:
+        roster = revoke(args.directory, list(args.names))
+    except RosterError as error:
+        return fail("fleet certs", str(error), ExitCode.FAILED)
+    print(
+        f"fleet certs: {args.directory / ROSTER_FILE} revokes {', '.join(sorted(roster.revoked))}"
+    )
+    print("  copy it to every machine and restart the router and every process")
     return ExitCode.OK

@@ -196,5 +196,11 @@ class Bus(ABC):
     def close(self) -> None:
         """Leave the bus: every declaration, and every token, goes."""
 
+    @property
+    def signed(self) -> bool:
+        """Whether commands and decisions on this bus are signed and checked (the secure
+        profile, `fleet.transport.signing`): then a message is believed for its author."""
+        return False
+
     def publish(self, key: str, message: msgspec.Struct) -> None:
         self.put(key, bus_codec.encode(message))

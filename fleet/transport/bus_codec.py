@@ -52,9 +52,10 @@ class DropCounter:
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        self._counts: Counter[DropReason] = Counter()
+        self._counts: Counter[StrEnum] = Counter()
 
-    def add(self, reason: DropReason) -> None:
+    def add(self, reason: StrEnum) -> None:
+        """Count one refusal: a DropReason, or another layer's reason (a signature's)."""
         with self._lock:
             self._counts[reason] += 1
 

@@ -52,14 +52,21 @@ def qos_for(key: str, space: KeySpace | None = None) -> Qos:
     return _QOS[parsed.spec.urgency] if parsed is not None else ORDINARY
 
 
-def put(session: zenoh.Session, key: str, payload: bytes, qos: Qos | None = None) -> None:
+def put(
+    session: zenoh.Session,
+    key: str,
+    payload: bytes,
+    qos: Qos | None = None,
+    attachment: bytes | None = None,
+) -> None:
     """Publish bus-codec `payload` on `key` with the key's priority and congestion control
-    (`qos`, when the caller already looked it up)."""
+    (`qos`, when the caller already looked it up), and `attachment` (a signature)."""
     qos = qos or qos_for(key)
     session.put(
         key,
         payload,
         encoding=ENCODING,
+        attachment=attachment,
         priority=qos.priority,
         congestion_control=qos.congestion_control,
         express=qos.express,

@@ -111,6 +111,10 @@ class FaultyBus(Bus):
     def subscribe_presence(self, key_expr: str, callback: PresenceCallback) -> Declaration:
         return self.inner.subscribe_presence(key_expr, callback)
 
+    @property
+    def signed(self) -> bool:
+        return self.inner.signed
+
     def close(self) -> None:
         """Puts still held back are lost, as they would be by a process that stopped."""
         with self._lock:

@@ -4,20 +4,22 @@ The fleet's identities (`fleet certs make DIR ...`) are the profile: the router 
 `DIR/router.pem` (a UAV's own router in a router-per-UAV mesh: `DIR/router-N.pem`),
 accepts only clients with a certificate signed by `DIR/ca.pem`, and
 enforces the access policy (`fleet.mission.access`) for exactly the UAVs that have an
-identity in DIR (`DIR/uav-N.pem`). Each client uses its own `DIR/NAME.json5`.
+identity in DIR (`DIR/uav-N.pem`) and are not revoked in its roster (`signers.json`).
+Each client uses its own `DIR/NAME.json5`.
 """
 
 from __future__ import annotations
 
 import json
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import zenoh
 
 from fleet.files.certs import CertError, IdentityFiles, tls_settings
-from fleet.mission.access import GROUND, ROUTER, fleet_policy, uav_identity
+from fleet.files.signers import RosterError, revoked_identities
+from fleet.mission.access import GROUND, ROUTER, Grant, fleet_policy, uav_identity
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.transport.acl import access_control
 
@@ -32,6 +34,8 @@ class SecureProfile:
     key_space: KeySpace = DEFAULT_SPACE
     #: The identity the router presents: the ground's router, or a UAV's own.
     router_name: str = ROUTER
+    #: Identities withdrawn by the roster (`fleet certs revoke`): granted nothing.
+    revoked: frozenset[str] = frozenset()
 
     @classmethod
     def load(
@@ -46,7 +50,12 @@ class SecureProfile:
         uav_ids = sorted(
             int(match[1]) for path in directory.iterdir() if (match := _UAV_CERT.match(path.name))
         )
-        profile = cls(directory, tuple(uav_ids), key_space, router_name)
+        try:
+            revoked = revoked_identities(directory)
+        except RosterError as error:
+            raise CertError(str(error)) from None
+        uav_ids = [u for u in uav_ids if uav_identity(u) not in revoked]
+        profile = cls(directory, tuple(uav_ids), key_space, router_name, revoked)
         profile.identity(router_name).check()
         return profile
 
@@ -68,5 +77,13 @@ class SecureProfile:
         """Make `config` a secure router's: mTLS with the router's identity, and the ACL."""
         tls = tls_settings(self.identity(self.router_name))
         config.insert_json5("transport/link/tls", json.dumps(tls))
-        policy = fleet_policy(list(self.uav_ids), self.key_space, own=self.router_name)
+        policy = _without(
+            fleet_policy(list(self.uav_ids), self.key_space, own=self.router_name), self.revoked
+        )
         config.insert_json5("access_control", json.dumps(access_control(policy)))
+
+
+def _without(grants: list[Grant], revoked: frozenset[str]) -> list[Grant]:
+    """`grants` with no `revoked` subject: the ACL denies a revoked identity everything."""
+    kept = [replace(g, subjects=tuple(s for s in g.subjects if s not in revoked)) for g in grants]
+    return [grant for grant in kept if grant.subjects]

@@ -13,6 +13,11 @@ client needs no listen port and is relayed by the router to every UAV. `connect`
 one and fails fast and clearly when nothing answers, never hangs: a refused connection
 fails at once, and an endpoint that accepts TCP but never speaks Zenoh is given up after
 `open_timeout_s` (Zenoh's own handshake timeout, 10 s by default, is shortened).
+
+Opened with the secure profile's config, a bus signs (`fleet.transport.signing`): what
+its identity writes on a command or decision key goes out with a signature in the Zenoh
+attachment, what it relays goes out with its author's, and every signed message that
+arrives (a sample, a reply, a command query) is checked before any callback sees it.
 """
 
 from __future__ import annotations
@@ -26,6 +31,9 @@ from typing import Any, TypeVar
 import zenoh
 
 from fleet.errors import FleetError
+from fleet.files.certs import CertError
+from fleet.files.signers import RosterError
+from fleet.mission.signature import Delivery
 from fleet.transport import bus_codec, bus_qos
 from fleet.transport.bus import (
     Bus,
@@ -38,6 +46,7 @@ from fleet.transport.bus import (
     QueryNotify,
     SampleCallback,
 )
+from fleet.transport.signing import BusSigning
 from fleet.transport.zenoh_config import (
     CONNECT_ENV,
     ZenohConfigError,
@@ -66,6 +75,11 @@ def direct(callback: Callable[[_T], Any]) -> zenoh.handlers.Callback[_T]:
     return zenoh.handlers.Callback(callback, indirect=False)
 
 
+def _attachment(data: zenoh.Sample | zenoh.Query) -> bytes:
+    attachment = data.attachment
+    return attachment.to_bytes() if attachment is not None else b""
+
+
 def _sample(sample: zenoh.Sample) -> BusSample:
     return BusSample(
         str(sample.key_expr),
@@ -86,8 +100,9 @@ def _reply(reply: zenoh.Reply) -> BusReply:
 
 
 class ZenohQuery(BusQuery):
-    def __init__(self, query: zenoh.Query) -> None:
+    def __init__(self, query: zenoh.Query, signing: BusSigning | None = None) -> None:
         self._query = query
+        self._signing = signing
         self.key = str(query.key_expr)
         self.payload = query.payload.to_bytes() if query.payload is not None else b""
 
@@ -95,7 +110,11 @@ class ZenohQuery(BusQuery):
         return bool(self._query.key_expr.intersects(zenoh.KeyExpr(key)))
 
     def reply_bytes(self, key: str, payload: bytes) -> None:
-        self._query.reply(key, payload, encoding=bus_codec.ENCODING)
+        if self._signing is None:
+            self._query.reply(key, payload, encoding=bus_codec.ENCODING)
+            return
+        payload, attachment = self._signing.reply(key, payload)
+        self._query.reply(key, payload, encoding=bus_codec.ENCODING, attachment=attachment)
 
     def reply_err(self, text: str) -> None:
         self._query.reply_err(text.encode())
@@ -107,12 +126,27 @@ class ZenohQuery(BusQuery):
 class ZenohQueryable(Queryable):
     """Queries queued by a Zenoh callback, which then calls `notify`."""
 
-    def __init__(self, session: zenoh.Session, key_expr: str, notify: QueryNotify | None) -> None:
+    def __init__(
+        self,
+        session: zenoh.Session,
+        key_expr: str,
+        notify: QueryNotify | None,
+        signing: BusSigning | None = None,
+    ) -> None:
         super().__init__(notify)
+        self._signing = signing
         self._queryable = session.declare_queryable(key_expr, direct(self._on_query))
 
     def _on_query(self, query: zenoh.Query) -> None:
-        self.deliver(ZenohQuery(query))
+        wrapped = ZenohQuery(query, self._signing)
+        signing = self._signing
+        if signing is not None and not signing.check(
+            wrapped.key, wrapped.payload, _attachment(query), Delivery.QUERY
+        ):
+            wrapped.reply_err("refused: not a command its signer may give (signed commands)")
+            wrapped.drop()
+            return
+        self.deliver(wrapped)
 
     def undeclare(self) -> None:
         self._queryable.undeclare()
@@ -121,15 +155,33 @@ class ZenohQueryable(Queryable):
 class ZenohBus(Bus):
     """A Bus over a Zenoh session, which it owns (closed by `close`)."""
 
-    def __init__(self, session: zenoh.Session) -> None:
+    def __init__(self, session: zenoh.Session, signing: BusSigning | None = None) -> None:
         self.session = session
+        #: The secure profile's signed commands (None: nothing signed or checked).
+        self.signing = signing
         #: Declared publishers of the keys put at a steady rate (telemetry), by key.
         self._publishers: dict[str, zenoh.Publisher] = {}
 
     @classmethod
     def open(cls, config: zenoh.Config) -> ZenohBus:
-        """Open a session; raises zenoh.ZError if the config's router cannot be reached."""
-        return cls(zenoh.open(config))
+        """Open a session; raises zenoh.ZError if the config's router cannot be reached,
+        CertError or RosterError if its identity's signing key or roster is unreadable."""
+        signing = BusSigning.from_config(config)
+        return cls(zenoh.open(config), signing)
+
+    @property
+    def signed(self) -> bool:
+        return self.signing is not None
+
+    def _check(self, key: str, payload: bytes, attachment: bytes, how: Delivery) -> bool:
+        return self.signing is None or self.signing.check(key, payload, attachment, how)
+
+    def _received(self, sample: zenoh.Sample, how: Delivery) -> BusSample | None:
+        """The sample, or None if its signature is refused."""
+        bus_sample = _sample(sample)
+        if not self._check(bus_sample.key, bus_sample.payload, _attachment(sample), how):
+            return None
+        return bus_sample
 
     def put(self, key: str, payload: bytes) -> None:
         """Publish with the key's priority and congestion control (bus_qos).
@@ -138,6 +190,11 @@ class ZenohBus(Bus):
         publisher costs about half the CPU of a session put (the key is resolved once, not
         at each of the 20 puts a second), which counts in an idle onboard (issue 14).
         """
+        if self.signing is not None:
+            attachment = self.signing.attachment(key, payload, Delivery.PUT)
+            if attachment is not None:
+                bus_qos.put(self.session, key, payload, attachment=attachment)
+                return
         publisher = self._publishers.get(key)
         if publisher is None:
             qos = bus_qos.qos_for(key)
@@ -149,7 +206,9 @@ class ZenohBus(Bus):
 
     def subscribe(self, key_expr: str, callback: SampleCallback) -> Declaration:
         def on_sample(sample: zenoh.Sample) -> None:
-            callback(_sample(sample))
+            received = self._received(sample, Delivery.PUT)
+            if received is not None:
+                callback(received)
 
         subscriber: Declaration = self.session.declare_subscriber(key_expr, direct(on_sample))
         return subscriber
@@ -159,12 +218,29 @@ class ZenohBus(Bus):
     ) -> None:
         def on_reply(reply: zenoh.Reply) -> None:
             if reply.ok is not None:
-                callback(_sample(reply.ok))
+                received = self._received(reply.ok, Delivery.REPLY)
+                if received is not None:
+                    callback(received)
 
-        if payload:
-            self.session.get(selector, direct(on_reply), payload=payload, timeout=timeout)
-        else:
-            self.session.get(selector, direct(on_reply), timeout=timeout)
+        options = self._query_options(selector, payload)
+        self.session.get(selector, direct(on_reply), timeout=timeout, **options)
+
+    def _query_options(self, selector: str, payload: bytes) -> dict[str, Any]:
+        """The payload of a query, signed when it is a command (`cmd/waypoint`, ...)."""
+        if not payload:
+            return {}
+        options: dict[str, Any] = {"payload": payload}
+        if self.signing is not None:
+            attachment = self.signing.attachment(selector, payload, Delivery.QUERY)
+            if attachment is not None:
+                options["attachment"] = attachment
+        return options
+
+    def _accepted(self, reply: zenoh.Reply) -> bool:
+        sample = reply.ok
+        return sample is None or self._check(
+            str(sample.key_expr), sample.payload.to_bytes(), _attachment(sample), Delivery.REPLY
+        )
 
     def query(
         self, selector: str, timeout: float, payload: bytes = b"", *, every_reply: bool = False
@@ -174,12 +250,12 @@ class ZenohBus(Bus):
             if every_reply
             else {}
         )
-        if payload:
-            options["payload"] = payload
-        return [_reply(reply) for reply in self.session.get(selector, timeout=timeout, **options)]
+        options.update(self._query_options(selector, payload))
+        replies = self.session.get(selector, timeout=timeout, **options)
+        return [_reply(reply) for reply in replies if self._accepted(reply)]
 
     def declare_queryable(self, key_expr: str, notify: QueryNotify | None = None) -> Queryable:
-        return ZenohQueryable(self.session, key_expr, notify)
+        return ZenohQueryable(self.session, key_expr, notify, self.signing)
 
     def declare_token(self, key: str) -> Declaration:
         token: Declaration = self.session.liveliness().declare_token(key)
@@ -215,6 +291,10 @@ def connect(target: ClientTarget, *, open_timeout_s: float = DEFAULT_OPEN_TIMEOU
     except ZenohConfigError as error:
         raise BusConnectError(str(error)) from None
     where = ", ".join(endpoints(config)) or "the configured endpoints"
+    try:
+        signing = BusSigning.from_config(config)
+    except (CertError, RosterError) as error:
+        raise BusConnectError(f"cannot sign or check commands: {error}") from None
     config.insert_json5("transport/unicast/open_timeout", json.dumps(round(open_timeout_s * 1000)))
     try:
         session = zenoh.open(config)
@@ -224,7 +304,7 @@ def connect(target: ClientTarget, *, open_timeout_s: float = DEFAULT_OPEN_TIMEOU
             f"Start one with `fleet up`, or point --connect / ${CONNECT_ENV} at it."
         ) from error
     log.debug("connected to %s as %s", where, session.zid())
-    return ZenohBus(session)
+    return ZenohBus(session, signing)
 
 
 @contextmanager

@@ -31,6 +31,7 @@ from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.zenoh_config import build_config, make_config
+from tests.support import secure_clients, signed
 from tests.support.processes import Child, start
 from tests.support.waiting import wait_until
 
@@ -47,17 +48,10 @@ class SecureFleet:
     up: Child
 
     def session(self, identity: str) -> zenoh.Session:
-        config = build_config(
-            config_file=str(self.certs / f"{identity}.json5"), connect=[self.endpoint]
-        )
-        return zenoh.open(config)
+        return secure_clients.session(self.certs, self.endpoint, identity)
 
     def ground_cli(self, *argv: str) -> subprocess.CompletedProcess[str]:
-        return subprocess.run(
-            [sys.executable, "-m", "ground.cli", "--zenoh-config",
-             str(self.certs / "ground.json5"), "--connect", self.endpoint, *argv],
-            capture_output=True, text=True, timeout=TIMEOUT_S, check=False,
-        )  # fmt: skip
+        return secure_clients.ground_cli(self.certs, self.endpoint, *argv)
 
 
 @pytest.fixture(scope="module")
@@ -176,12 +170,14 @@ def test_uav_74_cannot_write_for_uav_112_or_command(
 
 
 def test_uav_74_cannot_command_uav_112_but_the_ground_can(
-    ground: tuple[zenoh.Session, Seen], uav74: zenoh.Session
+    secure_fleet: SecureFleet, ground: tuple[zenoh.Session, Seen], uav74: zenoh.Session
 ) -> None:
     session, _ = ground
     selector = SPACE.command(112, "waypoint")
-    # Not a waypoint: the UAV refuses it with an error reply, which proves it arrived.
-    answers = [r for r in session.get(selector, payload=b"{}", timeout=5.0)]
+    # Not a waypoint: the UAV refuses it with an error reply, which proves it arrived
+    # (signed by the ground's key: signed commands, tests/launch/test_signed_commands.py).
+    signature = signed.attachment(secure_fleet.certs, "ground", selector, b"{}")
+    answers = list(session.get(selector, payload=b"{}", attachment=signature, timeout=5.0))
     assert answers and answers[0].err is not None
     assert "not a valid Waypoint" in answers[0].err.payload.to_string()
     assert list(uav74.get(selector, payload=b"{}", timeout=2.0)) == []

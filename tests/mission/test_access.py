@@ -7,8 +7,9 @@ import pytest
 import zenoh
 
 from fleet.mission.access import GROUND, Flow, Message, fleet_policy, uav_identity
-from fleet.mission.key_registry import DEFAULT_PREFIX
+from fleet.mission.key_registry import DEFAULT_PREFIX, Carriage
 from fleet.mission.key_space import KeySpace
+from fleet.mission.signature import SIGNED_KEYS, Delivery, author_of
 
 SPACE = KeySpace()
 
@@ -88,3 +89,27 @@ def test_the_policy_follows_the_key_space_given() -> None:
     exprs = {expr for grant in fleet_policy([74], lab) for expr in grant.key_exprs}
     assert "lab/uav/74/**" in exprs and "lab/mission/*/targets" in exprs
     assert not any(expr.startswith(f"{DEFAULT_PREFIX}/") for expr in exprs)
+
+
+def test_who_must_sign_a_key_is_who_the_acl_lets_write_it() -> None:
+    """One source: for every signed key, the author a receiver demands
+    (`fleet.mission.signature`) is the identity the router lets put it (or ask it, for a
+    command query), and no other fleet identity may (routers aside; a UAV in its own
+    tree)."""
+    identities = (GROUND, uav_identity(74), uav_identity(112))
+    for spec in SIGNED_KEYS:
+        key = SPACE.key(spec, id=112, m=5, index=0)
+        how, message = (
+            (Delivery.PUT, Message.PUT)
+            if Carriage.PUT in spec.carriage
+            else (Delivery.QUERY, Message.QUERY)
+        )
+        author = author_of(SPACE, key, how)
+        assert author is not None, key
+        writers = {i for i in identities if allowed(i, Flow.INGRESS, message, key)}
+        if message is Message.PUT:
+            # The ACL also lets a UAV write anywhere in its own tree (its OPM key too):
+            # there the signature is what keeps the command the ground's.
+            assert author in writers and writers - {author} <= {uav_identity(112)}, key
+        else:  # the ground may query every key; only a command query is signed
+            assert author == GROUND and GROUND in writers, key

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
+import zenoh
 
 from fleet.files.certs import CertError, write_identities
+from fleet.files.signers import revoke
 from fleet.launch.launcher import Fleet, FleetSpec, LaunchError
 from fleet.transport.router import main as router_main
 from fleet.transport.secure import SecureProfile
@@ -54,3 +57,15 @@ def test_a_config_with_mutual_tls_is_the_secure_profiles(tmp_path: Path) -> None
     write_identities(tmp_path, ["router", "uav-74"], [])
     assert uses_mtls(build_config(config_file=str(tmp_path / "uav-74.json5")))
     assert not uses_mtls(make_config("client", ["tcp/127.0.0.1:7447"]))
+
+
+def test_a_revoked_identity_is_granted_nothing(tmp_path: Path) -> None:
+    write_identities(tmp_path, ["router", "ground", "uav-74", "uav-112"], [])
+    revoke(tmp_path, ["uav-74", "ground"])
+    profile = SecureProfile.load(tmp_path)
+    assert profile.uav_ids == (112,)
+    config = zenoh.Config()
+    profile.apply_to_router(config)
+    acl = json.loads(config.get_json("access_control"))
+    named = {name for subject in acl["subjects"] for name in subject["cert_common_names"]}
+    assert named == {"router-112", "uav-112"}  # UAV 112 and its own router

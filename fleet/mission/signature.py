@@ -1,0 +1,247 @@
+"""Signed commands and decisions: the envelope, who may sign which key, and freshness.
+
+Trust on the bus is per hop (mutual TLS, the router's ACL); a message that is relayed
+(a router, a teammate answering a catch-up query) would be believed for whoever handed
+it over. A signed message is believed for its *author*: the envelope carries the
+author's identity (a certificate's common name: `ground`, `uav-74`), a timestamp and an
+Ed25519 signature over the key expression, the payload, the author and the timestamp.
+It travels in the Zenoh attachment, so the message structs (and the open profile, which
+signs nothing) stay as they are.
+
+Which keys are signed, and by whom, follows the key registry, the single source the
+router's access policy (`fleet.mission.access`) is derived from too: a key that
+commands the fleet or carries the team's decisions (`Role.COMMAND`, the whole mission
+tree, a UAV's state) must be signed by its registered writer (the ground for missions,
+aborts, OPM and autopilot commands; UAV n for its own result, assignment, re-plan,
+outcome and state), whoever relays it. A reply on a query-only command key (the
+autopilot's `CommandResult`) is signed by the UAV that serves it.
+
+Freshness (`Freshness`): a live message (a put, a command query) must carry a timestamp
+within `window` of the receiver's clock and newer than the last one accepted from that
+author on that key; a reply to a query (a caught-up message, legitimately old) must
+not come from the future, and a mission's abort must not predate the mission's targets
+by more than the window (a mission id reused after a fleet restart cannot be aborted by
+an old abort).
+"""
+
+from __future__ import annotations
+
+import struct
+from collections import OrderedDict
+from dataclasses import dataclass
+from enum import Enum, StrEnum, auto
+
+from cryptography.exceptions import InvalidSignature
+from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
+
+from fleet.mission.access import GROUND, uav_identity
+from fleet.mission.key_registry import REGISTRY, STATE, TARGETS, Carriage, KeySpec, Party, Role
+from fleet.mission.key_space import KeySpace, space_of
+
+#: The attachment starts with this: a signature envelope, version 1.
+MAGIC = b"fsig1"
+SIGNATURE_BYTES = 64
+#: What every signed byte string starts with: no signature made for another purpose
+#: (another protocol using the same key) verifies as one of these.
+_DOMAIN = b"uav-fleet signed message v1\x00"
+_STAMP = struct.Struct(">Q")
+MAX_AUTHOR_BYTES = 64
+#: How far (ns) a live message's timestamp may be from the receiver's clock.
+DEFAULT_WINDOW_NS = 30 * 1_000_000_000
+#: The (author, key) high-water marks kept; older entries past the window are pruned.
+MAX_MARKS = 4096
+
+
+class Refusal(StrEnum):
+    """Why a message was refused; each is counted (`bus_codec.DROPPED`) by this name."""
+
+    UNSIGNED = "unsigned"  #: no envelope on a key that needs one
+    MALFORMED = "bad_envelope"  #: an attachment that is not an envelope
+    UNKNOWN_AUTHOR = "unknown_author"  #: not in the fleet's roster of signers
+    REVOKED = "revoked"  #: the author's identity was withdrawn
+    NOT_ENTITLED = "not_entitled"  #: the author may not write that key
+    BAD_SIGNATURE = "bad_signature"  #: the signature does not match key, payload, author, time
+    STALE = "stale"  #: a live message outside the window, or from the future
+    REPLAYED = "replayed"  #: not newer than the last accepted on that key, or older than
+    #: its mission
+
+
+class Delivery(Enum):
+    """How a message reached us: it decides who must have signed it and how fresh."""
+
+    PUT = auto()  #: a publication
+    QUERY = auto()  #: a query's payload (a command to a queryable)
+    REPLY = auto()  #: a reply to our query: possibly relayed, possibly old
+
+
+@dataclass(frozen=True)
+class Envelope:
+    author: str
+    stamp_ns: int
+    signature: bytes
+
+    def encode(self) -> bytes:
+        author = self.author.encode()
+        return MAGIC + bytes([len(author)]) + author + _STAMP.pack(self.stamp_ns) + self.signature
+
+    @classmethod
+    def decode(cls, data: bytes) -> Envelope | None:
+        """The envelope in `data`, or None if it is not one (any bytes at all: never raises)."""
+        if not data.startswith(MAGIC) or len(data) < len(MAGIC) + 1:
+            return None
+        size = data[len(MAGIC)]
+        start = len(MAGIC) + 1
+        if size == 0 or size > MAX_AUTHOR_BYTES:
+            return None
+        if len(data) != start + size + _STAMP.size + SIGNATURE_BYTES:
+            return None
+        try:
+            author = data[start : start + size].decode()
+        except UnicodeDecodeError:
+            return None
+        (stamp,) = _STAMP.unpack_from(data, start + size)
+        return cls(author, stamp, data[start + size + _STAMP.size :])
+
+
+def signed_bytes(key: str, payload: bytes, author: str, stamp_ns: int) -> bytes:
+    """What is signed: every field length-prefixed, so no two messages share a string."""
+    fields = (key.encode(), author.encode(), payload)
+    return _DOMAIN + b"".join(struct.pack(">I", len(f)) + f for f in fields) + _STAMP.pack(stamp_ns)
+
+
+def sign(key_pair: Ed25519PrivateKey, author: str, key: str, payload: bytes, now_ns: int) -> bytes:
+    """The attachment that makes `payload` on `key` a message signed by `author`."""
+    signature = key_pair.sign(signed_bytes(key, payload, author, now_ns))
+    return Envelope(author, now_ns, signature).encode()
+
+
+def _needs_signature(spec: KeySpec) -> bool:
+    return spec.role is Role.COMMAND or spec.tree == "mission" or spec is STATE
+
+
+#: The keys whose messages must be signed (every other key travels as before).
+SIGNED_KEYS: tuple[KeySpec, ...] = tuple(s for s in REGISTRY if _needs_signature(s))
+
+
+def _party(party: Party, uav: str | None) -> str | None:
+    if party is Party.GROUND:
+        return GROUND
+    if party is Party.OWN_UAV and uav is not None and uav.isdecimal():
+        return uav_identity(int(uav))
+    return None  # ANY_UAV writes nothing on its own name
+
+
+def author_of(space: KeySpace, key: str, delivery: Delivery) -> str | None:
+    """Who must have signed a message on `key` that arrived as `delivery`; None if the key
+    carries no signed message that way (then it is not checked).
+
+    A publication, a command query and a relayed reply carry the registered writer's
+    message; a reply on a query-only key is its server's own answer.
+    """
+    parsed = space.parse(key)
+    if parsed is None or parsed.spec not in SIGNED_KEYS:
+        return None
+    spec = parsed.spec
+    query_only = Carriage.PUT not in spec.carriage
+    if delivery is Delivery.QUERY:
+        # A query's payload is a command only on a query-only key (the autopilot's).
+        return _party(spec.writer, parsed.uav) if query_only else None
+    if delivery is Delivery.REPLY and query_only:
+        servers = [p for p in spec.servers if p is Party.OWN_UAV]
+        return _party(servers[0], parsed.uav) if servers else None
+    return _party(spec.writer, parsed.uav)
+
+
+@dataclass(frozen=True)
+class Roster:
+    """The fleet's signers: each identity's public key, and the identities withdrawn."""
+
+    keys: dict[str, Ed25519PublicKey]
+    revoked: frozenset[str] = frozenset()
+
+
+def verify(
+    roster: Roster, space: KeySpace, key: str, payload: bytes, attachment: bytes, how: Delivery
+) -> tuple[Envelope | None, Refusal | None]:
+    """Check the signature of a message (not its freshness: `Freshness`).
+
+    Returns (envelope, None) for a message signed by the author the key needs, (None,
+    None) for a key that needs no signature, else (envelope or None, why refused).
+    """
+    author = author_of(space, key, how)
+    if author is None:
+        return None, None
+    if not attachment:
+        return None, Refusal.UNSIGNED
+    envelope = Envelope.decode(attachment)
+    if envelope is None:
+        return None, Refusal.MALFORMED
+    if envelope.author in roster.revoked:
+        return envelope, Refusal.REVOKED
+    public = roster.keys.get(envelope.author)
+    if public is None:
+        return envelope, Refusal.UNKNOWN_AUTHOR
+    if envelope.author != author:
+        return envelope, Refusal.NOT_ENTITLED
+    try:
+        public.verify(
+            envelope.signature, signed_bytes(key, payload, envelope.author, envelope.stamp_ns)
+        )
+    except InvalidSignature:
+        return envelope, Refusal.BAD_SIGNATURE
+    return envelope, None
+
+
+class Freshness:
+    """Replay refusal with bounded memory: the last timestamp accepted per (author, key)
+    for live messages, and the timestamp of each mission's targets (a bounded number of
+    missions) against which that mission's other commands are judged."""
+
+    def __init__(self, window_ns: int = DEFAULT_WINDOW_NS) -> None:
+        self.window_ns = window_ns
+        self._marks: OrderedDict[tuple[str, str], int] = OrderedDict()
+        self._missions: OrderedDict[str, int] = OrderedDict()
+
+    def check(self, key: str, envelope: Envelope, how: Delivery, now_ns: int) -> Refusal | None:
+        """None (and the message remembered) if fresh, else why not."""
+        stamp = envelope.stamp_ns
+        if stamp > now_ns + self.window_ns:
+            return Refusal.STALE  # from the future: a skewed clock, or a forgery kept for later
+        space = space_of(key)
+        parsed = space.parse(key) if space is not None else None
+        mission = parsed.mission if parsed is not None else None
+        if parsed is not None and mission is not None and parsed.spec.role is Role.COMMAND:
+            targets_at = self._missions.get(mission)
+            if parsed.spec is TARGETS:
+                self._remember_mission(mission, stamp)
+            elif targets_at is not None and stamp < targets_at - self.window_ns:
+                # An abort made before its mission was sent (a window's slack for the
+                # clocks of two ground stations): from before a restart reused the id.
+                return Refusal.REPLAYED
+        if how is Delivery.REPLY:
+            return None  # a caught-up message is old by nature; its key binds it
+        if now_ns - stamp > self.window_ns:
+            return Refusal.STALE
+        mark = (envelope.author, key)
+        last = self._marks.get(mark)
+        if last is not None and stamp <= last:
+            return Refusal.REPLAYED
+        self._marks[mark] = stamp
+        self._marks.move_to_end(mark)
+        self._prune(now_ns)
+        return None
+
+    def _remember_mission(self, mission: str, stamp: int) -> None:
+        # The first signing of a mission: its server may sign it again for each query.
+        self._missions[mission] = min(stamp, self._missions.get(mission, stamp))
+        self._missions.move_to_end(mission)
+        while len(self._missions) > MAX_MARKS:
+            self._missions.popitem(last=False)
+
+    def _prune(self, now_ns: int) -> None:
+        # A mark older than the window guards nothing: such a message is stale anyway.
+        while self._marks:
+            oldest = next(iter(self._marks.values()))
+            if now_ns - oldest <= self.window_ns and len(self._marks) <= MAX_MARKS:
+                break
+            self._marks.popitem(last=False)

@@ -1,0 +1,196 @@
+"""Signed commands on the Zenoh bus: what a process signs, relays and refuses.
+
+In the secure profile (a Zenoh config with mutual TLS whose CA directory holds the
+fleet's roster of signers, `fleet.files.signers`), every `ZenohBus` carries a
+`BusSigning`: the process's identity (its certificate's common name), its own Ed25519
+key and the roster. Then
+
+* each message it authors on a signed key (`fleet.mission.signature.SIGNED_KEYS`) is
+  put, replied or asked with a signature envelope in the Zenoh attachment;
+* a message it relays (a UAV answering a teammate's catch-up with the ground's targets
+  or abort) is replied with the author's original payload and envelope, remembered as
+  it arrived: the relay's own signature would not make it the ground's;
+* every message on a signed key that reaches it (a publication, a reply, a command
+  query) is checked: the author's signature, the author's right to that key (the key
+  registry the ACL is derived from), the roster's revocations and freshness. A refused
+  message never reaches the process; it is logged (rate-limited) and counted in
+  `bus_codec.DROPPED` by reason (an onboard's state shows them as `bus_unsigned`, ...).
+
+Without a roster (the open profile) nothing is signed or checked.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import time
+from collections import Counter, OrderedDict
+from collections.abc import Callable
+from pathlib import Path
+
+import zenoh
+from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
+
+from fleet.files.certs import common_name
+from fleet.files.signers import ROSTER_FILE, load_roster, load_signing_key, signing_key_path
+from fleet.mission.key_space import space_of
+from fleet.mission.signature import (
+    DEFAULT_WINDOW_NS,
+    Delivery,
+    Freshness,
+    Refusal,
+    Roster,
+    author_of,
+    sign,
+    verify,
+)
+from fleet.transport import bus_codec
+
+log = logging.getLogger(__name__)
+
+#: Messages remembered to relay with their author's envelope (the latest per key).
+RELAY_CACHE = 1024
+#: Each refusal reason is logged this many times, then every LOG_EVERY-th time.
+LOG_FIRST = 10
+LOG_EVERY = 1000
+
+
+class BusSigning:
+    """Signs what this identity authors, relays what others signed, checks what arrives.
+
+    Thread-safe: Zenoh calls `check` from its own threads.
+    """
+
+    def __init__(
+        self,
+        identity: str,
+        key: Ed25519PrivateKey,
+        roster: Roster,
+        *,
+        window_ns: int = DEFAULT_WINDOW_NS,
+        clock: Callable[[], int] = time.time_ns,
+    ) -> None:
+        self.identity = identity
+        self._key = key
+        self.roster = roster
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._freshness = Freshness(window_ns)
+        #: The latest signed message per key, as put by us or received: what a reply on
+        #: that key passes on, so a message keeps its author's signature and first time.
+        self._signed: OrderedDict[str, tuple[bytes, bytes]] = OrderedDict()
+        self._refused: Counter[Refusal] = Counter()
+        self._last_stamp = 0
+
+    @classmethod
+    def from_config(cls, config: zenoh.Config) -> BusSigning | None:
+        """The signing of the identity a Zenoh config presents, or None when the config is
+        not the secure profile's (no TLS client identity, or no roster beside its CA).
+
+        Raises RosterError (or CertError) when the roster or the key is there but cannot
+        be believed: a secure process never falls back to unsigned.
+        """
+        try:
+            tls = json.loads(config.get_json("transport/link/tls"))
+        except (zenoh.ZError, TypeError, ValueError):  # no such section
+            return None
+        if not isinstance(tls, dict):
+            return None
+        ca, certificate = tls.get("root_ca_certificate"), tls.get("connect_certificate")
+        if not isinstance(ca, str) or not isinstance(certificate, str):
+            return None
+        ca_path, certificate_path = Path(ca), Path(certificate)
+        roster_dir = ca_path.parent
+        if not (roster_dir / ROSTER_FILE).is_file():
+            log.warning(
+                "%s: no roster of signers: commands are neither signed nor checked "
+                "(make the identities again with `fleet certs make`)",
+                roster_dir,
+            )
+            return None
+        roster = load_roster(roster_dir, ca_path)
+        identity = common_name(certificate_path)
+        key = load_signing_key(signing_key_path(certificate_path.parent, identity))
+        if identity in roster.revoked:
+            log.warning("this identity (%s) is revoked: its messages will be refused", identity)
+        log.info("signing as %s; %d signers, %d revoked", identity, len(roster.keys),
+                 len(roster.revoked))  # fmt: skip
+        return cls(identity, key, roster)
+
+    # ---- outgoing ---------------------------------------------------------------------
+    def _stamp(self) -> int:
+        # Strictly increasing, so two messages on one key never share a timestamp.
+        with self._lock:
+            self._last_stamp = max(self._clock(), self._last_stamp + 1)
+            return self._last_stamp
+
+    def _sign(self, key: str, payload: bytes) -> bytes:
+        return sign(self._key, self.identity, key, payload, self._stamp())
+
+    def attachment(self, key: str, payload: bytes, how: Delivery) -> bytes | None:
+        """The envelope for a put (or a command query) this process authors on `key`."""
+        space = space_of(key)
+        if space is None or author_of(space, key, how) is None:
+            return None
+        envelope = self._sign(key, payload)
+        if how is Delivery.PUT:
+            self._remember(key, payload, envelope)
+        return envelope
+
+    def _remember(self, key: str, payload: bytes, envelope: bytes) -> None:
+        with self._lock:
+            self._signed[key] = (payload, envelope)
+            self._signed.move_to_end(key)
+            if len(self._signed) > RELAY_CACHE:
+                self._signed.popitem(last=False)
+
+    def reply(self, key: str, payload: bytes) -> tuple[bytes, bytes | None]:
+        """The payload and envelope of a reply on `key`: signed by us if ours, else the
+        author's message as it reached us (a relay), else unsigned (and so refused)."""
+        space = space_of(key)
+        author = author_of(space, key, Delivery.REPLY) if space is not None else None
+        if author is None:
+            return payload, None
+        with self._lock:
+            known = self._signed.get(key)
+        if author == self.identity:
+            # The message as put, with its first signature (a mission served while it
+            # flies keeps the time it was sent), unless this is a new one.
+            if known is not None and known[0] == payload:
+                return known
+            return payload, self._sign(key, payload)
+        if known is None:
+            log.debug("no signed %s to relay: replied unsigned", key)
+            return payload, None
+        return known
+
+    # ---- incoming ---------------------------------------------------------------------
+    def check(self, key: str, payload: bytes, attachment: bytes, how: Delivery) -> bool:
+        """Whether a message that arrived on `key` may be believed (refusals counted)."""
+        space = space_of(key)
+        if space is None:
+            return True
+        envelope, refusal = verify(self.roster, space, key, payload, attachment, how)
+        if envelope is None and refusal is None:
+            return True  # a key that is not signed
+        if refusal is None and envelope is not None:
+            with self._lock:
+                refusal = self._freshness.check(key, envelope, how, self._clock())
+        if refusal is None:
+            if envelope is not None and envelope.author != self.identity:
+                self._remember(key, payload, attachment)
+            return True
+        self._refuse(key, refusal, envelope.author if envelope else None, how)
+        return False
+
+    def _refuse(self, key: str, refusal: Refusal, author: str | None, how: Delivery) -> None:
+        bus_codec.DROPPED.add(refusal)
+        with self._lock:
+            self._refused[refusal] += 1
+            count = self._refused[refusal]
+        if count <= LOG_FIRST or count % LOG_EVERY == 0:
+            log.warning(
+                "refused %s on %s (signed by %s): %s (%d so far)",
+                how.name.lower(), key, author or "nobody", refusal, count,
+            )  # fmt: skip

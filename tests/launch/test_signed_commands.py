@@ -1,0 +1,378 @@
+"""Signed commands end to end (issue 26): a secure fleet of real processes (the router
+with mutual TLS and access control, the simulator, onboards 74 and 112, `ground-cli`),
+attacked by a captured aircraft (UAV 74's certificate and signing key), a captured
+router (the router's identity, joined to the fleet's router as a router) and a revoked
+aircraft (UAV 300, withdrawn by `fleet certs revoke`).
+
+A refusal is observed, not assumed: the target UAV counts each message it refused in its
+state's link drops (`bus_not_entitled`, `bus_replayed`, ...), and the test waits for
+that count to grow before it checks that nothing was obeyed.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from importlib.resources import files
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from fleet.files.certs import IdentityFiles, tls_settings, write_identities
+from fleet.files.signers import revoke
+from fleet.launch.launcher import free_port
+from fleet.mission.key_space import KeySpace
+from fleet.mission.messages import (
+    MissionAbort,
+    MissionProgress,
+    MissionTargets,
+    OpmCommand,
+    Target,
+    UavResult,
+    UavState,
+)
+from fleet.mission.phase import Phase
+from fleet.transport.bus_codec import ENCODING, decode, encode
+from fleet.transport.zenoh_config import build_config, make_config
+from tests.support import secure_clients, signed
+from tests.support.processes import Fleet, start
+from tests.support.waiting import wait_until
+
+pytestmark = pytest.mark.e2e
+
+SPACE = KeySpace()
+TIMEOUT_S = 120
+FORGED = 4_000_000_000
+ROGUE_MISSION = 0xFFFF_FFFF
+#: How long UAV 112 is frozen (SIGSTOP) so that it catches up when it resumes.
+FROZEN_S = 3.0
+TARGETS_FILE = str(files("fleet") / "scenarios" / "head_on_targets.bin")
+
+
+@dataclass
+class SignedFleet:
+    endpoint: str
+    certs: Path
+    fleet: Fleet
+    ground: zenoh.Session
+
+    def session(self, identity: str) -> zenoh.Session:
+        return secure_clients.session(self.certs, self.endpoint, identity)
+
+    def ground_cli(self, *argv: str) -> subprocess.CompletedProcess[str]:
+        return secure_clients.ground_cli(self.certs, self.endpoint, *argv)
+
+    def state(self, uav: int) -> UavState | None:
+        for reply in self.ground.get(SPACE.state(uav), timeout=5.0):
+            if reply.ok is not None:
+                return decode(reply.ok.payload.to_bytes(), UavState, SPACE.state(uav))
+        return None
+
+    def refused(self, uav: int, reason: str) -> int:
+        state = self.state(uav)
+        return state.link.drops.get(f"bus_{reason}", 0) if state and state.link else 0
+
+    def send_targets(self) -> int:
+        sent = self.ground_cli("send-targets", TARGETS_FILE, "--json")
+        assert sent.returncode == 0, sent.stderr[-3000:]
+        mission = json.loads(sent.stdout)["mission"]
+        assert isinstance(mission, int)
+        wait_until(lambda: mission_of(self.state(112)) == mission, 30.0, f"112 on {mission}")
+        return mission
+
+
+def mission_of(state: UavState | None) -> int | None:
+    return state.mission.mission if state and state.mission else None
+
+
+def open_when_listening(config_file: Path, endpoint: str) -> zenoh.Session:
+    deadline = time.monotonic() + 30.0
+    while True:
+        try:
+            return zenoh.open(build_config(config_file=str(config_file), connect=[endpoint]))
+        except zenoh.ZError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.2)  # the router is starting: poll, bounded
+
+
+@pytest.fixture(scope="module")
+def signed_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SignedFleet]:
+    certs = tmp_path_factory.mktemp("certs").resolve()
+    endpoint = f"tls/127.0.0.1:{free_port()}"
+    write_identities(certs, ["router", "ground", "uav-74", "uav-112", "uav-300"], [endpoint])
+    revoke(certs, ["uav-300"])  # a lost aircraft
+    fleet = Fleet()
+    try:
+        fleet.children.append(
+            start(
+                "router",
+                [
+                    sys.executable,
+                    "-m",
+                    "fleet.transport.router",
+                    "--secure",
+                    str(certs),
+                    "--listen",
+                    endpoint,
+                ],
+            )
+        )
+        ground = open_when_listening(certs / "ground.json5", endpoint)
+        try:
+            for uav, where in fleet.sim("head_on", speedup=5.0).items():
+                config = str(certs / f"uav-{uav}.json5")
+                fleet.onboard(uav, where, endpoint, "--zenoh-config", config)
+            secure = SignedFleet(endpoint, certs, fleet, ground)
+            wait_until(lambda: secure.state(74) and secure.state(112), 60.0, "both onboards up")
+            yield secure
+        finally:
+            ground.close()
+    finally:
+        fleet.stop_all()
+
+
+def serve_signed_by_74(
+    secure: SignedFleet, forged: dict[str, bytes], served: list[str]
+) -> Callable[[zenoh.Query], None]:
+    """A queryable's callback answering each key of `forged` that a query asks for,
+    signed with UAV 74's own key (the best a captured aircraft can do)."""
+
+    def on_query(query: zenoh.Query) -> None:
+        for key, payload in forged.items():
+            if query.key_expr.intersects(zenoh.KeyExpr(key)):
+                by_74 = signed.attachment(secure.certs, "uav-74", key, payload)
+                query.reply(key, payload, encoding=ENCODING, attachment=by_74)
+                served.append(key)
+
+    return on_query
+
+
+def onboard_said(secure: SignedFleet, uav: int, text: str) -> bool:
+    return any(text in line for line in secure.fleet.onboard_child(uav).history)
+
+
+# ---- a captured aircraft ----------------------------------------------------------------------
+def test_a_forged_mission_and_abort_served_to_a_teammate_catching_up_are_refused(
+    signed_fleet: SignedFleet,
+) -> None:
+    """Issue 26 case 1: UAV 74's key serves a mission naming 112, and an abort of the live
+    mission, to 112 catching up after a freeze. Signed with 74's own key: the best a
+    captured aircraft can do."""
+    secure = signed_fleet
+    mission = secure.send_targets()
+    forged = {
+        SPACE.mission_targets(FORGED): encode(
+            MissionTargets(FORGED, (112,), (Target(35.75, -120.80, 600.0),))
+        ),
+        SPACE.mission_abort(mission): encode(MissionAbort(mission)),
+    }
+    served: list[str] = []
+    on_query = serve_signed_by_74(secure, forged, served)
+
+    before = secure.refused(112, "not_entitled")
+    with secure.session("uav-74") as attacker:
+        queryable = attacker.declare_queryable(SPACE.all_mission_keys, on_query)
+        frozen = secure.fleet.onboard_child(112)
+        frozen.process.send_signal(signal.SIGSTOP)
+        try:
+            time.sleep(FROZEN_S)  # the fault itself: a freeze this long makes it catch up
+        finally:
+            frozen.process.send_signal(signal.SIGCONT)
+        wait_until(
+            lambda: secure.refused(112, "not_entitled") >= before + 2,
+            60.0,
+            "112 refusing the forged mission and abort",
+        )
+        queryable.undeclare()
+    assert set(served) == set(forged)
+    state = secure.state(112)
+    assert state is not None and state.mission is not None
+    assert state.mission.mission == mission and state.phase is not Phase.ABORTED
+    said = [line for line in secure.fleet.onboard_child(112).history if str(FORGED) in line]
+    assert said and all("refused reply" in line for line in said), said
+
+
+def test_forged_mission_ids_in_replies_and_state_do_not_stop_the_ground(
+    signed_fleet: SignedFleet,
+) -> None:
+    """Issue 26 case 1: UAV 74 answers `fleet/mission/**` with mission 2^32-1 (the ground's
+    mission it made up, and its own result, which it may sign) and its own state with
+    that id. The ground takes mission ids only from the ground's signed messages."""
+    secure = signed_fleet
+    own_result = SPACE.mission_result(ROGUE_MISSION, 74)
+    forged = {
+        SPACE.mission_targets(ROGUE_MISSION): encode(
+            MissionTargets(ROGUE_MISSION, (74, 112), (Target(35.75, -120.80, 600.0),))
+        ),
+        own_result: encode(UavResult(ROGUE_MISSION, 74, (5.0,))),
+        SPACE.state(74): encode(
+            UavState(
+                74,
+                True,
+                1.0,
+                None,
+                None,
+                None,
+                MissionProgress(ROGUE_MISSION, Phase.FLYING, 1),
+            )
+        ),
+    }
+    served: list[str] = []
+    on_query = serve_signed_by_74(secure, forged, served)
+
+    with secure.session("uav-74") as attacker:
+        queryables = [
+            attacker.declare_queryable(SPACE.all_mission_keys, on_query),
+            attacker.declare_queryable(SPACE.state(74), on_query),
+        ]
+        sent = secure.ground_cli("send-targets", TARGETS_FILE, "--json")
+        for queryable in queryables:
+            queryable.undeclare()
+    assert sent.returncode == 0, sent.stderr[-3000:]
+    assert json.loads(sent.stdout)["mission"] < ROGUE_MISSION
+    assert own_result in served and SPACE.mission_targets(ROGUE_MISSION) in served
+
+
+# ---- a captured router --------------------------------------------------------------------------
+class Recorder:
+    """Everything a captured router sees on the keys it watches: payload and signature."""
+
+    def __init__(self, session: zenoh.Session) -> None:
+        self.samples: list[tuple[str, bytes, bytes]] = []
+        self.lock = threading.Lock()
+        self.subscriber = session.declare_subscriber(SPACE.everything, self._on_sample)
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        attachment = sample.attachment.to_bytes() if sample.attachment is not None else b""
+        with self.lock:
+            self.samples.append((str(sample.key_expr), sample.payload.to_bytes(), attachment))
+
+    def find(self, key: str, payload: bytes) -> bytes | None:
+        with self.lock:
+            return next((a for k, p, a in self.samples if k == key and p == payload), None)
+
+
+def captured_router(secure: SignedFleet) -> zenoh.Session:
+    """A router presenting the fleet's router identity (as the fleet's routers do:
+    `SecureProfile`'s TLS settings), meshed with the fleet's router."""
+    config = make_config("router", [secure.endpoint], [f"tls/127.0.0.1:{free_port()}"])
+    tls = tls_settings(IdentityFiles(secure.certs, "router"))
+    config.insert_json5("transport/link/tls", json.dumps(tls))
+    return zenoh.open(config)
+
+
+def test_a_captured_router_cannot_replay_or_forge_the_grounds_commands(
+    signed_fleet: SignedFleet,
+) -> None:
+    """Replays of the ground's own signed OPM and abort, an abort re-keyed to the next
+    mission, and unsigned commands, injected by a router holding the router's key."""
+    secure = signed_fleet
+    with captured_router(secure) as rogue:
+        recorder = Recorder(rogue)
+        wait_until(lambda: secure.state(112) is not None, 10.0)
+        for setting in ("off", "on"):
+            switched = secure.ground_cli("opm", "112", setting)
+            assert switched.returncode == 0, switched.stderr
+        off = encode(OpmCommand(enabled=False))
+        off_signature = recorder.find(SPACE.opm(112), off)
+        assert off_signature, "the captured router saw the ground's signed OPM off"
+        first = secure.send_targets()
+        aborted = secure.ground_cli("abort", "--mission", str(first))
+        assert aborted.returncode == 0, aborted.stderr
+        abort_payload = encode(MissionAbort(first))
+        wait_until(lambda: recorder.find(SPACE.mission_abort(first), abort_payload), 10.0)
+        abort_signature = recorder.find(SPACE.mission_abort(first), abort_payload)
+        assert abort_signature is not None
+        second = secure.send_targets()
+
+        counts = {r: secure.refused(112, r) for r in ("replayed", "bad_signature", "unsigned")}
+        rogue.put(SPACE.opm(112), off, encoding=ENCODING, attachment=off_signature)
+        rogue.put(SPACE.mission_abort(first), abort_payload, attachment=abort_signature,
+                  encoding=ENCODING)  # fmt: skip
+        rekeyed = encode(MissionAbort(second))
+        rogue.put(SPACE.mission_abort(second), rekeyed, encoding=ENCODING,
+                  attachment=abort_signature)  # fmt: skip
+        rogue.put(SPACE.opm(112), off, encoding=ENCODING)  # unsigned
+        rogue.put(SPACE.mission_abort(second), rekeyed, encoding=ENCODING)  # unsigned
+        wait_until(
+            lambda: (
+                secure.refused(112, "replayed") >= counts["replayed"] + 2
+                and secure.refused(112, "bad_signature") >= counts["bad_signature"] + 1
+                and secure.refused(112, "unsigned") >= counts["unsigned"] + 2
+            ),
+            30.0,
+            "112 refusing every injected command",
+        )
+        recorder.subscriber.undeclare()
+    state = secure.state(112)
+    assert state is not None and state.enabled  # still on
+    assert mission_of(state) == second and state.phase is not Phase.ABORTED
+
+
+# ---- a revoked aircraft -------------------------------------------------------------------------
+def test_a_revoked_uavs_key_commands_nothing(signed_fleet: SignedFleet) -> None:
+    """UAV 300's identity is revoked: the router grants it nothing, and what it signs is
+    refused even when a captured router relays it."""
+    secure = signed_fleet
+    mission = secure.send_targets()
+    with secure.session("uav-300") as lost:
+        token = lost.liveliness().declare_token(SPACE.alive(300))
+        alive = {
+            str(r.ok.key_expr) for r in secure.ground.liveliness().get(SPACE.all_alive) if r.ok
+        }
+        assert alive == {SPACE.alive(74), SPACE.alive(112)}
+        token.undeclare()
+    result_key = SPACE.mission_result(mission, 300)
+    result = encode(UavResult(mission, 300, (1.0, 1.0, 1.0)))
+    targets_key = SPACE.mission_targets(mission + 1)
+    targets = encode(MissionTargets(mission + 1, (112,), (Target(35.75, -120.80, 600.0),)))
+    before = secure.refused(112, "revoked")
+    with captured_router(secure) as rogue:
+
+        def relayed_and_refused() -> bool:
+            # Put again until refused: the new router may not know 112's subscriptions yet.
+            for key, payload in ((result_key, result), (targets_key, targets)):
+                by_300 = signed.attachment(secure.certs, "uav-300", key, payload)
+                rogue.put(key, payload, encoding=ENCODING, attachment=by_300)
+            return secure.refused(112, "revoked") >= before + 1
+
+        wait_until(relayed_and_refused, 30.0, "112 refusing UAV 300")
+    assert mission_of(secure.state(112)) == mission
+    assert not onboard_said(secure, 112, f"mission {mission + 1}")
+
+
+# ---- what signing must not stop -----------------------------------------------------------------
+def test_a_uav_that_missed_the_mission_believes_it_relayed_by_its_teammate(
+    signed_fleet: SignedFleet,
+) -> None:
+    """112 frozen past Zenoh's lease while the mission is sent (the put is lost to it), the
+    ground gone once it has sent it: on resuming, 112 can only get the mission from 74,
+    which relays it with the ground's signature, and 112 believes it."""
+    secure = signed_fleet
+    refusals = ("unsigned", "not_entitled", "bad_signature")
+    before = {reason: secure.refused(112, reason) for reason in refusals}
+    frozen = secure.fleet.onboard_child(112)
+    frozen.process.send_signal(signal.SIGSTOP)
+    try:
+        sent = secure.ground_cli("send-targets", TARGETS_FILE, "--json")  # exits: no --wait
+        assert sent.returncode == 0, sent.stderr[-3000:]
+        mission = json.loads(sent.stdout)["mission"]
+        wait_until(lambda: mission_of(secure.state(74)) == mission, 30.0, "74 on the mission")
+
+        def token_gone() -> bool:
+            alive = secure.ground.liveliness().get(SPACE.alive(112), timeout=2.0)
+            return not [reply for reply in alive if reply.ok is not None]
+
+        wait_until(token_gone, 30.0, "112's liveliness gone with its lease")
+    finally:
+        frozen.process.send_signal(signal.SIGCONT)
+    wait_until(lambda: mission_of(secure.state(112)) == mission, 60.0, "112 caught up")
+    assert {reason: secure.refused(112, reason) for reason in refusals} == before

@@ -1,0 +1,29 @@
+"""Clients of a secure fleet (`fleet certs make`, a router on a tls/ endpoint), as a
+given identity: a raw Zenoh session, or `ground-cli` as the ground."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import zenoh
+
+from fleet.transport.zenoh_config import build_config
+
+GROUND_CLI_TIMEOUT_S = 120
+
+
+def session(certs: Path, endpoint: str, identity: str) -> zenoh.Session:
+    """A Zenoh client session presenting `identity`'s certificate, connected to `endpoint`."""
+    config = build_config(config_file=str(certs / f"{identity}.json5"), connect=[endpoint])
+    return zenoh.open(config)
+
+
+def ground_cli(certs: Path, endpoint: str, *argv: str) -> subprocess.CompletedProcess[str]:
+    """`ground-cli ARGV` as the ground, waited for (bounded)."""
+    return subprocess.run(
+        [sys.executable, "-m", "ground.cli", "--zenoh-config",
+         str(certs / "ground.json5"), "--connect", endpoint, *argv],
+        capture_output=True, text=True, timeout=GROUND_CLI_TIMEOUT_S, check=False,
+    )  # fmt: skip

@@ -1,0 +1,202 @@
+"""Signed commands on real Zenoh sessions (a router on loopback, in this process): what
+a `ZenohBus` with `BusSigning` signs, relays and refuses."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from fleet.files.certs import write_identities
+from fleet.files.signers import load_roster, load_signing_key, signing_key_path
+from fleet.launch.launcher import free_port
+from fleet.mission.key_space import KeySpace
+from fleet.mission.messages import MissionAbort, MissionTargets, Target
+from fleet.mission.signature import Delivery
+from fleet.transport import bus_codec
+from fleet.transport.bus import BusQuery, BusSample, Queryable
+from fleet.transport.bus_codec import encode
+from fleet.transport.router import Router
+from fleet.transport.signing import BusSigning
+from fleet.transport.zenoh_bus import ZenohBus, client_bus, connect
+from fleet.transport.zenoh_config import build_config
+from tests.support.waiting import wait_until
+
+SPACE = KeySpace()
+TIMEOUT_S = 2.0
+TARGETS = MissionTargets(5, (74, 112), (Target(35.7, -120.7, 600.0),))
+
+
+@pytest.fixture(scope="module")
+def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    where = tmp_path_factory.mktemp("certs")
+    write_identities(where, ["router", "ground", "uav-74", "uav-112"], [])
+    return where
+
+
+@pytest.fixture(scope="module")
+def endpoint() -> Iterator[str]:
+    where = f"tcp/127.0.0.1:{free_port()}"
+    with Router([where]):
+        yield where
+
+
+def signed_bus(certs: Path, endpoint: str, identity: str) -> ZenohBus:
+    bus = connect(endpoint)
+    key = load_signing_key(signing_key_path(certs, identity))
+    bus.signing = BusSigning(identity, key, load_roster(certs))
+    return bus
+
+
+@pytest.fixture
+def buses(certs: Path, endpoint: str) -> Iterator[dict[str, ZenohBus]]:
+    made = {name: signed_bus(certs, endpoint, name) for name in ("ground", "uav-74", "uav-112")}
+    yield made
+    for bus in made.values():
+        bus.close()
+
+
+class Heard:
+    def __init__(self) -> None:
+        self.samples: list[BusSample] = []
+        self.arrived = threading.Event()
+
+    def __call__(self, sample: BusSample) -> None:
+        self.samples.append(sample)
+        self.arrived.set()
+
+
+@contextmanager
+def serving(bus: ZenohBus, key_expr: str, answer: Callable[[BusQuery], None]) -> Iterator[None]:
+    """Queries on `key_expr` answered by `answer` as they arrive (on the bus's thread)."""
+    holder: list[Queryable] = []
+
+    def on_query() -> None:
+        while holder and (query := holder[0].try_recv()) is not None:
+            answer(query)
+            query.drop()
+
+    holder.append(bus.declare_queryable(key_expr, on_query))
+    on_query()  # any that arrived before the queryable was kept
+    try:
+        yield
+    finally:
+        holder[0].undeclare()
+
+
+def refused(reason: str) -> int:
+    return bus_codec.DROPPED.counts().get(reason, 0)
+
+
+def test_the_grounds_mission_is_heard_and_an_unsigned_one_is_refused(
+    buses: dict[str, ZenohBus], endpoint: str
+) -> None:
+    heard = Heard()
+    subscription = buses["uav-112"].subscribe(SPACE.all_mission_targets, heard)
+    ground = buses["ground"]
+    # Until the subscription has reached the router, a put may go unheard.
+
+    def published_and_heard() -> bool:
+        ground.publish(SPACE.mission_targets(5), TARGETS)
+        return bool(heard.samples)
+
+    wait_until(published_and_heard, 5.0, "the subscription in place")
+    before = refused("unsigned")
+    with client_bus(endpoint) as rogue:  # no signing: puts the bytes as they are
+        rogue.publish(SPACE.mission_targets(6), TARGETS)
+        rogue.publish(SPACE.mission_targets(7), TARGETS)
+    wait_until(lambda: refused("unsigned") == before + 2, 5.0, "the rogue's refused")
+    ground.publish(SPACE.mission_targets(8), TARGETS)
+    wait_until(lambda: SPACE.mission_targets(8) in {s.key for s in heard.samples}, 5.0)
+    subscription.undeclare()
+    assert {s.key for s in heard.samples} == {SPACE.mission_targets(5), SPACE.mission_targets(8)}
+
+
+def test_a_uav_relays_the_grounds_mission_and_cannot_serve_its_own(
+    buses: dict[str, ZenohBus],
+) -> None:
+    """Issue 26 case 1 on the bus: a teammate catching up believes the ground's mission
+    whoever relays it, and no mission a UAV made up."""
+    heard = Heard()
+    subscription = buses["uav-74"].subscribe(SPACE.all_mission_targets, heard)
+    buses["ground"].publish(SPACE.mission_targets(7), TARGETS)
+    assert heard.arrived.wait(TIMEOUT_S)
+    subscription.undeclare()
+    forged = MissionTargets(4_000_000_000, (112,), (Target(35.75, -120.8, 600.0),))
+
+    def answer(query: BusQuery) -> None:
+        query.reply(SPACE.mission_targets(7), TARGETS)  # re-encoded, relayed as signed
+        query.reply(SPACE.mission_targets(4_000_000_000), forged)  # 74's own making
+        query.reply(SPACE.mission_abort(7), MissionAbort(7))  # never signed by the ground
+
+    before = refused("unsigned") + refused("not_entitled")
+    with serving(buses["uav-74"], SPACE.all_mission_keys, answer):
+        replies = buses["uav-112"].query(SPACE.all_mission_keys, TIMEOUT_S)
+    assert [(r.key, r.ok) for r in replies] == [(SPACE.mission_targets(7), True)]
+    assert refused("unsigned") + refused("not_entitled") == before + 2
+
+
+def test_an_autopilot_command_is_obeyed_only_from_the_ground(
+    buses: dict[str, ZenohBus],
+) -> None:
+    answered: list[str] = []
+
+    def answer(query: BusQuery) -> None:
+        answered.append(query.payload.decode())
+        query.reply_bytes(SPACE.command(112, "track"), b'{"ok": true, "detail": ""}')
+
+    with serving(buses["uav-112"], SPACE.command(112, "*"), answer):
+        from_74 = buses["uav-74"].query(SPACE.command(112, "track"), TIMEOUT_S, b'{"waypoint": 50}')
+        from_ground = buses["ground"].query(
+            SPACE.command(112, "track"), TIMEOUT_S, b'{"waypoint": 90}'
+        )
+    assert [r.ok for r in from_74] == [False]
+    assert b"refused" in from_74[0].payload
+    assert [r.ok for r in from_ground] == [True]  # the UAV's signed answer, believed
+    assert answered == ['{"waypoint": 90}']
+
+
+def test_a_config_of_the_secure_profile_signs_and_others_do_not(certs: Path) -> None:
+    config = build_config(config_file=str(certs / "uav-74.json5"))
+    signing = BusSigning.from_config(config)
+    assert signing is not None and signing.identity == "uav-74"
+    assert BusSigning.from_config(zenoh.Config()) is None
+    (certs / "uav-74.sign").rename(certs / "moved")
+    try:
+        with pytest.raises(Exception, match=r"uav-74\.sign: not a readable signing key"):
+            BusSigning.from_config(config)
+    finally:
+        (certs / "moved").rename(certs / "uav-74.sign")
+
+
+def test_a_reply_passes_on_the_message_as_first_signed(certs: Path) -> None:
+    """The ground serving its mission while it flies, and a UAV relaying it, both pass on
+    the put's own envelope: its time is when the mission was sent, not when asked."""
+    now = [1_000]
+    ground = BusSigning(
+        "ground",
+        load_signing_key(signing_key_path(certs, "ground")),
+        load_roster(certs),
+        clock=lambda: now[0],
+    )
+    uav = BusSigning(
+        "uav-74",
+        load_signing_key(signing_key_path(certs, "uav-74")),
+        load_roster(certs),
+        clock=lambda: now[0],
+    )
+    key, payload = SPACE.mission_targets(9), encode(TARGETS)
+    put = ground.attachment(key, payload, Delivery.PUT)
+    assert put is not None and uav.check(key, payload, put, Delivery.PUT)
+    now[0] += 60 * 1_000_000_000
+    assert ground.reply(key, payload) == (payload, put)
+    assert uav.reply(key, payload) == (payload, put)
+    # Other content on the key: signed afresh by its author, never relayed as the ground's.
+    other = encode(MissionTargets(9, (74,), TARGETS.targets))
+    fresh = ground.reply(key, other)
+    assert fresh[0] == other and fresh[1] not in (None, put)
+    assert uav.reply(SPACE.mission_targets(10), payload) == (payload, None)
