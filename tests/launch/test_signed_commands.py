@@ -1,8 +1,10 @@
 """Signed commands end to end (issue 26): a secure fleet of real processes (the router
 with mutual TLS and access control, the simulator, onboards 74 and 112, `ground-cli`),
 attacked by a captured aircraft (UAV 74's certificate and signing key), a captured
-router (the router's identity, joined to the fleet's router as a router) and a revoked
-aircraft (UAV 300, withdrawn by `fleet certs revoke`).
+router (the ground's router identity, joined as a router to the fleet's router, which
+is UAV 112's own router of a router-per-UAV mesh: the one place the ground's router
+identity has its relay rights) and a revoked aircraft (UAV 300, withdrawn by
+`fleet certs revoke`).
 
 A refusal is observed, not assumed: the target UAV counts each message it refused in its
 state's link drops (`bus_not_entitled`, `bus_replayed`, ...), and the test waits for
@@ -107,7 +109,8 @@ def open_when_listening(config_file: Path, endpoint: str) -> zenoh.Session:
 def signed_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SignedFleet]:
     certs = tmp_path_factory.mktemp("certs").resolve()
     endpoint = f"tls/127.0.0.1:{free_port()}"
-    write_identities(certs, ["router", "ground", "uav-74", "uav-112", "uav-300"], [endpoint])
+    names = ["router", "router-112", "ground", "uav-74", "uav-112", "uav-300"]
+    write_identities(certs, names, [endpoint])
     revoke(certs, ["uav-300"])  # a lost aircraft
     fleet = Fleet()
     try:
@@ -122,6 +125,9 @@ def signed_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SignedFle
                     str(certs),
                     "--listen",
                     endpoint,
+                    # UAV 112's own router, in whose ACL the ground's router relays.
+                    "--identity",
+                    "router-112",
                 ],
             )
         )
@@ -261,8 +267,8 @@ class Recorder:
 
 
 def captured_router(secure: SignedFleet) -> zenoh.Session:
-    """A router presenting the fleet's router identity (as the fleet's routers do:
-    `SecureProfile`'s TLS settings), meshed with the fleet's router."""
+    """A router presenting the ground's router identity (as the fleet's routers do:
+    `SecureProfile`'s TLS settings), meshed with UAV 112's router."""
     config = make_config("router", [secure.endpoint], [f"tls/127.0.0.1:{free_port()}"])
     tls = tls_settings(IdentityFiles(secure.certs, "router"))
     config.insert_json5("transport/link/tls", json.dumps(tls))
