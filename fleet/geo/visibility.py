@@ -1,0 +1,177 @@
+"""The shortest route around no-fly zones, and its time: a visibility graph.
+
+The zones, already inflated (fleet.geo.zones.inflate: convex), are the obstacles. The
+shortest path between two points that keeps out of convex obstacles runs straight
+between points and obstacle vertices that see each other, so the route is Dijkstra's
+over the graph of those mutual sightlines (Lozano-Perez and Wesley, 1979). The sightlines
+between zone vertices do not depend on the start or the goal: `ZoneMap` computes them
+once per mission, and a route asks only the start's and the goal's (a few milliseconds
+for three zones of eight vertices).
+
+A start or goal inside an inflated zone (an aircraft near an edge, a target close to a
+zone) leaves or enters that zone's inflation by the straight line, or via its inflated
+vertices: its first or last leg keeps out of the zone itself, not of its inflation.
+A goal no route reaches gets None.
+
+The time of a route is its legs' times (`leg_time`: a straight leg at a constant
+airspeed in a constant wind, still air by default); the approach to the route's first
+point is the approach model's (onboard.route_plan).
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from fleet.geo.zones import Point, Ring, convex_hull, inflate, segment_enters, strictly_inside
+
+__all__ = ["Route", "ZoneMap", "leg_time", "legs_time"]
+
+
+def leg_time(a: Point, b: Point, airspeed: float, wind: Point = (0.0, 0.0)) -> float:
+    """Seconds to fly straight from `a` to `b` at `airspeed` (m/s) in a constant `wind`
+    (m/s, the air's velocity east and north), crabbing to hold the line; inf when the
+    wind is too strong to make way along it."""
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    length = math.hypot(dx, dy)
+    if length == 0.0:
+        return 0.0
+    ux, uy = dx / length, dy / length
+    along = wind[0] * ux + wind[1] * uy
+    across = wind[0] * -uy + wind[1] * ux
+    if airspeed <= abs(across):
+        return math.inf
+    ground_speed = along + math.sqrt(airspeed * airspeed - across * across)
+    return length / ground_speed if ground_speed > 0.0 else math.inf
+
+
+def legs_time(points: Sequence[Point], airspeed: float, wind: Point = (0.0, 0.0)) -> float:
+    """Seconds along the polyline `points` (each leg by `leg_time`)."""
+    return sum(leg_time(a, b, airspeed, wind) for a, b in itertools.pairwise(points))
+
+
+@dataclass(frozen=True)
+class Route:
+    """Straight legs from a start through `points` (the last one is the goal)."""
+
+    start: Point
+    points: tuple[Point, ...]
+
+    @property
+    def length(self) -> float:
+        return sum(
+            math.dist(a, b) for a, b in zip((self.start, *self.points), self.points, strict=False)
+        )
+
+    @property
+    def detours(self) -> bool:
+        """The route turns at a zone's vertex (it is not the straight line)."""
+        return len(self.points) > 1
+
+
+class ZoneMap:
+    """Zones inflated by `distance` (m) and the sightlines between their vertices."""
+
+    def __init__(self, zones: Sequence[Ring], distance: float) -> None:
+        #: Each zone's convex hull: what a leg out of (or into) its inflation avoids.
+        self.cores: tuple[Ring, ...] = tuple(convex_hull(zone) for zone in zones)
+        self.zones: tuple[Ring, ...] = tuple(inflate(zone, distance) for zone in self.cores)
+        self._boxes = [_box(zone) for zone in self.zones]
+        # A vertex inside another zone's inflation can never be on a route.
+        self.vertices: tuple[Point, ...] = tuple(
+            v
+            for i, zone in enumerate(self.zones)
+            for v in zone
+            if not any(strictly_inside(v, other) for j, other in enumerate(self.zones) if j != i)
+        )
+        n = len(self.vertices)
+        self._edges: list[list[tuple[int, float]]] = [[] for _ in range(n)]
+        for i in range(n):
+            for j in range(i + 1, n):
+                a, b = self.vertices[i], self.vertices[j]
+                if self.clear(a, b):
+                    d = math.dist(a, b)
+                    self._edges[i].append((j, d))
+                    self._edges[j].append((i, d))
+
+    def clear(self, a: Point, b: Point, near: frozenset[int] = frozenset()) -> bool:
+        """The segment ab enters no inflated zone; of the zones indexed in `near` (those
+        an end of it is inside the inflation of), only the zone itself."""
+        box = _box((a, b))
+        for index, zone in enumerate(self.zones):
+            if not _overlap(box, self._boxes[index]):
+                continue
+            if segment_enters(a, b, self.cores[index] if index in near else zone):
+                return False
+        return True
+
+    def containing(self, point: Point) -> frozenset[int]:
+        """The zones `point` is strictly inside of."""
+        return frozenset(
+            i
+            for i, zone in enumerate(self.zones)
+            if _inside_box(point, self._boxes[i]) and strictly_inside(point, zone)
+        )
+
+    def route(self, start: Point, goal: Point) -> Route | None:
+        """The shortest route from `start` to `goal` out of every zone; None if none."""
+        leave, enter = self.containing(start), self.containing(goal)
+        if self.clear(start, goal, leave | enter):
+            return Route(start, (goal,))
+        n = len(self.vertices)
+        # Nodes: the vertices 0..n-1, the start n, the goal n+1.
+        distance = [math.inf] * (n + 2)
+        previous = [-1] * (n + 2)
+        distance[n] = 0.0
+        to_goal = [
+            math.dist(v, goal) if self.clear(v, goal, enter) else math.inf for v in self.vertices
+        ]
+        queue: list[tuple[float, int]] = [(0.0, n)]
+        while queue:
+            d, node = heapq.heappop(queue)
+            if d > distance[node]:
+                continue
+            if node == n + 1:
+                break
+            if node == n:
+                out = [
+                    (j, math.dist(start, v))
+                    for j, v in enumerate(self.vertices)
+                    if self.clear(start, v, leave)
+                ]
+            else:
+                out = list(self._edges[node])
+                if math.isfinite(to_goal[node]):
+                    out.append((n + 1, to_goal[node]))
+            for j, step in out:
+                if d + step < distance[j]:
+                    distance[j] = d + step
+                    previous[j] = node
+                    heapq.heappush(queue, (d + step, j))
+        if not math.isfinite(distance[n + 1]):
+            return None
+        points = [goal]
+        node = previous[n + 1]
+        while node != n:
+            points.append(self.vertices[node])
+            node = previous[node]
+        return Route(start, tuple(reversed(points)))
+
+
+_Box = tuple[float, float, float, float]
+
+
+def _box(points: Sequence[Point]) -> _Box:
+    xs, ys = [p[0] for p in points], [p[1] for p in points]
+    return min(xs), min(ys), max(xs), max(ys)
+
+
+def _overlap(a: _Box, b: _Box) -> bool:
+    return a[0] <= b[2] and b[0] <= a[2] and a[1] <= b[3] and b[1] <= a[3]
+
+
+def _inside_box(p: Point, box: _Box) -> bool:
+    return box[0] <= p[0] <= box[2] and box[1] <= p[1] <= box[3]
