@@ -191,12 +191,23 @@ class MissionOutcome:
                 continue
             if not self.committed:
                 why = "the team did not commit"
+            elif self._no_route(index, taking_part):
+                why = "no route around the no-fly zones reaches it"
             elif idle:
                 why = f"not assigned although UAV {idle[0]} had no target"
             else:
                 why = "more targets than UAVs taking part"
             states.append({"index": index, "state": "unserved", "uav": None, "reason": why})
         return states
+
+    def _no_route(self, index: int, taking_part: set[int]) -> bool:
+        """Every UAV taking part answered, with no time to target `index`, while it had
+        times for others: no route of theirs keeps out of the mission's no-fly zones."""
+        rows = [self.results[uav].times for uav in taking_part if uav in self.results]
+        return bool(rows) and all(
+            index < len(row) and row[index] is None and any(t is not None for t in row)
+            for row in rows
+        )
 
     @property
     def succeeded(self) -> bool:

@@ -8,12 +8,10 @@ such a target, and every UAV would refuse the mission).
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
+from fleet.files.zones_file import ZonesFileError, read_zones
 from fleet.mission.messages import NoFlyZone, Target
 from fleet.mission.no_fly import mission_zone_problem
-from ground.targets_formats import TargetsFormatError
-from ground.zones_format import decode_zones
 
 
 def zones_or_say(path: str | None, targets: tuple[Target, ...]) -> tuple[NoFlyZone, ...] | None:
@@ -21,8 +19,8 @@ def zones_or_say(path: str | None, targets: tuple[Target, ...]) -> tuple[NoFlyZo
     if path is None:
         return ()
     try:
-        zones = decode_zones(Path(path).read_bytes(), path)
-    except TargetsFormatError as error:
+        zones = read_zones(path)
+    except ZonesFileError as error:
         print(f"error: {error}; nothing sent", file=sys.stderr)
         return None
     except OSError as error:

@@ -164,6 +164,7 @@ class MissionParticipation:
         # Cancel first: the resume submitted next must survive the new mission's start.
         self.flight.restart(f"mission {targets.mission} started", now)
         self.round = MissionRound(targets, self.uav_id, now, late=late)
+        self.flight.zones = targets.zones
         self.life.observe(Observation.MISSION_STARTED)
         self.own.plan.forget()
         self.flight.hold(None, None)

@@ -1,4 +1,4 @@
-"""Tests of no-fly zones in GeoJSON (ground.zones_format): read back what is written,
+"""Tests of no-fly zones in GeoJSON (fleet.files.zones_file): read back what is written,
 and every malformed or hostile file refused by name."""
 
 from __future__ import annotations
@@ -8,9 +8,8 @@ from typing import Any
 
 import pytest
 
+from fleet.files.zones_file import ZonesFileError, decode_zones, encode_zones
 from fleet.mission.messages import NoFlyZone
-from ground.targets_formats import TargetsFormatError
-from ground.zones_format import decode_zones, encode_zones
 
 SQUARE = [[-71.10, 42.35], [-71.09, 42.35], [-71.09, 42.36], [-71.10, 42.36], [-71.10, 42.35]]
 
@@ -68,6 +67,6 @@ def test_zones_written_are_read_back() -> None:
     ],
 )
 def test_a_bad_zones_file_is_refused_by_name(data: bytes, where: str) -> None:
-    with pytest.raises(TargetsFormatError, match=r"zones\.geojson") as caught:
+    with pytest.raises(ZonesFileError, match=r"zones\.geojson") as caught:
         decode_zones(data, "zones.geojson")
     assert where in str(caught.value)
