@@ -10,7 +10,8 @@ for three zones of eight vertices).
 
 A start or goal inside an inflated zone (an aircraft near an edge, a target close to a
 zone) leaves or enters that zone's inflation by the straight line, or via its inflated
-vertices: its first or last leg keeps out of the zone itself, not of its inflation.
+vertices: its first or last leg keeps out of the zone itself, not of its inflation. An
+aircraft already inside a zone is not stranded there: its first leg ignores that zone.
 A goal no route reaches gets None.
 
 The time of a route is its legs' times (`leg_time`: a straight leg at a constant
@@ -97,12 +98,15 @@ class ZoneMap:
                     self._edges[i].append((j, d))
                     self._edges[j].append((i, d))
 
-    def clear(self, a: Point, b: Point, near: frozenset[int] = frozenset()) -> bool:
+    def clear(
+        self, a: Point, b: Point, near: frozenset[int] = frozenset(), within: int | None = None
+    ) -> bool:
         """The segment ab enters no inflated zone; of the zones indexed in `near` (those
-        an end of it is inside the inflation of), only the zone itself."""
+        an end of it is inside the inflation of), only the zone itself; and the zone
+        indexed `within` (the one `a` is inside of) not at all."""
         box = _box((a, b))
         for index, zone in enumerate(self.zones):
-            if not _overlap(box, self._boxes[index]):
+            if index == within or not _overlap(box, self._boxes[index]):
                 continue
             if segment_enters(a, b, self.cores[index] if index in near else zone):
                 return False
@@ -119,7 +123,10 @@ class ZoneMap:
     def route(self, start: Point, goal: Point) -> Route | None:
         """The shortest route from `start` to `goal` out of every zone; None if none."""
         leave, enter = self.containing(start), self.containing(goal)
-        if self.clear(start, goal, leave | enter):
+        # Already inside a zone (blown in, or sent a mission there): its first leg leaves
+        # it, rather than no route at all.
+        within = next((i for i in leave if strictly_inside(start, self.cores[i])), None)
+        if self.clear(start, goal, leave | enter, within):
             return Route(start, (goal,))
         n = len(self.vertices)
         # Nodes: the vertices 0..n-1, the start n, the goal n+1.
@@ -140,7 +147,7 @@ class ZoneMap:
                 out = [
                     (j, math.dist(start, v))
                     for j, v in enumerate(self.vertices)
-                    if self.clear(start, v, leave)
+                    if self.clear(start, v, leave, within)
                 ]
             else:
                 out = list(self._edges[node])

@@ -190,3 +190,9 @@ def test_a_route_never_enters_a_zone_and_is_no_shorter_than_the_line(
     for a, b in itertools.pairwise(legs):
         assert not any(segment_enters(a, b, zone) for zone in zones.zones)
     assert route.length >= math.dist(start, goal) - 1e-6
+
+
+def test_a_start_inside_a_zone_is_not_stranded() -> None:
+    zones = ZoneMap([SQUARE], 100.0)
+    route = zones.route((50.0, 50.0), (500.0, 50.0))
+    assert route is not None and route.points == ((500.0, 50.0),)
