@@ -28,6 +28,7 @@ import msgspec
 
 from fleet.mission.messages import (
     AssignmentReport,
+    NoFlyZone,
     Target,
     TargetOutcome,
     UavResult,
@@ -89,6 +90,8 @@ class MissionOutcome:
     phase_missions: dict[int, int] = field(default_factory=dict)
     #: A higher mission that reached the team while the ground followed this one
     superseded_by: int | None = None
+    #: The mission's no-fly zones.
+    zones: tuple[NoFlyZone, ...] = ()
 
     @property
     def declined(self) -> list[int]:
@@ -247,6 +250,7 @@ class MissionOutcome:
             "mission": self.mission,
             "team": list(self.team),
             "targets": [msgspec.to_builtins(t) for t in self.targets],
+            "zones": [msgspec.to_builtins(z) for z in self.zones],
             "results": results,
             "assignment": {str(uav): self.target_of(uav) for uav in self.team},
             "eta": {

@@ -132,7 +132,7 @@ def _send_and_follow(
     message = server.targets
     mission, team, targets = message.mission, message.team, message.targets
     listener = _progress_printer(progress, team) if args.wait else None
-    outcome = MissionOutcome(mission=mission, team=team, targets=targets)
+    outcome = MissionOutcome(mission=mission, team=team, targets=targets, zones=message.zones)
     with MissionFollower(bus, args.key_space, mission, listener, team) as follower:
         publish_targets(bus, args.key_space, message)
         print(

@@ -246,6 +246,7 @@ class OnboardCore:
                 targets=len(self.round.targets.targets),
                 result=self.round.results.get(self.uav_id),
                 assignment=self.round.committed,
+                route=self.flight.route,
             )
         return self.report.state(
             enabled=self.flight.enabled,

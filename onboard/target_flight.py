@@ -98,6 +98,8 @@ class TargetFlight:
     #: The mission's no-fly zones: a target is flown by a route around them.
     zones: tuple[NoFlyZone, ...] = ()
     _no_route: str | None = None  #: why the held target has no route (it then fails)
+    #: The turns of the route written to the autopilot for the held target (state report).
+    route: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
         self.commands = CommandTracker(send=self.outputs.send_autopilot)
@@ -107,6 +109,7 @@ class TargetFlight:
         self.target, self._target_at = target, where
         self._target_tracked = False
         self._no_route = None
+        self.route = ()
 
     # ---- what the autopilot says -------------------------------------------------------
     def on_telemetry(self, now: float) -> None:
@@ -231,6 +234,7 @@ class TargetFlight:
             self._no_route = f"no route around the no-fly zones to target {target_index}"
             return
         writes, first = route_writes(TARGET_WAYPOINT, target, turns, back_to)
+        self.route = turns
 
         def write_next(result: CommandResult) -> None:
             if not (result.ok and self._still_committed(mission, target_index)):

@@ -224,6 +224,9 @@ class MissionProgress(msgspec.Struct, frozen=True):
     targets: Annotated[int, Meta(ge=0, le=MAX_TARGETS)]
     result: UavResult | None = None
     assignment: AssignmentReport | None = None
+    #: The turns (latitude, longitude) of the route it flies to its target around the
+    #: mission's no-fly zones; empty for the straight line (onboard.route_flight).
+    route: Annotated[tuple[tuple[Latitude, Longitude], ...], Meta(max_length=MAX_ZONE_RING)] = ()
 
 
 class UavState(msgspec.Struct, frozen=True):

@@ -225,6 +225,8 @@ function render() {
 
 function drawMap() {
   const scale = 1 / pixelsPerMetre();
+  drawZones();
+  drawRoutes();
   drawTrails();
   drawAssignments(scale);
   drawTargets(scale);
@@ -765,7 +767,7 @@ function sendTargets() {
   confirmThen(
     `Send ${targets.length} target(s) to the team of ${members.length} UAV(s): ${members.join(', ')}?`,
     sendWarnings(members, targets.length).join(' '),
-    () => command({ cmd: 'send', team: members, targets }),
+    () => command({ cmd: 'send', team: members, targets, zones: zonesToSend() }),
   );
 }
 
@@ -847,7 +849,9 @@ function setUpMap() {
     applyView();
   });
   svg.addEventListener('pointerup', (event) => {
-    if (press && !press.moved) addTargetAt(event.clientX, event.clientY);
+    if (press && !press.moved && !addZoneVertexAt(event.clientX, event.clientY)) {
+      addTargetAt(event.clientX, event.clientY);
+    }
     press = null;
     svg.classList.remove('panning');
     render();
@@ -895,4 +899,5 @@ function setUpPanel() {
 
 setUpMap();
 setUpPanel();
+setUpZones();
 connect();
