@@ -298,9 +298,9 @@ function drawAssignments(scale) {
     const b = toXY(target.lat, target.lon);
     el('line', {
       class: 'assignment', x1: a[0], y1: a[1], x2: b[0], y2: b[1], stroke: colourOf(u.id),
-      'data-target-index': t.index, ...uavAttributes(u),
+      'data-target-index': t.index, 'data-routed': String(routed(u)), ...uavAttributes(u),
     }, layer);
-    const togo = distance(a, b);
+    const togo = routeLength(u, a, b);
     const eta = u.ground_speed ? togo / u.ground_speed : Infinity;
     // Beside the UAV, on the side away from its line (a label half-way along the line
     // would cover a short line's target).

@@ -52,11 +52,26 @@ function drawRoutes() {
   }
 }
 
+// Whether a UAV flies a route around zones to its target (its straight line is hidden).
+function routed(u) {
+  return Boolean(u.route && u.route.length);
+}
+
+// Metres to go from the UAV (map point a) to its target (b): along its route, if it has one.
+function routeLength(u, a, b) {
+  if (!routed(u)) return distance(a, b);
+  const points = [a, ...u.route.map(([lat, lon]) => toXY(lat, lon)), b];
+  let total = 0;
+  for (let i = 1; i < points.length; i += 1) total += distance(points[i - 1], points[i]);
+  return total;
+}
+
 // A click on the map while drawing adds a vertex (true); else it is the targets' (false).
 function addZoneVertexAt(clientX, clientY) {
   if (!zones.drawing || !state.origin) return false;
   const { lat, lon } = toLatLon(...clientToMap(clientX, clientY));
   zones.drawing.push([lat, lon]);
+  drawZoneButton();
   render();
   return true;
 }
