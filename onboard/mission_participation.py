@@ -34,6 +34,7 @@ from fleet.mission.messages import (
 )
 from fleet.mission.phase import Phase
 from fleet.mission.status_kind import StatusKind
+from fleet.transport.bus_codec import DROPPED, DropReason
 from onboard.approach_plan import ApproachPlan
 from onboard.catch_up import CatchUp
 from onboard.link_watch import LinkWatch
@@ -124,7 +125,8 @@ class MissionParticipation:
             return
         problem = targets_problem(targets)
         if problem is not None:
-            # Bad input never disturbs the mission in progress.
+            # Bad input never disturbs the mission in progress; it is counted as refused.
+            DROPPED.add(DropReason.INVALID)
             text = f"error: mission {targets.mission} refused: {problem}"
             self.say(StatusKind.MISSION_REFUSED, text, now, mission=targets.mission)
             return

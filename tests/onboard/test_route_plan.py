@@ -14,6 +14,7 @@ from fleet.mission.messages import MissionTargets, NoFlyZone, StatusText, Target
 from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
+from fleet.transport.bus_codec import DROPPED, DropReason
 from onboard.planner_worker import PlannerWorker, PlanRequest, PlanResult
 from onboard.route_flight import ROUTE_WAYPOINTS, route_writes
 from onboard.target_flight import TARGET_WAYPOINT
@@ -145,3 +146,23 @@ def test_an_incursion_is_an_error_status_and_leaving_is_said() -> None:
     assert kinds == [StatusKind.ZONE_INCURSION, StatusKind.ZONE_LEFT]
     incursion = next(s for s in statuses if s.kind is StatusKind.ZONE_INCURSION)
     assert "no-fly zone 0 (box)" in incursion.text and incursion.mission == 1
+
+
+def test_a_mission_with_a_bad_zone_or_a_target_inside_one_is_refused_and_counted() -> None:
+    core, out = make_core()
+    bowtie = NoFlyZone(ring=((42.0, -71.0), (42.1, -70.9), (42.1, -71.0), (42.0, -70.9)))
+    around_target = NoFlyZone(
+        ring=((42.34, -71.11), (42.34, -71.09), (42.355, -71.09), (42.355, -71.11))
+    )
+    before = DROPPED.counts().get(DropReason.INVALID, 0)
+    for mission, zone in ((1, bowtie), (2, around_target)):
+        core.on_targets(MissionTargets(mission, (112,), TARGETS, zones=(zone,)), 1.0)
+    refusals = [
+        m for _, m in out.published
+        if isinstance(m, StatusText) and m.kind is StatusKind.MISSION_REFUSED
+    ]  # fmt: skip
+    assert [r.mission for r in refusals] == [1, 2]
+    assert "edges 0 and 2 cross" in refusals[0].text
+    assert "target 1 is inside no-fly zone 0" in refusals[1].text
+    assert DROPPED.counts().get(DropReason.INVALID, 0) == before + 2
+    assert core.round is None  # neither started
