@@ -18,7 +18,7 @@ a zone's inflation left out). For each case:
 
 Then the solve time per target with the three zones: the whole plan (model + routes)
 and the route search alone, against the plan of the same targets without zones, in the
-same run.
+same run; and the route search in the largest mission allowed (16 zones of 16 vertices).
 
 Run: .venv/bin/python -m bench.bench_zones   (about a minute on 2 shared cores)
 """
@@ -36,7 +36,7 @@ from fleet.mission.messages import NoFlyZone
 from fleet.sim.autopilot import AutopilotSettings, SimulatedAutopilot
 from fleet.sim.uav_spec import UavSpec
 from onboard.planner_worker import PlannerWorker, PlanRequest, PlanResult
-from onboard.route_plan import ZONE_MARGIN_M, route_targets
+from onboard.route_plan import ZONE_MARGIN_M, route_targets, zone_map
 
 SPEED = 22.0
 LIMITS = AircraftLimits()
@@ -180,6 +180,31 @@ def main() -> None:
           f"of which routes alone {1000 * routes_s / n:.3f} ms")  # fmt: skip
     print(f"plan CPU per target, with zones:     {1000 * around.cpu_seconds / n:.2f} ms "
           f"(without {1000 * free.cpu_seconds / n:.2f} ms)")  # fmt: skip
+    largest()
+
+
+def largest() -> None:
+    """The largest mission allowed: 16 zones of 16 vertices (MAX_MISSION_ZONE_VERTICES),
+    on a 4 x 4 grid, routes across it to 50 targets."""
+    grid = [
+        tuple(
+            (3000.0 * (k % 4) + 800.0 * math.cos(i * math.tau / 16),
+             3000.0 * (k // 4) + 800.0 * math.sin(i * math.tau / 16))
+            for i in range(16)
+        )
+        for k in range(16)
+    ]  # fmt: skip
+    targets = [(-2000.0 + 320.0 * i, 11500.0) for i in range(50)]
+    started = time.thread_time()
+    zone_map(grid, LIMITS, SPEED)
+    build_s = time.thread_time() - started
+    started = time.thread_time()
+    routed = route_targets((1500.0, -2000.0), (0.0, SPEED), targets, grid, LIMITS)
+    all_s = time.thread_time() - started
+    turns = statistics.median(len(r.points) - 1 for r in routed.routes if r is not None)
+    print(f"largest mission (16 zones x 16 vertices): sightlines {1000 * build_s:.0f} ms CPU, "
+          f"{1000 * all_s / len(targets):.1f} ms CPU per target with them "
+          f"(50 targets across the grid, median {turns:g} turns)")  # fmt: skip
 
 
 if __name__ == "__main__":

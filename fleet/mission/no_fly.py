@@ -2,8 +2,9 @@
 
 A mission is refused (on the ground before anything is sent, on a UAV on receipt) when
 a zone is not a usable polygon (fleet.geo.zones.validate_ring: closed, not
-self-intersecting, 3 to 64 vertices) or when a target lies inside a zone or on its
-edge: no route could reach it without entering. Each zone is checked on the local plane
+self-intersecting, 3 to 64 vertices), when its zones have more than
+`MAX_MISSION_ZONE_VERTICES` vertices together, or when a target lies inside a zone or
+on its edge: no route could reach it without entering. Each zone is checked on the local plane
 of its own first vertex, so the check does not depend on where the aircraft are.
 
 The zones are part of the mission's digest (`zones_bytes`, hashed with the results by
@@ -21,7 +22,18 @@ from fleet.geo.mercator import MercatorProjection
 from fleet.geo.zones import Ring, ZoneError, point_in_ring, ring_to_local, validate_ring
 from fleet.mission.messages import NoFlyZone, Target
 
-__all__ = ["local_zones", "mission_zone_problem", "zone_label", "zones_bytes"]
+__all__ = [
+    "MAX_MISSION_ZONE_VERTICES",
+    "local_zones",
+    "mission_zone_problem",
+    "zone_label",
+    "zones_bytes",
+]
+
+#: Vertices of all a mission's zones together, at most: every UAV computes the
+#: sightlines between them at each plan (about 60 ms at this many: docs/benchmarks.md),
+#: so a hostile mission cannot stall the planners.
+MAX_MISSION_ZONE_VERTICES = 256
 
 
 def zone_label(index: int, zone: NoFlyZone) -> str:
@@ -44,6 +56,12 @@ def _ring(index: int, zone: NoFlyZone) -> tuple[MercatorProjection, Ring]:
 
 def mission_zone_problem(zones: Sequence[NoFlyZone], targets: Sequence[Target] = ()) -> str | None:
     """Why these zones (with these targets) cannot be flown; None if they can."""
+    total = sum(len(zone.ring) for zone in zones)
+    if total > MAX_MISSION_ZONE_VERTICES:
+        return (
+            f"no-fly zones: {total} vertices in all, more than the "
+            f"{MAX_MISSION_ZONE_VERTICES} a mission may have"
+        )
     for index, zone in enumerate(zones):
         try:
             projection, ring = _ring(index, zone)

@@ -196,3 +196,51 @@ def test_a_start_inside_a_zone_is_not_stranded() -> None:
     zones = ZoneMap([SQUARE], 100.0)
     route = zones.route((50.0, 50.0), (500.0, 50.0))
     assert route is not None and route.points == ((500.0, 50.0),)
+
+
+def brute_force_length(
+    zones: ZoneMap, start: tuple[float, float], goal: tuple[float, float]
+) -> float:
+    """The shortest path over every sightline (no tangent pruning, the generic test)."""
+    nodes = [start, *zones.vertices, goal]
+
+    def clear(a: tuple[float, float], b: tuple[float, float]) -> bool:
+        return not any(segment_enters(a, b, zone) for zone in zones.zones)
+
+    best = [math.inf] * len(nodes)
+    best[0] = 0.0
+    done = [False] * len(nodes)
+    for _ in nodes:
+        i = min((d, k) for k, d in enumerate(best) if not done[k])[1]
+        done[i] = True
+        for j, node in enumerate(nodes):
+            if not done[j] and clear(nodes[i], node):
+                best[j] = min(best[j], best[i] + math.dist(nodes[i], node))
+    return best[-1]
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.floats(-2000, 2000), st.floats(-2000, 2000), st.floats(100, 500), st.floats(0, 1)
+        ),
+        min_size=1,
+        max_size=3,
+    ),
+    st.tuples(st.floats(-4000, 4000), st.floats(-4000, 4000)),
+    st.tuples(st.floats(-4000, 4000), st.floats(-4000, 4000)),
+)
+def test_the_pruned_graph_finds_the_shortest_path_of_the_full_one(
+    centres: list[tuple[float, float, float, float]],
+    start: tuple[float, float],
+    goal: tuple[float, float],
+) -> None:
+    zones = ZoneMap([octagon(x, y, r, p) for x, y, r, p in centres], 100.0)
+    assume(not zones.containing(start) and not zones.containing(goal))
+    route = zones.route(start, goal)
+    full = brute_force_length(zones, start, goal)
+    if route is None:
+        assert full == math.inf
+    else:
+        assert route.length == pytest.approx(full, rel=1e-9, abs=1e-6)

@@ -99,3 +99,16 @@ def test_the_payload_link_refuses_a_mission_with_zones() -> None:
     with pytest.raises(PlanningProtocolError, match="no room for them"):
         encode_message(mission(OUTSIDE), 0xFFFE, 0xFFFF)
     assert encode_message(mission(OUTSIDE, zones=()), 0xFFFE, 0xFFFF)
+
+
+def test_too_many_vertices_in_all_are_refused() -> None:
+    def ring(k: int) -> tuple[tuple[float, float], ...]:
+        return tuple(
+            (10.0 * k + 0.01 * math.cos(i * math.tau / 60), 0.01 * math.sin(i * math.tau / 60))
+            for i in range(60)
+        )
+
+    four = tuple(NoFlyZone(ring=ring(k)) for k in range(4))
+    assert mission_zone_problem(four) is None  # 240 vertices
+    problem = mission_zone_problem((*four, NoFlyZone(ring=ring(5))))
+    assert problem == "no-fly zones: 300 vertices in all, more than the 256 a mission may have"
