@@ -229,7 +229,9 @@ class TargetFlight:
         self._target_next = back_to
         # Around the mission's no-fly zones, the route's turns come first (route_flight).
         gps = self.link.gps
-        turns = route_turns(gps, target, self.zones) if gps is not None else None
+        turns: tuple[tuple[float, float], ...] | None = ()
+        if self.zones:
+            turns = None if gps is None else route_turns(gps, target, self.zones)
         if turns is None:
             self._no_route = f"no route around the no-fly zones to target {target_index}"
             return
