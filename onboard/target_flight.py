@@ -144,12 +144,12 @@ class TargetFlight:
         previous, self.tracked_waypoint = self.tracked_waypoint, track.waypoint
         if previous != track.waypoint:
             self.outputs.publish(self.key_space.track(self.uav_id), track)
-        if track.waypoint == TARGET_WAYPOINT:
-            if previous != TARGET_WAYPOINT and self.target is None:
+        if _on_target_route(track.waypoint):
+            if not _on_target_route(previous) and self.target is None:
                 self.leave_stale_target(now)  # a restart's first track, after the re-plan
             return
         flying = self.life.phase == Phase.FLYING
-        if flying and self._target_tracked and previous == TARGET_WAYPOINT:
+        if flying and self._target_tracked and _on_target_route(previous):
             self._left_target_route(track.waypoint, now)
         if not self.life.holds_target():
             self.original_waypoint = track.waypoint  # the course to come back to
@@ -193,8 +193,8 @@ class TargetFlight:
         if not self.enabled:
             on_done(CommandResult(False, "module is off: it does not write to the autopilot"))
             return
-        retasks = isinstance(command, Track) or command.index == TARGET_WAYPOINT
-        self._operator_track = isinstance(command, Track) and command.waypoint == TARGET_WAYPOINT
+        retasks = isinstance(command, Track) or _on_target_route(command.index)
+        self._operator_track = isinstance(command, Track) and _on_target_route(command.waypoint)
         if retasks and self.life.holds_target():
             what = (
                 f"track to waypoint {command.waypoint}"
@@ -273,7 +273,7 @@ class TargetFlight:
         """Holding no target, yet the autopilot tracks the target waypoint: left there by
         this module before a restart, and the target is another UAV's now (a re-plan
         released this one while it was away). Back to the course, or it flies it too."""
-        if self.tracked_waypoint != TARGET_WAYPOINT or self.resuming or self._operator_track:
+        if not _on_target_route(self.tracked_waypoint) or self.resuming or self._operator_track:
             return
         if not self.mission.decided():
             return  # nothing decided yet: it may still be handed that very target
@@ -337,7 +337,11 @@ class TargetFlight:
 
 
 def _is_target_write(command: AutopilotCommand) -> bool:
-    """The target waypoint's write or the track to it (a mission's own target writes)."""
-    if isinstance(command, Track):
-        return command.waypoint == TARGET_WAYPOINT or command.waypoint in ROUTE_WAYPOINTS
-    return command.index == TARGET_WAYPOINT or command.index in ROUTE_WAYPOINTS
+    """A write of the target waypoint or a route turn, or a track to one (a mission's own
+    target writes)."""
+    return _on_target_route(command.waypoint if isinstance(command, Track) else command.index)
+
+
+def _on_target_route(waypoint: int | None) -> bool:
+    """`waypoint` is the target's, or a turn of the route to it (onboard.route_flight)."""
+    return waypoint == TARGET_WAYPOINT or waypoint in ROUTE_WAYPOINTS

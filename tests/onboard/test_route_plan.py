@@ -166,3 +166,23 @@ def test_a_mission_with_a_bad_zone_or_a_target_inside_one_is_refused_and_counted
     assert "target 1 is inside no-fly zone 0" in refusals[1].text
     assert DROPPED.counts().get(DropReason.INVALID, 0) == before + 2
     assert core.round is None  # neither started
+
+
+def test_leaving_the_route_at_a_turn_is_noticed_and_moving_along_it_is_not() -> None:
+    core, out = make_core()
+    core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS, zones=(BOX,)), 1.0)
+    core.tick(1.1)
+    now = 1.5
+    while not isinstance(out.autopilot[-1], Track):
+        command = out.autopilot[-1]
+        assert isinstance(command, Waypoint)
+        core.on_waypoint(command, now)
+        now += 0.1
+    core.on_track(Track(ROUTE_WAYPOINTS[0]), now)
+    assert core.phase == "flying"
+    if len(core.flight.route) > 1:
+        core.on_track(Track(ROUTE_WAYPOINTS[1]), now + 1)  # the autopilot's own sequencing
+        assert core.phase == "flying"
+    core.on_track(Track(3), now + 2)  # somewhere else: off the route, far from the target
+    assert core.phase == "preempted"
+    assert any("target not reached" in s for s in out.statuses())
