@@ -57,8 +57,10 @@ def route_targets(
     targets: Sequence[Point],
     zones: Sequence[Ring],
     limits: AircraftLimits,
+    wind: Point = (0.0, 0.0),
 ) -> RoutedTargets:
-    """Routes from `position` to every target around `zones` (local metres)."""
+    """Routes from `position` to every target around `zones` (local metres); the legs
+    after the first point timed in `wind` (m/s east, north; still air by default)."""
     speed = limits.clamp_airspeed(math.hypot(*velocity))
     zone_routes = zone_map(zones, limits, speed)
     aims: list[Point] = []
@@ -72,6 +74,6 @@ def route_targets(
             routes.append(None)
             continue
         aims.append(route.points[0])
-        rest.append(legs_time(route.points, speed))
+        rest.append(legs_time(route.points, speed, wind))
         routes.append(route)
     return RoutedTargets(tuple(aims), tuple(rest), tuple(routes))
