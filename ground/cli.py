@@ -131,6 +131,12 @@ def _add_send_targets(commands: argparse._SubParsersAction[argparse.ArgumentPars
         "acceptance radius, beyond reach, the far side of the Earth) or a --team naming a "
         "UAV that is not live",
     )
+    send.add_argument(
+        "--no-fly",
+        metavar="ZONES.geojson",
+        help="no-fly zones (GeoJSON Polygon/MultiPolygon) every route keeps out of; a "
+        "target inside one is refused and nothing is sent (--force does not override it)",
+    )
     send.add_argument("--json", action="store_true", help="print the outcome as one JSON object")
     send.set_defaults(handler=cmd_send_targets)
 

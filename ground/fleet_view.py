@@ -61,6 +61,8 @@ class UavView:
     reason: str | None = None  #: why the phase is what it is (preempted, failed, link_lost)
     target: int | None = None
     last_status: str | None = None
+    #: The turns of its route to its target around no-fly zones, (lat, lon) each.
+    route: tuple[tuple[float, float], ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -83,6 +85,7 @@ class UavView:
             "reason": self.reason,
             "target": self.target,
             "last_status": self.last_status,
+            "route": [list(turn) for turn in self.route],
         }
 
 
@@ -130,6 +133,7 @@ def view_from_state(state: UavState) -> UavView:
             view,
             mission=state.mission.mission,
             target=assignment.target if assignment is not None else None,
+            route=state.mission.route,
         )
     return view
 

@@ -28,6 +28,7 @@ import msgspec
 
 from fleet.mission.messages import (
     AssignmentReport,
+    NoFlyZone,
     Target,
     TargetOutcome,
     UavResult,
@@ -89,6 +90,8 @@ class MissionOutcome:
     phase_missions: dict[int, int] = field(default_factory=dict)
     #: A higher mission that reached the team while the ground followed this one
     superseded_by: int | None = None
+    #: The mission's no-fly zones.
+    zones: tuple[NoFlyZone, ...] = ()
 
     @property
     def declined(self) -> list[int]:
@@ -191,12 +194,23 @@ class MissionOutcome:
                 continue
             if not self.committed:
                 why = "the team did not commit"
+            elif self._no_route(index, taking_part):
+                why = "no route around the no-fly zones reaches it"
             elif idle:
                 why = f"not assigned although UAV {idle[0]} had no target"
             else:
                 why = "more targets than UAVs taking part"
             states.append({"index": index, "state": "unserved", "uav": None, "reason": why})
         return states
+
+    def _no_route(self, index: int, taking_part: set[int]) -> bool:
+        """Every UAV taking part answered, with no time to target `index`, while it had
+        times for others: no route of theirs keeps out of the mission's no-fly zones."""
+        rows = [self.results[uav].times for uav in taking_part if uav in self.results]
+        return bool(rows) and all(
+            index < len(row) and row[index] is None and any(t is not None for t in row)
+            for row in rows
+        )
 
     @property
     def succeeded(self) -> bool:
@@ -236,6 +250,7 @@ class MissionOutcome:
             "mission": self.mission,
             "team": list(self.team),
             "targets": [msgspec.to_builtins(t) for t in self.targets],
+            "zones": [msgspec.to_builtins(z) for z in self.zones],
             "results": results,
             "assignment": {str(uav): self.target_of(uav) for uav in self.team},
             "eta": {

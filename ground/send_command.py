@@ -33,6 +33,7 @@ from ground.mission_ids import TargetsServer, claim_mission, contest_grace_s
 from ground.mission_outcome import MissionOutcome, check_agreement
 from ground.mission_summary import summary_lines
 from ground.targets_command import read_or_say
+from ground.zones_command import zones_or_say
 
 #: How long `send-targets` without --wait waits for the team to acknowledge receipt.
 DELIVERY_WAIT_S = 3.0
@@ -88,6 +89,9 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
     if read is None:
         return ExitCode.FAILED
     targets = tuple(read)
+    zones = zones_or_say(args.no_fly, targets)
+    if zones is None:
+        return ExitCode.FAILED
     progress = sys.stderr if args.json else sys.stdout
     with client_bus(args.zenoh) as bus:
         team = _team(bus, args)
@@ -101,7 +105,7 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
         deadline_s = args.deadline or consensus_deadline(len(team))
 
         def make(mission: int) -> MissionTargets:
-            return MissionTargets(mission, team, targets, deadline_s=deadline_s)
+            return MissionTargets(mission, team, targets, deadline_s=deadline_s, zones=zones)
 
         try:
             with claim_mission(
@@ -128,11 +132,13 @@ def _send_and_follow(
     message = server.targets
     mission, team, targets = message.mission, message.team, message.targets
     listener = _progress_printer(progress, team) if args.wait else None
-    outcome = MissionOutcome(mission=mission, team=team, targets=targets)
+    outcome = MissionOutcome(mission=mission, team=team, targets=targets, zones=message.zones)
     with MissionFollower(bus, args.key_space, mission, listener, team) as follower:
         publish_targets(bus, args.key_space, message)
         print(
-            f"mission {mission}: {len(targets)} targets from {args.file} sent to "
+            f"mission {mission}: {len(targets)} targets from {args.file}"
+            + (f" and {len(message.zones)} no-fly zones" if message.zones else "")
+            + " sent to "
             f"{', '.join(map(str, team))}",
             file=progress,
             flush=True,

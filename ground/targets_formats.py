@@ -18,6 +18,7 @@ from enum import StrEnum
 from typing import Any
 
 from fleet.errors import CodecError
+from fleet.files.geojson import load_json
 from fleet.mission.messages import Target
 from fleet.mission.targets_file import TargetsFileError, decode_targets, encode_targets
 
@@ -130,14 +131,7 @@ def _geojson_target(feature: Any, where: str) -> Target:
 
 
 def decode_geojson(data: bytes, source: str) -> list[Target]:
-    try:
-        document = json.loads(data)
-    except (UnicodeDecodeError, ValueError) as error:
-        raise TargetsFormatError(f"{source}: not JSON ({error})") from None
-    except RecursionError:
-        # Python's json parser recurses per level: a hostile file nested deeply enough
-        # would otherwise end the command (or the page's request) with a traceback.
-        raise TargetsFormatError(f"{source}: nested too deeply to be GeoJSON") from None
+    document = load_json(data, source, TargetsFormatError)
     if not isinstance(document, dict) or document.get("type") != "FeatureCollection":
         raise TargetsFormatError(f"{source}: expected a GeoJSON FeatureCollection of Points")
     features = document.get("features")

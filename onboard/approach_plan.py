@@ -12,6 +12,7 @@ from typing import Protocol
 
 from fleet.geo.mercator import MercatorProjection
 from fleet.mission.messages import MissionTargets
+from fleet.mission.no_fly import local_zones
 from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock
 from onboard.planner_worker import PlanRequest, PlanResult
@@ -42,6 +43,7 @@ class ApproachPlan:
             targets=tuple(projection.to_xy(t.lat, t.lon) for t in targets.targets),
             budget_s=self.budget(targets),
             cruise_speed=math.hypot(gps.vel_east, gps.vel_north),
+            zones=local_zones(projection, targets.zones),
         )
         # The planner drops a run still under way for an older mission: its answer would
         # be that mission's approach times.
@@ -77,6 +79,12 @@ def plan_status(plan: PlanResult, mission: int | str) -> tuple[StatusKind, str]:
     if fallbacks:
         budget = plan.request.budget_s
         text += f"; {fallbacks} by the Dubins fallback (budget {budget:g} s)"
+    if plan.routes:
+        around = sum(1 for route in plan.routes if route is not None and route.detours)
+        unreachable = [str(i) for i, route in enumerate(plan.routes) if route is None]
+        text += f"; {around} routed around no-fly zones"
+        if unreachable:
+            text += f"; no route around the no-fly zones to target(s) {', '.join(unreachable)}"
     if plan.error:
         return StatusKind.SOLVER_DEGRADED, f"warning: {text}; solver error: {plan.error}"
     return StatusKind.APPROACH_TIMES, text

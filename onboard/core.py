@@ -47,6 +47,7 @@ from onboard.mission_phase import MissionPhase
 from onboard.state_report import Say, StateReport, overall_phase
 from onboard.target_flight import CONFIRM_LIMIT_S, LINK_RELEASE_S, TARGET_WAYPOINT, TargetFlight
 from onboard.team_presence import LIVELINESS_GRACE_S, TeamPresence
+from onboard.zone_watch import ZoneWatch
 
 # Imported from here by the process, its CLI and the tests: the module's settings.
 __all__ = [
@@ -106,6 +107,7 @@ class OnboardCore:
             confirm_limit_s=confirm_limit_s,
             link_release_s=link_release_s,
         )
+        self.zone_watch = ZoneWatch(say)
         self.mission = MissionParticipation(
             uav_id,
             key_space,
@@ -151,6 +153,7 @@ class OnboardCore:
     def on_telemetry(self, telemetry: Telemetry, now: float) -> None:
         self.link.on_telemetry(telemetry, now)
         self.flight.on_telemetry(now)
+        self.zone_watch.check(self.link.gps, self.flight.zones, self.mission.current(), now)
 
     def on_track(self, track: Track, now: float) -> None:
         self.flight.on_track(track, now)
@@ -243,6 +246,7 @@ class OnboardCore:
                 targets=len(self.round.targets.targets),
                 result=self.round.results.get(self.uav_id),
                 assignment=self.round.committed,
+                route=self.flight.route,
             )
         return self.report.state(
             enabled=self.flight.enabled,

@@ -35,6 +35,7 @@ from fleet.mission.messages import (
 from fleet.mission.phase import Phase
 from fleet.mission.recent_ids import RecentIds
 from fleet.mission.status_kind import StatusKind
+from fleet.transport.bus_codec import DROPPED, DropReason
 from onboard.approach_plan import ApproachPlan
 from onboard.catch_up import CatchUp
 from onboard.link_watch import LinkWatch
@@ -126,7 +127,8 @@ class MissionParticipation:
             return
         problem = targets_problem(targets)
         if problem is not None:
-            # Bad input never disturbs the mission in progress.
+            # Bad input never disturbs the mission in progress; it is counted as refused.
+            DROPPED.add(DropReason.INVALID)
             text = f"error: mission {targets.mission} refused: {problem}"
             self.say(StatusKind.MISSION_REFUSED, text, now, mission=targets.mission)
             return
@@ -166,6 +168,7 @@ class MissionParticipation:
         # Cancel first: the resume submitted next must survive the new mission's start.
         self.flight.restart(f"mission {targets.mission} started", now)
         self.round = MissionRound(targets, self.uav_id, now, late=late)
+        self.flight.zones = targets.zones
         self.life.observe(Observation.MISSION_STARTED)
         self.own.plan.forget()
         self.flight.hold(None, None)

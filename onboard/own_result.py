@@ -7,6 +7,7 @@ publishes an all-None result, so that its teammates need not wait for it.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from fleet.consensus.mission_round import MissionRound
@@ -51,7 +52,8 @@ class OwnResult:
             return
         kind, text = plan_status(result, mission_round.mission)
         self.say(kind, text, now, mission=mission_round.mission)
-        times = tuple(result.times)
+        # An infinite time is a target no route reaches (onboard.route_plan): no answer.
+        times = tuple(t if math.isfinite(t) else None for t in result.times)
         self.publish(mission_round, times, now, result.model_times, result.fallback_times)
 
     def publish_none(self, mission_round: MissionRound, now: float) -> None:

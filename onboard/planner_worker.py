@@ -48,7 +48,9 @@ from typing import TYPE_CHECKING
 
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.dubins import dubins_time_to_point
+from fleet.geo.visibility import Route
 from onboard.native_thread import name_native_thread
+from onboard.route_plan import route_targets
 
 if TYPE_CHECKING:
     from onboard.approach_model import ApproachTimeModel, TargetSolution
@@ -80,6 +82,9 @@ class PlanRequest:
     #: The speed the aircraft holds, m/s: the module never changes airspeed, so the
     #: model's top speed is this one. None: the limits' `max_airspeed`.
     cruise_speed: float | None = None
+    #: No-fly zones (rings in the same local metres) every route keeps out of
+    #: (onboard.route_plan); none: every time is the approach model's to the target.
+    zones: tuple[tuple[tuple[float, float], ...], ...] = ()
 
     def __post_init__(self) -> None:
         # A list passed by the caller becomes a tuple, so the request stays immutable.
@@ -107,6 +112,8 @@ class PlanResult:
     error: str | None = None  # the exception that made every target fall back
     lps: int = 0  # LPs solved for this result
     defects: int = 0  # model answers faster than the Dubins time allows (logged)
+    #: With zones, each target's route (None: no route reaches it, and its time is inf).
+    routes: tuple[Route | None, ...] = ()
 
     @property
     def model_times(self) -> int:
@@ -312,6 +319,17 @@ class PlannerWorker:
             self._model = None
 
     def _plan(self, request: PlanRequest, started: float) -> PlanResult:
+        """The approach times of `request`; with zones, of the routes around them."""
+        if not request.zones:
+            return self._plan_aims(request, started)
+        routed = route_targets(
+            request.position, request.velocity, request.targets, request.zones, self._limits
+        )
+        result = self._plan_aims(replace(request, targets=routed.aims), started)
+        times = tuple(routed.time(i, t) for i, t in enumerate(result.times))
+        return replace(result, request=request, times=times, routes=routed.routes)
+
+    def _plan_aims(self, request: PlanRequest, started: float) -> PlanResult:
         cpu_started = time.thread_time()
         self._adopt_cruise_speed(request.cruise_speed)
         deadline = started + request.budget_s

@@ -22,7 +22,7 @@ import msgspec
 from fleet.geo.mercator import distance_m
 from fleet.mission.key_space import KeySpace
 from fleet.mission.lifecycle import Observation
-from fleet.mission.messages import CommandResult, Target
+from fleet.mission.messages import CommandResult, NoFlyZone, Target
 from fleet.mission.phase import Phase
 from fleet.mission.status_kind import StatusKind
 from fleet.mission.target_checks import REACHED_RADIUS_M
@@ -31,6 +31,7 @@ from fleet.piccolo.waypoint import Waypoint
 from onboard.autopilot_commands import AutopilotCommand, CommandTracker, Completion
 from onboard.link_watch import LinkWatch
 from onboard.mission_phase import MissionPhase
+from onboard.route_flight import ROUTE_WAYPOINTS, route_turns, route_writes
 from onboard.state_report import Say
 
 log = logging.getLogger(__name__)
@@ -94,6 +95,11 @@ class TargetFlight:
     _outages_when_tracked: int = 0  #: link outages before the target route was echoed
     resuming: bool = False  #: a resume of the course is sent and not echoed yet
     _operator_track: bool = False  #: the ground commanded the target waypoint or its track
+    #: The mission's no-fly zones: a target is flown by a route around them.
+    zones: tuple[NoFlyZone, ...] = ()
+    _no_route: str | None = None  #: why the held target has no route (it then fails)
+    #: The turns of the route written to the autopilot for the held target (state report).
+    route: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
         self.commands = CommandTracker(send=self.outputs.send_autopilot)
@@ -102,6 +108,8 @@ class TargetFlight:
         """Hold `target` (at `where`), or none; its route not echoed yet."""
         self.target, self._target_at = target, where
         self._target_tracked = False
+        self._no_route = None
+        self.route = ()
 
     # ---- what the autopilot says -------------------------------------------------------
     def on_telemetry(self, now: float) -> None:
@@ -136,12 +144,12 @@ class TargetFlight:
         previous, self.tracked_waypoint = self.tracked_waypoint, track.waypoint
         if previous != track.waypoint:
             self.outputs.publish(self.key_space.track(self.uav_id), track)
-        if track.waypoint == TARGET_WAYPOINT:
-            if previous != TARGET_WAYPOINT and self.target is None:
+        if _on_target_route(track.waypoint):
+            if not _on_target_route(previous) and self.target is None:
                 self.leave_stale_target(now)  # a restart's first track, after the re-plan
             return
         flying = self.life.phase == Phase.FLYING
-        if flying and self._target_tracked and previous == TARGET_WAYPOINT:
+        if flying and self._target_tracked and _on_target_route(previous):
             self._left_target_route(track.waypoint, now)
         if not self.life.holds_target():
             self.original_waypoint = track.waypoint  # the course to come back to
@@ -185,8 +193,8 @@ class TargetFlight:
         if not self.enabled:
             on_done(CommandResult(False, "module is off: it does not write to the autopilot"))
             return
-        retasks = isinstance(command, Track) or command.index == TARGET_WAYPOINT
-        self._operator_track = isinstance(command, Track) and command.waypoint == TARGET_WAYPOINT
+        retasks = isinstance(command, Track) or _on_target_route(command.index)
+        self._operator_track = isinstance(command, Track) and _on_target_route(command.waypoint)
         if retasks and self.life.holds_target():
             what = (
                 f"track to waypoint {command.waypoint}"
@@ -219,17 +227,24 @@ class TargetFlight:
         # on_track never records the target waypoint as the course; 0 before any track.
         back_to = 0 if self.original_waypoint is None else self.original_waypoint
         self._target_next = back_to
-        waypoint = Waypoint(
-            index=TARGET_WAYPOINT,
-            next_index=back_to,
-            lat=target.lat,
-            lon=target.lon,
-            alt=target.alt,
-        )
+        # Around the mission's no-fly zones, the route's turns come first (route_flight).
+        gps = self.link.gps
+        turns: tuple[tuple[float, float], ...] | None = ()
+        if self.zones:
+            turns = None if gps is None else route_turns(gps, target, self.zones)
+        if turns is None:
+            self._no_route = f"no route around the no-fly zones to target {target_index}"
+            return
+        writes, first = route_writes(TARGET_WAYPOINT, target, turns, back_to)
+        self.route = turns
 
-        def track_target(result: CommandResult) -> None:
-            if result.ok and self._still_committed(mission, target_index):
-                self.commands.submit(Track(TARGET_WAYPOINT), now, tracked, persistent=True)
+        def write_next(result: CommandResult) -> None:
+            if not (result.ok and self._still_committed(mission, target_index)):
+                return
+            if writes:  # each waypoint once the one it leads to is echoed
+                self.commands.submit(writes.pop(0), now, write_next, persistent=True)
+            else:
+                self.commands.submit(Track(first), now, tracked, persistent=True)
 
         def tracked(result: CommandResult) -> None:
             if not result.ok or self.mission.superseded(mission) or self.target != target_index:
@@ -245,7 +260,7 @@ class TargetFlight:
                     target=target_index,
                 )
 
-        self.commands.submit(waypoint, now, track_target, persistent=True)
+        self.commands.submit(writes.pop(0), now, write_next, persistent=True)
 
     def _still_committed(self, mission: int, target_index: int) -> bool:
         return (
@@ -258,7 +273,7 @@ class TargetFlight:
         """Holding no target, yet the autopilot tracks the target waypoint: left there by
         this module before a restart, and the target is another UAV's now (a re-plan
         released this one while it was away). Back to the course, or it flies it too."""
-        if self.tracked_waypoint != TARGET_WAYPOINT or self.resuming or self._operator_track:
+        if not _on_target_route(self.tracked_waypoint) or self.resuming or self._operator_track:
             return
         if not self.mission.decided():
             return  # nothing decided yet: it may still be handed that very target
@@ -275,6 +290,8 @@ class TargetFlight:
         its link stayed lost, or the autopilot never echoed its writes in time."""
         if not self.life.holds_target() or self.link.telemetry_at is None:
             return None
+        if self._no_route is not None:
+            return self._no_route, Phase.FAILED
         silent = now - self.link.telemetry_at
         if silent > self.link_release_s:
             return f"autopilot link lost for {silent:.0f} s", Phase.LINK_LOST
@@ -320,7 +337,11 @@ class TargetFlight:
 
 
 def _is_target_write(command: AutopilotCommand) -> bool:
-    """The target waypoint's write or the track to it (a mission's own target writes)."""
-    if isinstance(command, Track):
-        return command.waypoint == TARGET_WAYPOINT
-    return command.index == TARGET_WAYPOINT
+    """A write of the target waypoint or a route turn, or a track to one (a mission's own
+    target writes)."""
+    return _on_target_route(command.waypoint if isinstance(command, Track) else command.index)
+
+
+def _on_target_route(waypoint: int | None) -> bool:
+    """`waypoint` is the target's, or a turn of the route to it (onboard.route_flight)."""
+    return waypoint == TARGET_WAYPOINT or waypoint in ROUTE_WAYPOINTS

@@ -123,12 +123,17 @@ def greedy_assign(results: Mapping[int, Sequence[float | None]], n_targets: int)
 _DIGEST_VERSION = b"fleet.assignment.results/v1\x00"
 _HEADER = struct.Struct("<qQ")
 _TIME = struct.Struct("<d")
+#   then, for a mission with no-fly zones only: b'zones\0', '<Q' their length, their bytes.
+_ZONES_TAG = b"zones\x00"
+_ZONES_LENGTH = struct.Struct("<Q")
 
 
-def results_digest(results: Mapping[int, Sequence[float | None]]) -> str:
+def results_digest(results: Mapping[int, Sequence[float | None]], zones: bytes = b"") -> str:
     """A stable 16-hex-digit digest (SHA-256 prefix) of exactly these results.
 
-    Independent of the mapping's insertion order; sensitive to every bit of every time.
+    Independent of the mapping's insertion order; sensitive to every bit of every time,
+    and to the mission's no-fly zones (`zones`: fleet.mission.no_fly.zones_bytes; none,
+    the digest of the results alone).
     """
     # One buffer hashed once: the same bytes as an update per field, in a third of the
     # time (50 x 50 results: ~0.3 ms instead of ~0.9 ms, on every UAV at every commit).
@@ -155,6 +160,8 @@ def results_digest(results: Mapping[int, Sequence[float | None]]) -> str:
             offset = end
         else:
             parts += [b"N" if time is None else b"T" + _TIME.pack(time) for time in row]
+    if zones:
+        parts += [_ZONES_TAG, _ZONES_LENGTH.pack(len(zones)), zones]
     return sha256(b"".join(parts)).hexdigest()[:16]
 
 

@@ -40,6 +40,7 @@ from fleet.mission.messages import (
     TargetOutcome,
     UavResult,
 )
+from fleet.mission.no_fly import mission_zone_problem, zones_bytes
 from fleet.mission.targets_file import TargetsFileError, encode_targets
 
 FETCH_INTERVAL = 1.0
@@ -88,7 +89,7 @@ def targets_problem(targets: MissionTargets) -> str | None:
         return f"target {error.index}: {error.problem}" if targets.targets else error.problem
     if not math.isfinite(targets.deadline_s) or targets.deadline_s <= 0:
         return f"deadline {targets.deadline_s!r} s is not a positive number"
-    return None
+    return mission_zone_problem(targets.zones, targets.targets)
 
 
 @functools.lru_cache(maxsize=8)
@@ -282,7 +283,7 @@ class MissionRound:
             pairs=dict(sorted(outcome.pairs.items())),
             unassigned=tuple(outcome.unassigned_targets),
             team=tuple(sorted(used)),
-            digest=results_digest(used),
+            digest=results_digest(used, zones_bytes(self.targets.zones)),
             eta_s=own_times[target] if target is not None else None,
         )
         return self.committed

@@ -46,6 +46,25 @@ class Target(msgspec.Struct, frozen=True):
     alt: float
 
 
+#: No-fly zones in one mission at most.
+MAX_ZONES = 16
+#: Vertices of one zone at most (fleet.geo.zones.MAX_ZONE_VERTICES), closing one included.
+MAX_ZONE_RING = 65
+Latitude = Annotated[float, Meta(ge=-90.0, le=90.0)]
+Longitude = Annotated[float, Meta(ge=-180.0, le=180.0)]
+
+
+class NoFlyZone(msgspec.Struct, frozen=True):
+    """A polygon no aircraft may enter: its ring of (latitude, longitude) degrees.
+
+    The ring's shape (closed, not self-intersecting, at least three vertices) is checked
+    by `fleet.mission.no_fly`, on the ground before sending and on every UAV on receipt.
+    """
+
+    ring: Annotated[tuple[tuple[Latitude, Longitude], ...], Meta(max_length=MAX_ZONE_RING)]
+    name: Annotated[str, Meta(max_length=64)] = ""
+
+
 class OpmCommand(msgspec.Struct, frozen=True):
     """PAYLOAD_OPM: the ground turns the onboard planning module on or off.
 
@@ -85,12 +104,16 @@ class MissionTargets(msgspec.Struct, frozen=True):
 
     `mission` is a u32 mission id; a higher id supersedes a lower one.
     `deadline_s` is how long after receipt a UAV waits for its teammates' results.
+    `zones` are the no-fly zones every route keeps out of (fleet.mission.no_fly); the
+    binary payload link has no room for them (fleet.payload.bodies refuses to send a
+    mission that has some).
     """
 
     mission: MissionId
     team: Team
     targets: Annotated[tuple[Target, ...], Meta(max_length=MAX_TARGETS)]
     deadline_s: float = 10.0
+    zones: Annotated[tuple[NoFlyZone, ...], Meta(max_length=MAX_ZONES)] = ()
 
 
 class UavResult(msgspec.Struct, frozen=True):
@@ -201,6 +224,9 @@ class MissionProgress(msgspec.Struct, frozen=True):
     targets: Annotated[int, Meta(ge=0, le=MAX_TARGETS)]
     result: UavResult | None = None
     assignment: AssignmentReport | None = None
+    #: The turns (latitude, longitude) of the route it flies to its target around the
+    #: mission's no-fly zones; empty for the straight line (onboard.route_flight).
+    route: Annotated[tuple[tuple[Latitude, Longitude], ...], Meta(max_length=MAX_ZONE_RING)] = ()
 
 
 class UavState(msgspec.Struct, frozen=True):

@@ -51,6 +51,9 @@ class StatusKind(StrEnum):
     NOT_REACHED = "not_reached"  #: the autopilot left the target route short of it
     TARGET_GIVEN_UP = "target_given_up"  #: the ground commanded the autopilot directly
     STALE_TARGET_LEFT = "stale_target_left"  #: still tracking a target no longer held
+    # The mission's no-fly zones (onboard.zone_watch).
+    ZONE_INCURSION = "zone_incursion"  #: the aircraft is inside a no-fly zone
+    ZONE_LEFT = "zone_left"  #: and out of it again
 
     @property
     def severity(self) -> Severity:
@@ -72,4 +75,5 @@ _SEVERITY = {
     StatusKind.NOT_REACHED: Severity.WARNING,
     StatusKind.TARGET_GIVEN_UP: Severity.WARNING,
     StatusKind.STALE_TARGET_LEFT: Severity.WARNING,
+    StatusKind.ZONE_INCURSION: Severity.ERROR,
 }

@@ -103,6 +103,12 @@ def encode_opm(msg: OpmCommand) -> bytes:
 def _encode_targets(msg: MissionTargets) -> bytes:
     check_uint("mission", msg.mission, 32)
     check_finite("deadline_s", msg.deadline_s, nonnegative=True)
+    if msg.zones:
+        # Sent without them, the mission would have its aircraft fly straight through.
+        raise PlanningProtocolError(
+            f"mission has {len(msg.zones)} no-fly zones; the binary targets message has no "
+            "room for them (send the mission over Zenoh)"
+        )
     # Counts first: they name the limit a caller hit before any per-item complaint.
     if len(msg.team) > 0xFFFF:
         raise PlanningProtocolError(

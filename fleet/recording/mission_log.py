@@ -39,10 +39,12 @@ import msgspec
 from fleet.mission.messages import (
     AssignmentReport,
     MissionTargets,
+    NoFlyZone,
     StatusText,
     Target,
     UavResult,
 )
+from fleet.mission.no_fly import mission_zone_problem
 from fleet.mission.phase import Phase, Severity
 from fleet.mission.status_kind import StatusKind
 from fleet.recording.reader import RecordedMessage
@@ -97,6 +99,8 @@ class MissionLog:
     #: failed); never one that reached.
     ended: dict[int, tuple[float, str]] = field(default_factory=dict)
     faults: list[tuple[float, str]] = field(default_factory=list)
+    #: The mission's no-fly zones.
+    zones: tuple[NoFlyZone, ...] = ()
 
     def target_of(self, uav: int) -> int | None:
         report = self.assignments.get(uav)
@@ -251,9 +255,16 @@ class _Builder:
             targets = msgspec.convert(value, MissionTargets, str_keys=True)
             if not all(_on_earth(p.lat, p.lon) for p in targets.targets):
                 raise ValueError("a target not on Earth")
+            if mission_zone_problem(targets.zones) is not None:
+                raise ValueError("a no-fly zone that is not a polygon")
             if targets.mission not in self.missions:
                 self.missions[targets.mission] = MissionLog(
-                    targets.mission, targets.team, targets.targets, sent=t, end=t
+                    targets.mission,
+                    targets.team,
+                    targets.targets,
+                    sent=t,
+                    end=t,
+                    zones=targets.zones,
                 )
         elif kind == "result":
             result = msgspec.convert(value, UavResult, str_keys=True)

@@ -2,8 +2,9 @@
 
 One map panel per event (sent, committed, course change, reached, resumed, or the
 times asked for): every UAV's track so far in its own colour with its ID at its
-position, its course still to come faint, the targets as red X with their index, and
-a dashed line from each committed UAV to its target. A last panel compares each
+position, its course still to come faint, the mission's no-fly zones hatched red, the
+targets as red X with their index, and a dashed line from each committed UAV to its
+target. A last panel compares each
 UAV's predicted arrival (its ETA at commitment) with the time it flew. Drawn with
 the Agg backend on a `Figure` (no pyplot state), so no display is needed.
 """
@@ -138,6 +139,7 @@ def _limits(
     xs: list[float] = []
     ys: list[float] = []
     places = [(t.lat, t.lon) for t in log.targets] if log is not None else []
+    places += [p for zone in log.zones for p in zone.ring] if log is not None else []
     for track in timeline.tracks.values():
         places += list(zip(track.lat, track.lon, strict=True))
     for lat, lon in places:
@@ -178,6 +180,7 @@ def _map_panel(
         ax.plot([x], [y], marker="o", color=colour, markersize=7)
         ax.annotate(str(uav), (x, y), xytext=(5, 5), textcoords="offset points", color=colour)
     if log is not None:
+        _zones(ax, log, projection)
         _targets(ax, log, panel, timeline, projection, order)
     ax.set_xlim(limits[0], limits[1])
     ax.set_ylim(limits[2], limits[3])
@@ -219,6 +222,14 @@ def _targets(
         start = _km(projection, *position)
         goal = _km(projection, log.targets[target].lat, log.targets[target].lon)
         ax.plot(*_xy([start, goal]), linestyle="--", color=_colour(uav, order), linewidth=1)
+
+
+def _zones(ax: Axes, log: MissionLog, projection: MercatorProjection) -> None:
+    """The mission's no-fly zones, hatched red, under the tracks flown around them."""
+    for index, zone in enumerate(log.zones):
+        points = [_km(projection, lat, lon) for lat, lon in zone.ring]
+        ax.fill(*_xy(points), facecolor="red", alpha=0.12, edgecolor="red", hatch="//")
+        ax.annotate(zone.name or f"zone {index}", points[0], color="darkred", fontsize="small")
 
 
 def _xy(points: list[tuple[float, float]]) -> tuple[list[float], list[float]]:

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 from fleet.geo.aircraft import GRAVITY, AircraftLimits
 from fleet.geo.angles import wrap_pi
 from fleet.geo.mercator import MercatorProjection
+from fleet.mission.messages import NoFlyZone
 from fleet.payload.link import AutopilotEvent, PiccoloLink
 from fleet.piccolo.autopilot_messages import AutopilotMessage, UnknownAutopilotMessage
 from fleet.piccolo.stream_packet import ALL_OPERATOR_INTERFACES, BROADCAST_AVIONICS
@@ -48,6 +49,7 @@ from fleet.sim.aircraft import step as aircraft_step
 from fleet.sim.flight_plan import FlightPlan, FlightPlanError, check_indices
 from fleet.sim.guidance import DEFAULT_ACCEPTANCE_RADIUS, GuidanceSettings, command_toward
 from fleet.sim.uav_spec import UavSpec
+from fleet.sim.zone_log import IncursionLog
 
 logger = logging.getLogger(__name__)
 
@@ -102,6 +104,8 @@ class AutopilotSettings:
     acceptance_radius: float = DEFAULT_ACCEPTANCE_RADIUS
     limits: AircraftLimits = field(default_factory=AircraftLimits)
     wind: Wind = CALM
+    #: No-fly zones whose incursions the simulator logs (fleet.sim.zone_log).
+    zones: tuple[NoFlyZone, ...] = ()
 
     def __post_init__(self) -> None:
         if not 0.0 < self.telemetry_hz <= MAX_TELEMETRY_HZ:
@@ -135,6 +139,7 @@ class SimulatedAutopilot:
         )
         self.airspeed_command = uav.airspeed
         self.guidance = GuidanceSettings(acceptance_radius=self.settings.acceptance_radius)
+        self.zone_log = IncursionLog(self.piccolo_id, self.projection, self.settings.zones)
         self.plan = FlightPlan(uav.waypoints())
         first = self.plan.waypoints()[0]
         self.tracked = first.index
@@ -182,6 +187,7 @@ class SimulatedAutopilot:
             self.state, command, self.settings.limits, self.settings.wind, STEP_MS / 1000.0
         )
         self.time_ms += STEP_MS
+        self.zone_log.check(self.state.x, self.state.y, self.time_ms)
         if math.hypot(x - self.state.x, y - self.state.y) <= self.guidance.acceptance_radius:
             self._arrive()
         if self.time_ms >= self._next_telemetry_ms:

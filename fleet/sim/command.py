@@ -16,6 +16,7 @@ import logging
 import sys
 from collections.abc import Sequence
 
+from fleet.files.zones_file import read_zones
 from fleet.sim.autopilot import (
     DEFAULT_TELEMETRY_HZ,
     MAX_TELEMETRY_HZ,
@@ -88,6 +89,12 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
         metavar="M",
         help="distance (m) at which a waypoint counts as reached (%(default)s)",
     )
+    parser.add_argument(
+        "--no-fly",
+        metavar="ZONES.geojson",
+        help="no-fly zones (GeoJSON) whose every incursion is logged as an error "
+        "(default: the scenario's no_fly file, if any)",
+    )
 
 
 def _add_listen_arguments(parser: argparse.ArgumentParser) -> None:
@@ -146,14 +153,16 @@ def _build(args: argparse.Namespace) -> list[SimulatedAutopilot]:
         acceptance_radius=args.acceptance_radius,
         limits=scenario.limits,
         wind=scenario.wind,
+        zones=read_zones(args.no_fly) if args.no_fly else scenario.zones,
     )
     logger.info(
-        "scenario %s (%s): %d aircraft, wind north %.1f east %.1f m/s",
+        "scenario %s (%s): %d aircraft, wind north %.1f east %.1f m/s, %d no-fly zones",
         scenario.name,
         scenario.source,
         len(uavs),
         scenario.wind.north,
         scenario.wind.east,
+        len(settings.zones),
     )
     return [SimulatedAutopilot(uav, settings) for uav in uavs]
 
@@ -173,6 +182,8 @@ def run(args: argparse.Namespace) -> int:
         )
     except (ScenarioError, ValueError) as error:
         return fail("fleet sim", str(error))
+    except OSError as error:
+        return fail("fleet sim", f"cannot read {error.filename}: {error.strerror}")
     # Handlers first: a launcher may send SIGTERM as soon as it has read `ready`.
     with server, stop_on_signals(server.stop):
         try:
@@ -185,6 +196,11 @@ def run(args: argparse.Namespace) -> int:
         logger.info("simulating at speedup %g", args.speedup)
         server.run()
     logger.info("stopped at simulated time %.1f s", server.time_ms / 1000.0)
+    if autopilots[0].settings.zones:
+        logger.info(
+            "no-fly incursions: %s",
+            ", ".join(f"UAV {a.piccolo_id}: {a.zone_log.incursions}" for a in autopilots),
+        )
     return ExitCode.OK
 
 

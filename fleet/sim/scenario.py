@@ -4,6 +4,7 @@ Format (docs/simulator.md has the full description)::
 
     description = "free text"              # optional
     targets = "head_on_targets.bin"        # optional: a targets file beside this one
+    no_fly = "zones.geojson"               # optional: no-fly zones whose incursions are logged
 
     [wind]                                 # optional; the air mass's velocity, m/s
     north = 0.0
@@ -43,8 +44,9 @@ import msgspec
 
 from fleet.errors import FleetError
 from fleet.files.targets_io import read_targets
+from fleet.files.zones_file import ZonesFileError, read_zones
 from fleet.geo.aircraft import AircraftLimits
-from fleet.mission.messages import Target
+from fleet.mission.messages import NoFlyZone, Target
 from fleet.mission.targets_file import TargetsFileError
 from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
 from fleet.piccolo.waypoint import MAX_INDEX
@@ -110,6 +112,7 @@ class _ScenarioFile(msgspec.Struct, forbid_unknown_fields=True):
     targets: Annotated[str, msgspec.Meta(min_length=1)] | None = None
     wind: _WindTable | None = None
     aircraft: _AircraftTable | None = None
+    no_fly: Annotated[str, msgspec.Meta(min_length=1)] | None = None
 
 
 class ScenarioError(FleetError, ValueError):
@@ -127,6 +130,9 @@ class Scenario:
     limits: AircraftLimits = field(default_factory=AircraftLimits)
     description: str = ""
     targets_path: Path | None = None
+    #: No-fly zones (the `no_fly` GeoJSON file beside the scenario): the simulator logs
+    #: every incursion into them (fleet.sim.zone_log).
+    zones: tuple[NoFlyZone, ...] = ()
 
     def uav(self, piccolo_id: int) -> UavSpec:
         for uav in self.uavs:
@@ -219,7 +225,19 @@ def _checked(data: _ScenarioFile, source: str, base_dir: Path | None, name: str)
         limits=limits,
         description=data.description,
         targets_path=targets_path,
+        zones=_zones(data.no_fly, base_dir, source),
     )
+
+
+def _zones(name: str | None, base_dir: Path | None, source: str) -> tuple[NoFlyZone, ...]:
+    if name is None:
+        return ()
+    try:
+        return read_zones((base_dir or Path.cwd()) / name)
+    except ZonesFileError as error:
+        raise ScenarioError(f"{source}: no_fly: {error}") from error
+    except OSError as error:
+        raise ScenarioError(f"{source}: no_fly: cannot read {name!r}: {error.strerror}") from error
 
 
 def parse_scenario(

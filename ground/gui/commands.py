@@ -27,7 +27,8 @@ import msgspec
 from fleet.consensus.deadline import MAX_DEADLINE_S, consensus_deadline
 from fleet.errors import CodecError
 from fleet.mission.key_space import KeySpace
-from fleet.mission.messages import MissionTargets, Target
+from fleet.mission.messages import MAX_ZONES, MissionTargets, NoFlyZone, Target
+from fleet.mission.no_fly import mission_zone_problem
 from fleet.mission.targets_file import TargetsFileError, encode_targets
 from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
 from fleet.transport.bus import Bus
@@ -49,6 +50,7 @@ class SendCommand(msgspec.Struct, frozen=True, tag="send", tag_field="cmd"):
     team: tuple[PiccoloId, ...]
     targets: tuple[Target, ...]
     deadline_s: Annotated[float, msgspec.Meta(gt=0, le=MAX_DEADLINE_S)] | None = None
+    zones: Annotated[tuple[NoFlyZone, ...], msgspec.Meta(max_length=MAX_ZONES)] = ()
 
 
 class AbortCommand(msgspec.Struct, frozen=True, tag="abort", tag_field="cmd"):
@@ -120,12 +122,18 @@ class MissionDesk:
             self._stack.enter_context(TargetsServer(self._bus, self.space, message))
         self._targets = message
 
-    def send(self, team: tuple[int, ...], targets: tuple[Target, ...], deadline_s: float) -> int:
+    def send(
+        self,
+        team: tuple[int, ...],
+        targets: tuple[Target, ...],
+        deadline_s: float,
+        zones: tuple[NoFlyZone, ...] = (),
+    ) -> int:
         """Claim a mission id no other ground uses (`claim_mission`), follow it, put it."""
 
         def make(mission: int) -> MissionTargets:
             return MissionTargets(
-                mission=mission, team=team, targets=targets, deadline_s=deadline_s
+                mission=mission, team=team, targets=targets, deadline_s=deadline_s, zones=zones
             )
 
         with self._lock:
@@ -168,6 +176,7 @@ class MissionDesk:
                 return None
             message, follower = self._targets, self._follower
         outcome = MissionOutcome(message.mission, message.team, message.targets)
+        outcome.zones = message.zones
         outcome.results, outcome.assignments = follower.snapshot()
         outcome.outcomes = follower.outcome_snapshot()
         return outcome
@@ -185,10 +194,13 @@ def _send(desk: MissionDesk, command: SendCommand, live: set[int]) -> Reply:
         encode_targets(command.targets, source="the page's targets")
     except TargetsFileError as error:
         return Reply(command.id, False, f"target {error.index}: {error.problem}; nothing sent")
+    problem = mission_zone_problem(command.zones, command.targets)
+    if problem is not None:
+        return Reply(command.id, False, f"{problem}; nothing sent")
     team = tuple(sorted(set(command.team)))
     try:
         deadline_s = command.deadline_s or consensus_deadline(len(team))
-        mission = desk.send(team, command.targets, deadline_s)
+        mission = desk.send(team, command.targets, deadline_s, command.zones)
     except MissionError as error:
         return Reply(command.id, False, f"{error}; nothing sent")
     absent = [uav for uav in team if uav not in live]
@@ -196,7 +208,9 @@ def _send(desk: MissionDesk, command: SendCommand, live: set[int]) -> Reply:
     return Reply(
         command.id,
         True,
-        f"mission {mission}: {len(command.targets)} targets published to "
+        f"mission {mission}: {len(command.targets)} targets"
+        + (f" and {len(command.zones)} no-fly zones" if command.zones else "")
+        + " published to "
         f"{', '.join(map(str, team))}{note}; waiting for their results",
         mission=mission,
     )

@@ -12,7 +12,9 @@ One aiohttp application on one event loop:
 * `GET /api/mission`: the followed mission as `ground-cli send-targets --json` reports it;
 * `POST /api/targets/import?name=FILE` (the file's bytes) and
   `POST /api/targets/export?format=bin|csv|geojson` (a JSON list of targets): Load and
-  Save Targets through `ground.targets_formats`.
+  Save Targets through `ground.targets_formats`;
+* `POST /api/zones/import` and `/api/zones/export`: Load and Save no-fly zones as
+  GeoJSON (`ground.gui.zones_api`).
 
 The bus's callbacks run on its (Zenoh's) threads; they reach the loop only through
 `loop.call_soon_threadsafe`. Blocking queries run in worker threads.
@@ -55,6 +57,7 @@ from fleet.transport.bus import Bus
 from ground import targets_formats
 from ground.alerts import StatusRecord
 from ground.fleet_view import FleetView
+from ground.gui import zones_api
 from ground.gui.access import Access
 from ground.gui.commands import CommandError, MissionDesk, Reply, decode_command, execute
 from ground.gui.snapshot import Coalescer, GuiModel
@@ -117,6 +120,7 @@ class GuiServer:
         app.router.add_get("/api/mission", self._api_mission)
         app.router.add_post("/api/targets/import", self._api_import)
         app.router.add_post("/api/targets/export", self._api_export)
+        zones_api.add_routes(app)
         app.cleanup_ctx.append(self._fleet_context)
         app.on_shutdown.append(self._close_sockets)
         return app

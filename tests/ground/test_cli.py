@@ -187,6 +187,13 @@ def test_bad_targets_file_is_refused_and_nothing_sent(
     assert str(path) in done.stderr
     assert where in done.stderr
     assert "nothing sent" in done.stderr
+    assert_nothing_sent_since(router, fakes, before)
+
+
+def assert_nothing_sent_since(
+    router: str, fakes: dict[int, FakeOnboard], before: dict[int, int]
+) -> None:
+    """No fake heard a mission since it had heard `before[uav]` of them."""
     # A marker sent now through the same router arrives after anything the command put
     # before it exited (its session's close flushes): once every fake has the marker,
     # a put from the command would have been seen.

@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
-from fleet.mission.messages import AssignmentReport, MissionProgress, TargetOutcome, UavState
+from fleet.mission.messages import (
+    AssignmentReport,
+    MissionProgress,
+    TargetOutcome,
+    UavResult,
+    UavState,
+)
 from fleet.mission.phase import Phase
 from ground.mission_outcome import MissionOutcome
 from ground.mission_summary import summary_lines
@@ -102,3 +108,21 @@ def test_a_phase_of_a_later_mission_says_nothing_about_this_one() -> None:
     outcome = _two_committed()
     outcome.note_state(_state(101, Phase.ABORTED, 5))
     assert outcome.target_states()[0]["state"] == "assigned"
+
+
+def test_a_target_no_uav_has_a_route_to_is_unserved_with_that_reason() -> None:
+    targets = TARGETS[:2]
+    outcome = MissionOutcome(mission=4, team=(74, 112), targets=targets)
+    outcome.results = {
+        74: UavResult(4, 74, (30.0, None)),
+        112: UavResult(4, 112, (40.0, None)),
+    }
+    report = AssignmentReport(4, 74, 0, {74: 0}, (1,), (74, 112), "d")
+    outcome.assignments = {
+        74: report,
+        112: AssignmentReport(4, 112, None, {74: 0}, (1,), (74, 112), "d"),
+    }
+    states = {s["index"]: s for s in outcome.target_states()}
+    assert states[1]["state"] == "unserved"
+    assert states[1]["reason"] == "no route around the no-fly zones reaches it"
+    assert outcome.succeeded  # the team did what it could

@@ -14,7 +14,12 @@ from fleet.mission.key_space import KeySpace, checked_prefix, space_of
 
 SAMPLE_IDS = {reg.UAV_ID: 74, reg.MISSION_ID: 5, reg.INDEX: 3}
 #: Structs of messages.py that only travel inside another (or decode part of one).
-NESTED = {messages.Target, messages.MissionProgress, messages.AssignmentHeader}
+NESTED = {
+    messages.Target,
+    messages.MissionProgress,
+    messages.AssignmentHeader,
+    messages.NoFlyZone,
+}
 
 
 def _name(spec: KeySpec) -> str:

@@ -16,6 +16,7 @@ ERRORS = {
     StatusKind.OPM_REFUSED,
     StatusKind.MISSION_REFUSED,
     StatusKind.CANNOT_FLY,
+    StatusKind.ZONE_INCURSION,
 }
 WARNINGS = {
     StatusKind.WARNING,

@@ -10,6 +10,7 @@ import math
 import threading
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from importlib.resources import files
 
@@ -22,6 +23,7 @@ from fleet.mission.messages import (
     AssignmentReport,
     CommandResult,
     MissionTargets,
+    NoFlyZone,
     UavResult,
     UavState,
 )
@@ -87,10 +89,19 @@ def _fly(aircraft: LinkedAutopilot, stop: threading.Event) -> None:
 
 @pytest.fixture
 def world() -> Iterator[World]:
+    with running_world() as opened:
+        yield opened
+
+
+@contextmanager
+def running_world(zones: tuple[NoFlyZone, ...] = ()) -> Iterator[World]:
+    """The single-UAV scenario in memory; the simulator logs incursions into `zones`."""
     scenario = resolve_scenario("single_uav")
     autopilot = SimulatedAutopilot(
         scenario.uav(UAV),
-        AutopilotSettings(telemetry_hz=5.0, limits=scenario.limits, wind=scenario.wind),
+        AutopilotSettings(
+            telemetry_hz=5.0, limits=scenario.limits, wind=scenario.wind, zones=zones
+        ),
     )
     program_onboard, program_sim = memory_link_pair("program")
     payload_onboard, payload_sim = memory_link_pair("payload")

@@ -13,6 +13,7 @@ from fleet.mission.messages import (
     MissionAbort,
     MissionProgress,
     MissionTargets,
+    NoFlyZone,
     StatusText,
     Target,
     UavResult,
@@ -212,3 +213,24 @@ def test_panels_asked_for_wrongly_say_why(tmp_path: Path) -> None:
         render(timeline, tmp_path / "x.png", at=["reached"])
     with pytest.raises(PlotError, match="mission 9 is not in the recording"):
         render(timeline, tmp_path / "x.png", mission=9)
+
+
+def test_the_mission_s_zones_are_read_and_drawn_under_the_tracks(tmp_path: Path) -> None:
+    zone = NoFlyZone(
+        ring=((35.71, -120.78), (35.71, -120.77), (35.715, -120.77), (35.715, -120.78)),
+        name="town",
+    )
+    zoned = MissionTargets(5, TEAM, TARGETS, zones=(zone,))
+    zoned_message = message(1.0, "fleet/mission/5/targets", zoned)
+    messages = [
+        zoned_message if m.topic == "fleet/mission/5/targets" else m for m in mission_messages()
+    ]
+    timeline = build_timeline(messages)
+    assert timeline.missions[0].zones == (zone,)
+    plain = render(build_timeline(mission_messages()), tmp_path / "plain.png", at=["sent"])
+    with_zone = render(timeline, tmp_path / "zones.png", at=["sent"])
+    assert with_zone.read_bytes() != plain.read_bytes()
+    # A zone that is no polygon is an undecodable record, not a crash.
+    bowtie = NoFlyZone(ring=((35.7, -120.7), (35.8, -120.6), (35.8, -120.7), (35.7, -120.6)))
+    bad = message(1.0, "fleet/mission/6/targets", MissionTargets(6, TEAM, TARGETS, zones=(bowtie,)))
+    assert build_timeline([bad]).undecodable == 1

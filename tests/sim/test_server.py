@@ -37,6 +37,7 @@ from fleet.piccolo.telemetry import Telemetry, decode_telemetry, encode_telemetr
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint, decode_waypoint, encode_waypoint
 from fleet.sim.autopilot import (
+    DEFAULT_TELEMETRY_HZ,
     STEP_MS,
     AutopilotSettings,
     ProgramConnection,
@@ -55,8 +56,12 @@ SINGLE = shipped_scenario("single_uav")
 HEAD_ON = shipped_scenario("head_on")
 
 
-def autopilot_for(scenario: Scenario, index: int = 0, **kwargs: float) -> SimulatedAutopilot:
-    settings_ = AutopilotSettings(limits=scenario.limits, wind=scenario.wind, **kwargs)
+def autopilot_for(
+    scenario: Scenario, index: int = 0, telemetry_hz: float = DEFAULT_TELEMETRY_HZ
+) -> SimulatedAutopilot:
+    settings_ = AutopilotSettings(
+        limits=scenario.limits, wind=scenario.wind, telemetry_hz=telemetry_hz
+    )
     return SimulatedAutopilot(scenario.uavs[index], settings_)
 
 

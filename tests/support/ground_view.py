@@ -34,6 +34,8 @@ class GroundView:
         #: Every TargetOutcome each UAV published, in order.
         self.outcomes: dict[int, list[TargetOutcome]] = {}
         self.status: dict[int, list[str]] = {}
+        #: Every status message each UAV sent, whole (its kind, severity, mission).
+        self.status_messages: dict[int, list[StatusText]] = {}
         self.subscriber = session.declare_subscriber(SPACE.everything, self.on_sample)
 
     def on_sample(self, sample: zenoh.Sample) -> None:
@@ -60,8 +62,9 @@ class GroundView:
                 result = msgspec.json.decode(data, type=UavResult)
                 self.results[result.uav] = result
             elif key.endswith("/status"):
-                text = msgspec.json.decode(data, type=StatusText).text
-                self.status.setdefault(uav_id_of(key), []).append(text)
+                status = msgspec.json.decode(data, type=StatusText)
+                self.status.setdefault(uav_id_of(key), []).append(status.text)
+                self.status_messages.setdefault(uav_id_of(key), []).append(status)
 
     def latest_track(self, uav: int) -> int | None:
         with self.lock:

@@ -225,6 +225,8 @@ function render() {
 
 function drawMap() {
   const scale = 1 / pixelsPerMetre();
+  drawZones();
+  drawRoutes();
   drawTrails();
   drawAssignments(scale);
   drawTargets(scale);
@@ -296,9 +298,9 @@ function drawAssignments(scale) {
     const b = toXY(target.lat, target.lon);
     el('line', {
       class: 'assignment', x1: a[0], y1: a[1], x2: b[0], y2: b[1], stroke: colourOf(u.id),
-      'data-target-index': t.index, ...uavAttributes(u),
+      'data-target-index': t.index, 'data-routed': String(routed(u)), ...uavAttributes(u),
     }, layer);
-    const togo = distance(a, b);
+    const togo = routeLength(u, a, b);
     const eta = u.ground_speed ? togo / u.ground_speed : Infinity;
     // Beside the UAV, on the side away from its line (a label half-way along the line
     // would cover a short line's target).
@@ -765,7 +767,7 @@ function sendTargets() {
   confirmThen(
     `Send ${targets.length} target(s) to the team of ${members.length} UAV(s): ${members.join(', ')}?`,
     sendWarnings(members, targets.length).join(' '),
-    () => command({ cmd: 'send', team: members, targets }),
+    () => command({ cmd: 'send', team: members, targets, zones: zonesToSend() }),
   );
 }
 
@@ -850,7 +852,9 @@ function setUpMap() {
     applyView();
   });
   svg.addEventListener('pointerup', (event) => {
-    if (press && !press.moved) addTargetAt(event.clientX, event.clientY);
+    if (press && !press.moved && !addZoneVertexAt(event.clientX, event.clientY)) {
+      addTargetAt(event.clientX, event.clientY);
+    }
     press = null;
     svg.classList.remove('panning');
     render();
@@ -898,4 +902,5 @@ function setUpPanel() {
 
 setUpMap();
 setUpPanel();
+setUpZones();
 connect();

@@ -1,0 +1,79 @@
+"""Approach times around no-fly zones: the route fixes the geometry, the model the timing.
+
+With no-fly zones, a target's time is the time of a route that stays out of every zone
+inflated by the turn radius at the aircraft's speed plus `ZONE_MARGIN_M`
+(fleet.geo.visibility.ZoneMap): the approach from the aircraft's position and heading
+to the route's first point is the approach model's (the LP, or its Dubins fallback,
+exactly as for a target in open air), and the legs after it are straight legs at that
+speed (`leg_time`). Where the straight line is clear, the route is the target alone
+and the time is the model's, as without zones. A target no route reaches, or whose
+route turns more often than the autopilot has waypoints for it (`MAX_ROUTE_TURNS`),
+gets an infinite time: published as None, so the team leaves it `unserved` unless
+another UAV reaches it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from fleet.geo.aircraft import AircraftLimits
+from fleet.geo.visibility import Route, ZoneMap, legs_time
+from fleet.geo.zones import Point, Ring
+
+__all__ = ["MAX_ROUTE_TURNS", "ZONE_MARGIN_M", "RoutedTargets", "route_targets", "zone_map"]
+
+#: Beyond the turn radius, how far a route keeps from a zone (m): GPS error, the
+#: autopilot's corner cutting within its acceptance radius, a gust.
+ZONE_MARGIN_M = 40.0
+#: Turns a route may have: one autopilot waypoint each (onboard.route_flight).
+MAX_ROUTE_TURNS = 9
+
+
+def zone_map(zones: Sequence[Ring], limits: AircraftLimits, speed: float) -> ZoneMap:
+    """The zones inflated for an aircraft flying at `speed` (m/s)."""
+    airspeed = limits.clamp_airspeed(speed)
+    return ZoneMap(zones, limits.turn_radius(airspeed) + ZONE_MARGIN_M)
+
+
+@dataclass(frozen=True)
+class RoutedTargets:
+    """Per target: the point the approach model is asked for (the route's first), the
+    time of the legs after it, and the route (None: unreachable)."""
+
+    aims: tuple[Point, ...]
+    rest_s: tuple[float, ...]
+    routes: tuple[Route | None, ...]
+
+    def time(self, index: int, approach_s: float) -> float:
+        """The whole route's time, given the approach model's time to its first point."""
+        return approach_s + self.rest_s[index]
+
+
+def route_targets(
+    position: Point,
+    velocity: Point,
+    targets: Sequence[Point],
+    zones: Sequence[Ring],
+    limits: AircraftLimits,
+    wind: Point = (0.0, 0.0),
+) -> RoutedTargets:
+    """Routes from `position` to every target around `zones` (local metres); the legs
+    after the first point timed in `wind` (m/s east, north; still air by default)."""
+    speed = limits.clamp_airspeed(math.hypot(*velocity))
+    zone_routes = zone_map(zones, limits, speed)
+    aims: list[Point] = []
+    rest: list[float] = []
+    routes: list[Route | None] = []
+    for target in targets:
+        route = zone_routes.route(position, target)
+        if route is None or len(route.points) - 1 > MAX_ROUTE_TURNS:
+            aims.append(target)
+            rest.append(math.inf)
+            routes.append(None)
+            continue
+        aims.append(route.points[0])
+        rest.append(legs_time(route.points, speed, wind))
+        routes.append(route)
+    return RoutedTargets(tuple(aims), tuple(rest), tuple(routes))

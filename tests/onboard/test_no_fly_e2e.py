@@ -1,0 +1,112 @@
+"""No-fly zones end to end: the simulator over a real serial link (socket://) logging
+incursions from its own positions (`fleet sim --no-fly`), the onboard module as its own
+process, a real Zenoh router, and the real `ground-cli send-targets --no-fly`."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from importlib.resources import files
+from pathlib import Path
+
+import pytest
+
+from fleet.files.targets_io import read_targets, write_targets
+from fleet.files.zones_file import encode_zones
+from fleet.geo.mercator import MercatorProjection
+from fleet.mission.messages import NoFlyZone
+from fleet.mission.phase import Phase, Severity
+from fleet.mission.status_kind import StatusKind
+from onboard.route_flight import ROUTE_WAYPOINTS
+from onboard.target_flight import TARGET_WAYPOINT
+from tests.conftest import Ground
+from tests.support.processes import Child, Fleet
+from tests.support.waiting import wait_until
+
+pytestmark = pytest.mark.e2e
+
+#: The single-UAV scenario's local plane: 112 starts at (-2000, 0) flying east at 22 m/s;
+#: its target 1 is at (-68, -518).
+PLANE = MercatorProjection(35.72, -120.765)
+#: A box across the straight line from the start to target 1, and across the course.
+BETWEEN = ((-800, -700), (-400, -700), (-400, 100), (-800, 100))
+#: A box around the start: the aircraft is inside it when the mission arrives.
+AROUND_START = ((-2600, -300), (-1200, -300), (-1200, 300), (-2600, 300))
+CLI_TIMEOUT_S = 120.0
+
+
+def zone(corners: tuple[tuple[int, int], ...], name: str) -> NoFlyZone:
+    return NoFlyZone(ring=tuple(PLANE.to_latlon(x, y) for x, y in corners), name=name)
+
+
+def files_for(tmp_path: Path, zones: tuple[NoFlyZone, ...]) -> tuple[Path, Path]:
+    targets = read_targets(str(files("fleet") / "scenarios" / "single_uav_targets.bin"))
+    targets_path, zones_path = tmp_path / "target.bin", tmp_path / "zones.geojson"
+    write_targets(targets_path, targets[1:2])
+    zones_path.write_bytes(encode_zones(zones))
+    return targets_path, zones_path
+
+
+def send(ground: Ground, targets: Path, zones: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [
+            sys.executable, "-m", "ground.cli", "--connect", ground.router, "send-targets",
+            str(targets), "--no-fly", str(zones), "--team", "112", "--wait", "--json",
+        ],
+        capture_output=True, text=True, timeout=CLI_TIMEOUT_S, check=False,
+    )  # fmt: skip
+
+
+def sim_child(fleet: Fleet) -> Child:
+    return next(c for c in fleet.children if c.name == "fleet sim")
+
+
+def test_a_target_behind_a_zone_is_reached_with_no_incursion(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    targets, zones = files_for(tmp_path, (zone(BETWEEN, "between"),))
+    endpoints = fleet.sim("single_uav", 10.0, 5.0, "--no-fly", str(zones))
+    fleet.onboard(112, endpoints[112], ground.router)
+    seen = ground.seen
+    wait_until(lambda: 112 in seen.telemetry, 30.0, "telemetry from UAV 112")
+    done = send(ground, targets, zones)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["agreed"] is True
+    assert any("1 routed around no-fly zones" in s for s in seen.statuses(112))
+    wait_until(
+        lambda: any(o.phase == Phase.REACHED for o in seen.outcomes_of(112)),
+        120.0,
+        "target reached",
+    )
+    flown = seen.tracks[112]
+    assert ROUTE_WAYPOINTS[0] in flown and TARGET_WAYPOINT in flown
+    assert flown.index(ROUTE_WAYPOINTS[0]) < flown.index(TARGET_WAYPOINT)
+    # The simulator's own account, from every integration step of the flight.
+    sim = sim_child(fleet)
+    assert sim.stop() == 0
+    assert "no-fly incursions: UAV 112: 0" in "\n".join(sim.history)
+    assert not any("entered no-fly zone" in line for line in sim.history)
+
+
+def test_an_aircraft_inside_a_zone_is_an_error_on_the_ground_and_in_the_simulator_log(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    targets, zones = files_for(tmp_path, (zone(AROUND_START, "start"),))
+    endpoints = fleet.sim("single_uav", 10.0, 5.0, "--no-fly", str(zones))
+    sim_child(fleet).wait_for_line(lambda s: "UAV 112 entered no-fly zone 0 (start)" in s, 30.0)
+    fleet.onboard(112, endpoints[112], ground.router)
+    seen = ground.seen
+    wait_until(lambda: 112 in seen.telemetry, 30.0, "telemetry from UAV 112")
+    done = send(ground, targets, zones)
+    assert done.returncode == 0, done.stderr
+
+    def incursions() -> list[str]:
+        return [
+            m.text
+            for m in seen.status_messages.get(112, [])
+            if m.kind is StatusKind.ZONE_INCURSION and m.severity is Severity.ERROR
+        ]
+
+    wait_until(lambda: bool(incursions()), 30.0, "the incursion error")
+    assert "inside no-fly zone 0 (start)" in incursions()[0]
