@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from fleet.geo.mercator import MercatorProjection
+from fleet.geo.wind import CALM_AIR, Wind
 from fleet.mission.messages import MissionTargets
 from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock
@@ -33,15 +34,18 @@ class ApproachPlan:
     planning_budget_s: float = 2.0
     _request: PlanRequest | None = None  #: the plan asked for the current mission
 
-    def start(self, targets: MissionTargets, gps: GpsBlock) -> bool:
-        """Ask for the approach times from `gps` to `targets`; False if the planner refused."""
+    def start(self, targets: MissionTargets, gps: GpsBlock, wind: Wind = CALM_AIR) -> bool:
+        """Ask for the approach times from `gps` to `targets` in `wind` (the smoothed
+        estimate, onboard.wind_estimate); False if the planner refused."""
         projection = MercatorProjection(gps.lat, gps.lon)
         request = PlanRequest(
             position=(0.0, 0.0),
             velocity=(gps.vel_east, gps.vel_north),
             targets=tuple(projection.to_xy(t.lat, t.lon) for t in targets.targets),
             budget_s=self.budget(targets),
-            cruise_speed=math.hypot(gps.vel_east, gps.vel_north),
+            # The airspeed held: the GPS gives the ground velocity, the wind the rest.
+            cruise_speed=math.hypot(gps.vel_east - wind.east, gps.vel_north - wind.north),
+            wind=wind,
         )
         # The planner drops a run still under way for an older mission: its answer would
         # be that mission's approach times.

@@ -202,12 +202,28 @@ def dubins_time_in_wind(
     # The path length changes at most as fast as the virtual target moves (|w|) except
     # where it jumps up (the target entering a turn circle), so `excess` falls at most at
     # 1 + |w| / V a second: a step of excess / that can never pass the first root.
+    # A path can always be lengthened, so the arrival is the first t with excess <= 0.
     rate = 1.0 + wind.speed / speed
     t = 0.0
     gap = excess(t)
     for _ in range(_ROOT_STEPS):
+        if gap <= 0.0:
+            break
         if gap <= _ROOT_TOLERANCE_S:
             return t
+        before = t
         t += gap / rate
         gap = excess(t)
-    return t + max(gap, 0.0)
+    else:
+        return t + gap
+    # Jumped down across a discontinuity (the target leaving a turn circle): the first
+    # feasible time lies between the last step and this one.
+    for _ in range(60):
+        if t - before <= _ROOT_TOLERANCE_S:
+            break
+        middle = 0.5 * (before + t)
+        if excess(middle) > 0.0:
+            before = middle
+        else:
+            t = middle
+    return t

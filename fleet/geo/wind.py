@@ -51,6 +51,14 @@ class Wind(NamedTuple):
     def speed(self) -> float:
         return math.hypot(self.east, self.north)
 
+    def at_most(self, speed: float) -> Wind:
+        """This wind, scaled down to `speed` m/s if it is faster (its direction kept)."""
+        current = self.speed
+        if current <= speed:
+            return self
+        scale = speed / current
+        return Wind(self.east * scale, self.north * scale)
+
     def __bool__(self) -> bool:
         # A NamedTuple of two zeros is truthy; "is there any wind" reads better.
         return self.east != 0.0 or self.north != 0.0

@@ -85,3 +85,9 @@ def test_matches_the_simulators_straight_flight(bearing: float) -> None:
         state, target, wind=SimWind(north=wind.north, east=wind.east), acceptance_radius=1.0
     )
     assert flown == pytest.approx(straight_leg_time(bearing, 2999.0, V, wind), rel=2e-3)
+
+
+def test_at_most_keeps_the_direction() -> None:
+    assert Wind(3.0, 4.0).at_most(10.0) == Wind(3.0, 4.0)
+    capped = Wind(6.0, 8.0).at_most(5.0)
+    assert capped.east == pytest.approx(3.0) and capped.north == pytest.approx(4.0)
