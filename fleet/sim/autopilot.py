@@ -48,6 +48,7 @@ from fleet.sim.aircraft import step as aircraft_step
 from fleet.sim.flight_plan import FlightPlan, FlightPlanError, check_indices
 from fleet.sim.guidance import DEFAULT_ACCEPTANCE_RADIUS, GuidanceSettings, command_toward
 from fleet.sim.uav_spec import UavSpec
+from fleet.sim.weather import Weather, WeatherSpec
 
 logger = logging.getLogger(__name__)
 
@@ -101,7 +102,7 @@ class AutopilotSettings:
     telemetry_hz: float = DEFAULT_TELEMETRY_HZ
     acceptance_radius: float = DEFAULT_ACCEPTANCE_RADIUS
     limits: AircraftLimits = field(default_factory=AircraftLimits)
-    wind: Wind = CALM
+    wind: Wind = CALM  #: steady, reported exactly, unless the autopilot is given weather
 
     def __post_init__(self) -> None:
         if not 0.0 < self.telemetry_hz <= MAX_TELEMETRY_HZ:
@@ -122,7 +123,14 @@ def isa_atmosphere(alt: float) -> tuple[float, float, float]:
 class SimulatedAutopilot:
     """A Piccolo autopilot flying one aircraft of a scenario."""
 
-    def __init__(self, uav: UavSpec, settings: AutopilotSettings | None = None) -> None:
+    def __init__(
+        self,
+        uav: UavSpec,
+        settings: AutopilotSettings | None = None,
+        weather: WeatherSpec | None = None,
+    ) -> None:
+        """`weather` (drift, gusts, the reported estimate's lag and error:
+        fleet.sim.weather) replaces the settings' steady wind."""
         self.settings = AutopilotSettings() if settings is None else settings
         self.piccolo_id = uav.piccolo_id
         self.projection = MercatorProjection(uav.lat, uav.lon)
@@ -134,6 +142,8 @@ class SimulatedAutopilot:
             airspeed=uav.airspeed,
         )
         self.airspeed_command = uav.airspeed
+        spec = weather or WeatherSpec(mean=self.settings.wind)
+        self.weather = Weather(spec, uav.piccolo_id)
         self.guidance = GuidanceSettings(acceptance_radius=self.settings.acceptance_radius)
         self.plan = FlightPlan(uav.waypoints())
         first = self.plan.waypoints()[0]
@@ -169,18 +179,20 @@ class SimulatedAutopilot:
     def step(self) -> None:
         """Advance the simulation by one step (20 ms simulated)."""
         x, y, alt = self._target
+        wind = self.weather.wind
         command = command_toward(
             self.state,
             (x, y),
             alt,
             self.airspeed_command,
             self.settings.limits,
-            self.settings.wind,
+            wind,
             self.guidance,
         )
         self.state = aircraft_step(
-            self.state, command, self.settings.limits, self.settings.wind, STEP_MS / 1000.0
+            self.state, command, self.settings.limits, wind, STEP_MS / 1000.0
         )
+        self.weather.advance(STEP_MS / 1000.0)
         self.time_ms += STEP_MS
         if math.hypot(x - self.state.x, y - self.state.y) <= self.guidance.acceptance_radius:
             self._arrive()
@@ -234,9 +246,9 @@ class SimulatedAutopilot:
     def telemetry(self) -> Telemetry:
         """TELEMETRY_HI_RES of the current state at the current simulated time."""
         state = self.state
-        wind = self.settings.wind
         lat, lon = self.projection.to_latlon(state.x, state.y)
-        north, east = state.ground_velocity(wind)
+        north, east = state.ground_velocity(self.weather.wind)
+        reported = self.weather.estimate
         density, temperature, pressure = isa_atmosphere(state.alt)
         week, time_of_week = divmod(self.time_ms, _MS_PER_WEEK)
         heading_rate = state.heading_rate
@@ -261,8 +273,8 @@ class SimulatedAutopilot:
                 # The wire holds +-pi in an i16 of 1e-4 rad: 0-360 would not fit.
                 yaw=math.degrees(wrap_pi(state.heading)),
                 indicated_airspeed=state.airspeed * math.sqrt(density),
-                wind_south=-wind.north,
-                wind_west=-wind.east,
+                wind_south=-reported.north,
+                wind_west=-reported.east,
                 density_ratio=density,
                 outside_air_temp=round(temperature),
                 static_pressure=pressure,

@@ -148,14 +148,15 @@ def _build(args: argparse.Namespace) -> list[SimulatedAutopilot]:
         wind=scenario.wind,
     )
     logger.info(
-        "scenario %s (%s): %d aircraft, wind north %.1f east %.1f m/s",
+        "scenario %s (%s): %d aircraft, wind north %.1f east %.1f m/s%s",
         scenario.name,
         scenario.source,
         len(uavs),
         scenario.wind.north,
         scenario.wind.east,
+        "" if scenario.weather.steady else " drifting and gusting",
     )
-    return [SimulatedAutopilot(uav, settings) for uav in uavs]
+    return [SimulatedAutopilot(uav, settings, scenario.weather) for uav in uavs]
 
 
 def run(args: argparse.Namespace) -> int:
