@@ -16,8 +16,10 @@ then fly it from the same state, arriving within 10 m.
 3. Assignment: random teams and targets in a 10 m/s wind; the greedy assignment on
    still-air times and on wind times, each flown by the simulator: total and last
    arrival, same instances, same run.
+4. Speed: the model's solve time for 50 targets in calm air and in a 10 m/s wind,
+   interleaved in the same run (the ratio is the figure; the machine is shared).
 
-Run: .venv/bin/python -m bench.bench_prediction [--part still|wind|assignment]
+Run: .venv/bin/python -m bench.bench_prediction [--part still|wind|assignment|speed]
 """
 
 from __future__ import annotations
@@ -231,9 +233,41 @@ def assignment(instances: int, seed: int) -> None:
         )
 
 
+def speed(repeats: int = 7) -> None:
+    """Solve time of 50 targets, calm vs a 10 m/s wind, interleaved."""
+    limits = AircraftLimits(max_airspeed=AIRSPEED)
+    model = ApproachTimeModel(limits)
+    rng = random.Random(50)
+    targets = [polar(rng.uniform(0.0, 360.0), rng.uniform(500.0, 5000.0)) for _ in range(50)]
+    winds = {"calm": Wind(), "10 m/s": Wind(east=10.0)}
+    seconds: dict[str, list[float]] = {name: [] for name in winds}
+    lps: dict[str, int] = {}
+    for _ in range(repeats):
+        for name, wind in winds.items():
+            velocity = (wind.east, AIRSPEED)
+            started = time.perf_counter()
+            solutions = model.solve_detailed((0.0, 0.0), velocity, targets, wind=wind)
+            seconds[name].append(time.perf_counter() - started)
+            lps[name] = sum(sol.lps for sol in solutions)
+    radius = turn_radius(AIRSPEED, limits.bank_limit_deg)
+    for name, wind in winds.items():
+        started = time.perf_counter()
+        for target in targets * 20:
+            dubins_time_in_wind((0.0, 0.0), (0.0, AIRSPEED), target, radius, wind)
+        closed = (time.perf_counter() - started) / (20 * len(targets))
+        print(f"closed-form Dubins time, {name:<7}: {1e6 * closed:.0f} us a target")
+    calm = statistics.median(seconds["calm"])
+    for name in winds:
+        median = statistics.median(seconds[name])
+        print(
+            f"50 targets, {name:<7}: median {median:.3f} s ({1000 * median / 50:.1f} ms a "
+            f"target), {lps[name] / 50:.2f} LPs a target, x{median / calm:.2f} the calm time"
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--part", choices=("still", "wind", "assignment"), default=None)
+    parser.add_argument("--part", choices=("still", "wind", "assignment", "speed"), default=None)
     parser.add_argument("--instances", type=int, default=40)
     parser.add_argument("--seed", type=int, default=24)
     args = parser.parse_args()
@@ -243,6 +277,8 @@ def main() -> None:
         in_wind()
     if args.part in (None, "assignment"):
         assignment(args.instances, args.seed)
+    if args.part in (None, "speed"):
+        speed()
 
 
 if __name__ == "__main__":

@@ -29,11 +29,12 @@ onboard process.
 
 Every run ends with a time for every target. The model stops starting LPs once the
 request's budget has elapsed; targets it did not reach get the analytic Dubins time
-(`fleet.geo.dubins`), as do targets beyond the model's horizon, and `PlanResult.fallback`
-says which. An exception inside the model is logged and turned into a result with the
-Dubins time for every target and the exception in `error`; the model is then rebuilt
-before the next run, because a failure half-way through a bound update could leave the
-solver and the model's bookkeeping out of step.
+in the request's wind (`fleet.geo.dubins.dubins_time_in_wind`), as do targets beyond
+the model's horizon, and `PlanResult.fallback` says which. An exception inside the
+model is logged and turned into a result with the Dubins time for every target and
+the exception in `error`; the model is then rebuilt before the next run, because a
+failure half-way through a bound update could leave the solver and the model's
+bookkeeping out of step.
 """
 
 from __future__ import annotations
