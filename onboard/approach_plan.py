@@ -81,6 +81,11 @@ def plan_status(plan: PlanResult, mission: int | str) -> tuple[StatusKind, str]:
     if fallbacks:
         budget = plan.request.budget_s
         text += f"; {fallbacks} by the Dubins fallback (budget {budget:g} s)"
+    wind = plan.request.wind
+    if wind:
+        # As an operator reads a wind: where it blows from, degrees true.
+        origin = math.degrees(math.atan2(-wind.east, -wind.north)) % 360.0
+        text += f"; in a wind from {origin:03.0f} deg at {wind.speed:.1f} m/s"
     if plan.error:
         return StatusKind.SOLVER_DEGRADED, f"warning: {text}; solver error: {plan.error}"
     return StatusKind.APPROACH_TIMES, text

@@ -13,9 +13,12 @@ from fleet.mission.messages import (
     MissionTargets,
     UavResult,
 )
+from fleet.mission.status_kind import StatusKind
+from onboard.approach_plan import plan_status
 from onboard.core import (
     OnboardCore,
 )
+from onboard.planner_worker import PlanRequest, PlanResult
 from tests.onboard.core_harness import (
     TARGETS,
     TWO_TARGETS,
@@ -77,3 +80,15 @@ def test_the_plan_is_asked_in_the_smoothed_reported_wind() -> None:
     kept = math.exp(-2.0 / 20.0)
     assert second.wind.east == pytest.approx(6.0 * kept)
     assert second.wind.north == pytest.approx(2.0 * kept)
+
+
+def test_the_status_says_the_wind_planned_in() -> None:
+    request = PlanRequest((0.0, 0.0), (22.0, 0.0), ((1.0, 1.0),), 2.0, wind=Wind(east=10.0))
+    result = PlanResult(request, (1.0,), (False,), 0.05, 0.01)
+    kind, text = plan_status(result, 3)
+    assert kind is StatusKind.APPROACH_TIMES
+    assert text.endswith("; in a wind from 270 deg at 10.0 m/s")  # a westerly
+    calm = PlanResult(
+        PlanRequest((0.0, 0.0), (22.0, 0.0), ((1.0, 1.0),), 2.0), (1.0,), (False,), 0.05
+    )
+    assert "wind" not in plan_status(calm, 3)[1]
