@@ -73,29 +73,26 @@ bearings); it never binds where the LP is below the Dubins time (the turn relaxa
 or an aircraft that can speed up to max_airspeed). The bench's flown reference is a Dubins
 path by construction, so its "LP alone" rows are the figures that judge the model.
 
-Targets are solved nearest first by their closed-form Dubins time (0.1-0.2 ms for 50
-targets), so that when the budget runs out the targets left to the fallback are the
-far ones, least likely to be assigned to this aircraft. (A nearest-neighbour chain warm-
-starts each LP from a similar basis; on the benchmark's 50 ring targets it saved no LPs
-and no measurable time against this order.) Every solution carries its Dubins time, the
-planner's sanity check of the model (onboard.planner_worker).
+Targets are solved nearest first by their closed-form Dubins time (under 2 ms for 50
+targets in calm air, ~25 ms in wind), so that when the budget runs out the targets left
+to the fallback are the far ones, least likely to be assigned to this aircraft. (A
+nearest-neighbour chain of warm starts saved no LPs and no measurable time.) Every
+solution carries its Dubins time, the planner's sanity check of the model.
 
 Wind
 ----
-The model plans in the air mass (`onboard.approach_lp`): the aircraft's air velocity is
-its ground velocity minus the wind, the turn constraint and both 16-gons apply to it,
-and the target drifts through the air at minus the wind. The proofs above carry over
-with the wind in them: the bound before any LP is the exact first time the 16-gon,
-drifting with the wind, covers the target (`approach_lp.reach_time`); a refuted node's
-gap D proves t' >= t_k + D / (c + gauge(wind)); and the final straight leg is timed at
-its ground speed in the wind (`fleet.geo.wind`). The Dubins cap is the Dubins time in
-the wind (`fleet.geo.dubins.dubins_time_in_wind`). A wind estimate faster than
-`PLANNABLE_WIND_SHARE` of the airspeed is scaled down to it: no plan is flyable against
-a wind as fast as the aircraft, and an estimate that large is more likely wrong.
+The model plans in the air mass (`onboard.approach_lp`): the air velocity is the ground
+velocity minus the wind; the turn bound and both 16-gons apply to it; the target drifts
+through the air at minus the wind. The bound before any LP is the exact first time the
+drifting 16-gon covers the target (`approach_lp.reach_time`); a refuted node's gap D
+proves t' >= t_k + D / (c + gauge(wind)); the arrival inside the last step times the
+gap at the ground speed of a straight leg toward the target (`fleet.geo.wind`), an
+estimate as in calm air. The Dubins cap is the Dubins time in the wind. A wind faster
+than `PLANNABLE_WIND_SHARE` of the airspeed is scaled down to it: nothing is flyable
+against a wind as fast as the aircraft, and an estimate that large is likely wrong.
 
-Speeds are clamped into [min_airspeed, max_airspeed]: a reported air speed below the
-minimum (e.g. zero on the ground) is treated as min_airspeed along the reported
-direction, or east without one; one above the maximum as max_airspeed. Times assume the
+Speeds are clamped into [min_airspeed, max_airspeed] (a reported air speed of zero is
+min_airspeed along the reported direction, or east without one). Times assume the
 aircraft may fly at max_airspeed; if the autopilot holds a lower commanded airspeed,
 build the model with that as max_airspeed.
 
