@@ -304,3 +304,21 @@ def test_wind_faster_than_plannable_is_scaled_down(model: ApproachTimeModel) -> 
     with pytest.raises(ValueError, match="finite"):
         model.solve((0.0, 0.0), (V, 0.0), [(1.0, 0.0)], wind=Wind(math.nan, 0.0))
     assert capped.speed < LIMITS.min_airspeed
+
+
+@pytest.mark.parametrize("bearing", [30.0, 150.0, 210.0])
+def test_wind_lp_scan_still_finds_the_first_feasible_node(
+    model: ApproachTimeModel, bearing: float
+) -> None:
+    """The wind's jump bounds never skip a feasible node: every earlier node is refuted."""
+    wind = Wind(-9.0, 5.0)  # a headwind from ahead-left of an aircraft flying east
+    target = polar(2500.0, bearing)
+    (sol,) = model.solve_detailed((0.0, 0.0), (V - 9.0, 5.0), [target], wind=wind)
+    assert sol.status is TargetStatus.SOLVED and sol.node is not None
+    # The scan's own frame: air velocity (V, 0) east, so the heading frame is the plane's;
+    # a target on the right is mirrored, and the wind with it.
+    side = 1.0 if target[1] >= 0.0 else -1.0
+    model._set_target(target[0], abs(target[1]), (wind.east, side * wind.north))
+    gaps = [model._gap_at(k) for k in range(sol.node + 1)]
+    assert all(g is not None and g > 1e-2 for g in gaps[:-1])
+    assert gaps[-1] is not None and gaps[-1] <= 1e-2
