@@ -12,7 +12,8 @@ then fly it from the same state, arriving within 10 m.
    cases a wind). Predictors: the published time (the model in the wind, or its
    fallback where the model gives none, as `onboard.planner_worker` does), the
    closed-form Dubins time in the wind (the fallback alone), and the still-air Dubins
-   time at the airspeed (what a plan that ignores the wind says).
+   time at the airspeed (what a plan that ignores the wind says). A last row flies the
+   same cases in 10 m/s that drifts and gusts, planned in a biased reported estimate.
 3. Assignment: random teams and targets in a 10 m/s wind; the greedy assignment on
    still-air times and on wind times, each flown by the simulator: total and last
    arrival, same instances, same run.
