@@ -41,7 +41,7 @@ from fleet.sim.aircraft import step as aircraft_step
 from fleet.sim.guidance import STEP_S, GuidanceSettings, command_toward, fly_to_point
 from fleet.sim.weather import Weather, WeatherSpec
 from onboard.approach_model import ApproachTimeModel
-from onboard.planner_worker import fallback_time
+from onboard.planner_worker import MODEL_STATED_ERROR, fallback_time
 
 ARRIVAL_RADIUS_M = 10.0
 AIRSPEED = 22.0
@@ -102,18 +102,22 @@ def published(
     velocity: tuple[float, float],
     targets: list[tuple[float, float]],
     wind: Wind,
-) -> tuple[list[float], int]:
-    """The planner's answer: the model's times, the fallback's where it has none."""
+) -> tuple[list[float], int, float]:
+    """The planner's answer: the model's times, the fallback's where it has none; and how
+    far below the Dubins time (a share) the LP came at most (the sanity check's figure)."""
     solutions = model.solve_detailed((0.0, 0.0), velocity, targets, wind=wind)
     times = []
     fallbacks = 0
+    below = 0.0
     for sol, target in zip(solutions, targets, strict=True):
+        if sol.lp_time is not None and sol.dubins_time:
+            below = max(below, 1.0 - sol.lp_time / sol.dubins_time)
         if sol.time is None:
             fallbacks += 1
             times.append(fallback_time(limits, (0.0, 0.0), velocity, target, wind))
         else:
             times.append(sol.time)
-    return times, fallbacks
+    return times, fallbacks, below
 
 
 def in_wind() -> None:
@@ -136,6 +140,7 @@ def in_wind() -> None:
         worst = (0.0, 0.0, 0.0)
         started = time.perf_counter()
         fallbacks = 0
+        below = 0.0
         solve_s = 0.0
         for bearing, distance in wind_cases():
             target = polar(bearing, distance)
@@ -148,9 +153,10 @@ def in_wind() -> None:
                 max_time=3600.0,
             )
             solving = time.perf_counter()
-            (predicted,), fell = published(model, limits, velocity, [target], wind)
+            (predicted,), fell, under = published(model, limits, velocity, [target], wind)
             solve_s += time.perf_counter() - solving
             fallbacks += fell
+            below = max(below, under)
             closed = dubins_time_in_wind((0.0, 0.0), (0.0, AIRSPEED), target, radius, wind)
             still = dubins_time_to_point((0.0, 0.0), (0.0, AIRSPEED), target, radius)
             error = (predicted - flown) / flown
@@ -165,7 +171,8 @@ def in_wind() -> None:
             f"      ({len(wind_cases())} cases in {time.perf_counter() - started:.1f} s; "
             f"model {1000 * solve_s / len(wind_cases()):.1f} ms a target, {fallbacks} beyond "
             f"its 600 s horizon by the fallback; worst {100 * worst[0]:+.1f} % at bearing "
-            f"{worst[1]:.0f}, {worst[2] / 1000:.0f} km)"
+            f"{worst[1]:.0f}, {worst[2] / 1000:.0f} km; the LP at most {100 * below:.1f} % "
+            f"below the Dubins time, the sanity check flags {100 * MODEL_STATED_ERROR:.1f} %)"
         )
 
 
@@ -206,7 +213,7 @@ def in_weather() -> None:
         wind = Wind(east=reported.east, north=reported.north)
         true = weather.wind
         velocity = (true.east, AIRSPEED + true.north)
-        (predicted,), _ = published(model, limits, velocity, [target], wind)
+        (predicted,), _, _ = published(model, limits, velocity, [target], wind)
         flown = fly_in_weather(target, weather)
         errors.append((predicted - flown) / flown)
     print(row(f"{'10+':>5} {'model, gusts, estimate off':<32}", errors))
