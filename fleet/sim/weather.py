@@ -27,9 +27,9 @@ import math
 import random
 from dataclasses import dataclass, field
 
-from fleet.sim.aircraft import CALM, Wind
+from fleet.sim.aircraft import Wind
 
-__all__ = ["CALM_WEATHER", "DIRECTION_PERIOD_RATIO", "Weather", "WeatherSpec"]
+__all__ = ["DIRECTION_PERIOD_RATIO", "Weather", "WeatherSpec"]
 
 #: The direction's drift period over the speed's: irrational-ish, so they never lock.
 DIRECTION_PERIOD_RATIO = 1.37
@@ -139,6 +139,3 @@ class Weather:
         return Wind(
             north=self._estimate.north + self._bias[0], east=self._estimate.east + self._bias[1]
         )
-
-
-CALM_WEATHER = WeatherSpec(mean=CALM)
