@@ -13,7 +13,8 @@ then fly it from the same state, arriving within 10 m.
    fallback where the model gives none, as `onboard.planner_worker` does), the
    closed-form Dubins time in the wind (the fallback alone), and the still-air Dubins
    time at the airspeed (what a plan that ignores the wind says). A last row flies the
-   same cases in 10 m/s that drifts and gusts, planned in a biased reported estimate.
+   same cases in the shipped `windy` scenario's weather (10 m/s that drifts and gusts),
+   planned in its biased reported estimate.
 3. Assignment: random teams and targets in a 10 m/s wind; the greedy assignment on
    still-air times and on wind times, each flown by the simulator: total and last
    arrival, same instances, same run.
@@ -39,7 +40,8 @@ from fleet.sim.aircraft import AircraftState
 from fleet.sim.aircraft import Wind as SimWind
 from fleet.sim.aircraft import step as aircraft_step
 from fleet.sim.guidance import STEP_S, GuidanceSettings, command_toward, fly_to_point
-from fleet.sim.weather import Weather, WeatherSpec
+from fleet.sim.scenario import shipped_scenario
+from fleet.sim.weather import Weather
 from onboard.approach_model import ApproachTimeModel
 from onboard.planner_worker import MODEL_STATED_ERROR, fallback_time
 
@@ -176,14 +178,8 @@ def in_wind() -> None:
         )
 
 
-#: The gusty row: 10 m/s blowing east with the windy scenario's kind of weather.
-GUSTY = WeatherSpec(
-    mean=SimWind(north=0.0, east=10.0),
-    drift_speed=0.5,
-    drift_direction_deg=5.0,
-    gust=1.0,
-    estimate_error=0.5,
-)
+#: The gusty row's weather: the shipped windy scenario's (10 m/s blowing east).
+GUSTY = shipped_scenario("windy").weather
 
 
 def fly_in_weather(target: tuple[float, float], weather: Weather) -> float:
