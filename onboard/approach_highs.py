@@ -40,6 +40,7 @@ from onboard.approach_lp import (
     ApproachModelError,
     BoundChange,
     Column,
+    grid_times,
 )
 
 __all__ = ["HighsLp", "PointMassLp", "load_highs_core", "point_mass_lp"]
@@ -137,8 +138,9 @@ def point_mass_lp(limits: AircraftLimits, steps: Sequence[float]) -> PointMassLp
 
     Variables x, y, vx, vy on nodes 0..n, ax, ay on steps 0..n-1, the slack pair sx, sy
     per node (fixed to 0 on the node being tested, free elsewhere), the gap vector ex,
-    ey (target minus the tested node's position), the target tx, ty (fixed through its
-    bounds) and the objective `gap` >= 0, the 16-gon norm of (ex, ey). Node 0 is at the
+    ey (the target, drifted by the wind to node k's time, minus the tested node's
+    position), the target tx, ty and the wind wx, wy (fixed through their bounds, calm
+    here) and the objective `gap` >= 0, the 16-gon norm of (ex, ey). Node 0 is at the
     origin flying along +x at max speed. `onboard.approach_pyomo.build_point_mass` is
     the same model in Pyomo; a coefficient written as Pyomo computes it (0.5 * dt * dt).
     """
@@ -160,14 +162,18 @@ def point_mass_lp(limits: AircraftLimits, steps: Sequence[float]) -> PointMassLp
     for k in range(n):
         for nx, ny in NORMALS:
             lp.add_row([(("ax", k), nx), (("ay", k), ny)], -math.inf, a_cap)
-    for pos, gap, target, slack in (("x", "ex", "tx", "sx"), ("y", "ey", "ty", "sy")):
-        for k in range(n + 1):  # gap = target - pos[k] + slack[k]
+    times = grid_times(steps)
+    selection = (("x", "ex", "tx", "sx", "wx"), ("y", "ey", "ty", "sy", "wy"))
+    for pos, gap, target, slack, wind in selection:
+        for k in range(n + 1):  # gap = target - wind t_k - pos[k] + slack[k]
             terms = [((gap, 0), 1.0), ((target, 0), -1.0), ((pos, k), 1.0), ((slack, k), -1.0)]
+            if k:  # node 0: no drift yet
+                terms.append(((wind, 0), times[k]))
             lp.add_row(terms, 0.0, 0.0)
     for nx, ny in NORMALS:  # gap >= the 16-gon's facet distance
         lp.add_row([(("ex", 0), nx), (("ey", 0), ny), (("gap", 0), -1.0)], -math.inf, 0.0)
     # The heading frame puts the aircraft at the origin flying along +x.
-    for column in (("x", 0), ("y", 0), ("vy", 0), ("tx", 0), ("ty", 0)):
+    for column in (("x", 0), ("y", 0), ("vy", 0), ("tx", 0), ("ty", 0), ("wx", 0), ("wy", 0)):
         lp.bound(column, 0.0, 0.0)
     lp.bound(("vx", 0), limits.max_airspeed, limits.max_airspeed)
     lp.bound(("gap", 0), 0.0, math.inf)

@@ -1,6 +1,13 @@
 """The point-mass LP's shape, shared by the LP the onboard runs (`onboard.approach_highs`)
 and its Pyomo reference (`onboard.approach_pyomo`): the 16-gons, how a column is named
-and changed, and what the LP scan (`onboard.approach_model`) asks of either.
+and changed, and what the LP scan (`onboard.approach_model`) asks of either; and the
+16-gon gauge the scan proves its bounds with.
+
+Wind: the LP plans in the air mass. Its positions are the aircraft's in the air, and the
+target, fixed on the ground, drifts through the air at minus the wind: at node k it is at
+target - wind * t_k. The wind enters as two columns (`wx`, `wy`, fixed through their
+bounds like the target) with coefficient t_k in the rows that select node k, so a
+change of wind is again a change of bounds only.
 """
 
 from __future__ import annotations
@@ -20,6 +27,9 @@ __all__ = [
     "BoundChange",
     "Column",
     "LinearProgram",
+    "gauge",
+    "grid_times",
+    "reach_time",
 ]
 
 SIDES = 16
@@ -54,3 +64,34 @@ class LinearProgram(Protocol):
     def minimise(self) -> float | None:
         """The optimal objective, or None if HiGHS found no optimum."""
         ...
+
+
+def grid_times(steps: Sequence[float]) -> tuple[float, ...]:
+    """The time of every node (s): 0, then the running sum of `steps`, in this order, so
+    that both LPs get bit-identical coefficients."""
+    times = [0.0]
+    for dt in steps:
+        times.append(times[-1] + dt)
+    return tuple(times)
+
+
+def gauge(vector: tuple[float, float]) -> float:
+    """The 16-gon gauge max(n . v) over the facet normals: |v| to within 2 %, and >= 0."""
+    return max(nx * vector[0] + ny * vector[1] for nx, ny in NORMALS)
+
+
+def reach_time(offset: tuple[float, float], wind: tuple[float, float], v_cap: float) -> float:
+    """The first time (s) a point mass whose air velocity stays in the speed 16-gon
+    (inradius `v_cap`) can be on a ground point `offset` away, in `wind`: a lower bound
+    on any approach time, exact in closed form for the 16-gon.
+
+    Seen from the air the point is at offset - wind t, inside the 16-gon of radius
+    v_cap t when n . offset <= (v_cap + n . wind) t on every facet n. The wind must be
+    slower than `v_cap` (every facet then has a positive rate).
+    """
+    worst = 0.0
+    for nx, ny in NORMALS:
+        reach = nx * offset[0] + ny * offset[1]
+        if reach > 0.0:
+            worst = max(worst, reach / (v_cap + nx * wind[0] + ny * wind[1]))
+    return worst

@@ -73,18 +73,28 @@ bearings); it never binds where the LP is below the Dubins time (the turn relaxa
 or an aircraft that can speed up to max_airspeed). The bench's flown reference is a Dubins
 path by construction, so its "LP alone" rows are the figures that judge the model.
 
-Targets are solved nearest first by their closed-form Dubins time (0.1-0.2 ms for 50
-targets), so that when the budget runs out the targets left to the fallback are the
-far ones, least likely to be assigned to this aircraft. (A nearest-neighbour chain warm-
-starts each LP from a similar basis; on the benchmark's 50 ring targets it saved no LPs
-and no measurable time against this order.) Every solution carries its Dubins time, the
-planner's sanity check of the model (onboard.planner_worker).
+Targets are solved nearest first by their closed-form Dubins time (under 2 ms for 50
+targets in calm air, ~25 ms in wind), so that when the budget runs out the targets left
+to the fallback are the far ones, least likely to be assigned to this aircraft. (A
+nearest-neighbour chain of warm starts saved no LPs and no measurable time.) Every
+solution carries its Dubins time, the planner's sanity check of the model.
 
-Speeds are clamped into [min_airspeed, max_airspeed]: a reported speed below the minimum
-(e.g. zero on the ground) is treated as min_airspeed along the reported direction, or east
-without one; one above the maximum (a ground speed with tailwind) as max_airspeed. Wind is
-not modelled. Times assume the aircraft may fly at max_airspeed; if the autopilot holds a
-lower commanded airspeed, build the model with that as max_airspeed.
+Wind
+----
+The model plans in the air mass (`onboard.approach_lp`): the air velocity is the ground
+velocity minus the wind; the turn bound and both 16-gons apply to it; the target drifts
+through the air at minus the wind. The bound before any LP is the exact first time the
+drifting 16-gon covers the target (`approach_lp.reach_time`); a refuted node's gap D
+proves t' >= t_k + D / (c + gauge(wind)); the arrival inside the last step times the
+gap at the ground speed of a straight leg toward the target (`fleet.geo.wind`), an
+estimate as in calm air. The Dubins cap is the Dubins time in the wind. A wind faster
+than `PLANNABLE_WIND_SHARE` of the airspeed is scaled down to it: nothing is flyable
+against a wind as fast as the aircraft, and an estimate that large is likely wrong.
+
+Speeds are clamped into [min_airspeed, max_airspeed] (a reported air speed of zero is
+min_airspeed along the reported direction, or east without one). Times assume the
+aircraft may fly at max_airspeed; if the autopilot holds a lower commanded airspeed,
+build the model with that as max_airspeed.
 
 Solvers
 -------
@@ -106,17 +116,21 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from fleet.geo.aircraft import AircraftLimits
-from fleet.geo.dubins import dubins_path_length
+from fleet.geo.dubins import dubins_time_in_wind
+from fleet.geo.wind import CALM_AIR, Wind, ground_speed_along
 from onboard.approach_highs import HighsLp
 from onboard.approach_lp import (
-    NORMALS,
     SPEED_INRADIUS,
     ApproachModelError,
     BoundChange,
     LinearProgram,
+    gauge,
+    grid_times,
+    reach_time,
 )
 
 __all__ = [
+    "PLANNABLE_WIND_SHARE",
     "ApproachModelError",
     "ApproachTimeModel",
     "LpBackend",
@@ -132,6 +146,8 @@ logger = logging.getLogger(__name__)
 # primal feasibility tolerance on a km-scale model leaves residuals far below this.
 _ARRIVAL_TOLERANCE_M = 1e-2
 _DEFAULT_LIMITS = AircraftLimits()
+#: The largest wind, as a share of the airspeed, the model plans with (module docstring).
+PLANNABLE_WIND_SHARE = 0.8
 
 
 class TargetStatus(enum.Enum):
@@ -152,7 +168,7 @@ class TargetSolution:
     lps: int  # LPs solved for this target
     node: int | None = None  # first node on the target: the arrival-step MILP's optimum
     lp_time: float | None = None  # the LP scan's own estimate, before the Dubins cap
-    dubins_time: float | None = None  # the closed-form Dubins time at the current speed
+    dubins_time: float | None = None  # the closed-form Dubins time (in the wind)
 
     @property
     def solved(self) -> bool:
@@ -244,14 +260,12 @@ class ApproachTimeModel:
         self._steps = tuple(steps) if steps is not None else default_steps(horizon_s)
         if not self._steps or min(self._steps) <= 0.0:
             raise ValueError("time steps must be positive")
-        times = [0.0]
-        for dt in self._steps:
-            times.append(times[-1] + dt)
-        self._times = tuple(times)
+        self._times = grid_times(self._steps)
         self.backend = backend
         self.lp = _make_lp(backend, limits, self._steps)
         self._selected: int | None = None
         self._speed: float | None = None
+        self._wind: tuple[float, float] | None = None  # in the heading frame
         self.build_seconds = time.perf_counter() - started
         logger.debug(
             "approach model built: %d steps, horizon %.0f s, %.3f s",
@@ -286,8 +300,12 @@ class ApproachTimeModel:
         self.lp.set_bounds(changes)
         self._speed = speed
 
-    def _set_target(self, along: float, cross: float) -> None:
-        self.lp.set_bounds([(("tx", 0), along, along), (("ty", 0), cross, cross)])
+    def _set_target(self, along: float, cross: float, wind: tuple[float, float]) -> None:
+        changes: list[BoundChange] = [(("tx", 0), along, along), (("ty", 0), cross, cross)]
+        if wind != self._wind:
+            changes += [(("wx", 0), wind[0], wind[0]), (("wy", 0), wind[1], wind[1])]
+            self._wind = wind
+        self.lp.set_bounds(changes)
 
     def _select(self, node: int) -> None:
         changes: list[BoundChange] = []
@@ -296,11 +314,6 @@ class ApproachTimeModel:
         changes += [(("sx", node), 0.0, 0.0), (("sy", node), 0.0, 0.0)]
         self.lp.set_bounds(changes)
         self._selected = node
-
-    def _gauge_time(self, along: float, cross: float) -> float:
-        """Time to cover (along, cross) at max speed inside the speed 16-gon."""
-        reach = max(nx * along + ny * cross for nx, ny in NORMALS)
-        return max(reach, 0.0) / (SPEED_INRADIUS * self.limits.max_airspeed)
 
     def _first_node_at_or_after(self, t: float) -> int:
         return bisect.bisect_left(self._times, t - 1e-9)
@@ -314,6 +327,7 @@ class ApproachTimeModel:
         self,
         along: float,
         cross: float,
+        wind: tuple[float, float],
         deadline: float | None,
         cancel: threading.Event | None,
     ) -> TargetSolution:
@@ -323,13 +337,20 @@ class ApproachTimeModel:
             return deadline is not None and time.monotonic() >= deadline
 
         speed_cap = SPEED_INRADIUS * self.limits.max_airspeed
-        # Before any LP: node 0 is fixed, so its 16-gon distance is already a bound.
-        bound = self._gauge_time(along, cross)
+        # Before any LP: node 0 is fixed, so the drifting 16-gon already bounds the time.
+        bound = reach_time((along, cross), wind, speed_cap)
         if bound <= 0.0:
             return TargetSolution(0.0, TargetStatus.SOLVED, 0, node=0, lp_time=0.0)
-        self._set_target(along, cross)
+        # How fast a gap can close at most (the proof of a refuted node's bound), and
+        # how fast the final straight leg closes it (its ground speed in the wind).
+        closing_cap = speed_cap + gauge(wind)
+        final = SPEED_INRADIUS * ground_speed_along(
+            (along, cross), self.limits.max_airspeed, Wind(*wind)
+        )
+        self._set_target(along, cross, wind)
         node = self._first_node_at_or_after(bound)
         last_refuted: int | None = None
+        last_gap = math.inf
         lps = 0
         while True:
             if node >= len(self._times):
@@ -348,17 +369,18 @@ class ApproachTimeModel:
                 return TargetSolution(None, TargetStatus.SOLVER_ERROR, lps)
             if gap <= _ARRIVAL_TOLERANCE_M:
                 break
-            bound = max(bound, self._times[node] + gap / speed_cap)
-            last_refuted = node
+            bound = max(bound, self._times[node] + gap / closing_cap)
+            last_refuted, last_gap = node, gap
             node = max(node + 1, self._first_node_at_or_after(bound))
         # `node` is the MILP optimum. Bounds proven far from it can be loose (the
         # straight-line bound ignores the turn), so the arrival inside the last step is
         # taken from the gap at the node just before, solving it if the scan jumped it.
-        if last_refuted != node - 1 and not expired():
+        gap = last_gap if last_refuted == node - 1 else None
+        if gap is None and not expired():
             gap = self._gap_at(node - 1)
             lps += 1
-            if gap is not None:
-                bound = max(bound, self._times[node - 1] + gap / speed_cap)
+        if gap is not None:
+            bound = max(bound, self._times[node - 1] + gap / final)
         arrival = min(bound, self._times[node])
         return TargetSolution(arrival, TargetStatus.SOLVED, lps, node, arrival)
 
@@ -369,34 +391,42 @@ class ApproachTimeModel:
         targets: Sequence[tuple[float, float]],
         deadline: float | None = None,
         cancel: threading.Event | None = None,
+        wind: Wind = CALM_AIR,
     ) -> list[TargetSolution]:
         """Like `solve`, with the status of every target; `cancel` acts as a deadline."""
-        values = (*position, *velocity, *(c for target in targets for c in target))
+        values = (*position, *velocity, *wind, *(c for target in targets for c in target))
         if not all(math.isfinite(v) for v in values):
-            raise ValueError("position, velocity and targets must be finite")
-        vx, vy = velocity
+            raise ValueError("position, velocity, wind and targets must be finite")
+        # The aircraft's velocity through the air: what it turns and holds its speed in.
+        vx, vy = velocity[0] - wind.east, velocity[1] - wind.north
         reported = math.hypot(vx, vy)
         # Unit heading; east when the aircraft reports no velocity at all.
         hx, hy = (vx / reported, vy / reported) if reported > 1e-9 else (1.0, 0.0)
         speed = self.limits.clamp_airspeed(reported)
         radius = self.limits.turn_radius(speed)
+        wind = wind.at_most(PLANNABLE_WIND_SHARE * speed)
+        wind_along = wind.east * hx + wind.north * hy
+        wind_cross = -wind.east * hy + wind.north * hx
         self._set_state(speed)
-        local: list[tuple[float, float]] = []
+        local: list[tuple[float, float, tuple[float, float]]] = []
         for tx, ty in targets:
             dx = tx - position[0]
             dy = ty - position[1]
-            # Heading frame: x along the velocity, y to its left. The model is symmetric
-            # about the heading, so every target is mirrored to the left half-plane.
-            local.append((dx * hx + dy * hy, abs(-dx * hy + dy * hx)))
+            # Heading frame: x along the air velocity, y to its left. The model is
+            # symmetric about the heading, so every target is mirrored to the left
+            # half-plane, and the wind with it.
+            cross = -dx * hy + dy * hx
+            side = 1.0 if cross >= 0.0 else -1.0
+            local.append((dx * hx + dy * hy, abs(cross), (wind_along, side * wind_cross)))
         dubins = [
-            dubins_path_length((0.0, 0.0), 0.0, (along, cross), radius) / speed
-            for along, cross in local
+            dubins_time_in_wind((0.0, 0.0), (speed, 0.0), (along, cross), radius, Wind(*drift))
+            for along, cross, drift in local
         ]
         out: list[TargetSolution | None] = [None] * len(local)
         for i in sorted(range(len(local)), key=dubins.__getitem__):
-            along, cross = local[i]
+            along, cross, drift = local[i]
             sol = dataclasses.replace(
-                self._scan(along, cross, deadline, cancel), dubins_time=dubins[i]
+                self._scan(along, cross, drift, deadline, cancel), dubins_time=dubins[i]
             )
             # The Dubins path is flyable at the current speed, so the minimum time
             # cannot exceed it (see "Dubins cap" in the module docstring).
@@ -411,11 +441,14 @@ class ApproachTimeModel:
         velocity: tuple[float, float],
         targets: Sequence[tuple[float, float]],
         deadline: float | None = None,
+        wind: Wind = CALM_AIR,
     ) -> list[float | None]:
         """Minimum approach time (s) to each target.
 
-        Positions in metres (x east, y north), velocity in m/s. None for a target
+        Positions in metres (x east, y north), velocity over the ground and `wind` (the
+        air mass's velocity) in m/s. None for a target
         that cannot be reached within the horizon, or whose turn came after
         `deadline` (a time.monotonic() value) had passed.
         """
-        return [sol.time for sol in self.solve_detailed(position, velocity, targets, deadline)]
+        solutions = self.solve_detailed(position, velocity, targets, deadline, wind=wind)
+        return [sol.time for sol in solutions]

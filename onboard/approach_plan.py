@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from fleet.geo.mercator import MercatorProjection
+from fleet.geo.wind import CALM_AIR, Wind
 from fleet.mission.messages import MissionTargets
 from fleet.mission.no_fly import local_zones
 from fleet.mission.status_kind import StatusKind
@@ -34,15 +35,18 @@ class ApproachPlan:
     planning_budget_s: float = 2.0
     _request: PlanRequest | None = None  #: the plan asked for the current mission
 
-    def start(self, targets: MissionTargets, gps: GpsBlock) -> bool:
-        """Ask for the approach times from `gps` to `targets`; False if the planner refused."""
+    def start(self, targets: MissionTargets, gps: GpsBlock, wind: Wind = CALM_AIR) -> bool:
+        """Ask for the approach times from `gps` to `targets` in `wind` (the smoothed
+        estimate, onboard.wind_estimate); False if the planner refused."""
         projection = MercatorProjection(gps.lat, gps.lon)
         request = PlanRequest(
             position=(0.0, 0.0),
             velocity=(gps.vel_east, gps.vel_north),
             targets=tuple(projection.to_xy(t.lat, t.lon) for t in targets.targets),
             budget_s=self.budget(targets),
-            cruise_speed=math.hypot(gps.vel_east, gps.vel_north),
+            # The airspeed held: the GPS gives the ground velocity, the wind the rest.
+            cruise_speed=math.hypot(gps.vel_east - wind.east, gps.vel_north - wind.north),
+            wind=wind,
             zones=local_zones(projection, targets.zones),
         )
         # The planner drops a run still under way for an older mission: its answer would
@@ -85,6 +89,11 @@ def plan_status(plan: PlanResult, mission: int | str) -> tuple[StatusKind, str]:
         text += f"; {around} routed around no-fly zones"
         if unreachable:
             text += f"; no route around the no-fly zones to target(s) {', '.join(unreachable)}"
+    wind = plan.request.wind
+    if wind:
+        # As an operator reads a wind: where it blows from, degrees true.
+        origin = math.degrees(math.atan2(-wind.east, -wind.north)) % 360.0
+        text += f"; in a wind from {origin:03.0f} deg at {wind.speed:.1f} m/s"
     if plan.error:
         return StatusKind.SOLVER_DEGRADED, f"warning: {text}; solver error: {plan.error}"
     return StatusKind.APPROACH_TIMES, text

@@ -37,6 +37,7 @@ from onboard.approach_lp import (
     SPEED_INRADIUS,
     ApproachModelError,
     BoundChange,
+    grid_times,
 )
 
 __all__ = ["PyomoLp", "build_point_mass"]
@@ -50,7 +51,7 @@ def build_point_mass(limits: AircraftLimits, steps: Sequence[float]) -> pyo.Conc
     Variables x, y, vx, vy on nodes 0..n, ax, ay on steps 0..n-1; node 0 is fixed at the
     origin flying along +x at max speed (change vx[0]'s bounds for another speed, and
     see `along_velocity_bounds`). The selection part (slacks sx, sy, gap vector ex, ey,
-    target tx, ty and the objective `gap`) serves the LP scan; the bench's MILP
+    target tx, ty, wind wx, wy and the objective `gap`) serves the LP scan; the bench's MILP
     reference reuses the rest. `onboard.approach_highs.point_mass_lp` is the same LP,
     row for row.
     """
@@ -74,6 +75,9 @@ def build_point_mass(limits: AircraftLimits, steps: Sequence[float]) -> pyo.Conc
     m.ey = pyo.Var()
     m.tx = pyo.Var()  # target, fixed through its bounds
     m.ty = pyo.Var()
+    m.wx = pyo.Var()  # wind, fixed through its bounds
+    m.wy = pyo.Var()
+    times = grid_times(steps)
     m.gap = pyo.Var(bounds=(0.0, None))
 
     def pos_x(b: Any, k: int) -> Any:
@@ -98,11 +102,17 @@ def build_point_mass(limits: AircraftLimits, steps: Sequence[float]) -> pyo.Conc
         nx, ny = NORMALS[f]
         return nx * b.ax[k] + ny * b.ay[k] <= a_cap
 
+    # The target drifts through the air at minus the wind (`onboard.approach_lp`);
+    # node 0 has no drift term, as in the arrays.
     def select_x(b: Any, k: int) -> Any:
-        return b.ex == b.tx - b.x[k] + b.sx[k]
+        if k == 0:
+            return b.ex == b.tx - b.x[k] + b.sx[k]
+        return b.ex == b.tx - b.x[k] + b.sx[k] - times[k] * b.wx
 
     def select_y(b: Any, k: int) -> Any:
-        return b.ey == b.ty - b.y[k] + b.sy[k]
+        if k == 0:
+            return b.ey == b.ty - b.y[k] + b.sy[k]
+        return b.ey == b.ty - b.y[k] + b.sy[k] - times[k] * b.wy
 
     def gauge(b: Any, f: int) -> Any:
         nx, ny = NORMALS[f]
@@ -121,7 +131,7 @@ def build_point_mass(limits: AircraftLimits, steps: Sequence[float]) -> pyo.Conc
     m.objective = pyo.Objective(expr=m.gap, sense=pyo.minimize)
 
     # The heading frame puts the aircraft at the origin flying along +x.
-    for var in (m.x[0], m.y[0], m.vy[0], m.tx, m.ty):
+    for var in (m.x[0], m.y[0], m.vy[0], m.tx, m.ty, m.wx, m.wy):
         var.setlb(0.0)
         var.setub(0.0)
     m.vx[0].setlb(limits.max_airspeed)

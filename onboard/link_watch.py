@@ -1,4 +1,5 @@
-"""Watching the autopilot link: the latest telemetry, and whether it stopped coming.
+"""Watching the autopilot link: the latest telemetry, the wind it reports (smoothed),
+and whether it stopped coming.
 
 Telemetry silent for LINK_LOST_S counts as a lost link, said once when it happens and
 once when telemetry flows again; what a lost link does to a held target is the target
@@ -7,11 +8,12 @@ flight's (onboard.target_flight).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from onboard.state_report import Say
+from onboard.wind_estimate import WindEstimate
 
 #: With no telemetry for this long (wall seconds), the autopilot link counts as lost.
 LINK_LOST_S = 3.0
@@ -26,10 +28,12 @@ class LinkWatch:
     #: (an arrival, say) was not seen by telemetry.
     outages: int = 0
     _said_lost: bool = False
+    wind: WindEstimate = field(default_factory=WindEstimate)
 
     def on_telemetry(self, telemetry: Telemetry, now: float) -> None:
         self.telemetry = telemetry
         self.telemetry_at = now
+        self.wind.on_telemetry(telemetry, now)
         if self._said_lost:
             self._said_lost = False
             self.say(StatusKind.LINK_BACK, "autopilot link back: telemetry flowing again", now)

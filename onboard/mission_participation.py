@@ -191,7 +191,7 @@ class MissionParticipation:
     def _start_planning(self, now: float) -> None:
         gps = self.link.gps
         assert self.round is not None and gps is not None
-        if not self.own.start(self.round, gps, now):
+        if not self.own.start(self.round, gps, now, self.link.wind.value):
             self._decline(f"mission {self.round.mission}: the planner refused the request", now)
 
     def collect_plan(self, now: float) -> None:

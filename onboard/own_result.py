@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass
 
 from fleet.consensus.mission_round import MissionRound
+from fleet.geo.wind import CALM_AIR, Wind
 from fleet.mission.key_space import KeySpace
 from fleet.mission.lifecycle import Observation
 from fleet.mission.messages import UavResult
@@ -32,9 +33,11 @@ class OwnResult:
     life: MissionPhase
     say: Say
 
-    def start(self, mission_round: MissionRound, gps: GpsBlock, now: float) -> bool:
-        """Start computing the approach times; False if the planner refused."""
-        if not self.plan.start(mission_round.targets, gps):
+    def start(
+        self, mission_round: MissionRound, gps: GpsBlock, now: float, wind: Wind = CALM_AIR
+    ) -> bool:
+        """Start computing the approach times in `wind`; False if the planner refused."""
+        if not self.plan.start(mission_round.targets, gps, wind):
             return False
         self.say(
             StatusKind.COMPUTING,

@@ -29,11 +29,12 @@ onboard process.
 
 Every run ends with a time for every target. The model stops starting LPs once the
 request's budget has elapsed; targets it did not reach get the analytic Dubins time
-(`fleet.geo.dubins`), as do targets beyond the model's horizon, and `PlanResult.fallback`
-says which. An exception inside the model is logged and turned into a result with the
-Dubins time for every target and the exception in `error`; the model is then rebuilt
-before the next run, because a failure half-way through a bound update could leave the
-solver and the model's bookkeeping out of step.
+in the request's wind (`fleet.geo.dubins.dubins_time_in_wind`), as do targets beyond
+the model's horizon, and `PlanResult.fallback` says which. An exception inside the
+model is logged and turned into a result with the Dubins time for every target and
+the exception in `error`; the model is then rebuilt before the next run, because a
+failure half-way through a bound update could leave the solver and the model's
+bookkeeping out of step.
 """
 
 from __future__ import annotations
@@ -47,8 +48,9 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 from fleet.geo.aircraft import AircraftLimits
-from fleet.geo.dubins import dubins_time_to_point
+from fleet.geo.dubins import dubins_time_in_wind
 from fleet.geo.visibility import Route
+from fleet.geo.wind import CALM_AIR, Wind
 from onboard.native_thread import name_native_thread
 from onboard.route_plan import route_targets
 
@@ -61,14 +63,18 @@ logger = logging.getLogger(__name__)
 
 _JOIN_TIMEOUT_S = 5.0
 _DEFAULT_LIMITS = AircraftLimits()
-#: How much faster than the Dubins time at the same speed a model answer may honestly
-#: be, beyond `SANITY_MIN_TURN_RADII` turn radii: the turn relaxation's worst case (4 %)
-#: plus the speed 16-gon's (1.3 %), measured in docs/benchmarks.md. Faster is a defect.
+#: How much faster than the Dubins time at the same speed (in the same wind) a model
+#: answer may honestly be, beyond `SANITY_MIN_TURN_RADII` turn radii: the turn
+#: relaxation's worst case (4 %) plus the speed 16-gon's (1.3 %), measured in
+#: docs/benchmarks.md. Faster is a defect.
 MODEL_STATED_ERROR = 0.055
 #: Inside this many turn radii the relaxation is knowingly optimistic: no sanity check.
 SANITY_MIN_TURN_RADII = 3.0
 #: A cruise speed this close to the model's top speed reuses the model.
 CRUISE_SPEED_TOLERANCE = 0.5
+#: The largest wind, as a share of the airspeed, planned with: the model's own
+#: (`onboard.approach_model.PLANNABLE_WIND_SHARE`; a test checks they agree).
+PLANNABLE_WIND_SHARE = 0.8
 
 
 @dataclass(frozen=True)
@@ -85,15 +91,19 @@ class PlanRequest:
     #: No-fly zones (rings in the same local metres) every route keeps out of
     #: (onboard.route_plan); none: every time is the approach model's to the target.
     zones: tuple[tuple[tuple[float, float], ...], ...] = ()
+    #: The wind to plan in (the air mass's velocity, m/s); `velocity` is over the ground.
+    wind: Wind = CALM_AIR
 
     def __post_init__(self) -> None:
         # A list passed by the caller becomes a tuple, so the request stays immutable.
         object.__setattr__(self, "position", (float(self.position[0]), float(self.position[1])))
         object.__setattr__(self, "velocity", (float(self.velocity[0]), float(self.velocity[1])))
         object.__setattr__(self, "targets", tuple((float(x), float(y)) for x, y in self.targets))
-        values = (*self.position, *self.velocity, *(c for t in self.targets for c in t))
+        object.__setattr__(self, "wind", Wind(float(self.wind[0]), float(self.wind[1])))
+        values = [*self.position, *self.velocity, *self.wind]
+        values += [c for t in self.targets for c in t]
         if not all(math.isfinite(v) for v in values):
-            raise ValueError("position, velocity and targets must be finite")
+            raise ValueError("position, velocity, wind and targets must be finite")
         if not self.budget_s >= 0.0:
             raise ValueError(f"budget must be >= 0 s, got {self.budget_s}")
 
@@ -129,20 +139,28 @@ def fallback_time(
     position: tuple[float, float],
     velocity: tuple[float, float],
     target: tuple[float, float],
+    wind: Wind = CALM_AIR,
 ) -> float:
-    """Dubins time to `target` at the current airspeed, clamped to the flight envelope.
+    """Dubins time to `target` at the current airspeed in `wind`, clamped to the flight
+    envelope.
 
-    A reported speed outside [min_airspeed, max_airspeed] (zero on the ground, or a ground
-    speed with tailwind) is clamped like the model does; with no velocity at all the
-    heading is taken as east.
+    `velocity` is over the ground; the air velocity is it minus the wind. An air speed
+    outside [min_airspeed, max_airspeed] (zero on the ground) is clamped like the model
+    does, and so is the wind (`PLANNABLE_WIND_SHARE` of the speed); with no velocity at
+    all the heading is taken as east.
     """
-    reported = math.hypot(velocity[0], velocity[1])
+    air = (velocity[0] - wind.east, velocity[1] - wind.north)
+    reported = math.hypot(air[0], air[1])
     speed = limits.clamp_airspeed(reported)
     if reported > 1e-9:
-        flown = (velocity[0] * speed / reported, velocity[1] * speed / reported)
+        flown = (air[0] * speed / reported, air[1] * speed / reported)
     else:
         flown = (speed, 0.0)
-    return dubins_time_to_point(position, flown, target, limits.turn_radius(speed))
+    radius = limits.turn_radius(speed)
+    # The model's own share (onboard.approach_model.PLANNABLE_WIND_SHARE), not imported:
+    # that module loads HiGHS.
+    planned = wind.at_most(PLANNABLE_WIND_SHARE * speed)
+    return dubins_time_in_wind(position, flown, target, radius, planned)
 
 
 def _default_model(limits: AircraftLimits, horizon_s: float) -> ApproachTimeModel:
@@ -323,7 +341,12 @@ class PlannerWorker:
         if not request.zones:
             return self._plan_aims(request, started)
         routed = route_targets(
-            request.position, request.velocity, request.targets, request.zones, self._limits
+            request.position,
+            request.velocity,
+            request.targets,
+            request.zones,
+            self._limits,
+            request.wind,
         )
         result = self._plan_aims(replace(request, targets=routed.aims), started)
         times = tuple(routed.time(i, t) for i, t in enumerate(result.times))
@@ -346,6 +369,7 @@ class PlannerWorker:
                     request.targets,
                     deadline=deadline,
                     cancel=self._supersede,
+                    wind=request.wind,
                 )
         except Exception as exc:
             logger.exception("approach model failed; Dubins fallback for every target")
@@ -364,7 +388,9 @@ class PlannerWorker:
                 fallback.append(False)
             else:
                 times.append(
-                    fallback_time(self._limits, request.position, request.velocity, target)
+                    fallback_time(
+                        self._limits, request.position, request.velocity, target, request.wind
+                    )
                 )
                 fallback.append(True)
         stopped = self._cancel.is_set() or self._supersede.is_set()
@@ -388,7 +414,8 @@ class PlannerWorker:
     def _sanity_check(self, request: PlanRequest, solutions: Sequence[TargetSolution]) -> int:
         """Count (and log) model answers faster than the Dubins time by more than the
         model's stated error, where the check holds (beyond a few turn radii)."""
-        speed = self._limits.clamp_airspeed(math.hypot(*request.velocity))
+        air = (request.velocity[0] - request.wind.east, request.velocity[1] - request.wind.north)
+        speed = self._limits.clamp_airspeed(math.hypot(*air))
         near = SANITY_MIN_TURN_RADII * self._limits.turn_radius(speed)
         defects = []
         for i, (sol, target) in enumerate(zip(solutions, request.targets, strict=False)):

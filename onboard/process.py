@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import msgspec
 import zenoh
 
+from fleet.geo.wind import CALM_AIR, Wind
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.mission.messages import (
     BROADCAST,
@@ -264,7 +265,10 @@ class OnboardProcess:
             return
         telemetry, at = latest
         if telemetry.gps is not None:
-            self.planner.prepare(math.hypot(telemetry.gps.vel_east, telemetry.gps.vel_north))
+            # The airspeed held: the ground velocity less the wind the autopilot reports.
+            gps, sensor = telemetry.gps, telemetry.sensor
+            wind = Wind.from_piccolo(sensor.wind_south, sensor.wind_west) if sensor else CALM_AIR
+            self.planner.prepare(math.hypot(gps.vel_east - wind.east, gps.vel_north - wind.north))
         self.core.on_telemetry(telemetry, at)
 
     def _on_event(self, event: Event | None, now: float) -> None:

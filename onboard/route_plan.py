@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.visibility import Route, ZoneMap, legs_time
+from fleet.geo.wind import CALM_AIR, Wind
 from fleet.geo.zones import Point, Ring
 
 __all__ = ["MAX_ROUTE_TURNS", "ZONE_MARGIN_M", "RoutedTargets", "route_targets", "zone_map"]
@@ -57,11 +58,12 @@ def route_targets(
     targets: Sequence[Point],
     zones: Sequence[Ring],
     limits: AircraftLimits,
-    wind: Point = (0.0, 0.0),
+    wind: Wind = CALM_AIR,
 ) -> RoutedTargets:
     """Routes from `position` to every target around `zones` (local metres); the legs
-    after the first point timed in `wind` (m/s east, north; still air by default)."""
-    speed = limits.clamp_airspeed(math.hypot(*velocity))
+    after the first point timed in `wind` (still air by default). `velocity` is over the
+    ground: the airspeed held is what the wind does not account for."""
+    speed = limits.clamp_airspeed(math.hypot(velocity[0] - wind.east, velocity[1] - wind.north))
     zone_routes = zone_map(zones, limits, speed)
     aims: list[Point] = []
     rest: list[float] = []

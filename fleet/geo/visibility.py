@@ -14,8 +14,8 @@ vertices: its first or last leg keeps out of the zone itself, not of its inflati
 aircraft already inside a zone is not stranded there: its first leg ignores that zone.
 A goal no route reaches gets None.
 
-The time of a route is its legs' times (`leg_time`: a straight leg at a constant
-airspeed in a constant wind, still air by default); the approach to the route's first
+The time of a route is its legs' times (`fleet.geo.wind.leg_time`: a straight leg at a
+constant airspeed in a constant wind, still air by default); the approach to the route's first
 point is the approach model's (onboard.route_plan).
 """
 
@@ -27,30 +27,14 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from fleet.geo.wind import CALM_AIR, Wind, leg_time
 from fleet.geo.zones import EPSILON_M, Point, Ring, convex_hull, inflate
 
-__all__ = ["Route", "ZoneMap", "leg_time", "legs_time"]
+__all__ = ["Route", "ZoneMap", "legs_time"]
 
 
-def leg_time(a: Point, b: Point, airspeed: float, wind: Point = (0.0, 0.0)) -> float:
-    """Seconds to fly straight from `a` to `b` at `airspeed` (m/s) in a constant `wind`
-    (m/s, the air's velocity east and north), crabbing to hold the line; inf when the
-    wind is too strong to make way along it."""
-    dx, dy = b[0] - a[0], b[1] - a[1]
-    length = math.hypot(dx, dy)
-    if length == 0.0:
-        return 0.0
-    ux, uy = dx / length, dy / length
-    along = wind[0] * ux + wind[1] * uy
-    across = wind[0] * -uy + wind[1] * ux
-    if airspeed <= abs(across):
-        return math.inf
-    ground_speed = along + math.sqrt(airspeed * airspeed - across * across)
-    return length / ground_speed if ground_speed > 0.0 else math.inf
-
-
-def legs_time(points: Sequence[Point], airspeed: float, wind: Point = (0.0, 0.0)) -> float:
-    """Seconds along the polyline `points` (each leg by `leg_time`)."""
+def legs_time(points: Sequence[Point], airspeed: float, wind: Wind = CALM_AIR) -> float:
+    """Seconds along the polyline `points` (each leg by `fleet.geo.wind.leg_time`)."""
     return sum(leg_time(a, b, airspeed, wind) for a, b in itertools.pairwise(points))
 
 

@@ -49,6 +49,7 @@ from fleet.sim.aircraft import step as aircraft_step
 from fleet.sim.flight_plan import FlightPlan, FlightPlanError, check_indices
 from fleet.sim.guidance import DEFAULT_ACCEPTANCE_RADIUS, GuidanceSettings, command_toward
 from fleet.sim.uav_spec import UavSpec
+from fleet.sim.weather import Weather, WeatherSpec
 from fleet.sim.zone_log import IncursionLog
 
 logger = logging.getLogger(__name__)
@@ -103,7 +104,7 @@ class AutopilotSettings:
     telemetry_hz: float = DEFAULT_TELEMETRY_HZ
     acceptance_radius: float = DEFAULT_ACCEPTANCE_RADIUS
     limits: AircraftLimits = field(default_factory=AircraftLimits)
-    wind: Wind = CALM
+    wind: Wind = CALM  #: steady, reported exactly, unless the autopilot is given weather
     #: No-fly zones whose incursions the simulator logs (fleet.sim.zone_log).
     zones: tuple[NoFlyZone, ...] = ()
 
@@ -126,7 +127,14 @@ def isa_atmosphere(alt: float) -> tuple[float, float, float]:
 class SimulatedAutopilot:
     """A Piccolo autopilot flying one aircraft of a scenario."""
 
-    def __init__(self, uav: UavSpec, settings: AutopilotSettings | None = None) -> None:
+    def __init__(
+        self,
+        uav: UavSpec,
+        settings: AutopilotSettings | None = None,
+        weather: WeatherSpec | None = None,
+    ) -> None:
+        """`weather` (drift, gusts, the reported estimate's lag and error:
+        fleet.sim.weather) replaces the settings' steady wind."""
         self.settings = AutopilotSettings() if settings is None else settings
         self.piccolo_id = uav.piccolo_id
         self.projection = MercatorProjection(uav.lat, uav.lon)
@@ -138,6 +146,8 @@ class SimulatedAutopilot:
             airspeed=uav.airspeed,
         )
         self.airspeed_command = uav.airspeed
+        spec = weather or WeatherSpec(mean=self.settings.wind)
+        self.weather = Weather(spec, uav.piccolo_id)
         self.guidance = GuidanceSettings(acceptance_radius=self.settings.acceptance_radius)
         self.zone_log = IncursionLog(self.piccolo_id, self.projection, self.settings.zones)
         self.plan = FlightPlan(uav.waypoints())
@@ -174,18 +184,20 @@ class SimulatedAutopilot:
     def step(self) -> None:
         """Advance the simulation by one step (20 ms simulated)."""
         x, y, alt = self._target
+        wind = self.weather.wind
         command = command_toward(
             self.state,
             (x, y),
             alt,
             self.airspeed_command,
             self.settings.limits,
-            self.settings.wind,
+            wind,
             self.guidance,
         )
         self.state = aircraft_step(
-            self.state, command, self.settings.limits, self.settings.wind, STEP_MS / 1000.0
+            self.state, command, self.settings.limits, wind, STEP_MS / 1000.0
         )
+        self.weather.advance(STEP_MS / 1000.0)
         self.time_ms += STEP_MS
         self.zone_log.check(self.state.x, self.state.y, self.time_ms)
         if math.hypot(x - self.state.x, y - self.state.y) <= self.guidance.acceptance_radius:
@@ -240,9 +252,9 @@ class SimulatedAutopilot:
     def telemetry(self) -> Telemetry:
         """TELEMETRY_HI_RES of the current state at the current simulated time."""
         state = self.state
-        wind = self.settings.wind
         lat, lon = self.projection.to_latlon(state.x, state.y)
-        north, east = state.ground_velocity(wind)
+        north, east = state.ground_velocity(self.weather.wind)
+        reported = self.weather.estimate
         density, temperature, pressure = isa_atmosphere(state.alt)
         week, time_of_week = divmod(self.time_ms, _MS_PER_WEEK)
         heading_rate = state.heading_rate
@@ -267,8 +279,8 @@ class SimulatedAutopilot:
                 # The wire holds +-pi in an i16 of 1e-4 rad: 0-360 would not fit.
                 yaw=math.degrees(wrap_pi(state.heading)),
                 indicated_airspeed=state.airspeed * math.sqrt(density),
-                wind_south=-wind.north,
-                wind_west=-wind.east,
+                wind_south=-reported.north,
+                wind_west=-reported.east,
                 density_ratio=density,
                 outside_air_temp=round(temperature),
                 static_pressure=pressure,

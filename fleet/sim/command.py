@@ -156,15 +156,16 @@ def _build(args: argparse.Namespace) -> list[SimulatedAutopilot]:
         zones=read_zones(args.no_fly) if args.no_fly else scenario.zones,
     )
     logger.info(
-        "scenario %s (%s): %d aircraft, wind north %.1f east %.1f m/s, %d no-fly zones",
+        "scenario %s (%s): %d aircraft, wind north %.1f east %.1f m/s%s, %d no-fly zones",
         scenario.name,
         scenario.source,
         len(uavs),
         scenario.wind.north,
         scenario.wind.east,
+        "" if scenario.weather.steady else " drifting and gusting",
         len(settings.zones),
     )
-    return [SimulatedAutopilot(uav, settings) for uav in uavs]
+    return [SimulatedAutopilot(uav, settings, scenario.weather) for uav in uavs]
 
 
 def run(args: argparse.Namespace) -> int:

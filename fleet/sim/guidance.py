@@ -11,6 +11,9 @@ one decays with a time constant 1 / course_gain (2.5 s). The resulting path to a
 is a minimum-radius turn toward it followed by a straight line: the time-optimal (Dubins)
 path to a point outside the turning circle, the path an approach-time model predicts.
 
+In wind, a waypoint behind is turned to on the side the air mass favours (see
+`_turn_side_in_wind`); after the turn the course law above takes over.
+
 One case would defeat pure pursuit: a waypoint *inside* the circle the aircraft would
 turn on. Turning toward it forever orbits it without coming closer. So when the waypoint
 lies deeper inside that circle than half the acceptance radius, the aircraft flies
@@ -89,6 +92,8 @@ def bank_command(
     ground_speed = math.hypot(north, east)
     course = math.atan2(east, north) if ground_speed >= _MIN_GROUND_SPEED else state.heading
     error = wrap_pi(math.atan2(dx, dy) - course)
+    if abs(error) > 0.5 * math.pi and (wind.north or wind.east):
+        error = _turn_side_in_wind(state, dx, dy, wind, error)
 
     bank_limit = limits.bank_limit
     # The circle a limit turn toward the waypoint would fly. Its radius is taken at the
@@ -107,6 +112,22 @@ def bank_command(
     turn_rate = settings.course_gain * error
     bank = math.atan(turn_rate * state.airspeed / GRAVITY)
     return max(-bank_limit, min(bank_limit, bank))
+
+
+def _turn_side_in_wind(
+    state: AircraftState, dx: float, dy: float, wind: Wind, error: float
+) -> float:
+    """The course error to turn by, for a waypoint behind: the side is the air mass's.
+
+    Turning toward the waypoint's bearing over the ground would turn a crabbed aircraft
+    downwind for a waypoint nearly astern, the slow way (up to 20 % longer at 1 km in a
+    10 m/s crosswind). Seen from the air the waypoint drifts against the wind, so the
+    turn goes toward where it will be then, relative to the heading: the side of the
+    time-optimal (Dubins) path in the wind. In calm air this is the course's own side.
+    """
+    lead = math.hypot(dx, dy) / state.airspeed
+    ahead = wrap_pi(math.atan2(dx - wind.east * lead, dy - wind.north * lead) - state.heading)
+    return error if ahead * error >= 0.0 else math.copysign(abs(error), ahead)
 
 
 def command_toward(

@@ -9,6 +9,14 @@ Format (docs/simulator.md has the full description)::
     [wind]                                 # optional; the air mass's velocity, m/s
     north = 0.0
     east = 3.0
+    drift_speed = 1.0                      # optional weather (fleet.sim.weather):
+    drift_direction = 10.0                 #   slow drift (m/s, degrees) over
+    drift_period = 1800.0                  #   this period (s),
+    gust = 1.5                             #   gusts (m/s, standard deviation)
+    gust_time = 5.0                        #   lasting this long (s),
+    estimate_lag = 10.0                    #   the reported estimate's lag (s)
+    estimate_error = 0.5                   #   and bias (m/s, standard deviation),
+    seed = 0                               #   all drawn from this seed
 
     [aircraft]                             # optional; the flight envelope of every UAV
     min_airspeed = 15.0                    # m/s
@@ -52,6 +60,7 @@ from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
 from fleet.piccolo.waypoint import MAX_INDEX
 from fleet.sim.aircraft import Wind
 from fleet.sim.uav_spec import UavSpec
+from fleet.sim.weather import WeatherSpec
 
 __all__ = [
     "Scenario",
@@ -76,9 +85,20 @@ _Limit = Annotated[float, msgspec.Meta(ge=0.0, le=1000.0)]
 # The file's schema: msgspec refuses unknown keys (a misspelt `heading` would otherwise
 # silently mean north), wrong types (`heading = true` is a mistake, not 1 degree), NaN
 # and out-of-range numbers, and names the field in its error.
+_Positive = Annotated[float, msgspec.Meta(gt=0.0, le=1e6)]
+
+
 class _WindTable(msgspec.Struct, forbid_unknown_fields=True):
     north: _WindSpeed = 0.0
     east: _WindSpeed = 0.0
+    drift_speed: Annotated[float, msgspec.Meta(ge=0.0, le=100.0)] = 0.0
+    drift_direction: Annotated[float, msgspec.Meta(ge=0.0, le=180.0)] = 0.0
+    drift_period: _Positive = 1800.0
+    gust: Annotated[float, msgspec.Meta(ge=0.0, le=100.0)] = 0.0
+    gust_time: _Positive = 5.0
+    estimate_lag: _Positive = 10.0
+    estimate_error: Annotated[float, msgspec.Meta(ge=0.0, le=100.0)] = 0.0
+    seed: Annotated[int, msgspec.Meta(ge=0, le=2**63 - 1)] = 0
 
 
 class _AircraftTable(msgspec.Struct, forbid_unknown_fields=True):
@@ -133,6 +153,8 @@ class Scenario:
     #: No-fly zones (the `no_fly` GeoJSON file beside the scenario): the simulator logs
     #: every incursion into them (fleet.sim.zone_log).
     zones: tuple[NoFlyZone, ...] = ()
+    #: `wind` with its drift, gusts and the reported estimate's lag and error.
+    weather: WeatherSpec = field(default_factory=WeatherSpec)
 
     def uav(self, piccolo_id: int) -> UavSpec:
         for uav in self.uavs:
@@ -179,17 +201,29 @@ def _limits(table: _AircraftTable | None, source: str) -> AircraftLimits:
         raise ScenarioError(f"{source}: aircraft: {error}") from error
 
 
-def _wind(table: _WindTable | None, source: str, limits: AircraftLimits) -> Wind:
+def _weather(table: _WindTable | None, source: str, limits: AircraftLimits) -> WeatherSpec:
     if table is None:
-        return Wind()
-    wind = Wind(north=table.north, east=table.east)
+        return WeatherSpec()
+    weather = WeatherSpec(
+        mean=Wind(north=table.north, east=table.east),
+        drift_speed=table.drift_speed,
+        drift_direction_deg=table.drift_direction,
+        drift_period_s=table.drift_period,
+        gust=table.gust,
+        gust_time_s=table.gust_time,
+        estimate_lag_s=table.estimate_lag,
+        estimate_error=table.estimate_error,
+        seed=table.seed,
+    )
     # An aircraft slower than the wind cannot make way against it; no plan is flyable.
-    if wind.speed >= limits.min_airspeed:
+    # Gusts count at three standard deviations: rarer ones last a moment.
+    if weather.strongest >= limits.min_airspeed:
+        counted = "" if weather.steady else " (mean + drift_speed + 3 gust)"
         raise ScenarioError(
-            f"{source}: wind: speed {wind.speed:.1f} m/s must be below the minimum airspeed "
-            f"{limits.min_airspeed:g} m/s"
+            f"{source}: wind: speed {weather.strongest:.1f} m/s{counted} must be below the "
+            f"minimum airspeed {limits.min_airspeed:g} m/s"
         )
-    return wind
+    return weather
 
 
 def _uav(table: _UavTable, where: str, limits: AircraftLimits) -> UavSpec:
@@ -205,7 +239,7 @@ def _uav(table: _UavTable, where: str, limits: AircraftLimits) -> UavSpec:
 
 def _checked(data: _ScenarioFile, source: str, base_dir: Path | None, name: str) -> Scenario:
     limits = _limits(data.aircraft, source)
-    wind = _wind(data.wind, source, limits)
+    weather = _weather(data.wind, source, limits)
     targets_path = None
     if data.targets is not None:
         targets_path = (base_dir or Path.cwd()) / data.targets
@@ -221,11 +255,12 @@ def _checked(data: _ScenarioFile, source: str, base_dir: Path | None, name: str)
         name=name,
         source=source,
         uavs=tuple(uavs),
-        wind=wind,
+        wind=weather.mean,
         limits=limits,
         description=data.description,
         targets_path=targets_path,
         zones=_zones(data.no_fly, base_dir, source),
+        weather=weather,
     )
 
 

@@ -11,7 +11,8 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from fleet.geo.mercator import MercatorProjection
-from fleet.geo.visibility import ZoneMap, leg_time, legs_time
+from fleet.geo.visibility import ZoneMap, legs_time
+from fleet.geo.wind import Wind
 from fleet.geo.zones import (
     MAX_ZONE_VERTICES,
     ZoneError,
@@ -123,14 +124,12 @@ def test_ring_to_local_puts_the_reference_at_the_origin() -> None:
     assert ring[1][1] == pytest.approx(1111.0, rel=0.01)
 
 
-def test_leg_time_in_still_air_and_in_wind() -> None:
-    assert leg_time((0.0, 0.0), (2200.0, 0.0), 22.0) == pytest.approx(100.0)
-    assert leg_time((0.0, 0.0), (2200.0, 0.0), 22.0, (10.0, 0.0)) == pytest.approx(2200 / 32)
-    assert leg_time((0.0, 0.0), (2200.0, 0.0), 22.0, (-10.0, 0.0)) == pytest.approx(2200 / 12)
-    crab = math.sqrt(22.0**2 - 10.0**2)
-    assert leg_time((0.0, 0.0), (2200.0, 0.0), 22.0, (0.0, 10.0)) == pytest.approx(2200 / crab)
-    assert leg_time((0.0, 0.0), (2200.0, 0.0), 22.0, (0.0, 25.0)) == math.inf
+def test_a_routes_time_is_its_legs_times_in_the_wind() -> None:
     assert legs_time([(0.0, 0.0), (100.0, 0.0), (100.0, 100.0)], 10.0) == pytest.approx(20.0)
+    # A 5 m/s wind from the west: the first leg downwind, the second across it.
+    crab = math.sqrt(10.0**2 - 5.0**2)
+    windy = legs_time([(0.0, 0.0), (100.0, 0.0), (100.0, 100.0)], 10.0, Wind(5.0, 0.0))
+    assert windy == pytest.approx(100.0 / 15.0 + 100.0 / crab)
 
 
 def test_a_clear_line_is_the_route() -> None:

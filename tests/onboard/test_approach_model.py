@@ -12,7 +12,12 @@ import time
 import pytest
 
 from fleet.geo.aircraft import AircraftLimits, turn_radius
+from fleet.geo.wind import Wind
+from fleet.sim.aircraft import AircraftState
+from fleet.sim.aircraft import Wind as SimWind
+from fleet.sim.guidance import fly_to_point
 from onboard.approach_model import (
+    PLANNABLE_WIND_SHARE,
     ApproachTimeModel,
     LpBackend,
     TargetStatus,
@@ -96,7 +101,7 @@ def test_lp_scan_finds_the_first_feasible_node(model: ApproachTimeModel) -> None
     assert sol.lp_time is not None
     assert model.node_times[sol.node - 1] < sol.lp_time <= model.node_times[sol.node]
     # Exhaustive check through the model's own LP (private, on purpose).
-    model._set_target(target[0], abs(target[1]))
+    model._set_target(target[0], abs(target[1]), (0.0, 0.0))
     gaps = [model._gap_at(k) for k in range(sol.node + 1)]
     assert all(g is not None and g > 1e-2 for g in gaps[:-1])
     assert gaps[-1] is not None and gaps[-1] <= 1e-2
@@ -240,3 +245,80 @@ def test_highspy_imported_after_the_core_reuses_it() -> None:
         [sys.executable, "-c", probe], capture_output=True, text=True, check=True, timeout=60
     )
     assert out.stdout.strip()
+
+
+# -- in wind ---------------------------------------------------------------------------
+
+
+def test_wind_straight_ahead_is_distance_over_ground_speed(model: ApproachTimeModel) -> None:
+    # Ground velocity (V + 8, 0) in a tailwind of 8: airspeed V along +x.
+    (tail,) = model.solve((0.0, 0.0), (V + 8.0, 0.0), [(3000.0, 0.0)], wind=Wind(8.0, 0.0))
+    (head,) = model.solve((0.0, 0.0), (V - 8.0, 0.0), [(3000.0, 0.0)], wind=Wind(-8.0, 0.0))
+    # The speed 16-gon's vertex dead ahead is 1.1 % fast in the air; a headwind makes
+    # that a larger share of the ground speed (x V / (V - w)).
+    assert tail == pytest.approx(3000.0 / (V + 8.0), rel=0.015)
+    assert head == pytest.approx(3000.0 / (V - 8.0), rel=0.015 * V / (V - 8.0))
+
+
+def test_wind_is_mirrored_with_the_target(model: ApproachTimeModel) -> None:
+    wind = Wind(0.0, 6.0)  # blows to the left of an aircraft flying east
+    left, right = model.solve(
+        (0.0, 0.0), (V, 6.0), [(1500.0, 1500.0), (1500.0, -1500.0)], wind=wind
+    )
+    assert left is not None and right is not None
+    assert left < right  # downwind is quicker
+    (mirrored,) = model.solve((0.0, 0.0), (V, -6.0), [(1500.0, -1500.0)], wind=Wind(0.0, -6.0))
+    assert mirrored == pytest.approx(left, rel=1e-6)
+
+
+@pytest.mark.parametrize("bearing", range(0, 360, 30))
+def test_wind_prediction_matches_the_simulators_flight(bearing: int) -> None:
+    speed = 22.0
+    model = ApproachTimeModel(AircraftLimits(max_airspeed=speed))
+    target = (3000.0 * math.sin(math.radians(bearing)), 3000.0 * math.cos(math.radians(bearing)))
+    # Heading north in a 10 m/s wind blowing east: a crosswind.
+    state = AircraftState(x=0.0, y=0.0, alt=600.0, heading=0.0, airspeed=speed)
+    flown = fly_to_point(state, target, wind=SimWind(north=0.0, east=10.0), acceptance_radius=10.0)
+    (predicted,) = model.solve((0.0, 0.0), (10.0, speed), [target], wind=Wind(10.0, 0.0))
+    assert predicted == pytest.approx(flown, rel=0.03)
+
+
+def test_wind_lp_on_highs_gives_the_pyomo_models_times() -> None:
+    rng = random.Random(24)
+    ours = ApproachTimeModel(AircraftLimits(max_airspeed=22.0))
+    reference = ApproachTimeModel(AircraftLimits(max_airspeed=22.0), backend=LpBackend.PYOMO)
+    for _ in range(6):
+        heading = rng.uniform(0.0, math.tau)
+        wind = Wind(rng.uniform(-12.0, 12.0), rng.uniform(-12.0, 12.0))
+        velocity = (22.0 * math.cos(heading) + wind.east, 22.0 * math.sin(heading) + wind.north)
+        targets = [polar(rng.uniform(300.0, 5000.0), rng.uniform(0.0, 360.0)) for _ in range(4)]
+        got = ours.solve_detailed((0.0, 0.0), velocity, targets, wind=wind)
+        expected = reference.solve_detailed((0.0, 0.0), velocity, targets, wind=wind)
+        assert got == expected
+
+
+def test_wind_faster_than_plannable_is_scaled_down(model: ApproachTimeModel) -> None:
+    (gale,) = model.solve((0.0, 0.0), (V, 0.0), [(-2000.0, 0.0)], wind=Wind(40.0, 0.0))
+    capped = Wind(PLANNABLE_WIND_SHARE * LIMITS.min_airspeed, 0.0)
+    assert gale is not None and math.isfinite(gale)
+    with pytest.raises(ValueError, match="finite"):
+        model.solve((0.0, 0.0), (V, 0.0), [(1.0, 0.0)], wind=Wind(math.nan, 0.0))
+    assert capped.speed < LIMITS.min_airspeed
+
+
+@pytest.mark.parametrize("bearing", [30.0, 150.0, 210.0])
+def test_wind_lp_scan_still_finds_the_first_feasible_node(
+    model: ApproachTimeModel, bearing: float
+) -> None:
+    """The wind's jump bounds never skip a feasible node: every earlier node is refuted."""
+    wind = Wind(-9.0, 5.0)  # a headwind from ahead-left of an aircraft flying east
+    target = polar(2500.0, bearing)
+    (sol,) = model.solve_detailed((0.0, 0.0), (V - 9.0, 5.0), [target], wind=wind)
+    assert sol.status is TargetStatus.SOLVED and sol.node is not None
+    # The scan's own frame: air velocity (V, 0) east, so the heading frame is the plane's;
+    # a target on the right is mirrored, and the wind with it.
+    side = 1.0 if target[1] >= 0.0 else -1.0
+    model._set_target(target[0], abs(target[1]), (wind.east, side * wind.north))
+    gaps = [model._gap_at(k) for k in range(sol.node + 1)]
+    assert all(g is not None and g > 1e-2 for g in gaps[:-1])
+    assert gaps[-1] is not None and gaps[-1] <= 1e-2

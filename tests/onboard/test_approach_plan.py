@@ -2,14 +2,23 @@
 
 from __future__ import annotations
 
+import math
+
+import msgspec
+import pytest
+
+from fleet.geo.wind import Wind
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     MissionTargets,
     UavResult,
 )
+from fleet.mission.status_kind import StatusKind
+from onboard.approach_plan import plan_status
 from onboard.core import (
     OnboardCore,
 )
+from onboard.planner_worker import PlanRequest, PlanResult
 from tests.onboard.core_harness import (
     TARGETS,
     TWO_TARGETS,
@@ -48,3 +57,38 @@ def test_the_planning_budget_grows_with_the_missions_deadline() -> None:
     core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS, deadline_s=3.0), 0.0)
     core.on_targets(MissionTargets(mission=2, team=(112,), targets=TARGETS, deadline_s=30.0), 1.0)
     assert [r.budget_s for r in planner.requests] == [2.0, 15.0]
+
+
+def test_the_plan_is_asked_in_the_smoothed_reported_wind() -> None:
+    planner = ScriptedPlanner((80.0, 40.0, 60.0))
+    core = OnboardCore(uav_id=112, outputs=Recorder(), planner=planner)
+    telemetry = sample_telemetry()
+    assert telemetry.gps is not None and telemetry.sensor is not None
+    # 6 m/s toward the east (wind_west = -6) and 2 toward the north (wind_south = -2).
+    windy = msgspec.structs.replace(
+        telemetry, sensor=msgspec.structs.replace(telemetry.sensor, wind_south=-2.0, wind_west=-6.0)
+    )
+    core.on_telemetry(windy, 0.0)
+    core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 0.1)
+    # A calm report 2 s later moves the estimate by 1 - exp(-2 / 20) of the way.
+    core.on_telemetry(telemetry, 2.0)
+    core.on_targets(MissionTargets(mission=2, team=(112,), targets=TARGETS), 2.1)
+    first, second = planner.requests
+    assert first.wind == Wind(east=6.0, north=2.0)
+    # The airspeed held is the ground velocity (21.5 east, 3 north) less the wind.
+    assert first.cruise_speed == pytest.approx(math.hypot(15.5, 1.0))
+    kept = math.exp(-2.0 / 20.0)
+    assert second.wind.east == pytest.approx(6.0 * kept)
+    assert second.wind.north == pytest.approx(2.0 * kept)
+
+
+def test_the_status_says_the_wind_planned_in() -> None:
+    request = PlanRequest((0.0, 0.0), (22.0, 0.0), ((1.0, 1.0),), 2.0, wind=Wind(east=10.0))
+    result = PlanResult(request, (1.0,), (False,), 0.05, 0.01)
+    kind, text = plan_status(result, 3)
+    assert kind is StatusKind.APPROACH_TIMES
+    assert text.endswith("; in a wind from 270 deg at 10.0 m/s")  # a westerly
+    calm = PlanResult(
+        PlanRequest((0.0, 0.0), (22.0, 0.0), ((1.0, 1.0),), 2.0), (1.0,), (False,), 0.05
+    )
+    assert "wind" not in plan_status(calm, 3)[1]

@@ -10,12 +10,19 @@ from collections.abc import Callable, Iterator, Sequence
 import pytest
 
 from fleet.geo.aircraft import AircraftLimits
+from fleet.geo.wind import CALM_AIR, Wind
 from onboard.approach_model import (
     ApproachTimeModel,
     TargetSolution,
     TargetStatus,
 )
-from onboard.planner_worker import PlannerWorker, PlanRequest, PlanResult, fallback_time
+from onboard.planner_worker import (
+    PLANNABLE_WIND_SHARE,
+    PlannerWorker,
+    PlanRequest,
+    PlanResult,
+    fallback_time,
+)
 
 LIMITS = AircraftLimits()
 V = LIMITS.max_airspeed
@@ -60,6 +67,7 @@ class StandInModel(ApproachTimeModel):
         targets: Sequence[tuple[float, float]],
         deadline: float | None = None,
         cancel: threading.Event | None = None,
+        wind: Wind = CALM_AIR,
     ) -> list[TargetSolution]:
         return self.answer(targets, cancel)
 
@@ -312,3 +320,18 @@ def test_real_model_answers_pass_the_dubins_check_and_are_counted(
     assert worker.run(request())
     result = wait_result(worker)
     assert (result.model_times, result.fallback_times, result.defects) == (len(TARGETS), 0, 0)
+
+
+def test_fallback_and_model_plan_in_the_same_wind() -> None:
+    from onboard import approach_model
+
+    assert PLANNABLE_WIND_SHARE == approach_model.PLANNABLE_WIND_SHARE
+    limits = AircraftLimits(max_airspeed=22.0)
+    wind = Wind(-10.0, 0.0)
+    # Flying east at 22 m/s through the air into a 10 m/s headwind: 12 m/s over the ground.
+    calm = fallback_time(limits, (0.0, 0.0), (22.0, 0.0), (2400.0, 0.0))
+    windy = fallback_time(limits, (0.0, 0.0), (12.0, 0.0), (2400.0, 0.0), wind)
+    assert calm == pytest.approx(2400.0 / 22.0)
+    assert windy == pytest.approx(2400.0 / 12.0)
+    with pytest.raises(ValueError, match="finite"):
+        PlanRequest((0.0, 0.0), (12.0, 0.0), ((1.0, 1.0),), 1.0, wind=Wind(math.inf, 0.0))

@@ -10,6 +10,7 @@ import pytest
 
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.visibility import legs_time
+from fleet.geo.wind import Wind
 from fleet.mission.messages import MissionTargets, NoFlyZone, StatusText, Target, UavResult
 from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.track import Track
@@ -17,6 +18,7 @@ from fleet.piccolo.waypoint import Waypoint
 from fleet.transport.bus_codec import DROPPED, DropReason
 from onboard.planner_worker import PlannerWorker, PlanRequest, PlanResult
 from onboard.route_flight import ROUTE_WAYPOINTS, route_writes
+from onboard.route_plan import route_targets
 from onboard.target_flight import TARGET_WAYPOINT
 from tests.onboard.core_harness import TARGETS, make_core, telemetry_at
 from tests.onboard.test_planner_worker import wait_result
@@ -186,3 +188,17 @@ def test_leaving_the_route_at_a_turn_is_noticed_and_moving_along_it_is_not() -> 
     core.on_track(Track(3), now + 2)  # somewhere else: off the route, far from the target
     assert core.phase == "preempted"
     assert any("target not reached" in s for s in out.statuses())
+
+
+def test_a_routes_legs_are_timed_in_the_wind_of_the_plan() -> None:
+    """The legs after the route's first point fly in the plan's wind: into a headwind
+    they take longer than in still air, and the airspeed is the ground speed less it."""
+    calm = route_targets((0.0, 0.0), (V, 0.0), (BEHIND_WALL,), (WALL,), LIMITS)
+    # A 6 m/s wind from the east; the aircraft holds 22 m/s through the air.
+    headwind = Wind(-6.0, 0.0)
+    windy = route_targets((0.0, 0.0), (V - 6.0, 0.0), (BEHIND_WALL,), (WALL,), LIMITS, headwind)
+    route = calm.routes[0]
+    assert route is not None and route.detours
+    assert windy.routes[0] == route
+    assert windy.rest_s[0] > calm.rest_s[0]
+    assert windy.rest_s[0] == pytest.approx(legs_time(route.points, V, headwind))

@@ -1,0 +1,91 @@
+"""Predicted arrivals hold in wind, end to end: `fleet up windy` (router, simulator,
+three onboard modules) in a 10 m/s wind that drifts and gusts, and whose reported
+estimate lags and errs; `ground-cli send-targets` and `mission --until-reached`; then
+`fleet report` on the run's own recording compares each UAV's published ETA with the
+time it flew (on the aircraft's clock, from its commitment to its arrival:
+docs/recording.md).
+
+Each UAV has its own target 3.2 km away: one upwind, one downwind, one across the
+wind. In still air the time to the upwind and downwind targets is 25-45 % off, so the
+test fails if the wind is not in the plan.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from fleet.geo.aircraft import turn_radius
+from fleet.geo.dubins import dubins_time_in_wind, dubins_time_to_point
+from fleet.geo.mercator import MercatorProjection
+from fleet.geo.wind import Wind
+from fleet.launch.launcher import free_port
+from fleet.sim.scenario import shipped_scenario, shipped_scenario_path
+from tests.support.processes import start
+
+pytestmark = pytest.mark.e2e
+
+TIMEOUT_S = 120.0
+#: How far a published ETA may be from the time flown.
+TOLERANCE = 0.10
+WINDY = shipped_scenario("windy")
+
+
+def run(*argv: str, timeout: float = TIMEOUT_S) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, *argv], capture_output=True, text=True, timeout=timeout, check=False
+    )
+
+
+def test_still_air_times_would_fail_this_test() -> None:
+    """The scenario is one where the wind matters: without it, the ETAs are far off."""
+    wind = Wind(east=WINDY.wind.east, north=WINDY.wind.north)
+    off = []
+    for uav, target in zip(WINDY.uavs, WINDY.targets(), strict=True):
+        offset = MercatorProjection(uav.lat, uav.lon).to_xy(target.lat, target.lon)
+        heading = math.radians(uav.heading)
+        air = (uav.airspeed * math.sin(heading), uav.airspeed * math.cos(heading))
+        radius = turn_radius(uav.airspeed, WINDY.limits.bank_limit_deg)
+        still = dubins_time_to_point((0.0, 0.0), air, offset, radius)
+        windy = dubins_time_in_wind((0.0, 0.0), air, offset, radius, wind)
+        off.append(abs(still - windy) / windy)
+    assert wind.speed == 10.0
+    assert sorted(off)[-2] > 2.5 * TOLERANCE  # upwind and downwind
+
+
+def test_three_uavs_arrive_when_they_said_in_a_10_ms_wind(tmp_path: Path) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    up = start(
+        "fleet up",
+        [sys.executable, "-m", "ground.fleet_cli", "up", "windy", "--listen", endpoint,
+         "--speedup", "3", "--log-dir", str(tmp_path)],
+    )  # fmt: skip
+    try:
+        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+        ground = ("-m", "ground.cli", "--connect", endpoint)
+        targets = shipped_scenario_path("windy").with_name("windy_targets.bin")
+        sent = run(*ground, "send-targets", str(targets), "--wait", "--json",
+                   "--timeout", "60")  # fmt: skip
+        assert sent.returncode == 0, sent.stderr[-3000:]
+        outcome = json.loads(sent.stdout)
+        assert outcome["agreed"] is True
+        assert outcome["assignment"] == {"201": 0, "202": 1, "203": 2}
+        # The longest flight (upwind, ~260 s simulated) is ~90 s at speedup 3.
+        reached = run(*ground, "mission", "--until-reached", "240", "--json", timeout=300.0)
+        assert reached.returncode == 0, reached.stdout[-3000:] + reached.stderr[-3000:]
+    finally:
+        up.process.send_signal(signal.SIGTERM)
+        assert up.process.wait(60) == 0
+    report = run("-m", "ground.fleet_cli", "report", str(tmp_path / "fleet.mcap"), "--json")
+    assert report.returncode == 0, report.stderr[-3000:]
+    (mission,) = json.loads(report.stdout)["missions"]
+    for uav in ("201", "202", "203"):
+        predicted, flown = mission["predicted_s"][uav], mission["flown_s"][uav]
+        assert predicted is not None and flown is not None, (uav, mission)
+        assert abs(predicted - flown) <= TOLERANCE * flown, (uav, predicted, flown)
