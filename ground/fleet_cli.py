@@ -17,6 +17,7 @@ SUBCOMMANDS = (
     "fleet.tools.certs_command",
     "ground.demo",
     "fleet.recording.commands",
+    "ground.mavlink.cli",
 )
 
 
