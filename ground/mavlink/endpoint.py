@@ -261,6 +261,9 @@ class Endpoint:
         for message in messages:
             if isinstance(message, mavlink2.MAVLink_bad_data):
                 self.drops.add(_reason_of(message))
+            elif isinstance(message, mavlink2.MAVLink_unknown):
+                # A frame whose CRC cannot be checked (its id is in no dialect).
+                self.drops.add(Drop.UNKNOWN_MESSAGE)
             elif not peer.allow(now):
                 self.drops.add(Drop.FLOOD)
             else:
