@@ -51,8 +51,10 @@ class Drop(StrEnum):
     TRUNCATED = "truncated"
     FLOOD = "flood"
     TOO_MANY_PEERS = "too_many_peers"
-    #: Decoded, but refused by the gateway (a MISSION_COUNT out of range, a wrong target...)
+    #: Decoded, but refused by the gateway (a MISSION_COUNT out of range)
     REFUSED = "refused"
+    #: Decoded, but addressed to a system id the gateway does not show
+    UNKNOWN_SYSTEM = "unknown_system"
 
 
 class InputDrops:

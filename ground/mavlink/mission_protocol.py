@@ -52,13 +52,14 @@ class MissionItem:
 
 def item_from_message(message: object) -> MissionItem:
     """A MISSION_ITEM_INT (x, y in 1e-7 degrees) or a MISSION_ITEM (in degrees)."""
-    scale = 1e-7 if isinstance(message, mavlink2.MAVLink_mission_item_int_message) else 1.0
+    # Dividing (not multiplying by 1e-7) gives back the decimal degrees typed in.
+    scale = 1e7 if isinstance(message, mavlink2.MAVLink_mission_item_int_message) else 1.0
     return MissionItem(
         seq=int(getattr(message, "seq")),  # noqa: B009 - pymavlink messages are untyped
         frame=int(getattr(message, "frame")),  # noqa: B009
         command=int(getattr(message, "command")),  # noqa: B009
-        lat=float(getattr(message, "x")) * scale,  # noqa: B009
-        lon=float(getattr(message, "y")) * scale,  # noqa: B009
+        lat=float(getattr(message, "x")) / scale,  # noqa: B009
+        lon=float(getattr(message, "y")) / scale,  # noqa: B009
         alt=float(getattr(message, "z")),  # noqa: B009
         mission_type=int(getattr(message, "mission_type", 0)),
     )

@@ -1,11 +1,12 @@
 """What ground stations ask of a vehicle, answered: the mission protocol and commands.
 
 `Requests.handle` takes each decoded message from the endpoint. A message addressed to
-no UAV shown (another system, the broadcast address) is not for the gateway and is let
-go; one addressed to a UAV is always answered: a mission transfer by the protocol's
-next step (`mission_protocol`), a command by COMMAND_ACK (`commands`). What needs the
-fleet runs on the gateway's workers and is answered when the fleet has answered: a
-mission's MISSION_ACK once the fleet took it, RTL's COMMAND_ACK once the UAV reported
+no UAV shown is counted (`unknown_system`) and let go, as is one to the broadcast
+address (uncounted: nothing there is for one vehicle to answer). One addressed to a UAV
+is always answered: a mission transfer by the protocol's next step
+(`mission_protocol`), a command by COMMAND_ACK (`commands`). What needs the fleet runs
+on the gateway's workers and is answered when the fleet has answered: a mission's
+MISSION_ACK once the fleet took it, RTL's COMMAND_ACK once the UAV reported
 its part aborted (MAV_RESULT_IN_PROGRESS meanwhile, to each repeat of the command).
 """
 
@@ -60,7 +61,10 @@ class Requests:
             return  # a station's heartbeat or telemetry: nothing to answer
         found = self.gateway.vehicle(int(target))
         if found is None:
-            return  # for another system, or for all: not ours to answer
+            # For all (0: nothing a vehicle must answer alone), or for a system not shown.
+            if target != 0:
+                self.gateway.drops.add(Drop.UNKNOWN_SYSTEM)
+            return
         sysid, piccolo = found[0].sysid, found[0].piccolo
         partner = (message.get_srcSystem(), message.get_srcComponent())
         kind = message.get_type()
