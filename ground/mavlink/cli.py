@@ -21,9 +21,9 @@ from fleet.transport.bus import Bus
 from fleet.transport.cli import (
     ExitCode,
     ZenohConfigError,
+    add_query_timeout_argument,
     add_zenoh_arguments,
     fail,
-    positive_float,
     stop_on_signals,
     zenoh_config,
 )
@@ -75,13 +75,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="who flies a mission uploaded to a UAV: that UAV alone (default), or every "
         "live UAV, the fleet assigning the items across them",
     )
-    parser.add_argument(
-        "--query-timeout",
-        type=positive_float,
-        default=1.0,
-        metavar="S",
-        help="how long each Zenoh query waits for answers (default 1 s)",
-    )
+    add_query_timeout_argument(parser)
     add_zenoh_arguments(parser)
 
 

@@ -72,6 +72,7 @@ class Gateway:
         self.outbox: queue.SimpleQueue[tuple[int, mavlink2.MAVLink_message]] = queue.SimpleQueue()
         self._statuses: queue.Queue[StatusRecord] = queue.Queue(STATUS_BACKLOG)
         self._chunk_id = 0
+        self._chunk_lock = threading.Lock()
         self.vehicles: dict[int, Vehicle] = {}  #: by system id
         self._hidden_said: set[int] = set()
         self._missions: dict[int, MissionTargets] = {}
@@ -139,11 +140,12 @@ class Gateway:
                     handle(incoming.message)
                 except Exception:  # one bad message must not end the gateway
                     log.exception("handling %s failed", incoming.message.get_type())
-            self._drain_outbox()
+            self.send_answers()
             tick()
             self._tick()
 
-    def _drain_outbox(self) -> None:
+    def send_answers(self) -> None:
+        """Send what the workers answered (the loop does it after each read)."""
         while True:
             try:
                 sysid, message = self.outbox.get_nowait()
@@ -226,6 +228,12 @@ class Gateway:
         sysid = self.sysids.sysid_of(piccolo)
         if sysid is None:
             return
-        self._chunk_id = self._chunk_id % 65535 + 1
-        for message in vehicle.status_texts(text, severity, self._chunk_id):
+        for message in self.status_texts(text, severity):
             self.send(sysid, message)
+
+    def status_texts(self, text: str, severity: Severity) -> list[mavlink2.MAVLink_message]:
+        """`text` as STATUSTEXT, with a chunk id of its own (any thread)."""
+        with self._chunk_lock:
+            self._chunk_id = self._chunk_id % 65535 + 1
+            chunk_id = self._chunk_id
+        return list(vehicle.status_texts(text, severity, chunk_id))

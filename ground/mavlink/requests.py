@@ -178,7 +178,7 @@ class Requests:
     def _post_text(self, piccolo: int, text: str, severity: Severity = Severity.INFO) -> None:
         sysid = self.gateway.sysids.sysid_of(piccolo)
         if sysid is not None:
-            for message in vehicle.status_texts(text, severity, 0):
+            for message in self.gateway.status_texts(text, severity):
                 self.gateway.outbox.put((sysid, message))
 
     def _piccolo(self, sysid: int) -> int:
