@@ -21,11 +21,12 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from fleet.mission.messages import MissionTargets, Target
 from fleet.mission.phase import Severity
+from ground.fleet_view import UavView
 from ground.mavlink import vehicle
 from ground.mavlink.commands import Action, decide, is_rtl_mode
 from ground.mavlink.endpoint import Drop
 from ground.mavlink.fleet_link import AbortResult, TeamChoice
-from ground.mavlink.gateway import Gateway
+from ground.mavlink.gateway import Gateway, Vehicle
 from ground.mavlink.mission_protocol import (
     Complete,
     MissionUpload,
@@ -84,6 +85,12 @@ class Requests:
             self._abort(sysid, piccolo, partner, _SET_MODE_ACK)
         elif kind == "SET_MODE":
             self._command_ack(sysid, partner, _SET_MODE_ACK, mavlink2.MAV_RESULT_UNSUPPORTED)
+        elif kind == "MISSION_SET_CURRENT":
+            # The vehicle answers with the item it flies: the fleet chose it, not the station.
+            self.gateway.say(piccolo, "the fleet chooses each UAV's target", Severity.WARNING)
+            self._progress_now(found[0], found[1])
+        else:
+            log.debug("system %d: %s not answered (not mapped)", sysid, kind)
 
     def tick(self) -> None:
         """Ask a silent station again for its item, or give its upload up."""
@@ -92,6 +99,12 @@ class Requests:
             step = upload.on_tick(now)
             if step is not None:
                 self._step(sysid, 0, upload.partner, step)
+
+    def _progress_now(self, found: Vehicle, view: UavView) -> None:
+        targets = self.gateway.mission_of(view.mission)
+        if targets is not None and view.target is not None:
+            current = vehicle.mission_current(view.target, len(targets.targets), False)
+            self.gateway.send(found.sysid, current)
 
     # ---- mission upload ----------------------------------------------------------------------
     def _count(self, sysid: int, piccolo: int, partner: tuple[int, int], message: object) -> None:

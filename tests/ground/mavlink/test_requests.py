@@ -275,3 +275,16 @@ def test_no_mission_downloads_as_empty(harness: Harness) -> None:
     harness.handle(mavlink2.MAVLink_mission_request_list_message(74, 1, 0))
     (count,) = harness.take("MISSION_COUNT")
     assert count.count == 0
+
+
+def test_setting_the_current_item_is_answered_with_the_one_the_fleet_chose(
+    harness: Harness,
+) -> None:
+    targets = (Target(35.7, -120.8, 600.0), Target(35.71, -120.8, 600.0))
+    harness.gateway.remember_mission(MissionTargets(7, (74,), targets))
+    harness.views = [UavView(id=74, mission=7, target=1, phase="flying")]
+    harness.handle(mavlink2.MAVLink_mission_set_current_message(74, 1, 0))
+    (current,) = harness.take("MISSION_CURRENT")
+    assert current.seq == 1
+    (text,) = harness.take("STATUSTEXT")
+    assert text.severity == mavlink2.MAV_SEVERITY_WARNING
