@@ -24,7 +24,14 @@ from fleet.transport.bus import Bus
 from ground.fleet_view import live_uav_ids, query_states
 from ground.gui.commands import MissionDesk
 from ground.mission_commands import ABORT_CONFIRM_S
-from ground.mission_control import MissionError, mission_targets_of, send_abort
+from ground.mission_control import (
+    MissionError,
+    mission_targets_of,
+    send_abort,
+    wait_delivered,
+)
+from ground.mission_ids import rival_claims
+from ground.send_command import DELIVERY_WAIT_S
 
 log = logging.getLogger(__name__)
 
@@ -46,6 +53,7 @@ class SendOutcome:
     mission: int | None
     team: tuple[int, ...] = ()
     problem: str | None = None
+    sent: int | None = None  #: the id of a mission put but not acknowledged
 
 
 class AbortResult(Enum):
@@ -68,7 +76,8 @@ class FleetLink:
         self, uav: int, targets: tuple[Target, ...], choice: TeamChoice
     ) -> SendOutcome:
         """Send `targets` to `uav`'s team (`choice`), after the checks `send-targets`
-        makes (no targets within the acceptance radius of each other, none beyond reach)."""
+        makes (no targets within the acceptance radius of each other, none beyond reach),
+        and wait for the team to acknowledge it (as `send-targets` does)."""
         live = live_uav_ids(self._bus, self._space, self._timeout)
         if uav not in live:
             return SendOutcome(None, problem=f"UAV {uav} is not live")
@@ -81,11 +90,24 @@ class FleetLink:
         problems = target_set_problems(targets, positions, DEFAULT_MAX_REACH_M)
         if problems:
             return SendOutcome(None, team, problem=str(problems[0]))
+        deadline_s = consensus_deadline(len(team))
         try:
-            mission = self._desk.send(team, targets, consensus_deadline(len(team)))
+            mission = self._desk.send(team, targets, deadline_s)
         except MissionError as error:
             return SendOutcome(None, team, problem=str(error))
         log.info("mission %d: %d items from MAVLink sent to %s", mission, len(targets), team)
+        # Accepted means the team has it, not that it was put: a put the routers refuse
+        # (another identity in a secure fleet) vanishes without an error, and a ground
+        # that cannot see the fleet's missions may have chosen an id already in use.
+        got = wait_delivered(self._bus, self._space, mission, team, DELIVERY_WAIT_S)
+        missing = ", ".join(str(uav) for uav in team if uav not in got)
+        sent = MissionTargets(mission, team, targets, deadline_s=deadline_s)
+        if not missing and rival_claims(self._bus, self._space, sent, self._timeout):
+            missing = f"{', '.join(map(str, team))} (they hold another mission {mission})"
+        if missing:
+            return SendOutcome(
+                None, team, problem=f"mission {mission} not acknowledged by {missing}", sent=mission
+            )
         return SendOutcome(mission, team)
 
     def abort(self, uav: int) -> tuple[AbortResult, str]:

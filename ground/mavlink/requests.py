@@ -162,8 +162,12 @@ class Requests:
         """(A worker.) Hand the mission to the fleet; MISSION_ACK says if it took it."""
         outcome = self.gateway.fleet.send_mission(piccolo, targets, self.team)
         if outcome.mission is None:
-            refusal = Refusal(mavlink2.MAV_MISSION_DENIED, f"not sent: {outcome.problem}")
-            self._post_ack(sysid, partner, refusal)
+            # Refused by the checks (nothing sent), or sent and not acknowledged.
+            result = (
+                mavlink2.MAV_MISSION_DENIED if outcome.sent is None else mavlink2.MAV_MISSION_ERROR
+            )
+            what = "not sent" if outcome.sent is None else "sent"
+            self._post_ack(sysid, partner, Refusal(result, f"{what}: {outcome.problem}"))
             return
         self.gateway.remember_mission(MissionTargets(outcome.mission, outcome.team, targets))
         team = ", ".join(map(str, outcome.team))

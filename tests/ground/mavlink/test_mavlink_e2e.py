@@ -13,7 +13,7 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +21,7 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from fleet.launch.launcher import free_port
+from tests.ground.mavlink.stations import free_udp_port, receiver
 from tests.support.ground_view import GroundView
 from tests.support.processes import Child, client_session, start
 from tests.support.waiting import wait_until
@@ -30,13 +31,6 @@ pytestmark = pytest.mark.e2e
 UAVS = (101, 102, 103)
 START_S = 90.0
 WAIT_S = 60.0
-
-
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        port: int = probe.getsockname()[1]
-        return port
 
 
 class FleetUp:
@@ -262,7 +256,7 @@ def test_a_fuzzed_stream_is_dropped_and_counted_and_the_gateway_serves_on(
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
             sock.connect(("127.0.0.1", port))
             sock.settimeout(0.2)
-            heard = _receiver(sock, parser)
+            heard = receiver(sock, parser)
             beat = bytes(mavlink2.MAVLink_heartbeat_message(6, 8, 0, 0, 0, 3).pack(station))
             sock.send(beat)  # a station: the gateway streams every UAV to it
             before: set[int] = set()
@@ -297,19 +291,3 @@ def test_a_fuzzed_stream_is_dropped_and_counted_and_the_gateway_serves_on(
 def _add(seen: set[int], message: Any) -> set[int]:
     seen.add(message.get_srcSystem())
     return seen
-
-
-def _receiver(sock: socket.socket, parser: mavlink2.MAVLink) -> Callable[..., Any]:
-    def heard(predicate: Callable[[Any], bool], timeout_s: float = WAIT_S) -> Any:
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            try:
-                data = sock.recv(65535)
-            except (TimeoutError, ConnectionRefusedError):
-                continue
-            for message in parser.parse_buffer(data) or []:
-                if predicate(message):
-                    return message
-        raise AssertionError(f"nothing matching within {timeout_s} s")
-
-    return heard

@@ -44,6 +44,7 @@ class StandInFleet(FleetLink):
         self.sent: list[tuple[int, tuple[Target, ...], TeamChoice]] = []
         self.confirm = threading.Event()
         self.refuse: str | None = None
+        self.unacknowledged = False
 
     def send_mission(
         self, uav: int, targets: tuple[Target, ...], choice: TeamChoice
@@ -51,6 +52,8 @@ class StandInFleet(FleetLink):
         self.sent.append((uav, targets, choice))
         if self.refuse is not None:
             return SendOutcome(None, (uav,), problem=self.refuse)
+        if self.unacknowledged:
+            return SendOutcome(None, (uav,), problem="not acknowledged by 74", sent=7)
         return SendOutcome(7, (uav,))
 
     def abort(self, uav: int) -> tuple[AbortResult, str]:
@@ -149,6 +152,14 @@ def test_a_mission_the_fleet_refuses_is_acked_denied_with_why(harness: Harness) 
     acks = harness.wait_for("MISSION_ACK")
     assert [a.type for a in acks] == [mavlink2.MAV_MISSION_DENIED]
     assert "12 m apart" in "".join(t.text for t in harness.take("STATUSTEXT"))
+
+
+def test_a_mission_sent_but_not_acknowledged_is_an_error(harness: Harness) -> None:
+    harness.fleet.unacknowledged = True
+    upload(harness, 1)
+    (ack,) = harness.wait_for("MISSION_ACK")
+    assert ack.type == mavlink2.MAV_MISSION_ERROR
+    assert "not acknowledged by 74" in "".join(t.text for t in harness.take("STATUSTEXT"))
 
 
 def test_an_item_the_fleet_cannot_fly_is_refused_at_once(harness: Harness) -> None:
