@@ -6,9 +6,10 @@ answers each one heard in the last `PEER_TTL_S`; `tcpin:HOST:PORT` accepts up to
 `MAX_TCP_CLIENTS` stations. Every frame is decoded by pymavlink's MAVLink 2 parser in
 its robust mode, one parser per peer: a frame with a bad CRC, a bad prefix, an unknown
 message id, a datagram that ends inside a frame (truncated), or more than a peer's
-share of messages a second (a flood) is dropped and counted (`InputDrops`), never
-raised. At most `READ_BUDGET` reads are done per `receive`, so a flood cannot starve
-the gateway's own heartbeats.
+share of messages a second (a flood; a datagram arriving once the share is spent is
+dropped unread, counted once) is dropped and counted (`InputDrops`), never raised.
+At most `READ_BUDGET` reads are done per `receive`, so a flood cannot starve the
+gateway's own heartbeats.
 """
 
 from __future__ import annotations
@@ -93,12 +94,14 @@ class _Peer:
     refilled_at: float = field(default_factory=time.monotonic)
     heard_at: float = field(default_factory=time.monotonic)
 
-    def allow(self, now: float) -> bool:
+    def allow(self, now: float, spend: float = 1.0) -> bool:
+        """Whether the peer may send one more message now (taking it from its share
+        unless `spend` is 0: only looking)."""
         self.tokens = min(PEER_BURST, self.tokens + (now - self.refilled_at) * PEER_RATE_HZ)
         self.refilled_at = now
         if self.tokens < 1.0:
             return False
-        self.tokens -= 1.0
+        self.tokens -= spend
         return True
 
 
@@ -249,6 +252,11 @@ class Endpoint:
             return
         now = self._clock()
         peer.heard_at = now
+        if not stream and not peer.allow(now, spend=0.0):
+            # A station over its share: its datagram is dropped unread, so a flood costs
+            # a read, not a parse per frame.
+            self.drops.add(Drop.FLOOD)
+            return
         try:
             messages = peer.parser.parse_buffer(data) or []
         except Exception as error:  # hostile bytes must never end the gateway

@@ -268,9 +268,13 @@ def test_a_fuzzed_stream_is_dropped_and_counted_and_the_gateway_serves_on(
             sock.send(bytes(huge.pack(station)))
             ack = heard(lambda m: m.get_type() == "MISSION_ACK" and m.get_srcSystem() == 101)
             assert ack.type == mavlink2.MAV_MISSION_NO_SPACE
-            for _ in range(400):  # a flood: 20,000 frames in a burst
+            # Each input dropped so far is counted in SYS_STATUS (bad CRC, truncated, junk,
+            # the huge count: 4 at least).
+            counted = heard(lambda m: m.get_type() == "SYS_STATUS" and m.errors_comm >= 4)
+            for _ in range(400):  # a flood: 20,000 frames in a burst, 50 a datagram
                 sock.send(beat * 50)
-            status = heard(lambda m: m.get_type() == "SYS_STATUS" and m.errors_comm > 1000)
+            flooded = counted.errors_comm + 100
+            status = heard(lambda m: m.get_type() == "SYS_STATUS" and m.errors_comm > flooded)
             # Still serving every UAV, and still answering.
             seen: set[int] = set()
             heard(lambda m: m.get_type() == "HEARTBEAT" and _add(seen, m) >= set(UAVS))
@@ -280,10 +284,11 @@ def test_a_fuzzed_stream_is_dropped_and_counted_and_the_gateway_serves_on(
             sock.send(bytes(request.pack(station)))
             version = heard(lambda m: m.get_type() == "AUTOPILOT_VERSION")
             assert version.uid == 102
-            assert status.errors_comm > 1000
+            assert status.errors_comm > flooded
     finally:
         lines = stop(gateway)
     (summary,) = [line for line in lines if "dropped" in line and "MAVLink input" in line]
+    print(summary)  # shown with -s: the figures docs/mavlink.md quotes
     for reason in ("bad_crc", "truncated", "bad_prefix", "flood", "refused"):
         assert f"'{reason}'" in summary, summary
 
