@@ -94,12 +94,17 @@ class Gateway:
         while not stop.is_set():
             try:
                 self.view.refresh_states(timeout_s)
-                for mission in {v.mission for v in self.view.snapshot() if v.mission is not None}:
+                flown = {v.mission for v in self.view.snapshot() if v.mission is not None}
+                for mission in flown:
                     with self._missions_lock:
                         known = mission in self._missions
                     if not known and (found := self.fleet.mission_targets(mission)) is not None:
                         with self._missions_lock:
                             self._missions[mission] = found
+                with self._missions_lock:
+                    # Only the missions some UAV is on are needed: a long run stays bounded.
+                    for mission in [m for m in self._missions if m not in flown]:
+                        del self._missions[mission]
             except Exception:  # a bad answer must not end the refresh
                 log.exception("refreshing the fleet's state failed; trying again")
             stop.wait(STATE_REFRESH_S)

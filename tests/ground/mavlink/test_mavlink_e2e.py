@@ -296,3 +296,59 @@ def test_a_fuzzed_stream_is_dropped_and_counted_and_the_gateway_serves_on(
 def _add(seen: set[int], message: Any) -> set[int]:
     seen.add(message.get_srcSystem())
     return seen
+
+
+# ---- progress ------------------------------------------------------------------------------
+AHEAD_M = 800.0
+
+
+def test_mission_current_and_item_reached_follow_what_the_uav_reports(
+    fleet_up: FleetUp,
+) -> None:
+    """A one-item mission a little ahead of UAV 101, uploaded by a pymavlink station:
+    MISSION_CURRENT names it while the UAV flies, MISSION_ITEM_REACHED comes once, after
+    the UAV itself reported the target reached."""
+    port = free_udp_port()
+    gateway = fleet_up.gateway(f"udpin:127.0.0.1:{port}")
+    station = mavlink2.MAVLink(None, 250, 190)
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            sock.connect(("127.0.0.1", port))
+            sock.settimeout(0.2)
+            heard = receiver(sock, mavlink2.MAVLink(None))
+            sock.send(bytes(mavlink2.MAVLink_heartbeat_message(6, 8, 0, 0, 0, 3).pack(station)))
+            where = heard(
+                lambda m: m.get_type() == "GLOBAL_POSITION_INT" and m.get_srcSystem() == 101
+            )
+            lat, lon = where.lat / 1e7, where.lon / 1e7
+            heading = math.radians(where.hdg / 100)
+            target_lat = lat + AHEAD_M * math.cos(heading) / 111_320
+            target_lon = lon + AHEAD_M * math.sin(heading) / (111_320 * math.cos(math.radians(lat)))
+            sock.send(bytes(mavlink2.MAVLink_mission_count_message(101, 1, 1, 0).pack(station)))
+            heard(lambda m: m.get_type() == "MISSION_REQUEST_INT")
+            item = mavlink2.MAVLink_mission_item_int_message(
+                101, 1, 0, mavlink2.MAV_FRAME_GLOBAL_INT, mavlink2.MAV_CMD_NAV_WAYPOINT, 1, 1,
+                0, 0, 0, 0, round(target_lat * 1e7), round(target_lon * 1e7), 600.0,
+            )  # fmt: skip
+            sock.send(bytes(item.pack(station)))
+            ack = heard(lambda m: m.get_type() == "MISSION_ACK" and m.get_srcSystem() == 101)
+            assert ack.type == mavlink2.MAV_MISSION_ACCEPTED
+            # UAV 101 may have flown an earlier test's mission: its one item tells this one.
+            current = heard(lambda m: _progress_of_101(m) and m.total == 1)
+            assert current.seq == 0
+            reached = heard(
+                lambda m: m.get_type() == "MISSION_ITEM_REACHED" and m.get_srcSystem() == 101
+            )
+            assert reached.seq == 0
+            # The UAV said so first: the fleet records target 0 reached by UAV 101.
+            mission = latest_mission(fleet_up)
+            assert mission["team"] == [101]
+            assert mission["target_states"][0] == {"index": 0, "state": "reached", "uav": 101}
+            done = heard(lambda m: _progress_of_101(m) and m.total == 1)
+            assert done.mission_state == mavlink2.MISSION_STATE_COMPLETE
+    finally:
+        stop(gateway)
+
+
+def _progress_of_101(message: Any) -> bool:
+    return bool(message.get_type() == "MISSION_CURRENT" and message.get_srcSystem() == 101)
