@@ -214,12 +214,12 @@ class Requests:
         )
 
     def _download_item(
-        self, sysid: int, view: object, partner: tuple[int, int], message: object
+        self, sysid: int, view: UavView, partner: tuple[int, int], message: object
     ) -> None:
-        targets = self.gateway.mission_of(getattr(view, "mission", None))
+        targets = self.gateway.mission_of(view.mission)
         seq = int(getattr(message, "seq"))  # noqa: B009
         item = (
-            download_item(targets.targets, seq, getattr(view, "target", None), partner)
+            download_item(targets.targets, seq, view.target, partner)
             if targets is not None
             else None
         )
