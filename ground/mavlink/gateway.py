@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import logging
 import queue
+import struct
 import threading
 import time
 from collections.abc import Callable
@@ -190,7 +191,11 @@ class Gateway:
             if slow:
                 self._next_slow = now + 1.0
             for found, view in self.live_vehicles():
-                self._stream(found, view, slow)
+                try:
+                    self._stream(found, view, slow)
+                except (ValueError, OverflowError, struct.error) as error:
+                    # A value no MAVLink field can hold, from the bus: skip this turn.
+                    log.warning("UAV %d: a message not sent: %s", found.piccolo, error)
 
     def _stream(self, found: Vehicle, view: UavView, slow: bool) -> None:
         sysid, boot = found.sysid, self.boot_ms()

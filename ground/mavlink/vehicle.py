@@ -98,8 +98,20 @@ def heartbeat(view: UavView) -> mavlink2.MAVLink_heartbeat_message:
     )
 
 
+def _clamped(value: float, low: int, high: int) -> int:
+    """`value` rounded into a field's range; 0 if it is no number. What the bus carries
+    is checked by type, not by range: a hostile value must not stop the streams."""
+    if not math.isfinite(value):
+        return 0
+    return max(low, min(high, round(value)))
+
+
 def _deg_e7(degrees: float) -> int:
-    return round(degrees * 1e7)
+    return _clamped(degrees * 1e7, -(2**31), 2**31 - 1)
+
+
+def _mm(metres: float) -> int:
+    return _clamped(metres * 1000, -(2**31), 2**31 - 1)
 
 
 def global_position(
@@ -113,13 +125,13 @@ def global_position(
     heading = telemetry.sensor.yaw if telemetry.sensor is not None else None
     if heading is None and (gps.vel_north or gps.vel_east):
         heading = math.degrees(math.atan2(gps.vel_east, gps.vel_north))
-    hdg = 65535 if heading is None else round((heading % 360) * 100) % 36000
+    hdg = 65535 if heading is None else _clamped((heading % 360) * 100, 0, 35999)
     return mavlink2.MAVLink_global_position_int_message(
         boot_ms & 0xFFFFFFFF,
         _deg_e7(gps.lat),
         _deg_e7(gps.lon),
-        round(gps.alt * 1000),
-        round(gps.alt * 1000),
+        _mm(gps.alt),
+        _mm(gps.alt),
         _cm_s(gps.vel_north),
         _cm_s(gps.vel_east),
         _cm_s(gps.vel_down),
@@ -128,7 +140,7 @@ def global_position(
 
 
 def _cm_s(metres_s: float) -> int:
-    return max(-32768, min(32767, round(metres_s * 100)))
+    return _clamped(metres_s * 100, -32768, 32767)
 
 
 def attitude(telemetry: Telemetry, boot_ms: int) -> mavlink2.MAVLink_attitude_message | None:
@@ -156,7 +168,7 @@ def vfr_hud(view: UavView, telemetry: Telemetry) -> mavlink2.MAVLink_vfr_hud_mes
     return mavlink2.MAVLink_vfr_hud_message(
         view.airspeed or 0.0,
         view.ground_speed or 0.0,
-        round(view.heading or 0.0) % 360,
+        _clamped(view.heading or 0.0, 0, 360) % 360,
         0,
         gps.alt,
         -gps.vel_down,

@@ -299,3 +299,17 @@ def test_setting_the_current_item_is_answered_with_the_one_the_fleet_chose(
     assert current.seq == 1
     (text,) = harness.take("STATUSTEXT")
     assert text.severity == mavlink2.MAV_SEVERITY_WARNING
+
+
+def test_a_hostile_telemetry_value_does_not_stop_the_streams(
+    harness: Harness, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from fleet.piccolo.telemetry import GpsBlock, Telemetry
+
+    hostile = Telemetry(system_time_ms=0, gps=GpsBlock(35.7, -120.8, 1e300, 0, 0, 0))
+    monkeypatch.setattr(harness.gateway.view, "telemetry", lambda uav: hostile)
+    harness.views = [UavView(id=74, phase="idle")]
+    harness.gateway._tick()  # VFR_HUD's float altitude cannot hold 1e300: skipped
+    assert harness.take("HEARTBEAT")
+    (position,) = harness.take("GLOBAL_POSITION_INT")
+    assert position.alt == 2**31 - 1

@@ -149,3 +149,21 @@ def test_set_mode_to_rtl() -> None:
     flag = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
     assert is_rtl_mode(flag, FleetMode.RTL)
     assert not is_rtl_mode(flag, FleetMode.AUTO)
+
+
+def test_values_no_field_can_hold_are_clamped_not_raised() -> None:
+    hostile = Telemetry(
+        system_time_ms=0,
+        gps=GpsBlock(1e9, -1e12, 1e300, math.inf, -math.inf, math.nan),
+        sensor=SensorBlock(roll=0.0, pitch=0.0, yaw=math.nan, indicated_airspeed=1.0),
+    )
+    position = vehicle.global_position(hostile, 0)
+    assert position is not None
+    assert (position.lat, position.lon) == (2**31 - 1, -(2**31))
+    assert (position.vx, position.vy, position.vz) == (0, 0, 0)
+    assert position.hdg == 0
+    sender = mavlink2.MAVLink(None, 1, 1)
+    position.pack(sender)
+    view = UavView(id=1, heading=359.7, airspeed=math.nan)
+    hud = vehicle.vfr_hud(view, TELEMETRY)
+    assert hud is not None and hud.heading == 0
