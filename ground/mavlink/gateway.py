@@ -73,6 +73,7 @@ class Gateway:
         self.outbox: queue.SimpleQueue[tuple[int, mavlink2.MAVLink_message]] = queue.SimpleQueue()
         self._statuses: queue.Queue[StatusRecord] = queue.Queue(STATUS_BACKLOG)
         self._chunk_id = 0
+        self.statuses_lost = 0  #: status messages not sent: more came than the loop sent
         self._chunk_lock = threading.Lock()
         self.vehicles: dict[int, Vehicle] = {}  #: by system id
         self._hidden_said: set[int] = set()
@@ -88,7 +89,13 @@ class Gateway:
         try:
             self._statuses.put_nowait(record)
         except queue.Full:
-            log.warning("status backlog full: a status message of UAV %d not sent", record.uav)
+            self.statuses_lost += 1
+            if self.statuses_lost == 1 or self.statuses_lost % STATUS_BACKLOG == 0:
+                log.warning(
+                    "status backlog full: %d status message(s) not sent (UAV %d's last)",
+                    self.statuses_lost,
+                    record.uav,
+                )
 
     def refresh_forever(self, stop: threading.Event, timeout_s: float) -> None:
         """Fill in the phases, missions and targets the subscriptions do not carry."""
