@@ -21,7 +21,7 @@ from fleet.mission.messages import MissionTargets, Target
 from fleet.mission.phase import Phase
 from fleet.mission.target_checks import DEFAULT_MAX_REACH_M, target_set_problems
 from fleet.transport.bus import Bus
-from ground.fleet_view import live_uav_ids, query_states
+from ground.fleet_view import query_states
 from ground.gui.commands import MissionDesk
 from ground.mission_commands import ABORT_CONFIRM_S
 from ground.mission_control import (
@@ -73,15 +73,15 @@ class FleetLink:
         self._desk.close()
 
     def send_mission(
-        self, uav: int, targets: tuple[Target, ...], choice: TeamChoice
+        self, uav: int, targets: tuple[Target, ...], choice: TeamChoice, live: list[int]
     ) -> SendOutcome:
         """Send `targets` to `uav`'s team (`choice`), after the checks `send-targets`
         makes (no targets within the acceptance radius of each other, none beyond reach),
-        and wait for the team to acknowledge it (as `send-targets` does)."""
-        live = live_uav_ids(self._bus, self._space, self._timeout)
+        and wait for the team to acknowledge it (as `send-targets` does). `live`: the UAVs
+        the gateway shows (its liveliness subscription), the vehicles the station sees."""
         if uav not in live:
             return SendOutcome(None, problem=f"UAV {uav} is not live")
-        team = (uav,) if choice is TeamChoice.UAV else tuple(live)
+        team = (uav,) if choice is TeamChoice.UAV else tuple(sorted(live))
         positions = {
             piccolo: (state.telemetry.gps.lat, state.telemetry.gps.lon)
             for piccolo, state in query_states(self._bus, self._space, self._timeout).items()

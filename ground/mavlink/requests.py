@@ -160,7 +160,8 @@ class Requests:
         self, sysid: int, piccolo: int, partner: tuple[int, int], targets: tuple[Target, ...]
     ) -> None:
         """(A worker.) Hand the mission to the fleet; MISSION_ACK says if it took it."""
-        outcome = self.gateway.fleet.send_mission(piccolo, targets, self.team)
+        live = self.gateway.view.live_ids()
+        outcome = self.gateway.fleet.send_mission(piccolo, targets, self.team, live)
         if outcome.mission is None:
             # Refused by the checks (nothing sent), or sent and not acknowledged.
             result = (

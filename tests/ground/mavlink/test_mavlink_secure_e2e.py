@@ -101,7 +101,7 @@ def test_holding_the_grounds_identity_it_says_so_and_missions_are_taken(
 ) -> None:
     lines, result = upload_one("ground", secure_fleet)
     assert any("Zenoh: holding the ground's identity" in line for line in lines)
-    assert result == mavlink2.MAV_MISSION_ACCEPTED
+    assert result == mavlink2.MAV_MISSION_ACCEPTED, "\n".join(lines)
 
 
 def test_holding_a_uavs_identity_it_says_so_and_its_missions_are_refused(

@@ -47,7 +47,7 @@ class StandInFleet(FleetLink):
         self.unacknowledged = False
 
     def send_mission(
-        self, uav: int, targets: tuple[Target, ...], choice: TeamChoice
+        self, uav: int, targets: tuple[Target, ...], choice: TeamChoice, live: list[int]
     ) -> SendOutcome:
         self.sent.append((uav, targets, choice))
         if self.refuse is not None:
