@@ -18,6 +18,7 @@ from fleet.transport import bus_codec
 from fleet.transport.cli import (
     ExitCode,
     ZenohConfigError,
+    add_query_timeout_argument,
     add_verbose_argument,
     add_zenoh_arguments,
     bounded_int,
@@ -52,13 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_zenoh_arguments(parser)
-    parser.add_argument(
-        "--query-timeout",
-        type=positive_float,
-        default=1.0,
-        metavar="S",
-        help="how long each Zenoh query waits for answers (default 1 s)",
-    )
+    add_query_timeout_argument(parser)
     add_verbose_argument(parser)
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 

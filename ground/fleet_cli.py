@@ -18,6 +18,7 @@ SUBCOMMANDS = (
     "ground.demo",
     "fleet.recording.commands",
     "ground.foxglove_live.command",
+    "ground.mavlink.cli",
 )
 
 

@@ -169,6 +169,7 @@ class _Uav:
     telemetry_at: float | None = None  #: monotonic time the last telemetry arrived
     waypoints: dict[int, Waypoint] = field(default_factory=dict)
     track_history: list[int] = field(default_factory=list)
+    telemetry: Telemetry | None = None  #: the latest packet, whole (attitude, rates)
 
 
 class FleetView(Declarations):
@@ -230,6 +231,7 @@ class FleetView(Declarations):
         with self._changed:
             entry = self._entry(uav_id)
             entry.view = with_telemetry(entry.view, telemetry)
+            entry.telemetry = telemetry
             entry.telemetry_at = self._clock()
             self._changed.notify_all()
 
@@ -315,6 +317,12 @@ class FleetView(Declarations):
         with self._lock:
             entry = self._uavs.get(uav_id)
             return dict(entry.waypoints) if entry else {}
+
+    def telemetry(self, uav_id: int) -> Telemetry | None:
+        """The latest telemetry packet from `uav_id`, None before any."""
+        with self._lock:
+            entry = self._uavs.get(uav_id)
+            return entry.telemetry if entry else None
 
     def track_history(self, uav_id: int) -> list[int]:
         with self._lock:

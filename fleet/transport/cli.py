@@ -174,6 +174,17 @@ def add_zenoh_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_query_timeout_argument(parser: argparse.ArgumentParser) -> None:
+    """`--query-timeout S`: how long each Zenoh query of a ground tool waits."""
+    parser.add_argument(
+        "--query-timeout",
+        type=positive_float,
+        default=1.0,
+        metavar="S",
+        help="how long each Zenoh query waits for answers (default 1 s)",
+    )
+
+
 def zenoh_config(args: argparse.Namespace) -> zenoh.Config:
     """The config the Zenoh flags ask for; raises ZenohConfigError with the reason."""
     return build_config(
@@ -251,6 +262,7 @@ __all__ = [
     "ExitCode",
     "ZenohConfigError",
     "add_key_prefix_argument",
+    "add_query_timeout_argument",
     "add_verbose_argument",
     "add_zenoh_arguments",
     "bounded_int",

@@ -70,10 +70,14 @@ class Child:
             self.process.wait(5)
 
 
-def start(name: str, argv: list[str], env: dict[str, str] | None = None) -> Child:
+def start(
+    name: str, argv: list[str], env: dict[str, str] | None = None, *, stdin: bool = False
+) -> Child:
+    """Start `argv`; with `stdin`, its standard input is a pipe the test writes to
+    (`child.process.stdin`), else it reads nothing."""
     process = subprocess.Popen(
         argv,
-        stdin=subprocess.DEVNULL,
+        stdin=subprocess.PIPE if stdin else subprocess.DEVNULL,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,

@@ -1,0 +1,155 @@
+"""`fleet mavlink`: the gateway's command line (docs/mavlink.md).
+
+    fleet mavlink --out udpout:127.0.0.1:14550     # QGroundControl's default port
+    fleet mavlink --out udpin:127.0.0.1:14551 --sysid 300=30 --mission-team live
+
+It connects to the fleet as `ground-cli` does (the Zenoh flags), prints one line when it
+serves, and runs until Ctrl-C or SIGTERM; then it says how much MAVLink input it
+dropped and why.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import threading
+from pathlib import Path
+
+from fleet.mission.access import GROUND
+from fleet.transport.bus import Bus
+from fleet.transport.cli import (
+    ExitCode,
+    ZenohConfigError,
+    add_query_timeout_argument,
+    add_zenoh_arguments,
+    fail,
+    stop_on_signals,
+    zenoh_config,
+)
+from fleet.transport.zenoh_bus import BusConnectError, client_bus
+from ground.mavlink.endpoint import Endpoint, EndpointError, InputDrops
+from ground.mavlink.fleet_link import FleetLink, TeamChoice
+from ground.mavlink.gateway import Gateway
+from ground.mavlink.requests import Requests
+from ground.mavlink.sysids import SysIdError, SysIdMap, sysid_pair
+
+log = logging.getLogger(__name__)
+
+DEFAULT_OUT = "udpout:127.0.0.1:14550"
+PROG = "fleet mavlink"
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parser = subparsers.add_parser(
+        "mavlink",
+        help="show every live UAV to MAVLink ground stations (QGroundControl, MAVProxy, MAVSDK)",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    configure(parser)
+    parser.set_defaults(func=run)
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--out",
+        default=DEFAULT_OUT,
+        metavar="URL",
+        help="udpout:HOST:PORT (a station listening there), udpin:HOST:PORT or "
+        "tcpin:HOST:PORT (stations connect here); default %(default)s",
+    )
+    parser.add_argument(
+        "--sysid",
+        type=sysid_pair,
+        action="append",
+        default=[],
+        metavar="PICCOLO=SYS",
+        help="show UAV PICCOLO as MAVLink system SYS (1-254); repeatable. Piccolo IDs "
+        "1-254 are their own system id unless mapped",
+    )
+    parser.add_argument(
+        "--mission-team",
+        choices=("uav", "live"),
+        default="uav",
+        help="who flies a mission uploaded to a UAV: that UAV alone (default), or every "
+        "live UAV, the fleet assigning the items across them",
+    )
+    add_query_timeout_argument(parser)
+    add_zenoh_arguments(parser)
+
+
+def _identity_line(config_file: str | None) -> str:
+    if config_file is None:
+        return "Zenoh: no config file (an open fleet)"
+    if Path(config_file).stem == GROUND:
+        return f"Zenoh: holding the ground's identity ({config_file})"
+    return (
+        f"Zenoh: config {config_file}, not the ground's identity: a secure fleet refuses "
+        "its missions and aborts"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        sysids = SysIdMap(args.sysid)
+        config = zenoh_config(args)
+    except (SysIdError, ZenohConfigError) as error:
+        return fail(PROG, f"error: {error}")
+    drops = InputDrops()
+    try:
+        endpoint = Endpoint(args.out, drops)
+    except EndpointError as error:
+        return fail(PROG, f"error: {error}")
+    team = TeamChoice.LIVE if args.mission_team == "live" else TeamChoice.UAV
+    stop = threading.Event()
+    try:
+        with stop_on_signals(stop.set), client_bus(config) as bus:
+            return _serve(args, bus, endpoint, sysids, team, stop)
+    except BusConnectError as error:
+        return fail(PROG, f"error: {error}")
+    finally:
+        endpoint.close()
+        if drops.total():
+            print(f"{PROG}: dropped {drops.total()} MAVLink input(s): {drops.counts()}")
+
+
+def _serve(
+    args: argparse.Namespace,
+    bus: Bus,
+    endpoint: Endpoint,
+    sysids: SysIdMap,
+    team: TeamChoice,
+    stop: threading.Event,
+) -> int:
+    fleet = FleetLink(bus, args.key_space, args.query_timeout)
+    gateway = Gateway(bus, args.key_space, fleet, endpoint, sysids)
+    requests = Requests(gateway, team)
+    with gateway.view:
+        refresher = threading.Thread(
+            target=gateway.refresh_forever,
+            args=(stop, args.query_timeout),
+            name="mavlink-refresh",
+            daemon=True,
+        )
+        refresher.start()
+        print(_identity_line(args.zenoh_config), flush=True)
+        print(
+            f"{PROG}: serving on {args.out} (local port {endpoint.local_port}), "
+            f"missions to {'every live UAV' if team is TeamChoice.LIVE else 'the UAV alone'}",
+            flush=True,
+        )
+        try:
+            gateway.run(stop, requests.handle, requests.tick)
+        finally:
+            stop.set()
+            gateway.workers.shutdown(wait=True, cancel_futures=True)
+            refresher.join(timeout=max(5.0, 3 * args.query_timeout))
+            fleet.close()
+    return ExitCode.OK
+
+
+if __name__ == "__main__":
+    from fleet.transport.cli import run_standalone
+
+    sys.exit(run_standalone(PROG, __doc__ or "", configure, run))

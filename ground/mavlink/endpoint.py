@@ -1,0 +1,306 @@
+"""The gateway's MAVLink endpoint: where ground stations connect, and what comes in.
+
+`udpout:HOST:PORT` sends to a ground station listening there (QGroundControl's 14550)
+and hears its answers on the same socket; `udpin:HOST:PORT` listens for stations and
+answers each one heard in the last `PEER_TTL_S`; `tcpin:HOST:PORT` accepts up to
+`MAX_TCP_CLIENTS` stations. Every frame is decoded by pymavlink's MAVLink 2 parser in
+its robust mode, one parser per peer: a frame with a bad CRC, a bad prefix, an unknown
+message id, a datagram that ends inside a frame (truncated), or more than a peer's
+share of messages a second (a flood; a datagram arriving once the share is spent is
+dropped unread, counted once) is dropped and counted (`InputDrops`), never raised.
+At most `READ_BUDGET` reads are done per `receive`, so a flood cannot starve the
+gateway's own heartbeats.
+"""
+
+from __future__ import annotations
+
+import logging
+import selectors
+import socket
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+from pymavlink.dialects.v20 import common as mavlink2
+
+from fleet.errors import FleetError
+
+log = logging.getLogger(__name__)
+
+PEER_TTL_S = 30.0
+MAX_UDP_PEERS = 8
+MAX_TCP_CLIENTS = 8
+READ_BUDGET = 256
+#: A peer's share: messages a second, and the burst it may send at once.
+PEER_RATE_HZ = 400.0
+PEER_BURST = 800.0
+_DATAGRAM = 65535
+
+
+class EndpointError(FleetError, ValueError):
+    """An endpoint that cannot be parsed or opened."""
+
+
+class Drop(StrEnum):
+    """Why an input was dropped."""
+
+    BAD_CRC = "bad_crc"
+    BAD_PREFIX = "bad_prefix"
+    UNKNOWN_MESSAGE = "unknown_message"
+    MALFORMED = "malformed"
+    TRUNCATED = "truncated"
+    FLOOD = "flood"
+    TOO_MANY_PEERS = "too_many_peers"
+    #: Decoded, but refused by the gateway (a MISSION_COUNT out of range)
+    REFUSED = "refused"
+    #: Decoded, but addressed to a system id the gateway does not show
+    UNKNOWN_SYSTEM = "unknown_system"
+
+
+class InputDrops:
+    """Counts of dropped input by reason (the gateway's one thread updates it)."""
+
+    def __init__(self) -> None:
+        self._counts: dict[Drop, int] = {}
+
+    def add(self, reason: Drop, count: int = 1) -> None:
+        self._counts[reason] = self._counts.get(reason, 0) + count
+
+    def total(self) -> int:
+        return sum(self._counts.values())
+
+    def counts(self) -> dict[str, int]:
+        return {str(reason): n for reason, n in sorted(self._counts.items())}
+
+
+def _reason_of(bad: mavlink2.MAVLink_bad_data) -> Drop:
+    text = str(getattr(bad, "reason", ""))
+    if "CRC" in text:
+        return Drop.BAD_CRC
+    if "prefix" in text:
+        return Drop.BAD_PREFIX
+    if "unknown MAVLink message" in text:
+        return Drop.UNKNOWN_MESSAGE
+    return Drop.MALFORMED
+
+
+@dataclass
+class _Peer:
+    """One station: its parser, its allowance, when it was last heard."""
+
+    parser: mavlink2.MAVLink = field(default_factory=lambda: _new_parser())
+    tokens: float = PEER_BURST
+    refilled_at: float = field(default_factory=time.monotonic)
+    heard_at: float = field(default_factory=time.monotonic)
+
+    def allow(self, now: float, spend: float = 1.0) -> bool:
+        """Whether the peer may send one more message now (taking it from its share
+        unless `spend` is 0: only looking)."""
+        self.tokens = min(PEER_BURST, self.tokens + (now - self.refilled_at) * PEER_RATE_HZ)
+        self.refilled_at = now
+        if self.tokens < 1.0:
+            return False
+        self.tokens -= spend
+        return True
+
+
+def _new_parser() -> mavlink2.MAVLink:
+    parser = mavlink2.MAVLink(None)
+    parser.robust_parsing = True
+    return parser
+
+
+Address = tuple[str, int]
+
+
+@dataclass(frozen=True)
+class Incoming:
+    message: mavlink2.MAVLink_message
+    peer: Address
+
+
+def parse_url(url: str) -> tuple[str, Address]:
+    """`udpout:127.0.0.1:14550` -> ("udpout", ("127.0.0.1", 14550))."""
+    kind, _, rest = url.partition(":")
+    host, _, port = rest.rpartition(":")
+    if kind not in ("udpout", "udpin", "tcpin") or not host:
+        raise EndpointError(
+            f"{url!r}: expected udpout:HOST:PORT, udpin:HOST:PORT or tcpin:HOST:PORT"
+        )
+    try:
+        number = int(port)
+    except ValueError:
+        raise EndpointError(f"{url!r}: the port {port!r} is not a number") from None
+    if not 0 <= number <= 65535:
+        raise EndpointError(f"{url!r}: port out of range")
+    return kind, (host, number)
+
+
+class Endpoint:
+    """The open endpoint. Used from one thread (the gateway's loop)."""
+
+    def __init__(self, url: str, drops: InputDrops, clock: Callable[[], float] = time.monotonic):
+        self.kind, self.address = parse_url(url)
+        self.drops = drops
+        self._clock = clock
+        self._selector = selectors.DefaultSelector()
+        self._peers: dict[Address, _Peer] = {}
+        self._tcp: dict[socket.socket, Address] = {}
+        self._out_of_order: list[Incoming] = []
+        try:
+            if self.kind == "tcpin":
+                self._sock = socket.create_server(self.address)
+            else:
+                self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+                if self.kind == "udpin":
+                    self._sock.bind(self.address)
+                else:
+                    self._sock.connect(self.address)
+        except OSError as error:
+            raise EndpointError(f"{url}: {error.strerror or error}") from None
+        self._sock.setblocking(False)
+        self._selector.register(self._sock, selectors.EVENT_READ)
+        if self.kind == "udpout":
+            self._peers[self.address] = _Peer()
+
+    @property
+    def local_port(self) -> int:
+        port: int = self._sock.getsockname()[1]
+        return port
+
+    def close(self) -> None:
+        for client in list(self._tcp):
+            client.close()
+        self._selector.close()
+        self._sock.close()
+
+    # ---- input ---------------------------------------------------------------------------
+    def receive(self, timeout_s: float) -> list[Incoming]:
+        """What came in within `timeout_s` (at most `READ_BUDGET` reads), decoded."""
+        got: list[Incoming] = []
+        reads = 0
+        for key, _ in self._selector.select(timeout_s):
+            sock = key.fileobj
+            assert isinstance(sock, socket.socket)
+            while reads < READ_BUDGET:
+                reads += 1
+                if sock is self._sock and self.kind == "tcpin":
+                    self._accept()
+                    break
+                if not self._read(sock, got):
+                    break
+        self._forget_silent()
+        return got
+
+    def _accept(self) -> None:
+        try:
+            client, address = self._sock.accept()
+        except BlockingIOError:
+            return
+        if len(self._tcp) >= MAX_TCP_CLIENTS:
+            self.drops.add(Drop.TOO_MANY_PEERS)
+            client.close()
+            return
+        client.setblocking(False)
+        self._tcp[client] = address
+        self._peers[address] = _Peer()
+        self._selector.register(client, selectors.EVENT_READ)
+        log.info("ground station connected from %s:%d", *address)
+
+    def _read(self, sock: socket.socket, got: list[Incoming]) -> bool:
+        """One read from `sock`; False when there is nothing more to read now."""
+        try:
+            if sock in self._tcp:
+                data, peer = sock.recv(_DATAGRAM), self._tcp[sock]
+                if not data:
+                    self._drop_client(sock)
+                    return False
+            else:
+                data, peer = sock.recvfrom(_DATAGRAM)
+        except (BlockingIOError, InterruptedError):
+            return False
+        except OSError as error:
+            # udpout before anyone listens: ECONNREFUSED for our own last datagram.
+            log.debug("receive: %s", error)
+            if sock in self._tcp:
+                self._drop_client(sock)
+            return False
+        self._decode(data, peer, stream=sock in self._tcp, got=got)
+        return True
+
+    def _drop_client(self, client: socket.socket) -> None:
+        address = self._tcp.pop(client)
+        self._peers.pop(address, None)
+        self._selector.unregister(client)
+        client.close()
+        log.info("ground station %s:%d disconnected", *address)
+
+    def _peer(self, address: Address) -> _Peer | None:
+        peer = self._peers.get(address)
+        if peer is None:
+            if len(self._peers) >= MAX_UDP_PEERS:
+                self.drops.add(Drop.TOO_MANY_PEERS)
+                return None
+            peer = self._peers[address] = _Peer()
+            log.info("ground station heard from %s:%d", *address)
+        return peer
+
+    def _decode(self, data: bytes, address: Address, stream: bool, got: list[Incoming]) -> None:
+        peer = self._peer(address)
+        if peer is None:
+            return
+        now = self._clock()
+        peer.heard_at = now
+        if not stream and not peer.allow(now, spend=0.0):
+            # A station over its share: its datagram is dropped unread, so a flood costs
+            # a read, not a parse per frame.
+            self.drops.add(Drop.FLOOD)
+            return
+        try:
+            messages = peer.parser.parse_buffer(data) or []
+        except Exception as error:  # hostile bytes must never end the gateway
+            log.debug("undecodable input from %s:%d: %s", *address, error)
+            peer.parser = _new_parser()
+            self.drops.add(Drop.MALFORMED)
+            return
+        if not stream and peer.parser.buf_len() > 0:
+            # A datagram carries whole frames: what is left is a frame cut short.
+            self.drops.add(Drop.TRUNCATED)
+            peer.parser = _new_parser()
+        for message in messages:
+            if isinstance(message, mavlink2.MAVLink_bad_data):
+                self.drops.add(_reason_of(message))
+            elif isinstance(message, mavlink2.MAVLink_unknown):
+                # A frame whose CRC cannot be checked (its id is in no dialect).
+                self.drops.add(Drop.UNKNOWN_MESSAGE)
+            elif not peer.allow(now):
+                self.drops.add(Drop.FLOOD)
+            else:
+                got.append(Incoming(message, address))
+
+    def _forget_silent(self) -> None:
+        if self.kind != "udpin":
+            return
+        now = self._clock()
+        for address in [a for a, p in self._peers.items() if now - p.heard_at > PEER_TTL_S]:
+            del self._peers[address]
+
+    # ---- output --------------------------------------------------------------------------
+    def send(self, data: bytes) -> None:
+        """To every station: the udpout address, each recent udpin peer, each TCP client."""
+        try:
+            if self.kind == "udpout":
+                self._sock.send(data)
+            elif self.kind == "udpin":
+                for address in self._peers:
+                    self._sock.sendto(data, address)
+            else:
+                for client in list(self._tcp):
+                    try:
+                        client.send(data)
+                    except BlockingIOError:
+                        log.debug("station %s:%d is slow: frame skipped", *self._tcp[client])
+        except OSError as error:
+            # Nobody listening yet (udpout): heartbeats go on until somebody does.
+            log.debug("send: %s", error)

@@ -1,0 +1,42 @@
+"""`fleet mavlink`'s command line: what is refused before anything is opened."""
+
+from __future__ import annotations
+
+import socket
+
+import pytest
+
+from ground.fleet_cli import main
+from ground.mavlink.cli import _identity_line
+
+
+def test_two_uavs_on_one_system_id_are_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["mavlink", "--sysid", "300=30", "--sysid", "400=30"]) == 2
+    assert "system id 30 given to both UAV 300 and UAV 400" in capsys.readouterr().err
+
+
+def test_a_sysid_out_of_range_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as stopped:
+        main(["mavlink", "--sysid", "300=255"])
+    assert stopped.value.code == 2
+    assert "255 is for ground stations" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("out", ["serial:/dev/ttyS0", "udpout:nowhere", "tcpin:127.0.0.1:x"])
+def test_a_bad_endpoint_is_a_usage_error(out: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["mavlink", "--out", out]) == 2
+    assert "fleet mavlink: error:" in capsys.readouterr().err
+
+
+def test_a_port_in_use_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as taken:
+        taken.bind(("127.0.0.1", 0))
+        port = taken.getsockname()[1]
+        assert main(["mavlink", "--out", f"udpin:127.0.0.1:{port}"]) == 2
+    assert "in use" in capsys.readouterr().err
+
+
+def test_the_identity_it_holds_is_said() -> None:
+    assert "ground's identity" in _identity_line("/certs/ground.json5")
+    assert "not the ground's identity" in _identity_line("/certs/uav-74.json5")
+    assert "open fleet" in _identity_line(None)

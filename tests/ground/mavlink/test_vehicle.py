@@ -1,0 +1,169 @@
+"""A UAV's view as MAVLink messages: the mode and state follow its phase, the numbers
+its telemetry, and commands are carried out or answered unsupported."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from pymavlink.dialects.v20 import common as mavlink2
+
+from fleet.mission.phase import Phase, Severity
+from fleet.piccolo.telemetry import GpsBlock, RawBlock, SensorBlock, Telemetry
+from ground.fleet_view import UavView
+from ground.mavlink import vehicle
+from ground.mavlink.commands import Action, decide, is_rtl_mode
+from ground.mavlink.vehicle import FleetMode
+
+TELEMETRY = Telemetry(
+    system_time_ms=1000,
+    gps=GpsBlock(35.7012345, -120.7987654, 612.5, 20.0, -5.0, 1.5),
+    sensor=SensorBlock(roll=10.0, pitch=-2.0, yaw=270.0, indicated_airspeed=21.0),
+    raw=RawBlock(p=1.0, q=2.0, r=3.0, accel_x=0, accel_y=0, accel_z=-9.8),
+)
+
+
+@pytest.mark.parametrize(
+    ("phase", "mode", "state"),
+    [
+        (Phase.IDLE, FleetMode.AUTO, mavlink2.MAV_STATE_ACTIVE),
+        (Phase.COMPUTING, FleetMode.GUIDED, mavlink2.MAV_STATE_ACTIVE),
+        (Phase.WAITING, FleetMode.GUIDED, mavlink2.MAV_STATE_ACTIVE),
+        (Phase.COMMITTED, FleetMode.GUIDED, mavlink2.MAV_STATE_ACTIVE),
+        (Phase.FLYING, FleetMode.GUIDED, mavlink2.MAV_STATE_ACTIVE),
+        (Phase.REACHED, FleetMode.AUTO, mavlink2.MAV_STATE_ACTIVE),
+        (Phase.PREEMPTED, FleetMode.AUTO, mavlink2.MAV_STATE_ACTIVE),
+        (Phase.ABORTED, FleetMode.RTL, mavlink2.MAV_STATE_ACTIVE),
+        (Phase.FAILED, FleetMode.AUTO, mavlink2.MAV_STATE_CRITICAL),
+        (Phase.LINK_LOST, FleetMode.AUTO, mavlink2.MAV_STATE_CRITICAL),
+        (Phase.OFF, FleetMode.AUTO, mavlink2.MAV_STATE_STANDBY),
+    ],
+)
+def test_the_heartbeat_follows_the_phase(phase: Phase, mode: FleetMode, state: int) -> None:
+    beat = vehicle.heartbeat(UavView(id=74, phase=str(phase)))
+    assert (beat.type, beat.autopilot) == (
+        mavlink2.MAV_TYPE_FIXED_WING,
+        mavlink2.MAV_AUTOPILOT_GENERIC,
+    )
+    assert beat.custom_mode == mode
+    assert beat.system_status == state
+    assert beat.base_mode & mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+    guided = bool(beat.base_mode & mavlink2.MAV_MODE_FLAG_GUIDED_ENABLED)
+    assert guided == (mode == FleetMode.GUIDED)
+
+
+def test_an_unknown_or_missing_phase_is_idle() -> None:
+    assert vehicle.phase_of(UavView(id=1)) == Phase.IDLE
+    assert vehicle.phase_of(UavView(id=1, phase="bogus")) == Phase.IDLE
+
+
+def test_position_attitude_and_hud_carry_the_telemetry() -> None:
+    position = vehicle.global_position(TELEMETRY, 1234)
+    assert position is not None
+    assert (position.lat, position.lon) == (357012345, -1207987654)
+    assert position.alt == position.relative_alt == 612500
+    assert (position.vx, position.vy, position.vz) == (2000, -500, 150)
+    assert position.hdg == 27000
+    attitude = vehicle.attitude(TELEMETRY, 1234)
+    assert attitude is not None
+    assert attitude.roll == pytest.approx(math.radians(10.0))
+    assert attitude.yaw == pytest.approx(math.radians(-90.0))
+    assert attitude.yawspeed == pytest.approx(math.radians(3.0))
+    hud = vehicle.vfr_hud(UavView(id=1, airspeed=21.0, ground_speed=20.6, heading=270.0), TELEMETRY)
+    assert hud is not None
+    assert (hud.heading, hud.alt, hud.climb) == (270, 612.5, -1.5)
+
+
+def test_no_gps_no_position_no_sensor_no_attitude() -> None:
+    bare = Telemetry(system_time_ms=0)
+    assert vehicle.global_position(bare, 0) is None
+    assert vehicle.attitude(bare, 0) is None
+    assert vehicle.vfr_hud(UavView(id=1), bare) is None
+    assert vehicle.sys_status(None, 0).onboard_control_sensors_present == 0
+
+
+def test_sys_status_counts_dropped_input() -> None:
+    status = vehicle.sys_status(TELEMETRY, 70000)
+    assert status.errors_comm == 65535
+    assert status.onboard_control_sensors_present & mavlink2.MAV_SYS_STATUS_SENSOR_GPS
+
+
+def test_autopilot_version_says_mission_int_and_names_the_uav() -> None:
+    version = vehicle.autopilot_version(300)
+    assert version.capabilities & mavlink2.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+    assert version.uid == 300
+
+
+def test_status_text_keeps_its_severity_and_long_texts_come_in_chunks() -> None:
+    (short,) = vehicle.status_texts("link lost", Severity.WARNING, 7)
+    assert short.severity == mavlink2.MAV_SEVERITY_WARNING
+    chunks = vehicle.status_texts("x" * 120, Severity.ERROR, 7)
+    assert [c.chunk_seq for c in chunks] == [0, 1, 2]
+    assert {c.id for c in chunks} == {7}
+    assert all(c.severity == mavlink2.MAV_SEVERITY_ERROR for c in chunks)
+    assert len(vehicle.status_texts("y" * 5000, Severity.INFO, 1)) == 10
+
+
+def test_messages_pack_as_mavlink_2() -> None:
+    sender = mavlink2.MAVLink(None, 74, 1)
+    parser = mavlink2.MAVLink(None)
+    for message in (
+        vehicle.heartbeat(UavView(id=74)),
+        vehicle.autopilot_version(74),
+        vehicle.mission_current(1, 3, False),
+        *vehicle.status_texts("hello", Severity.INFO, 1),
+    ):
+        data = message.pack(sender)
+        assert data[0] == mavlink2.PROTOCOL_MARKER_V2
+        (decoded,) = parser.parse_buffer(data) or []
+        assert decoded.get_type() == message.get_type()
+        assert decoded.get_srcSystem() == 74
+
+
+@pytest.mark.parametrize(
+    ("command", "params", "action"),
+    [
+        (mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH, (0, 0, 0), Action.ABORT),
+        (mavlink2.MAV_CMD_DO_SET_MODE, (1, int(FleetMode.RTL), 0), Action.ABORT),
+        (mavlink2.MAV_CMD_DO_SET_MODE, (129, 4, 5), Action.ABORT),  # PX4's AUTO/RTL (MAVSDK)
+        (mavlink2.MAV_CMD_DO_SET_MODE, (1, int(FleetMode.GUIDED), 0), Action.UNSUPPORTED),
+        (mavlink2.MAV_CMD_DO_SET_MODE, (0, int(FleetMode.RTL), 0), Action.UNSUPPORTED),
+        (mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, (0, 0, 0), Action.UNSUPPORTED),
+        (mavlink2.MAV_CMD_NAV_TAKEOFF, (0, 0, 0), Action.UNSUPPORTED),
+        (mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, (33, 1e5, 0), Action.UNSUPPORTED),
+        (mavlink2.MAV_CMD_REQUEST_MESSAGE, (148, 0, 0), Action.SEND_MESSAGE),
+        (mavlink2.MAV_CMD_REQUEST_MESSAGE, (242, 0, 0), Action.UNSUPPORTED),
+        (mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, (1, 0, 0), Action.SEND_MESSAGE),
+    ],
+)
+def test_commands(command: int, params: tuple[float, float, float], action: Action) -> None:
+    assert decide(command, *params).action is action
+
+
+def test_autopilot_capabilities_answer_with_autopilot_version() -> None:
+    decision = decide(mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, 1, 0)
+    assert decision.message_id == mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION
+
+
+def test_set_mode_to_rtl() -> None:
+    flag = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+    assert is_rtl_mode(flag, FleetMode.RTL)
+    assert not is_rtl_mode(flag, FleetMode.AUTO)
+
+
+def test_values_no_field_can_hold_are_clamped_not_raised() -> None:
+    hostile = Telemetry(
+        system_time_ms=0,
+        gps=GpsBlock(1e9, -1e12, 1e300, math.inf, -math.inf, math.nan),
+        sensor=SensorBlock(roll=0.0, pitch=0.0, yaw=math.nan, indicated_airspeed=1.0),
+    )
+    position = vehicle.global_position(hostile, 0)
+    assert position is not None
+    assert (position.lat, position.lon) == (2**31 - 1, -(2**31))
+    assert (position.vx, position.vy, position.vz) == (0, 0, 0)
+    assert position.hdg == 0
+    sender = mavlink2.MAVLink(None, 1, 1)
+    position.pack(sender)
+    view = UavView(id=1, heading=359.7, airspeed=math.nan)
+    hud = vehicle.vfr_hud(view, TELEMETRY)
+    assert hud is not None and hud.heading == 0
