@@ -24,6 +24,7 @@ import pytest
 import zenoh
 
 from fleet.files.certs import write_identities
+from fleet.files.signers import revoke
 from fleet.launch.launcher import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, Target
@@ -149,6 +150,65 @@ def test_a_refused_connection_is_in_the_routers_log(
     with pytest.raises(zenoh.ZError, match="Unable to connect"):
         zenoh.open(config)  # no certificate of its own
     child.wait_for_line(lambda line: "WARN" in line and "certificate" in line, 10.0)
+
+
+def _refused_by(config: zenoh.Config) -> None:
+    with pytest.raises(zenoh.ZError, match="Unable to connect"):
+        zenoh.open(config)
+
+
+def test_refused_connections_are_counted_by_kind(certs: Certs, tmp_path: Path) -> None:
+    foreign = tmp_path / "foreign"
+    write_identities(foreign, ["uav-74"], [])
+    child, endpoint = router(certs, "router")  # its own: the counts start at zero
+    try:
+        no_certificate = make_config("client", [endpoint])
+        no_certificate.insert_json5(
+            "transport/link/tls/root_ca_certificate", json.dumps(str(certs.directory / "ca.pem"))
+        )
+        _refused_by(no_certificate)
+        child.wait_for_line(lambda line: "refused links so far: no_certificate=1" in line, 10.0)
+        # A certificate of another CA, presented to a client that trusts the fleet's CA.
+        other_ca = build_config(config_file=str(foreign / "uav-74.json5"), connect=[endpoint])
+        other_ca.insert_json5(
+            "transport/link/tls/root_ca_certificate", json.dumps(str(certs.directory / "ca.pem"))
+        )
+        _refused_by(other_ca)
+        child.wait_for_line(
+            lambda line: "refused links so far: no_certificate=1 unknown_ca=1" in line, 10.0
+        )
+        _refused_by(no_certificate)
+        # A client of the other CA altogether refuses the router's certificate itself.
+        _refused_by(build_config(config_file=str(foreign / "uav-74.json5"), connect=[endpoint]))
+        child.wait_for_line(
+            lambda line: (
+                "refused links so far: no_certificate=2 unknown_ca=1 peer_refused=1" in line
+            ),
+            10.0,
+        )
+        with certs.session("ground", endpoint):  # accepted, and not counted
+            pass
+    finally:
+        child.stop()
+    # And its last word, on SIGTERM (its output is read on, after the exit).
+    total = "refused links in all: no_certificate=2 unknown_ca=1 peer_refused=1"
+    wait_until(lambda: any(total in line for line in child.history[:]), 10.0, "the totals")
+
+
+def test_a_revoked_identitys_session_is_counted(tmp_path: Path) -> None:
+    write_identities(tmp_path, ["router", "ground", "uav-300"], [])
+    revoke(tmp_path, ["uav-300"])
+    certs = Certs(tmp_path.resolve())
+    child, endpoint = router(certs, "router")
+    try:
+        with certs.session("uav-300", endpoint):  # TLS lets it in; the ACL grants nothing
+            child.wait_for_line(lambda line: "refused links so far: no_rights=1" in line, 10.0)
+        with certs.session("ground", endpoint):  # granted its rights: not counted
+            pass
+    finally:
+        child.stop()
+    total = "refused links in all: no_rights=1"
+    wait_until(lambda: any(total in line for line in child.history[:]), 10.0, "the totals")
 
 
 # ---- case 3: the router identities used as clients ------------------------------------------
