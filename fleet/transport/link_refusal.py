@@ -4,8 +4,8 @@ Zenoh refuses a TLS link (no client certificate, one from another CA, an expired
 inside its Rust runtime and tells Python nothing; it only writes a warning to its log, on
 standard output (fleet/transport/router.py turns those on). `classify` recognises those lines, as
 Zenoh 1.x words them (the samples in tests/transport/test_link_refusal.py were captured
-from a real router), and `RefusedLinks` counts them by kind. A line of any other shape
-is not a refusal: a reworded Zenoh warning goes uncounted rather than miscounted.
+from a real router), and `RefusedLinks` counts them by kind. Any other warning of the
+TLS listener is a refusal of no known kind (`TLS_OTHER`); any other line is none.
 """
 
 from __future__ import annotations

@@ -53,6 +53,10 @@ class SecureFleet:
     def ground_cli(self, *argv: str) -> subprocess.CompletedProcess[str]:
         return secure_clients.ground_cli(self.certs, self.endpoint, *argv)
 
+    def wait_for_refused(self, kind: str) -> None:
+        """Until `fleet up`'s log counts a link refused as `kind` (its embedded router's)."""
+        self.up.wait_for_line(lambda line: "refused links so far:" in line and kind in line, 10.0)
+
 
 @pytest.fixture(scope="module")
 def secure_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureFleet]:
@@ -124,12 +128,14 @@ def test_a_client_without_a_certificate_cannot_connect(secure_fleet: SecureFleet
     )
     with pytest.raises(zenoh.ZError, match="Unable to connect"):
         zenoh.open(config)
+    secure_fleet.wait_for_refused("no_certificate")
 
 
 def test_a_plain_tcp_client_cannot_connect(secure_fleet: SecureFleet) -> None:
     plain = secure_fleet.endpoint.replace("tls/", "tcp/")
     with pytest.raises(zenoh.ZError, match="Unable to connect"):
         zenoh.open(make_config("client", [plain]))
+    secure_fleet.wait_for_refused("tls_other")  # it does not speak TLS
 
 
 def test_a_certificate_from_another_ca_cannot_connect(
@@ -143,6 +149,7 @@ def test_a_certificate_from_another_ca_cannot_connect(
     )
     with pytest.raises(zenoh.ZError, match="Unable to connect"):
         zenoh.open(rogue)
+    secure_fleet.wait_for_refused("unknown_ca")
 
 
 # ---- what UAV 74's certificate may do -------------------------------------------------------

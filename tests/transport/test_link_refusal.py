@@ -27,7 +27,8 @@ CAPTURED = {
     "but certificate is not valid after 1795657425 (1807 seconds ago)" + _HINT: LinkRefusal.EXPIRED,
     _TLS + "invalid peer certificate: NotValidForName" + _HINT: LinkRefusal.BAD_CERTIFICATE,
     _TLS + "received fatal alert: DecryptError" + _HINT: LinkRefusal.PEER_REFUSED,
-    _TLS + "tls handshake eof" + _HINT: LinkRefusal.TLS_OTHER,
+    _TLS + "tls handshake eof" + _HINT: LinkRefusal.TLS_OTHER,  # a bare TCP connect
+    _TLS + "received corrupt message of type InvalidContentType" + _HINT: LinkRefusal.TLS_OTHER,
     "\x1b[2m2026-11-26T02:14:13.216763Z\x1b[0m \x1b[32m INFO\x1b[0m acc-0 ThreadId(05) "
     "\x1b[2mzenoh::net::routing::interceptor::access_control\x1b[0m\x1b[2m:\x1b[0m "
     "5d9261ad8ca9695d45c7949da220e01a did not match any configured ACL subject. Default "
