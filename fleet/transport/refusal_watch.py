@@ -14,7 +14,7 @@ from __future__ import annotations
 import logging
 import threading
 
-from fleet.transport.fd_tap import FdTap
+from fleet.transport.fd_tap import STDOUT, FdTap
 from fleet.transport.link_refusal import RefusedLinks, classify
 
 log = logging.getLogger(__name__)
@@ -24,16 +24,22 @@ REPORT_EVERY_S = 1.0
 
 
 class RefusalWatch:
-    def __init__(self, report_every_s: float = REPORT_EVERY_S) -> None:
+    def __init__(self, report_every_s: float = REPORT_EVERY_S, fd: int = STDOUT) -> None:
         self.links = RefusedLinks()
         self.report_every_s = report_every_s
         self._changed = threading.Event()
         self._stop = threading.Event()
-        self._tap = FdTap(self._on_line)
+        self._tap = FdTap(self._on_line, fd)
         self._reporter: threading.Thread | None = None
 
     def start(self) -> None:
-        self._tap.start()
+        """Start counting; with no output to tap (a closed descriptor), say so and go on
+        uncounted rather than keep the router from starting."""
+        try:
+            self._tap.start()
+        except OSError as error:
+            log.warning("refused links will not be counted: cannot read Zenoh's log: %s", error)
+            return
         self._reporter = threading.Thread(target=self._report, name="refusal-report", daemon=True)
         self._reporter.start()
 

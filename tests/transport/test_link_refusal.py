@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from fleet.transport import refusal_watch
 from fleet.transport.fd_tap import MAX_LINE, FdTap
 from fleet.transport.link_refusal import LinkRefusal, RefusedLinks, classify
 from fleet.transport.refusal_watch import RefusalWatch
@@ -122,3 +123,28 @@ def test_the_watch_counts_zenohs_lines_on_standard_output(caplog: pytest.LogCapt
         )
     finally:
         watch.stop()
+
+
+def test_with_nothing_to_tap_the_watch_says_so_and_counts_nothing(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    closed = os.open(os.devnull, os.O_WRONLY)
+    os.close(closed)
+    watch = RefusalWatch(fd=closed)
+    watch.start()
+    watch.stop()
+    assert "refused links will not be counted" in caplog.text
+    assert watch.links.counts() == {}
+
+
+def test_one_watch_per_process_while_any_router_uses_it() -> None:
+    first = refusal_watch.acquire()
+    try:
+        assert refusal_watch.acquire() is first
+        refusal_watch.release()
+        os.write(1, next(iter(CAPTURED)).encode() + b"\n")  # still counted: one user is left
+        wait_until(lambda: first.links.counts() == {"no_certificate": 1}, 10.0, "the count")
+    finally:
+        refusal_watch.release()
+    assert refusal_watch.acquire() is not first  # the last release stopped it
+    refusal_watch.release()
