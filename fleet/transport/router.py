@@ -6,7 +6,8 @@ routes between client-mode sessions (the star every fleet process joins by defau
 serves its admin space (`@/**`) to stock tools.
 
 With a `SecureProfile` (`--secure DIR`) it listens with mutual TLS and enforces the
-fleet's access policy (docs/security.md).
+fleet's access policy (docs/security.md), counts the links it refused and answers
+`{prefix}/router/state` with the counts (`ground-cli routers`).
 
 `python -m fleet.transport.router --listen tcp/127.0.0.1:7447` runs one until SIGTERM or Ctrl-C.
 """
@@ -26,7 +27,9 @@ import zenoh
 from fleet.errors import FleetError
 from fleet.files.certs import CertError
 from fleet.mission.access import ROUTER
+from fleet.mission.messages import RouterState
 from fleet.transport import refusal_watch
+from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.cli import (
     ExitCode,
     add_key_prefix_argument,
@@ -106,12 +109,23 @@ class Router:
                 _log_refused_links()
                 self._watch = refusal_watch.acquire()
             self._session = zenoh.open(config)
+            if self.secure is not None:
+                self._serve_state(self.secure.key_space.router_state())
         except zenoh.ZError as error:
-            self._release_watch()
+            self.close()
             raise RouterError(
                 f"cannot start a Zenoh router on {', '.join(self.listen)}: {error}"
             ) from error
         log.info("zenoh router %s listening on %s", self.zid, ", ".join(self.listen))
+
+    def _serve_state(self, key: str) -> None:
+        """Answer `key` (`ground-cli routers`) with this router's refused links."""
+
+        def answer(query: zenoh.Query) -> None:
+            state = RouterState(self.zid, self.refused_links)
+            query.reply(key, encode(state), encoding=ENCODING)
+
+        self.session.declare_queryable(key, answer)
 
     def close(self) -> None:
         session, self._session = self._session, None
