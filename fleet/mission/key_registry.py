@@ -83,6 +83,7 @@ class Party(Enum):
     GROUND = auto()
     OWN_UAV = auto()  #: the UAV whose Piccolo ID is in the key
     ANY_UAV = auto()  #: any UAV of the fleet
+    ROUTER = auto()  #: a router of the fleet, for itself
 
 
 class Recording(Enum):
@@ -195,6 +196,7 @@ ABORT = KeySpec(
 ROUTER_STATE = KeySpec(
     "router/state", None, carriage=Carriage.QUERY, writer=Party.GROUND,
     recording=Recording.UNHEARD, reply=messages.RouterState,
+    servers=frozenset({Party.ROUTER}),
 )  # fmt: skip
 
 #: Every key of the fleet. Order is kept wherever keys are listed (schemas, grants).

@@ -30,6 +30,7 @@ from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, Target
 from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.zenoh_config import build_config, make_config
+from tests.support import secure_clients
 from tests.support.processes import Child, start
 from tests.support.waiting import wait_until
 
@@ -59,13 +60,16 @@ def certs(tmp_path_factory: pytest.TempPathFactory) -> Certs:
     return Certs(directory.resolve())
 
 
-def router(certs: Certs, identity: str, host: str = "127.0.0.1") -> tuple[Child, str]:
+def router(
+    certs: Certs, identity: str, host: str = "127.0.0.1", connect: tuple[str, ...] = ()
+) -> tuple[Child, str]:
     endpoint = f"tls/{host}:{free_port(host)}"
     child = start(
         f"router as {identity}",
         [
             sys.executable, "-m", "fleet.transport.router", "--secure", str(certs.directory),
             "--identity", identity, "--listen", endpoint,
+            *(argument for peer in connect for argument in ("--connect", peer)),
         ],
     )  # fmt: skip
     child.wait_for_line(lambda line: "listening" in line, 30.0)
@@ -209,6 +213,35 @@ def test_a_revoked_identitys_session_is_counted(tmp_path: Path) -> None:
         child.stop()
     total = "refused links in all: no_rights=1"
     wait_until(lambda: any(total in line for line in child.history[:]), 10.0, "the totals")
+
+
+def test_ground_cli_routers_shows_each_router_of_a_mesh(certs: Certs) -> None:
+    ground_router, endpoint = router(certs, "router")
+    uav_router, uav_endpoint = router(certs, "router-74", connect=(endpoint,))
+    try:
+        no_certificate = make_config("client", [uav_endpoint])
+        no_certificate.insert_json5(
+            "transport/link/tls/root_ca_certificate", json.dumps(str(certs.directory / "ca.pem"))
+        )
+        _refused_by(no_certificate)
+        uav_router.wait_for_line(lambda line: "refused links so far: no_certificate=1" in line, 10)
+
+        def routers() -> list[dict[str, object]]:
+            answer = secure_clients.ground_cli(certs.directory, endpoint, "routers", "--json")
+            assert answer.returncode == 0, answer.stderr
+            found: list[dict[str, object]] = json.loads(answer.stdout)
+            return found
+
+        # The ground, on its own router, hears UAV 74's router too (the mesh forms in
+        # the background: asked until both answer).
+        wait_until(lambda: len(routers()) == 2, 30.0, "both routers answering")
+        assert sorted(json.dumps(r["refused_links"]) for r in routers()) == [
+            '{"no_certificate": 1}',
+            "{}",
+        ]
+    finally:
+        uav_router.stop()
+        ground_router.stop()
 
 
 # ---- case 3: the router identities used as clients ------------------------------------------
