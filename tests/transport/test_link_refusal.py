@@ -148,3 +148,23 @@ def test_one_watch_per_process_while_any_router_uses_it() -> None:
         refusal_watch.release()
     assert refusal_watch.acquire() is not first  # the last release stopped it
     refusal_watch.release()
+
+
+def test_a_flood_of_refusals_is_counted_whole_and_logged_a_few_times(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    out = os.open(tmp_path / "out", os.O_WRONLY | os.O_CREAT)
+    watch = RefusalWatch(report_every_s=0.5, fd=out)
+    watch.start()
+    try:
+        line = next(iter(CAPTURED)).encode() + b"\n"
+        for _ in range(10):
+            os.write(out, line * 100)
+        wait_until(lambda: watch.links.counts() == {"no_certificate": 1000}, 10.0, "1000")
+        wait_until(lambda: "no_certificate=1000" in caplog.text, 10.0, "the last totals")
+    finally:
+        watch.stop()
+        os.close(out)
+    lines = [r for r in caplog.records if "refused links so far" in r.getMessage()]
+    assert 1 <= len(lines) < 100  # one a half-second at most, not one a refusal
+    assert (tmp_path / "out").read_bytes() == line * 1000  # passed on whole
