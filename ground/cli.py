@@ -35,6 +35,7 @@ from ground.fleet_commands import cmd_keys, cmd_opm, cmd_uavs, cmd_watch
 from ground.gui import cli as gui_cli
 from ground.mission_commands import cmd_abort, cmd_mission
 from ground.mission_ids import MAX_MISSION_ID
+from ground.routers_command import cmd_routers
 from ground.send_command import cmd_send_targets
 from ground.targets_command import cmd_targets_make, cmd_targets_show
 
@@ -65,6 +66,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_mission(commands)
     _add_targets(commands)
     _add_keys(commands)
+    _add_routers(commands)
     gui_cli.add_parser(commands)
     return parser
 
@@ -74,6 +76,13 @@ def _add_uavs(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     uavs = commands.add_parser("uavs", help="list the live UAVs")
     uavs.add_argument("--json", action="store_true", help="a JSON list of objects")
     uavs.set_defaults(handler=cmd_uavs)
+
+
+def _add_routers(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`routers`: each secure router's refused connections."""
+    routers = commands.add_parser("routers", help="each secure router's refused connections")
+    routers.add_argument("--json", action="store_true", help="a JSON list of objects")
+    routers.set_defaults(handler=cmd_routers)
 
 
 def _add_send_targets(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

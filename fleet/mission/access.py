@@ -17,6 +17,8 @@ egress: from the router out to that client):
   keys, and serve queries (queryables) for its own keys and the mission space.
 * UAV n's own router (`router-n`, in a router-per-UAV mesh) has UAV n's rights and no
   more: a captured aircraft's router speaks for that aircraft only;
+* every UAV's router may answer for itself where routers serve (its refused links), as
+  the ground's router may (it relays everything);
 * the ground's router (`router`) relays everything, in the ACL of the other routers
   only: no router grants its own identity anything, so the router identity used by a
   client of the ground's router gets nothing (and the ground's router is the only one
@@ -174,6 +176,15 @@ def _ground_grants(space: KeySpace) -> list[Grant]:
     ]
 
 
+def _router_grants(uav_ids: list[int], space: KeySpace, own: str) -> list[Grant]:
+    routers = tuple(r for r in map(uav_router_identity, uav_ids) if r != own)
+    served = _wildcards(space, [s for s in REGISTRY if Party.ROUTER in s.servers])
+    if not (routers and served):
+        return []
+    messages = (Message.DECLARE_QUERYABLE, Message.REPLY)
+    return [Grant("routers-serve", routers, (Flow.INGRESS,), messages, served)]
+
+
 def fleet_policy(uav_ids: list[int], space: KeySpace, own: str = ROUTER) -> list[Grant]:
     """Every grant the router with identity `own` enforces, in a fleet of `uav_ids` with
     one ground, its router and maybe a router per UAV, on the keys of `space`.
@@ -195,4 +206,4 @@ def fleet_policy(uav_ids: list[int], space: KeySpace, own: str = ROUTER) -> list
     ]
     for uav_id in uav_ids:
         grants += _uav_grants(uav_id, space, own)
-    return grants
+    return grants + _router_grants(uav_ids, space, own)

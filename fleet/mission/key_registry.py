@@ -29,6 +29,7 @@ Layout (under the prefix, `fleet` by default):
                                  teammates subscribe to (docs/lifecycle.md)
     mission/{m}/outcome/{id}     TargetOutcome: reached, failed or link_lost
     mission/{m}/abort            MissionAbort, ground -> team (served too)
+    router/state                 queryable: RouterState, served by each secure router
 """
 
 from __future__ import annotations
@@ -82,6 +83,7 @@ class Party(Enum):
     GROUND = auto()
     OWN_UAV = auto()  #: the UAV whose Piccolo ID is in the key
     ANY_UAV = auto()  #: any UAV of the fleet
+    ROUTER = auto()  #: a router of the fleet, for itself
 
 
 class Recording(Enum):
@@ -118,7 +120,7 @@ class KeySpec:
 
     @property
     def tree(self) -> str:
-        """The first chunk: `uav` or `mission`."""
+        """The first chunk: `uav`, `mission` or `router`."""
         return self.chunks[0]
 
     @property
@@ -189,10 +191,18 @@ ABORT = KeySpec(
     reply=messages.MissionAbort, servers=frozenset({Party.ANY_UAV}), uavs_fetch=True,
 )  # fmt: skip
 
+#: Asked with no payload, and answered by each secure router (fleet/transport/router.py),
+#: not by a fleet member: one reply per router, so it is asked with every reply kept.
+ROUTER_STATE = KeySpec(
+    "router/state", None, carriage=Carriage.QUERY, writer=Party.GROUND,
+    recording=Recording.UNHEARD, reply=messages.RouterState,
+    servers=frozenset({Party.ROUTER}),
+)  # fmt: skip
+
 #: Every key of the fleet. Order is kept wherever keys are listed (schemas, grants).
 REGISTRY: tuple[KeySpec, ...] = (
     ALIVE, TELEMETRY, TRACK, WAYPOINT, STATUS, LINK, STATE, OPM, CMD_WAYPOINT, CMD_TRACK,
-    TARGETS, RESULT, ASSIGNMENT, REPLAN, OUTCOME, ABORT,
+    TARGETS, RESULT, ASSIGNMENT, REPLAN, OUTCOME, ABORT, ROUTER_STATE,
 )  # fmt: skip
 
 #: The JSON Schema file (without `.schema.json`) of each struct that travels on a key.
@@ -210,4 +220,5 @@ SCHEMA_FILES: dict[type[msgspec.Struct], str] = {
     messages.AssignmentReport: "assignment_report",
     messages.MissionAbort: "mission_abort",
     messages.TargetOutcome: "target_outcome",
+    messages.RouterState: "router_state",
 }

@@ -178,6 +178,9 @@ class KeySpace:
     def all_state(self) -> str:
         return self.key(reg.STATE)
 
+    def router_state(self) -> str:
+        return self.key(reg.ROUTER_STATE)
+
     @property
     def all_mission_targets(self) -> str:
         return self.key(reg.TARGETS)

@@ -246,3 +246,16 @@ class UavState(msgspec.Struct, frozen=True):
     #: The approach model's top speed (m/s) once it is built; None before (it is built
     #: on the first GPS telemetry, at the cruise speed) or from a UAV that does not say.
     model_speed: float | None = None
+
+
+#: Kinds of refused link a router counts (fleet.transport.link_refusal) at most.
+MAX_REFUSAL_KINDS = 16
+RefusalCount = Annotated[int, Meta(ge=0)]
+
+
+class RouterState(msgspec.Struct, frozen=True):
+    """A secure router's answer to a state query (`ground-cli routers`): the links it
+    refused since it started, by kind (`no_certificate`, `unknown_ca`, ...; none: {})."""
+
+    zid: str
+    refused_links: Annotated[dict[str, RefusalCount], Meta(max_length=MAX_REFUSAL_KINDS)]

@@ -6,7 +6,8 @@ routes between client-mode sessions (the star every fleet process joins by defau
 serves its admin space (`@/**`) to stock tools.
 
 With a `SecureProfile` (`--secure DIR`) it listens with mutual TLS and enforces the
-fleet's access policy (docs/security.md).
+fleet's access policy (docs/security.md), counts the links it refused and answers
+`{prefix}/router/state` with the counts (`ground-cli routers`).
 
 `python -m fleet.transport.router --listen tcp/127.0.0.1:7447` runs one until SIGTERM or Ctrl-C.
 """
@@ -26,6 +27,9 @@ import zenoh
 from fleet.errors import FleetError
 from fleet.files.certs import CertError
 from fleet.mission.access import ROUTER
+from fleet.mission.messages import RouterState
+from fleet.transport import refusal_watch
+from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.cli import (
     ExitCode,
     add_key_prefix_argument,
@@ -41,13 +45,14 @@ log = logging.getLogger(__name__)
 
 
 #: Zenoh's own log: its warnings name each link it refused (no certificate, an unknown
-#: CA, an expired certificate), which Python never sees otherwise. RUST_LOG overrides it.
-ZENOH_LOG_LEVEL = "warn"
+#: CA, an expired certificate), which Python never sees otherwise, and its access control
+#: says (at info) when an identity is granted nothing. RUST_LOG overrides it.
+ZENOH_LOG_LEVEL = "warn,zenoh::net::routing::interceptor::access_control=info"
 _zenoh_log_on = False
 
 
 def _log_refused_links() -> None:
-    """Turn on Zenoh's warnings on stderr (once per process: Zenoh's logger is global)."""
+    """Turn on Zenoh's warnings, on standard output (once per process: its logger is global)."""
     global _zenoh_log_on
     if not _zenoh_log_on:
         zenoh.init_log_from_env_or(ZENOH_LOG_LEVEL)
@@ -76,6 +81,13 @@ class Router:
         self.connect = list(connect or [])
         self.secure = secure
         self._session: zenoh.Session | None = None
+        self._watch: refusal_watch.RefusalWatch | None = None
+
+    @property
+    def refused_links(self) -> dict[str, int]:
+        """The links refused so far in this process by kind (`LinkRefusal`'s values); empty
+        for an open router, which refuses none."""
+        return self._watch.links.counts() if self._watch is not None else {}
 
     @property
     def session(self) -> zenoh.Session:
@@ -95,17 +107,36 @@ class Router:
             if self.secure is not None:
                 self.secure.apply_to_router(config)
                 _log_refused_links()
+                self._watch = refusal_watch.acquire()
             self._session = zenoh.open(config)
+            if self.secure is not None:
+                self._serve_state(self.secure.key_space.router_state())
         except zenoh.ZError as error:
+            self.close()
             raise RouterError(
                 f"cannot start a Zenoh router on {', '.join(self.listen)}: {error}"
             ) from error
         log.info("zenoh router %s listening on %s", self.zid, ", ".join(self.listen))
 
+    def _serve_state(self, key: str) -> None:
+        """Answer `key` (`ground-cli routers`) with this router's refused links."""
+
+        def answer(query: zenoh.Query) -> None:
+            state = RouterState(self.zid, self.refused_links)
+            query.reply(key, encode(state), encoding=ENCODING)
+
+        self.session.declare_queryable(key, answer)
+
     def close(self) -> None:
         session, self._session = self._session, None
         if session is not None:
             session.close()
+        self._release_watch()
+
+    def _release_watch(self) -> None:
+        watch, self._watch = self._watch, None
+        if watch is not None:
+            refusal_watch.release()
 
     def __enter__(self) -> Self:
         self.open()

@@ -24,11 +24,13 @@ import pytest
 import zenoh
 
 from fleet.files.certs import write_identities
+from fleet.files.signers import revoke
 from fleet.launch.launcher import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, Target
 from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.zenoh_config import build_config, make_config
+from tests.support import secure_clients
 from tests.support.processes import Child, start
 from tests.support.waiting import wait_until
 
@@ -58,13 +60,16 @@ def certs(tmp_path_factory: pytest.TempPathFactory) -> Certs:
     return Certs(directory.resolve())
 
 
-def router(certs: Certs, identity: str, host: str = "127.0.0.1") -> tuple[Child, str]:
+def router(
+    certs: Certs, identity: str, host: str = "127.0.0.1", connect: tuple[str, ...] = ()
+) -> tuple[Child, str]:
     endpoint = f"tls/{host}:{free_port(host)}"
     child = start(
         f"router as {identity}",
         [
             sys.executable, "-m", "fleet.transport.router", "--secure", str(certs.directory),
             "--identity", identity, "--listen", endpoint,
+            *(argument for peer in connect for argument in ("--connect", peer)),
         ],
     )  # fmt: skip
     child.wait_for_line(lambda line: "listening" in line, 30.0)
@@ -142,13 +147,101 @@ def test_a_refused_connection_is_in_the_routers_log(
     certs: Certs, fleet_router_child: tuple[Child, str]
 ) -> None:
     child, endpoint = fleet_router_child
-    config = make_config("client", [endpoint])
+    _refused_by(no_certificate(certs, endpoint))
+    child.wait_for_line(lambda line: "WARN" in line and "certificate" in line, 10.0)
+
+
+def trust_the_fleets_ca(certs: Certs, config: zenoh.Config) -> zenoh.Config:
     config.insert_json5(
         "transport/link/tls/root_ca_certificate", json.dumps(str(certs.directory / "ca.pem"))
     )
+    return config
+
+
+def no_certificate(certs: Certs, endpoint: str) -> zenoh.Config:
+    """A client that trusts the fleet's CA but has no certificate of its own."""
+    return trust_the_fleets_ca(certs, make_config("client", [endpoint]))
+
+
+def expect_totals(certs: Certs, child: Child, endpoint: str, totals: str) -> None:
+    """A client the router accepts counts nothing: `totals` are still its last word,
+    logged as it stops (its output is read on, after the exit)."""
+    with certs.session("ground", endpoint):
+        pass
+    child.stop()
+    total = f"refused links in all: {totals}"
+    wait_until(lambda: any(total in line for line in child.history[:]), 10.0, "the totals")
+
+
+def _refused_by(config: zenoh.Config) -> None:
     with pytest.raises(zenoh.ZError, match="Unable to connect"):
-        zenoh.open(config)  # no certificate of its own
-    child.wait_for_line(lambda line: "WARN" in line and "certificate" in line, 10.0)
+        zenoh.open(config)
+
+
+def test_refused_connections_are_counted_by_kind(certs: Certs, tmp_path: Path) -> None:
+    foreign = tmp_path / "foreign"
+    write_identities(foreign, ["uav-74"], [])
+    child, endpoint = router(certs, "router")  # its own: the counts start at zero
+    try:
+        _refused_by(no_certificate(certs, endpoint))
+        child.wait_for_line(lambda line: "refused links so far: no_certificate=1" in line, 10.0)
+        # A certificate of another CA, presented to a client that trusts the fleet's CA.
+        other_ca = build_config(config_file=str(foreign / "uav-74.json5"), connect=[endpoint])
+        trust_the_fleets_ca(certs, other_ca)
+        _refused_by(other_ca)
+        child.wait_for_line(
+            lambda line: "refused links so far: no_certificate=1 unknown_ca=1" in line, 10.0
+        )
+        _refused_by(no_certificate(certs, endpoint))
+        # A client of the other CA altogether refuses the router's certificate itself.
+        _refused_by(build_config(config_file=str(foreign / "uav-74.json5"), connect=[endpoint]))
+        child.wait_for_line(
+            lambda line: (
+                "refused links so far: no_certificate=2 unknown_ca=1 peer_refused=1" in line
+            ),
+            10.0,
+        )
+        expect_totals(certs, child, endpoint, "no_certificate=2 unknown_ca=1 peer_refused=1")
+    finally:
+        child.stop()
+
+
+def test_a_revoked_identitys_session_is_counted(tmp_path: Path) -> None:
+    write_identities(tmp_path, ["router", "ground", "uav-300"], [])
+    revoke(tmp_path, ["uav-300"])
+    certs = Certs(tmp_path.resolve())
+    child, endpoint = router(certs, "router")
+    try:
+        with certs.session("uav-300", endpoint):  # TLS lets it in; the ACL grants nothing
+            child.wait_for_line(lambda line: "refused links so far: no_rights=1" in line, 10.0)
+        expect_totals(certs, child, endpoint, "no_rights=1")
+    finally:
+        child.stop()
+
+
+def test_ground_cli_routers_shows_each_router_of_a_mesh(certs: Certs) -> None:
+    ground_router, endpoint = router(certs, "router")
+    uav_router, uav_endpoint = router(certs, "router-74", connect=(endpoint,))
+    try:
+        _refused_by(no_certificate(certs, uav_endpoint))
+        uav_router.wait_for_line(lambda line: "refused links so far: no_certificate=1" in line, 10)
+
+        def routers() -> list[dict[str, object]]:
+            answer = secure_clients.ground_cli(certs.directory, endpoint, "routers", "--json")
+            assert answer.returncode == 0, answer.stderr
+            found: list[dict[str, object]] = json.loads(answer.stdout)
+            return found
+
+        # The ground, on its own router, hears UAV 74's router too (the mesh forms in
+        # the background: asked until both answer).
+        wait_until(lambda: len(routers()) == 2, 30.0, "both routers answering")
+        assert sorted(json.dumps(r["refused_links"]) for r in routers()) == [
+            '{"no_certificate": 1}',
+            "{}",
+        ]
+    finally:
+        uav_router.stop()
+        ground_router.stop()
 
 
 # ---- case 3: the router identities used as clients ------------------------------------------

@@ -53,6 +53,10 @@ class SecureFleet:
     def ground_cli(self, *argv: str) -> subprocess.CompletedProcess[str]:
         return secure_clients.ground_cli(self.certs, self.endpoint, *argv)
 
+    def wait_for_refused(self, kind: str) -> None:
+        """Until `fleet up`'s log counts a link refused as `kind` (its embedded router's)."""
+        self.up.wait_for_line(lambda line: "refused links so far:" in line and kind in line, 10.0)
+
 
 @pytest.fixture(scope="module")
 def secure_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureFleet]:
@@ -116,20 +120,27 @@ def marker(session: zenoh.Session, seen: Seen, text: str) -> None:
     wait_until(lambda: seen.keys.get(SPACE.status(74)) == text.encode(), 10.0, text)
 
 
-# ---- who can connect ----------------------------------------------------------------------
-def test_a_client_without_a_certificate_cannot_connect(secure_fleet: SecureFleet) -> None:
+def no_certificate(secure_fleet: SecureFleet) -> zenoh.Config:
+    """A client that trusts the fleet's CA but has no certificate of its own."""
     config = make_config("client", [secure_fleet.endpoint])
     config.insert_json5(
         "transport/link/tls/root_ca_certificate", json.dumps(str(secure_fleet.certs / "ca.pem"))
     )
+    return config
+
+
+# ---- who can connect ----------------------------------------------------------------------
+def test_a_client_without_a_certificate_cannot_connect(secure_fleet: SecureFleet) -> None:
     with pytest.raises(zenoh.ZError, match="Unable to connect"):
-        zenoh.open(config)
+        zenoh.open(no_certificate(secure_fleet))
+    secure_fleet.wait_for_refused("no_certificate")
 
 
 def test_a_plain_tcp_client_cannot_connect(secure_fleet: SecureFleet) -> None:
     plain = secure_fleet.endpoint.replace("tls/", "tcp/")
     with pytest.raises(zenoh.ZError, match="Unable to connect"):
         zenoh.open(make_config("client", [plain]))
+    secure_fleet.wait_for_refused("tls_other")  # it does not speak TLS
 
 
 def test_a_certificate_from_another_ca_cannot_connect(
@@ -143,6 +154,30 @@ def test_a_certificate_from_another_ca_cannot_connect(
     )
     with pytest.raises(zenoh.ZError, match="Unable to connect"):
         zenoh.open(rogue)
+    secure_fleet.wait_for_refused("unknown_ca")
+
+
+def refused_links(secure_fleet: SecureFleet) -> dict[str, int]:
+    """The counts `ground-cli routers --json` shows for the fleet's one router."""
+    answer = secure_fleet.ground_cli("routers", "--json")
+    assert answer.returncode == 0, answer.stderr
+    (router,) = json.loads(answer.stdout)
+    counts: dict[str, int] = router["refused_links"]
+    return counts
+
+
+@pytest.mark.e2e
+def test_ground_cli_routers_shows_the_refused_links_grow(secure_fleet: SecureFleet) -> None:
+    before = refused_links(secure_fleet).get("no_certificate", 0)
+    with pytest.raises(zenoh.ZError, match="Unable to connect"):
+        zenoh.open(no_certificate(secure_fleet))
+    wait_until(
+        lambda: refused_links(secure_fleet).get("no_certificate", 0) == before + 1,
+        30.0,
+        "ground-cli routers counting one more link refused for want of a certificate",
+    )
+    shown = secure_fleet.ground_cli("routers").stdout
+    assert shown.startswith("router ") and f"no_certificate={before + 1}" in shown
 
 
 # ---- what UAV 74's certificate may do -------------------------------------------------------
