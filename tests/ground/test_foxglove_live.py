@@ -46,8 +46,15 @@ TIMEOUT_S = 120.0
 
 def node_client(url: str, *args: str) -> Child:
     """The third-party client on `url`; its output is JSON lines (see the script)."""
-    if shutil.which("node") is None or not (JS / "node_modules" / "@foxglove").is_dir():
-        pytest.fail(f"needs node and `npm ci --prefix {JS}` (.ci/run does both)")
+    if shutil.which("node") is None or shutil.which("npm") is None:
+        pytest.fail("needs node and npm (.ci/run installs them where missing)")
+    if not (JS / "node_modules" / "@foxglove").is_dir():
+        # The README's test command alone installs the client too, at the versions the
+        # lock file pins (what .ci/run does before the tests).
+        install = ["npm", "ci", "--prefix", str(JS), "--no-audit", "--no-fund"]
+        done = subprocess.run(install, capture_output=True, text=True, timeout=300, check=False)
+        if done.returncode != 0:
+            pytest.fail(f"`{' '.join(install)}` failed: {done.stderr[-2000:]}")
     return start("foxglove client", ["node", str(JS / "foxglove_client.mjs"), url, *args])
 
 
