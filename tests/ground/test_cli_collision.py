@@ -22,8 +22,9 @@ pytestmark = pytest.mark.e2e
 OTHER = (Target(42.3620, -71.0920, 125.0),)
 
 
+@pytest.mark.parametrize("follow", [(), ("--wait", "--timeout", "10")], ids=["", "wait"])
 def test_a_uav_holding_another_mission_under_the_id_is_a_collision(
-    router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
+    router: str, fakes: dict[int, FakeOnboard], tmp_path: Path, follow: tuple[str, ...]
 ) -> None:
     first, second = tmp_path / "first.bin", tmp_path / "second.bin"
     write_targets(first, TARGETS)
@@ -40,7 +41,7 @@ def test_a_uav_holding_another_mission_under_the_id_is_a_collision(
         # Nothing serves the first mission's targets any more (its ground has exited, the
         # fake serves none), so the claim hears no rival: only the UAV's state tells.
         again = run_cli(
-            "send-targets", str(second), "--team", "74", "--mission", str(mission),
+            "send-targets", str(second), "--team", "74", "--mission", str(mission), *follow,
             endpoint=router,
         )  # fmt: skip
     finally:
@@ -49,7 +50,9 @@ def test_a_uav_holding_another_mission_under_the_id_is_a_collision(
     assert f"UAV 74 holds another mission under id {mission}" in again.stderr
     assert "not delivered" in again.stderr
     # The second mission was put and the UAV kept the first: the report was right.
-    assert wait_until(lambda: any(t.targets == OTHER for t in fake.targets))
+    assert wait_until(
+        lambda: any(t.mission == mission and t.targets == OTHER for t in fake.targets)
+    )
     first_held = next(t for t in fake.targets if t.mission == mission)
     assert first_held.targets == TARGETS
     assert fake.mission is not None and fake.mission.targets_digest == held
