@@ -25,8 +25,24 @@ __all__ = ["targets_digest"]
 _encoder = msgspec.msgpack.Encoder()
 
 
-# A UAV reports its state several times a second: its one mission is hashed once.
 @lru_cache(maxsize=8)
+def _digest(targets: MissionTargets) -> str:
+    return sha256(_encoder.encode(targets)).hexdigest()
+
+
+class _Latest:
+    """The last mission digested, by identity: a UAV reports its state several times a
+    second with the one MissionTargets it holds, and hashing the struct for the LRU
+    cache's key costs more than encoding the whole state (bench/bench_targets_digest.py)."""
+
+    entry: tuple[MissionTargets, str] | None = None
+
+
 def targets_digest(targets: MissionTargets) -> str:
     """The hex SHA-256 of `targets` (64 characters)."""
-    return sha256(_encoder.encode(targets)).hexdigest()
+    latest = _Latest.entry  # one read: another thread may replace it meanwhile
+    if latest is not None and latest[0] is targets:
+        return latest[1]
+    digest = _digest(targets)
+    _Latest.entry = (targets, digest)
+    return digest
