@@ -6,9 +6,11 @@ would seem to acknowledge the second. Each UAV reports the digest of the Mission
 it holds in its state (`MissionProgress.targets_digest`); the ground compares it with
 the digest of what it sent (`ground.mission_ack`).
 
-The digest is SHA-256 over the struct's MessagePack encoding, whose field order is the
-struct's: the same message gives the same digest on every machine, whatever JSON
-spacing or key order it travelled with.
+The digest is SHA-256 over a canonical MessagePack form: each struct a map of its
+fields in declaration order, *leaving out every field at its default*. So the same
+message gives the same digest on every machine whatever JSON spacing it travelled
+with, and an onboard whose messages gained a field (new fields come last, with a
+default) still agrees with a ground that does not know the field, while it is unused.
 """
 
 from __future__ import annotations
@@ -20,14 +22,51 @@ import msgspec
 from fleet.consensus.digest import sha256
 from fleet.mission.messages import MissionTargets
 
-__all__ = ["targets_digest"]
+__all__ = ["struct_digest", "targets_digest"]
 
 _encoder = msgspec.msgpack.Encoder()
 
 
+#: A field as the canonical form needs it: name, encoded name, default (or NODEFAULT).
+_Field = tuple[str, str, object]
+
+
+# msgspec.structs.fields resolves the type hints at each call: once per struct type.
+@lru_cache(maxsize=64)
+def _fields_of(kind: type[msgspec.Struct]) -> tuple[_Field, ...]:
+    return tuple(
+        (
+            field.name,
+            field.encode_name,
+            field.default
+            if field.default_factory is msgspec.NODEFAULT
+            else field.default_factory(),
+        )
+        for field in msgspec.structs.fields(kind)
+    )
+
+
+def _canonical(value: object) -> object:
+    if isinstance(value, msgspec.Struct):
+        canonical: dict[str, object] = {}
+        for name, encode_name, default in _fields_of(type(value)):
+            item = getattr(value, name)
+            if default is msgspec.NODEFAULT or item != default:
+                canonical[encode_name] = _canonical(item)
+        return canonical
+    if isinstance(value, tuple | list):
+        return [_canonical(item) for item in value]
+    return value
+
+
+def struct_digest(value: msgspec.Struct) -> str:
+    """The hex SHA-256 (64 characters) of `value`'s canonical form (above)."""
+    return sha256(_encoder.encode(_canonical(value))).hexdigest()
+
+
 @lru_cache(maxsize=8)
 def _digest(targets: MissionTargets) -> str:
-    return sha256(_encoder.encode(targets)).hexdigest()
+    return struct_digest(targets)
 
 
 class _Latest:

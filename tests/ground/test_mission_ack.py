@@ -3,9 +3,10 @@ holding other targets under the id sent is a collision, not a delivery."""
 
 from __future__ import annotations
 
+import msgspec
 import pytest
 
-from fleet.consensus.targets_digest import targets_digest
+from fleet.consensus.targets_digest import struct_digest, targets_digest
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, Target
 from fleet.transport.memory import MemoryNetwork
@@ -62,3 +63,16 @@ def test_the_digest_tells_any_change_apart(changed: MissionTargets) -> None:
     assert targets_digest(mission(3)) == targets_digest(mission(3))
     assert len(targets_digest(mission(3))) == 64
     assert targets_digest(changed) != targets_digest(mission(3))
+
+
+def test_a_field_added_at_its_default_leaves_the_digest_as_it_was() -> None:
+    """An onboard whose MissionTargets gained a field (last, with a default) agrees with
+    a ground that does not know it, as long as the field is unused."""
+    fields = [(f.name, f.type, f.default) for f in msgspec.structs.fields(MissionTargets)]
+    later = msgspec.defstruct(
+        "MissionTargets", [*fields, ("later", int, 0)], frozen=True, kw_only=True
+    )
+    sent = mission(3)
+    values = msgspec.structs.asdict(sent)
+    assert struct_digest(later(**values)) == targets_digest(sent)
+    assert struct_digest(later(**values, later=1)) != targets_digest(sent)
