@@ -16,8 +16,6 @@ target or drops out. The ground reads a target as `reached` (by whom) from those
 from __future__ import annotations
 
 import logging
-import time
-from collections.abc import Iterable
 
 from fleet.errors import FleetError
 from fleet.mission.key_space import KeySpace
@@ -47,30 +45,6 @@ def publish_targets(bus: Bus, space: KeySpace, targets: MissionTargets) -> None:
         len(targets.targets),
         ", ".join(map(str, targets.team)),
     )
-
-
-def delivered_to(bus: Bus, space: KeySpace, mission: int, timeout_s: float) -> set[int]:
-    """The UAVs whose state says they have seen `mission` (or a later one)."""
-    return {
-        uav
-        for uav, state in query_states(bus, space, timeout_s).items()
-        if state.mission is not None and state.mission.mission >= mission
-    }
-
-
-def wait_delivered(
-    bus: Bus, space: KeySpace, mission: int, team: Iterable[int], timeout_s: float
-) -> set[int]:
-    """Poll the UAVs' states until each of `team` has the mission; returns those that do."""
-    members = set(team)
-    deadline = time.monotonic() + timeout_s
-    got: set[int] = set()
-    while True:
-        remaining = deadline - time.monotonic()
-        got |= delivered_to(bus, space, mission, max(0.1, min(1.0, remaining)))
-        if members <= got or remaining <= 0:
-            return got & members
-        time.sleep(min(0.2, max(0.0, deadline - time.monotonic())))
 
 
 # ---- commands ----------------------------------------------------------------------------

@@ -73,6 +73,20 @@ def _ground_command(message: MissionMessage) -> bool:
     return isinstance(message, MissionTargets | MissionAbort)
 
 
+def _mission_queries(bus: Bus, space: KeySpace) -> tuple[str, ...]:
+    """The keys to ask for the mission ids in use.
+
+    In the secure profile only the ground's targets and aborts count, so only they are
+    asked for, each on its own key: every identity may fetch those (a UAV's, say that
+    of a gateway started with the wrong config), whereas the router drops a UAV
+    identity's query on the whole mission tree without an error, and the ids in use
+    would come back empty (mission 1 again, already taken).
+    """
+    if bus.signed:
+        return (space.all_mission_targets, space.all_mission_aborts)
+    return (space.all_mission_keys,)
+
+
 def missions_seen(bus: Bus, space: KeySpace, timeout_s: float) -> set[int]:
     """Every mission id anything in the key space still answers for.
 
@@ -81,10 +95,11 @@ def missions_seen(bus: Bus, space: KeySpace, timeout_s: float) -> set[int]:
     that sent it has gone.
     """
     seen: set[int] = set()
-    for reply in bus.query(space.all_mission_keys, timeout_s):
-        message = _mission_message(reply)
-        if message is not None and (_ground_command(message) or not bus.signed):
-            seen.add(message.mission)
+    for key in _mission_queries(bus, space):
+        for reply in bus.query(key, timeout_s):
+            message = _mission_message(reply)
+            if message is not None and (_ground_command(message) or not bus.signed):
+                seen.add(message.mission)
     if bus.signed:
         # A UAV's own result, and its state, are signed by that UAV only: a captured
         # aircraft could name mission 2^32-1 there. The ground's signed targets and

@@ -27,7 +27,8 @@ from fleet.transport.bus import Bus
 from fleet.transport.cli import ExitCode
 from fleet.transport.zenoh_bus import client_bus
 from ground.fleet_view import live_uav_ids, query_states
-from ground.mission_control import MissionError, publish_targets, wait_delivered
+from ground.mission_ack import MissionCollision, acknowledgement, wait_acknowledged
+from ground.mission_control import MissionError, publish_targets
 from ground.mission_follower import Listener, MissionFollower
 from ground.mission_ids import TargetsServer, claim_mission, contest_grace_s
 from ground.mission_outcome import MissionOutcome, check_agreement
@@ -112,6 +113,9 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
                 bus, args.key_space, make, args.query_timeout, mission=args.mission
             ) as server:
                 outcome = _send_and_follow(bus, server, args, progress)
+        except MissionCollision as error:
+            print(f"error: {error}", file=sys.stderr)
+            return ExitCode.FAILED
         except MissionError as error:
             print(f"error: {error}; nothing sent", file=sys.stderr)
             return ExitCode.FAILED
@@ -147,6 +151,10 @@ def _send_and_follow(
             committed = follower.wait_committed(team, args.timeout, fetch_every_s=1.0)
             outcome.timed_out = not committed and follower.superseded_by is None
             if committed:
+                # The commitments heard are for this id: they must be for these targets.
+                seen = acknowledgement(bus, args.key_space, message, args.query_timeout)
+                if (collision := seen.collision(message)) is not None:
+                    raise collision
                 _watch_for_rival(follower, server, args.query_timeout, progress)
         else:
             _report_delivery(
@@ -228,9 +236,12 @@ def _targets_pass_checks(
 def _report_delivery(
     bus: Bus, space: KeySpace, message: MissionTargets, timeout_s: float, out: TextIO
 ) -> None:
-    """Without --wait: say which team UAVs have not acknowledged the mission yet."""
-    got = wait_delivered(bus, space, message.mission, message.team, timeout_s)
-    missing = [uav for uav in message.team if uav not in got]
+    """Without --wait: say which team UAVs have not acknowledged the mission yet;
+    MissionCollision if one holds other targets under its id."""
+    seen = wait_acknowledged(bus, space, message, timeout_s)
+    if (collision := seen.collision(message)) is not None:
+        raise collision
+    missing = [uav for uav in message.team if uav not in seen.got]
     if missing:
         print(
             f"mission {message.mission}: not yet acknowledged by {', '.join(map(str, missing))}",

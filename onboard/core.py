@@ -21,6 +21,7 @@ from typing import Protocol
 import msgspec
 
 from fleet.consensus.mission_round import MissionRound, Settled
+from fleet.consensus.targets_digest import targets_digest
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
@@ -247,6 +248,7 @@ class OnboardCore:
                 result=self.round.results.get(self.uav_id),
                 assignment=self.round.committed,
                 route=self.flight.route,
+                targets_digest=targets_digest(self.round.targets),
             )
         return self.report.state(
             enabled=self.flight.enabled,

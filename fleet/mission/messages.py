@@ -227,6 +227,10 @@ class MissionProgress(msgspec.Struct, frozen=True):
     #: The turns (latitude, longitude) of the route it flies to its target around the
     #: mission's no-fly zones; empty for the straight line (onboard.route_flight).
     route: Annotated[tuple[tuple[Latitude, Longitude], ...], Meta(max_length=MAX_ZONE_RING)] = ()
+    #: The digest of the MissionTargets it holds (`fleet.consensus.targets_digest`): the
+    #: ground checks it is the mission it sent, not another under the same id. None from
+    #: a UAV that does not say (the id alone is then believed).
+    targets_digest: Annotated[str, Meta(max_length=64)] | None = None
 
 
 class UavState(msgspec.Struct, frozen=True):

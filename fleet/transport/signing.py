@@ -49,8 +49,11 @@ from fleet.transport import bus_codec
 
 log = logging.getLogger(__name__)
 
-#: Messages remembered to relay with their author's envelope (the latest per key).
+#: Keys whose signed messages are remembered to relay with their author's envelope.
 RELAY_CACHE = 1024
+#: Distinct messages remembered per key (the latest): a rival ground's mission under
+#: the same id must not take the place of the one this UAV holds and relays.
+RELAY_PER_KEY = 4
 #: Each refusal reason is logged this many times, then every LOG_EVERY-th time.
 LOG_FIRST = 10
 LOG_EVERY = 1000
@@ -77,9 +80,10 @@ class BusSigning:
         self._clock = clock
         self._lock = threading.Lock()
         self._freshness = Freshness(window_ns)
-        #: The latest signed message per key, as put by us or received: what a reply on
-        #: that key passes on, so a message keeps its author's signature and first time.
-        self._signed: OrderedDict[str, tuple[bytes, bytes]] = OrderedDict()
+        #: The envelopes of the latest signed messages per key (by payload), as put by us
+        #: or received: a reply with one of those payloads passes its envelope on, so a
+        #: message keeps its author's signature and first time.
+        self._signed: OrderedDict[str, dict[bytes, bytes]] = OrderedDict()
         self._refused: Counter[Refusal] = Counter()
         self._last_stamp = 0
 
@@ -140,30 +144,44 @@ class BusSigning:
 
     def _remember(self, key: str, payload: bytes, envelope: bytes) -> None:
         with self._lock:
-            self._signed[key] = (payload, envelope)
-            self._signed.move_to_end(key)
+            known = self._signed.pop(key, {})
+            known.pop(payload, None)  # re-inserted below as the latest
+            known[payload] = envelope
+            while len(known) > RELAY_PER_KEY:
+                del known[next(iter(known))]
+            self._signed[key] = known
             if len(self._signed) > RELAY_CACHE:
                 self._signed.popitem(last=False)
 
+    def _envelope_of(self, key: str, payload: bytes) -> bytes | None:
+        """The envelope remembered for exactly this message, if any (kept as recent)."""
+        with self._lock:
+            known = self._signed.get(key)
+            if known is None:
+                return None
+            self._signed.move_to_end(key)  # a message still relayed is kept
+            return known.get(payload)
+
     def reply(self, key: str, payload: bytes) -> tuple[bytes, bytes | None]:
         """The payload and envelope of a reply on `key`: signed by us if ours, else the
-        author's message as it reached us (a relay), else unsigned (and so refused)."""
+        envelope this very message arrived with (a relay), else unsigned (and so refused).
+
+        A relay passes on only the envelope of the payload it replies with: another
+        message on that key (a rival ground's mission under the same id, heard after
+        the one this UAV holds) is never handed over in its place.
+        """
         space = space_of(key)
         author = author_of(space, key, Delivery.REPLY) if space is not None else None
         if author is None:
             return payload, None
-        with self._lock:
-            known = self._signed.get(key)
+        known = self._envelope_of(key, payload)
         if author == self.identity:
             # The message as put, with its first signature (a mission served while it
             # flies keeps the time it was sent), unless this is a new one.
-            if known is not None and known[0] == payload:
-                return known
-            return payload, self._sign(key, payload)
+            return payload, known if known is not None else self._sign(key, payload)
         if known is None:
-            log.debug("no signed %s to relay: replied unsigned", key)
-            return payload, None
-        return known
+            log.debug("no signed copy of this %s to relay: replied unsigned", key)
+        return payload, known
 
     # ---- incoming ---------------------------------------------------------------------
     def check(self, key: str, payload: bytes, attachment: bytes, how: Delivery) -> bool:

@@ -23,12 +23,12 @@ from fleet.mission.target_checks import DEFAULT_MAX_REACH_M, target_set_problems
 from fleet.transport.bus import Bus
 from ground.fleet_view import query_states
 from ground.gui.commands import MissionDesk
+from ground.mission_ack import wait_acknowledged
 from ground.mission_commands import ABORT_CONFIRM_S
 from ground.mission_control import (
     MissionError,
     mission_targets_of,
     send_abort,
-    wait_delivered,
 )
 from ground.mission_ids import rival_claims
 from ground.send_command import DELIVERY_WAIT_S
@@ -99,9 +99,13 @@ class FleetLink:
         # Accepted means the team has it, not that it was put: a put the routers refuse
         # (another identity in a secure fleet) vanishes without an error, and a ground
         # that cannot see the fleet's missions may have chosen an id already in use.
-        got = wait_delivered(self._bus, self._space, mission, team, DELIVERY_WAIT_S)
-        missing = ", ".join(str(uav) for uav in team if uav not in got)
         sent = MissionTargets(mission, team, targets, deadline_s=deadline_s)
+        seen = wait_acknowledged(self._bus, self._space, sent, DELIVERY_WAIT_S)
+        if (collision := seen.collision(sent)) is not None:
+            return SendOutcome(None, team, problem=str(collision), sent=mission)
+        missing = ", ".join(str(uav) for uav in team if uav not in seen.got)
+        # A UAV that reports no digest (an older onboard) is believed on the id: ask
+        # whether anything serves other targets under it.
         if not missing and rival_claims(self._bus, self._space, sent, self._timeout):
             missing = f"{', '.join(map(str, team))} (they hold another mission {mission})"
         if missing:

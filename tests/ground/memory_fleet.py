@@ -8,6 +8,7 @@ from collections.abc import Callable
 
 import msgspec
 
+from fleet.consensus.targets_digest import targets_digest
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionProgress, MissionTargets, UavResult, UavState
 from fleet.mission.phase import Phase
@@ -27,9 +28,18 @@ class MemoryUav:
         self.bus.declare_token(SPACE.alive(uav))
         self._serve(SPACE.state(uav), lambda: self.state)
 
-    def fly(self, targets: MissionTargets, result: UavResult | None = None) -> None:
-        """Hold `targets` as the current mission (with `result`), as a UAV that got it."""
-        progress = MissionProgress(targets.mission, Phase.COMPUTING, len(targets.targets), result)
+    def fly(
+        self, targets: MissionTargets, result: UavResult | None = None, *, digest: bool = True
+    ) -> None:
+        """Hold `targets` as the current mission (with `result`), as a UAV that got it;
+        `digest`: its state reports the targets' digest (False: an older onboard's)."""
+        progress = MissionProgress(
+            targets.mission,
+            Phase.COMPUTING,
+            len(targets.targets),
+            result,
+            targets_digest=targets_digest(targets) if digest else None,
+        )
         self.state = msgspec.structs.replace(self.state, mission=progress, phase=Phase.COMPUTING)
         self._serve(SPACE.mission_targets(targets.mission), lambda: targets)
         if result is not None:

@@ -16,7 +16,6 @@ from ground.mission_control import (
     publish_targets,
     send_abort,
     send_opm,
-    wait_delivered,
 )
 from tests.ground.memory_fleet import MemoryUav
 from tests.ground.mission_samples import mission
@@ -46,16 +45,6 @@ def test_the_commands_are_put_on_their_keys() -> None:
     assert bus_codec.decode(samples[1].payload, MissionAbort, samples[1].key) == MissionAbort(4, 7)
     opm = bus_codec.decode(samples[2].payload, OpmCommand, samples[2].key)
     assert (opm.enabled, opm.status_rate_hz) == (False, 0.5)
-
-
-def test_delivery_is_read_from_the_uavs_states() -> None:
-    network = MemoryNetwork()
-    ground = network.bus()
-    seven, eight = MemoryUav(network, 7), MemoryUav(network, 8)
-    seven.fly(mission(9))
-    assert wait_delivered(ground, SPACE, 9, (7, 8), 0.1) == {7}
-    eight.fly(mission(10))  # a later mission counts as delivered
-    assert wait_delivered(ground, SPACE, 9, (7, 8), 0.1) == {7, 8}
 
 
 def test_a_missions_status_is_what_the_team_serves() -> None:

@@ -5,6 +5,7 @@ Outputs and a scripted planner (tests.onboard.core_harness)."""
 from __future__ import annotations
 
 from fleet.consensus.mission_round import ASK_GRACE_S
+from fleet.consensus.targets_digest import targets_digest
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
@@ -364,3 +365,18 @@ def test_a_mission_whose_abort_came_first_shows_aborted_and_is_never_flown() -> 
     assert state.phase == Phase.ABORTED
     assert state.mission is not None and state.mission.mission == 5
     assert out.autopilot == [] and out.on(SPACE.mission_result(5, 112)) == []
+
+
+def test_the_state_names_the_targets_held_by_their_digest() -> None:
+    """The ground checks an acknowledgement by this digest (ground.mission_ack): a
+    second mission under the same id, which the UAV ignores, leaves it unchanged."""
+    core, _ = make_core()
+    held = MissionTargets(mission=4, team=(112,), targets=TARGETS)
+    core.on_targets(held, 1.0)
+    progress = core.state(1.1).mission
+    assert progress is not None and progress.targets_digest == targets_digest(held)
+    rival = MissionTargets(mission=4, team=(112,), targets=TWO_TARGETS)
+    core.on_targets(rival, 1.2)
+    progress = core.state(1.3).mission
+    assert progress is not None and progress.mission == 4
+    assert progress.targets_digest == targets_digest(held) != targets_digest(rival)

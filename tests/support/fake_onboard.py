@@ -13,6 +13,7 @@ import msgspec
 import zenoh
 
 from fleet.consensus.assignment import greedy_assign, results_digest
+from fleet.consensus.targets_digest import targets_digest
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
@@ -74,6 +75,8 @@ class FakeOnboard:
         self.publish_assignment = True  #: False: serve it by query only
         self.disagree = False  #: True: commit a different assignment from the others
         self.enabled = True
+        #: True: ignore a mission whose id is not above the current one, as the onboard does
+        self.keeps_current = False
         self.mission: MissionProgress | None = None
         self._served: dict[str, bytes] = {}
         self._lock = threading.Lock()
@@ -148,6 +151,9 @@ class FakeOnboard:
             self.targets.append(targets)
         if self.uav_id not in targets.team:
             return
+        held = self.mission
+        if self.keeps_current and held is not None and targets.mission <= held.mission:
+            return
         m, n = targets.mission, len(targets.targets)
         rows = {u: [approach_time(u, i) for i in range(n)] for u in targets.team}
         result = UavResult(mission=m, uav=self.uav_id, times=tuple(rows[self.uav_id]))
@@ -170,7 +176,9 @@ class FakeOnboard:
         with self._lock:
             self._served[SPACE.mission_result(m, self.uav_id)] = bus_codec.encode(result)
             self._served[SPACE.mission_assignment(m, self.uav_id)] = bus_codec.encode(report)
-            self.mission = MissionProgress(m, Phase.COMMITTED, n, result, report)
+            self.mission = MissionProgress(
+                m, Phase.COMMITTED, n, result, report, targets_digest=targets_digest(targets)
+            )
         self.put(SPACE.mission_result(m, self.uav_id), result)
         if self.publish_assignment:
             self.put(SPACE.mission_assignment(m, self.uav_id), report)

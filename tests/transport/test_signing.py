@@ -21,7 +21,7 @@ from fleet.transport import bus_codec
 from fleet.transport.bus import BusQuery, BusSample, Queryable
 from fleet.transport.bus_codec import encode
 from fleet.transport.router import Router
-from fleet.transport.signing import BusSigning
+from fleet.transport.signing import RELAY_CACHE, BusSigning
 from fleet.transport.zenoh_bus import ZenohBus, client_bus, connect
 from fleet.transport.zenoh_config import build_config
 from tests.support.waiting import wait_until
@@ -200,3 +200,37 @@ def test_a_reply_passes_on_the_message_as_first_signed(certs: Path) -> None:
     fresh = ground.reply(key, other)
     assert fresh[0] == other and fresh[1] not in (None, put)
     assert uav.reply(SPACE.mission_targets(10), payload) == (payload, None)
+
+
+def test_a_relay_passes_on_the_envelope_of_the_very_mission_it_holds(certs: Path) -> None:
+    """Two grounds (one identity) sent two missions under one id: a UAV holding the
+    first still relays it with its own envelope after hearing the second, and never
+    hands over either envelope with other content."""
+    now = [1_000]
+
+    def signing(identity: str) -> BusSigning:
+        key = load_signing_key(signing_key_path(certs, identity))
+        return BusSigning(identity, key, load_roster(certs), clock=lambda: now[0])
+
+    first_ground, second_ground, uav = signing("ground"), signing("ground"), signing("uav-74")
+    key = SPACE.mission_targets(9)
+    held, rival = encode(TARGETS), encode(MissionTargets(9, (74,), TARGETS.targets))
+    held_put = first_ground.attachment(key, held, Delivery.PUT)
+    assert held_put is not None and uav.check(key, held, held_put, Delivery.PUT)
+    now[0] += 1_000_000
+    rival_put = second_ground.attachment(key, rival, Delivery.PUT)
+    assert rival_put is not None and uav.check(key, rival, rival_put, Delivery.PUT)
+    assert uav.reply(key, held) == (held, held_put)
+    assert uav.reply(key, rival) == (rival, rival_put)
+    made_up = encode(MissionTargets(9, (74, 112), ()))
+    assert uav.reply(key, made_up) == (made_up, None)
+    # However many messages later on other keys and this one, the held one stays relayable
+    # while it is relayed.
+    for mission in range(10, 10 + 2 * RELAY_CACHE):
+        now[0] += 1_000_000
+        other = SPACE.mission_targets(mission)
+        put = first_ground.attachment(other, held, Delivery.PUT)
+        assert put is not None and uav.check(other, held, put, Delivery.PUT)
+        if mission % 100 == 0:
+            assert uav.reply(key, held) == (held, held_put)
+    assert uav.reply(key, held) == (held, held_put)

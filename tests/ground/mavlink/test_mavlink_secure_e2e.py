@@ -1,8 +1,7 @@
 """`fleet mavlink` in the secure profile: `fleet up --secure` (mutual TLS, access
 control), the gateway holding the ground's identity says so and its uploads are
 acknowledged by the UAV; holding a UAV's identity, it says it is not the ground's and
-its upload is refused with MISSION_ACK ERROR, since the routers drop what it puts
-(unless a UAV fetches the mission from its targets queryable: see the test)."""
+its upload is refused with MISSION_ACK ERROR, since the routers drop what it puts."""
 
 from __future__ import annotations
 
@@ -109,11 +108,11 @@ def test_holding_a_uavs_identity_it_says_so_and_its_missions_are_refused(
 ) -> None:
     lines, result = upload_one("uav-112", secure_fleet)
     assert any("not the ground's identity" in line for line in lines)
-    if result == mavlink2.MAV_MISSION_ACCEPTED:
-        # The routers drop the mission's put from a UAV's identity, but a UAV may serve
-        # mission targets (key_registry TARGETS: servers ANY_UAV, so that teammates
-        # relay a mission to one that was away), and a UAV that fetches missions then
-        # adopts the one this gateway serves: an identity gap of the fleet's policy,
-        # seen when UAV 74 catches up after the previous test's mission.
-        pytest.xfail("a UAV's identity got a mission adopted through the targets queryable")
+    # The routers drop its put. It must not take UAV 74's holding the previous test's
+    # mission (the same waypoint, under mission id 1) for an acknowledgement: it sees
+    # that mission (a UAV's identity may fetch the ground's targets) and chooses id 2,
+    # which no UAV acknowledges.
+    assert any("mission 2: 1 items from MAVLink sent to (74,)" in line for line in lines), (
+        "\n".join(lines)
+    )
     assert result in (mavlink2.MAV_MISSION_ERROR, mavlink2.MAV_MISSION_DENIED), "\n".join(lines)
