@@ -31,7 +31,12 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
-from fleet.consensus.assignment import greedy_assign, results_digest
+import msgspec
+
+from fleet.consensus.assignment import results_digest
+from fleet.consensus.legs import leg_times
+from fleet.consensus.objectives import plan_digest, plan_queues
+from fleet.consensus.queues import UNREACHABLE
 from fleet.consensus.replan import missing_times, replan
 from fleet.mission.messages import (
     AssignmentHeader,
@@ -77,6 +82,25 @@ def assignment_problem(report: AssignmentReport, targets: MissionTargets) -> str
         return f"an unassigned target beyond mission {targets.mission}'s {count}"
     if not team.issuperset(report.team):
         return f"results of UAVs outside mission {targets.mission}'s team"
+    return queues_problem(report, targets, team)
+
+
+def queues_problem(
+    report: AssignmentReport, targets: MissionTargets, team: frozenset[int]
+) -> str | None:
+    """Why a report's queues cannot be this mission's (None if they can be): each a team
+    UAV's, of this mission's targets, no target in two places."""
+    count = len(targets.targets)
+    queued = [t for queue in report.queues.values() for t in queue]
+    if not team >= report.queues.keys():
+        return f"a queue of a UAV outside mission {targets.mission}'s team"
+    if queued and max(queued) >= count:
+        return f"a queued target beyond mission {targets.mission}'s {count}"
+    if len(set(queued)) != len(queued):
+        return "a target queued twice"
+    for uav, queue in report.queues.items():
+        if queue and report.pairs.get(uav) != queue[0]:
+            return f"UAV {uav}'s queue does not start with its target"
     return None
 
 
@@ -159,8 +183,10 @@ class MissionRound:
     base: AssignmentReport | None = None
     #: Team UAVs that dropped out of the mission after the commitment (only grows).
     released: set[int] = field(default_factory=set)
-    #: Team UAVs that reported reaching their target: never released.
+    #: Team UAVs that reached every target of their queue: never released.
     reached: set[int] = field(default_factory=set)
+    #: Targets some UAV reported reaching: skipped when a queue comes to them.
+    reached_targets: set[int] = field(default_factory=set)
     #: How this UAV's own part ended (reached), or why it dropped out; None before.
     outcome: TargetOutcome | None = None
     #: The team as a set (membership is asked of every message heard).
@@ -168,6 +194,41 @@ class MissionRound:
 
     def __post_init__(self) -> None:
         self.team = _team_set(self.targets.team)
+
+    @functools.cached_property
+    def legs(self) -> list[list[float]]:
+        """Target-to-target times, from the mission alone (fleet.consensus.legs)."""
+        return leg_times(self.targets.targets)
+
+    def queue_of(self, uav: int) -> tuple[int, ...]:
+        """`uav`'s queue in the plan this UAV follows (empty before the commitment)."""
+        report = self.committed
+        if report is None or uav in report.released:
+            return ()
+        if report.queues:
+            return report.queues.get(uav, ())
+        return (report.pairs[uav],) if uav in report.pairs else ()
+
+    def next_target(self, uav: int) -> int | None:
+        """The first target of `uav`'s queue no UAV has reported reaching (None: done)."""
+        for target in self.queue_of(uav):
+            if target not in self.reached_targets:
+                return target
+        return None
+
+    def target_reached(self, uav: int, target: int | None) -> None:
+        """`uav` reported reaching `target`: a UAV whose whole queue is reached is never
+        released (its liveliness may go: it has nothing left to hand on)."""
+        if target is not None:
+            self.reached_targets.add(target)
+        self._update_reached()
+
+    def _update_reached(self) -> None:
+        self.reached = {
+            uav
+            for uav in self.team
+            if (queue := self.queue_of(uav)) and self.reached_targets.issuperset(queue)
+        }
 
     @property
     def mission(self) -> int:
@@ -272,20 +333,51 @@ class MissionRound:
             for uav, result in self.results.items()
             if uav in alive or uav == self.own_id
         }
-        outcome = greedy_assign(used, len(self.targets.targets))
-        target = outcome.pairs.get(self.own_id)
-        own_times = self.results[self.own_id].times
-        self.committed = self.base = AssignmentReport(
+        objective = self.targets.objective
+        plan = plan_queues(used, self.legs, objective)
+        self.committed = self.base = self._report(
+            target=plan.heads().get(self.own_id),
+            pairs=plan.heads(),
+            queues={uav: q for uav, q in plan.queues.items() if q},
+            arrivals={uav: a for uav, a in plan.arrivals.items() if a},
+            unserved={t: UNREACHABLE for t in plan.unassigned},
+            team=tuple(sorted(used)),
+            digest=plan_digest(results_digest(used), objective),
+        )
+        self._update_reached()
+        return self.committed
+
+    def _report(
+        self,
+        *,
+        target: int | None,
+        pairs: dict[int, int],
+        queues: dict[int, tuple[int, ...]],
+        arrivals: dict[int, tuple[float, ...]],
+        unserved: dict[int, str],
+        team: tuple[int, ...],
+        digest: str,
+        epoch: int = 0,
+        released: tuple[int, ...] = (),
+    ) -> AssignmentReport:
+        """This UAV's report of a plan; its ETA is its first target's arrival."""
+        own = arrivals.get(self.own_id, ())
+        return AssignmentReport(
             mission=self.mission,
             uav=self.own_id,
             target=target,
-            pairs=dict(sorted(outcome.pairs.items())),
-            unassigned=tuple(outcome.unassigned_targets),
-            team=tuple(sorted(used)),
-            digest=results_digest(used),
-            eta_s=own_times[target] if target is not None else None,
+            pairs=dict(sorted(pairs.items())),
+            unassigned=tuple(sorted(unserved)),
+            team=team,
+            digest=digest,
+            eta_s=own[0] if own else None,
+            epoch=epoch,
+            released=released,
+            queues=dict(sorted(queues.items())),
+            arrivals=dict(sorted(arrivals.items())),
+            objective=self.targets.objective,
+            unserved=dict(sorted(unserved.items())),
         )
-        return self.committed
 
     def thinner(self, report: AssignmentReport, alive: set[int], now: float) -> set[int]:
         """Live UAVs whose results this UAV holds, or is computing, but `report` was
@@ -341,18 +433,13 @@ class MissionRound:
     def _own_copy(self, report: AssignmentReport) -> AssignmentReport:
         target = report.pairs.get(self.own_id)
         own = self.results.get(self.own_id)
-        return AssignmentReport(
-            mission=self.mission,
-            uav=self.own_id,
-            target=target,
-            pairs=dict(report.pairs),
-            unassigned=report.unassigned,
-            team=report.team,
-            digest=report.digest,
-            eta_s=own.times[target] if own is not None and target is not None else None,
-            epoch=report.epoch,
-            released=report.released,
-        )
+        eta = own.times[target] if own is not None and target is not None else None
+        if report.arrivals.get(self.own_id):
+            eta = report.arrivals[self.own_id][0]
+        copy = msgspec.structs.replace(report, uav=self.own_id, target=target, eta_s=eta)
+        self.committed = copy
+        self._update_reached()
+        return copy
 
     # ---- after the commitment ---------------------------------------------------------
     def release(self, uavs: Iterable[int]) -> bool:
@@ -374,21 +461,20 @@ class MissionRound:
         while a candidate's results are missing (`replan_missing`)."""
         if self.base is None or self.replan_missing():
             return None
-        plan = replan(self.base, self._times(), self.released)
-        target = plan.pairs.get(self.own_id)
-        own = self.results.get(self.own_id)
-        self.committed = AssignmentReport(
-            mission=self.mission,
-            uav=self.own_id,
-            target=target,
-            pairs=dict(plan.pairs),
-            unassigned=plan.unassigned,
+        plan = replan(self.base, self._times(), self.released, self.legs)
+        heads = plan.pairs
+        self.committed = self._report(
+            target=heads.get(self.own_id),
+            pairs=heads,
+            queues={uav: q for uav, q in plan.plan.queues.items() if q},
+            arrivals={uav: a for uav, a in plan.plan.arrivals.items() if a},
+            unserved=plan.unserved,
             team=self.base.team,
             digest=plan.digest,
-            eta_s=own.times[target] if own is not None and target is not None else None,
             epoch=plan.epoch,
             released=plan.released,
         )
+        self._update_reached()
         return self.committed
 
     def _times(self) -> dict[int, tuple[float | None, ...]]:

@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+from fleet.consensus.digest import sha256
 from fleet.consensus.improve import improve
 from fleet.consensus.queues import (
     Legs,
@@ -35,7 +36,7 @@ from fleet.consensus.queues import (
 )
 from fleet.mission.objective import Objective
 
-__all__ = ["bottleneck_assign", "hungarian", "min_sum_assign", "plan_queues"]
+__all__ = ["bottleneck_assign", "hungarian", "min_sum_assign", "plan_digest", "plan_queues"]
 
 
 def plan_queues(times: Times, legs: Legs, objective: Objective = Objective.GREEDY) -> QueuePlan:
@@ -205,3 +206,17 @@ def _matching_size(edges: list[list[int]], columns: int) -> int:
 
 def _allowed(time: float, limit: float) -> bool:
     return time < math.inf and time <= limit
+
+
+_OBJECTIVE_VERSION = b"fleet.queues.objective/v1\x00"
+
+
+def plan_digest(results_digest: str, objective: Objective) -> str:
+    """The digest of a plan: the results' own for `greedy` (as before objectives
+    existed), else the results' hashed with the objective, so that two plans of the
+    same results under different objectives never share a digest."""
+    if objective is Objective.GREEDY:
+        return results_digest
+    h = sha256(_OBJECTIVE_VERSION)
+    h.update(objective.value.encode("ascii") + b"\x00" + results_digest.encode("ascii", "replace"))
+    return h.hexdigest()[:16]
