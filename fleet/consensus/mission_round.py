@@ -27,7 +27,6 @@ Pure: no I/O, time comes in as `now`.
 from __future__ import annotations
 
 import functools
-import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
@@ -38,6 +37,13 @@ from fleet.consensus.legs import leg_times
 from fleet.consensus.objectives import plan_digest, plan_queues
 from fleet.consensus.queues import UNREACHABLE
 from fleet.consensus.replan import missing_times, replan
+from fleet.consensus.report_checks import (
+    assignment_problem,
+    predicted_arrival,
+    queues_problem,
+    targets_problem,
+    team_set,
+)
 from fleet.mission.messages import (
     AssignmentHeader,
     AssignmentReport,
@@ -45,7 +51,15 @@ from fleet.mission.messages import (
     TargetOutcome,
     UavResult,
 )
-from fleet.mission.targets_file import TargetsFileError, encode_targets
+
+__all__ = [
+    "MissionRound",
+    "Settled",
+    "assignment_problem",
+    "predicted_arrival",
+    "queues_problem",
+    "targets_problem",
+]
 
 FETCH_INTERVAL = 1.0
 #: A teammate's assignment that arrives this soon (s) after this UAV started the round
@@ -54,71 +68,6 @@ JOIN_GRACE_S = 1.0
 #: A UAV whose decision might not be the team's (`MissionRound.must_ask`) asks the team
 #: what it decided and waits this long (s) for the answers before it decides.
 ASK_GRACE_S = 0.5
-
-
-def assignment_problem(report: AssignmentReport, targets: MissionTargets) -> str | None:
-    """Why a teammate's assignment cannot be this mission's (None if it can be).
-
-    The schema bounds each index by MAX_TARGETS only; here every pair must name a UAV of
-    the mission's team and a target of this mission, no target twice, so that a hostile or
-    corrupt report is refused whole instead of being indexed, flown or re-planned.
-    """
-    count = len(targets.targets)
-    team = _team_set(targets.team)
-    pairs = report.pairs
-    # A set comparison in C checks every pair's UAV at once (the ground checks N reports
-    # of N pairs per mission, a UAV every re-plan it hears).
-    if not team >= pairs.keys() or (pairs and max(pairs.values()) >= count):
-        for uav, index in pairs.items():  # name the first bad pair
-            if uav not in team:
-                return f"pair {uav}: not a UAV of mission {targets.mission}'s team"
-            if index >= count:
-                return f"UAV {uav}'s target {index}: mission {targets.mission} has {count}"
-    if len(set(pairs.values())) != len(pairs):
-        return "two UAVs paired with the same target"
-    if report.target is not None and report.target >= count:
-        return f"target {report.target}: mission {targets.mission} has {count}"
-    if report.unassigned and max(report.unassigned) >= count:
-        return f"an unassigned target beyond mission {targets.mission}'s {count}"
-    if not team.issuperset(report.team):
-        return f"results of UAVs outside mission {targets.mission}'s team"
-    return queues_problem(report, targets, team)
-
-
-def queues_problem(
-    report: AssignmentReport, targets: MissionTargets, team: frozenset[int]
-) -> str | None:
-    """Why a report's queues cannot be this mission's (None if they can be): each a team
-    UAV's, of this mission's targets, no target in two places."""
-    count = len(targets.targets)
-    queued = [t for queue in report.queues.values() for t in queue]
-    if not team >= report.queues.keys():
-        return f"a queue of a UAV outside mission {targets.mission}'s team"
-    if queued and max(queued) >= count:
-        return f"a queued target beyond mission {targets.mission}'s {count}"
-    if len(set(queued)) != len(queued):
-        return "a target queued twice"
-    for uav, queue in report.queues.items():
-        if queue and report.pairs.get(uav) != queue[0]:
-            return f"UAV {uav}'s queue does not start with its target"
-    return None
-
-
-def targets_problem(targets: MissionTargets) -> str | None:
-    """Why a mission's targets cannot be flown (None if they can be)."""
-    try:
-        encode_targets(targets.targets, source=f"mission {targets.mission}")
-    except TargetsFileError as error:
-        return f"target {error.index}: {error.problem}" if targets.targets else error.problem
-    if not math.isfinite(targets.deadline_s) or targets.deadline_s <= 0:
-        return f"deadline {targets.deadline_s!r} s is not a positive number"
-    return None
-
-
-@functools.lru_cache(maxsize=8)
-def _team_set(team: tuple[int, ...]) -> frozenset[int]:
-    """A team's Piccolo IDs (a few recent teams are kept)."""
-    return frozenset(team)
 
 
 @dataclass(frozen=True, slots=True)
@@ -193,7 +142,7 @@ class MissionRound:
     team: frozenset[int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        self.team = _team_set(self.targets.team)
+        self.team = team_set(self.targets.team)
 
     @functools.cached_property
     def legs(self) -> list[list[float]]:
