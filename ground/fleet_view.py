@@ -25,7 +25,7 @@ from typing import Any
 
 from fleet.mission.key_check import WrongKey, uav_of
 from fleet.mission.key_space import KeySpace
-from fleet.mission.messages import StatusText, UavState
+from fleet.mission.messages import AssignmentReport, StatusText, UavState
 from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
@@ -61,6 +61,8 @@ class UavView:
     reason: str | None = None  #: why the phase is what it is (preempted, failed, link_lost)
     target: int | None = None
     last_status: str | None = None
+    #: How many targets its queue holds (issue 23), None before a commitment.
+    queue: int | None = None
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -83,6 +85,7 @@ class UavView:
             "reason": self.reason,
             "target": self.target,
             "last_status": self.last_status,
+            "queue": self.queue,
         }
 
 
@@ -130,8 +133,19 @@ def view_from_state(state: UavState) -> UavView:
             view,
             mission=state.mission.mission,
             target=assignment.target if assignment is not None else None,
+            queue=queue_length(assignment, state.uav),
         )
     return view
+
+
+def queue_length(assignment: AssignmentReport | None, uav: int) -> int | None:
+    """How many targets `uav`'s queue holds in `assignment` (a report without queues: its
+    one target or none); None without an assignment."""
+    if assignment is None:
+        return None
+    if assignment.queues:
+        return len(assignment.queues.get(uav, ()))
+    return 0 if assignment.target is None else 1
 
 
 def live_uav_ids(bus: Bus, space: KeySpace, timeout_s: float) -> list[int]:
@@ -368,6 +382,7 @@ _COLUMNS = (
     ("MISSION", 8),
     ("PHASE", 10),
     ("TGT", 4),
+    ("QUEUE", 5),
     ("TLM AGE", 8),
 )
 
@@ -400,6 +415,7 @@ def format_table(views: list[UavView]) -> str:
             _cell(v.mission),
             _cell(v.phase),
             _cell(v.target),
+            _cell(v.queue),
             age,
         )
         lines.append(" ".join(c.rjust(w) for c, (_, w) in zip(cells, _COLUMNS, strict=True)))

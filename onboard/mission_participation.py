@@ -103,10 +103,11 @@ class MissionParticipation:
     def publish_outcome(self, phase: Phase, reason: str | None, target: int | None) -> None:
         if self.round is None:
             return
-        outcome = TargetOutcome(self.round.mission, self.uav_id, target, phase, reason)
-        self.round.outcome = outcome
         if phase == Phase.REACHED:
             self.round.target_reached(self.uav_id, target)
+        known = dict(sorted(self.round.reached_targets.items()))
+        outcome = TargetOutcome(self.round.mission, self.uav_id, target, phase, reason, known)
+        self.round.outcome = outcome
         self.outputs.publish(self.key_space.mission_outcome(outcome.mission, self.uav_id), outcome)
 
     # ---- a mission's targets -----------------------------------------------------------------
@@ -254,6 +255,7 @@ class MissionParticipation:
             return
         if outcome.mission != mission_round.mission:
             return
+        mission_round.heard_reached(outcome.reached)
         if outcome.phase == Phase.REACHED:
             mission_round.target_reached(outcome.uav, outcome.target)
             self._settle()

@@ -134,8 +134,8 @@ class MissionRound:
     released: set[int] = field(default_factory=set)
     #: Team UAVs that reached every target of their queue: never released.
     reached: set[int] = field(default_factory=set)
-    #: Targets some UAV reported reaching: skipped when a queue comes to them.
-    reached_targets: set[int] = field(default_factory=set)
+    #: Targets some UAV reported reaching, and by whom: skipped when a queue comes to them.
+    reached_targets: dict[int, int] = field(default_factory=dict)
     #: How this UAV's own part ended (reached), or why it dropped out; None before.
     outcome: TargetOutcome | None = None
     #: The team as a set (membership is asked of every message heard).
@@ -169,14 +169,22 @@ class MissionRound:
         """`uav` reported reaching `target`: a UAV whose whole queue is reached is never
         released (its liveliness may go: it has nothing left to hand on)."""
         if target is not None:
-            self.reached_targets.add(target)
+            self.reached_targets.setdefault(target, uav)
+        self._update_reached()
+
+    def heard_reached(self, reached: dict[int, int]) -> None:
+        """A teammate's outcome listed these targets reached (target -> by whom)."""
+        count = len(self.targets.targets)
+        for target, uav in reached.items():
+            if target < count and uav in self.team:
+                self.reached_targets.setdefault(target, uav)
         self._update_reached()
 
     def _update_reached(self) -> None:
         self.reached = {
             uav
             for uav in self.team
-            if (queue := self.queue_of(uav)) and self.reached_targets.issuperset(queue)
+            if (queue := self.queue_of(uav)) and self.reached_targets.keys() >= set(queue)
         }
 
     @property

@@ -207,6 +207,10 @@ class TargetOutcome(msgspec.Struct, frozen=True):
     target: TargetIndex | None
     phase: Phase
     reason: str | None = None
+    #: Every target of the mission this UAV knows reached, and by which UAV (its own
+    #: outcomes and its teammates'), so that the latest outcome of any UAV tells a ground
+    #: that joins late what a lost UAV had reached (issue 23).
+    reached: Annotated[dict[TargetIndex, PiccoloId], Meta(max_length=MAX_TARGETS)] = {}
 
 
 class MissionProgress(msgspec.Struct, frozen=True):
