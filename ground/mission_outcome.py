@@ -282,6 +282,12 @@ class MissionOutcome:
         return report.target if report is not None else None
 
     def unassigned(self) -> list[int]:
+        """Targets no UAV holds: in no queue at the latest epoch (reports without queues:
+        nobody's one target)."""
+        latest = self.latest()
+        if latest is not None and latest.queues:
+            queued = {t for queue in latest.queues.values() for t in queue}
+            return [i for i in range(len(self.targets)) if i not in queued]
         taken = {self.target_of(uav) for uav in self.team}
         return [i for i in range(len(self.targets)) if i not in taken]
 
