@@ -28,6 +28,7 @@ from fleet.consensus.deadline import MAX_DEADLINE_S, consensus_deadline
 from fleet.errors import CodecError
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, Target
+from fleet.mission.objective import Objective
 from fleet.mission.targets_file import TargetsFileError, encode_targets
 from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
 from fleet.transport.bus import Bus
@@ -49,6 +50,7 @@ class SendCommand(msgspec.Struct, frozen=True, tag="send", tag_field="cmd"):
     team: tuple[PiccoloId, ...]
     targets: tuple[Target, ...]
     deadline_s: Annotated[float, msgspec.Meta(gt=0, le=MAX_DEADLINE_S)] | None = None
+    objective: Objective = Objective.GREEDY
 
 
 class AbortCommand(msgspec.Struct, frozen=True, tag="abort", tag_field="cmd"):
@@ -120,12 +122,22 @@ class MissionDesk:
             self._stack.enter_context(TargetsServer(self._bus, self.space, message))
         self._targets = message
 
-    def send(self, team: tuple[int, ...], targets: tuple[Target, ...], deadline_s: float) -> int:
+    def send(
+        self,
+        team: tuple[int, ...],
+        targets: tuple[Target, ...],
+        deadline_s: float,
+        objective: Objective = Objective.GREEDY,
+    ) -> int:
         """Claim a mission id no other ground uses (`claim_mission`), follow it, put it."""
 
         def make(mission: int) -> MissionTargets:
             return MissionTargets(
-                mission=mission, team=team, targets=targets, deadline_s=deadline_s
+                mission=mission,
+                team=team,
+                targets=targets,
+                deadline_s=deadline_s,
+                objective=objective,
             )
 
         with self._lock:
@@ -188,7 +200,7 @@ def _send(desk: MissionDesk, command: SendCommand, live: set[int]) -> Reply:
     team = tuple(sorted(set(command.team)))
     try:
         deadline_s = command.deadline_s or consensus_deadline(len(team))
-        mission = desk.send(team, command.targets, deadline_s)
+        mission = desk.send(team, command.targets, deadline_s, command.objective)
     except MissionError as error:
         return Reply(command.id, False, f"{error}; nothing sent")
     absent = [uav for uav in team if uav not in live]
