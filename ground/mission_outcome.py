@@ -214,24 +214,14 @@ class MissionOutcome:
         latest = self.latest()
         unserved = latest.unserved if latest is not None else {}
         for index in range(len(self.targets)):
-            states.append(self._target_state(index, reached, holders, idle, unserved))
+            state = self._target_state(index, reached, holders, idle, unserved)
+            place = self.place(index)
+            if place is not None:
+                state["place"], state["eta_s"] = place
+            states.append(state)
         return states
 
     def _target_state(
-        self,
-        index: int,
-        reached: dict[int, int],
-        holders: dict[int, int],
-        idle: list[int],
-        unserved: dict[int, str],
-    ) -> dict[str, Any]:
-        state = self._bare_state(index, reached, holders, idle, unserved)
-        place = self.place(index)
-        if place is not None:
-            state["place"], state["eta_s"] = place
-        return state
-
-    def _bare_state(
         self,
         index: int,
         reached: dict[int, int],
