@@ -215,7 +215,7 @@ def test_panels_asked_for_wrongly_say_why(tmp_path: Path) -> None:
         render(timeline, tmp_path / "x.png", mission=9)
 
 
-def test_a_tour_s_legs_predicted_and_flown() -> None:
+def test_a_tour_s_legs_predicted_and_flown(tmp_path: Path) -> None:
     """UAV 1 queues targets 0 then 1 (issue 23): each leg's predicted time from the
     plan's arrivals, its flown time on the aircraft's clock between reached outcomes."""
     tour = AssignmentReport(
@@ -249,3 +249,5 @@ def test_a_tour_s_legs_predicted_and_flown() -> None:
         "UAV 1 tour: 0 (45.0 s predicted, 50.0 s flown), 1 (75.0 s predicted, 50.0 s flown)" in line
         for line in report_lines(timeline)
     )
+    # The figure draws the tour (a dotted line in the UAV's colour) and stays a PNG.
+    assert render(timeline, tmp_path / "tour.png").read_bytes()[:4] == b"\x89PNG"
