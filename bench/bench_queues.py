@@ -137,6 +137,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--seed", type=int, default=23)
     parser.add_argument("--cbba", type=Path, help="a directory holding the fetched CBBA.py")
     parser.add_argument("--cbba-up-to", type=int, default=CBBA_UP_TO, metavar="TARGETS")
+    parser.add_argument("--instances", type=int, help="instances per shape (default: the table's)")
     parser.add_argument(
         "--shapes", default=",".join(f"{u}x{t}" for u, t, _ in SHAPES), help="e.g. 2x5,3x8"
     )
@@ -155,7 +156,7 @@ def main(argv: list[str] | None = None) -> None:
     for uavs, count, instances in SHAPES:
         if f"{uavs}x{count}" not in wanted:
             continue
-        cases = [instance(rng, uavs, count) for _ in range(instances)]
+        cases = [instance(rng, uavs, count) for _ in range(args.instances or instances)]
         built = [times_and_legs(w, g) for w, g, _ in cases]
         exact = count <= EXACT_UP_TO
         best = [
