@@ -13,6 +13,7 @@ import argparse
 import logging
 import sys
 
+from fleet.mission.objective import Objective
 from fleet.mission.target_checks import DEFAULT_MAX_REACH_M
 from fleet.transport import bus_codec
 from fleet.transport.cli import (
@@ -140,6 +141,15 @@ def _add_send_targets(commands: argparse._SubParsersAction[argparse.ArgumentPars
         metavar="ZONES.geojson",
         help="no-fly zones (GeoJSON Polygon/MultiPolygon) every route keeps out of; a "
         "target inside one is refused and nothing is sent (--force does not override it)",
+    )
+    send.add_argument(
+        "--objective",
+        type=Objective,
+        choices=list(Objective),
+        default=Objective.GREEDY,
+        help="what the team's plan optimises: greedy (the thesis rule, extended to "
+        "queues), min-sum (the total of arrival times), min-max (the time until the last "
+        "target is reached); default %(default)s",
     )
     send.add_argument("--json", action="store_true", help="print the outcome as one JSON object")
     send.set_defaults(handler=cmd_send_targets)

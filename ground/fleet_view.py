@@ -25,7 +25,7 @@ from typing import Any
 
 from fleet.mission.key_check import WrongKey, uav_of
 from fleet.mission.key_space import KeySpace
-from fleet.mission.messages import StatusText, UavState
+from fleet.mission.messages import AssignmentReport, StatusText, UavState
 from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
@@ -63,6 +63,8 @@ class UavView:
     last_status: str | None = None
     #: The turns of its route to its target around no-fly zones, (lat, lon) each.
     route: tuple[tuple[float, float], ...] = ()
+    #: How many targets its queue holds (issue 23), None before a commitment.
+    queue: int | None = None
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -86,6 +88,7 @@ class UavView:
             "target": self.target,
             "last_status": self.last_status,
             "route": [list(turn) for turn in self.route],
+            "queue": self.queue,
         }
 
 
@@ -134,8 +137,19 @@ def view_from_state(state: UavState) -> UavView:
             mission=state.mission.mission,
             target=assignment.target if assignment is not None else None,
             route=state.mission.route,
+            queue=queue_length(assignment, state.uav),
         )
     return view
+
+
+def queue_length(assignment: AssignmentReport | None, uav: int) -> int | None:
+    """How many targets `uav`'s queue holds in `assignment` (a report without queues: its
+    one target or none); None without an assignment."""
+    if assignment is None:
+        return None
+    if assignment.queues:
+        return len(assignment.queues.get(uav, ()))
+    return 0 if assignment.target is None else 1
 
 
 def live_uav_ids(bus: Bus, space: KeySpace, timeout_s: float) -> list[int]:
@@ -380,6 +394,7 @@ _COLUMNS = (
     ("MISSION", 8),
     ("PHASE", 10),
     ("TGT", 4),
+    ("QUEUE", 5),
     ("TLM AGE", 8),
 )
 
@@ -412,6 +427,7 @@ def format_table(views: list[UavView]) -> str:
             _cell(v.mission),
             _cell(v.phase),
             _cell(v.target),
+            _cell(v.queue),
             age,
         )
         lines.append(" ".join(c.rjust(w) for c, (_, w) in zip(cells, _COLUMNS, strict=True)))

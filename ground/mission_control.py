@@ -24,11 +24,10 @@ from fleet.mission.messages import (
     MissionTargets,
     OpmCommand,
 )
-from fleet.mission.phase import Phase
 from fleet.transport.bus import Bus
 from ground.fleet_view import query_states
 from ground.mission_follower import MissionFollower
-from ground.mission_outcome import MissionOutcome
+from ground.mission_outcome import MissionOutcome, reached_by
 
 log = logging.getLogger(__name__)
 
@@ -92,8 +91,7 @@ def mission_status(
             everything = set(range(len(targets.targets)))
 
             def all_reached() -> bool:
-                reached = {o.target for o in follower.outcomes.values() if o.phase == Phase.REACHED}
-                return reached >= everything
+                return reached_by(follower.outcomes.values()).keys() >= everything
 
             follower.wait_until(all_reached, until_reached_s, fetch_every_s=1.0)
         outcome.results, outcome.assignments = follower.snapshot()

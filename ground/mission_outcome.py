@@ -43,6 +43,20 @@ log = logging.getLogger(__name__)
 ENDED_SHORT = frozenset({Phase.PREEMPTED, Phase.FAILED, Phase.ABORTED})
 
 
+def reached_by(outcomes: Iterable[TargetOutcome]) -> dict[int, int]:
+    """Target index -> the UAV that reached it, from every outcome heard: each names its
+    own target and lists every target its UAV knew reached (a lost UAV's too)."""
+    reached: dict[int, int] = {}
+    heard = sorted(outcomes, key=lambda o: o.uav)
+    for outcome in heard:
+        if outcome.phase == Phase.REACHED and outcome.target is not None:
+            reached.setdefault(outcome.target, outcome.uav)
+    for outcome in heard:
+        for target, uav in outcome.reached.items():
+            reached.setdefault(target, uav)
+    return reached
+
+
 def _report_identity(report: AssignmentReport) -> tuple[str, tuple[tuple[int, int], ...]]:
     return report.digest, tuple(sorted(report.pairs.items()))
 
@@ -115,11 +129,7 @@ class MissionOutcome:
 
     def reached_by(self) -> dict[int, int]:
         """Target index -> the UAV whose telemetry put it inside the acceptance radius."""
-        return {
-            outcome.target: uav
-            for uav, outcome in sorted(self.outcomes.items())
-            if outcome.phase == Phase.REACHED and outcome.target is not None
-        }
+        return reached_by(self.outcomes.values())
 
     @property
     def agreement(self) -> Agreement:
@@ -154,15 +164,46 @@ class MissionOutcome:
             return Phase(phase), self.reasons.get(uav) or f"UAV {uav} {phase}"
         return None
 
+    def latest(self) -> AssignmentReport | None:
+        """A report of the latest epoch from a team UAV (the lowest ID's)."""
+        latest = self.epoch
+        for uav, report in sorted(self.assignments.items()):
+            if uav in self.team and report.epoch == latest:
+                return report
+        return None
+
     def holders(self) -> dict[int, int]:
         """Target index -> the UAV holding it at the latest epoch: a UAV still showing an
-        earlier epoch (dead, or not yet re-planned) holds nothing here."""
+        earlier epoch (dead, or not yet re-planned) holds nothing here. With queues, each
+        queued target's holder is the UAV whose queue it is in."""
         latest = self.epoch
+        report = self.latest()
+        if report is not None and report.queues:
+            return {t: uav for uav, queue in report.queues.items() for t in queue}
         return {
             report.target: uav
             for uav, report in sorted(self.assignments.items())
             if uav in self.team and report.epoch == latest and report.target is not None
         }
+
+    def queues_json(self) -> dict[str, list[int]]:
+        """Each UAV's queue at the latest epoch, keyed by Piccolo ID as a string."""
+        latest = self.latest()
+        queues = latest.queues if latest is not None else {}
+        return {str(uav): list(queue) for uav, queue in queues.items()}
+
+    def place(self, target: int) -> tuple[int, float | None] | None:
+        """(1-based place in its holder's queue, predicted arrival in s) at the latest
+        epoch; None for a target in no queue."""
+        report = self.latest()
+        if report is None:
+            return None
+        for uav, queue in report.queues.items():
+            if target in queue:
+                index = queue.index(target)
+                arrivals = report.arrivals.get(uav, ())
+                return index + 1, arrivals[index] if index < len(arrivals) else None
+        return None
 
     def target_states(self) -> list[dict[str, Any]]:
         """Each target's state: reached (by whom), assigned (to whom), preempted, failed
@@ -173,35 +214,47 @@ class MissionOutcome:
         idle = [uav for uav in self.taking_part if self.target_of(uav) is None]
         reached = self.reached_by()
         states: list[dict[str, Any]] = []
+        latest = self.latest()
+        unserved = latest.unserved if latest is not None else {}
         for index in range(len(self.targets)):
-            if index in reached:
-                states.append({"index": index, "state": "reached", "uav": reached[index]})
-                continue
-            if self.superseded_by is not None:
-                why = f"mission {self.superseded_by} superseded this one"
-                states.append({"index": index, "state": "unserved", "uav": None, "reason": why})
-                continue
-            holder = holders.get(index)
-            if holder is not None:
-                ended = self.ended_short(holder, index)
-                if ended is None:
-                    states.append({"index": index, "state": "assigned", "uav": holder})
-                else:
-                    phase, why = ended
-                    states.append(
-                        {"index": index, "state": str(phase), "uav": holder, "reason": why}
-                    )
-                continue
-            if not self.committed:
-                why = "the team did not commit"
-            elif self._no_route(index, taking_part):
-                why = "no route around the no-fly zones reaches it"
-            elif idle:
-                why = f"not assigned although UAV {idle[0]} had no target"
-            else:
-                why = "more targets than UAVs taking part"
-            states.append({"index": index, "state": "unserved", "uav": None, "reason": why})
+            state = self._target_state(index, reached, holders, idle, unserved)
+            place = self.place(index)
+            if place is not None:
+                state["place"], state["eta_s"] = place
+            states.append(state)
         return states
+
+    def _target_state(
+        self,
+        index: int,
+        reached: dict[int, int],
+        holders: dict[int, int],
+        idle: list[int],
+        unserved: dict[int, str],
+    ) -> dict[str, Any]:
+        if index in reached:
+            return {"index": index, "state": "reached", "uav": reached[index]}
+        if self.superseded_by is not None:
+            why = f"mission {self.superseded_by} superseded this one"
+            return {"index": index, "state": "unserved", "uav": None, "reason": why}
+        holder = holders.get(index)
+        if holder is not None:
+            ended = self.ended_short(holder, index)
+            if ended is None:
+                return {"index": index, "state": "assigned", "uav": holder}
+            phase, why = ended
+            return {"index": index, "state": str(phase), "uav": holder, "reason": why}
+        if not self.committed:
+            why = "the team did not commit"
+        elif self._no_route(index, set(self.taking_part)):
+            why = "no route around the no-fly zones reaches it"
+        elif index in unserved:
+            why = unserved[index]
+        elif idle:
+            why = f"not assigned although UAV {idle[0]} had no target"
+        else:
+            why = "more targets than UAVs taking part"
+        return {"index": index, "state": "unserved", "uav": None, "reason": why}
 
     def _no_route(self, index: int, taking_part: set[int]) -> bool:
         """Every UAV taking part answered, with no time to target `index`, while it had
@@ -233,6 +286,12 @@ class MissionOutcome:
         return report.target if report is not None else None
 
     def unassigned(self) -> list[int]:
+        """Targets no UAV holds: in no queue at the latest epoch (reports without queues:
+        nobody's one target)."""
+        latest = self.latest()
+        if latest is not None and latest.queues:
+            queued = {t for queue in latest.queues.values() for t in queue}
+            return [i for i in range(len(self.targets)) if i not in queued]
         taken = {self.target_of(uav) for uav in self.team}
         return [i for i in range(len(self.targets)) if i not in taken]
 
@@ -278,4 +337,6 @@ class MissionOutcome:
             },
             "superseded_by": self.superseded_by,
             "success": self.succeeded,
+            "objective": str(reference.objective) if reference is not None else None,
+            "queues": self.queues_json(),
         }

@@ -69,6 +69,9 @@ def _progress_printer(out: TextIO, team: tuple[int, ...]) -> Listener:
                 reports[message.uav] = message
                 target = "none" if message.target is None else str(message.target)
                 eta = "" if message.eta_s is None else f", ETA {message.eta_s:.0f} s"
+                queue = message.queues.get(message.uav, ())
+                if len(queue) > 1:
+                    eta += f", then {', '.join(map(str, queue[1:]))}"
                 lines = [
                     f"mission {message.mission}: UAV {message.uav} committed target "
                     f"{target}{eta}, digest {message.digest[:12]} "
@@ -106,7 +109,14 @@ def cmd_send_targets(args: argparse.Namespace) -> int:
         deadline_s = args.deadline or consensus_deadline(len(team))
 
         def make(mission: int) -> MissionTargets:
-            return MissionTargets(mission, team, targets, deadline_s=deadline_s, zones=zones)
+            return MissionTargets(
+                mission,
+                team,
+                targets,
+                deadline_s=deadline_s,
+                zones=zones,
+                objective=args.objective,
+            )
 
         try:
             with claim_mission(

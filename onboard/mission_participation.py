@@ -20,6 +20,7 @@ from fleet.consensus.mission_round import (
     MissionRound,
     Settled,
     assignment_problem,
+    predicted_arrival,
     targets_problem,
 )
 from fleet.mission.key_space import KeySpace
@@ -105,7 +106,10 @@ class MissionParticipation:
     def publish_outcome(self, phase: Phase, reason: str | None, target: int | None) -> None:
         if self.round is None:
             return
-        outcome = TargetOutcome(self.round.mission, self.uav_id, target, phase, reason)
+        if phase == Phase.REACHED:
+            self.round.target_reached(self.uav_id, target)
+        known = dict(sorted(self.round.reached_targets.items()))
+        outcome = TargetOutcome(self.round.mission, self.uav_id, target, phase, reason, known)
         self.round.outcome = outcome
         self.outputs.publish(self.key_space.mission_outcome(outcome.mission, self.uav_id), outcome)
 
@@ -256,8 +260,9 @@ class MissionParticipation:
             return
         if outcome.mission != mission_round.mission:
             return
+        mission_round.heard_reached(outcome.reached)
         if outcome.phase == Phase.REACHED:
-            mission_round.reached.add(outcome.uav)
+            mission_round.target_reached(outcome.uav, outcome.target)
             self._settle()
             return
         dropped = outcome.phase in (Phase.FAILED, Phase.LINK_LOST)
@@ -371,24 +376,38 @@ class MissionParticipation:
             # (docs/lifecycle.md, "Who hears which assignment").
             self.outputs.publish(self.key_space.mission_replan(report.mission, self.uav_id), report)
         flight = self.flight
-        if report.target == flight.target:
-            if report.target is None and self.life.phase in (Phase.COMPUTING, Phase.WAITING):
+        # The first target of its queue not reached yet: a re-plan only appends, so a
+        # UAV on its way keeps its target, and one done with its queue takes the next.
+        wanted = self.round.next_target(self.uav_id) if self.round is not None else None
+        if wanted is None and self.life.phase == Phase.REACHED:
+            return  # its queue is done, and this plan gives it nothing more
+        if wanted == flight.target:
+            if wanted is None and self.life.phase in (Phase.COMPUTING, Phase.WAITING):
                 self.life.observe(Observation.ASSIGNED_NONE)
                 text = f"mission {report.mission}: no target assigned; keeping course"
                 self.say(StatusKind.NO_TARGET, text, now, mission=report.mission)
-            if report.target is None:
+            if wanted is None:
                 flight.leave_stale_target(now)
             return
         if flight.target is not None and self.life.holds_target():
             # Released, or handed another orphan by a later epoch: off the old target.
             flight.give_up(f"mission {report.mission} epoch {report.epoch}", now)
             self.life.observe(Observation.RELEASED, f"re-planned at epoch {report.epoch}")
-        if report.target is None or self.uav_id in report.released:
+        if wanted is None or self.uav_id in report.released:
             flight.hold(None, None)
             self.life.observe(Observation.ASSIGNED_NONE)
             flight.leave_stale_target(now)
             return
-        self._commit(report, report.target, now)
+        self._commit(report, wanted, now)
+
+    def fly_next(self, now: float) -> None:
+        """Its target reached: on to the next target of its queue no UAV reached yet."""
+        mission_round = self.round
+        if mission_round is None or mission_round.committed is None:
+            return
+        following = mission_round.next_target(self.uav_id)
+        if following is not None and self.life.phase == Phase.REACHED:
+            self._commit(mission_round.committed, following, now)
 
     def _commit(self, report: AssignmentReport, target_index: int, now: float) -> None:
         assert self.round is not None
@@ -396,7 +415,8 @@ class MissionParticipation:
             self._refuse_orphan(report, target_index, now)
             return
         self.flight.commit(target_index, self.round.targets.targets[target_index], now)
-        eta = f"{report.eta_s:.0f} s" if report.eta_s is not None else "unknown"
+        eta_s = predicted_arrival(report, self.uav_id, target_index)
+        eta = f"{eta_s:.0f} s" if eta_s is not None else "unknown"
         self.say(
             StatusKind.TARGET_CHOSEN,
             f"mission {report.mission}: target {target_index} chosen, ETA {eta}",

@@ -67,6 +67,10 @@ class FlightMission(Protocol):
 
     def publish_outcome(self, phase: Phase, reason: str | None, target: int | None) -> None: ...
 
+    def fly_next(self, now: float) -> None:
+        """The held target was reached: on to the next of this UAV's queue, if any."""
+        ...
+
 
 @dataclass
 class TargetFlight:
@@ -138,6 +142,7 @@ class TargetFlight:
             target=self.target,
         )
         self.mission.publish_outcome(Phase.REACHED, None, self.target)
+        self.mission.fly_next(now)
 
     def on_track(self, track: Track, now: float) -> None:
         self.commands.on_echo(track, now)

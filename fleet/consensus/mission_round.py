@@ -27,12 +27,23 @@ Pure: no I/O, time comes in as `now`.
 from __future__ import annotations
 
 import functools
-import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
-from fleet.consensus.assignment import greedy_assign, results_digest
+import msgspec
+
+from fleet.consensus.assignment import results_digest
+from fleet.consensus.legs import leg_times
+from fleet.consensus.objectives import plan_digest, plan_queues
+from fleet.consensus.queues import UNREACHABLE
 from fleet.consensus.replan import missing_times, replan
+from fleet.consensus.report_checks import (
+    assignment_problem,
+    predicted_arrival,
+    queues_problem,
+    targets_problem,
+    team_set,
+)
 from fleet.mission.messages import (
     AssignmentHeader,
     AssignmentReport,
@@ -40,8 +51,16 @@ from fleet.mission.messages import (
     TargetOutcome,
     UavResult,
 )
-from fleet.mission.no_fly import mission_zone_problem, zones_bytes
-from fleet.mission.targets_file import TargetsFileError, encode_targets
+from fleet.mission.no_fly import zones_bytes
+
+__all__ = [
+    "MissionRound",
+    "Settled",
+    "assignment_problem",
+    "predicted_arrival",
+    "queues_problem",
+    "targets_problem",
+]
 
 FETCH_INTERVAL = 1.0
 #: A teammate's assignment that arrives this soon (s) after this UAV started the round
@@ -50,52 +69,6 @@ JOIN_GRACE_S = 1.0
 #: A UAV whose decision might not be the team's (`MissionRound.must_ask`) asks the team
 #: what it decided and waits this long (s) for the answers before it decides.
 ASK_GRACE_S = 0.5
-
-
-def assignment_problem(report: AssignmentReport, targets: MissionTargets) -> str | None:
-    """Why a teammate's assignment cannot be this mission's (None if it can be).
-
-    The schema bounds each index by MAX_TARGETS only; here every pair must name a UAV of
-    the mission's team and a target of this mission, no target twice, so that a hostile or
-    corrupt report is refused whole instead of being indexed, flown or re-planned.
-    """
-    count = len(targets.targets)
-    team = _team_set(targets.team)
-    pairs = report.pairs
-    # A set comparison in C checks every pair's UAV at once (the ground checks N reports
-    # of N pairs per mission, a UAV every re-plan it hears).
-    if not team >= pairs.keys() or (pairs and max(pairs.values()) >= count):
-        for uav, index in pairs.items():  # name the first bad pair
-            if uav not in team:
-                return f"pair {uav}: not a UAV of mission {targets.mission}'s team"
-            if index >= count:
-                return f"UAV {uav}'s target {index}: mission {targets.mission} has {count}"
-    if len(set(pairs.values())) != len(pairs):
-        return "two UAVs paired with the same target"
-    if report.target is not None and report.target >= count:
-        return f"target {report.target}: mission {targets.mission} has {count}"
-    if report.unassigned and max(report.unassigned) >= count:
-        return f"an unassigned target beyond mission {targets.mission}'s {count}"
-    if not team.issuperset(report.team):
-        return f"results of UAVs outside mission {targets.mission}'s team"
-    return None
-
-
-def targets_problem(targets: MissionTargets) -> str | None:
-    """Why a mission's targets cannot be flown (None if they can be)."""
-    try:
-        encode_targets(targets.targets, source=f"mission {targets.mission}")
-    except TargetsFileError as error:
-        return f"target {error.index}: {error.problem}" if targets.targets else error.problem
-    if not math.isfinite(targets.deadline_s) or targets.deadline_s <= 0:
-        return f"deadline {targets.deadline_s!r} s is not a positive number"
-    return mission_zone_problem(targets.zones, targets.targets)
-
-
-@functools.lru_cache(maxsize=8)
-def _team_set(team: tuple[int, ...]) -> frozenset[int]:
-    """A team's Piccolo IDs (a few recent teams are kept)."""
-    return frozenset(team)
 
 
 @dataclass(frozen=True, slots=True)
@@ -160,15 +133,60 @@ class MissionRound:
     base: AssignmentReport | None = None
     #: Team UAVs that dropped out of the mission after the commitment (only grows).
     released: set[int] = field(default_factory=set)
-    #: Team UAVs that reported reaching their target: never released.
+    #: Team UAVs that reached every target of their queue: never released.
     reached: set[int] = field(default_factory=set)
+    #: Targets some UAV reported reaching, and by whom: skipped when a queue comes to them.
+    reached_targets: dict[int, int] = field(default_factory=dict)
     #: How this UAV's own part ended (reached), or why it dropped out; None before.
     outcome: TargetOutcome | None = None
     #: The team as a set (membership is asked of every message heard).
     team: frozenset[int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        self.team = _team_set(self.targets.team)
+        self.team = team_set(self.targets.team)
+
+    @functools.cached_property
+    def legs(self) -> list[list[float]]:
+        """Target-to-target times, from the mission alone (fleet.consensus.legs)."""
+        return leg_times(self.targets.targets)
+
+    def queue_of(self, uav: int) -> tuple[int, ...]:
+        """`uav`'s queue in the plan this UAV follows (empty before the commitment)."""
+        report = self.committed
+        if report is None or uav in report.released:
+            return ()
+        if report.queues:
+            return report.queues.get(uav, ())
+        return (report.pairs[uav],) if uav in report.pairs else ()
+
+    def next_target(self, uav: int) -> int | None:
+        """The first target of `uav`'s queue no UAV has reported reaching (None: done)."""
+        for target in self.queue_of(uav):
+            if target not in self.reached_targets:
+                return target
+        return None
+
+    def target_reached(self, uav: int, target: int | None) -> None:
+        """`uav` reported reaching `target`: a UAV whose whole queue is reached is never
+        released (its liveliness may go: it has nothing left to hand on)."""
+        if target is not None:
+            self.reached_targets.setdefault(target, uav)
+        self._update_reached()
+
+    def heard_reached(self, reached: dict[int, int]) -> None:
+        """A teammate's outcome listed these targets reached (target -> by whom)."""
+        count = len(self.targets.targets)
+        for target, uav in reached.items():
+            if target < count and uav in self.team:
+                self.reached_targets.setdefault(target, uav)
+        self._update_reached()
+
+    def _update_reached(self) -> None:
+        self.reached = {
+            uav
+            for uav in self.team
+            if (queue := self.queue_of(uav)) and self.reached_targets.keys() >= set(queue)
+        }
 
     @property
     def mission(self) -> int:
@@ -273,20 +291,51 @@ class MissionRound:
             for uav, result in self.results.items()
             if uav in alive or uav == self.own_id
         }
-        outcome = greedy_assign(used, len(self.targets.targets))
-        target = outcome.pairs.get(self.own_id)
-        own_times = self.results[self.own_id].times
-        self.committed = self.base = AssignmentReport(
+        objective = self.targets.objective
+        plan = plan_queues(used, self.legs, objective)
+        self.committed = self.base = self._report(
+            target=plan.heads().get(self.own_id),
+            pairs=plan.heads(),
+            queues={uav: q for uav, q in plan.queues.items() if q},
+            arrivals={uav: a for uav, a in plan.arrivals.items() if a},
+            unserved={t: UNREACHABLE for t in plan.unassigned},
+            team=tuple(sorted(used)),
+            digest=plan_digest(results_digest(used, zones_bytes(self.targets.zones)), objective),
+        )
+        self._update_reached()
+        return self.committed
+
+    def _report(
+        self,
+        *,
+        target: int | None,
+        pairs: dict[int, int],
+        queues: dict[int, tuple[int, ...]],
+        arrivals: dict[int, tuple[float, ...]],
+        unserved: dict[int, str],
+        team: tuple[int, ...],
+        digest: str,
+        epoch: int = 0,
+        released: tuple[int, ...] = (),
+    ) -> AssignmentReport:
+        """This UAV's report of a plan; its ETA is its first target's arrival."""
+        own = arrivals.get(self.own_id, ())
+        return AssignmentReport(
             mission=self.mission,
             uav=self.own_id,
             target=target,
-            pairs=dict(sorted(outcome.pairs.items())),
-            unassigned=tuple(outcome.unassigned_targets),
-            team=tuple(sorted(used)),
-            digest=results_digest(used, zones_bytes(self.targets.zones)),
-            eta_s=own_times[target] if target is not None else None,
+            pairs=dict(sorted(pairs.items())),
+            unassigned=tuple(sorted(unserved)),
+            team=team,
+            digest=digest,
+            eta_s=own[0] if own else None,
+            epoch=epoch,
+            released=released,
+            queues=dict(sorted(queues.items())),
+            arrivals=dict(sorted(arrivals.items())),
+            objective=self.targets.objective,
+            unserved=dict(sorted(unserved.items())),
         )
-        return self.committed
 
     def thinner(self, report: AssignmentReport, alive: set[int], now: float) -> set[int]:
         """Live UAVs whose results this UAV holds, or is computing, but `report` was
@@ -342,18 +391,13 @@ class MissionRound:
     def _own_copy(self, report: AssignmentReport) -> AssignmentReport:
         target = report.pairs.get(self.own_id)
         own = self.results.get(self.own_id)
-        return AssignmentReport(
-            mission=self.mission,
-            uav=self.own_id,
-            target=target,
-            pairs=dict(report.pairs),
-            unassigned=report.unassigned,
-            team=report.team,
-            digest=report.digest,
-            eta_s=own.times[target] if own is not None and target is not None else None,
-            epoch=report.epoch,
-            released=report.released,
-        )
+        eta = own.times[target] if own is not None and target is not None else None
+        if report.arrivals.get(self.own_id):
+            eta = report.arrivals[self.own_id][0]
+        copy = msgspec.structs.replace(report, uav=self.own_id, target=target, eta_s=eta)
+        self.committed = copy
+        self._update_reached()
+        return copy
 
     # ---- after the commitment ---------------------------------------------------------
     def release(self, uavs: Iterable[int]) -> bool:
@@ -375,21 +419,20 @@ class MissionRound:
         while a candidate's results are missing (`replan_missing`)."""
         if self.base is None or self.replan_missing():
             return None
-        plan = replan(self.base, self._times(), self.released)
-        target = plan.pairs.get(self.own_id)
-        own = self.results.get(self.own_id)
-        self.committed = AssignmentReport(
-            mission=self.mission,
-            uav=self.own_id,
-            target=target,
-            pairs=dict(plan.pairs),
-            unassigned=plan.unassigned,
+        plan = replan(self.base, self._times(), self.released, self.legs)
+        heads = plan.pairs
+        self.committed = self._report(
+            target=heads.get(self.own_id),
+            pairs=heads,
+            queues={uav: q for uav, q in plan.plan.queues.items() if q},
+            arrivals={uav: a for uav, a in plan.plan.arrivals.items() if a},
+            unserved=plan.unserved,
             team=self.base.team,
             digest=plan.digest,
-            eta_s=own.times[target] if own is not None and target is not None else None,
             epoch=plan.epoch,
             released=plan.released,
         )
+        self._update_reached()
         return self.committed
 
     def _times(self) -> dict[int, tuple[float | None, ...]]:

@@ -1,26 +1,30 @@
-"""Re-planning: the targets of UAVs that dropped out after the commitment go to the idle.
+"""Re-planning: the queues of UAVs that dropped out go to the survivors' queues.
 
-The consensus (`fleet.consensus.mission_round`) fixes one assignment, *epoch 0*. A UAV
-that then drops out of the mission before reaching its target (its liveliness token
-went away, it could not fly the target, its autopilot link was lost) leaves that target
-orphaned. Every UAV still in the mission runs the same rule, with no coordinator:
+The consensus (`fleet.consensus.mission_round`) fixes one plan, *epoch 0*: every UAV's
+ordered queue of targets (`fleet.consensus.queues`). A UAV that then drops out of the
+mission (its liveliness token went away, it could not fly its target, its autopilot
+link was lost) leaves its queue orphaned: the target it was flying and every one after
+it. Every UAV still in the mission runs the same rule, with no coordinator:
 
 * the **released** set is every team UAV known to have dropped out; it only grows, and
   UAVs merge the sets their teammates publish, so they converge on the same set;
-* the assignment of epoch ``len(released)`` is a function of the epoch-0 assignment,
-  the epoch-0 results and the released set alone: the targets of released holders are
-  *orphaned*; the *candidates* are the UAVs of the epoch-0 team that are not released
-  and had no target at epoch 0; the thesis greedy (`greedy_assign`) runs on the
-  candidates' epoch-0 approach times to the orphaned targets only;
+* the plan of epoch ``len(released)`` is a function of the epoch-0 plan, the epoch-0
+  results and the released set alone: the queues of released UAVs are *orphaned*; every
+  survivor keeps its own epoch-0 queue, and the orphans are appended, one at a time, to
+  the survivor's queue where each is reached earliest (`append_earliest`: the lowest
+  (finishing time, Piccolo ID, target index)), whether that survivor had targets at
+  epoch 0 or none; a target no survivor has an approach time to is `unserved`, with the
+  reason;
 * its digest hashes the epoch-0 digest with the released set, so UAVs that re-planned
-  on the same input publish the same digest and pairs, and the ground can check them.
+  on the same input publish the same digest and queues, and the ground can check them.
 
 Being a function of the set, not of the order in which losses were seen, two UAVs that
-saw two losses in opposite orders still agree. The price: a UAV handed an orphaned target
-at one epoch may be handed another orphan at a later one (never a UAV that held its
-target at epoch 0). The approach times are those of the epoch-0 results, computed when
-the mission started: re-planning needs no new round of results, so it is immediate, but
-the times are older than the aircraft's position (see docs/lifecycle.md).
+saw two losses in opposite orders still agree. Orphans go to the ends of queues, never
+in front of a survivor's own targets: what a survivor flies now does not change, and a
+target a released UAV had already reached is skipped by its new holder when it comes to
+it (it heard that outcome). The times are those of the epoch-0 results, computed when the
+mission started: re-planning needs no new round of results, so it is immediate, but the
+times are older than the aircraft's position (see docs/lifecycle.md).
 
 Pure: no I/O.
 """
@@ -30,35 +34,52 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
-from fleet.consensus.assignment import greedy_assign
 from fleet.consensus.digest import sha256
+from fleet.consensus.queues import Legs, QueuePlan, Queues, append_earliest, finish, plan_clocks
 from fleet.mission.messages import AssignmentReport
 
 _REPLAN_VERSION = b"fleet.assignment.replan/v1\x00"
+#: Why an orphan is in no queue after a re-plan.
+NO_SURVIVOR = "no surviving UAV has an approach time to it"
 
 
 @dataclass(frozen=True)
 class Replan:
-    """The assignment of one epoch, derived from epoch 0 and a released set."""
+    """The plan of one epoch, derived from epoch 0 and a released set."""
 
     epoch: int
     released: tuple[int, ...]  #: ascending
-    pairs: dict[int, int]  #: Piccolo ID -> target index, ascending by ID
-    unassigned: tuple[int, ...]
+    plan: QueuePlan  #: the survivors' queues (released UAVs: none)
+    unserved: dict[int, str]  #: target -> why no survivor serves it
     digest: str
+
+    @property
+    def pairs(self) -> dict[int, int]:
+        """Each busy survivor's first target, ascending by ID."""
+        return self.plan.heads()
+
+    @property
+    def unassigned(self) -> tuple[int, ...]:
+        return tuple(sorted(self.unserved))
+
+
+def base_queues(base: AssignmentReport) -> dict[int, tuple[int, ...]]:
+    """Epoch 0's queue of every team UAV (from `pairs` for a report without queues)."""
+    if base.queues:
+        return {uav: base.queues.get(uav, ()) for uav in base.team}
+    return {uav: (base.pairs[uav],) if uav in base.pairs else () for uav in base.team}
 
 
 def orphaned_targets(base: AssignmentReport, released: Iterable[int]) -> tuple[int, ...]:
-    """Targets whose epoch-0 holder is released, ascending."""
+    """Targets queued at epoch 0 by a released UAV, ascending."""
     gone = set(released)
-    return tuple(sorted(t for uav, t in base.pairs.items() if uav in gone))
+    return tuple(sorted(t for uav, q in base_queues(base).items() if uav in gone for t in q))
 
 
 def candidates(base: AssignmentReport, released: Iterable[int]) -> tuple[int, ...]:
-    """UAVs of the epoch-0 team, not released, that had no target at epoch 0."""
+    """UAVs of the epoch-0 team, not released: every one may take orphans."""
     gone = set(released)
-    holders = set(base.pairs)
-    return tuple(sorted(u for u in base.team if u not in gone and u not in holders))
+    return tuple(sorted(u for u in base.team if u not in gone))
 
 
 def replan_digest(base_digest: str, released: Iterable[int]) -> str:
@@ -77,29 +98,38 @@ def replan(
     base: AssignmentReport,
     times: Mapping[int, Sequence[float | None]],
     released: Iterable[int],
+    legs: Legs,
 ) -> Replan:
-    """The assignment once `released` dropped out, from the epoch-0 `base` and `times`.
+    """The plan once `released` dropped out, from the epoch-0 `base`, `times` and `legs`.
 
-    `times[uav]` is a candidate's epoch-0 approach time to every target of the mission;
-    raises KeyError naming a candidate whose times are missing (fetch them first).
+    `times[uav]` is a survivor's epoch-0 approach time to every target of the mission;
+    raises KeyError naming a survivor whose times are missing (fetch them first).
     """
     gone = tuple(sorted(set(released) & set(base.team)))
     orphans = orphaned_targets(base, gone)
     pool = candidates(base, gone)
-    kept = {uav: t for uav, t in base.pairs.items() if uav not in gone}
-    if orphans and pool:
-        # KeyError for a candidate whose times are missing: the caller fetches them.
-        rows = {
-            uav: [t if i in orphans else None for i, t in enumerate(times[uav])] for uav in pool
-        }
-        outcome = greedy_assign(rows, len(rows[pool[0]]))
-        kept.update(outcome.pairs)
-    taken = set(kept.values())
+    queues: Queues = {uav: list(q) for uav, q in base_queues(base).items() if uav in pool}
+    if orphans:
+        # KeyError for a survivor whose times are missing: the caller fetches them.
+        rows = {uav: times[uav] for uav in pool}
+        append_earliest(queues, plan_clocks(queues, rows, legs), orphans, rows, legs)
+        plan = finish(queues, rows, legs)
+    else:  # nothing moves: the survivors' epoch-0 queues and arrivals
+        plan = QueuePlan(
+            queues={uav: tuple(q) for uav, q in queues.items()},
+            arrivals={uav: base.arrivals.get(uav, ()) for uav in queues},
+            unassigned=base.unassigned,
+        )
+    unserved = {
+        t: base.unserved.get(t, "no UAV had an approach time to it") for t in base.unassigned
+    }
+    queued = {t for q in queues.values() for t in q}
+    unserved.update({t: NO_SURVIVOR for t in orphans if t not in queued})
     return Replan(
         epoch=len(gone),
         released=gone,
-        pairs={uav: kept[uav] for uav in sorted(kept)},
-        unassigned=tuple(sorted(set(base.unassigned) | (set(orphans) - taken))),
+        plan=plan,
+        unserved=dict(sorted(unserved.items())),
         digest=replan_digest(base.digest, gone),
     )
 
@@ -107,7 +137,8 @@ def replan(
 def missing_times(
     base: AssignmentReport, times: Mapping[int, Sequence[float | None]], released: Iterable[int]
 ) -> tuple[int, ...]:
-    """Candidates whose epoch-0 times this UAV lacks (a re-plan needs them when orphans exist)."""
+    """Survivors whose epoch-0 times this UAV lacks (a re-plan needs them when orphans
+    exist)."""
     if not orphaned_targets(base, released):
         return ()
     return tuple(uav for uav in candidates(base, released) if uav not in times)

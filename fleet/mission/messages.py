@@ -13,6 +13,7 @@ from typing import Annotated
 import msgspec
 from msgspec import Meta
 
+from fleet.mission.objective import Objective
 from fleet.mission.phase import Phase, Severity
 from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import Telemetry
@@ -36,6 +37,9 @@ PiccoloId = Annotated[int, Meta(ge=0x0001, le=0xFFF0)]
 #: A target's index in its mission.
 TargetIndex = Annotated[int, Meta(ge=0, le=MAX_TARGETS - 1)]
 Team = Annotated[tuple[PiccoloId, ...], Meta(max_length=MAX_TEAM)]
+#: One UAV's ordered targets (issue 23).
+Queue = Annotated[tuple[TargetIndex, ...], Meta(max_length=MAX_TARGETS)]
+Arrivals = Annotated[tuple[float, ...], Meta(max_length=MAX_TARGETS)]
 
 
 class Target(msgspec.Struct, frozen=True):
@@ -107,6 +111,8 @@ class MissionTargets(msgspec.Struct, frozen=True):
     `zones` are the no-fly zones every route keeps out of (fleet.mission.no_fly); the
     binary payload link has no room for them (fleet.payload.bodies refuses to send a
     mission that has some).
+    `objective` is what the plan optimises (fleet.consensus.objectives); a mission sent
+    before objectives existed, or over the binary payload link, is `greedy`.
     """
 
     mission: MissionId
@@ -114,6 +120,7 @@ class MissionTargets(msgspec.Struct, frozen=True):
     targets: Annotated[tuple[Target, ...], Meta(max_length=MAX_TARGETS)]
     deadline_s: float = 10.0
     zones: Annotated[tuple[NoFlyZone, ...], Meta(max_length=MAX_ZONES)] = ()
+    objective: Objective = Objective.GREEDY
 
 
 class UavResult(msgspec.Struct, frozen=True):
@@ -182,6 +189,15 @@ class AssignmentReport(msgspec.Struct, frozen=True):
     #: UAVs released from the mission, listed in `released`.
     epoch: Annotated[int, Meta(ge=0, le=MAX_TEAM)] = 0
     released: Team = ()
+    #: Each UAV's ordered queue of targets (fleet.consensus.queues), keyed by Piccolo ID;
+    #: `pairs` holds each queue's first. Empty from a UAV that does not say.
+    queues: Annotated[dict[PiccoloId, Queue], Meta(max_length=MAX_TEAM)] = {}
+    #: The predicted arrival (s after the results were computed) at each queued target,
+    #: in queue order.
+    arrivals: Annotated[dict[PiccoloId, Arrivals], Meta(max_length=MAX_TEAM)] = {}
+    objective: Objective = Objective.GREEDY
+    #: Why each target in `unassigned` is served by none.
+    unserved: Annotated[dict[TargetIndex, str], Meta(max_length=MAX_TARGETS)] = {}
 
 
 class AssignmentHeader(msgspec.Struct, frozen=True):
@@ -214,6 +230,10 @@ class TargetOutcome(msgspec.Struct, frozen=True):
     target: TargetIndex | None
     phase: Phase
     reason: str | None = None
+    #: Every target of the mission this UAV knows reached, and by which UAV (its own
+    #: outcomes and its teammates'), so that the latest outcome of any UAV tells a ground
+    #: that joins late what a lost UAV had reached (issue 23).
+    reached: Annotated[dict[TargetIndex, PiccoloId], Meta(max_length=MAX_TARGETS)] = {}
 
 
 class MissionProgress(msgspec.Struct, frozen=True):

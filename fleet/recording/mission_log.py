@@ -42,6 +42,7 @@ from fleet.mission.messages import (
     NoFlyZone,
     StatusText,
     Target,
+    TargetOutcome,
     UavResult,
 )
 from fleet.mission.no_fly import mission_zone_problem
@@ -101,6 +102,43 @@ class MissionLog:
     faults: list[tuple[float, str]] = field(default_factory=list)
     #: The mission's no-fly zones.
     zones: tuple[NoFlyZone, ...] = ()
+    #: Each UAV's reached outcomes as heard: (t, target), in order (issue 23: a queue).
+    arrivals: dict[int, list[tuple[float, int]]] = field(default_factory=dict)
+
+    def queue_of(self, uav: int) -> tuple[int, ...]:
+        """The UAV's queue as it committed it (its one target before queues)."""
+        report = self.assignments.get(uav)
+        if report is None:
+            return ()
+        if report.queues:
+            return report.queues.get(uav, ())
+        return () if report.target is None else (report.target,)
+
+    def legs(self, uav: int, tracks: dict[int, Track]) -> list[dict[str, Any]]:
+        """Each target of the UAV's queue: the plan's predicted leg time (s) and the one
+        flown (aircraft clock, from the previous arrival or the commitment), None where
+        it was not seen reached."""
+        report = self.assignments.get(uav)
+        queue = self.queue_of(uav)
+        if report is None or not queue:
+            return []
+        planned = report.arrivals.get(uav, ())
+        track = tracks.get(uav)
+        reached = {target: t for t, target in self.arrivals.get(uav, [])}
+        committed = self.committed.get(uav)
+        previous_plan, previous_at = 0.0, committed
+        rows: list[dict[str, Any]] = []
+        for i, target in enumerate(queue):
+            plan = planned[i] - previous_plan if i < len(planned) else None
+            at = reached.get(target)
+            flown = None
+            if track is not None and at is not None and previous_at is not None:
+                start, stop = track.aircraft_time(previous_at), track.aircraft_time(at)
+                flown = None if start is None or stop is None else stop - start
+            rows.append({"target": target, "predicted_s": plan, "flown_s": flown})
+            previous_plan = planned[i] if i < len(planned) else previous_plan
+            previous_at = at
+        return rows
 
     def target_of(self, uav: int) -> int | None:
         report = self.assignments.get(uav)
@@ -277,6 +315,11 @@ class _Builder:
                     raise ValueError(f"target {report.target} is not one of the mission's")
                 log.assignments.setdefault(report.uav, report)
                 log.committed.setdefault(report.uav, t)
+        elif kind == "outcome":
+            outcome = msgspec.convert(value, TargetOutcome, str_keys=True)
+            log = self.missions.get(outcome.mission)
+            if log is not None and outcome.phase == Phase.REACHED and outcome.target is not None:
+                log.arrivals.setdefault(outcome.uav, []).append((t, outcome.target))
         elif kind == "abort" and (log := self.missions.get(int(value["mission"]))) is not None:
             alone = value.get("uav")
             uav = None if alone is None else int(alone)

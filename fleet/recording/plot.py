@@ -222,6 +222,19 @@ def _targets(
         start = _km(projection, *position)
         goal = _km(projection, log.targets[target].lat, log.targets[target].lon)
         ax.plot(*_xy([start, goal]), linestyle="--", color=_colour(uav, order), linewidth=1)
+    _draw_tours(ax, log, projection, order)
+
+
+def _draw_tours(
+    ax: Axes, log: MissionLog, projection: MercatorProjection, order: list[int]
+) -> None:
+    """Each UAV's queue of more than one target (issue 23): a dotted line through it."""
+    for uav in log.team:
+        queue = log.queue_of(uav)
+        if len(queue) < 2:
+            continue
+        points = [_km(projection, log.targets[t].lat, log.targets[t].lon) for t in queue]
+        ax.plot(*_xy(points), linestyle=":", color=_colour(uav, order), linewidth=1.2)
 
 
 def _zones(ax: Axes, log: MissionLog, projection: MercatorProjection) -> None:

@@ -4,14 +4,15 @@ from __future__ import annotations
 
 from typing import Any
 
-from fleet.recording.mission_log import MissionLog, Timeline
+from fleet.recording.mission_log import MissionLog, Timeline, Track
 
 
 def _round(value: float | None, digits: int = 1) -> float | None:
     return None if value is None else round(value, digits)
 
 
-def mission_json(log: MissionLog) -> dict[str, Any]:
+def mission_json(log: MissionLog, tracks: dict[int, Track] | None = None) -> dict[str, Any]:
+    tracks = tracks or {}
     committed = log.all_committed
     return {
         "mission": log.mission,
@@ -33,7 +34,16 @@ def mission_json(log: MissionLog) -> dict[str, Any]:
         "sent_at_s": round(log.sent, 3),
         "send_to_commit_s": None if committed is None else round(committed - log.sent, 3),
         "faults": [{"at_s": round(t, 3), "what": what} for t, what in log.faults],
+        "queues": {str(uav): list(log.queue_of(uav)) for uav in log.team},
+        "legs": {str(uav): _rounded_legs(log.legs(uav, tracks)) for uav in log.team},
     }
+
+
+def _rounded_legs(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    return [
+        {**row, "predicted_s": _round(row["predicted_s"]), "flown_s": _round(row["flown_s"])}
+        for row in rows
+    ]
 
 
 def report_json(timeline: Timeline) -> dict[str, Any]:
@@ -41,7 +51,7 @@ def report_json(timeline: Timeline) -> dict[str, Any]:
         "duration_s": round(timeline.end, 3),
         "uavs": sorted(timeline.tracks),
         "undecodable_messages": timeline.undecodable,
-        "missions": [mission_json(log) for log in timeline.missions],
+        "missions": [mission_json(log, timeline.tracks) for log in timeline.missions],
     }
 
 
@@ -56,6 +66,23 @@ def report_lines(timeline: Timeline) -> list[str]:
         lines.append("no mission in this recording")
     for log in timeline.missions:
         lines += _mission_lines(log)
+        lines += _tour_lines(log, timeline.tracks)
+    return lines
+
+
+def _tour_lines(log: MissionLog, tracks: dict[int, Track]) -> list[str]:
+    """Each UAV with more than one target: its tour, predicted vs flown per leg."""
+    lines: list[str] = []
+    for uav in log.team:
+        rows = log.legs(uav, tracks)
+        if len(rows) < 2:
+            continue
+        legs = ", ".join(
+            f"{row['target']} ({_seconds(row['predicted_s'])} predicted, "
+            f"{_seconds(row['flown_s'])} flown)"
+            for row in rows
+        )
+        lines.append(f"  UAV {uav} tour: {legs}")
     return lines
 
 

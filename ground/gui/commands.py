@@ -29,6 +29,7 @@ from fleet.errors import CodecError
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MAX_ZONES, MissionTargets, NoFlyZone, Target
 from fleet.mission.no_fly import mission_zone_problem
+from fleet.mission.objective import Objective
 from fleet.mission.targets_file import TargetsFileError, encode_targets
 from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
 from fleet.transport.bus import Bus
@@ -51,6 +52,7 @@ class SendCommand(msgspec.Struct, frozen=True, tag="send", tag_field="cmd"):
     targets: tuple[Target, ...]
     deadline_s: Annotated[float, msgspec.Meta(gt=0, le=MAX_DEADLINE_S)] | None = None
     zones: Annotated[tuple[NoFlyZone, ...], msgspec.Meta(max_length=MAX_ZONES)] = ()
+    objective: Objective = Objective.GREEDY
 
 
 class AbortCommand(msgspec.Struct, frozen=True, tag="abort", tag_field="cmd"):
@@ -128,12 +130,18 @@ class MissionDesk:
         targets: tuple[Target, ...],
         deadline_s: float,
         zones: tuple[NoFlyZone, ...] = (),
+        objective: Objective = Objective.GREEDY,
     ) -> int:
         """Claim a mission id no other ground uses (`claim_mission`), follow it, put it."""
 
         def make(mission: int) -> MissionTargets:
             return MissionTargets(
-                mission=mission, team=team, targets=targets, deadline_s=deadline_s, zones=zones
+                mission=mission,
+                team=team,
+                targets=targets,
+                deadline_s=deadline_s,
+                zones=zones,
+                objective=objective,
             )
 
         with self._lock:
@@ -200,7 +208,7 @@ def _send(desk: MissionDesk, command: SendCommand, live: set[int]) -> Reply:
     team = tuple(sorted(set(command.team)))
     try:
         deadline_s = command.deadline_s or consensus_deadline(len(team))
-        mission = desk.send(team, command.targets, deadline_s, command.zones)
+        mission = desk.send(team, command.targets, deadline_s, command.zones, command.objective)
     except MissionError as error:
         return Reply(command.id, False, f"{error}; nothing sent")
     absent = [uav for uav in team if uav not in live]

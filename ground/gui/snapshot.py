@@ -90,6 +90,9 @@ def target_states(
     """
     owner = outcome.holders()
     reached_by = outcome.reached_by()
+    latest = outcome.latest()
+    # With queues a UAV reaches several targets: only its outcomes say which.
+    queued = latest is not None and bool(latest.queues)
     states = []
     for index in range(len(outcome.targets)):
         uav = reached_by.get(index, owner.get(index))
@@ -98,7 +101,8 @@ def target_states(
             view is not None and view.mission == outcome.mission and view.phase == "reached"
         )
         ended = outcome.ended_short(uav, index) if uav is not None else None
-        if index in reached_by or (uav is not None and (uav in reached or says_reached)):
+        sticky = not queued and uav is not None and (uav in reached or says_reached)
+        if index in reached_by or sticky:
             state = TargetState.REACHED
         elif uav is None and outcome.committed:
             state = TargetState.UNSERVED
@@ -109,12 +113,13 @@ def target_states(
         else:
             state = TargetState.PENDING if uav is None else TargetState.ASSIGNED
         report = outcome.assignments.get(uav) if uav is not None else None
-        entry: dict[str, Any] = {
-            "index": index,
-            "state": str(state),
-            "uav": uav,
-            "eta_s": report.eta_s if report is not None and state not in _ENDED else None,
-        }
+        eta = report.eta_s if report is not None and state not in _ENDED else None
+        place = outcome.place(index) if queued else None
+        entry: dict[str, Any] = {"index": index, "state": str(state), "uav": uav, "eta_s": eta}
+        if place is not None:
+            entry["place"] = place[0]
+            if state not in _ENDED:
+                entry["eta_s"] = place[1]
         if ended is not None and state in _ENDED:
             entry["reason"] = ended[1]
         states.append(entry)

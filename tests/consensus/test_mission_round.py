@@ -133,14 +133,14 @@ def test_adopting_a_teammates_commitment_takes_its_pairs_and_own_eta() -> None:
     assert adopted.eta_s == TIMES[112][1]
 
 
-def test_adopting_without_its_own_result_has_no_eta() -> None:
+def test_adopting_without_its_own_result_takes_the_plans_predicted_arrival() -> None:
     deciding = round_of(74)
     for uav in ALL:
         deciding.add_result(result(uav))
     adopted = round_of(112).adopt(deciding.decide(alive=ALL), ALL, 0.1)
     assert adopted is not None
     assert adopted.target == 1
-    assert adopted.eta_s is None
+    assert adopted.eta_s == TIMES[112][1] == adopted.arrivals[112][0]
 
 
 def test_a_commitment_for_another_mission_is_not_adopted() -> None:

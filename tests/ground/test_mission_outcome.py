@@ -5,6 +5,7 @@ from __future__ import annotations
 from fleet.mission.messages import (
     AssignmentReport,
     MissionProgress,
+    Target,
     TargetOutcome,
     UavResult,
     UavState,
@@ -126,3 +127,26 @@ def test_a_target_no_uav_has_a_route_to_is_unserved_with_that_reason() -> None:
     assert states[1]["state"] == "unserved"
     assert states[1]["reason"] == "no route around the no-fly zones reaches it"
     assert outcome.succeeded  # the team did what it could
+
+
+def test_queued_targets_have_a_holder_a_place_and_a_predicted_arrival() -> None:
+    """Issue 23: one UAV queues targets 0 then 2, its teammate 1; target 2 reached by the
+    teammate (a re-plan) is reached whoever's queue it was in; the summary tells queues."""
+    queues = {101: (0, 2), 102: (1,)}
+    arrivals = {101: (40.0, 130.0), 102: (55.0,)}
+    targets = (*TARGETS[:2], Target(35.73, -120.75, 600.0))
+    outcome = MissionOutcome(mission=6, team=(101, 102), targets=targets)
+    outcome.assignments = {
+        uav: AssignmentReport(
+            6, uav, queues[uav][0], {101: 0, 102: 1}, (), (101, 102), "d",
+            eta_s=arrivals[uav][0], queues=queues, arrivals=arrivals,
+        )
+        for uav in (101, 102)
+    }  # fmt: skip
+    states = {s["index"]: s for s in outcome.target_states()}
+    assert states[2] == {"index": 2, "state": "assigned", "uav": 101, "place": 2, "eta_s": 130.0}
+    assert outcome.unassigned() == [] and outcome.to_json()["queues"] == {"101": [0, 2], "102": [1]}
+    assert any("UAV 101: target 0 ETA 40 s, then 2" in line for line in summary_lines(outcome))
+    # A lost UAV's reached target is told by any teammate's later outcome.
+    outcome.outcomes = {102: TargetOutcome(6, 102, 1, Phase.REACHED, reached={0: 101, 1: 102})}
+    assert outcome.reached_by() == {0: 101, 1: 102}

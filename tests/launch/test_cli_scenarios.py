@@ -39,7 +39,9 @@ def test_fleet_demo_runs_the_thesis_multi_uav_scenario(tmp_path: Path) -> None:
     outcome = json.loads(done.stdout)
     assert outcome["agreed"] is True and outcome["success"] is True
     assert outcome["assignment"] == {"74": 0, "112": 1}
-    assert outcome["unassigned"] == [2]
+    # Target 2 is queued behind a first target (issue 23): nobody's is unserved.
+    queued = sorted(t for queue in outcome["queues"].values() for t in queue)
+    assert outcome["unassigned"] == [] and queued == [0, 1, 2]
     assert set(outcome["reached"]) == {"74", "112"} and all(outcome["reached"].values())
     # It recorded the run and drew the mission from the recording.
     assert outcome["plot"] == str(tmp_path / "mission.png")
@@ -74,7 +76,8 @@ def test_fleet_up_then_ground_cli_single_uav(tmp_path: Path) -> None:
         outcome = json.loads(sent.stdout)
         assert outcome["team"] == [112]
         assert outcome["assignment"] == {"112": 1}  # the target ahead, 15 degrees right
-        assert outcome["unassigned"] == [0, 2] and outcome["agreed"] is True
+        assert outcome["queues"]["112"][0] == 1 and sorted(outcome["queues"]["112"]) == [0, 1, 2]
+        assert outcome["unassigned"] == [] and outcome["agreed"] is True
         assert all(isinstance(t, float) for t in outcome["results"]["112"])
 
         keys = run(*ground, "keys", "fleet/mission/**", "--json", "--window", "0.5")

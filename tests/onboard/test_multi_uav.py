@@ -45,9 +45,12 @@ def assert_agreed(reports: dict[int, AssignmentReport], team: set[int], n_target
             first.unassigned,
         ), f"UAV {report.uav} disagrees"
         assert report.target == first.pairs.get(report.uav)
+    assert {uav: r.queues for uav, r in reports.items()} == {uav: first.queues for uav in reports}
     targets = list(first.pairs.values())
     assert len(targets) == len(set(targets)) == min(len(team), n_targets)
-    assert sorted([*targets, *first.unassigned]) == list(range(n_targets))
+    # Every target in exactly one queue, or unserved (issue 23).
+    queued = [t for queue in first.queues.values() for t in queue]
+    assert sorted([*queued, *first.unassigned]) == list(range(n_targets))
 
 
 def ring_sim(
@@ -115,6 +118,14 @@ def test_head_on_two_uavs_take_distinct_targets_reach_them_and_resume(
         assert seen.closest_approach(uav, target.lat, target.lon) <= 75.0
         tracks = seen.tracks[uav]
         assert tracks[tracks.index(TARGET_WAYPOINT) + 1] == original[uav]
+    # Target 2, unserved for good with one target each, is queued behind one (issue 23).
+    (holder,) = (uav for uav, queue in seen.assignments[74].queues.items() if 2 in queue)
+    wait_until(
+        lambda: any(o.target == 2 and o.phase == "reached" for o in seen.outcomes_of(holder)),
+        120.0,
+        f"UAV {holder} reaching target 2",
+    )
+    assert seen.closest_approach(holder, targets[2].lat, targets[2].lon) <= 75.0
 
 
 def test_five_uavs_eight_targets_then_four_uavs_two_targets(
@@ -126,7 +137,7 @@ def test_five_uavs_eight_targets_then_four_uavs_two_targets(
     ground.send(MissionTargets(mission=1, team=tuple(sorted(team)), targets=targets))
     wait_until(lambda: len(seen.assignments) == 5, 60.0, "five assignments")
     assert_agreed(dict(seen.assignments), team, 8)
-    assert len(seen.assignments[min(team)].unassigned) == 3
+    assert seen.assignments[min(team)].unassigned == ()  # three queued behind others
 
     # A new mission supersedes the first: four of them, two targets.
     four = sorted(team)[:4]

@@ -3,6 +3,8 @@ resuming, the confirm limit; driven through the whole core."""
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from fleet.mission.key_space import KeySpace
@@ -37,6 +39,8 @@ from tests.onboard.core_harness import (
 from tests.support.link_samples import sample_telemetry
 
 SPACE = KeySpace()
+#: Approach times by which target 1 is the UAV's only one: its queue is that target alone.
+ONLY_TARGET_1 = (math.inf, 40.0, math.inf)
 
 
 def test_single_uav_flies_to_the_fastest_target_then_resumes() -> None:
@@ -57,11 +61,26 @@ def test_single_uav_flies_to_the_fastest_target_then_resumes() -> None:
     assert out.autopilot[-1] == Track(TARGET_WAYPOINT)
     core.on_track(Track(TARGET_WAYPOINT), 2.0)
     assert core.state(2.0).phase == Phase.FLYING
+    assert report.queues == {112: (1, 0, 2)}  # one UAV queues all three (issue 23)
     core.on_telemetry(telemetry_at(TARGETS[1].lat + 0.0005, TARGETS[1].lon), 59.0)  # ~56 m
-    assert core.state(59.0).phase == Phase.REACHED
-    core.on_track(Track(2), 60.0)  # the autopilot moves on: still reached
-    assert core.state(60.0).phase == Phase.REACHED
     assert any("reached target 1" in s for s in out.statuses())
+    # On to the next of its queue: the target waypoint rewritten there, still leading back.
+    assert core.state(59.0).phase == Phase.COMMITTED
+    waypoint = out.autopilot[-1]
+    assert isinstance(waypoint, Waypoint) and waypoint.next_index == 2
+    assert (waypoint.lat, waypoint.lon) == (TARGETS[0].lat, TARGETS[0].lon)
+    for index, target in ((0, TARGETS[0]), (2, TARGETS[2])):
+        written = out.autopilot[-1]
+        assert isinstance(written, Waypoint)
+        core.on_waypoint(written, 60.0)
+        core.on_track(Track(TARGET_WAYPOINT), 60.5)
+        assert core.state(60.5).phase == Phase.FLYING
+        core.on_telemetry(telemetry_at(target.lat + 0.0005, target.lon), 100.0 + index)
+        assert any(f"reached target {index}" in s for s in out.statuses())
+    # The queue done: reached, and the autopilot moving on changes nothing.
+    assert core.state(103.0).phase == Phase.REACHED
+    core.on_track(Track(2), 104.0)
+    assert core.state(104.0).phase == Phase.REACHED
 
 
 def test_leaving_the_target_route_far_from_it_is_preempted_not_reached() -> None:
@@ -76,7 +95,7 @@ def test_leaving_the_target_route_far_from_it_is_preempted_not_reached() -> None
 
 
 def test_moving_on_to_the_next_waypoint_during_a_link_outage_is_an_arrival() -> None:
-    core, out = make_core()
+    core, out = make_core(times=ONLY_TARGET_1)
     fly_target_1(core, out)  # the target waypoint leads back to waypoint 2
     now = tick_without_telemetry(core, 2.0, 8.0)  # the link drops: "autopilot link lost"
     core.on_telemetry(telemetry_at(TARGETS[1].lat + 0.0034, TARGETS[1].lon), now)  # ~375 m
@@ -166,7 +185,7 @@ def test_an_operator_track_command_preempts_the_target_at_once() -> None:
 
 
 def test_reaching_the_target_before_the_track_echo_stops_the_target_writes() -> None:
-    core, out = make_core()
+    core, out = make_core(times=ONLY_TARGET_1)
     core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 1.0)
     core.tick(1.1)  # the waypoint write, not echoed yet
     core.on_telemetry(telemetry_at(TARGETS[1].lat, TARGETS[1].lon), 1.2)  # passing by

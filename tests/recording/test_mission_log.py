@@ -16,6 +16,7 @@ from fleet.mission.messages import (
     NoFlyZone,
     StatusText,
     Target,
+    TargetOutcome,
     UavResult,
     UavState,
 )
@@ -234,3 +235,41 @@ def test_the_mission_s_zones_are_read_and_drawn_under_the_tracks(tmp_path: Path)
     bowtie = NoFlyZone(ring=((35.7, -120.7), (35.8, -120.6), (35.8, -120.7), (35.7, -120.6)))
     bad = message(1.0, "fleet/mission/6/targets", MissionTargets(6, TEAM, TARGETS, zones=(bowtie,)))
     assert build_timeline([bad]).undecodable == 1
+
+
+def test_a_tour_s_legs_predicted_and_flown(tmp_path: Path) -> None:
+    """UAV 1 queues targets 0 then 1 (issue 23): each leg's predicted time from the
+    plan's arrivals, its flown time on the aircraft's clock between reached outcomes."""
+    tour = AssignmentReport(
+        mission=5,
+        uav=1,
+        target=0,
+        pairs={1: 0},
+        unassigned=(),
+        team=(1,),
+        digest="d1",
+        eta_s=45.0,
+        queues={1: (0, 1)},
+        arrivals={1: (45.0, 120.0)},
+    )
+    messages = [
+        *(telemetry(t, 1, 35.72, -120.80 + 0.004 * t, 100 + 10 * t) for t in range(0, 14)),
+        message(1.0, "fleet/mission/5/targets", MissionTargets(5, (1,), TARGETS)),
+        message(2.0, "fleet/mission/5/assignment/1", tour),
+        message(7.0, "fleet/mission/5/outcome/1", TargetOutcome(5, 1, 0, Phase.REACHED)),
+        message(12.0, "fleet/mission/5/outcome/1", TargetOutcome(5, 1, 1, Phase.REACHED)),
+    ]
+    timeline = build_timeline(messages)
+    (log,) = timeline.missions
+    assert log.legs(1, timeline.tracks) == [
+        {"target": 0, "predicted_s": 45.0, "flown_s": 50.0},
+        {"target": 1, "predicted_s": 75.0, "flown_s": 50.0},
+    ]
+    mission = report_json(timeline)["missions"][0]
+    assert mission["queues"] == {"1": [0, 1]} and len(mission["legs"]["1"]) == 2
+    assert any(
+        "UAV 1 tour: 0 (45.0 s predicted, 50.0 s flown), 1 (75.0 s predicted, 50.0 s flown)" in line
+        for line in report_lines(timeline)
+    )
+    # The figure draws the tour (a dotted line in the UAV's colour) and stays a PNG.
+    assert render(timeline, tmp_path / "tour.png").read_bytes()[:4] == b"\x89PNG"

@@ -7,6 +7,7 @@ import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import pytest
 import zenoh
@@ -123,8 +124,13 @@ def test_a_uav_relays_the_grounds_mission_and_cannot_serve_its_own(
     whoever relays it, and no mission a UAV made up."""
     heard = Heard()
     subscription = buses["uav-74"].subscribe(SPACE.all_mission_targets, heard)
-    buses["ground"].publish(SPACE.mission_targets(7), TARGETS)
-    assert heard.arrived.wait(TIMEOUT_S)
+
+    def heard_the_mission() -> bool:
+        # Put again until heard: the router may not know the subscription yet.
+        buses["ground"].publish(SPACE.mission_targets(7), TARGETS)
+        return heard.arrived.wait(0.2)
+
+    wait_until(heard_the_mission, TIMEOUT_S * 5, "UAV 74 heard the ground's mission")
     subscription.undeclare()
     forged = MissionTargets(4_000_000_000, (112,), (Target(35.75, -120.8, 600.0),))
 
@@ -134,8 +140,15 @@ def test_a_uav_relays_the_grounds_mission_and_cannot_serve_its_own(
         query.reply(SPACE.mission_abort(7), MissionAbort(7))  # never signed by the ground
 
     before = refused("unsigned") + refused("not_entitled")
+    replies: list[Any] = []
+
+    def relayed() -> bool:
+        # Ask again until the router knows the queryable (before, no reply at all).
+        replies[:] = buses["uav-112"].query(SPACE.all_mission_keys, TIMEOUT_S)
+        return bool(replies)
+
     with serving(buses["uav-74"], SPACE.all_mission_keys, answer):
-        replies = buses["uav-112"].query(SPACE.all_mission_keys, TIMEOUT_S)
+        wait_until(relayed, TIMEOUT_S * 5, "UAV 74's answer")
     assert [(r.key, r.ok) for r in replies] == [(SPACE.mission_targets(7), True)]
     assert refused("unsigned") + refused("not_entitled") == before + 2
 
@@ -149,11 +162,19 @@ def test_an_autopilot_command_is_obeyed_only_from_the_ground(
         answered.append(query.payload.decode())
         query.reply_bytes(SPACE.command(112, "track"), b'{"ok": true, "detail": ""}')
 
-    with serving(buses["uav-112"], SPACE.command(112, "*"), answer):
-        from_74 = buses["uav-74"].query(SPACE.command(112, "track"), TIMEOUT_S, b'{"waypoint": 50}')
-        from_ground = buses["ground"].query(
+    from_ground: list[Any] = []
+
+    def ground_answered() -> bool:
+        from_ground[:] = buses["ground"].query(
             SPACE.command(112, "track"), TIMEOUT_S, b'{"waypoint": 90}'
         )
+        return bool(from_ground)
+
+    with serving(buses["uav-112"], SPACE.command(112, "*"), answer):
+        # The ground's query first, until the queryable's declaration has reached the
+        # router (a query before it gets no reply at all, refused or not).
+        wait_until(ground_answered, 10.0, "the ground's command answered")
+        from_74 = buses["uav-74"].query(SPACE.command(112, "track"), TIMEOUT_S, b'{"waypoint": 50}')
     assert [r.ok for r in from_74] == [False]
     assert b"refused" in from_74[0].payload
     assert [r.ok for r in from_ground] == [True]  # the UAV's signed answer, believed

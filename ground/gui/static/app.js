@@ -289,16 +289,24 @@ function drawAssignments(scale) {
   const m = state.mission;
   if (!m || !m.target_states) return;
   const byId = new Map(state.uavs.map((u) => [u.id, u]));
+  // Each UAV's tour: its targets still to fly, in queue order (issue 23).
+  const tours = new Map();
   for (const t of m.target_states) {
     if (t.uav === null || t.state !== 'assigned') continue;
-    const u = byId.get(t.uav);
-    const target = m.targets[t.index];
+    if (!tours.has(t.uav)) tours.set(t.uav, []);
+    tours.get(t.uav).push(t);
+  }
+  for (const [uavId, stops] of tours) {
+    stops.sort((x, y) => (x.place ?? 0) - (y.place ?? 0));
+    const u = byId.get(uavId);
+    const first = stops[0];
+    const target = m.targets[first.index];
     if (!u || u.lat === null || !target) continue;
     const a = toXY(u.lat, u.lon);
     const b = toXY(target.lat, target.lon);
     el('line', {
       class: 'assignment', x1: a[0], y1: a[1], x2: b[0], y2: b[1], stroke: colourOf(u.id),
-      'data-target-index': t.index, 'data-routed': String(routed(u)), ...uavAttributes(u),
+      'data-target-index': first.index, 'data-routed': String(routed(u)), ...uavAttributes(u),
     }, layer);
     const togo = routeLength(u, a, b);
     const eta = u.ground_speed ? togo / u.ground_speed : Infinity;
@@ -311,7 +319,30 @@ function drawAssignments(scale) {
       transform: `translate(${a[0]},${a[1]}) scale(${scale})`,
       'data-uav': u.id, 'data-phase': phaseOf(u),
     }, layer);
-    label.textContent = `→ ${t.index}: ${formatDistance(togo)}, ETA ${formatSeconds(eta)}`;
+    label.textContent = `→ ${first.index}: ${formatDistance(togo)}, ETA ${formatSeconds(eta)}`;
+    drawTour(layer, scale, u, b, stops.slice(1), m);
+  }
+}
+
+// The rest of a UAV's queue: a leg to each next target, its predicted arrival beside it.
+function drawTour(layer, scale, u, from, stops, m) {
+  let a = from;
+  for (const t of stops) {
+    const target = m.targets[t.index];
+    if (!target) continue;
+    const b = toXY(target.lat, target.lon);
+    el('line', {
+      class: 'tour', x1: a[0], y1: a[1], x2: b[0], y2: b[1], stroke: colourOf(u.id),
+      'data-target-index': t.index, 'data-place': t.place ?? '', ...uavAttributes(u),
+    }, layer);
+    const label = el('text', {
+      class: 'tour-label', fill: colourOf(u.id), x: 0, y: 30, 'text-anchor': 'middle',
+      transform: `translate(${b[0]},${b[1]}) scale(${scale})`,
+      'data-uav': u.id, 'data-target-index': t.index,
+    }, layer);
+    const eta = t.eta_s === null || t.eta_s === undefined ? '-' : formatSeconds(t.eta_s);
+    label.textContent = `#${t.place ?? '?'} ETA ${eta}`;
+    a = b;
   }
 }
 
@@ -750,7 +781,7 @@ function sendWarnings(members, count) {
   const warnings = [];
   if (missionInFlight()) warnings.push(`Mission ${state.mission.mission} is in flight: this mission replaces it.`);
   if (count > members.length) {
-    warnings.push(`${count} targets for ${members.length} UAV(s): ${count - members.length} will stay unserved.`);
+    warnings.push(`${count} targets for ${members.length} UAV(s): each UAV queues several and flies them in turn.`);
   }
   const off = state.uavs.filter((u) => members.includes(u.id) && u.enabled === false).map((u) => u.id);
   if (off.length) warnings.push(`Module off on UAV ${off.join(', ')}: it takes no part.`);
@@ -765,9 +796,11 @@ function sendTargets() {
   if (!state.targets.length) return notice('no targets: click the map to add some', false);
   const targets = state.targets.map((t) => ({ lat: t.lat, lon: t.lon, alt: t.alt }));
   confirmThen(
-    `Send ${targets.length} target(s) to the team of ${members.length} UAV(s): ${members.join(', ')}?`,
+    `Send ${targets.length} target(s) to the team of ${members.length} UAV(s): ${members.join(', ')} (objective ${$('#objective').value})?`,
     sendWarnings(members, targets.length).join(' '),
-    () => command({ cmd: 'send', team: members, targets, zones: zonesToSend() }),
+    () => command({
+      cmd: 'send', team: members, targets, zones: zonesToSend(), objective: $('#objective').value,
+    }),
   );
 }
 

@@ -292,7 +292,7 @@ def test_the_thesis_scenario_from_the_page(
             browser.find_element(By.ID, "send").click()
             question = text_of(browser, "confirm-text")
             assert "3 target(s)" in question and "74, 112" in question
-            assert "3 targets for 2 UAV(s): 1 will stay unserved" in text_of(
+            assert "3 targets for 2 UAV(s): each UAV queues several" in text_of(
                 browser, "confirm-warning"
             )
             assert not sent.missions, "sent before the operator confirmed"
@@ -313,9 +313,17 @@ def test_the_thesis_scenario_from_the_page(
             )
             assert [m.team for m in sent.missions] == [(74, 112)]
             states = {i: m["state"] for i, m in target_marks(elements).items()}
-            assert {i for i, state in states.items() if state == "unserved"} == set(range(3)) - set(
-                assigned.values()
+            assert "unserved" not in states.values()  # the third is queued (issue 23)
+            # The queued target is drawn as its holder's tour, its predicted arrival beside it.
+            later = set(range(3)) - set(assigned.values())
+            elements = wait_for(
+                browser,
+                "the tour to the queued target",
+                lambda e: {int(x["targetIndex"]) for x in e if x["cls"] == "tour"} == later,
+                30.0,
             )
+            labels = browser.find_elements(By.CSS_SELECTOR, "#map .tour-label")
+            assert labels and all("ETA" in label.text for label in labels)
             wait_until(
                 lambda: "agreed" in text_of(browser, "agreement"), 10.0, "the agreement shown"
             )
@@ -323,9 +331,9 @@ def test_the_thesis_scenario_from_the_page(
 
             wait_for(
                 browser,
-                "every assigned target reached",
-                lambda e: all(target_marks(e)[i]["state"] == "reached" for i in assigned.values()),
-                REACH_TIMEOUT_S,
+                "every target reached, the queued one too",
+                lambda e: all(mark["state"] == "reached" for mark in target_marks(e).values()),
+                2 * REACH_TIMEOUT_S,
             )
             browser.save_screenshot(str(tmp_path / "gui-reached.png"))
 

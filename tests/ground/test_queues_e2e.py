@@ -1,0 +1,156 @@
+"""Task queues end to end (issue 23): real simulator, onboards, router and `ground-cli`.
+
+Three UAVs and eight targets: every target reached, and `mission --until-reached` says
+so; the same with a holder SIGKILLed after its first target, mid-queue, its queue going
+to the others; `min-sum` and `min-max` each agreed by every UAV (one digest)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from fleet.mission.messages import AssignmentReport
+from fleet.mission.phase import Phase
+from tests.conftest import Ground
+from tests.ground.test_truth import finish, ground_cli, targets_file
+from tests.onboard.test_multi_uav import start_ring
+from tests.support.processes import Fleet
+from tests.support.targets import ring_targets
+from tests.support.waiting import wait_until
+
+pytestmark = pytest.mark.e2e
+
+SPEEDUP = 10.0
+TARGETS = ring_targets(8, seed=23)
+#: Simulated flight of three queues of about three targets each, at SPEEDUP: ~1 minute;
+#: generous for a loaded machine.
+REACH_TIMEOUT_S = 300.0
+#: How close (m) telemetry must have put a UAV to a target it is said to have reached.
+CLOSE_M = 75.0
+
+
+def _send(
+    ground: Ground, tmp_path: Path, team: list[int], *extra: str
+) -> dict[int, AssignmentReport]:
+    path = targets_file(tmp_path, TARGETS)
+    status, out, err = finish(
+        ground_cli(
+            ground.router,
+            "send-targets",
+            str(path),
+            "--team",
+            ",".join(map(str, team)),
+            "--wait",
+            "--json",
+            *extra,
+        ),
+        120,
+    )
+    assert status == 0, err
+    report = json.loads(out)
+    assert report["agreed"] is True and report["complete"] is True, err
+    seen = ground.seen
+    wait_until(lambda: set(team) <= set(seen.assignments), 30.0, "every commitment")
+    reports = {uav: seen.assignments[uav] for uav in team}
+    # Every UAV agrees: one digest, the same queues, every target in exactly one queue.
+    assert len({(r.digest, str(r.queues)) for r in reports.values()}) == 1
+    queued = [t for q in reports[team[0]].queues.values() for t in q]
+    assert sorted(queued) == list(range(len(TARGETS)))
+    # The JSON tells each target its holder, its place in that queue and its arrival.
+    for state in report["target_states"]:
+        holder = state["uav"]
+        queue = reports[team[0]].queues[holder]
+        assert state["place"] == queue.index(state["index"]) + 1
+        assert state["eta_s"] == pytest.approx(
+            reports[team[0]].arrivals[holder][state["place"] - 1]
+        )
+    return reports
+
+
+def _until_reached(ground: Ground) -> dict[str, object]:
+    status, out, err = finish(
+        ground_cli(ground.router, "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json"),
+        REACH_TIMEOUT_S + 60,
+    )
+    report: dict[str, object] = json.loads(out)
+    assert status == 0, (err, report["target_states"])
+    return report
+
+
+def _assert_each_reached_where_it_is(ground: Ground, report: dict[str, object]) -> dict[int, int]:
+    states = report["target_states"]
+    assert isinstance(states, list)
+    by = {s["index"]: s["uav"] for s in states if s["state"] == "reached"}
+    assert sorted(by) == list(range(len(TARGETS))), states
+    for index, uav in by.items():
+        target = TARGETS[index]
+        assert ground.seen.closest_approach(uav, target.lat, target.lon) <= CLOSE_M
+    return by
+
+
+def test_three_uavs_reach_all_eight_targets_through_their_queues(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    team = start_ring(fleet, ground, tmp_path, 3, SPEEDUP, telemetry_hz=5.0)
+    reports = _send(ground, tmp_path, team)
+    queues = reports[team[0]].queues
+    assert max(len(q) for q in queues.values()) >= 2  # more targets than UAVs: queues
+    report = _until_reached(ground)
+    by = _assert_each_reached_where_it_is(ground, report)
+    # Each target reached by the UAV whose queue holds it, in its queue's order.
+    for uav, queue in queues.items():
+        assert all(by[t] == uav for t in queue)
+        order = [o.target for o in ground.seen.outcomes_of(uav) if o.phase == Phase.REACHED]
+        assert order == list(queue)
+    assert report["success"] is True
+
+
+def test_a_holder_killed_mid_queue_hands_its_queue_on_and_every_target_is_reached(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    team = start_ring(fleet, ground, tmp_path, 3, SPEEDUP, telemetry_hz=5.0)
+    reports = _send(ground, tmp_path, team)
+    queues = reports[team[0]].queues
+    victim = max(queues, key=lambda uav: (len(queues[uav]), uav))
+    assert len(queues[victim]) >= 2
+    seen = ground.seen
+    wait_until(
+        lambda: any(o.phase == Phase.REACHED for o in seen.outcomes_of(victim)),
+        REACH_TIMEOUT_S,
+        f"UAV {victim} reaching its first target",
+    )
+    child = fleet.onboard_child(victim)
+    child.process.kill()  # SIGKILL, mid-queue: liveliness goes with its connection
+    child.process.wait(10)
+    done = {o.target for o in seen.outcomes_of(victim) if o.phase == Phase.REACHED}
+    assert done and set(queues[victim]) - done, "killed with targets left in its queue"
+    survivors = [uav for uav in team if uav != victim]
+    wait_until(
+        lambda: all(seen.assignments[uav].epoch == 1 for uav in survivors),
+        30.0,
+        "both survivors re-planning epoch 1",
+    )
+    first, second = (seen.assignments[uav] for uav in survivors)
+    assert first.digest == second.digest and first.queues == second.queues
+    assert first.released == (victim,) and first.unassigned == ()
+    # The victim's whole queue went to the survivors, behind their own targets.
+    for uav in survivors:
+        assert first.queues[uav][: len(queues[uav])] == queues[uav]
+    moved = {t for uav in survivors for t in first.queues[uav][len(queues[uav]) :]}
+    assert moved == set(queues[victim])
+
+    report = _until_reached(ground)
+    by = _assert_each_reached_where_it_is(ground, report)
+    assert {t for t, uav in by.items() if uav == victim} == done
+    assert report["epoch"] == 1 and report["lost"] == [victim]
+
+
+@pytest.mark.parametrize("objective", ["min-sum", "min-max"])
+def test_every_uav_agrees_on_the_plan_of_each_objective(
+    fleet: Fleet, ground: Ground, tmp_path: Path, objective: str
+) -> None:
+    team = start_ring(fleet, ground, tmp_path, 3, SPEEDUP, telemetry_hz=5.0)
+    reports = _send(ground, tmp_path, team, "--objective", objective)
+    assert {str(r.objective) for r in reports.values()} == {objective}

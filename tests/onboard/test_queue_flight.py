@@ -1,0 +1,66 @@
+"""Flying a queue (issue 23): on to the next target when one is reached, and a holder
+lost mid-queue hands the rest of its queue to the survivors; driven through the core."""
+
+from __future__ import annotations
+
+from fleet.mission.key_space import KeySpace
+from fleet.mission.messages import AssignmentReport, MissionTargets, TargetOutcome, UavResult
+from fleet.mission.phase import Phase
+from fleet.piccolo.track import Track
+from fleet.piccolo.waypoint import Waypoint
+from onboard.core import TARGET_WAYPOINT, OnboardCore
+from tests.onboard.core_harness import TARGETS, Recorder, make_core, telemetry_at
+
+SPACE = KeySpace()
+
+
+def _two_uav_plan() -> tuple[OnboardCore, Recorder]:
+    """112 (this core: 80, 40, 60 s) and 74 (10, 90, 90 s), three targets: 74 queues
+    0 then 2 (it reaches 2 at ~148 s, 112 at ~260 s), 112 queues 1 alone."""
+    core, out = make_core(uav=112)
+    core.on_alive(74, True, 0.0)
+    core.on_targets(MissionTargets(mission=1, team=(74, 112), targets=TARGETS), 1.0)
+    core.on_result(UavResult(1, 74, (10.0, 90.0, 90.0)), 1.05)
+    core.tick(1.1)
+    (report,) = out.on(SPACE.mission_assignment(1, 112))
+    assert isinstance(report, AssignmentReport)
+    assert report.queues == {74: (0, 2), 112: (1,)}
+    assert report.pairs == {74: 0, 112: 1} and report.unassigned == ()
+    return core, out
+
+
+def _fly_and_reach(core: OnboardCore, out: Recorder, index: int, now: float) -> None:
+    waypoint = out.autopilot[-1]
+    assert isinstance(waypoint, Waypoint)
+    assert (waypoint.lat, waypoint.lon) == (TARGETS[index].lat, TARGETS[index].lon)
+    core.on_telemetry(telemetry_at(42.0, -71.0), now)  # kilometres away, the link up
+    core.on_waypoint(waypoint, now)
+    core.on_track(Track(TARGET_WAYPOINT), now + 0.1)
+    assert core.state(now + 0.1).phase == Phase.FLYING
+    core.on_telemetry(telemetry_at(TARGETS[index].lat, TARGETS[index].lon), now + 1.0)
+    assert any(s.startswith(f"reached target {index}") for s in out.statuses())
+
+
+def test_a_holder_lost_mid_queue_hands_its_rest_to_a_busy_survivor() -> None:
+    core, out = _two_uav_plan()
+    core.on_outcome(TargetOutcome(1, 74, 0, Phase.REACHED), 5.0)  # 74 reached its first
+    core.on_alive(74, False, 6.0)  # then it is lost, target 2 still to do
+    replans = out.on(SPACE.mission_replan(1, 112))
+    assert len(replans) == 1
+    (replan,) = replans
+    assert isinstance(replan, AssignmentReport)
+    assert replan.epoch == 1 and replan.released == (74,)
+    # 74's whole queue is appended behind 112's own target, which it keeps flying.
+    assert replan.queues == {112: (1, 0, 2)} and replan.unassigned == ()
+    _fly_and_reach(core, out, 1, 10.0)
+    # Target 0 was reached by 74 before it was lost: 112 skips it and flies 2.
+    _fly_and_reach(core, out, 2, 20.0)
+    assert core.state(22.0).phase == Phase.REACHED
+
+
+def test_a_teammate_done_with_its_queue_is_not_released_when_it_goes() -> None:
+    core, out = _two_uav_plan()
+    core.on_outcome(TargetOutcome(1, 74, 0, Phase.REACHED), 5.0)
+    core.on_outcome(TargetOutcome(1, 74, 2, Phase.REACHED), 6.0)
+    core.on_alive(74, False, 7.0)
+    assert out.on(SPACE.mission_replan(1, 112)) == []
