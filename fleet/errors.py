@@ -12,7 +12,7 @@ This module imports nothing, so every layer may use it.
 
 from __future__ import annotations
 
-__all__ = ["CodecError", "FleetError"]
+__all__ = ["CertError", "CodecError", "FleetError", "RosterError"]
 
 
 class FleetError(Exception):
@@ -21,3 +21,11 @@ class FleetError(Exception):
 
 class CodecError(FleetError, ValueError):
     """Bytes or values a codec cannot decode or encode; the message says what and where."""
+
+
+class CertError(FleetError, RuntimeError):
+    """The identities could not be written or read; the message names the file."""
+
+
+class RosterError(FleetError, RuntimeError):
+    """The signing keys or the roster could not be written or read; names the file."""

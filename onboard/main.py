@@ -8,8 +8,7 @@ import sys
 
 import zenoh
 
-from fleet.files.certs import CertError
-from fleet.files.signers import RosterError
+from fleet.errors import CertError, RosterError
 from fleet.transport.cli import (
     ExitCode,
     ZenohConfigError,

@@ -29,7 +29,7 @@ from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
-from fleet.errors import FleetError
+from fleet.errors import CertError as CertError  # raised here, defined where it is light
 from fleet.files.signers import write_signers
 from fleet.mission.access import is_router_identity
 
@@ -37,10 +37,6 @@ from fleet.mission.access import is_router_identity
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
 DEFAULT_VALID_DAYS = 365
 CA_NAME = "ca"
-
-
-class CertError(FleetError, RuntimeError):
-    """The identities could not be written or read; the message names the file."""
 
 
 @dataclass(frozen=True)

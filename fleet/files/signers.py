@@ -25,7 +25,7 @@ from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
-from fleet.errors import FleetError
+from fleet.errors import RosterError as RosterError  # raised here, defined where it is light
 from fleet.mission.signature import Roster
 
 ROSTER_FILE = "signers.json"
@@ -33,10 +33,6 @@ SIGNING_SUFFIX = ".sign"
 CA_NAME = "ca"  #: as fleet.files.certs names the CA's files
 #: A roster is small (a key per identity); anything much bigger is not one.
 MAX_ROSTER_BYTES = 1 << 20
-
-
-class RosterError(FleetError, RuntimeError):
-    """The signing keys or the roster could not be written or read; names the file."""
 
 
 def signing_key_path(directory: Path, name: str) -> Path:

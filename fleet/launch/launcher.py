@@ -41,8 +41,7 @@ from typing import IO, Any, Protocol, Self
 
 import zenoh
 
-from fleet.errors import FleetError
-from fleet.files.certs import CertError
+from fleet.errors import CertError, FleetError
 from fleet.geo.mercator import MercatorProjection
 from fleet.launch.topology import Topology, fallbacks, ring_links
 from fleet.mission.access import ROUTER, uav_router_identity

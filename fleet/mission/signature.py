@@ -29,12 +29,13 @@ from __future__ import annotations
 import struct
 from collections import OrderedDict
 from dataclasses import dataclass
-from enum import Enum, StrEnum, auto
+from enum import StrEnum
 
 from cryptography.exceptions import InvalidSignature
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
 from fleet.mission.access import GROUND, uav_identity
+from fleet.mission.delivery import Delivery as Delivery  # its own light module
 from fleet.mission.key_registry import REGISTRY, STATE, TARGETS, Carriage, KeySpec, Party, Role
 from fleet.mission.key_space import KeySpace, space_of
 
@@ -64,14 +65,6 @@ class Refusal(StrEnum):
     STALE = "stale"  #: a live message outside the window, or from the future
     REPLAYED = "replayed"  #: not newer than the last accepted on that key, or older than
     #: its mission
-
-
-class Delivery(Enum):
-    """How a message reached us: it decides who must have signed it and how fresh."""
-
-    PUT = auto()  #: a publication
-    QUERY = auto()  #: a query's payload (a command to a queryable)
-    REPLY = auto()  #: a reply to our query: possibly relayed, possibly old
 
 
 @dataclass(frozen=True)

@@ -24,8 +24,7 @@ from typing import Self
 
 import zenoh
 
-from fleet.errors import FleetError
-from fleet.files.certs import CertError
+from fleet.errors import CertError, FleetError
 from fleet.mission.access import ROUTER
 from fleet.mission.messages import RouterState
 from fleet.transport import refusal_watch

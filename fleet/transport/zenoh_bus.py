@@ -26,14 +26,12 @@ import json
 import logging
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import zenoh
 
-from fleet.errors import FleetError
-from fleet.files.certs import CertError
-from fleet.files.signers import RosterError
-from fleet.mission.signature import Delivery
+from fleet.errors import CertError, FleetError, RosterError
+from fleet.mission.delivery import Delivery
 from fleet.transport import bus_codec, bus_qos
 from fleet.transport.bus import (
     Bus,
@@ -46,15 +44,18 @@ from fleet.transport.bus import (
     QueryNotify,
     SampleCallback,
 )
-from fleet.transport.signing import BusSigning
 from fleet.transport.zenoh_config import (
     CONNECT_ENV,
     ZenohConfigError,
     check_endpoint,
     endpoints,
     error_text,
+    has_tls_identity,
     make_config,
 )
+
+if TYPE_CHECKING:
+    from fleet.transport.signing import BusSigning
 
 log = logging.getLogger(__name__)
 
@@ -166,8 +167,7 @@ class ZenohBus(Bus):
     def open(cls, config: zenoh.Config) -> ZenohBus:
         """Open a session; raises zenoh.ZError if the config's router cannot be reached,
         CertError or RosterError if its identity's signing key or roster is unreadable."""
-        signing = BusSigning.from_config(config)
-        return cls(zenoh.open(config), signing)
+        return cls(zenoh.open(config), signing_of(config))
 
     @property
     def signed(self) -> bool:
@@ -279,6 +279,18 @@ class ZenohBus(Bus):
         self.session.close()
 
 
+def signing_of(config: zenoh.Config) -> BusSigning | None:
+    """The signing of a bus opened with `config`: the secure profile's (its identity's
+    key, the roster), None in the open profile. The signing stack, and with it
+    `cryptography`'s OpenSSL, is imported only for a config with a TLS identity, so an
+    open-profile onboard never loads it (tests/onboard/test_import_footprint.py)."""
+    if not has_tls_identity(config):
+        return None
+    from fleet.transport.signing import BusSigning
+
+    return BusSigning.from_config(config)
+
+
 def connect(target: ClientTarget, *, open_timeout_s: float = DEFAULT_OPEN_TIMEOUT_S) -> ZenohBus:
     """A bus to the router at `target` (an endpoint, or a whole config).
 
@@ -292,7 +304,7 @@ def connect(target: ClientTarget, *, open_timeout_s: float = DEFAULT_OPEN_TIMEOU
         raise BusConnectError(str(error)) from None
     where = ", ".join(endpoints(config)) or "the configured endpoints"
     try:
-        signing = BusSigning.from_config(config)
+        signing = signing_of(config)
     except (CertError, RosterError) as error:
         raise BusConnectError(f"cannot sign or check commands: {error}") from None
     config.insert_json5("transport/unicast/open_timeout", json.dumps(round(open_timeout_s * 1000)))

@@ -151,6 +151,20 @@ def _set_endpoints(
         raise ZenohConfigError(f"bad Zenoh endpoint: {error_text(error)}") from None
 
 
+def has_tls_identity(config: zenoh.Config) -> bool:
+    """Whether `config` names a CA and a certificate of its own (a TLS client identity):
+    the one case where the bus may sign (fleet.transport.signing decides the rest)."""
+    try:
+        tls = json.loads(config.get_json("transport/link/tls"))
+    except (zenoh.ZError, TypeError, ValueError):
+        return False
+    return (
+        isinstance(tls, dict)
+        and isinstance(tls.get("root_ca_certificate"), str)
+        and isinstance(tls.get("connect_certificate"), str)
+    )
+
+
 def uses_mtls(config: zenoh.Config) -> bool:
     """Whether `config` is the secure profile's: mutual TLS with an identity of its own."""
     try:
