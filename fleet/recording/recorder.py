@@ -6,11 +6,14 @@ What is recorded:
 * each UAV's state (`{prefix}/uav/*/state`, a queryable that is never published), by a
   query every `state_every_s`, so the mission phases are in the recording;
 * each UAV's liveliness token appearing or going (`.../alive`, `{"alive": bool}`);
-* a `foxglove.LocationFix` per telemetry, for Foxglove's map.
+* a `foxglove.LocationFix` from each UAV's telemetry, for Foxglove's map, one every
+  `fix_every_s` per UAV (1 s by default; 0: one per telemetry).
 
 Log time is the Zenoh timestamp the router stamped on the sample where there is one,
-else the time it was received. Zenoh delivers samples on its own threads; they are
-queued and one writer thread owns the file, so a slow disk never blocks Zenoh.
+else the time it was received. Zenoh delivers samples on its own threads, which only
+append them to a queue (no hand-off to a Python thread per sample, no wake-up); one
+writer thread owns the file and takes everything queued every `BATCH_S`, so a slow disk
+never blocks Zenoh and a fleet's thousands of samples a second cost a few wake-ups.
 A payload that is not JSON, or too large or nested too deep to decode safely, is
 dropped, counted and logged (once per key).
 """
@@ -19,10 +22,9 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import queue
 import threading
 import time
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
@@ -32,9 +34,11 @@ import zenoh
 
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace, uav_id_of
 from fleet.recording import channels
+from fleet.recording.channels import ChannelSpec
 from fleet.recording.writer import McapSink
 from fleet.transport import bus_codec
 from fleet.transport.bus_codec import DropReason
+from fleet.transport.zenoh_bus import direct
 
 log = logging.getLogger(__name__)
 
@@ -43,6 +47,10 @@ DEFAULT_STATE_EVERY_S = 1.0
 READY_LINE = "fleet record: recording"
 #: Samples waiting for the writer beyond this are dropped (and counted), not queued.
 QUEUE_LIMIT = 100_000
+#: The writer takes what is queued this often, seconds: a batch, not a wake-up a sample.
+BATCH_S = 0.1
+#: One map fix per UAV this often, seconds: a track point every ~20 m at cruise speed.
+DEFAULT_FIX_EVERY_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -84,18 +92,23 @@ class Recorder:
         key_space: KeySpace = DEFAULT_SPACE,
         state_every_s: float = DEFAULT_STATE_EVERY_S,
         on_failure: threading.Event | None = None,
+        fix_every_s: float = DEFAULT_FIX_EVERY_S,
     ) -> None:
         self._session = session
         self.sink = sink
         self.prefix = key_space.prefix
         self.expr = expr or f"{self.prefix}/**"
         self._state_every_s = state_every_s
-        self._queue: queue.Queue[Heard | None] = queue.Queue()
+        self._fix_every_ns = round(fix_every_s * 1e9)
+        # Appended on Zenoh's threads, taken on the writer's (deque's ends are atomic).
+        self._queue: deque[Heard | zenoh.Sample] = deque()
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self._declared: list[zenoh.Subscriber[None]] = []
         self._bad_keys: set[str] = set()
-        self._uavs_with_fix: set[int] = set()
+        self._last_fix_ns: dict[int, int] = {}
+        self._specs: dict[str, ChannelSpec] = {}  # by key
+        self._fix_specs: dict[int, ChannelSpec] = {}  # by UAV
         self.stats = RecorderStats()
         #: Why writing stopped (the disk is full, ...); `on_failure` is set then.
         self.failure: str | None = None
@@ -105,7 +118,7 @@ class Recorder:
     def start(self) -> None:
         """Open the file, then subscribe; OSError or zenoh.ZError (a bad expression) if not."""
         self.sink.open()
-        self._declared.append(self._session.declare_subscriber(self.expr, self._on_sample))
+        self._declared.append(self._session.declare_subscriber(self.expr, direct(self._on_sample)))
         alive = f"{self.prefix}/uav/*/{channels.ALIVE_LEAF}"
         self._declared.append(
             self._session.liveliness().declare_subscriber(alive, self._on_alive, history=True)
@@ -121,7 +134,6 @@ class Recorder:
             declared.undeclare()
         self._declared.clear()
         self._stop.set()
-        self._queue.put(None)
         for thread in self._threads:
             thread.join()
         self._threads.clear()
@@ -133,19 +145,15 @@ class Recorder:
         return channels.matches(self.expr, probe)
 
     # ---- Zenoh threads -------------------------------------------------------------------
-    def _enqueue(self, heard: Heard) -> None:
-        if self._queue.qsize() >= QUEUE_LIMIT:
+    def _enqueue(self, heard: Heard | zenoh.Sample) -> None:
+        if len(self._queue) >= QUEUE_LIMIT:
             self.stats.dropped["writer behind"] += 1
             return
-        self._queue.put(heard)
+        self._queue.append(heard)
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
-        if sample.kind != zenoh.SampleKind.PUT:
-            self.stats.dropped["delete"] += 1
-            return
-        self._enqueue(
-            Heard(str(sample.key_expr), sample.payload.to_bytes(), sample_time_ns(sample.timestamp))
-        )
+        # On Zenoh's thread: queued as it is; the writer reads it (and drops a delete).
+        self._enqueue(sample)
 
     def _on_alive(self, sample: zenoh.Sample) -> None:
         alive = sample.kind == zenoh.SampleKind.PUT
@@ -182,23 +190,35 @@ class Recorder:
                 self._on_failure.set()
 
     def _drain(self) -> None:
-        while True:
-            try:
-                heard = self._queue.get(timeout=self.sink.flush_every_s / 2)
-            except queue.Empty:
-                self.sink.flush_if_due()
-                continue
-            if heard is None:
-                break
-            self._write(heard)
+        batch_s = min(BATCH_S, self.sink.flush_every_s / 2)
+        while not self._stop.wait(batch_s):
+            self._write_queued()
+            self.sink.flush_if_due()
         # Whatever arrived before the subscriptions went is written too.
-        while True:
-            try:
-                rest = self._queue.get_nowait()
-            except queue.Empty:
-                break
-            if rest is not None:
-                self._write(rest)
+        self._write_queued()
+
+    def _write_queued(self) -> None:
+        queued = self._queue
+        for _ in range(len(queued)):  # bounded: what is there now; the rest next time
+            item = queued.popleft()
+            if isinstance(item, Heard):
+                self._write(item)
+            elif item.kind != zenoh.SampleKind.PUT:
+                self.stats.dropped["delete"] += 1
+            else:
+                key = str(item.key_expr)
+                self._write(Heard(key, item.payload.to_bytes(), sample_time_ns(item.timestamp)))
+
+    def _spec(self, key: str) -> ChannelSpec:
+        spec = self._specs.get(key)
+        if spec is None:
+            spec = channels.channel_for(key)
+            if spec.topic.endswith(f"/{channels.ALIVE_LEAF}"):
+                # Not a UAV's token: recorded as it is, without a schema.
+                with contextlib.suppress(ValueError, IndexError):
+                    spec = channels.alive_channel(self.prefix, uav_id_of(key))
+            self._specs[key] = spec
+        return spec
 
     def _write(self, heard: Heard) -> None:
         try:
@@ -211,11 +231,7 @@ class Recorder:
                 self._bad_keys.add(heard.key)
                 log.warning("not recorded: %s; further ones counted", error)
             return
-        spec = channels.channel_for(heard.key)
-        if spec.topic.endswith(f"/{channels.ALIVE_LEAF}"):
-            # Not a UAV's token: recorded as it is, without a schema.
-            with contextlib.suppress(ValueError, IndexError):
-                spec = channels.alive_channel(self.prefix, uav_id_of(heard.key))
+        spec = self._spec(heard.key)
         self.sink.write(spec, heard.payload, heard.time_ns, heard.time_ns)
         self.stats.recorded[spec.pattern] += 1
         if spec.pattern.endswith("/telemetry") and isinstance(value, dict):
@@ -226,9 +242,15 @@ class Recorder:
             uav = uav_id_of(heard.key)
         except (ValueError, IndexError):
             return
+        last = self._last_fix_ns.get(uav)
+        if last is not None and 0 <= heard.time_ns - last < self._fix_every_ns:
+            return
         fix = channels.location_fix(telemetry, uav, heard.time_ns)
         if fix is None:
             return
-        spec = channels.location_channel(self.prefix, uav)
+        self._last_fix_ns[uav] = heard.time_ns
+        spec = self._fix_specs.get(uav)
+        if spec is None:
+            spec = self._fix_specs[uav] = channels.location_channel(self.prefix, uav)
         self.sink.write(spec, msgspec.json.encode(fix), heard.time_ns, heard.time_ns)
         self.stats.recorded[spec.pattern] += 1
