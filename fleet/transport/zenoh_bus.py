@@ -66,6 +66,11 @@ def direct(callback: Callable[[_T], Any]) -> zenoh.handlers.Callback[_T]:
     return zenoh.handlers.Callback(callback, indirect=False)
 
 
+def _plain(sample: zenoh.Sample) -> BusSample:
+    """Key and payload only: what every subscription of the fleet reads."""
+    return BusSample(str(sample.key_expr), sample.payload.to_bytes())
+
+
 def _sample(sample: zenoh.Sample) -> BusSample:
     return BusSample(
         str(sample.key_expr),
@@ -147,9 +152,13 @@ class ZenohBus(Bus):
             publisher = self._publishers.setdefault(key, bus_qos.declare(self.session, key, qos))
         publisher.put(payload)
 
-    def subscribe(self, key_expr: str, callback: SampleCallback) -> Declaration:
+    def subscribe(
+        self, key_expr: str, callback: SampleCallback, *, details: bool = False
+    ) -> Declaration:
+        convert = _sample if details else _plain
+
         def on_sample(sample: zenoh.Sample) -> None:
-            callback(_sample(sample))
+            callback(convert(sample))
 
         subscriber: Declaration = self.session.declare_subscriber(key_expr, direct(on_sample))
         return subscriber
