@@ -37,6 +37,7 @@ from fleet.recording import channels
 from fleet.recording.channels import ChannelSpec
 from fleet.recording.writer import McapSink
 from fleet.transport import bus_codec
+from fleet.transport.bus import Declaration
 from fleet.transport.bus_codec import DropReason
 from fleet.transport.zenoh_bus import direct
 
@@ -93,8 +94,11 @@ class Recorder:
         state_every_s: float = DEFAULT_STATE_EVERY_S,
         on_failure: threading.Event | None = None,
         fix_every_s: float = DEFAULT_FIX_EVERY_S,
+        in_router: bool = False,
     ) -> None:
         self._session = session
+        self._in_router = in_router
+        self._ring: zenoh.Subscriber[zenoh.Handler[zenoh.Sample]] | None = None
         self.sink = sink
         self.prefix = key_space.prefix
         self.expr = expr or f"{self.prefix}/**"
@@ -104,7 +108,7 @@ class Recorder:
         self._queue: deque[Heard | zenoh.Sample] = deque()
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
-        self._declared: list[zenoh.Subscriber[None]] = []
+        self._declared: list[Declaration] = []
         self._bad_keys: set[str] = set()
         self._last_fix_ns: dict[int, int] = {}
         self._specs: dict[str, ChannelSpec] = {}  # by key
@@ -118,7 +122,18 @@ class Recorder:
     def start(self) -> None:
         """Open the file, then subscribe; OSError or zenoh.ZError (a bad expression) if not."""
         self.sink.open()
-        self._declared.append(self._session.declare_subscriber(self.expr, direct(self._on_sample)))
+        if self._in_router:
+            # The router's own session: a Python callback would hold its routing threads
+            # on this process's GIL. Zenoh queues the samples itself (the oldest go past
+            # QUEUE_LIMIT: 100 s of a 50-UAV fleet's telemetry) and the writer takes them.
+            self._ring = self._session.declare_subscriber(
+                self.expr, zenoh.handlers.RingChannel(QUEUE_LIMIT)
+            )
+            self._declared.append(self._ring)
+        else:
+            self._declared.append(
+                self._session.declare_subscriber(self.expr, direct(self._on_sample))
+            )
         alive = f"{self.prefix}/uav/*/{channels.ALIVE_LEAF}"
         self._declared.append(
             self._session.liveliness().declare_subscriber(alive, self._on_alive, history=True)
@@ -130,6 +145,8 @@ class Recorder:
             thread.start()
 
     def stop(self) -> None:
+        # Nothing more is heard; the writer then takes what is queued (Zenoh's ring
+        # keeps its samples once undeclared) and ends.
         for declared in self._declared:
             declared.undeclare()
         self._declared.clear()
@@ -137,6 +154,7 @@ class Recorder:
         for thread in self._threads:
             thread.join()
         self._threads.clear()
+        self._ring = None
         with contextlib.suppress(OSError):  # already reported as the failure
             self.sink.close()
 
@@ -203,11 +221,21 @@ class Recorder:
             item = queued.popleft()
             if isinstance(item, Heard):
                 self._write(item)
-            elif item.kind != zenoh.SampleKind.PUT:
-                self.stats.dropped["delete"] += 1
             else:
-                key = str(item.key_expr)
-                self._write(Heard(key, item.payload.to_bytes(), sample_time_ns(item.timestamp)))
+                self._write_sample(item)
+        if self._ring is not None:
+            for _ in range(QUEUE_LIMIT):
+                sample = self._ring.try_recv()
+                if sample is None:
+                    break
+                self._write_sample(sample)
+
+    def _write_sample(self, sample: zenoh.Sample) -> None:
+        if sample.kind != zenoh.SampleKind.PUT:
+            self.stats.dropped["delete"] += 1
+            return
+        key = str(sample.key_expr)
+        self._write(Heard(key, sample.payload.to_bytes(), sample_time_ns(sample.timestamp)))
 
     def _spec(self, key: str) -> ChannelSpec:
         spec = self._specs.get(key)
