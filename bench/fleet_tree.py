@@ -234,6 +234,7 @@ def _ms(values: list[float]) -> str:
 HEADER = (
     "  N config    load  ready  model | CPU %: onb   rec   sim    up  total"
     " | PSS GB: onb   rec   sim    up  total | RSS GB | tel p99 | send->com s | res->com ms | ok"
+    " | model:fallback"
 )
 
 
@@ -247,12 +248,13 @@ def format_tree(row: TreeRow) -> str:
     windows = [m.result_to_commit for m in row.missions if m.result_to_commit is not None]
     agreed = sum(1 for m in row.missions if m.agreed)
     send = "-" if not sends else f"{min(sends):.2f}-{max(sends):.2f}"
+    answers = "/".join("?" if m.model is None else f"{m.model}:{m.fallback}" for m in row.missions)
     return (
         f"{row.n:>3} {row.config:<8} {row.load:5.1f} {opt(row.ready_s):>6} {opt(row.models_s):>6}"
         f" |       {cpu} {sum(row.cpu.values()):6.1f}"
         f" |        {pss} {sum(row.pss_mb.values()) / 1024:6.3f}"
         f" | {sum(row.rss_mb.values()) / 1024:6.2f} | {opt(row.latency_p99_ms, 0):>7}"
-        f" | {send:>11} | {_ms(windows):>11} | {agreed}/{len(row.missions)}"
+        f" | {send:>11} | {_ms(windows):>11} | {agreed}/{len(row.missions)} | {answers}"
     )
 
 
