@@ -12,9 +12,12 @@ with its router):
   afterwards, as a ground would), so the router carries the fleet's traffic only;
 * PSS from /proc/PID/smaps_rollup (each shared page divided among its mappers) and
   RSS, idle;
-* per mission of N targets (MAX_TARGETS at most): send -> last commit and the consensus
-  window, last result -> last commit (router timestamps), and whether the team agreed;
-  telemetry extra latency p99 over a second idle window, the benchmark connected.
+* per mission of N targets (MAX_TARGETS at most), sent with the deadline
+  `ground-cli send-targets` gives a team of N (fleet.consensus.deadline; the onboards
+  plan for half of it): send -> last commit and the consensus window, last result ->
+  last commit (router timestamps), whether the team agreed, and how many approach times
+  came from the model and how many from the Dubins fallback;
+* telemetry extra latency p99 over a second idle window, the benchmark connected.
 
 Run: .venv/bin/python -m bench.bench_fleet_scale --whole-tree [--sizes 2 10 20 50 100]
 Bounded: every start, idle window and mission has a timeout; `fleet up` is stopped with
@@ -50,6 +53,7 @@ from bench.bench_fleet_scale import (
     status_field,
     wait_models_built,
 )
+from fleet.consensus.deadline import consensus_deadline
 from fleet.mission.messages import MAX_TARGETS
 from fleet.transport.zenoh_config import make_config
 
@@ -208,8 +212,11 @@ def measure_tree(tree: Path, name: str, n: int, args: argparse.Namespace, work: 
             observer.recording = False
             latency = observer.latency_p99_ms()
             log: list[str] = []
+            # The deadline `ground-cli send-targets` gives a team of N (it sets the
+            # onboards' planning budget: half of it).
+            deadline = consensus_deadline(n)
             missions = run_missions(
-                ground, observer, tuple(sorted(team)), args.missions, 10.0, (onboards, sim), log
+                ground, observer, tuple(sorted(team)), args.missions, deadline, (onboards, sim), log
             )
         finally:
             observer.close()
