@@ -48,6 +48,9 @@ DEFAULT_STATE_EVERY_S = 1.0
 READY_LINE = "fleet record: recording"
 #: Samples waiting for the writer beyond this are dropped (and counted), not queued.
 QUEUE_LIMIT = 100_000
+#: Zenoh's own queue in the router's process (`in_router`): a ring whose every slot is
+#: touched as it turns (100,000 held 25 MB), 10-20 s of a 50-100-UAV fleet's samples.
+RING_LIMIT = 20_000
 #: The writer takes what is queued this often, seconds: a batch, not a wake-up a sample.
 BATCH_S = 0.1
 #: One map fix per UAV this often, seconds: a track point every ~20 m at cruise speed.
@@ -125,9 +128,10 @@ class Recorder:
         if self._in_router:
             # The router's own session: a Python callback would hold its routing threads
             # on this process's GIL. Zenoh queues the samples itself (the oldest go past
-            # QUEUE_LIMIT: 100 s of a 50-UAV fleet's telemetry) and the writer takes them.
+            # RING_LIMIT, uncounted: a writer that far behind has a disk that stalls)
+            # and the writer takes them.
             self._ring = self._session.declare_subscriber(
-                self.expr, zenoh.handlers.RingChannel(QUEUE_LIMIT)
+                self.expr, zenoh.handlers.RingChannel(RING_LIMIT)
             )
             self._declared.append(self._ring)
         else:
@@ -145,18 +149,27 @@ class Recorder:
             thread.start()
 
     def stop(self) -> None:
-        # Nothing more is heard; the writer then takes what is queued (Zenoh's ring
-        # keeps its samples once undeclared) and ends.
+        # Nothing more is heard, then the writer takes what is queued and ends; Zenoh's
+        # ring goes with its subscriber, so with one the writer ends first (the fleet
+        # has stopped by then: next to nothing is lost between the two).
+        if self._ring is not None:
+            self._end_writer()
         for declared in self._declared:
             declared.undeclare()
         self._declared.clear()
+        self._ring = None
+        self._end_writer()
+        if self.failure is None:
+            with contextlib.suppress(OSError):  # heard after the writer ended (a token)
+                self._write_queued()
+        with contextlib.suppress(OSError):  # already reported as the failure
+            self.sink.close()
+
+    def _end_writer(self) -> None:
         self._stop.set()
         for thread in self._threads:
             thread.join()
         self._threads.clear()
-        self._ring = None
-        with contextlib.suppress(OSError):  # already reported as the failure
-            self.sink.close()
 
     def _covers_state(self) -> bool:
         probe = f"{self.prefix}/uav/0/{channels.STATE_LEAF}"
@@ -223,9 +236,13 @@ class Recorder:
                 self._write(item)
             else:
                 self._write_sample(item)
-        if self._ring is not None:
-            for _ in range(QUEUE_LIMIT):
-                sample = self._ring.try_recv()
+        ring = self._ring
+        if ring is not None:
+            for _ in range(RING_LIMIT):
+                try:
+                    sample = ring.try_recv()
+                except zenoh.ZError:  # the session closed under the recorder
+                    break
                 if sample is None:
                     break
                 self._write_sample(sample)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -13,6 +14,7 @@ import zenoh
 from fleet.launch.launcher import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import StatusText
+from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from fleet.recording.reader import read_recording
 from fleet.recording.recorder import Recorder
 from fleet.recording.replay import replayable
@@ -60,6 +62,46 @@ def test_records_puts_and_tokens_and_drops_what_is_not_json(tmp_path: Path) -> N
     alive = [value for topic, value in values if topic == "fleet/uav/7/alive"]
     assert alive == [{"alive": True}, {"alive": False}] and len(values) == 3
     assert recording.channels["fleet/uav/7/alive"].schema_name == "fleet.Liveliness"
+
+
+def test_in_the_router_samples_wait_in_zenoh_and_map_fixes_come_once_a_second(
+    tmp_path: Path,
+) -> None:
+    """`fleet up`'s recorder: on the router's own session, Zenoh queues the samples (no
+    Python on the routing threads); telemetry at 20 Hz gives one map fix a second."""
+    port = free_port()
+    with router_session(port) as router, client_session(port) as fleet:
+        recorder = Recorder(router, McapSink(tmp_path / "r.mcap"), state_every_s=0, in_router=True)
+        recorder.start()
+        try:
+            telemetry = Telemetry(0, gps=GpsBlock(35.7, -120.7, 600.0, 0.0, 22.0, 0.0))
+            wait_until(
+                lambda: (
+                    fleet.put(SPACE.telemetry(7), encode(telemetry))
+                    or recorder.stats.recorded["fleet/uav/*/telemetry"] > 0
+                ),
+                10.0,
+                "the recorder to hear the client",
+            )
+            for _ in range(30):  # 1.5 s at 20 Hz
+                fleet.put(SPACE.telemetry(7), encode(telemetry))
+                time.sleep(0.05)
+            fleet.put(SPACE.status(7), encode(StatusText("last")))
+            wait_until(
+                lambda: recorder.stats.recorded["fleet/uav/*/status"] == 1,
+                10.0,
+                "the last put",
+            )
+        finally:
+            recorder.stop()
+    recording = read_recording(tmp_path / "r.mcap")
+    times = [m.log_time_ns for m in recording.messages if m.topic.endswith("/telemetry")]
+    fixes = [m.log_time_ns for m in recording.messages if m.topic.endswith("/location_fix")]
+    assert len(times) >= 31 and fixes[0] == times[0]
+    # One a second (from the first telemetry at or past a second after the last fix).
+    for fix in fixes[1:]:
+        assert fix == min(t for t in times if t >= fixes[fixes.index(fix) - 1] + 10**9)
+    assert times[-1] < fixes[-1] + 10**9 and 2 <= len(fixes) < len(times) / 10
 
 
 def _fleet(*argv: str) -> subprocess.CompletedProcess[str]:
