@@ -51,6 +51,9 @@ QUEUE_LIMIT = 100_000
 #: Zenoh's own queue in the router's process (`in_router`): a ring whose every slot is
 #: touched as it turns (100,000 held 25 MB), 10-20 s of a 50-100-UAV fleet's samples.
 RING_LIMIT = 20_000
+#: Keys whose channel is remembered, and UAVs whose last map fix is: past these, a
+#: peer putting on ever new keys costs a lookup per sample, never memory.
+MAX_CACHED = 10_000
 #: The writer takes what is queued this often, seconds: a batch, not a wake-up a sample.
 BATCH_S = 0.1
 #: One map fix per UAV this often, seconds: a track point every ~20 m at cruise speed.
@@ -262,7 +265,8 @@ class Recorder:
                 # Not a UAV's token: recorded as it is, without a schema.
                 with contextlib.suppress(ValueError, IndexError):
                     spec = channels.alive_channel(self.prefix, uav_id_of(key))
-            self._specs[key] = spec
+            if len(self._specs) < MAX_CACHED:
+                self._specs[key] = spec
         return spec
 
     def _write(self, heard: Heard) -> None:
@@ -293,6 +297,8 @@ class Recorder:
         fix = channels.location_fix(telemetry, uav, heard.time_ns)
         if fix is None:
             return
+        if last is None and len(self._last_fix_ns) >= MAX_CACHED:
+            return  # a peer's flood of UAV ids: their telemetry is recorded, not mapped
         self._last_fix_ns[uav] = heard.time_ns
         spec = self._fix_specs.get(uav)
         if spec is None:
