@@ -27,6 +27,10 @@ from tests.support.waiting import wait_until
 SPACE = KeySpace()
 
 
+def wait_recorded(recorder: Recorder, pattern: str, count: int, what: str) -> None:
+    wait_until(lambda: recorder.stats.recorded[pattern] == count, 10.0, what)
+
+
 def test_records_puts_and_tokens_and_drops_what_is_not_json(tmp_path: Path) -> None:
     port = free_port()
     with router_session(port), client_session(port) as fleet, client_session(port) as ground:
@@ -49,11 +53,7 @@ def test_records_puts_and_tokens_and_drops_what_is_not_json(tmp_path: Path) -> N
                 "the recorder to hear both puts",
             )
             token.undeclare()
-            wait_until(
-                lambda: recorder.stats.recorded["fleet/uav/*/alive"] == 2,
-                10.0,
-                "the token to come and go",
-            )
+            wait_recorded(recorder, "fleet/uav/*/alive", 2, "the token to come and go")
         finally:
             recorder.stop()
     recording = read_recording(tmp_path / "r.mcap")
@@ -88,11 +88,7 @@ def test_in_the_router_samples_wait_in_zenoh_and_map_fixes_come_once_a_second(
                 fleet.put(SPACE.telemetry(7), encode(telemetry))
                 time.sleep(0.05)
             fleet.put(SPACE.status(7), encode(StatusText("last")))
-            wait_until(
-                lambda: recorder.stats.recorded["fleet/uav/*/status"] == 1,
-                10.0,
-                "the last put",
-            )
+            wait_recorded(recorder, "fleet/uav/*/status", 1, "the last put")
         finally:
             recorder.stop()
     recording = read_recording(tmp_path / "r.mcap")
