@@ -65,7 +65,8 @@ def _record_parser(parser: argparse.ArgumentParser) -> None:
         type=non_negative_float,
         default=DEFAULT_STATE_EVERY_S,
         metavar="S",
-        help="query every UAV's state this often; 0: never (default %(default)g s)",
+        help="query every UAV's state this often, in a fleet of N > 10 every N/10 s at the "
+        "shortest; 0: never (default %(default)g s)",
     )
     parser.add_argument(
         "--fix-every",

@@ -4,7 +4,8 @@ What is recorded:
 
 * every sample put under the expression (default `{prefix}/**`), on a channel per key;
 * each UAV's state (`{prefix}/uav/*/state`, a queryable that is never published), by a
-  query every `state_every_s`, so the mission phases are in the recording;
+  query every `state_every_s` (in a fleet of more than 10, every N / 10 s), so the
+  mission phases are in the recording;
 * each UAV's liveliness token appearing or going (`.../alive`, `{"alive": bool}`);
 * a `foxglove.LocationFix` from each UAV's telemetry, for Foxglove's map, one every
   `fix_every_s` per UAV (1 s by default; 0: one per telemetry).
@@ -44,6 +45,9 @@ from fleet.transport.zenoh_bus import direct
 log = logging.getLogger(__name__)
 
 DEFAULT_STATE_EVERY_S = 1.0
+#: UAV states asked for a second, at most: each is a query every onboard wakes up to
+#: answer with its whole state (~2 KB); 50 a second cost ~4 % of a core at N = 50.
+MAX_STATES_PER_S = 10.0
 #: The line `fleet record` prints once it listens (the launcher waits for it).
 READY_LINE = "fleet record: recording"
 #: Samples waiting for the writer beyond this are dropped (and counted), not queued.
@@ -75,6 +79,12 @@ def sample_time_ns(timestamp: zenoh.Timestamp | None) -> int:
         return time.time_ns()
     moment: datetime = timestamp.get_time()
     return int(moment.timestamp()) * 1_000_000_000 + moment.microsecond * 1000
+
+
+def state_period(every_s: float, uavs: int) -> float:
+    """How long until the next state query, after `uavs` answered the last one: `every_s`,
+    or longer in a large fleet, so the fleet answers at most MAX_STATES_PER_S a second."""
+    return max(every_s, uavs / MAX_STATES_PER_S)
 
 
 @dataclass
@@ -196,12 +206,14 @@ class Recorder:
 
     def _poll_states(self) -> None:
         selector = f"{self.prefix}/uav/*/{channels.STATE_LEAF}"
-        while not self._stop.wait(self._state_every_s):
+        period = self._state_every_s
+        while not self._stop.wait(period):
             try:
                 replies = list(self._session.get(selector, timeout=self._state_every_s))
             except zenoh.ZError as error:
                 log.warning("state query failed: %s", error)
                 continue
+            period = state_period(self._state_every_s, len(replies))
             for reply in replies:
                 if reply.ok is not None:
                     sample = reply.ok

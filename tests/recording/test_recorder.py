@@ -17,7 +17,7 @@ from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import StatusText
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from fleet.recording.reader import read_recording
-from fleet.recording.recorder import Recorder
+from fleet.recording.recorder import Recorder, state_period
 from fleet.recording.replay import replayable
 from fleet.recording.writer import McapSink
 from fleet.transport.bus_codec import ENCODING, encode
@@ -99,6 +99,12 @@ def test_in_the_router_samples_wait_in_zenoh_and_map_fixes_come_once_a_second(
     for previous, fix in itertools.pairwise(fixes):
         assert fix == min(t for t in times if t >= previous + 10**9)
     assert times[-1] < fixes[-1] + 10**9 and len(fixes) >= 2
+
+
+def test_a_large_fleet_is_asked_its_states_at_most_ten_a_second() -> None:
+    assert state_period(1.0, 2) == 1.0 and state_period(1.0, 10) == 1.0
+    assert state_period(1.0, 50) == 5.0 and state_period(1.0, 100) == 10.0
+    assert state_period(30.0, 100) == 30.0  # --state-every is the shortest period
 
 
 def _fleet(*argv: str) -> subprocess.CompletedProcess[str]:
