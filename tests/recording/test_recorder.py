@@ -27,6 +27,11 @@ from tests.support.waiting import wait_until
 SPACE = KeySpace()
 
 
+def _matching(publisher: zenoh.Publisher) -> bool:
+    status: object = publisher.matching_status  # a MatchingStatus; zenoh's stub says bool
+    return bool(getattr(status, "matching", False))
+
+
 def wait_recorded(recorder: Recorder, pattern: str, count: int, what: str) -> None:
     wait_until(lambda: recorder.stats.recorded[pattern] == count, 10.0, what)
 
@@ -37,6 +42,10 @@ def test_records_puts_and_tokens_and_drops_what_is_not_json(tmp_path: Path) -> N
         recorder = Recorder(ground, McapSink(tmp_path / "r.mcap"), state_every_s=0)
         recorder.start()
         try:
+            # Puts before the router knows the subscription reach nobody (a busy machine).
+            publisher = fleet.declare_publisher(SPACE.status(7))
+            wait_until(lambda: _matching(publisher), 10.0, "the subscription")
+            publisher.undeclare()
             token = fleet.liveliness().declare_token(SPACE.alive(7))
             fleet.put(SPACE.status(7), encode(StatusText("hello")), encoding=ENCODING)
             fleet.put(SPACE.status(7), b"\xff\x00 not json")
