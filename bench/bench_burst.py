@@ -89,7 +89,9 @@ class BytesBus(Bus):
     def put(self, key: str, payload: bytes) -> None:
         self.published.append((key, payload))
 
-    def subscribe(self, key_expr: str, callback: Callable[[BusSample], None]) -> Declaration:
+    def subscribe(
+        self, key_expr: str, callback: Callable[[BusSample], None], *, details: bool = False
+    ) -> Declaration:
         self.subscriptions[key_expr] = callback
         return _Nothing()
 

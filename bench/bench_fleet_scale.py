@@ -34,6 +34,8 @@ settings; `after` runs this tree, with the planning budget following the team si
 after/before ratios.
 
 Run: .venv/bin/python -m bench.bench_fleet_scale [--sizes 2 10 20 50] [--configs before after]
+`--whole-tree` measures instead `fleet up --uavs N` as a user runs it, with its router and
+recorder, per process kind (bench/fleet_tree.py).
 Bounded: every fleet start, idle window and mission has a timeout; every process this
 starts is stopped (Fleet.stop), whatever happens.
 """
@@ -603,7 +605,19 @@ def main() -> None:
     parser.add_argument(
         "--keep", type=Path, help="keep every fleet's logs in this folder (default: removed)"
     )
+    parser.add_argument(
+        "--whole-tree",
+        action="store_true",
+        help="run `fleet up --uavs N` whole (router, recorder, simulator, onboards) and "
+        "measure each process kind (bench/fleet_tree.py)",
+    )
+    parser.add_argument("--repeat", type=int, default=1, help="--whole-tree: runs per N")
     args = parser.parse_args()
+    if args.whole_tree:
+        from bench import fleet_tree  # it imports this module's measures
+
+        fleet_tree.run(args)
+        return
     print(
         f"{CORES} cores; telemetry {TELEMETRY_HZ:g} Hz; M = N targets; bound = N x solve / "
         "cores + 0.5 s",

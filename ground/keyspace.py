@@ -76,7 +76,7 @@ def collect(
 
     # Subscribe before querying, so a sample published meanwhile is not lost; samples
     # that arrive after the query are newer than its replies and replace them.
-    subscription = bus.subscribe(expr, on_sample)
+    subscription = bus.subscribe(expr, on_sample, details=True)
     try:
         for reply in _values(bus, expr, timeout_s):
             value = KeyValue(

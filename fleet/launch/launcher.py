@@ -8,8 +8,10 @@ What runs (one machine, the star of docs/architecture.md):
   one selector loop, and one process is half the memory of N);
 * one `onboard` process per UAV, a Zenoh client of the router, on the program and
   payload ports the simulator printed;
-* unless told not to, one `fleet record` process (`fleet.recording`), started first
-  and waited for, so the whole run is recorded into `record` (an MCAP file).
+* unless told not to, a recorder (`fleet.recording`), started first, so the whole run
+  is recorded into `record` (an MCAP file): in this process on the router's own session
+  (one process and one hop fewer for every sample: issue 28), or, in a router-per-UAV
+  mesh, one `fleet record` process, a client that can fall back to any router.
 
 Children are started with `sys.executable -m ...` (no dependence on console scripts
 being on PATH), in their own session (process group), so a Ctrl-C in the terminal
@@ -47,7 +49,8 @@ from fleet.launch.topology import Topology, fallbacks, ring_links
 from fleet.mission.access import ROUTER, uav_router_identity
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace, uav_id_of
 from fleet.piccolo.telemetry import Telemetry
-from fleet.recording.recorder import READY_LINE
+from fleet.recording.recorder import READY_LINE, Recorder
+from fleet.recording.writer import McapSink
 from fleet.transport import bus_codec
 from fleet.transport.cli import PREFIX_ENV
 from fleet.transport.router import Router
@@ -261,6 +264,10 @@ class Fleet:
     children: list[Child] = field(default_factory=list)
     router: Router | None = None
     secure: SecureProfile | None = None
+    #: The recorder in this process (a star's), while the fleet runs.
+    recorder: Recorder | None = None
+    #: Why the in-process recording stopped before the fleet did (a full disk, ...).
+    recording_failure: str | None = None
     #: The routers of a router-per-uav mesh: UAV id -> the endpoint clients connect to.
     uav_routers: dict[int, str] = field(default_factory=dict)
     log_dir: Path = field(init=False)
@@ -398,6 +405,9 @@ class Fleet:
         path = self.spec.record
         if path is None:
             return
+        if self.router is not None:
+            self._record_in_router(path)
+            return
         recorder = self._spawn(
             "record",
             [
@@ -413,6 +423,21 @@ class Fleet:
         while READY_LINE not in recorder.tail():
             self._check_running(deadline, "the recorder")
             time.sleep(0.1)
+
+    def _record_in_router(self, path: Path) -> None:
+        assert self.router is not None
+        recorder = Recorder(
+            self.router.session,
+            McapSink(path),
+            key_space=self.spec.key_space,
+            on_failure=threading.Event(),  # the fleet flies on; `stop` says why it ended
+            in_router=True,
+        )
+        try:
+            recorder.start()
+        except OSError as error:
+            raise LaunchError(f"cannot record to {path}: {error.strerror or error}") from None
+        self.recorder = recorder
 
     def _ground_zenoh_args(self) -> list[str]:
         """A ground-side client's Zenoh flags: every router, and the ground's identity."""
@@ -650,6 +675,10 @@ class Fleet:
         for f in self._files:
             f.close()
         self._files.clear()
+        if self.recorder is not None:
+            self.recorder.stop()
+            self.recording_failure = self.recorder.failure
+            self.recorder = None
         if self.router is not None:
             self.router.close()
             self.router = None

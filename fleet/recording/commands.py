@@ -20,7 +20,12 @@ from fleet.mission.key_space import KeySpace
 from fleet.recording.mission_log import build_timeline
 from fleet.recording.plot import PlotError, parse_at, render
 from fleet.recording.reader import Recording, RecordingError, read_recording, recover
-from fleet.recording.recorder import DEFAULT_STATE_EVERY_S, READY_LINE, Recorder
+from fleet.recording.recorder import (
+    DEFAULT_FIX_EVERY_S,
+    DEFAULT_STATE_EVERY_S,
+    READY_LINE,
+    Recorder,
+)
 from fleet.recording.replay import DEFAULT_REPLAY_PREFIX, Replayer
 from fleet.recording.report import report_json, report_lines
 from fleet.recording.writer import McapSink, Rotation
@@ -60,7 +65,16 @@ def _record_parser(parser: argparse.ArgumentParser) -> None:
         type=non_negative_float,
         default=DEFAULT_STATE_EVERY_S,
         metavar="S",
-        help="query every UAV's state this often; 0: never (default %(default)g s)",
+        help="query every UAV's state this often, in a fleet of N > 10 every N/10 s at the "
+        "shortest; 0: never (default %(default)g s)",
+    )
+    parser.add_argument(
+        "--fix-every",
+        type=non_negative_float,
+        default=DEFAULT_FIX_EVERY_S,
+        metavar="S",
+        help="one map fix (foxglove.LocationFix) per UAV this often; 0: one per telemetry "
+        "(default %(default)g s)",
     )
     parser.add_argument(
         "--rotate-size", type=positive_float, metavar="MB", help="new file past MB megabytes"
@@ -168,6 +182,7 @@ def run_record(args: argparse.Namespace) -> int:
             key_space=args.key_space,
             state_every_s=args.state_every,
             on_failure=stop,
+            fix_every_s=args.fix_every,
         )
         try:
             recorder.start()

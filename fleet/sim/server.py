@@ -398,18 +398,21 @@ class SimServer:
             autopilot.payload.from_ground(data)
 
     def _flush(self) -> None:
+        # Twice a loop turn over every aircraft: only what has bytes costs more than a
+        # length check (at 100 aircraft, most have nothing to send at a given turn).
         for uav in self._uavs:
             pipe = uav.autopilot.payload
             # The pipe keeps its bytes (bounded) until somebody on the far side is there.
             for buffer, kind in ((pipe.to_ground, _Kind.GROUND), (pipe.to_onboard, _Kind.PAYLOAD)):
-                readers = uav.clients(kind)
-                if readers and len(buffer):
-                    data = buffer.take()
-                    for reader in readers:
-                        reader.output.append(data)
-            for channel in list(uav.channels):
-                if len(channel.output):
-                    self._write(channel)
+                if len(buffer):
+                    readers = uav.clients(kind)
+                    if readers:
+                        data = buffer.take()
+                        for reader in readers:
+                            reader.output.append(data)
+            pending = [channel for channel in uav.channels if len(channel.output)]
+            for channel in pending:  # a copy: a failed write drops its channel
+                self._write(channel)
 
     def _write(self, channel: _Channel) -> None:
         data = bytes(channel.output.view())

@@ -142,7 +142,13 @@ class Bus(ABC):
     def put(self, key: str, payload: bytes) -> None: ...
 
     @abstractmethod
-    def subscribe(self, key_expr: str, callback: SampleCallback) -> Declaration: ...
+    def subscribe(
+        self, key_expr: str, callback: SampleCallback, *, details: bool = False
+    ) -> Declaration:
+        """Every sample put under `key_expr`, to `callback`. Its `encoding` and `deleted`
+        are read off Zenoh's sample only with `details` (`ground-cli keys` shows them);
+        else they are the defaults, JSON and False: the fleet's messages are JSON, and
+        reading them costs ~20 % of a sample's conversion on every subscription."""
 
     @abstractmethod
     def get(

@@ -86,8 +86,10 @@ class FaultyBus(Bus):
             self._timers = {t for t in self._timers if t is not threading.current_thread()}
         self.inner.put(key, payload)
 
-    def subscribe(self, key_expr: str, callback: SampleCallback) -> Declaration:
-        return self.inner.subscribe(key_expr, callback)
+    def subscribe(
+        self, key_expr: str, callback: SampleCallback, *, details: bool = False
+    ) -> Declaration:
+        return self.inner.subscribe(key_expr, callback, details=details)
 
     def get(
         self, selector: str, callback: SampleCallback, timeout: float, payload: bytes = b""

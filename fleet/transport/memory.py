@@ -203,7 +203,10 @@ class MemoryBus(Bus):
         for callback in callbacks:
             callback(sample)
 
-    def subscribe(self, key_expr: str, callback: SampleCallback) -> Declaration:
+    def subscribe(
+        self, key_expr: str, callback: SampleCallback, *, details: bool = False
+    ) -> Declaration:
+        # In memory every sample carries its details anyway.
         entry = _Subscription(key_expr, callback, self)
         with self.network.lock:
             self.network.subscriptions.append(entry)

@@ -81,6 +81,11 @@ def _attachment(data: zenoh.Sample | zenoh.Query) -> bytes:
     return attachment.to_bytes() if attachment is not None else b""
 
 
+def _plain(sample: zenoh.Sample) -> BusSample:
+    """Key and payload only: what every subscription of the fleet reads."""
+    return BusSample(str(sample.key_expr), sample.payload.to_bytes())
+
+
 def _sample(sample: zenoh.Sample) -> BusSample:
     return BusSample(
         str(sample.key_expr),
@@ -176,9 +181,14 @@ class ZenohBus(Bus):
     def _check(self, key: str, payload: bytes, attachment: bytes, how: Delivery) -> bool:
         return self.signing is None or self.signing.check(key, payload, attachment, how)
 
-    def _received(self, sample: zenoh.Sample, how: Delivery) -> BusSample | None:
-        """The sample, or None if its signature is refused."""
-        bus_sample = _sample(sample)
+    def _received(
+        self,
+        sample: zenoh.Sample,
+        how: Delivery,
+        convert: Callable[[zenoh.Sample], BusSample] = _sample,
+    ) -> BusSample | None:
+        """The sample (by `convert`), or None if its signature is refused."""
+        bus_sample = convert(sample)
         if not self._check(bus_sample.key, bus_sample.payload, _attachment(sample), how):
             return None
         return bus_sample
@@ -204,9 +214,13 @@ class ZenohBus(Bus):
             publisher = self._publishers.setdefault(key, bus_qos.declare(self.session, key, qos))
         publisher.put(payload)
 
-    def subscribe(self, key_expr: str, callback: SampleCallback) -> Declaration:
+    def subscribe(
+        self, key_expr: str, callback: SampleCallback, *, details: bool = False
+    ) -> Declaration:
+        convert = _sample if details else _plain
+
         def on_sample(sample: zenoh.Sample) -> None:
-            received = self._received(sample, Delivery.PUT)
+            received = self._received(sample, Delivery.PUT, convert)
             if received is not None:
                 callback(received)
 

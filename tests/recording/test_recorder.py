@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import itertools
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -13,8 +15,9 @@ import zenoh
 from fleet.launch.launcher import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import StatusText
+from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from fleet.recording.reader import read_recording
-from fleet.recording.recorder import Recorder
+from fleet.recording.recorder import Recorder, state_period
 from fleet.recording.replay import replayable
 from fleet.recording.writer import McapSink
 from fleet.transport.bus_codec import ENCODING, encode
@@ -24,12 +27,25 @@ from tests.support.waiting import wait_until
 SPACE = KeySpace()
 
 
+def _matching(publisher: zenoh.Publisher) -> bool:
+    status: object = publisher.matching_status  # a MatchingStatus; zenoh's stub says bool
+    return bool(getattr(status, "matching", False))
+
+
+def wait_recorded(recorder: Recorder, pattern: str, count: int, what: str) -> None:
+    wait_until(lambda: recorder.stats.recorded[pattern] == count, 10.0, what)
+
+
 def test_records_puts_and_tokens_and_drops_what_is_not_json(tmp_path: Path) -> None:
     port = free_port()
     with router_session(port), client_session(port) as fleet, client_session(port) as ground:
         recorder = Recorder(ground, McapSink(tmp_path / "r.mcap"), state_every_s=0)
         recorder.start()
         try:
+            # Puts before the router knows the subscription reach nobody (a busy machine).
+            publisher = fleet.declare_publisher(SPACE.status(7))
+            wait_until(lambda: _matching(publisher), 10.0, "the subscription")
+            publisher.undeclare()
             token = fleet.liveliness().declare_token(SPACE.alive(7))
             fleet.put(SPACE.status(7), encode(StatusText("hello")), encoding=ENCODING)
             fleet.put(SPACE.status(7), b"\xff\x00 not json")
@@ -46,11 +62,7 @@ def test_records_puts_and_tokens_and_drops_what_is_not_json(tmp_path: Path) -> N
                 "the recorder to hear both puts",
             )
             token.undeclare()
-            wait_until(
-                lambda: recorder.stats.recorded["fleet/uav/*/alive"] == 2,
-                10.0,
-                "the token to come and go",
-            )
+            wait_recorded(recorder, "fleet/uav/*/alive", 2, "the token to come and go")
         finally:
             recorder.stop()
     recording = read_recording(tmp_path / "r.mcap")
@@ -60,6 +72,48 @@ def test_records_puts_and_tokens_and_drops_what_is_not_json(tmp_path: Path) -> N
     alive = [value for topic, value in values if topic == "fleet/uav/7/alive"]
     assert alive == [{"alive": True}, {"alive": False}] and len(values) == 3
     assert recording.channels["fleet/uav/7/alive"].schema_name == "fleet.Liveliness"
+
+
+def test_in_the_router_samples_wait_in_zenoh_and_map_fixes_come_once_a_second(
+    tmp_path: Path,
+) -> None:
+    """`fleet up`'s recorder: on the router's own session, Zenoh queues the samples (no
+    Python on the routing threads); telemetry at 20 Hz gives one map fix a second."""
+    port = free_port()
+    with router_session(port) as router, client_session(port) as fleet:
+        recorder = Recorder(router, McapSink(tmp_path / "r.mcap"), state_every_s=0, in_router=True)
+        recorder.start()
+        try:
+            telemetry = Telemetry(0, gps=GpsBlock(35.7, -120.7, 600.0, 0.0, 22.0, 0.0))
+            wait_until(
+                lambda: (
+                    fleet.put(SPACE.telemetry(7), encode(telemetry))
+                    or recorder.stats.recorded["fleet/uav/*/telemetry"] > 0
+                ),
+                10.0,
+                "the recorder to hear the client",
+            )
+            for _ in range(30):  # 1.5 s at 20 Hz
+                fleet.put(SPACE.telemetry(7), encode(telemetry))
+                time.sleep(0.05)
+            fleet.put(SPACE.status(7), encode(StatusText("last")))
+            wait_recorded(recorder, "fleet/uav/*/status", 1, "the last put")
+        finally:
+            recorder.stop()
+    recording = read_recording(tmp_path / "r.mcap")
+    times = [m.log_time_ns for m in recording.messages if m.topic.endswith("/telemetry")]
+    fixes = [m.log_time_ns for m in recording.messages if m.topic.endswith("/location_fix")]
+    assert len(times) >= 31 and fixes[0] == times[0]
+    # One a second (from the first telemetry at or past a second after the last fix).
+    for previous, fix in itertools.pairwise(fixes):
+        assert fix == min(t for t in times if t >= previous + 10**9)
+    assert times[-1] < fixes[-1] + 10**9 and len(fixes) >= 2
+
+
+def test_a_large_fleet_is_asked_its_states_at_most_ten_a_second() -> None:
+    assert state_period(1.0, 2) == 1.0 and state_period(1.0, 10) == 1.0
+    assert state_period(1.0, 50) == 5.0 and state_period(1.0, 100) == 10.0
+    assert state_period(30.0, 100) == 30.0  # --state-every is the shortest period
 
 
 def _fleet(*argv: str) -> subprocess.CompletedProcess[str]:

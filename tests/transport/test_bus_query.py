@@ -130,25 +130,31 @@ def test_live_tokens_are_the_tokens_present_now(pair: tuple[Bus, Bus]) -> None:
     wait_until(lambda: not asker.live_tokens("fleet/uav/*/alive", TIMEOUT_S), 10.0, "no token")
 
 
-def test_a_subscription_sees_the_encoding_and_deletes(endpoint: str) -> None:
+def test_a_subscription_sees_the_encoding_and_deletes_with_details_only(endpoint: str) -> None:
     with client_bus(endpoint) as listener, client_bus(endpoint) as talker:
         seen: list[BusSample] = []
+        plain: list[BusSample] = []
         got = threading.Event()
 
         def on_sample(sample: BusSample) -> None:
             seen.append(sample)
             got.set()
 
-        listener.subscribe("fleet/k", on_sample)
+        listener.subscribe("fleet/k", on_sample, details=True)
+        listener.subscribe("fleet/k", plain.append)
 
         def heard() -> bool:
-            talker.put("fleet/k", b"{}")
+            talker.session.put("fleet/k", b"hi", encoding="text/plain")
             return got.wait(0.2)
 
         wait_until(heard, 10.0, "the put")
-        assert seen[0] == BusSample("fleet/k", b"{}", "application/json", deleted=False)
+        assert seen[0] == BusSample("fleet/k", b"hi", "text/plain", deleted=False)
         talker.session.delete("fleet/k")
         wait_until(lambda: any(s.deleted for s in seen), 10.0, "the delete")
+        # Without details: key and payload, the encoding and kind never read.
+        wait_until(lambda: len(plain) >= len(seen), 10.0, "the plain subscription")
+        assert plain[0] == BusSample("fleet/k", b"hi", "application/json", deleted=False)
+        assert not any(s.deleted for s in plain) and plain[-1].payload == b""
 
 
 def test_a_memory_query_nobody_answers_waits_at_most_its_timeout() -> None:
