@@ -102,6 +102,8 @@ class MissionMap:
     targets: MissionTargets | None = None
     #: Piccolo ID -> (epoch, target index or None) of its latest assignment report.
     assigned: dict[int, tuple[int, int | None]] = field(default_factory=dict)
+    #: Piccolo ID -> its queue of targets in that report (its one target before queues).
+    queues: dict[int, tuple[int, ...]] = field(default_factory=dict)
     outcomes: dict[int, TargetOutcome] = field(default_factory=dict)
     #: UAVs aborted alone; `team_aborted` when the whole team was.
     aborted: set[int] = field(default_factory=set)
@@ -118,6 +120,7 @@ class MissionMap:
             return False
         if self.targets is None or targets.mission > self.targets.mission:
             self.assigned.clear()
+            self.queues.clear()
             self.outcomes.clear()
             self.aborted.clear()
             self.team_aborted = False
@@ -132,7 +135,12 @@ class MissionMap:
         if previous is not None and report.epoch < previous[0]:
             return False  # a re-plan already superseded it
         self.assigned[report.uav] = (report.epoch, report.target)
-        return previous != self.assigned[report.uav]
+        queue = report.queues.get(report.uav) if report.queues else None
+        if queue is None:
+            queue = () if report.target is None else (report.target,)
+        changed = self.queues.get(report.uav) != queue
+        self.queues[report.uav] = queue
+        return changed or previous != self.assigned[report.uav]
 
     def on_outcome(self, outcome: TargetOutcome) -> bool:
         if outcome.mission != self.mission or self.outcomes.get(outcome.uav) == outcome:
@@ -154,21 +162,31 @@ class MissionMap:
         self.positions[fix.uav] = (fix.latitude, fix.longitude)
 
     def target_of(self, uav: int) -> int | None:
-        """The index of the target `uav` flies to, if it still does."""
+        """The index of the target `uav` flies to, if it still does: the first of its
+        queue not reached yet."""
+        tour = self.tour_of(uav)
+        return tour[0] if tour else None
+
+    def tour_of(self, uav: int) -> tuple[int, ...]:
+        """The targets `uav` still has to fly, in its queue's order."""
         entry = self.assigned.get(uav)
-        if entry is None or entry[1] is None or self.team_aborted or uav in self.aborted:
-            return None
+        if entry is None or self.team_aborted or uav in self.aborted:
+            return ()
         outcome = self.outcomes.get(uav)
         if outcome is not None and outcome.phase is not Phase.REACHED:
-            return None  # failed or link lost: released, its target re-planned
-        return entry[1]
+            return ()  # failed or link lost: released, its targets re-planned
+        reached = self.reached()
+        return tuple(t for t in self.queues.get(uav, ()) if t not in reached)
 
-    def reached(self) -> set[int]:
-        return {
-            o.target
-            for o in self.outcomes.values()
-            if o.phase is Phase.REACHED and o.target is not None
-        }
+    def reached(self) -> dict[int, int]:
+        """Every target a UAV said it reached, and by whom (a UAV's latest outcome names
+        its last one; `reached` lists every one it knows of, along a queue)."""
+        done: dict[int, int] = {}
+        for o in self.outcomes.values():
+            done.update(o.reached)
+            if o.phase is Phase.REACHED and o.target is not None:
+                done[o.target] = o.uav
+        return done
 
 
 # ---- GeoJSON layers --------------------------------------------------------------------------
@@ -187,11 +205,11 @@ def target_points(view: MissionMap) -> list[Feature]:
     """Each target of the mission: who flies to it, and whether it was reached."""
     if view.targets is None:
         return []
-    flyers = {index: uav for uav in view.assigned if (index := view.target_of(uav)) is not None}
+    flyers = {index: uav for uav in view.queues for index in view.tour_of(uav)}
     reached = view.reached()
     features = []
     for index, target in enumerate(view.targets.targets):
-        uav = flyers.get(index)
+        uav = reached[index] if index in reached else flyers.get(index)
         if index in reached:
             state, colour = "reached", REACHED_COLOUR
         elif view.team_aborted:
@@ -245,8 +263,33 @@ def assignment_lines(view: MissionMap) -> list[Feature]:
     return features
 
 
-#: Drawn in this order; add a layer (a UAV's tour, ...) by adding its function.
-LAYERS: tuple[Layer, ...] = (target_points, assignment_lines)
+def tour_lines(view: MissionMap) -> list[Feature]:
+    """Each UAV's tour (issue 23): a line through the rest of its queue,
+    from its current target on, in the UAV's colour; none for a queue of one."""
+    if view.targets is None:
+        return []
+    count = len(view.targets.targets)
+    features = []
+    for uav in sorted(view.queues):
+        tour = [index for index in view.tour_of(uav) if index < count]
+        if len(tour) < 2:
+            continue
+        points = [view.targets.targets[index] for index in tour]
+        features.append(
+            _feature(
+                {"type": "LineString", "coordinates": [[p.lon, p.lat] for p in points]},
+                f"UAV {uav} tour: " + " -> ".join(str(index) for index in tour),
+                colour_of(uav).hex,
+                mission=view.targets.mission,
+                uav=uav,
+                tour=tour,
+            )
+        )
+    return features
+
+
+#: Drawn in this order; add a layer by adding its function.
+LAYERS: tuple[Layer, ...] = (target_points, assignment_lines, tour_lines)
 
 
 def geojson(view: MissionMap, layers: tuple[Layer, ...] = LAYERS) -> str:

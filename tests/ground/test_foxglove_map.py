@@ -197,3 +197,34 @@ def test_another_layer_is_one_more_function() -> None:
     drawn = json.loads(map_layers.geojson(view, (*map_layers.LAYERS, team_label)))["features"]
     assert drawn[-1]["properties"]["team"] == [74]
     assert len(drawn) == len(TARGETS) + 1
+
+
+def test_a_queue_is_a_tour_and_its_reached_targets_stay_reached() -> None:
+    """Issue 23: UAV 74 queues targets 0 then 2. Its tour is drawn through the rest of
+    its queue; once it reached 0 (its latest outcome names 0, then 2's outcome lists
+    both), 0 stays reached, by 74, and its line goes to 2."""
+    view = mission_map(3)
+    queues = {74: (0, 2), 112: (1,)}
+    for uav in (74, 112):
+        view.on_assignment(
+            AssignmentReport(3, uav, queues[uav][0], {74: 0, 112: 1}, (), (74, 112), "d",
+                             queues=queues)
+        )  # fmt: skip
+    fix = fix_of(telemetry_json(), 74, T_NS)
+    assert fix is not None
+    view.on_fix(fix)
+    tours = [f for f in features(view) if f["properties"].get("tour")]
+    assert [(f["properties"]["uav"], f["properties"]["tour"]) for f in tours] == [(74, [0, 2])]
+    points = [f for f in features(view) if f["geometry"]["type"] == "Point"]
+    assert [(f["properties"]["state"], f["properties"]["uav"]) for f in points] == [
+        ("assigned", 74),
+        ("assigned", 112),
+        ("assigned", 74),
+    ]
+    view.on_outcome(TargetOutcome(3, 74, 0, Phase.REACHED, reached={0: 74}))
+    lines = [f for f in features(view) if f["geometry"]["type"] == "LineString"]
+    assert [(f["properties"]["uav"], f["properties"].get("target")) for f in lines] == [(74, 2)]
+    view.on_outcome(TargetOutcome(3, 74, 2, Phase.REACHED, reached={0: 74, 2: 74}))
+    points = [f for f in features(view) if f["geometry"]["type"] == "Point"]
+    states = [(f["properties"]["state"], f["properties"]["uav"]) for f in points]
+    assert states == [("reached", 74), ("assigned", 112), ("reached", 74)]
