@@ -25,7 +25,7 @@ from typing import Any
 
 from fleet.mission.key_check import WrongKey, uav_of
 from fleet.mission.key_space import KeySpace
-from fleet.mission.messages import AssignmentReport, StatusText, UavState
+from fleet.mission.messages import AssignmentReport, MissionProgress, StatusText, UavState
 from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
@@ -65,6 +65,8 @@ class UavView:
     route: tuple[tuple[float, float], ...] = ()
     #: How many targets its queue holds (issue 23), None before a commitment.
     queue: int | None = None
+    #: The targets of its mission it reported reaching itself, in index order.
+    reached: tuple[int, ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -89,6 +91,7 @@ class UavView:
             "last_status": self.last_status,
             "route": [list(turn) for turn in self.route],
             "queue": self.queue,
+            "reached": list(self.reached),
         }
 
 
@@ -135,11 +138,22 @@ def view_from_state(state: UavState) -> UavView:
         view = replace(
             view,
             mission=state.mission.mission,
-            target=assignment.target if assignment is not None else None,
+            target=current_target(state.mission),
             route=state.mission.route,
             queue=queue_length(assignment, state.uav),
+            reached=tuple(
+                sorted(t for t, uav in state.mission.reached.items() if uav == state.uav)
+            ),
         )
     return view
+
+
+def current_target(progress: MissionProgress) -> int | None:
+    """The target the UAV flies to now (or last flew to): what it says, else, from a UAV
+    that does not say, the first of its queue."""
+    if progress.current_target is not None:
+        return progress.current_target
+    return progress.assignment.target if progress.assignment is not None else None
 
 
 def queue_length(assignment: AssignmentReport | None, uav: int) -> int | None:

@@ -249,6 +249,8 @@ class OnboardCore:
                 assignment=self.round.committed,
                 route=self.flight.route,
                 targets_digest=targets_digest(self.round.targets),
+                current_target=self.flight.target,
+                reached=dict(self.round.reached_targets),
             )
         return self.report.state(
             enabled=self.flight.enabled,

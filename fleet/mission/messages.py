@@ -251,6 +251,11 @@ class MissionProgress(msgspec.Struct, frozen=True):
     #: ground checks it is the mission it sent, not another under the same id. None from
     #: a UAV that does not say (the id alone is then believed).
     targets_digest: Annotated[str, Meta(max_length=64)] | None = None
+    #: The target it flies to now or last flew to: along a task queue, not always the
+    #: first of its queue (its `assignment.target`). None from a UAV that does not say.
+    current_target: TargetIndex | None = None
+    #: The mission's targets it knows reached, and by whom (its own and its teammates').
+    reached: Annotated[dict[TargetIndex, PiccoloId], Meta(max_length=MAX_TARGETS)] = {}
 
 
 class UavState(msgspec.Struct, frozen=True):

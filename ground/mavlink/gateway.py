@@ -226,6 +226,12 @@ class Gateway:
         targets = self.mission_of(view.mission)
         if targets is None or view.mission is None or view.target is None:
             return
+        # Each target of its queue it reported reaching on the way (task queues), then
+        # the one it flies to if its state says reached.
+        for target in view.reached:
+            if target < len(targets.targets) and (view.mission, target) not in found.reached:
+                found.reached.add((view.mission, target))
+                self.send(found.sysid, mavlink2.MAVLink_mission_item_reached_message(target))
         reached = vehicle.phase_of(view) == Phase.REACHED
         if reached and (view.mission, view.target) not in found.reached:
             found.reached.add((view.mission, view.target))

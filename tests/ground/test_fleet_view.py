@@ -52,3 +52,25 @@ def test_the_live_view_follows_tokens_and_status_messages() -> None:
         assert view.live_ids() == [6]
         view.refresh_states(0.1)
         assert [v.id for v in view.snapshot()] == [6]
+
+
+def test_a_uav_along_its_queue_shows_the_target_it_flies_to_and_those_it_reached() -> None:
+    """Issue 23: UAV 74 queues targets 0 then 2 and has reached 0; its row shows target 2
+    (not its queue's first) and 0 among those it reached; a UAV that does not say its
+    current target shows its queue's first, as before."""
+    from fleet.mission.messages import AssignmentReport, MissionProgress, UavState
+    from fleet.mission.phase import Phase
+    from ground.fleet_view import view_from_state
+
+    queues = {74: (0, 2), 112: (1,)}
+    report = AssignmentReport(7, 74, 0, {74: 0, 112: 1}, (), (74, 112), "d", queues=queues)
+    progress = MissionProgress(
+        7, Phase.FLYING, 3, assignment=report, current_target=2, reached={0: 74, 1: 112}
+    )
+    state = UavState(74, True, 1.0, None, None, None, progress)
+    view = view_from_state(state)
+    assert (view.target, view.reached, view.queue) == (2, (0,), 2)
+    older = UavState(
+        74, True, 1.0, None, None, None, MissionProgress(7, Phase.FLYING, 3, None, report)
+    )
+    assert view_from_state(older).target == 0
