@@ -21,13 +21,11 @@ from dataclasses import dataclass
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.visibility import Route, ZoneMap, legs_time
 from fleet.geo.wind import CALM_AIR, Wind
+from fleet.geo.zones import ZONE_MARGIN_M as ZONE_MARGIN_M  # where legs.py reads it too
 from fleet.geo.zones import Point, Ring
 
 __all__ = ["MAX_ROUTE_TURNS", "ZONE_MARGIN_M", "RoutedTargets", "route_targets", "zone_map"]
 
-#: Beyond the turn radius, how far a route keeps from a zone (m): GPS error, the
-#: autopilot's corner cutting within its acceptance radius, a gust.
-ZONE_MARGIN_M = 40.0
 #: Turns a route may have: one autopilot waypoint each (onboard.route_flight).
 MAX_ROUTE_TURNS = 9
 

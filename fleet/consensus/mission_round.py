@@ -148,7 +148,7 @@ class MissionRound:
     @functools.cached_property
     def legs(self) -> list[list[float]]:
         """Target-to-target times, from the mission alone (fleet.consensus.legs)."""
-        return leg_times(self.targets.targets)
+        return leg_times(self.targets.targets, zones=self.targets.zones)
 
     def queue_of(self, uav: int) -> tuple[int, ...]:
         """`uav`'s queue in the plan this UAV follows (empty before the commitment)."""

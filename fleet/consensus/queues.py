@@ -137,7 +137,8 @@ def append_earliest(
             for t in left:
                 if usable(row[t]):
                     value = clock + legs_from[t]
-                    if found is None or value < found[0]:
+                    # An infinite leg (no route around the no-fly zones) is never taken.
+                    if value < math.inf and (found is None or value < found[0]):
                         found = (value, t)
         else:
             for t in left:

@@ -32,6 +32,7 @@ from fleet.geo.mercator import MercatorProjection
 __all__ = [
     "MAX_ZONE_VERTICES",
     "MIN_ZONE_VERTICES",
+    "ZONE_MARGIN_M",
     "Point",
     "Ring",
     "ZoneError",
@@ -58,6 +59,9 @@ MIN_ZONE_AREA_M2 = 1.0
 _CORNER_STEP_RAD = math.pi / 4.0
 #: Geometry tolerance (m): well under the projection's and the GPS's errors.
 EPSILON_M = 1e-6
+#: Beyond the turn radius, how far a route keeps from a zone (m): GPS error, the
+#: autopilot's corner cutting within its acceptance radius, a gust.
+ZONE_MARGIN_M = 40.0
 
 
 class ZoneError(FleetError, ValueError):

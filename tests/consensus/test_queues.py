@@ -15,7 +15,7 @@ from fleet.consensus.assignment import greedy_assign
 from fleet.consensus.legs import LEG_TURN_S, great_circle_m, leg_times
 from fleet.consensus.objectives import hungarian, plan_queues
 from fleet.consensus.queues import QueuePlan, arrivals_of
-from fleet.mission.messages import Target
+from fleet.mission.messages import NoFlyZone, Target
 from fleet.mission.objective import Objective
 from tests.support.queue_optimum import optimum
 
@@ -214,3 +214,24 @@ def test_legs_are_great_circle_time_plus_the_turn() -> None:
     legs = leg_times([a, b], speed_mps=20.0)
     assert legs[0][1] == legs[1][0] == pytest.approx(1112.0 / 20.0 + LEG_TURN_S, rel=1e-3)
     assert legs[0][0] == 0.0
+
+
+def test_a_leg_through_a_no_fly_zone_is_the_route_around_it() -> None:
+    """The legs of a mission with zones: a leg whose line crosses a zone is the route
+    around it (longer than the great circle); a clear leg is unchanged."""
+    a = Target(35.70, -120.80, 600.0)
+    b = Target(35.70, -120.70, 600.0)
+    c = Target(35.75, -120.80, 600.0)
+    # A box across the line a-b, clear of a-c.
+    wall = NoFlyZone(ring=((35.69, -120.76), (35.71, -120.76), (35.71, -120.74), (35.69, -120.74)))
+    plain = leg_times([a, b, c])
+    zoned = leg_times([a, b, c], zones=(wall,))
+    assert plain[0][1] < zoned[0][1] < math.inf
+    assert zoned[0][2] == plain[0][2]
+
+
+def test_an_infinite_leg_is_never_queued() -> None:
+    """A target no route reaches from another (an infinite leg) is not queued after it."""
+    legs = [[0.0, math.inf], [math.inf, 0.0]]
+    plan = plan_queues({1: (10.0, 20.0)}, legs, Objective.GREEDY)
+    assert plan.queues[1] == (0,)
