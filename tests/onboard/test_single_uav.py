@@ -23,7 +23,7 @@ SPACE = KeySpace()
 ACCEPTANCE_RADIUS_M = 60.0  # the simulator's default
 
 
-def test_single_uav_picks_the_fastest_target_reaches_it_and_resumes(
+def test_single_uav_flies_its_queue_fastest_first_reaches_each_and_resumes(
     fleet: Fleet, ground: Ground
 ) -> None:
     targets = tuple(read_targets(str(files("fleet") / "scenarios" / "single_uav_targets.bin")))
@@ -44,26 +44,26 @@ def test_single_uav_picks_the_fastest_target_reaches_it_and_resumes(
     assert all(t is not None for t in times)
     fastest = min(range(len(times)), key=lambda i: times[i] or math.inf)
     assert report.target == fastest == 1  # the scenario's target ahead, 15 deg right
-    assert report.team == (112,) and report.unassigned == (0, 2)
+    # One UAV and three targets: all three in its queue (issue 23), the fastest first.
+    queue = report.queues[112]
+    assert report.team == (112,) and report.unassigned == ()
+    assert queue[0] == fastest and sorted(queue) == [0, 1, 2]
 
     wait_until(lambda: TARGET_WAYPOINT in seen.tracks.get(112, []), 30.0, "tracking the target")
-    with seen.lock:
-        after_target = len(seen.tracks[112])
-    wait_until(
-        lambda: len(seen.tracks[112]) > after_target and seen.latest_track(112) != TARGET_WAYPOINT,
-        60.0,
-        "the aircraft leaving the target waypoint",
-    )
-    target = targets[fastest]
-    closest = seen.closest_approach(112, target.lat, target.lon)
-    assert closest <= ACCEPTANCE_RADIUS_M + 15.0  # telemetry samples every ~5 m of flight
-    # Back on its flight plan: the waypoint after the target is the one it was tracking.
-    assert seen.latest_track(112) == original
-    wait_until(
-        lambda: any("reached target 1" in s for s in seen.status.get(112, [])),
-        10.0,
-        "the reached status",
-    )
+    for index in queue:
+        wait_until(
+            lambda index=index: any(
+                f"reached target {index}" in s for s in seen.status.get(112, [])
+            ),
+            120.0,
+            f"target {index} reached",
+        )
+        target = targets[index]
+        closest = seen.closest_approach(112, target.lat, target.lon)
+        assert closest <= ACCEPTANCE_RADIUS_M + 15.0  # telemetry samples every ~5 m of flight
+    # Back on its flight plan: the waypoint after the last target is the one it was
+    # tracking before the mission.
+    wait_until(lambda: seen.latest_track(112) == original, 60.0, "back on its flight plan")
     assert onboard.process.poll() is None
     assert onboard.stop() == 0
 
