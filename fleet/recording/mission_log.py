@@ -104,10 +104,22 @@ class MissionLog:
     zones: tuple[NoFlyZone, ...] = ()
     #: Each UAV's reached outcomes as heard: (t, target), in order (issue 23: a queue).
     arrivals: dict[int, list[tuple[float, int]]] = field(default_factory=dict)
+    #: The latest re-plan heard (the highest epoch): the survivors' queues, a dropped
+    #: UAV's targets appended to them.
+    replan: AssignmentReport | None = None
+
+    def plan_of(self, uav: int) -> AssignmentReport | None:
+        """The plan the UAV flew last: the latest re-plan, unless it was released by it
+        (its tour is then the one it committed to), else its own commitment."""
+        replan = self.replan
+        if replan is not None and replan.queues and uav not in replan.released:
+            return replan
+        return self.assignments.get(uav)
 
     def queue_of(self, uav: int) -> tuple[int, ...]:
-        """The UAV's queue as it committed it (its one target before queues)."""
-        report = self.assignments.get(uav)
+        """The UAV's queue in the plan it flew last (`plan_of`; its one target before
+        queues)."""
+        report = self.plan_of(uav)
         if report is None:
             return ()
         if report.queues:
@@ -118,7 +130,7 @@ class MissionLog:
         """Each target of the UAV's queue: the plan's predicted leg time (s) and the one
         flown (aircraft clock, from the previous arrival or the commitment), None where
         it was not seen reached."""
-        report = self.assignments.get(uav)
+        report = self.plan_of(uav)
         queue = self.queue_of(uav)
         if report is None or not queue:
             return []
@@ -315,6 +327,17 @@ class _Builder:
                     raise ValueError(f"target {report.target} is not one of the mission's")
                 log.assignments.setdefault(report.uav, report)
                 log.committed.setdefault(report.uav, t)
+        elif kind == "replan":
+            report = msgspec.convert(value, AssignmentReport, str_keys=True)
+            log = self.missions.get(report.mission)
+            if log is not None and any(
+                not 0 <= index < len(log.targets)
+                for queue in report.queues.values()
+                for index in queue
+            ):
+                raise ValueError("a re-planned queue names a target that is not the mission's")
+            if log is not None and (log.replan is None or report.epoch > log.replan.epoch):
+                log.replan = report
         elif kind == "outcome":
             outcome = msgspec.convert(value, TargetOutcome, str_keys=True)
             log = self.missions.get(outcome.mission)

@@ -273,3 +273,28 @@ def test_a_tour_s_legs_predicted_and_flown(tmp_path: Path) -> None:
     )
     # The figure draws the tour (a dotted line in the UAV's colour) and stays a PNG.
     assert render(timeline, tmp_path / "tour.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_a_tour_after_a_re_plan_has_the_dropped_uav_s_targets(tmp_path: Path) -> None:
+    """UAV 2 drops out; the re-plan appends its target 1 to UAV 1's queue: the report's
+    tour of UAV 1 is 0 then 1, UAV 2's stays what it committed to."""
+    first: dict[int, tuple[int, ...]] = {1: (0,), 2: (1,)}
+    commit = {
+        uav: AssignmentReport(5, uav, first[uav][0], {1: 0, 2: 1}, (), (1, 2), "d1",
+                              queues=first, arrivals={1: (45.0,), 2: (50.0,)})
+        for uav in (1, 2)
+    }  # fmt: skip
+    replan = AssignmentReport(
+        5, 1, 0, {1: 0}, (), (1, 2), "d2", epoch=1, released=(2,),
+        queues={1: (0, 1)}, arrivals={1: (45.0, 130.0)},
+    )  # fmt: skip
+    messages = [
+        message(1.0, "fleet/mission/5/targets", MissionTargets(5, (1, 2), TARGETS)),
+        message(2.0, "fleet/mission/5/assignment/1", commit[1]),
+        message(2.1, "fleet/mission/5/assignment/2", commit[2]),
+        message(9.0, "fleet/mission/5/replan/1", replan),
+    ]
+    (log,) = build_timeline(messages).missions
+    assert log.queue_of(1) == (0, 1)
+    assert log.queue_of(2) == (1,)
+    assert log.assignments[1].epoch == 0  # the commitment itself is unchanged
