@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 
+from fleet.geo import great_circle
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.mercator import MercatorProjection
 from fleet.geo.visibility import ZoneMap
@@ -35,16 +36,11 @@ LEG_SPEED_MPS = 22.0
 #: standard-rate 360-degree turn (a 180-degree reversal at 3 deg/s takes 60 s; the mean
 #: turn is about a quarter of that, rounded up).
 LEG_TURN_S = 15.0
-_EARTH_RADIUS_M = 6_371_008.8
 
 
 def great_circle_m(a: Target, b: Target) -> float:
-    """Metres along the great circle between two targets (haversine)."""
-    lat1, lat2 = math.radians(a.lat), math.radians(b.lat)
-    dlat = lat2 - lat1
-    dlon = math.radians(b.lon - a.lon)
-    h = math.sin(dlat / 2) ** 2 + math.cos(lat1) * math.cos(lat2) * math.sin(dlon / 2) ** 2
-    return 2 * _EARTH_RADIUS_M * math.asin(min(1.0, math.sqrt(h)))
+    """Metres along the great circle between two targets (fleet.geo.great_circle)."""
+    return great_circle.great_circle_m(a.lat, a.lon, b.lat, b.lon)
 
 
 def leg_times(
