@@ -3,8 +3,8 @@
 For each N and configuration (`before`: the fleet of a previous revision, extracted with
 `git archive`; `after`: this tree), interleaved, it runs `fleet up --uavs N` as a user
 does (the embedded router in it, recording on, speedup 1, the simulator's default 20 Hz
-telemetry) and measures, per process kind (onboards, recorder, simulator, `fleet up`
-with its router):
+telemetry) and measures, per process kind (onboards, the fork server that starts them,
+recorder, simulator, `fleet up` with its router):
 
 * ready: from the start to `fleet up` printing that every UAV is alive;
 * CPU from /proc/PID/stat over an idle window, once every approach model is built, in
@@ -57,18 +57,21 @@ from fleet.consensus.deadline import consensus_deadline
 from fleet.mission.messages import MAX_TARGETS
 from fleet.transport.zenoh_config import make_config
 
-KINDS = ("onboards", "recorder", "simulator", "fleet up")
+KINDS = ("onboards", "fork server", "recorder", "simulator", "fleet up")
 #: How long `fleet up` gets to stop 100 onboards after Ctrl-C before it is killed.
 STOP_LIMIT_S = 120.0
 
 
-def kind_of(pid: int, root: int) -> str | None:
+def kind_of(pid: int, root: int, parent: int) -> str | None:
     if pid == root:
         return "fleet up"
     try:
         argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
     except OSError:
         return None
+    if b"fleet.launch.fork_server" in argv:
+        # The server's children (the onboards it forked) keep its command line.
+        return "fork server" if parent == root else "onboards"
     if b"onboard.main" in argv:
         return "onboards"
     if b"fleet.recording.commands" in argv:
@@ -87,13 +90,13 @@ def process_tree(root: int) -> dict[int, str]:
                 stat = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()
                 parents[int(stat[1])].append(int(entry))
     found: dict[int, str] = {}
-    todo = [root]
+    todo = [(root, 0)]
     while todo:
-        pid = todo.pop()
-        kind = kind_of(pid, root)
+        pid, parent = todo.pop()
+        kind = kind_of(pid, root, parent)
         if kind is not None:
             found[pid] = kind
-        todo.extend(parents.get(pid, []))
+        todo.extend((child, pid) for child in parents.get(pid, []))
     return found
 
 
@@ -239,9 +242,9 @@ def _ms(values: list[float]) -> str:
 
 
 HEADER = (
-    "  N config    load  ready  model | CPU %: onb   rec   sim    up  total"
-    " | PSS GB: onb   rec   sim    up  total | RSS GB | tel p99 | send->com s | res->com ms | ok"
-    " | model:fallback"
+    "  N config    load  ready  model | CPU %: onb  fork   rec   sim    up  total"
+    " | PSS GB: onb  fork   rec   sim    up  total | RSS GB | tel p99 | send->com s"
+    " | res->com ms | ok | model:fallback"
 )
 
 

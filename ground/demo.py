@@ -142,6 +142,7 @@ def _run_demo(args: argparse.Namespace, stop: threading.Event) -> int:
         log_dir=args.log_dir,
         start_timeout_s=args.start_timeout,
         key_space=args.key_space,
+        fork_onboards=args.fork_onboards,
     )
     say = _sayer(sys.stderr if args.json else sys.stdout)
     fleet = Fleet(spec, stop_requested=stop)

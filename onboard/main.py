@@ -23,6 +23,7 @@ from fleet.transport.cli import (
     zenoh_config,
 )
 from fleet.transport.zenoh_config import endpoints, error_text, uses_mtls
+from onboard.approach_highs import load_highs_core
 from onboard.core import CONFIRM_LIMIT_S, LINK_RELEASE_S
 from onboard.process import OnboardProcess, OnboardSettings
 
@@ -94,6 +95,13 @@ def settings_from(args: argparse.Namespace, config: zenoh.Config) -> OnboardSett
         # In the secure profile only Zenoh, where each message's sender is known, commands.
         payload_commands=not uses_mtls(config),
     )
+
+
+def fork_preload() -> None:
+    """What a fork server (fleet.launch.fork_server) loads before it forks onboards:
+    HiGHS's compiled core, which each onboard otherwise loads when it builds its model,
+    so its relocated pages are shared too."""
+    load_highs_core()
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -45,6 +45,7 @@ import zenoh
 
 from fleet.errors import CertError, FleetError
 from fleet.geo.mercator import MercatorProjection
+from fleet.launch.fork_server import ForkServer, ForkServerError
 from fleet.launch.topology import Topology, fallbacks, ring_links
 from fleet.mission.access import ROUTER, uav_router_identity
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace, uav_id_of
@@ -171,12 +172,28 @@ def ring_scenario(count: int, name: str = "ring") -> str:
     return "\n".join(lines)
 
 
+class ChildProcess(Protocol):
+    """What the launcher uses of a child's process: a `subprocess.Popen`, or a
+    `fleet.launch.fork_server.ForkedProcess`."""
+
+    @property
+    def pid(self) -> int: ...
+    @property
+    def returncode(self) -> int | Any: ...
+    @property
+    def stdout(self) -> IO[Any] | None: ...
+    def poll(self) -> int | None: ...
+    def wait(self, timeout: float | None = None) -> int: ...
+    def send_signal(self, sig: int) -> None: ...
+    def kill(self) -> None: ...
+
+
 @dataclass
 class Child:
     """A process the launcher started, and where its output goes."""
 
     name: str
-    process: subprocess.Popen[bytes]
+    process: ChildProcess
     log_path: Path
     #: Whether the fleet stops when this child dies (a router of a mesh, or a UAV's
     #: onboard module, is not: the others fly on).
@@ -202,7 +219,7 @@ class Stoppable(Protocol):
     @property
     def name(self) -> str: ...
     @property
-    def process(self) -> subprocess.Popen[Any]: ...
+    def process(self) -> ChildProcess: ...
     @property
     def pid(self) -> int: ...
 
@@ -247,6 +264,9 @@ class FleetSpec:
     #: The fleet's keys: the router's access policy, the start's watch, and every child's
     #: (handed down in $FLEET_KEY_PREFIX).
     key_space: KeySpace = DEFAULT_SPACE
+    #: Fork the onboards from one process that imported them (fleet.launch.fork_server):
+    #: their imported pages are shared. False: each is its own `python -m`.
+    fork_onboards: bool = True
 
 
 @dataclass
@@ -270,6 +290,8 @@ class Fleet:
     recording_failure: str | None = None
     #: The routers of a router-per-uav mesh: UAV id -> the endpoint clients connect to.
     uav_routers: dict[int, str] = field(default_factory=dict)
+    #: What forks the onboards, while the fleet runs (`FleetSpec.fork_onboards`).
+    fork_server: ForkServer | None = None
     log_dir: Path = field(init=False)
     _sim_ready: threading.Event = field(default_factory=threading.Event)
     _files: list[IO[bytes]] = field(default_factory=list)
@@ -322,6 +344,8 @@ class Fleet:
                 self.router.open()
         except Exception as error:
             raise LaunchError(str(error)) from error
+        # It imports while the simulator starts.
+        self._start_fork_server()
         # The recorder starts before the onboards, the first to put anything on the bus;
         # in a mesh, once every router is up, so it can fall back to any of them.
         if self.spec.topology is Topology.STAR:
@@ -334,6 +358,11 @@ class Fleet:
         if self.spec.topology is Topology.ROUTER_PER_UAV:
             self._start_uav_routers(deadline)
             self._start_recorder(deadline)
+        if self.fork_server is not None:
+            try:
+                self.fork_server.wait_ready(max(0.0, deadline - time.monotonic()))
+            except ForkServerError as error:
+                raise LaunchError(f"{error}; see {self.log_dir / 'fork-server.log'}") from None
         for endpoints in self.endpoints:
             self._start_onboard(endpoints)
         self._write_pids()
@@ -384,18 +413,54 @@ class Fleet:
             )
         return SecureProfile.load(self.spec.secure_dir, self.spec.key_space)
 
+    def _child_env(self) -> dict[str, str]:
+        return {**os.environ, PREFIX_ENV: self.spec.key_space.prefix}
+
+    def _onboard_module(self) -> str | None:
+        """The module the onboards run (`-m MODULE`), None if they run otherwise."""
+        command = self.spec.onboard_command
+        return command[1] if len(command) == 2 and command[0] == "-m" else None
+
+    def _start_fork_server(self) -> None:
+        module = self._onboard_module()
+        if not self.spec.fork_onboards or module is None:
+            return
+        log_path = self.log_dir / "fork-server.log"
+        server = ForkServer.start(self.spec.python, [module], log_path, self._child_env())
+        self.fork_server = server
+        # A child like the others: stopped with them, in the pids file, and essential
+        # (without it, no onboard could be restarted or its exit status known).
+        self.children.append(Child("fork-server", server.process, log_path))
+        log.info("started the fork server (pid %d) for %s", server.process.pid, module)
+
+    def _forked(self, argv: list[str]) -> str | None:
+        """The module to fork for `argv` (the fork server's), None to start it as a process."""
+        server = self.fork_server
+        if server is None or argv[:2] != [self.spec.python, "-m"] or len(argv) < 3:
+            return None
+        return argv[2] if argv[2] in server.modules else None
+
     def _spawn(self, name: str, argv: list[str], stdout: int | IO[bytes] | None = None) -> Child:
         log_path = self.log_dir / f"{name}.log"
-        log_file = open(log_path, "ab")  # noqa: SIM115  # closed in stop()
-        self._files.append(log_file)
-        process = subprocess.Popen(
-            argv,
-            stdin=subprocess.DEVNULL,
-            stdout=log_file if stdout is None else stdout,
-            stderr=log_file,
-            start_new_session=True,
-            env={**os.environ, PREFIX_ENV: self.spec.key_space.prefix},
-        )
+        process: ChildProcess
+        module = self._forked(argv) if stdout is None else None
+        if module is not None:
+            assert self.fork_server is not None
+            try:
+                process = self.fork_server.spawn(module, argv[3:], log_path, self._child_env())
+            except ForkServerError as error:
+                raise LaunchError(f"cannot start {name}: {error}") from None
+        else:
+            log_file = open(log_path, "ab")  # noqa: SIM115  # closed in stop()
+            self._files.append(log_file)
+            process = subprocess.Popen(
+                argv,
+                stdin=subprocess.DEVNULL,
+                stdout=log_file if stdout is None else stdout,
+                stderr=log_file,
+                start_new_session=True,
+                env=self._child_env(),
+            )
         child = Child(name, process, log_path, argv=tuple(argv))
         self.children.append(child)
         log.info("started %s (pid %d): %s", name, process.pid, " ".join(argv[1:]))
@@ -675,6 +740,9 @@ class Fleet:
         for f in self._files:
             f.close()
         self._files.clear()
+        if self.fork_server is not None:
+            self.fork_server.close()
+            self.fork_server = None
         if self.recorder is not None:
             self.recorder.stop()
             self.recording_failure = self.recorder.failure

@@ -94,6 +94,13 @@ def common_arguments(parser: argparse.ArgumentParser, speedup: float) -> None:
         action="store_false",
         help=f"do not record the run (default: record it to {RECORDING_NAME} in the log folder)",
     )
+    parser.add_argument(
+        "--no-fork-server",
+        dest="fork_onboards",
+        action="store_false",
+        help="start each onboard as its own `python -m onboard.main` (default: fork them "
+        "from one process that imported it, so they share its memory)",
+    )
 
 
 def recording_path(fleet: Fleet, args: argparse.Namespace) -> Path | None:
@@ -220,6 +227,7 @@ def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
         secure_dir=args.secure,
         topology=args.topology,
         key_space=args.key_space,
+        fork_onboards=args.fork_onboards,
     )
     fleet = Fleet(spec, stop_requested=stop, progress=_print_progress)
     if args.uavs is not None:

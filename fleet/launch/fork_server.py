@@ -1,0 +1,443 @@
+"""Start many processes of one Python program by fork, from one process that imported it.
+
+Why: fifty onboard processes each imported the same ~250 modules (Zenoh, msgspec, the
+planner, HiGHS's compiled core) into memory of their own: ~18 MB private each, 0.92 GB
+of PSS at N = 50 (issue 28). A fork server imports them once; each onboard is then
+forked from it, and the imported pages stay shared, copy-on-write, until a child writes
+them. The server calls `gc.freeze()` before it forks, so the collector never walks (and
+so writes) the imported objects in a child; what a child still dirties is the objects
+it touches (reference counts) and what it allocates itself (its Zenoh session, its
+mission state).
+
+The server is `python -m fleet.launch.fork_server MODULE...`, started by the launcher
+like any child, with pipes for its stdin and stdout. It imports each MODULE and, where
+one defines `fork_preload()`, calls it (to load what the module otherwise loads
+lazily); then it says ``{"ready": true}`` and serves requests, one JSON line each:
+
+* request (stdin): ``{"id": I, "module": M, "argv": [...], "log": PATH, "env": {...}}``
+* reply (stdout): ``{"id": I, "pid": N}``, or ``{"id": I, "error": "why"}`` (no id if
+  the line had none)
+* event (stdout): ``{"exit": N, "status": S}`` when child N ends; S as
+  `subprocess.Popen.returncode` gives it (-K for signal K)
+
+Each child is what ``python -m M *argv`` with that environment would be, started as the
+launcher starts its children: a session (process group) of its own, stdin from
+/dev/null, stdout and stderr appended to PATH, every other descriptor closed. What
+differs: the modules come imported, and an environment variable read only at import
+time is the server's. A malformed request is answered with an error, and the server
+goes on. The server ends when its stdin closes (the launcher is gone); children it
+started keep running, as `subprocess` children do, and are stopped by their PIDs.
+
+`ForkServer` is the launcher's side: `spawn()` returns a `ForkedProcess`, which has
+what the launcher uses of a `subprocess.Popen` (pid, poll, wait, send_signal, kill,
+returncode). Signals go through a pidfd, so a PID reused after its child ended is never
+signalled.
+"""
+
+from __future__ import annotations
+
+import atexit
+import contextlib
+import gc
+import importlib
+import json
+import logging
+import os
+import runpy
+import select
+import selectors
+import signal
+import subprocess
+import sys
+import threading
+import time
+import traceback
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+log = logging.getLogger(__name__)
+
+#: The status a `ForkedProcess` reports when it ended after its server did, so that no
+#: one could collect its real status (as a shell reports an unknown one).
+UNKNOWN_STATUS = 255
+#: Seconds the launcher waits for the server's imports and its first word.
+READY_TIMEOUT_S = 120.0
+#: Seconds the launcher waits for a reply to one request.
+REPLY_TIMEOUT_S = 30.0
+#: The longest request line the server reads, bytes: an argv and an environment.
+MAX_REQUEST_BYTES = 1 << 20
+
+
+class ForkServerError(RuntimeError):
+    """The fork server could not be started, or it refused or could not fork a child."""
+
+
+# ---- the server ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Request:
+    """One child to start; `parse_request` checks a line into one."""
+
+    module: str
+    argv: tuple[str, ...]
+    log: str
+    env: dict[str, str]
+
+
+def parse_request(line: bytes, modules: Sequence[str]) -> Request:
+    """A request line -> Request; ValueError says what is wrong with it."""
+    try:
+        fields = json.loads(line)
+    except (ValueError, UnicodeDecodeError) as error:
+        raise ValueError(f"not a JSON line: {error}") from None
+    if not isinstance(fields, dict):
+        raise ValueError("a request is a JSON object")
+    module, argv, log_path, env = (fields.get(k) for k in ("module", "argv", "log", "env"))
+    if not isinstance(module, str) or module not in modules:
+        raise ValueError(f"module {module!r} is not one this server imported ({list(modules)})")
+    if not isinstance(argv, list) or not all(isinstance(a, str) for a in argv):
+        raise ValueError("argv is a list of strings")
+    if not isinstance(log_path, str) or not log_path:
+        raise ValueError("log is a file path")
+    if not isinstance(env, dict) or not all(
+        isinstance(k, str) and isinstance(v, str) for k, v in env.items()
+    ):
+        raise ValueError("env maps strings to strings")
+    return Request(module, tuple(argv), log_path, env)
+
+
+def _say(message: dict[str, Any]) -> None:
+    # Straight to the descriptor: nothing buffered in sys.stdout that a child would
+    # inherit and write again.
+    os.write(1, json.dumps(message).encode() + b"\n")
+
+
+def _preload(modules: Sequence[str]) -> None:
+    for name in modules:
+        module = importlib.import_module(name)
+        hook = getattr(module, "fork_preload", None)
+        if callable(hook):
+            hook()
+
+
+def _run_child(request: Request) -> int:
+    """In the forked child: become ``python -m MODULE *argv``; its exit status."""
+    os.setsid()
+    signal.set_wakeup_fd(-1)
+    for number in (signal.SIGCHLD, signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, signal.SIG_DFL)
+    output = os.open(request.log, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    nothing = os.open(os.devnull, os.O_RDONLY)
+    os.dup2(nothing, 0)
+    os.dup2(output, 1)
+    os.dup2(output, 2)
+    os.closerange(3, os.sysconf("SC_OPEN_MAX"))
+    os.environ.clear()
+    os.environ.update(request.env)
+    sys.argv = [request.module, *request.argv]
+    # As `python -m` finds it: not imported yet (its imports are, which is the point).
+    sys.modules.pop(request.module, None)
+    code = 0
+    try:
+        runpy.run_module(request.module, run_name="__main__", alter_sys=True)
+    except SystemExit as stop:
+        code = _exit_code(stop.code)
+    except BaseException:  # the child's uncaught error: told as Python tells it
+        traceback.print_exc()
+        code = 1
+    with contextlib.suppress(BaseException):
+        atexit._run_exitfuncs()  # logging.shutdown and the program's own: as at a normal exit
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    return code
+
+
+def _exit_code(code: object) -> int:
+    if code is None:
+        return 0
+    if isinstance(code, int):
+        return code & 0xFF
+    print(code, file=sys.stderr)  # as the interpreter does with `sys.exit("message")`
+    return 1
+
+
+def _fork(request: Request) -> int:
+    pid = os.fork()
+    if pid == 0:
+        code = 1
+        try:
+            code = _run_child(request)
+        finally:
+            os._exit(code)
+    return pid
+
+
+def _reap() -> None:
+    while True:
+        try:
+            pid, status = os.waitpid(-1, os.WNOHANG)
+        except ChildProcessError:
+            return
+        if pid == 0:
+            return
+        _say({"exit": pid, "status": os.waitstatus_to_exitcode(status)})
+
+
+def serve(modules: Sequence[str]) -> int:
+    """Import `modules`, then fork a child per request until stdin closes."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # a Ctrl-C is the launcher's to handle
+    _preload(modules)
+    gc.collect()
+    gc.freeze()  # the children's collector leaves the imported objects (and their pages) alone
+    wake_r, wake_w = os.pipe()
+    os.set_blocking(wake_r, False)
+    os.set_blocking(wake_w, False)
+    signal.signal(signal.SIGCHLD, lambda *_: None)
+    signal.set_wakeup_fd(wake_w)
+    _say({"ready": True})
+    pending = b""
+    with selectors.DefaultSelector() as selector:
+        selector.register(0, selectors.EVENT_READ)
+        selector.register(wake_r, selectors.EVENT_READ)
+        while True:
+            ready = {key.fd for key, _ in selector.select()}
+            if wake_r in ready:
+                with contextlib.suppress(BlockingIOError):
+                    os.read(wake_r, 4096)
+                _reap()
+            if 0 not in ready:
+                continue
+            chunk = os.read(0, 65536)
+            if not chunk:
+                return 0  # the launcher is gone
+            pending += chunk
+            *lines, pending = pending.split(b"\n")
+            if len(pending) > MAX_REQUEST_BYTES:
+                _say({"error": f"a request line longer than {MAX_REQUEST_BYTES} bytes"})
+                pending = b""
+            for line in lines:
+                _answer(line, modules)
+
+
+def _request_id(line: bytes) -> dict[str, Any]:
+    """The request's id, to put in its reply, if the line has one."""
+    with contextlib.suppress(ValueError, UnicodeDecodeError, AttributeError):
+        request_id = json.loads(line).get("id")
+        if isinstance(request_id, int):
+            return {"id": request_id}
+    return {}
+
+
+def _answer(line: bytes, modules: Sequence[str]) -> None:
+    reply = _request_id(line)
+    try:
+        request = parse_request(line, modules)
+    except ValueError as error:
+        _say({**reply, "error": str(error)})
+        return
+    try:
+        pid = _fork(request)
+    except OSError as error:
+        _say({**reply, "error": f"cannot fork: {error}"})
+        return
+    _say({**reply, "pid": pid})
+
+
+# ---- the launcher's side ----------------------------------------------------------------
+@dataclass
+class ForkedProcess:
+    """A child of the fork server, seen from the launcher as a `subprocess.Popen`."""
+
+    pid: int
+    args: tuple[str, ...]
+    returncode: int | None = None
+    stdout: IO[bytes] | None = None
+    _ended: threading.Event = field(default_factory=threading.Event)
+    _pidfd: int | None = None
+    _server_gone: threading.Event = field(default_factory=threading.Event)
+
+    def __post_init__(self) -> None:
+        with contextlib.suppress(OSError):  # already ended and collected: nothing to signal
+            self._pidfd = os.pidfd_open(self.pid)
+
+    def _set_status(self, status: int) -> None:
+        if self.returncode is None:
+            self.returncode = status
+        self._ended.set()
+
+    def _orphaned(self) -> bool:
+        """Whether it ended after its server did (its status is then unknown)."""
+        if not self._server_gone.is_set():
+            return False
+        if self._pidfd is not None and not select.select([self._pidfd], [], [], 0)[0]:
+            return False  # a pidfd turns readable when its process ends
+        self._set_status(UNKNOWN_STATUS)
+        return True
+
+    def poll(self) -> int | None:
+        if self.returncode is None:
+            self._orphaned()
+        return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while self.poll() is None:
+            left = None if deadline is None else deadline - time.monotonic()
+            if left is not None and left <= 0:
+                raise subprocess.TimeoutExpired(list(self.args), timeout or 0.0)
+            if self._server_gone.is_set() and self._pidfd is not None:
+                select.select([self._pidfd], [], [], left)  # only the pidfd can tell now
+            else:
+                self._ended.wait(left)
+        assert self.returncode is not None
+        return self.returncode
+
+    def close(self) -> None:
+        """Forget its pidfd (once it is not needed: after the child is stopped)."""
+        if self._pidfd is not None:
+            os.close(self._pidfd)
+            self._pidfd = None
+
+    def send_signal(self, number: int) -> None:
+        if self.returncode is None and self._pidfd is not None:
+            with contextlib.suppress(ProcessLookupError):
+                signal.pidfd_send_signal(self._pidfd, number)
+
+    def terminate(self) -> None:
+        self.send_signal(signal.SIGTERM)
+
+    def kill(self) -> None:
+        self.send_signal(signal.SIGKILL)
+
+
+class ForkServer:
+    """The launcher's handle on a running fork server (its own process is `process`)."""
+
+    def __init__(self, process: subprocess.Popen[bytes], modules: Sequence[str]) -> None:
+        self.process = process
+        self.modules = tuple(modules)
+        self._children: dict[int, ForkedProcess] = {}
+        self._replies: dict[int, dict[str, Any]] = {}
+        self._next_id = 0
+        self._lock = threading.Lock()  # one request at a time
+        self._changed = threading.Condition()
+        self._ready = False
+        self._gone = False
+        self._reader = threading.Thread(target=self._read, name="fork-server", daemon=True)
+        self._reader.start()
+
+    @classmethod
+    def start(
+        cls, python: str, modules: Sequence[str], log_path: Path, env: dict[str, str]
+    ) -> ForkServer:
+        """Start a server that imports `modules`; its stderr goes to `log_path`."""
+        with open(log_path, "ab") as errors:
+            process = subprocess.Popen(
+                [python, "-m", __name__, *modules],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=errors,
+                start_new_session=True,
+                env=env,
+            )
+        return cls(process, modules)
+
+    def wait_ready(self, timeout_s: float = READY_TIMEOUT_S) -> None:
+        with self._changed:
+            if not self._changed.wait_for(
+                lambda: self._ready or self.process.poll() is not None, timeout_s
+            ):
+                raise ForkServerError(f"the fork server was not ready in {timeout_s:g} s")
+        if not self._ready:
+            raise ForkServerError(f"the fork server exited with status {self.process.returncode}")
+
+    def spawn(
+        self, module: str, argv: Sequence[str], log_path: Path, env: dict[str, str]
+    ) -> ForkedProcess:
+        """Fork ``python -m module *argv``, its output appended to `log_path`."""
+        with self._lock:
+            self._next_id += 1
+            request_id = self._next_id
+            request = {
+                "id": request_id,
+                "module": module,
+                "argv": list(argv),
+                "log": str(log_path),
+                "env": env,
+            }
+            stdin = self.process.stdin
+            if stdin is None or self.process.poll() is not None:
+                raise ForkServerError("the fork server is not running")
+            try:
+                stdin.write(json.dumps(request).encode() + b"\n")
+                stdin.flush()
+            except OSError as error:
+                raise ForkServerError(f"the fork server is not listening: {error}") from None
+            with self._changed:
+                if not self._changed.wait_for(
+                    lambda: request_id in self._replies or self._gone, REPLY_TIMEOUT_S
+                ):
+                    raise ForkServerError(f"no reply from the fork server in {REPLY_TIMEOUT_S:g} s")
+                reply = self._replies.pop(request_id, {"error": "the fork server exited"})
+        if "error" in reply:
+            raise ForkServerError(str(reply["error"]))
+        child = self._children[int(reply["pid"])]
+        child.args = (module, *argv)
+        return child
+
+    def _read(self) -> None:
+        assert self.process.stdout is not None
+        for raw in self.process.stdout:
+            try:
+                message = json.loads(raw)
+            except ValueError:
+                log.warning("fork server said something that is not JSON: %r", raw[:200])
+                continue
+            self._take(message)
+        with self._changed:
+            for child in self._children.values():
+                child._server_gone.set()
+                if child.returncode is None:
+                    child._ended.set()  # wake a waiter, which then asks the pidfd
+            self._gone = True
+            self._changed.notify_all()
+
+    def _take(self, message: dict[str, Any]) -> None:
+        with self._changed:
+            if "exit" in message:
+                child = self._children.get(int(message["exit"]))
+                if child is not None:
+                    child._set_status(int(message["status"]))
+            elif "pid" in message:
+                pid = int(message["pid"])
+                self._children[pid] = ForkedProcess(pid, ("fork", str(pid)))
+                self._replies[int(message.get("id", 0))] = message
+            elif "error" in message:
+                if "id" not in message:
+                    log.warning("the fork server refused a line: %s", message["error"])
+                self._replies[int(message.get("id", 0))] = message
+            elif message.get("ready"):
+                self._ready = True
+            self._changed.notify_all()
+
+    def close(self) -> None:
+        """Close its stdin (it ends) and collect it; the children are the caller's to stop."""
+        if self.process.stdin is not None:
+            with contextlib.suppress(OSError):
+                self.process.stdin.close()
+        try:
+            self.process.wait(timeout=5.0)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+        self._reader.join(timeout=5.0)
+        if self.process.stdout is not None:
+            self.process.stdout.close()
+        for child in self._children.values():
+            child.close()
+
+
+if __name__ == "__main__":
+    sys.exit(serve(sys.argv[1:]))

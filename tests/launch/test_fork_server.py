@@ -1,0 +1,127 @@
+"""The fork server (fleet.launch.fork_server): children as `python -m` would start them,
+their exit statuses, bad requests answered and survived, and children outliving it."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from fleet.launch.fork_server import (
+    UNKNOWN_STATUS,
+    ForkServer,
+    ForkServerError,
+    parse_request,
+)
+from tests.support.waiting import wait_until
+
+CHILD = "tests.support.fork_child"
+TIMEOUT_S = 60.0
+
+
+@pytest.fixture
+def server(tmp_path: Path) -> Iterator[ForkServer]:
+    started = ForkServer.start(sys.executable, [CHILD], tmp_path / "server.log", dict(os.environ))
+    try:
+        started.wait_ready(TIMEOUT_S)
+        yield started
+    finally:
+        started.close()
+
+
+def env(**extra: str) -> dict[str, str]:
+    return {**os.environ, **extra}
+
+
+def lines(path: Path) -> list[str]:
+    return path.read_text().splitlines() if path.exists() else []
+
+
+@pytest.mark.parametrize(
+    ("line", "why"),
+    [
+        (b"{not json", "not a JSON line"),
+        (b"[1, 2]", "a JSON object"),
+        (b'{"module": "os", "argv": [], "log": "x", "env": {}}', "not one this server imported"),
+        (b'{"module": "m", "argv": "a b", "log": "x", "env": {}}', "argv is a list"),
+        (b'{"module": "m", "argv": [], "log": "", "env": {}}', "log is a file path"),
+        (b'{"module": "m", "argv": [], "log": "x", "env": {"A": 1}}', "env maps strings"),
+    ],
+)
+def test_a_malformed_request_says_what_is_wrong(line: bytes, why: str) -> None:
+    with pytest.raises(ValueError, match=why):
+        parse_request(line, ["m"])
+
+
+@pytest.mark.e2e
+def test_a_child_is_python_dash_m_with_its_arguments_environment_and_log(
+    server: ForkServer, tmp_path: Path
+) -> None:
+    log_path = tmp_path / "child.log"
+    child = server.spawn(CHILD, ["exit", "3"], log_path, env(FORK_CHILD_SAY="hello"))
+    assert child.wait(TIMEOUT_S) == 3
+    said = lines(log_path)
+    assert said[0] == f"argv ['exit', '3'] session {child.pid} pid {child.pid}"  # its own session
+    assert said[1] == "say hello"
+    assert child.poll() == 3
+
+
+@pytest.mark.e2e
+def test_a_signalled_child_reports_the_signal_as_popen_does(
+    server: ForkServer, tmp_path: Path
+) -> None:
+    log_path = tmp_path / "child.log"
+    child = server.spawn(CHILD, ["wait"], log_path, env())
+    wait_until(lambda: "waiting" in lines(log_path), TIMEOUT_S, "the child to start")
+    assert child.poll() is None
+    with pytest.raises(subprocess.TimeoutExpired):
+        child.wait(0.05)
+    child.send_signal(signal.SIGTERM)
+    assert child.wait(TIMEOUT_S) == -signal.SIGTERM
+    child.kill()  # after its end: signals nothing (its PID may be someone else's now)
+
+
+@pytest.mark.e2e
+def test_an_uncaught_error_is_in_the_childs_log_with_status_1(
+    server: ForkServer, tmp_path: Path
+) -> None:
+    log_path = tmp_path / "child.log"
+    child = server.spawn(CHILD, ["raise"], log_path, env())
+    assert child.wait(TIMEOUT_S) == 1
+    assert "RuntimeError: the child's own error" in log_path.read_text()
+
+
+@pytest.mark.e2e
+def test_a_refused_request_leaves_the_server_serving(server: ForkServer, tmp_path: Path) -> None:
+    with pytest.raises(ForkServerError, match="not one this server imported"):
+        server.spawn("json.tool", [], tmp_path / "x.log", env())
+    assert server.process.stdin is not None  # a line that is no request at all
+    server.process.stdin.write(b"\x00\xff garbage\n")
+    server.process.stdin.flush()
+    child = server.spawn(CHILD, ["exit", "0"], tmp_path / "child.log", env())
+    assert child.wait(TIMEOUT_S) == 0
+
+
+@pytest.mark.e2e
+def test_children_outlive_their_server_and_are_still_stopped_by_pid(tmp_path: Path) -> None:
+    server = ForkServer.start(sys.executable, [CHILD], tmp_path / "server.log", dict(os.environ))
+    log_path = tmp_path / "child.log"
+    try:
+        server.wait_ready(TIMEOUT_S)
+        child = server.spawn(CHILD, ["wait"], log_path, env())
+        wait_until(lambda: "waiting" in lines(log_path), TIMEOUT_S, "the child to start")
+        server.process.send_signal(signal.SIGKILL)
+        server.process.wait(TIMEOUT_S)
+        assert child.poll() is None  # the server's end is not the child's
+        child.send_signal(signal.SIGTERM)
+        # No one can collect its status now: it is known to have ended, not how.
+        assert child.wait(TIMEOUT_S) == UNKNOWN_STATUS
+    finally:
+        server.close()
+    with pytest.raises(ForkServerError, match="not running"):
+        server.spawn(CHILD, ["exit", "0"], log_path, env())
