@@ -57,6 +57,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
+from fleet.errors import FleetError
+
 log = logging.getLogger(__name__)
 
 #: The status a `ForkedProcess` reports when it ended after its server did, so that no
@@ -70,7 +72,7 @@ REPLY_TIMEOUT_S = 30.0
 MAX_REQUEST_BYTES = 1 << 20
 
 
-class ForkServerError(RuntimeError):
+class ForkServerError(FleetError, RuntimeError):
     """The fork server could not be started, or it refused or could not fork a child."""
 
 
