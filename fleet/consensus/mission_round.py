@@ -190,11 +190,11 @@ class MissionRound:
         self._update_reached()
 
     def _update_reached(self) -> None:
-        self.reached = {
-            uav
-            for uav in self.team
-            if (queue := self.queue_of(uav)) and self.reached_targets.keys() >= set(queue)
-        }
+        reached = self.reached_targets.keys()
+        if not reached:  # at the commitment: nobody is done, no need to ask N queues
+            self.reached = set()
+            return
+        self.reached = {uav for uav in self.team if (q := self.queue_of(uav)) and reached >= set(q)}
 
     @property
     def mission(self) -> int:
@@ -302,9 +302,10 @@ class MissionRound:
         }
         objective = self.targets.objective
         plan = plan_queues(used, self.legs, objective, self.rows.orders(used))
+        heads = plan.heads()
         self.committed = self.base = self._report(
-            target=plan.heads().get(self.own_id),
-            pairs=plan.heads(),
+            target=heads.get(self.own_id),
+            pairs=heads,
             queues={uav: q for uav, q in plan.queues.items() if q},
             arrivals={uav: a for uav, a in plan.arrivals.items() if a},
             unserved={t: UNREACHABLE for t in plan.unassigned},
