@@ -125,6 +125,8 @@ def append_earliest(
     arrival); both are updated in place. A target no UAV of `queues` can reach stays out.
     """
     left = sorted(set(targets))
+    if not left:
+        return  # every target placed already (the greedy's heads, N >= M): no UAV scanned
     uavs = sorted(queues)
     # Each UAV's best (finish, target) over the targets left: recomputed only for the UAV
     # that took a target and for those whose best was that target (50 x 200: one scan of
