@@ -24,12 +24,12 @@ input before acting on the result.
 
 from __future__ import annotations
 
+import functools
 import heapq
 import math
 import struct
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from itertools import chain
 from typing import cast
 
 from fleet.consensus.digest import sha256
@@ -163,13 +163,11 @@ def results_digest(
     `row_bytes(uav, results[uav])` (computed as the result arrived); the others are
     packed here.
     """
-    uavs = sorted(results)
     given = rows_bytes if rows_bytes is not None else {}
-    missing = [uav for uav in uavs if uav not in given]
-    packed = dict(
-        zip(missing, _packed_rows(missing, [results[uav] for uav in missing]), strict=True)
-    )
-    parts = [_DIGEST_VERSION, *(given[uav] if uav in given else packed[uav] for uav in uavs)]
+    parts = [_DIGEST_VERSION]
+    parts += [
+        given[uav] if uav in given else row_bytes(uav, results[uav]) for uav in sorted(results)
+    ]
     if zones:
         parts += [_ZONES_TAG, _ZONES_LENGTH.pack(len(zones)), zones]
     # One buffer hashed once: the same bytes as an update per field, in a third of the
@@ -179,45 +177,20 @@ def results_digest(
 
 def row_bytes(uav: int, row: Sequence[float | None]) -> bytes:
     """What `results_digest` hashes of `uav`'s row: its header, then its entries."""
-    return _packed_rows([uav], [row])[0]
-
-
-def _packed_rows(uavs: list[int], rows: list[Sequence[float | None]]) -> list[bytes]:
-    """Each row's bytes in the digest's layout."""
-    # The times are packed in C, all at once, then interleaved with their b'T' markers
-    # by strided copies (`_tagged`); only a row holding a None (struct.error: nearly
-    # never) is written entry by entry.
+    # One C-level pack of the header and every (b'T', time) pair (50 times: ~1.7 us,
+    # a third of packing the times and interleaving their markers apart); only a row
+    # holding a None (struct.error: nearly never) is written entry by entry.
+    count = len(row)
+    fields: list[bytes | float | None] = [b"T"] * (2 * count)
+    fields[1::2] = row
     try:
-        tagged = _tagged(list(chain.from_iterable(rows)))
-        whole = [True] * len(rows)
+        return _row_struct(count).pack(uav, count, *fields)
     except struct.error:
-        whole = [None not in row for row in rows]
-        tagged = _tagged(
-            list(chain.from_iterable(row for row, w in zip(rows, whole, strict=True) if w))
-        )
-    out: list[bytes] = []
-    offset = 0
-    for uav, row, in_bulk in zip(uavs, rows, whole, strict=True):
-        header = _HEADER.pack(uav, len(row))
-        if in_bulk:
-            end = offset + _TAGGED_SIZE * len(row)
-            out.append(header + tagged[offset:end])
-            offset = end
-        else:
-            entries = [b"N" if time is None else b"T" + _TIME.pack(time) for time in row]
-            out.append(header + b"".join(entries))
-    return out
+        entries = [b"N" if time is None else b"T" + _TIME.pack(time) for time in row]
+        return _HEADER.pack(uav, count) + b"".join(entries)
 
 
-_TAGGED_SIZE = 1 + _TIME.size
-
-
-def _tagged(times: list[float | None]) -> bytearray:
-    """b'T' + '<d' of each time, concatenated (struct.error if one is not a number)."""
-    count = len(times)
-    packed = struct.pack(f"<{count}d", *times)
-    tagged = bytearray(_TAGGED_SIZE * count)
-    tagged[0::_TAGGED_SIZE] = b"T" * count
-    for byte in range(_TIME.size):
-        tagged[1 + byte :: _TAGGED_SIZE] = packed[byte :: _TIME.size]
-    return tagged
+@functools.lru_cache(maxsize=64)
+def _row_struct(count: int) -> struct.Struct:
+    """A row's header and `count` tagged times, as one struct."""
+    return struct.Struct("<qQ" + "cd" * count)
