@@ -36,8 +36,6 @@ from fleet.consensus.digest import sha256
 
 __all__ = ["Assignment", "greedy_assign", "results_digest", "row_bytes", "row_order"]
 
-_INF = math.inf
-
 
 @dataclass(frozen=True, slots=True)
 class Assignment:
