@@ -8,7 +8,8 @@ without a coordinator, so the rule is a *total* order on the candidate triples
 The thesis orders by approach time, then by lowest Piccolo ID; the target index is the
 last key so that one UAV tied between two targets still picks deterministically. The
 greedy then repeatedly takes the first remaining triple and drops every other triple of
-that UAV or that target (thesis steps 3-4), which is one sweep over the sorted list.
+that UAV or that target (thesis steps 3-4): one sweep over the sorted list, computed as
+a merge of each UAV's row in its own order (`row_order`, prepared as each result arrives).
 
 Approach times are seconds. ``None`` means the UAV has no answer for that target (its
 model failed or timed out); NaN and the infinities are treated the same way, because
