@@ -7,16 +7,26 @@ each spends decides the fleet's "last result -> last commit". This runs one real
 on a bus that only hands it bytes: no Zenoh, no threads, no planner. Per burst (one
 new mission of N targets, the UAV's own result already published):
 
-* results + commit: the N-1 teammates' results arrive as bytes, through the node's
-  subscription callback and the main loop's event handler, then one tick commits (the
-  greedy, the digest, the report published, i.e. encoded);
+* results in: the N-1 teammates' results arrive as bytes, through the node's
+  subscription callback and the main loop's event handler;
+* commit: then one tick commits (the plan, the digest, the report published, i.e.
+  encoded, the waypoint handed to the autopilot link): what each UAV spends between the
+  last result and its commitment, the consensus window's share per UAV (times N over
+  the cores, issue 28). Its parts, each this thread's CPU in the function the code calls
+  (`Meter`; nested, so they do not add up): `MissionRound.decide` and, within it, the
+  target-to-target legs (`leg_times`, 0 where the mission's arrival computed them), the
+  queues (`plan_queues`), the digests; `publish` (every message the tick encodes and
+  puts) and `autopilot` (the waypoint handed to the link);
 * reports: the N-1 teammates' assignment reports of that mission (the same pairs and
   digest, as the ground sees them) arrive after this UAV committed; 0 where the onboard
   does not subscribe to them (since teammates hear re-plans only, on their own key).
 
 CPU is this thread's CPU time (`time.thread_time`), per burst; each round runs
 `--bursts` bursts and keeps their median, and the rounds' range is printed. Also timed
-at N=50 (median of `--calls` calls): the greedy, the digest and `MissionRound.decide`.
+at N=50 (median of `--calls` calls): the legs, the greedy, the queues, the digest and
+`MissionRound.decide` (its legs computed beforehand). No signature is checked or made:
+`fleet up` runs the open profile unless `--secure` (then docs/benchmarks.md, "Signed
+commands", gives each message's cost).
 
 `--baseline REV` runs this same script against revision REV (default none) from a
 temporary folder (`git archive`) in the same run, alternating with this tree round by round,
@@ -44,8 +54,11 @@ from typing import cast
 import msgspec
 
 from bench.bench_fleet_scale import baseline_tree
+from fleet.consensus import mission_round
 from fleet.consensus.assignment import greedy_assign, results_digest
+from fleet.consensus.legs import leg_times
 from fleet.consensus.mission_round import MissionRound
+from fleet.consensus.objectives import plan_queues
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import AssignmentReport, MissionTargets, UavResult
 from fleet.piccolo.track import Track
@@ -182,8 +195,66 @@ def mission_traffic(
     return bus_codec.encode(targets), result_bytes, reports, results[OWN].times
 
 
+class Meter:
+    """This thread's CPU (s) in named functions, counted only while `active` (a burst's
+    results + commit), wrapped where the code under test looks them up: the parts of
+    the burst, found the same way in this tree and in a baseline's."""
+
+    def __init__(self) -> None:
+        self.active = False
+        self.spent: dict[str, float] = dict.fromkeys(PARTS, 0.0)
+        self._undo: list[tuple[object, str, object]] = []
+
+    def wrap(self, owner: object, name: str, part: str) -> None:
+        """Count `owner.name`'s CPU under `part` (skipped where this tree has no such name)."""
+        inner = getattr(owner, name, None)
+        if inner is None:
+            return
+        meter = self
+
+        def timed(*args: object, **kwargs: object) -> object:
+            if not meter.active:
+                return inner(*args, **kwargs)
+            start = time.thread_time()
+            try:
+                return inner(*args, **kwargs)
+            finally:
+                meter.spent[part] += time.thread_time() - start
+
+        self._undo.append((owner, name, inner))
+        setattr(owner, name, timed)
+
+    def take(self) -> dict[str, float]:
+        spent, self.spent = self.spent, dict.fromkeys(PARTS, 0.0)
+        return spent
+
+    def close(self) -> None:
+        for owner, name, inner in reversed(self._undo):
+            setattr(owner, name, inner)
+
+
+#: The commit's parts: `decide` holds legs, queues and digest; `publish` is every
+#: message the tick encodes and puts (the report, the status); `autopilot` the waypoint
+#: handed to the link. Nested parts are not subtracted from their caller.
+PARTS = ("decide", "legs", "queues", "digest", "publish", "autopilot")
+
+
+def _metered(process: OnboardProcess) -> Meter:
+    """A meter on the commit's parts, looked up by name as the code under test calls them."""
+    meter = Meter()
+    meter.wrap(MissionRound, "decide", "decide")
+    meter.wrap(mission_round, "leg_times", "legs")
+    meter.wrap(mission_round, "plan_queues", "queues")
+    meter.wrap(mission_round, "results_digest", "digest")
+    meter.wrap(mission_round, "plan_digest", "digest")
+    meter.wrap(process.node, "publish", "publish")
+    meter.wrap(process.link, "send_autopilot", "autopilot")
+    return meter
+
+
 def measure_bursts(n: int, bursts: int, first_mission: int) -> dict[str, list[float]]:
-    """Per burst, this thread's CPU (s) for the results + commit and for the reports."""
+    """Per burst, this thread's CPU (s): the results in, the commit (and its parts), the
+    reports."""
     bus = BytesBus()
     link_a, _ = memory_link_pair("program")
     link_b, _ = memory_link_pair("payload")
@@ -194,8 +265,10 @@ def measure_bursts(n: int, bursts: int, first_mission: int) -> dict[str, list[fl
     )
     planner = _InstantPlanner()
     core = process.core
-    core.planner = planner
+    # The approach times come from `planner` at once: the plan asks the one it holds.
+    core.planner = core.mission.plan.planner = planner
     core.status_rate_hz = 0.0  # the periodic state is not the burst's
+    meter = _metered(process)
     try:
         now = time.monotonic()
         core.on_telemetry(sample_telemetry(), now)
@@ -208,7 +281,9 @@ def measure_bursts(n: int, bursts: int, first_mission: int) -> dict[str, list[fl
         on_report = bus.subscriptions.get(SPACE.all_mission_assignments)
         events = process.events
         handle = process._on_event
-        figures: dict[str, list[float]] = {"results": [], "reports": []}
+        figures: dict[str, list[float]] = {
+            name: [] for name in ("results in", "commit", *PARTS, "reports")
+        }
         traffic = [mission_traffic(n, first_mission + i) for i in range(bursts)]
         for mission_index, (targets, results, reports, own_times) in enumerate(traffic):
             mission = first_mission + mission_index
@@ -225,8 +300,11 @@ def measure_bursts(n: int, bursts: int, first_mission: int) -> dict[str, list[fl
             for key, payload in results:
                 on_result(BusSample(key, payload))
                 handle(events.get_nowait(), now)
+            received = time.thread_time()
+            meter.active = True
             core.tick(now)
-            middle = time.thread_time()
+            meter.active = False
+            committed_at = time.thread_time()
             for key, payload in reports:
                 if on_report is not None:
                     on_report(BusSample(key, payload))
@@ -237,41 +315,53 @@ def measure_bursts(n: int, bursts: int, first_mission: int) -> dict[str, list[fl
             committed = core.round.committed
             heard = msgspec.json.decode(reports[0][1], type=AssignmentReport)
             assert committed is not None and committed.digest == heard.digest
-            figures["results"].append(middle - start)
-            figures["reports"].append(end - middle)
+            figures["results in"].append(received - start)
+            figures["commit"].append(committed_at - received)
+            for part, spent in meter.take().items():
+                figures[part].append(spent)
+            figures["reports"].append(end - committed_at)
             bus.published.clear()
         return figures
     finally:
+        meter.close()
         process.planner.close()
 
 
 def time_calls(calls: int) -> dict[str, float]:
-    """Median seconds per call, N=50 x 50 targets: greedy, digest, decide."""
+    """Median seconds per call, N=50 x 50 targets: the legs, the greedy, the queues, the
+    digest, and `MissionRound.decide` with the legs already computed (as the mission's
+    arrival computes them where the code does so; a baseline's decide would otherwise be
+    charged for them twice)."""
     n = 50
     rng = random.Random(SEED)
     team = tuple(range(1, n + 1))
     results = {uav: UavResult(1, uav, _times(rng, n)) for uav in team}
     rows = {uav: r.times for uav, r in results.items()}
     targets = MissionTargets(1, team, ring_targets(n, seed=1))
+    legs = leg_times(targets.targets)
 
-    def greedy() -> None:
-        greedy_assign(rows, n)
-
-    def digest() -> None:
-        results_digest(rows)
-
-    def decide() -> None:
+    def fresh_round() -> Callable[[], object]:
         consensus = MissionRound(targets, OWN, 0.0)
-        consensus.results = dict(results)
-        consensus.decide(set(team))
+        for result in results.values():
+            consensus.add_result(result)
+        assert len(consensus.legs) == n
+        return lambda: consensus.decide(set(team))
 
+    timed: dict[str, Callable[[], Callable[[], object]]] = {
+        "legs": lambda: lambda: leg_times(targets.targets),
+        "greedy": lambda: lambda: greedy_assign(rows, n),
+        "queues": lambda: lambda: plan_queues(rows, legs),
+        "digest": lambda: lambda: results_digest(rows),
+        "decide": fresh_round,
+    }
     figures = {}
-    for name, call in (("greedy", greedy), ("digest", digest), ("decide", decide)):
+    for name, setup in timed.items():
         samples = []
         for _ in range(calls):
-            start = time.perf_counter()
+            call = setup()
+            start = time.thread_time()
             call()
-            samples.append(time.perf_counter() - start)
+            samples.append(time.thread_time() - start)
         figures[name] = statistics.median(samples)
     return figures
 
@@ -280,14 +370,14 @@ def run_round(sizes: list[int], bursts: int, calls: int) -> dict[str, float]:
     """One round: the median per burst of each figure, and the calls' medians (s)."""
     figures: dict[str, float] = {}
     for n in sizes:
-        bursts_of_n = measure_bursts(n, bursts, first_mission=1)
-        results = bursts_of_n["results"]
-        reports = bursts_of_n["reports"]
-        figures[f"N={n} burst"] = statistics.median(
-            a + b for a, b in zip(results, reports, strict=True)
-        )
-        figures[f"N={n} results+commit"] = statistics.median(results)
-        figures[f"N={n} {n - 1} reports"] = statistics.median(reports)
+        of_n = measure_bursts(n, bursts, first_mission=1)
+        both = [a + b for a, b in zip(of_n["results in"], of_n["commit"], strict=True)]
+        figures[f"N={n} results+commit"] = statistics.median(both)
+        figures[f"N={n} {n - 1} results in"] = statistics.median(of_n["results in"])
+        figures[f"N={n} commit"] = statistics.median(of_n["commit"])
+        for part in PARTS:
+            figures[f"N={n}  {part}"] = statistics.median(of_n[part])
+        figures[f"N={n} {n - 1} reports"] = statistics.median(of_n["reports"])
     figures.update(time_calls(calls))
     return figures
 
@@ -332,7 +422,7 @@ class Baseline:
 
 
 def _unit(name: str) -> tuple[float, str]:
-    return (1e6, "us") if name in ("greedy", "digest", "decide") else (1e3, "ms")
+    return (1e3, "ms") if name.startswith("N=") else (1e6, "us")
 
 
 def _span(values: list[float], scale: float) -> str:

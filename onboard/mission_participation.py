@@ -156,6 +156,7 @@ class MissionParticipation:
             self.own.publish_none(mission_round, now)
         else:
             self._start_planning(now)
+        mission_round.prepare()  # the legs, while the planner runs: not in the decision
 
     def _decline(self, why: str, now: float) -> None:
         """Take no part in the current mission: an all-None result says so to the team."""

@@ -8,7 +8,8 @@ without a coordinator, so the rule is a *total* order on the candidate triples
 The thesis orders by approach time, then by lowest Piccolo ID; the target index is the
 last key so that one UAV tied between two targets still picks deterministically. The
 greedy then repeatedly takes the first remaining triple and drops every other triple of
-that UAV or that target (thesis steps 3-4), which is one sweep over the sorted list.
+that UAV or that target (thesis steps 3-4): one sweep over the sorted list, computed as
+a merge of each UAV's row in its own order (`row_order`, prepared as each result arrives).
 
 Approach times are seconds. ``None`` means the UAV has no answer for that target (its
 model failed or timed out); NaN and the infinities are treated the same way, because
@@ -24,18 +25,17 @@ input before acting on the result.
 
 from __future__ import annotations
 
+import functools
+import heapq
 import math
 import struct
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from itertools import chain, repeat
 from typing import cast
 
 from fleet.consensus.digest import sha256
 
-__all__ = ["Assignment", "greedy_assign", "results_digest"]
-
-_INF = math.inf
+__all__ = ["Assignment", "greedy_assign", "results_digest", "row_bytes", "row_order"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -53,12 +53,37 @@ class Assignment:
     idle_uavs: tuple[int, ...]
 
 
-def greedy_assign(results: Mapping[int, Sequence[float | None]], n_targets: int) -> Assignment:
+def row_order(row: Sequence[float | None]) -> tuple[int, ...]:
+    """The targets `row` has a usable (finite) time to, by (time, target index): one UAV's
+    candidates in the greedy's order. A `MissionRound` computes it as each result
+    arrives, so that the decision only merges the rows (`greedy_assign`'s `orders`)."""
+    # A finite sum means no None (TypeError), NaN or infinity: one C-level pass.
+    try:
+        finite = math.isfinite(sum(cast(Sequence[float], row)))
+    except TypeError:
+        finite = False
+    indices = range(len(row)) if finite else [t for t, time in enumerate(row) if _usable(time)]
+    # Stable on the time alone (every one kept is a float): equal times keep the lower
+    # target index first.
+    return tuple(sorted(indices, key=cast(Sequence[float], row).__getitem__))
+
+
+def _usable(time: float | None) -> bool:
+    return time is not None and math.isfinite(time)
+
+
+def greedy_assign(
+    results: Mapping[int, Sequence[float | None]],
+    n_targets: int,
+    orders: Mapping[int, Sequence[int]] | None = None,
+) -> Assignment:
     """Assign targets to UAVs by the thesis's greedy rule, ties broken by a total order.
 
     `results[uav][i]` is UAV `uav`'s approach time (s) to target `i`, or None when it has
-    no answer. Raises ValueError if `n_targets` is negative or a row does not have exactly
-    `n_targets` entries (the message names the UAV).
+    no answer. `orders[uav]`, where given, must be `row_order(results[uav])` (computed
+    beforehand, off the decision's path); the others are computed here. Raises
+    ValueError if `n_targets` is negative or a row does not have exactly `n_targets`
+    entries (the message names the UAV).
     """
     if n_targets < 0:
         raise ValueError(f"n_targets must be >= 0, got {n_targets}")
@@ -68,45 +93,41 @@ def greedy_assign(results: Mapping[int, Sequence[float | None]], n_targets: int)
                 f"UAV {uav}: expected {n_targets} approach times (one per target), got {len(row)}"
             )
 
-    # Sort all candidates once, then sweep. Candidates are numbered k = rank * n + target
-    # with UAVs ranked by increasing Piccolo ID, so increasing k is increasing
-    # (Piccolo ID, target index); a *stable* sort on the time alone therefore yields the
-    # full total order (time, Piccolo ID, target index). Sorting on a float key is about
-    # three times faster than sorting (time, uav, target) tuples, which compare slowly.
-    # None and NaN become +inf (NaN would break the sort's order); +inf sorts last and
-    # -inf first, and both are cut off the sorted order, which is cheaper than filtering
-    # every entry with math.isfinite before the sort.
+    # The sweep over every (time, Piccolo ID, target index) triple in order, taking each
+    # whose UAV and target are both free, is a merge of the UAVs' rows, each in its own
+    # order (`row_order`): a heap holds each free UAV's first candidate whose target was
+    # free when it was pushed, keyed (time, rank) with UAVs ranked by increasing Piccolo
+    # ID, so the least entry is the sweep's next triple a free UAV could take. Its target
+    # taken since, the UAV moves on to its next free target; a UAV that took a target
+    # leaves the heap. The sweep itself visited the taken UAVs' entries too (50 x 50:
+    # ~2,200 of 2,500); the merge pops about one entry per pair.
     uavs = sorted(results)
     rows = [results[uav] for uav in uavs]
-    times = list(chain.from_iterable(rows))
-    # A finite sum means no None (TypeError), NaN or infinity: the times are their own
-    # keys, and one C-level pass saves a Python pass over every entry (N=50: ~2,500).
-    try:
-        finite = math.isfinite(sum(cast(list[float], times)))
-    except TypeError:
-        finite = False
-    keys = (
-        cast(list[float], times) if finite else [_INF if t is None or t != t else t for t in times]
-    )
-    order = sorted(range(len(keys)), key=keys.__getitem__)
-    if not finite:  # some times unusable (rare): only the finite middle of the order
-        order = order[keys.count(-_INF) : len(keys) - keys.count(_INF)]
-
+    ranked = [
+        orders[uav] if orders is not None and uav in orders else row_order(row)
+        for uav, row in zip(uavs, rows, strict=True)
+    ]
+    heap = [(rows[rank][order[0]], rank, 0) for rank, order in enumerate(ranked) if order]
+    heapq.heapify(heap)
     pairs: dict[int, int] = {}
-    uav_free = [True] * len(uavs)
     target_free = [True] * n_targets
-    # Once either side is exhausted no further pair is possible: stop the sweep early.
-    # With 20 UAVs and 50 targets the sweep typically ends after ~90 of 1,000 entries.
     max_pairs = min(len(uavs), n_targets)
-    if max_pairs:
-        # Only each candidate's UAV rank and target are needed: one C-level divmod per
-        # entry the sweep reaches.
-        for rank, target in map(divmod, order, repeat(n_targets)):
-            if uav_free[rank] and target_free[target]:
-                uav_free[rank] = target_free[target] = False
-                pairs[uavs[rank]] = target
-                if len(pairs) == max_pairs:
-                    break
+    while heap and len(pairs) < max_pairs:
+        _, rank, position = heap[0]
+        order = ranked[rank]
+        target = order[position]
+        if target_free[target]:
+            target_free[target] = False
+            pairs[uavs[rank]] = target
+            heapq.heappop(heap)
+            continue
+        position += 1
+        while position < len(order) and not target_free[order[position]]:
+            position += 1
+        if position < len(order):
+            heapq.heapreplace(heap, (rows[rank][order[position]], rank, position))
+        else:
+            heapq.heappop(heap)
 
     return Assignment(
         pairs={uav: pairs[uav] for uav in sorted(pairs)},
@@ -128,52 +149,47 @@ _ZONES_TAG = b"zones\x00"
 _ZONES_LENGTH = struct.Struct("<Q")
 
 
-def results_digest(results: Mapping[int, Sequence[float | None]], zones: bytes = b"") -> str:
+def results_digest(
+    results: Mapping[int, Sequence[float | None]],
+    zones: bytes = b"",
+    rows_bytes: Mapping[int, bytes] | None = None,
+) -> str:
     """A stable 16-hex-digit digest (SHA-256 prefix) of exactly these results.
 
     Independent of the mapping's insertion order; sensitive to every bit of every time,
     and to the mission's no-fly zones (`zones`: fleet.mission.no_fly.zones_bytes; none,
-    the digest of the results alone).
+    the digest of the results alone). `rows_bytes[uav]`, where given, must be
+    `row_bytes(uav, results[uav])` (computed as the result arrived); the others are
+    packed here.
     """
-    # One buffer hashed once: the same bytes as an update per field, in a third of the
-    # time (50 x 50 results: ~0.3 ms instead of ~0.9 ms, on every UAV at every commit).
-    # The times are packed in C, all at once, then interleaved with their b'T' markers
-    # by strided copies (`_tagged`); only a row holding a None (struct.error: nearly
-    # never) is written entry by entry.
-    uavs = sorted(results)
-    rows = [results[uav] for uav in uavs]
-    try:
-        tagged = _tagged(list(chain.from_iterable(rows)))
-        whole = [True] * len(rows)
-    except struct.error:
-        whole = [None not in row for row in rows]
-        tagged = _tagged(
-            list(chain.from_iterable(row for row, w in zip(rows, whole, strict=True) if w))
-        )
-    parts: list[bytes | bytearray] = [_DIGEST_VERSION]
-    offset = 0
-    for uav, row, packed in zip(uavs, rows, whole, strict=True):
-        parts.append(_HEADER.pack(uav, len(row)))
-        if packed:
-            end = offset + _TAGGED_SIZE * len(row)
-            parts.append(tagged[offset:end])
-            offset = end
-        else:
-            parts += [b"N" if time is None else b"T" + _TIME.pack(time) for time in row]
+    given = rows_bytes if rows_bytes is not None else {}
+    parts = [_DIGEST_VERSION]
+    parts += [
+        given[uav] if uav in given else row_bytes(uav, results[uav]) for uav in sorted(results)
+    ]
     if zones:
         parts += [_ZONES_TAG, _ZONES_LENGTH.pack(len(zones)), zones]
+    # One buffer hashed once: the same bytes as an update per field, in a third of the
+    # time (50 x 50 results: ~0.3 ms instead of ~0.9 ms, on every UAV at every commit).
     return sha256(b"".join(parts)).hexdigest()[:16]
 
 
-_TAGGED_SIZE = 1 + _TIME.size
+def row_bytes(uav: int, row: Sequence[float | None]) -> bytes:
+    """What `results_digest` hashes of `uav`'s row: its header, then its entries."""
+    # One C-level pack of the header and every (b'T', time) pair (50 times: ~1.7 us,
+    # a third of packing the times and interleaving their markers apart); only a row
+    # holding a None (struct.error: nearly never) is written entry by entry.
+    count = len(row)
+    fields: list[bytes | float | None] = [b"T"] * (2 * count)
+    fields[1::2] = row
+    try:
+        return _row_struct(count).pack(uav, count, *fields)
+    except struct.error:
+        entries = [b"N" if time is None else b"T" + _TIME.pack(time) for time in row]
+        return _HEADER.pack(uav, count) + b"".join(entries)
 
 
-def _tagged(times: list[float | None]) -> bytearray:
-    """b'T' + '<d' of each time, concatenated (struct.error if one is not a number)."""
-    count = len(times)
-    packed = struct.pack(f"<{count}d", *times)
-    tagged = bytearray(_TAGGED_SIZE * count)
-    tagged[0::_TAGGED_SIZE] = b"T" * count
-    for byte in range(_TIME.size):
-        tagged[1 + byte :: _TAGGED_SIZE] = packed[byte :: _TIME.size]
-    return tagged
+@functools.lru_cache(maxsize=64)
+def _row_struct(count: int) -> struct.Struct:
+    """A row's header and `count` tagged times, as one struct."""
+    return struct.Struct("<qQ" + "cd" * count)

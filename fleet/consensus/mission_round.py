@@ -44,6 +44,7 @@ from fleet.consensus.report_checks import (
     targets_problem,
     team_set,
 )
+from fleet.consensus.result_rows import ResultRows
 from fleet.mission.messages import (
     AssignmentHeader,
     AssignmentReport,
@@ -141,6 +142,8 @@ class MissionRound:
     outcome: TargetOutcome | None = None
     #: The team as a set (membership is asked of every message heard).
     team: frozenset[int] = field(init=False, repr=False, compare=False)
+    #: Each result's greedy order and digest bytes, computed as it arrives.
+    rows: ResultRows = field(default_factory=ResultRows, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self.team = team_set(self.targets.team)
@@ -149,6 +152,11 @@ class MissionRound:
     def legs(self) -> list[list[float]]:
         """Target-to-target times, from the mission alone (fleet.consensus.legs)."""
         return leg_times(self.targets.targets, zones=self.targets.zones)
+
+    def prepare(self) -> list[list[float]]:
+        """The legs, computed now (while the approach times are planned), not when every
+        UAV decides at once on the last result: the consensus window (issue 28)."""
+        return self.legs
 
     def queue_of(self, uav: int) -> tuple[int, ...]:
         """`uav`'s queue in the plan this UAV follows (empty before the commitment)."""
@@ -182,11 +190,11 @@ class MissionRound:
         self._update_reached()
 
     def _update_reached(self) -> None:
-        self.reached = {
-            uav
-            for uav in self.team
-            if (queue := self.queue_of(uav)) and self.reached_targets.keys() >= set(queue)
-        }
+        reached = self.reached_targets.keys()
+        if not reached:  # at the commitment: nobody is done, no need to ask N queues
+            self.reached = set()
+            return
+        self.reached = {uav for uav in self.team if (q := self.queue_of(uav)) and reached >= set(q)}
 
     @property
     def mission(self) -> int:
@@ -220,6 +228,7 @@ class MissionRound:
             # give UAVs that heard them other pairs under the same digest.
             return False
         self.results[result.uav] = result
+        self.rows.add(result.uav, result.times)
         return True
 
     def heard(self, now: float) -> None:
@@ -292,15 +301,19 @@ class MissionRound:
             if uav in alive or uav == self.own_id
         }
         objective = self.targets.objective
-        plan = plan_queues(used, self.legs, objective)
+        plan = plan_queues(used, self.legs, objective, self.rows.orders(used))
+        heads = plan.heads()
         self.committed = self.base = self._report(
-            target=plan.heads().get(self.own_id),
-            pairs=plan.heads(),
+            target=heads.get(self.own_id),
+            pairs=heads,
             queues={uav: q for uav, q in plan.queues.items() if q},
             arrivals={uav: a for uav, a in plan.arrivals.items() if a},
             unserved={t: UNREACHABLE for t in plan.unassigned},
             team=tuple(sorted(used)),
-            digest=plan_digest(results_digest(used, zones_bytes(self.targets.zones)), objective),
+            digest=plan_digest(
+                results_digest(used, zones_bytes(self.targets.zones), self.rows.packed(used)),
+                objective,
+            ),
         )
         self._update_reached()
         return self.committed

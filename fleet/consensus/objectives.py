@@ -25,6 +25,7 @@ from fleet.consensus.digest import sha256
 from fleet.consensus.improve import improve
 from fleet.consensus.queues import (
     Legs,
+    Orders,
     QueuePlan,
     Queues,
     Times,
@@ -43,12 +44,19 @@ SECOND_START_UP_TO = 2_000
 __all__ = ["bottleneck_assign", "hungarian", "min_sum_assign", "plan_digest", "plan_queues"]
 
 
-def plan_queues(times: Times, legs: Legs, objective: Objective = Objective.GREEDY) -> QueuePlan:
-    """Every UAV's queue for `objective`; ValueError if a row has the wrong length."""
+def plan_queues(
+    times: Times,
+    legs: Legs,
+    objective: Objective = Objective.GREEDY,
+    orders: Orders | None = None,
+) -> QueuePlan:
+    """Every UAV's queue for `objective`; ValueError if a row has the wrong length.
+    `orders`: each UAV's `row_order` of its times, where computed beforehand (the
+    greedy's; the same plan either way)."""
     count = check_input(times, legs)
     uavs = sorted(times)
     if objective is Objective.GREEDY or count > len(uavs):
-        queues = greedy_queues(times, legs)
+        queues = greedy_queues(times, legs, orders)
         if objective is Objective.GREEDY:
             return finish(queues, times, legs)
         best = improve(queues, times, legs, objective)

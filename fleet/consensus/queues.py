@@ -36,6 +36,8 @@ from fleet.consensus.assignment import greedy_assign
 Times = Mapping[int, Sequence[float | None]]
 Legs = Sequence[Sequence[float]]
 Queues = dict[int, list[int]]
+#: Each UAV's targets in the greedy's order (`fleet.consensus.assignment.row_order`).
+Orders = Mapping[int, Sequence[int]]
 
 #: Why a target is in no queue.
 UNREACHABLE = "no UAV has an approach time to it"
@@ -123,6 +125,8 @@ def append_earliest(
     arrival); both are updated in place. A target no UAV of `queues` can reach stays out.
     """
     left = sorted(set(targets))
+    if not left:
+        return  # every target placed already (the greedy's heads, N >= M): no UAV scanned
     uavs = sorted(queues)
     # Each UAV's best (finish, target) over the targets left: recomputed only for the UAV
     # that took a target and for those whose best was that target (50 x 200: one scan of
@@ -167,15 +171,15 @@ def append_earliest(
                 best[other] = best_of(other)
 
 
-def greedy_queues(times: Times, legs: Legs) -> Queues:
-    """The thesis's one-each greedy, then the rest appended where reached earliest."""
+def greedy_queues(times: Times, legs: Legs, orders: Orders | None = None) -> Queues:
+    """The thesis's one-each greedy, then the rest appended where reached earliest
+    (`orders`: each UAV's `row_order`, where computed beforehand)."""
     count = len(legs)
-    heads = greedy_assign(times, count).pairs
+    heads = greedy_assign(times, count, orders).pairs
     queues: Queues = {uav: [heads[uav]] if uav in heads else [] for uav in sorted(times)}
     clocks = {uav: _head_time(times, uav, queues[uav]) for uav in queues}
-    append_earliest(
-        queues, clocks, (t for t in range(count) if t not in heads.values()), times, legs
-    )
+    taken = set(heads.values())
+    append_earliest(queues, clocks, (t for t in range(count) if t not in taken), times, legs)
     return queues
 
 

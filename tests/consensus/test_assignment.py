@@ -12,7 +12,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fleet.consensus.assignment import Assignment, greedy_assign, results_digest
+from fleet.consensus.assignment import (
+    Assignment,
+    greedy_assign,
+    results_digest,
+    row_bytes,
+    row_order,
+)
 
 Results = dict[int, list[float | None]]
 
@@ -321,3 +327,45 @@ def test_equal_to_the_previous_implementation_on_random_cases() -> None:
         assert fast == reference
         assert list(fast.pairs) == list(reference.pairs)
         assert results_digest(results) == _reference_digest(results)
+
+
+# --- each row prepared as its result arrives (fleet.consensus.result_rows) -----------
+
+
+@given(results_strategy(), st.randoms(use_true_random=False))
+def test_rows_prepared_beforehand_give_the_same_pairs_and_digest(
+    case: tuple[Results, int], rnd: random.Random
+) -> None:
+    """Orders and digest bytes computed beforehand for some UAVs (the rest computed in
+    the call) give exactly the assignment and the digest of the times alone."""
+    results, n_targets = case
+    some = [uav for uav in results if rnd.random() < 0.7]
+    orders = {uav: row_order(results[uav]) for uav in some}
+    packed = {uav: row_bytes(uav, results[uav]) for uav in some}
+    assert greedy_assign(results, n_targets, orders) == greedy_assign(results, n_targets)
+    assert greedy_assign(results, n_targets, orders).pairs == reference_greedy(results, n_targets)
+    assert results_digest(results, rows_bytes=packed) == results_digest(results)
+    assert results_digest(results, b"zones", packed) == results_digest(results, b"zones")
+
+
+def test_a_rows_order_is_its_usable_targets_by_time_then_index() -> None:
+    assert row_order([3.0, None, 1.0, math.nan, 3.0, -0.0, math.inf, 0.0, -math.inf]) == (
+        5,
+        7,
+        2,
+        0,
+        4,
+    )
+    assert row_order(()) == ()
+
+
+def test_equal_to_the_previous_implementation_with_rows_prepared() -> None:
+    rng = random.Random(20261126)
+    for _ in range(300):
+        results, n_targets = _random_case(rng)
+        orders = {uav: row_order(row) for uav, row in results.items()}
+        packed = {uav: row_bytes(uav, row) for uav, row in results.items()}
+        assert greedy_assign(results, n_targets, orders) == _reference_greedy_assign(
+            results, n_targets
+        )
+        assert results_digest(results, rows_bytes=packed) == _reference_digest(results)

@@ -259,3 +259,36 @@ def test_settled_without_epoch_zero_takes_later_epochs() -> None:
     settled = mission_round.settled(aborted=False)
     assert settled.covers(_header(74, epoch=1, released=(200,)))
     assert not settled.covers(_header(74, epoch=2, released=(200,)))
+
+
+def test_the_decision_uses_the_times_held_even_when_set_around_add_result() -> None:
+    """Each result's greedy order and digest bytes are computed as it arrives; results put
+    in `results` directly (or replaced there) are prepared at the decision instead, so
+    the commitment is always that of the times held."""
+    prepared = round_of()
+    for uav in ALL:
+        prepared.add_result(result(uav))
+    direct = round_of()
+    direct.results = {uav: result(uav) for uav in ALL}
+    swapped = round_of()
+    for uav in ALL:
+        swapped.add_result(result(uav))
+    # 200 became fastest to both targets after its row was prepared.
+    swapped.results[200] = UavResult(mission=7, uav=200, times=(1.0, 2.0))
+    reports = [r.decide(ALL) for r in (prepared, direct, swapped)]
+    assert reports[0] == reports[1]
+    assert reports[0].pairs == {74: 0, 112: 1}
+    assert reports[2].pairs == {200: 0, 112: 1}
+    times = {uav: TIMES[uav] for uav in ALL} | {200: (1.0, 2.0)}
+    assert reports[2].digest != reports[0].digest
+    fresh = round_of()
+    for uav in ALL:
+        fresh.add_result(UavResult(mission=7, uav=uav, times=times[uav]))
+    assert fresh.decide(ALL) == reports[2]
+
+
+def test_prepare_computes_the_legs_before_any_result() -> None:
+    mission_round = round_of()
+    legs = mission_round.prepare()
+    assert len(legs) == 2 and legs[0][1] == legs[1][0] > 0.0
+    assert mission_round.legs is legs  # the decision uses these, not new ones

@@ -380,3 +380,11 @@ def test_the_state_names_the_targets_held_by_their_digest() -> None:
     progress = core.state(1.3).mission
     assert progress is not None and progress.mission == 4
     assert progress.targets_digest == targets_digest(held) != targets_digest(rival)
+
+
+def test_the_legs_are_computed_when_the_mission_arrives_not_at_the_decision() -> None:
+    """The target-to-target legs depend on the mission alone: computed while the planner
+    runs, so the decision on the last result (every UAV's at once) does not wait on them."""
+    core, _ = uav_200_given_two_targets(5)
+    assert core.round is not None
+    assert "legs" in vars(core.round)  # functools.cached_property: already computed
