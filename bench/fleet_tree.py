@@ -15,8 +15,9 @@ recorder, simulator, `fleet up` with its router):
 * per mission of N targets (MAX_TARGETS at most), sent with the deadline
   `ground-cli send-targets` gives a team of N (fleet.consensus.deadline; the onboards
   plan for half of it): send -> last commit and the consensus window, last result ->
-  last commit (router timestamps), whether the team agreed, and how many approach times
-  came from the model and how many from the Dubins fallback;
+  last commit (router timestamps), and last result -> the median UAV's commit; whether
+  the team agreed, and how many approach times came from the model and how many from
+  the Dubins fallback;
 * telemetry extra latency p99 over a second idle window, the benchmark connected.
 
 Run: .venv/bin/python -m bench.bench_fleet_scale --whole-tree [--sizes 2 10 20 50 100]
@@ -244,7 +245,7 @@ def _ms(values: list[float]) -> str:
 HEADER = (
     "  N config    load  ready  model | CPU %: onb  fork   rec   sim    up  total"
     " | PSS GB: onb  fork   rec   sim    up  total | RSS GB | tel p99 | send->com s"
-    " | res->com ms | ok | model:fallback"
+    " | res->com ms | res->med ms | ok | model:fallback"
 )
 
 
@@ -256,6 +257,7 @@ def format_tree(row: TreeRow) -> str:
     pss = " ".join(f"{row.pss_mb.get(k, 0.0) / 1024:5.3f}" for k in KINDS)
     sends = [m.send_to_commit for m in row.missions if m.send_to_commit is not None]
     windows = [m.result_to_commit for m in row.missions if m.result_to_commit is not None]
+    medians = [m.result_to_median_commit for m in row.missions]
     agreed = sum(1 for m in row.missions if m.agreed)
     send = "-" if not sends else f"{min(sends):.2f}-{max(sends):.2f}"
     answers = "/".join("?" if m.model is None else f"{m.model}:{m.fallback}" for m in row.missions)
@@ -264,7 +266,9 @@ def format_tree(row: TreeRow) -> str:
         f" |       {cpu} {sum(row.cpu.values()):6.1f}"
         f" |        {pss} {sum(row.pss_mb.values()) / 1024:6.3f}"
         f" | {sum(row.rss_mb.values()) / 1024:6.2f} | {opt(row.latency_p99_ms, 0):>7}"
-        f" | {send:>11} | {_ms(windows):>11} | {agreed}/{len(row.missions)} | {answers}"
+        f" | {send:>11} | {_ms(windows):>11}"
+        f" | {_ms([m for m in medians if m is not None]):>11} | {agreed}/{len(row.missions)}"
+        f" | {answers}"
     )
 
 

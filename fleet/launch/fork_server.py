@@ -259,10 +259,15 @@ class ForkedProcess:
     _ended: threading.Event = field(default_factory=threading.Event)
     _pidfd: int | None = None
     _server_gone: threading.Event = field(default_factory=threading.Event)
+    _collected: bool = False
 
     def __post_init__(self) -> None:
-        with contextlib.suppress(OSError):  # already ended and collected: nothing to signal
+        try:
             self._pidfd = os.pidfd_open(self.pid)
+        except ProcessLookupError:
+            self._collected = True  # ended already: its exit event brings the status
+        except (OSError, AttributeError):  # no pidfds (a kernel before 5.3): signal the PID
+            self._pidfd = None
 
     def _set_status(self, status: int) -> None:
         if self.returncode is None:
@@ -303,9 +308,13 @@ class ForkedProcess:
             self._pidfd = None
 
     def send_signal(self, number: int) -> None:
-        if self.returncode is None and self._pidfd is not None:
-            with contextlib.suppress(ProcessLookupError):
+        if self.returncode is not None or self._collected:
+            return  # ended: its PID may be another process's now
+        with contextlib.suppress(ProcessLookupError):
+            if self._pidfd is not None:
                 signal.pidfd_send_signal(self._pidfd, number)
+            else:
+                os.kill(self.pid, number)
 
     def terminate(self) -> None:
         self.send_signal(signal.SIGTERM)
