@@ -276,7 +276,8 @@ def test_fleet_up_command_stops_every_child_on_sigterm(tmp_path: Path) -> None:
     try:
         assert banner.wait(70), "".join(lines) + (tmp_path / "up.stderr").read_text()
         pids = [int(line.split()[0]) for line in (tmp_path / "pids").read_text().splitlines()]
-        assert len(pids) == 3  # the simulator and two onboards (fleet up records itself)
+        # The fork server, the simulator and two onboards (fleet up records itself).
+        assert len(pids) == 4
         text = "".join(lines)
         assert f"export FLEET_ZENOH_CONNECT={endpoint}" in text
         assert "101, 102" in text
