@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import logging
 import sys
 
@@ -99,8 +100,9 @@ def settings_from(args: argparse.Namespace, config: zenoh.Config) -> OnboardSett
 
 def fork_preload() -> None:
     """What a fork server (fleet.launch.fork_server) loads before it forks onboards:
-    HiGHS's compiled core, which each onboard otherwise loads when it builds its model,
-    so its relocated pages are shared too."""
+    the approach model and HiGHS's compiled core, which each onboard otherwise loads
+    when it builds its model, so their pages are shared too."""
+    importlib.import_module("onboard.approach_model")
     load_highs_core()
 
 
