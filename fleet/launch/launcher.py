@@ -45,7 +45,7 @@ import zenoh
 
 from fleet.errors import CertError, FleetError
 from fleet.geo.mercator import MercatorProjection
-from fleet.launch.fork_server import ForkServer, ForkServerError
+from fleet.launch.fork_client import ForkServer, ForkServerError
 from fleet.launch.topology import Topology, fallbacks, ring_links
 from fleet.mission.access import ROUTER, uav_router_identity
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace, uav_id_of

@@ -1,5 +1,6 @@
-"""The fork server (fleet.launch.fork_server): children as `python -m` would start them,
-their exit statuses, bad requests answered and survived, and children outliving it."""
+"""The fork server (fleet.launch.fork_server, and its client fork_client): children as
+`python -m` would start them, their exit statuses, bad requests answered and survived,
+and children outliving it."""
 
 from __future__ import annotations
 
@@ -12,12 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from fleet.launch.fork_server import (
-    UNKNOWN_STATUS,
-    ForkServer,
-    ForkServerError,
-    parse_request,
-)
+from fleet.launch.fork_client import UNKNOWN_STATUS, ForkServer, ForkServerError
+from fleet.launch.fork_server import parse_request
 from tests.support.waiting import wait_until
 
 CHILD = "tests.support.fork_child"
