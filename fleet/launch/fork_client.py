@@ -151,12 +151,11 @@ class ForkServer:
 
     def wait_ready(self, timeout_s: float = READY_TIMEOUT_S) -> None:
         with self._changed:
-            if not self._changed.wait_for(
-                lambda: self._ready or self.process.poll() is not None, timeout_s
-            ):
+            if not self._changed.wait_for(lambda: self._ready or self._gone, timeout_s):
                 raise ForkServerError(f"the fork server was not ready in {timeout_s:g} s")
         if not self._ready:
-            raise ForkServerError(f"the fork server exited with status {self.process.returncode}")
+            status = self.process.wait()  # its output ended: it has exited, or is exiting
+            raise ForkServerError(f"the fork server exited with status {status}")
 
     def spawn(
         self, module: str, argv: Sequence[str], log_path: Path, env: dict[str, str]
@@ -196,11 +195,9 @@ class ForkServer:
         assert self.process.stdout is not None
         for raw in self.process.stdout:
             try:
-                message = json.loads(raw)
-            except ValueError:
-                log.warning("fork server said something that is not JSON: %r", raw[:200])
-                continue
-            self._take(message)
+                self._take(json.loads(raw))
+            except (ValueError, TypeError, KeyError, AttributeError):
+                log.warning("ignored a line from the fork server: %r", raw[:200])
         with self._changed:
             for child in self._children.values():
                 child._server_gone.set()

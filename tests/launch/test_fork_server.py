@@ -122,3 +122,15 @@ def test_children_outlive_their_server_and_are_still_stopped_by_pid(tmp_path: Pa
         server.close()
     with pytest.raises(ForkServerError, match="not running"):
         server.spawn(CHILD, ["exit", "0"], log_path, env())
+
+
+@pytest.mark.e2e
+def test_a_server_that_cannot_import_its_program_says_so_at_once(tmp_path: Path) -> None:
+    log_path = tmp_path / "server.log"
+    server = ForkServer.start(sys.executable, ["no_such_program"], log_path, dict(os.environ))
+    try:
+        with pytest.raises(ForkServerError, match="exited with status 1"):
+            server.wait_ready(TIMEOUT_S)
+    finally:
+        server.close()
+    assert "No module named 'no_such_program'" in log_path.read_text()
