@@ -15,6 +15,8 @@ import pytest
 
 from fleet.launch.fork_client import UNKNOWN_STATUS, ForkServer, ForkServerError
 from fleet.launch.fork_server import parse_request
+from fleet.launch.launcher import free_port
+from tests.support.processes import start
 from tests.support.waiting import wait_until
 
 CHILD = "tests.support.fork_child"
@@ -134,3 +136,41 @@ def test_a_server_that_cannot_import_its_program_says_so_at_once(tmp_path: Path)
     finally:
         server.close()
     assert "No module named 'no_such_program'" in log_path.read_text()
+
+
+def parent_of(pid: int) -> int:
+    return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
+
+
+def pids_by_name(log_dir: Path) -> dict[str, int]:
+    rows = (line.split() for line in (log_dir / "pids").read_text().splitlines())
+    return {name: int(pid) for pid, name in rows}
+
+
+@pytest.mark.e2e
+@pytest.mark.parametrize("forked", [True, False], ids=["fork-server", "no-fork-server"])
+def test_fleet_up_forks_its_onboards_unless_told_not_to(tmp_path: Path, forked: bool) -> None:
+    flags = [] if forked else ["--no-fork-server"]
+    up = start(
+        "fleet up",
+        [sys.executable, "-m", "ground.fleet_cli", "up", "--uavs", "2", "--no-record",
+         "--listen", f"tcp/127.0.0.1:{free_port()}", "--log-dir", str(tmp_path), *flags],
+    )  # fmt: skip
+    try:
+        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+        pids = pids_by_name(tmp_path)
+        onboards = [pids["onboard-101"], pids["onboard-102"]]
+        if forked:
+            assert all(parent_of(pid) == pids["fork-server"] for pid in onboards)
+        else:
+            assert "fork-server" not in pids
+            assert all(parent_of(pid) == up.process.pid for pid in onboards)
+        for pid in onboards:  # either way, each is an onboard module with its own log
+            assert b"onboard.main" in Path(f"/proc/{pid}/cmdline").read_bytes()
+            assert os.getsid(pid) == pid
+        logs = [(tmp_path / f"onboard-{uav}.log").read_text() for uav in (101, 102)]
+        assert all("onboard module" in text for text in logs)
+    finally:
+        up.process.send_signal(signal.SIGTERM)
+        assert up.process.wait(30) == 0, "\n".join(up.history[-20:])
+    assert not any(Path(f"/proc/{pid}").exists() for pid in pids_by_name(tmp_path).values())
