@@ -23,7 +23,8 @@ from pathlib import Path
 import msgspec
 import zenoh
 
-from fleet.launch.launcher import free_port, ring_scenario
+from fleet.launch.endpoints import free_port
+from fleet.launch.ring import ring_scenario
 from fleet.mission.key_space import KeySpace, uav_id_of
 from fleet.mission.messages import AssignmentReport, MissionTargets, UavResult
 from fleet.transport.bus_codec import ENCODING, encode

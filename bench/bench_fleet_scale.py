@@ -61,7 +61,8 @@ import msgspec
 import zenoh
 
 from bench.proc_threads import by_kind, snapshot
-from fleet.launch.launcher import Fleet, FleetSpec, ring_scenario
+from fleet.launch.launcher import Fleet, FleetSpec
+from fleet.launch.ring import ring_scenario
 from fleet.mission.key_space import KeySpace, uav_id_of
 from fleet.mission.messages import (
     AssignmentReport,
@@ -266,7 +267,7 @@ def uncontended_solve_s(n_targets: int) -> float:
     """One UAV's solve of `n_targets` (ring targets, from the ring's centre) in this process."""
     from fleet.geo.aircraft import AircraftLimits
     from fleet.geo.mercator import MercatorProjection
-    from fleet.launch.launcher import GENERATED_CENTRE
+    from fleet.launch.ring import GENERATED_CENTRE
     from onboard.approach_model import ApproachTimeModel
 
     projection = MercatorProjection(*GENERATED_CENTRE)

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import zenoh
 
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.launch.topology import fallbacks, ring_links
 from fleet.transport.zenoh_config import make_config
 from tests.support.waiting import wait_until

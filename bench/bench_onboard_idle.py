@@ -31,7 +31,8 @@ import zenoh
 
 from bench.bench_fleet_scale import Config, baseline_tree, child_environment
 from bench.proc_threads import KINDS, Snapshot, by_kind, snapshot
-from fleet.launch.launcher import Fleet, FleetSpec, ring_scenario
+from fleet.launch.launcher import Fleet, FleetSpec
+from fleet.launch.ring import ring_scenario
 from fleet.mission.key_space import KeySpace
 from fleet.transport.zenoh_config import make_config
 

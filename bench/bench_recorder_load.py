@@ -27,7 +27,7 @@ import zenoh
 
 from bench.bench_fleet_scale import REPO, baseline_tree, pss_kb
 from bench.proc_threads import by_kind, snapshot
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import DEFAULT_SPACE
 from fleet.piccolo.telemetry import GpsBlock, MagnetometerBlock, RawBlock, SensorBlock, Telemetry
 from fleet.recording.reader import read_recording

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import zenoh
 
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import DEFAULT_SPACE
 from fleet.recording.reader import read_recording
 from fleet.transport.router import Router

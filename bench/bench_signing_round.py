@@ -27,7 +27,7 @@ from pathlib import Path
 
 from fleet.files.certs import write_identities
 from fleet.files.signers import load_roster, load_signing_key, signing_key_path
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.mission.access import GROUND, uav_identity
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, Target, UavResult

@@ -23,11 +23,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from fleet.geo.mercator import distance_m
-from fleet.launch.launcher import (
-    Fleet,
-    FleetSpec,
-    LaunchError,
-)
+from fleet.launch.launcher import Fleet, FleetSpec, LaunchError
 from fleet.launch.up_command import common_arguments, recording_path, start_gui
 from fleet.mission.messages import (
     AssignmentReport,

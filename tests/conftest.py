@@ -20,7 +20,7 @@ import pytest
 import zenoh
 from hypothesis import settings
 
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets
 from fleet.transport.bus_codec import ENCODING, encode

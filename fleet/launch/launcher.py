@@ -7,7 +7,8 @@ What runs (one machine, the star of docs/architecture.md):
   ports (one process rather than one per UAV: the simulator serves many aircraft from
   one selector loop, and one process is half the memory of N);
 * one `onboard` process per UAV, a Zenoh client of the router, on the program and
-  payload ports the simulator printed;
+  payload ports the simulator printed (`fleet.launch.endpoints`), forked from a fork
+  server that imported the onboard program once (`fleet.launch.fork_client`);
 * unless told not to, a recorder (`fleet.recording`), started first, so the whole run
   is recorded into `record` (an MCAP file): in this process on the router's own session
   (one process and one hop fewer for every sample: issue 28), or, in a router-per-UAV
@@ -18,33 +19,38 @@ being on PATH), in their own session (process group), so a Ctrl-C in the termina
 reaches only the launcher, which then stops them in order (onboards, then simulator)
 by PID: SIGTERM, then SIGKILL after a grace period. Their output goes to one log file
 each in `log_dir`. A launcher killed with SIGKILL cannot stop its children; they are
-then stopped by PID from the log directory's `pids` file.
+then stopped by PID from the log directory's `pids` file (`fleet.launch.children`).
+A generated fleet's scenario (`--uavs N`) is `fleet.launch.ring`'s.
 """
 
 from __future__ import annotations
 
 import contextlib
 import logging
-import math
 import os
-import re
-import signal
-import socket
 import subprocess
 import sys
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
-from typing import IO, Any, Protocol, Self
+from typing import IO, Self
 
 import zenoh
 
 from fleet.errors import CertError, FleetError
-from fleet.geo.mercator import MercatorProjection
+from fleet.launch.children import STOP_GRACE_S, Child, ChildProcess, stop_children
+from fleet.launch.endpoints import (
+    SimEndpoints,
+    accepts,
+    client_endpoint,
+    free_port,
+    host_port,
+    parse_sim_line,
+)
 from fleet.launch.fork_client import ForkServer, ForkServerError
 from fleet.launch.topology import Topology, fallbacks, ring_links
 from fleet.mission.access import ROUTER, uav_router_identity
@@ -60,184 +66,15 @@ from fleet.transport.zenoh_config import DEFAULT_ROUTER, build_config, make_conf
 
 log = logging.getLogger(__name__)
 
-#: Seconds a child gets between SIGTERM and SIGKILL.
-STOP_GRACE_S = 5.0
 #: Seconds to wait for the simulator's ports and every UAV's token and telemetry: dozens
 #: of Python processes starting at once take seconds each on a busy machine.
 DEFAULT_START_TIMEOUT_S = 120.0
 #: At most one progress report this often while waiting for the UAVs, seconds.
 PROGRESS_PERIOD_S = 1.0
-#: First Piccolo ID of a generated (--uavs N) fleet.
-FIRST_GENERATED_ID = 101
-#: Centre of a generated fleet: Camp Roberts, California, as in the shipped scenarios.
-GENERATED_CENTRE = (35.7200, -120.7650)
-
-_SIM_LINE = re.compile(r"^uav (?P<id>\d+) (?P<rest>.*)$")
 
 
 class LaunchError(FleetError, RuntimeError):
     """The fleet could not be started; the message says which part and why."""
-
-
-@dataclass(frozen=True)
-class SimEndpoints:
-    """One aircraft's ports, as `fleet sim` printed them."""
-
-    piccolo_id: int
-    program: str
-    payload: str
-    ground: str
-
-
-def parse_sim_line(line: str) -> SimEndpoints | None:
-    """`uav 112 program=URL payload=URL ground=URL` -> SimEndpoints; None for other lines."""
-    match = _SIM_LINE.match(line.strip())
-    if match is None:
-        return None
-    fields = dict(part.split("=", 1) for part in match["rest"].split() if "=" in part)
-    try:
-        return SimEndpoints(
-            int(match["id"]), fields["program"], fields["payload"], fields.get("ground", "")
-        )
-    except KeyError:
-        return None
-
-
-def client_endpoint(listen: str) -> str:
-    """Where a client on this machine reaches a router listening on `listen`."""
-    proto, _, address = listen.partition("/")
-    host, _, port = address.rpartition(":")
-    if host in ("0.0.0.0", ""):
-        host = "127.0.0.1"
-    elif host in ("[::]", "::"):
-        host = "[::1]"
-    return f"{proto}/{host}:{port}"
-
-
-def _host_port(endpoint: str) -> tuple[str, int]:
-    """`tcp/127.0.0.1:7447` -> ("127.0.0.1", 7447)."""
-    address = endpoint.partition("/")[2].split("#", 1)[0]
-    host, _, port = address.rpartition(":")
-    return host.strip("[]"), int(port)
-
-
-def free_port(host: str = "127.0.0.1") -> int:
-    """A TCP port free on `host` right now (the OS picks it; someone may take it after)."""
-    with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as probe:
-        probe.bind((host, 0))
-        port: int = probe.getsockname()[1]
-        return port
-
-
-def _accepts(host: str, port: int) -> bool:
-    """Whether something accepts TCP connections on host:port."""
-    try:
-        with socket.create_connection((host, port), timeout=0.5):
-            return True
-    except OSError:
-        return False
-
-
-def ring_scenario(count: int, name: str = "ring") -> str:
-    """A scenario TOML of `count` UAVs (ids 101, 102, ...) on a ring, all circling it.
-
-    The ring's radius grows with the count so neighbours start >= 1 km apart, each
-    flies tangent to the ring (counter-clockwise), and altitudes are staggered by 20 m
-    (cycling every 100 UAVs, which are then kilometres apart) so neighbours never share
-    a level.
-    """
-    if count < 1:
-        raise ValueError("a fleet needs at least one UAV")
-    radius = max(1500.0, 1000.0 * count / (2 * math.pi))
-    projection = MercatorProjection(*GENERATED_CENTRE)
-    lines = [
-        f'description = "{count} generated UAVs on a ring of radius {radius:.0f} m"',
-        "",
-    ]
-    for i in range(count):
-        bearing = 2 * math.pi * i / count
-        east, north = radius * math.sin(bearing), radius * math.cos(bearing)
-        lat, lon = projection.to_latlon(east, north)
-        heading = (math.degrees(bearing) - 90.0) % 360.0
-        lines += [
-            "[[uav]]",
-            f"id = {FIRST_GENERATED_ID + i}",
-            f"lat = {lat:.7f}",
-            f"lon = {lon:.7f}",
-            f"alt = {600.0 + 20.0 * (i % 100):.1f}",
-            f"heading = {heading:.1f}",
-            "airspeed = 22.0",
-            "",
-        ]
-    return "\n".join(lines)
-
-
-class ChildProcess(Protocol):
-    """What the launcher uses of a child's process: a `subprocess.Popen`, or a
-    `fleet.launch.fork_server.ForkedProcess`."""
-
-    @property
-    def pid(self) -> int: ...
-    @property
-    def returncode(self) -> int | Any: ...
-    @property
-    def stdout(self) -> IO[Any] | None: ...
-    def poll(self) -> int | None: ...
-    def wait(self, timeout: float | None = None) -> int: ...
-    def send_signal(self, sig: int) -> None: ...
-    def kill(self) -> None: ...
-
-
-@dataclass
-class Child:
-    """A process the launcher started, and where its output goes."""
-
-    name: str
-    process: ChildProcess
-    log_path: Path
-    #: Whether the fleet stops when this child dies (a router of a mesh, or a UAV's
-    #: onboard module, is not: the others fly on).
-    essential: bool = True
-    #: The command it was started with, for a restart (fleet.launch.supervisor).
-    argv: tuple[str, ...] = ()
-
-    @property
-    def pid(self) -> int:
-        return self.process.pid
-
-    def tail(self, lines: int = 15) -> str:
-        try:
-            text = self.log_path.read_text(errors="replace")
-        except OSError:
-            return ""
-        return "\n".join(text.splitlines()[-lines:])
-
-
-class Stoppable(Protocol):
-    """What `stop_children` needs of a child: the launcher's, or a test's."""
-
-    @property
-    def name(self) -> str: ...
-    @property
-    def process(self) -> ChildProcess: ...
-    @property
-    def pid(self) -> int: ...
-
-
-def stop_children(children: Sequence[Stoppable], grace_s: float = STOP_GRACE_S) -> None:
-    """SIGTERM each child by PID, wait up to `grace_s` in all, then SIGKILL the rest."""
-    for child in children:
-        if child.process.poll() is None:
-            log.debug("SIGTERM %s (pid %d)", child.name, child.pid)
-            child.process.send_signal(signal.SIGTERM)
-    deadline = time.monotonic() + grace_s
-    for child in children:
-        try:
-            child.process.wait(timeout=max(0.0, deadline - time.monotonic()))
-        except subprocess.TimeoutExpired:
-            log.warning("%s (pid %d) ignored SIGTERM: killing it", child.name, child.pid)
-            child.process.kill()
-            child.process.wait()
 
 
 @dataclass
@@ -383,14 +220,14 @@ class Fleet:
             argv += ["--secure", str(self.secure.directory), "--identity", identity]
         child = self._spawn(name, argv)
         child.essential = False
-        host, port = _host_port(client_endpoint(listen))
-        while not _accepts(host, port):
+        host, port = host_port(client_endpoint(listen))
+        while not accepts(host, port):
             self._check_running(deadline, f"{name} to listen on {listen}")
             time.sleep(0.05)
 
     def _start_uav_routers(self, deadline: float) -> None:
         proto = self.spec.listen.partition("/")[0]
-        host = _host_port(self.connect)[0]
+        host = host_port(self.connect)[0]
         for uav in self.uav_ids:
             self.uav_routers[uav] = f"{proto}/{host}:{free_port(host)}"
         for uav, neighbours in ring_links(self.uav_ids).items():

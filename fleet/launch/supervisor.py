@@ -16,7 +16,8 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from fleet.launch.launcher import Child, Fleet, LaunchError
+from fleet.launch.children import Child
+from fleet.launch.launcher import Fleet, LaunchError
 
 log = logging.getLogger(__name__)
 

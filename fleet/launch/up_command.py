@@ -17,14 +17,9 @@ import time
 from pathlib import Path
 
 from fleet.files.certs import endpoint_host
-from fleet.launch.launcher import (
-    DEFAULT_START_TIMEOUT_S,
-    Child,
-    Fleet,
-    FleetSpec,
-    LaunchError,
-    ring_scenario,
-)
+from fleet.launch.children import Child
+from fleet.launch.launcher import DEFAULT_START_TIMEOUT_S, Fleet, FleetSpec, LaunchError
+from fleet.launch.ring import ring_scenario
 from fleet.launch.supervisor import ChildLost, RestartPolicy, supervise
 from fleet.launch.topology import Topology
 from fleet.mission.access import GROUND

@@ -6,7 +6,7 @@ import socket
 
 import pytest
 
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.transport.cli import ExitCode
 from ground.fleet_cli import main
 

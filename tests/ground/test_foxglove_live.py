@@ -27,7 +27,8 @@ import zenoh
 from mcap.reader import make_reader
 
 from fleet.files.certs import write_identities
-from fleet.launch.launcher import free_port, stop_children
+from fleet.launch.children import stop_children
+from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace, uav_id_of
 from fleet.recording.recorder import READY_LINE as RECORD_READY
 from ground.foxglove_live.command import READY_LINE as FOXGLOVE_READY

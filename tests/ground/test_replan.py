@@ -9,7 +9,7 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
-from fleet.launch.launcher import ring_scenario
+from fleet.launch.ring import ring_scenario
 from fleet.mission.phase import Phase
 from onboard.core import LINK_LOST_S, TARGET_WAYPOINT
 from tests.conftest import Ground

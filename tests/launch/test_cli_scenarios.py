@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from tests.support.processes import start
 
 pytestmark = pytest.mark.e2e

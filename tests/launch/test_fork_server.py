@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 
+from fleet.launch.endpoints import free_port
 from fleet.launch.fork_client import UNKNOWN_STATUS, ForkServer, ForkServerError
 from fleet.launch.fork_server import parse_request
-from fleet.launch.launcher import free_port
 from tests.support.processes import start
 from tests.support.waiting import wait_until
 

@@ -23,7 +23,7 @@ from pathlib import Path
 import pytest
 
 from fleet.files.targets_io import write_targets
-from fleet.launch.launcher import ring_scenario
+from fleet.launch.ring import ring_scenario
 from tests.support.processes import Child, start
 from tests.support.targets import ring_targets
 

@@ -24,7 +24,7 @@ from typing import Any
 import pytest
 
 from fleet.files.certs import write_identities
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.launch.topology import fallbacks, ring_links
 from tests.support.processes import Child, start
 

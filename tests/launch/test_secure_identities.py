@@ -25,7 +25,7 @@ import zenoh
 
 from fleet.files.certs import write_identities
 from fleet.files.signers import revoke
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, Target
 from fleet.transport.bus_codec import ENCODING, encode

@@ -24,7 +24,7 @@ import pytest
 import zenoh
 
 from fleet.files.certs import write_identities
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace, mission_of
 from fleet.mission.messages import AssignmentReport, MissionAbort, MissionTargets, Target, UavResult
 from fleet.piccolo.track import Track

@@ -29,7 +29,7 @@ import zenoh
 
 from fleet.files.certs import IdentityFiles, tls_settings, write_identities
 from fleet.files.signers import revoke
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     MissionAbort,

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from fleet.files.targets_io import write_targets
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from tests.support.ground_view import GroundView
 from tests.support.processes import Child, client_session, start
 from tests.support.targets import ring_targets

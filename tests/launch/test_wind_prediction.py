@@ -25,7 +25,7 @@ from fleet.geo.aircraft import turn_radius
 from fleet.geo.dubins import dubins_time_in_wind, dubins_time_to_point
 from fleet.geo.mercator import MercatorProjection
 from fleet.geo.wind import Wind
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.sim.scenario import shipped_scenario, shipped_scenario_path
 from tests.support.processes import start
 

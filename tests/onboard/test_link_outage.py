@@ -13,7 +13,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from fleet.geo.mercator import MercatorProjection
-from fleet.launch.launcher import ring_scenario
+from fleet.launch.ring import ring_scenario
 from fleet.mission.messages import MissionTargets, Target
 from fleet.mission.phase import Phase
 from fleet.mission.target_checks import REACHED_RADIUS_M

@@ -10,7 +10,8 @@ import time
 from collections.abc import Iterable
 from pathlib import Path
 
-from fleet.launch.launcher import SimEndpoints, ring_scenario
+from fleet.launch.endpoints import SimEndpoints
+from fleet.launch.ring import ring_scenario
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import AssignmentReport, MissionTargets
 from fleet.sim.scenario import shipped_scenario

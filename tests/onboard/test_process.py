@@ -15,7 +15,7 @@ import msgspec
 import pytest
 import zenoh
 
-from fleet.launch.launcher import SimEndpoints, free_port
+from fleet.launch.endpoints import SimEndpoints, free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     MISSION_MANAGER,

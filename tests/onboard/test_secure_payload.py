@@ -17,7 +17,7 @@ import pytest
 import zenoh
 
 from fleet.files.certs import write_identities
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MISSION_MANAGER, MissionTargets, Target, UavState
 from fleet.mission.phase import Phase

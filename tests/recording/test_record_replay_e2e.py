@@ -22,7 +22,7 @@ import pytest
 import zenoh
 from mcap.reader import make_reader
 
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.recording import channels
 from fleet.recording.reader import read_recording

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import StatusText
 from fleet.piccolo.telemetry import GpsBlock, Telemetry

@@ -22,7 +22,8 @@ from dataclasses import dataclass, field
 
 import zenoh
 
-from fleet.launch.launcher import SimEndpoints, free_port, parse_sim_line, stop_children
+from fleet.launch.children import stop_children
+from fleet.launch.endpoints import SimEndpoints, free_port, parse_sim_line
 from fleet.transport.zenoh_config import make_config
 
 

@@ -6,7 +6,7 @@ import math
 import random
 
 from fleet.geo.mercator import MercatorProjection
-from fleet.launch.launcher import GENERATED_CENTRE
+from fleet.launch.ring import GENERATED_CENTRE
 from fleet.mission.messages import Target
 
 

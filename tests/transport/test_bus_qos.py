@@ -6,7 +6,7 @@ import queue
 
 import zenoh
 
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.transport import bus_qos
 from fleet.transport.bus_codec import ENCODING

@@ -8,7 +8,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.mission.messages import StatusText
 from fleet.transport import bus_codec
 from fleet.transport.bus import Bus, BusReply, BusSample

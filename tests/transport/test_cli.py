@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.mission.key_registry import DEFAULT_PREFIX
 from fleet.mission.key_space import KeySpace
 from fleet.transport.cli import (

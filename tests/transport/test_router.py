@@ -19,14 +19,9 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from fleet.launch.launcher import (
-    Fleet,
-    FleetSpec,
-    LaunchError,
-    client_endpoint,
-    parse_sim_line,
-    ring_scenario,
-)
+from fleet.launch.endpoints import client_endpoint, parse_sim_line
+from fleet.launch.launcher import Fleet, FleetSpec, LaunchError
+from fleet.launch.ring import ring_scenario
 from fleet.mission.key_space import KeySpace
 from fleet.transport.router import Router, RouterError
 from fleet.transport.zenoh_config import make_config

@@ -11,7 +11,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.transport.serial_port import Backoff, SerialLink
 from tests.support.waiting import wait_until
 

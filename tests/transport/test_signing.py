@@ -14,7 +14,7 @@ import zenoh
 
 from fleet.files.certs import write_identities
 from fleet.files.signers import load_roster, load_signing_key, signing_key_path
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionAbort, MissionTargets, Target
 from fleet.mission.signature import Delivery

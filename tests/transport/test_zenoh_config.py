@@ -8,7 +8,7 @@ import threading
 import pytest
 import zenoh
 
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.transport.router import Router
 from fleet.transport.zenoh_config import MODES, make_config
 

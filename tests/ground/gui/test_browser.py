@@ -30,7 +30,7 @@ import zenoh
 
 from fleet.files.targets_io import read_targets, write_targets
 from fleet.geo.mercator import MercatorProjection
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, Target
 from ground.gui.server import MAX_UPLOAD

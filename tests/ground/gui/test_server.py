@@ -14,7 +14,7 @@ from typing import Any
 import aiohttp
 import pytest
 
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from fleet.mission.messages import Target
 from fleet.mission.targets_file import encode_targets
 from tests.ground.test_cli import run_cli

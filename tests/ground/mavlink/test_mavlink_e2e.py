@@ -20,7 +20,7 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from tests.ground.mavlink.stations import free_udp_port, receiver
 from tests.support.ground_view import GroundView
 from tests.support.processes import Child, client_session, start

@@ -16,7 +16,7 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from fleet.files.certs import write_identities
-from fleet.launch.launcher import free_port
+from fleet.launch.endpoints import free_port
 from tests.ground.mavlink.stations import free_udp_port, receiver
 from tests.support.processes import Child, start
 
