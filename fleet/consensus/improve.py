@@ -43,23 +43,6 @@ def improve(queues: Queues, times: Times, legs: Legs, objective: Objective) -> Q
     return search.queues
 
 
-def queue_sum_end(
-    row: Sequence[float | None], legs: Legs, queue: Sequence[int]
-) -> tuple[float, float]:
-    """(sum of arrivals, last arrival) of one queue; (0, 0) when empty."""
-    if not queue:
-        return 0.0, 0.0
-    first = row[queue[0]]
-    assert first is not None
-    clock = total = first
-    previous = queue[0]
-    for target in queue[1:]:
-        clock += legs[previous][target]
-        total += clock
-        previous = target
-    return total, clock
-
-
 class _Search:
     def __init__(self, queues: Queues, times: Times, legs: Legs, objective: Objective) -> None:
         self.queues = queues

@@ -98,13 +98,13 @@ def _preload(modules: Sequence[str]) -> None:
             hook()
 
 
-def _run_child(request: Request) -> int:
-    """In the forked child: become ``python -m MODULE *argv``; its exit status."""
+def _run_child(request: Request, output: int) -> int:
+    """In the forked child: become ``python -m MODULE *argv`` writing to `output` (its
+    log, opened by the server); its exit status."""
     os.setsid()
     signal.set_wakeup_fd(-1)
     for number in (signal.SIGCHLD, signal.SIGINT, signal.SIGTERM):
         signal.signal(number, signal.SIG_DFL)
-    output = os.open(request.log, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
     nothing = os.open(os.devnull, os.O_RDONLY)
     os.dup2(nothing, 0)
     os.dup2(output, 1)
@@ -141,13 +141,21 @@ def _exit_code(code: object) -> int:
 
 
 def _fork(request: Request) -> int:
-    pid = os.fork()
+    # The log is opened here, so a log that cannot be written is the request's error,
+    # not a child that dies at once with nowhere to say why.
+    output = os.open(request.log, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    try:
+        pid = os.fork()
+    except OSError:
+        os.close(output)
+        raise
     if pid == 0:
         code = 1
         try:
-            code = _run_child(request)
+            code = _run_child(request, output)
         finally:
             os._exit(code)
+    os.close(output)
     return pid
 
 
@@ -217,7 +225,7 @@ def _answer(line: bytes, modules: Sequence[str]) -> None:
     try:
         pid = _fork(request)
     except OSError as error:
-        _say({**reply, "error": f"cannot fork: {error}"})
+        _say({**reply, "error": f"cannot start {request.module}: {error}"})
         return
     _say({**reply, "pid": pid})
 

@@ -260,7 +260,9 @@ def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
         return fail("fleet up", str(error), ExitCode.FAILED)
     print("fleet up: stopped")
     if fleet.recording_failure is not None:
+        # The fleet flew on, but the recording it promised is cut short: not a success.
         print(f"fleet up: the recording stopped early: {fleet.recording_failure}", file=sys.stderr)
+        return ExitCode.FAILED
     if spec.record is not None:
         print(f"fleet up: recorded to {spec.record}")
     return ExitCode.OK if stopped_cleanly else ExitCode.FAILED

@@ -111,7 +111,10 @@ class FoxgloveBridge:
 
     # ---- life cycle ---------------------------------------------------------------------------
     def start(self) -> None:
-        self._declared.append(self._bus.subscribe(self._space.everything, self._on_sample))
+        # With details: a deleted key is told apart from an empty put (`_on_sample`).
+        self._declared.append(
+            self._bus.subscribe(self._space.everything, self._on_sample, details=True)
+        )
         self._declared.append(self._bus.subscribe_presence(self._space.all_alive, self._on_alive))
         self._threads = [
             threading.Thread(target=self._publish_loop, name="foxglove-publish"),

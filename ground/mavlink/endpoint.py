@@ -288,19 +288,30 @@ class Endpoint:
 
     # ---- output --------------------------------------------------------------------------
     def send(self, data: bytes) -> None:
-        """To every station: the udpout address, each recent udpin peer, each TCP client."""
-        try:
-            if self.kind == "udpout":
+        """To every station: the udpout address, each recent udpin peer, each TCP client.
+
+        Each station on its own: one that cannot be sent to (an address no datagram can
+        reach, a client that reset) is dropped, never the stations after it."""
+        if self.kind == "udpout":
+            try:
                 self._sock.send(data)
-            elif self.kind == "udpin":
-                for address in self._peers:
+            except OSError as error:
+                # Nobody listening yet (udpout): heartbeats go on until somebody does.
+                log.debug("send: %s", error)
+            return
+        if self.kind == "udpin":
+            for address in list(self._peers):
+                try:
                     self._sock.sendto(data, address)
-            else:
-                for client in list(self._tcp):
-                    try:
-                        client.send(data)
-                    except BlockingIOError:
-                        log.debug("station %s:%d is slow: frame skipped", *self._tcp[client])
-        except OSError as error:
-            # Nobody listening yet (udpout): heartbeats go on until somebody does.
-            log.debug("send: %s", error)
+                except OSError as error:
+                    log.info("station %s:%d unreachable (%s): forgotten", *address[:2], error)
+                    del self._peers[address]
+            return
+        for client in list(self._tcp):
+            try:
+                client.send(data)
+            except BlockingIOError:
+                log.debug("station %s:%d is slow: frame skipped", *self._tcp[client])
+            except OSError as error:
+                log.info("station %s:%d gone (%s)", *self._tcp[client], error)
+                self._drop_client(client)

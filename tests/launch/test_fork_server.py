@@ -174,3 +174,13 @@ def test_fleet_up_forks_its_onboards_unless_told_not_to(tmp_path: Path, forked: 
         up.process.send_signal(signal.SIGTERM)
         assert up.process.wait(30) == 0, "\n".join(up.history[-20:])
     assert not any(Path(f"/proc/{pid}").exists() for pid in pids_by_name(tmp_path).values())
+
+
+@pytest.mark.e2e
+def test_a_log_that_cannot_be_written_is_the_requests_error(
+    server: ForkServer, tmp_path: Path
+) -> None:
+    with pytest.raises(ForkServerError, match="cannot start"):
+        server.spawn(CHILD, ["exit", "0"], tmp_path / "no-such-folder" / "child.log", env())
+    child = server.spawn(CHILD, ["exit", "0"], tmp_path / "child.log", env())
+    assert child.wait(TIMEOUT_S) == 0

@@ -13,6 +13,7 @@ import pytest
 
 from fleet.files.targets_io import write_targets
 from fleet.launch.endpoints import free_port
+from fleet.transport.cli import ExitCode
 from tests.support.ground_view import GroundView
 from tests.support.processes import Child, client_session, start
 from tests.support.targets import ring_targets
@@ -120,3 +121,22 @@ def test_restart_brings_a_dead_onboard_back(tmp_path: Path) -> None:
         assert up.process.poll() is None
     finally:
         stop(up)
+
+
+def test_a_recording_that_fails_is_said_and_fails_the_run(tmp_path: Path) -> None:
+    # The disk is full from the first write: the recording is the device that refuses.
+    (tmp_path / "fleet.mcap").symlink_to("/dev/full")
+    up = start(
+        "fleet up",
+        [sys.executable, "-m", "ground.fleet_cli", "up", "--uavs", "1",
+         "--listen", f"tcp/127.0.0.1:{free_port()}", "--log-dir", str(tmp_path)],
+    )  # fmt: skip
+    try:
+        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+    finally:
+        up.process.send_signal(signal.SIGTERM)
+        status = up.process.wait(30)
+    said = "\n".join(up.history)
+    assert "the recording stopped early" in said and "No space left on device" in said, said
+    assert "recorded to" not in said  # the fleet flew, but the recording is not there
+    assert status == ExitCode.FAILED, said

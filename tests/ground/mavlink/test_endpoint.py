@@ -61,6 +61,20 @@ def test_udpin_decodes_a_station_and_answers_it(udpin: tuple[Endpoint, socket.so
     assert station.recv(100) == b"answer"
 
 
+def test_a_station_that_cannot_be_sent_to_never_silences_the_others(
+    udpin: tuple[Endpoint, socket.socket],
+) -> None:
+    endpoint, station = udpin
+    # A datagram's source no reply can reach (port 0, as a forged datagram can claim) is
+    # a peer before the station, the first the endpoint sends to.
+    endpoint._peer(("127.0.0.1", 0))
+    station.send(frame())
+    collect(endpoint, 1)
+    endpoint.send(b"answer")
+    assert station.recv(100) == b"answer"
+    assert ("127.0.0.1", 0) not in endpoint._peers  # forgotten, not retried every frame
+
+
 def test_hostile_datagrams_are_dropped_and_counted(
     udpin: tuple[Endpoint, socket.socket],
 ) -> None:
