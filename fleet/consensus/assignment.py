@@ -35,7 +35,15 @@ from typing import cast
 
 from fleet.consensus.digest import sha256
 
-__all__ = ["Assignment", "greedy_assign", "results_digest", "row_bytes", "row_order"]
+__all__ = [
+    "Assignment",
+    "greedy_assign",
+    "results_digest",
+    "row_bytes",
+    "row_order",
+    "time_or_inf",
+    "usable",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,14 +70,20 @@ def row_order(row: Sequence[float | None]) -> tuple[int, ...]:
         finite = math.isfinite(sum(cast(Sequence[float], row)))
     except TypeError:
         finite = False
-    indices = range(len(row)) if finite else [t for t, time in enumerate(row) if _usable(time)]
+    indices = range(len(row)) if finite else [t for t, time in enumerate(row) if usable(time)]
     # Stable on the time alone (every one kept is a float): equal times keep the lower
     # target index first.
     return tuple(sorted(indices, key=cast(Sequence[float], row).__getitem__))
 
 
-def _usable(time: float | None) -> bool:
+def usable(time: float | None) -> bool:
+    """A finite approach time (None, NaN and the infinities are no answer)."""
     return time is not None and math.isfinite(time)
+
+
+def time_or_inf(time: float | None) -> float:
+    """The time where usable, else +inf: no answer sorts after every answer."""
+    return time if time is not None and math.isfinite(time) else math.inf
 
 
 def greedy_assign(

@@ -23,6 +23,7 @@ import itertools
 import math
 from collections.abc import Callable, Sequence
 
+from fleet.consensus.assignment import time_or_inf
 from fleet.consensus.queues import Legs, Queues, Times
 from fleet.mission.objective import Objective
 
@@ -49,7 +50,7 @@ class _Search:
         self.legs = legs
         self.min_max = objective is Objective.MIN_MAX
         self.uavs = sorted(queues)
-        self.rows = {uav: [_finite(t) for t in times[uav]] for uav in self.uavs}
+        self.rows = {uav: [time_or_inf(t) for t in times[uav]] for uav in self.uavs}
         count = len(legs)
         # Sorting (leg, index) pairs in C: the nearest first, ties by index.
         self.near = [
@@ -205,7 +206,3 @@ def _sum_end(arrivals: Sequence[float]) -> tuple[float, float]:
 
 def _by_time(rows: dict[int, list[float]], t: int) -> Callable[[int], tuple[float, int]]:
     return lambda uav: (rows[uav][t], uav)
-
-
-def _finite(time: float | None) -> float:
-    return time if time is not None and math.isfinite(time) else math.inf

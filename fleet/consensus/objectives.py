@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+from fleet.consensus.assignment import time_or_inf
 from fleet.consensus.digest import sha256
 from fleet.consensus.improve import improve
 from fleet.consensus.queues import (
@@ -110,10 +111,7 @@ def bottleneck_assign(times: Times, count: int) -> dict[int, int]:
 
 def _clean(times: Times) -> dict[int, list[float]]:
     """Each UAV's times, +inf where it has no usable one, by increasing Piccolo ID."""
-    return {
-        uav: [t if t is not None and math.isfinite(t) else math.inf for t in times[uav]]
-        for uav in sorted(times)
-    }
+    return {uav: [time_or_inf(t) for t in times[uav]] for uav in sorted(times)}
 
 
 def _assign(rows: dict[int, list[float]], targets: Sequence[int], limit: float) -> dict[int, int]:

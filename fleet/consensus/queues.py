@@ -31,7 +31,7 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
-from fleet.consensus.assignment import greedy_assign
+from fleet.consensus.assignment import greedy_assign, usable
 
 Times = Mapping[int, Sequence[float | None]]
 Legs = Sequence[Sequence[float]]
@@ -64,11 +64,6 @@ class QueuePlan:
     def makespan(self) -> float:
         """When the last queued target is reached (min-max's objective); 0 if none."""
         return max((row[-1] for row in self.arrivals.values() if row), default=0.0)
-
-
-def usable(time: float | None) -> bool:
-    """A finite approach time (None, NaN and the infinities are no answer)."""
-    return time is not None and math.isfinite(time)
 
 
 def check_input(times: Times, legs: Legs) -> int:
