@@ -22,12 +22,11 @@ from collections.abc import Iterator, Sequence
 
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.mercator import MercatorProjection
-from fleet.geo.visibility import ZoneMap
+from fleet.geo.visibility import ZoneMap, zone_map
 from fleet.geo.zones import ZONE_MARGIN_M, Point, Ring
 from fleet.mission.messages import NoFlyZone
 from fleet.mission.no_fly import local_zones
 from fleet.piccolo.waypoint import Waypoint
-from onboard.route_plan import zone_map
 
 #: The loiter's anchor and far end (the target route uses 90 and up).
 LOITER_ANCHOR = 88

@@ -14,13 +14,13 @@ release (onboard.mission_participation).
 from __future__ import annotations
 
 import logging
-import math
 from dataclasses import dataclass, field
 from typing import Protocol
 
 import msgspec
 
 from fleet.geo.mercator import distance_m
+from fleet.geo.wind import airspeed
 from fleet.mission.key_space import KeySpace
 from fleet.mission.lifecycle import Observation
 from fleet.mission.messages import CommandResult, NoFlyZone, Target
@@ -238,7 +238,8 @@ class TargetFlight:
         gps = self.link.gps
         turns: tuple[tuple[float, float], ...] | None = ()
         if self.zones:
-            turns = None if gps is None else route_turns(gps, target, self.zones)
+            wind = self.link.wind.value
+            turns = None if gps is None else route_turns(gps, target, self.zones, wind)
         if turns is None:
             self._no_route = f"no route around the no-fly zones to target {target_index}"
             return
@@ -328,7 +329,10 @@ class TargetFlight:
         """A loiter's writes at `at`, its leg onward from `came_from` (none found: [],
         and the course it is, as without zones)."""
         gps = self.link.gps
-        speed = 0.0 if gps is None else math.hypot(gps.vel_east, gps.vel_north)
+        # Inflated at the airspeed in the smoothed wind, as the routes are.
+        speed = (
+            0.0 if gps is None else airspeed((gps.vel_east, gps.vel_north), self.link.wind.value)
+        )
         toward = (2.0 * at[0] - came_from[0], 2.0 * at[1] - came_from[1])
         writes = loiter_writes(at, toward, alt, self.zones, speed)
         if writes is None:
