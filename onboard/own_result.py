@@ -23,7 +23,7 @@ from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock
 from onboard.approach_plan import ApproachPlan, plan_status
 from onboard.mission_phase import MissionPhase
-from onboard.planner_worker import PlanRequest
+from onboard.planner.planner_worker import PlanRequest
 from onboard.state_report import ReportOutputs, Say
 
 _LIMITS = AircraftLimits()
@@ -86,7 +86,7 @@ class OwnResult:
             return
         kind, text = plan_status(result, mission_round.mission)
         self.say(kind, text, now, mission=mission_round.mission)
-        # An infinite time is a target no route reaches (onboard.route_plan): no answer.
+        # An infinite time is a target no route reaches (onboard.planner.route_plan): no answer.
         times = tuple(t if math.isfinite(t) else None for t in result.times)
         self.publish(
             mission_round,

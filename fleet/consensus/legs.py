@@ -26,10 +26,10 @@ model, which is too slow for T x T legs (200 targets: 39,800 legs).
   the search asks a few hundred rows of each UAV, not 200).
 
 With no-fly zones, a leg whose straight line crosses one is the shortest route around
-them (fleet.geo.visibility, the zones inflated as the onboard inflates them at
-`LEG_SPEED_MPS`): the mission fixes the zones, so every UAV still computes the same
-routes; each UAV times a route's straight pieces in its own air. A leg no route flies is
-infinite: the plan never queues it.
+them (fleet.geo.visibility.zone_map, the onboard's inflation, at `LEG_SPEED_MPS`): the
+mission fixes the zones, so every UAV still computes the same routes; each UAV times a
+route's straight pieces in its own air. A leg no route flies is infinite: the plan never
+queues it.
 
 Deterministic: the geometry is computed once per mission from the mission alone, and a
 UAV's times from it and its result's numbers, by the same code on every UAV. Pure: no I/O.
@@ -45,9 +45,8 @@ from fleet.consensus.queues import LegTables, Matrix, Rows
 from fleet.geo import great_circle
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.mercator import MercatorProjection
-from fleet.geo.visibility import Route, ZoneMap, legs_time
+from fleet.geo.visibility import Route, ZoneMap, legs_time, zone_map
 from fleet.geo.wind import CALM_AIR, Wind, ground_speed_along
-from fleet.geo.zones import ZONE_MARGIN_M
 from fleet.mission.messages import NoFlyZone, Target, UavResult
 from fleet.mission.no_fly import local_zones
 
@@ -107,17 +106,13 @@ def _zone_routes(
     """A leg's metres around the zones: the great circle where the line is clear, else
     the shortest route's length (inf where none), on a plane centred on the first target."""
     projection = MercatorProjection(targets[0].lat, targets[0].lon)
-    limits = AircraftLimits()
-    zone_map = ZoneMap(
-        local_zones(projection, zones),
-        limits.turn_radius(limits.clamp_airspeed(speed_mps)) + ZONE_MARGIN_M,
-    )
+    around = zone_map(local_zones(projection, zones), AircraftLimits(), speed_mps)
     points = [projection.to_xy(t.lat, t.lon) for t in targets]
 
     def metres(i: int, j: int, straight: float) -> float:
-        if zone_map.clear(points[i], points[j]):
+        if around.clear(points[i], points[j]):
             return straight
-        route = zone_map.route(points[i], points[j])
+        route = around.route(points[i], points[j])
         return math.inf if route is None else route.length
 
     return metres
@@ -219,10 +214,7 @@ class LegGeometry:
 
 
 def _zone_map(projection: MercatorProjection, zones: Sequence[NoFlyZone]) -> ZoneMap:
-    return ZoneMap(
-        local_zones(projection, zones),
-        _LIMITS.turn_radius(_LIMITS.clamp_airspeed(LEG_SPEED_MPS)) + ZONE_MARGIN_M,
-    )
+    return zone_map(local_zones(projection, zones), _LIMITS, LEG_SPEED_MPS)
 
 
 class _Rows(dict[int, list[float]]):
