@@ -21,6 +21,7 @@ import webbrowser
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from fleet.errors import FleetError
 from fleet.transport.cli import ExitCode, bounded_int, fail, positive_float
 from fleet.transport.zenoh_bus import client_bus
 
@@ -96,7 +97,7 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     gui.set_defaults(handler=cmd_gui)
 
 
-class TokenError(ValueError):
+class TokenError(FleetError, ValueError):
     """A token file that cannot be used."""
 
 
