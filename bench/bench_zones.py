@@ -31,12 +31,13 @@ import time
 
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.mercator import MercatorProjection
-from fleet.geo.visibility import ZoneMap
+from fleet.geo.visibility import ZoneMap, zone_map
+from fleet.geo.zones import ZONE_MARGIN_M
 from fleet.mission.messages import NoFlyZone
 from fleet.sim.autopilot import AutopilotSettings, SimulatedAutopilot
 from fleet.sim.uav_spec import UavSpec
 from onboard.planner_worker import PlannerWorker, PlanRequest, PlanResult
-from onboard.route_plan import ZONE_MARGIN_M, route_targets, zone_map
+from onboard.route_plan import route_targets
 
 SPEED = 22.0
 LIMITS = AircraftLimits()

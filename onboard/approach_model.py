@@ -117,7 +117,7 @@ from dataclasses import dataclass
 
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.dubins import dubins_time_in_wind
-from fleet.geo.wind import CALM_AIR, Wind, ground_speed_along
+from fleet.geo.wind import CALM_AIR, Wind, air_velocity, ground_speed_along
 from onboard.approach_highs import HighsLp
 from onboard.approach_lp import (
     SPEED_INRADIUS,
@@ -398,7 +398,7 @@ class ApproachTimeModel:
         if not all(math.isfinite(v) for v in values):
             raise ValueError("position, velocity, wind and targets must be finite")
         # The aircraft's velocity through the air: what it turns and holds its speed in.
-        vx, vy = velocity[0] - wind.east, velocity[1] - wind.north
+        vx, vy = air_velocity(velocity, wind)
         reported = math.hypot(vx, vy)
         # Unit heading; east when the aircraft reports no velocity at all.
         hx, hy = (vx / reported, vy / reported) if reported > 1e-9 else (1.0, 0.0)

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from fleet.geo.mercator import MercatorProjection
-from fleet.geo.wind import CALM_AIR, Wind
+from fleet.geo.wind import CALM_AIR, Wind, airspeed
 from fleet.mission.messages import MissionTargets
 from fleet.mission.no_fly import local_zones
 from fleet.mission.status_kind import StatusKind
@@ -44,8 +44,7 @@ class ApproachPlan:
             velocity=(gps.vel_east, gps.vel_north),
             targets=tuple(projection.to_xy(t.lat, t.lon) for t in targets.targets),
             budget_s=self.budget(targets),
-            # The airspeed held: the GPS gives the ground velocity, the wind the rest.
-            cruise_speed=math.hypot(gps.vel_east - wind.east, gps.vel_north - wind.north),
+            cruise_speed=airspeed((gps.vel_east, gps.vel_north), wind),
             wind=wind,
             zones=local_zones(projection, targets.zones),
         )

@@ -22,6 +22,7 @@ import msgspec
 
 from fleet.consensus.mission_round import MissionRound, Settled
 from fleet.consensus.targets_digest import targets_digest
+from fleet.geo.wind import Wind
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
@@ -149,6 +150,11 @@ class OnboardCore:
     @property
     def commands(self) -> CommandTracker:
         return self.flight.commands
+
+    @property
+    def wind(self) -> Wind:
+        """The smoothed wind (onboard.wind_estimate): the only wind the module plans with."""
+        return self.link.wind.value
 
     # ---- link events -------------------------------------------------------------------------
     def on_telemetry(self, telemetry: Telemetry, now: float) -> None:

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import msgspec
 import zenoh
 
-from fleet.geo.wind import CALM_AIR, Wind
+from fleet.geo.wind import airspeed
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.mission.messages import (
     BROADCAST,
@@ -264,12 +264,12 @@ class OnboardProcess:
         if latest is None:
             return
         telemetry, at = latest
-        if telemetry.gps is not None:
-            # The airspeed held: the ground velocity less the wind the autopilot reports.
-            gps, sensor = telemetry.gps, telemetry.sensor
-            wind = Wind.from_piccolo(sensor.wind_south, sensor.wind_west) if sensor else CALM_AIR
-            self.planner.prepare(math.hypot(gps.vel_east - wind.east, gps.vel_north - wind.north))
         self.core.on_telemetry(telemetry, at)
+        if telemetry.gps is not None:
+            # The airspeed held, in the smoothed wind this telemetry was just averaged
+            # into: the one wind the module plans with.
+            gps = telemetry.gps
+            self.planner.prepare(airspeed((gps.vel_east, gps.vel_north), self.core.wind))
 
     def _on_event(self, event: Event | None, now: float) -> None:
         # The aircraft's latest position first: a track change is judged against it.
