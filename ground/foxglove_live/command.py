@@ -136,7 +136,8 @@ def run(args: argparse.Namespace) -> int:
         gate.start()
     except OSError as error:
         server.stop()
-        return fail(PROG, f"cannot listen on {host}:{port}: {error.strerror}", ExitCode.FAILED)
+        why = os.strerror(error.errno) if error.errno else str(error)
+        return fail(PROG, f"cannot listen on {host}:{port}: {why}", ExitCode.FAILED)
     try:
         with client_bus(config) as bus:
             return _serve(args, bus, context, gate)
