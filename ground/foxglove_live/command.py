@@ -144,8 +144,8 @@ def run(args: argparse.Namespace) -> int:
     except BusConnectError as error:
         return fail(PROG, str(error))
     finally:
+        server.stop()  # first: its clients are told it closes, through the gate
         gate.stop()
-        server.stop()
         if gate.refused:
             print(f"{PROG}: refused {sum(gate.refused.values())} client(s): {dict(gate.refused)}")
 

@@ -160,8 +160,11 @@ class Gate:
 
         async def close() -> None:
             server.close()
-            for writer in list(self._writers):
-                writer.close()
+            # Every connection's handler ends (closing both its ends) before the loop does.
+            tasks = [t for t in asyncio.all_tasks() if t is not asyncio.current_task()]
+            for task in tasks:
+                task.cancel()
+            await asyncio.gather(*tasks, return_exceptions=True)
             await server.wait_closed()
 
         try:
@@ -188,6 +191,10 @@ class Gate:
         self._writers.add(writer)
         try:
             await self._serve(reader, writer, peer)
+        except asyncio.CancelledError:
+            # Stopping: the connection ends here (asyncio's stream callback would
+            # otherwise report the cancellation as an error of its own).
+            pass
         finally:
             self._writers.discard(writer)
             writer.close()
