@@ -16,14 +16,14 @@ from fleet.mission.messages import MissionTargets
 from fleet.mission.no_fly import local_zones
 from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock
-from onboard.planner_worker import PlanRequest, PlanResult
+from onboard.planner.planner_worker import PlanRequest, PlanResult
 
 #: The share of a mission's deadline the approach model may use (see `budget`).
 PLAN_SHARE_OF_DEADLINE = 0.5
 
 
 class Planner(Protocol):
-    """The RunMILP / IsMILPRunning contract (thesis 2.8): see onboard.planner_worker."""
+    """The RunMILP / IsMILPRunning contract (thesis 2.8): see onboard.planner.planner_worker."""
 
     def run(self, request: PlanRequest) -> bool: ...
     def result(self) -> PlanResult | None: ...
@@ -37,7 +37,7 @@ class ApproachPlan:
 
     def start(self, targets: MissionTargets, gps: GpsBlock, wind: Wind = CALM_AIR) -> bool:
         """Ask for the approach times from `gps` to `targets` in `wind` (the smoothed
-        estimate, onboard.wind_estimate); False if the planner refused."""
+        estimate, onboard.planner.wind_estimate); False if the planner refused."""
         projection = MercatorProjection(gps.lat, gps.lon)
         request = PlanRequest(
             position=(0.0, 0.0),

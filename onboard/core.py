@@ -153,7 +153,7 @@ class OnboardCore:
 
     @property
     def wind(self) -> Wind:
-        """The smoothed wind (onboard.wind_estimate): the only wind the module plans with."""
+        """The smoothed wind (onboard.planner.wind_estimate): the one the module plans with."""
         return self.link.wind.value
 
     # ---- link events -------------------------------------------------------------------------

@@ -1,7 +1,7 @@
 """The onboard process: wires the link adapter, the bus edge and the module logic.
 
 Threads: the link loop (onboard.link_adapter), the planner worker
-(onboard.planner_worker), Zenoh's own callback threads, and this main loop, which alone
+(onboard.planner.planner_worker), Zenoh's own callback threads, and this main loop, which alone
 touches the module's state: every other thread hands it events through one queue,
 except telemetry, which the link loop publishes itself and leaves in a one-message slot
 that the main loop reads on its next turn (`_from_link`).
@@ -56,7 +56,7 @@ from onboard.autopilot_commands import AutopilotCommand
 from onboard.bus_edge import BusEdge, BusEvent, PresenceEvent
 from onboard.core import CONFIRM_LIMIT_S, LINK_RELEASE_S, OnboardCore
 from onboard.link_adapter import LinkAdapter
-from onboard.planner_worker import PlannerWorker
+from onboard.planner.planner_worker import PlannerWorker
 
 log = logging.getLogger(__name__)
 #: Refused input, logged at most every few seconds (a flood cannot fill the log).

@@ -3,7 +3,7 @@
 The route is planned again when the target is written, from the aircraft's position
 then, on the zones inflated exactly as for the approach time
 (fleet.geo.visibility.zone_map at the airspeed in the smoothed wind,
-onboard.route_plan), so the route flown is the one timed, from where the aircraft now
+onboard.planner.route_plan), so the route flown is the one timed, from where the aircraft now
 is. Its turns become waypoints `ROUTE_WAYPOINTS` (91, 92, ...), each one's `next` the
 following turn and the last turn's the target waypoint (90), whose `next` is the course
 to come back to, as without zones. The waypoints are written from the target back to the
@@ -26,7 +26,7 @@ from fleet.mission.messages import NoFlyZone, Target
 from fleet.mission.no_fly import local_zones
 from fleet.piccolo.telemetry import GpsBlock
 from fleet.piccolo.waypoint import Waypoint
-from onboard.route_plan import MAX_ROUTE_TURNS
+from onboard.planner.route_plan import MAX_ROUTE_TURNS
 
 log = logging.getLogger(__name__)
 

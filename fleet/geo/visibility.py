@@ -16,7 +16,7 @@ A goal no route reaches gets None.
 
 The time of a route is its legs' times (`fleet.geo.wind.leg_time`: a straight leg at a
 constant airspeed in a constant wind, still air by default); the approach to the route's first
-point is the approach model's (onboard.route_plan).
+point is the approach model's (onboard.planner.route_plan).
 """
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ from onboard.core import (
     TARGET_WAYPOINT,
     OnboardCore,
 )
-from onboard.planner_worker import PlanRequest, PlanResult
+from onboard.planner.planner_worker import PlanRequest, PlanResult
 from tests.support.link_samples import sample_telemetry
 
 TARGETS = (Target(42.37, -71.08, 120.0), Target(42.35, -71.10, 130.0), Target(42.36, -71.05, 90.0))

@@ -1,4 +1,4 @@
-"""Approach times and flights around no-fly zones (onboard.route_plan, onboard.route_flight,
+"""Approach times and flights around no-fly zones (onboard.planner.route_plan, onboard.route_flight,
 onboard.zone_watch): the real planner and model, and the core with a recording output."""
 
 from __future__ import annotations
@@ -18,9 +18,9 @@ from fleet.piccolo.telemetry import GpsBlock
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from fleet.transport.bus_codec import DROPPED, DropReason
-from onboard.planner_worker import PlannerWorker, PlanRequest, PlanResult
+from onboard.planner.planner_worker import PlannerWorker, PlanRequest, PlanResult
+from onboard.planner.route_plan import route_targets
 from onboard.route_flight import ROUTE_WAYPOINTS, route_turns, route_writes
-from onboard.route_plan import route_targets
 from onboard.target_flight import TARGET_WAYPOINT
 from tests.onboard.core_harness import TARGETS, make_core, telemetry_at
 from tests.onboard.test_planner_worker import wait_result

@@ -1,4 +1,4 @@
-"""Tests of the smoothed wind estimate (onboard.wind_estimate)."""
+"""Tests of the smoothed wind estimate (onboard.planner.wind_estimate)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 
 from fleet.geo.wind import CALM_AIR, Wind
 from fleet.piccolo.telemetry import SensorBlock, Telemetry
-from onboard.wind_estimate import WindEstimate
+from onboard.planner.wind_estimate import WindEstimate
 from tests.onboard.core_harness import make_core
 from tests.support.link_samples import sample_telemetry
 

@@ -24,7 +24,7 @@ right after construction (~0.1 s), or, with `build_at_start=False`, when
 calls it on the first GPS telemetry), so the first mission does not rebuild it. HiGHS
 is loaded there, in the worker thread, not when this module is: an onboard process
 comes up and joins the fleet without it. The model is the LP straight on HiGHS
-(`onboard.approach_highs.HighsLp`): neither Pyomo nor numpy is ever loaded in an
+(`onboard.planner.approach_highs.HighsLp`): neither Pyomo nor numpy is ever loaded in an
 onboard process.
 
 Every run ends with a time for every target. The model stops starting LPs once the
@@ -52,10 +52,10 @@ from fleet.geo.dubins import dubins_time_in_wind
 from fleet.geo.visibility import Route
 from fleet.geo.wind import CALM_AIR, Wind, air_velocity, airspeed
 from onboard.native_thread import name_native_thread
-from onboard.route_plan import route_targets
+from onboard.planner.route_plan import route_targets
 
 if TYPE_CHECKING:
-    from onboard.approach_model import ApproachTimeModel, TargetSolution
+    from onboard.planner.approach_model import ApproachTimeModel, TargetSolution
 
 __all__ = ["PlanRequest", "PlanResult", "PlannerWorker", "fallback_time"]
 
@@ -73,7 +73,7 @@ SANITY_MIN_TURN_RADII = 3.0
 #: A cruise speed this close to the model's top speed reuses the model.
 CRUISE_SPEED_TOLERANCE = 0.5
 #: The largest wind, as a share of the airspeed, planned with: the model's own
-#: (`onboard.approach_model.PLANNABLE_WIND_SHARE`; a test checks they agree).
+#: (`onboard.planner.approach_model.PLANNABLE_WIND_SHARE`; a test checks they agree).
 PLANNABLE_WIND_SHARE = 0.8
 
 
@@ -89,7 +89,7 @@ class PlanRequest:
     #: model's top speed is this one. None: the limits' `max_airspeed`.
     cruise_speed: float | None = None
     #: No-fly zones (rings in the same local metres) every route keeps out of
-    #: (onboard.route_plan); none: every time is the approach model's to the target.
+    #: (onboard.planner.route_plan); none: every time is the approach model's to the target.
     zones: tuple[tuple[tuple[float, float], ...], ...] = ()
     #: The wind to plan in (the air mass's velocity, m/s); `velocity` is over the ground.
     wind: Wind = CALM_AIR
@@ -157,14 +157,14 @@ def fallback_time(
     else:
         flown = (speed, 0.0)
     radius = limits.turn_radius(speed)
-    # The model's own share (onboard.approach_model.PLANNABLE_WIND_SHARE), not imported:
+    # The model's own share (onboard.planner.approach_model.PLANNABLE_WIND_SHARE), not imported:
     # that module loads HiGHS.
     planned = wind.at_most(PLANNABLE_WIND_SHARE * speed)
     return dubins_time_in_wind(position, flown, target, radius, planned)
 
 
 def _default_model(limits: AircraftLimits, horizon_s: float) -> ApproachTimeModel:
-    from onboard.approach_model import ApproachTimeModel  # HiGHS: here only
+    from onboard.planner.approach_model import ApproachTimeModel  # HiGHS: here only
 
     return ApproachTimeModel(limits, horizon_s)
 
