@@ -51,9 +51,10 @@ def test_single_uav_flies_to_the_fastest_target_then_resumes() -> None:
     core, out = make_core()
     core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 1.0)
     core.tick(1.1)
-    assert out.on(SPACE.mission_result(1, 112)) == [
-        UavResult(1, 112, (80.0, 40.0, 60.0), model_times=3, fallback_times=0)
-    ]
+    (result,) = out.on(SPACE.mission_result(1, 112))
+    assert isinstance(result, UavResult)
+    assert (result.mission, result.uav, result.times) == (1, 112, (80.0, 40.0, 60.0))
+    assert (result.model_times, result.fallback_times) == (3, 0)
     (report,) = out.on(SPACE.mission_assignment(1, 112))
     assert isinstance(report, AssignmentReport) and report.target == 1 and report.eta_s == 40.0
     (waypoint,) = out.autopilot
