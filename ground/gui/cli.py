@@ -15,13 +15,12 @@ import secrets
 import signal
 import sys
 import webbrowser
-from typing import TYPE_CHECKING
+from dataclasses import dataclass
+from typing import TextIO
 
-from fleet.transport.cli import ExitCode, bounded_int, fail, positive_float
-from fleet.transport.zenoh_bus import client_bus
-
-if TYPE_CHECKING:
-    from ground.gui.server import GuiConfig
+from fleet.transport.bus import Bus
+from fleet.transport.cli import ExitCode, bounded_int, positive_float
+from fleet.transport.command import BusOptions, Command, OptionsError, set_handler
 
 DEFAULT_LISTEN = "127.0.0.1:8321"
 TOKEN_ENV = "FLEET_GUI_TOKEN"
@@ -85,36 +84,60 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="snapshots pushed a second at most (1-10, default %(default)g)",
     )
     gui.add_argument("--open", action="store_true", help="open the page in a web browser")
-    gui.set_defaults(handler=cmd_gui)
+    set_handler(gui, GUI)
 
 
-def _config(args: argparse.Namespace) -> GuiConfig | str:
-    """The server's config, or why the flags are refused."""
-    # aiohttp is imported only by the command that serves.
-    from ground.gui.server import GuiConfig, is_loopback
+@dataclass(frozen=True, kw_only=True)
+class GuiOptions(BusOptions):
+    host: str = "127.0.0.1"
+    port: int = 8321
+    #: Required on every request when set.
+    token: str | None = None
+    rate: float = DEFAULT_RATE_HZ
+    #: Open the page in a web browser once it is served.
+    open: bool = False
+
+
+def gui_options(args: argparse.Namespace) -> GuiOptions:
+    """The page's options; a non-loopback --listen is refused without --allow-remote, and
+    gets a token (generated when none is given) with it."""
+    from ground.gui.server import is_loopback  # aiohttp only for the command that serves
 
     host, port = args.http_listen
     token = args.token
     if not is_loopback(host):
         if not args.allow_remote:
-            return (
-                f"--listen {host}:{port} is not loopback: anyone who reaches it could send "
+            raise OptionsError(
+                f"gui: --listen {host}:{port} is not loopback: anyone who reaches it could send "
                 "missions and aborts. Add --allow-remote (a token is then required)."
             )
         token = token or secrets.token_urlsafe(24)
-    return GuiConfig(host, port, token, args.rate, args.query_timeout, args.key_space)
+    return GuiOptions(
+        host=host,
+        port=port,
+        token=token,
+        rate=args.rate,
+        open=args.open,
+        key_space=args.key_space,
+        query_timeout=args.query_timeout,
+    )
 
 
-def cmd_gui(args: argparse.Namespace) -> int:
-    from ground.gui.server import serve
+def run_gui(bus: Bus, options: GuiOptions, out: TextIO) -> int:
+    from ground.gui.server import GuiConfig, serve
 
-    config = _config(args)
-    if isinstance(config, str):
-        return fail("ground-cli gui", config)
+    config = GuiConfig(
+        options.host,
+        options.port,
+        options.token,
+        options.rate,
+        options.query_timeout,
+        options.key_space,
+    )
 
     def on_ready(url: str) -> None:
-        print(f"gui: serving on {url}", flush=True)
-        if args.open:
+        print(f"gui: serving on {url}", file=out, flush=True)
+        if options.open:
             webbrowser.open(url)
 
     async def main() -> None:
@@ -125,13 +148,15 @@ def cmd_gui(args: argparse.Namespace) -> int:
             loop.add_signal_handler(sig, task.cancel)
         await serve(bus, config, on_ready)
 
-    with client_bus(args.zenoh) as bus:
-        try:
-            asyncio.run(main())
-        except asyncio.CancelledError:
-            pass
-        except OSError as error:
-            print(f"ground-cli gui: error: cannot listen: {error}", file=sys.stderr)
-            return ExitCode.FAILED
-    print("gui: stopped")
+    try:
+        asyncio.run(main())
+    except asyncio.CancelledError:
+        pass
+    except OSError as error:
+        print(f"ground-cli gui: error: cannot listen: {error}", file=sys.stderr)
+        return ExitCode.FAILED
+    print("gui: stopped", file=out)
     return ExitCode.OK
+
+
+GUI = Command(gui_options, run_gui)

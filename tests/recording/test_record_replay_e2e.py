@@ -37,7 +37,7 @@ SPACE = KeySpace()
 pytestmark = pytest.mark.e2e
 
 TIMEOUT_S = 120
-FLEET = ("-m", "ground.fleet_cli")
+FLEET = ("-m", "programs.fleet_cli")
 TEAM = {74, 112}
 
 
