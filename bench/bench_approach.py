@@ -35,8 +35,8 @@ from pyomo.contrib.solver.common.factory import SolverFactory
 
 from fleet.geo.aircraft import AircraftLimits, turn_radius
 from fleet.geo.dubins import dubins_time_to_point
-from onboard.approach_model import ApproachTimeModel, LpBackend, along_velocity_bounds
-from onboard.approach_pyomo import PyomoLp, build_point_mass
+from onboard.planner.approach_model import ApproachTimeModel, LpBackend, along_velocity_bounds
+from onboard.planner.approach_pyomo import PyomoLp, build_point_mass
 from tests.support.pure_pursuit import fly_pure_pursuit
 
 logger = logging.getLogger(__name__)

@@ -66,7 +66,7 @@ from fleet.transport import bus_codec
 from fleet.transport.bus import Bus, BusQuery, BusReply, BusSample, Declaration, Queryable
 from fleet.transport.memory import memory_link_pair
 from onboard.bus_edge import PresenceEvent
-from onboard.planner_worker import PlanRequest, PlanResult
+from onboard.planner.planner_worker import PlanRequest, PlanResult
 from onboard.process import OnboardProcess, OnboardSettings
 from tests.support.link_samples import sample_telemetry
 from tests.support.targets import ring_targets

@@ -268,7 +268,7 @@ def uncontended_solve_s(n_targets: int) -> float:
     from fleet.geo.aircraft import AircraftLimits
     from fleet.geo.mercator import MercatorProjection
     from fleet.launch.ring import GENERATED_CENTRE
-    from onboard.approach_model import ApproachTimeModel
+    from onboard.planner.approach_model import ApproachTimeModel
 
     projection = MercatorProjection(*GENERATED_CENTRE)
     targets = [projection.to_xy(t.lat, t.lon) for t in ring_targets(n_targets, seed=99)]

@@ -10,7 +10,7 @@ then fly it from the same state, arriving within 10 m.
 2. Wind (issue 24): 22 m/s airspeed, winds of 0, 5, 10 and 15 m/s blowing east, the
    aircraft heading north, targets at bearings every 15 degrees and 1, 3 and 5 km (72
    cases a wind). Predictors: the published time (the model in the wind, or its
-   fallback where the model gives none, as `onboard.planner_worker` does), the
+   fallback where the model gives none, as `onboard.planner.planner_worker` does), the
    closed-form Dubins time in the wind (the fallback alone), and the still-air Dubins
    time at the airspeed (what a plan that ignores the wind says). A last row flies the
    same cases in the shipped `windy` scenario's weather (10 m/s that drifts and gusts),
@@ -42,8 +42,8 @@ from fleet.sim.aircraft import step as aircraft_step
 from fleet.sim.guidance import STEP_S, GuidanceSettings, command_toward, fly_to_point
 from fleet.sim.scenario import shipped_scenario
 from fleet.sim.weather import Weather
-from onboard.approach_model import ApproachTimeModel
-from onboard.planner_worker import MODEL_STATED_ERROR, fallback_time
+from onboard.planner.approach_model import ApproachTimeModel
+from onboard.planner.planner_worker import MODEL_STATED_ERROR, fallback_time
 
 ARRIVAL_RADIUS_M = 10.0
 AIRSPEED = 22.0

@@ -4,8 +4,8 @@ Three octagonal zones (8 vertices each, radius 450-500 m) lie around an aircraft
 origin flying north at 22 m/s; targets every 15 degrees at 2, 3.5 and 5 km (those inside
 a zone's inflation left out). For each case:
 
-* the onboard's planner (`onboard.planner_worker.PlannerWorker`, the real model on
-  HiGHS, routes by `onboard.route_plan`) predicts the time, as a UAV publishes it;
+* the onboard's planner (`onboard.planner.planner_worker.PlannerWorker`, the real model on
+  HiGHS, routes by `onboard.planner.route_plan`) predicts the time, as a UAV publishes it;
 * the simulator's own autopilot (`fleet.sim.autopilot.SimulatedAutopilot`: 20 ms steps,
   its guidance, its 60 m acceptance radius at each turn) flies the route as the
   autopilot is given it (the turns, then the target), its incursion log
@@ -31,12 +31,13 @@ import time
 
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.mercator import MercatorProjection
-from fleet.geo.visibility import ZoneMap
+from fleet.geo.visibility import ZoneMap, zone_map
+from fleet.geo.zones import ZONE_MARGIN_M
 from fleet.mission.messages import NoFlyZone
 from fleet.sim.autopilot import AutopilotSettings, SimulatedAutopilot
 from fleet.sim.uav_spec import UavSpec
-from onboard.planner_worker import PlannerWorker, PlanRequest, PlanResult
-from onboard.route_plan import ZONE_MARGIN_M, route_targets, zone_map
+from onboard.planner.planner_worker import PlannerWorker, PlanRequest, PlanResult
+from onboard.planner.route_plan import route_targets
 
 SPEED = 22.0
 LIMITS = AircraftLimits()

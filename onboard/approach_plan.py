@@ -11,19 +11,19 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from fleet.geo.mercator import MercatorProjection
-from fleet.geo.wind import CALM_AIR, Wind
+from fleet.geo.wind import CALM_AIR, Wind, airspeed
 from fleet.mission.messages import MissionTargets
 from fleet.mission.no_fly import local_zones
 from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock
-from onboard.planner_worker import PlanRequest, PlanResult
+from onboard.planner.planner_worker import PlanRequest, PlanResult
 
 #: The share of a mission's deadline the approach model may use (see `budget`).
 PLAN_SHARE_OF_DEADLINE = 0.5
 
 
 class Planner(Protocol):
-    """The RunMILP / IsMILPRunning contract (thesis 2.8): see onboard.planner_worker."""
+    """The RunMILP / IsMILPRunning contract (thesis 2.8): see onboard.planner.planner_worker."""
 
     def run(self, request: PlanRequest) -> bool: ...
     def result(self) -> PlanResult | None: ...
@@ -37,15 +37,14 @@ class ApproachPlan:
 
     def start(self, targets: MissionTargets, gps: GpsBlock, wind: Wind = CALM_AIR) -> bool:
         """Ask for the approach times from `gps` to `targets` in `wind` (the smoothed
-        estimate, onboard.wind_estimate); False if the planner refused."""
+        estimate, onboard.planner.wind_estimate); False if the planner refused."""
         projection = MercatorProjection(gps.lat, gps.lon)
         request = PlanRequest(
             position=(0.0, 0.0),
             velocity=(gps.vel_east, gps.vel_north),
             targets=tuple(projection.to_xy(t.lat, t.lon) for t in targets.targets),
             budget_s=self.budget(targets),
-            # The airspeed held: the GPS gives the ground velocity, the wind the rest.
-            cruise_speed=math.hypot(gps.vel_east - wind.east, gps.vel_north - wind.north),
+            cruise_speed=airspeed((gps.vel_east, gps.vel_north), wind),
             wind=wind,
             zones=local_zones(projection, targets.zones),
         )

@@ -22,6 +22,7 @@ import msgspec
 
 from fleet.consensus.mission_round import MissionRound, Settled
 from fleet.consensus.targets_digest import targets_digest
+from fleet.geo.wind import Wind
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
@@ -73,6 +74,7 @@ class Outputs(Protocol):
     def fetch_results(self, mission: int, uavs: tuple[int, ...]) -> None: ...
     def fetch_assignments(self, mission: int) -> None: ...
     def fetch_missions(self) -> None: ...
+    def fetch_outcomes(self, mission: int, uavs: tuple[int, ...]) -> None: ...
 
 
 class OnboardCore:
@@ -149,6 +151,11 @@ class OnboardCore:
     @property
     def commands(self) -> CommandTracker:
         return self.flight.commands
+
+    @property
+    def wind(self) -> Wind:
+        """The smoothed wind (onboard.planner.wind_estimate): the one the module plans with."""
+        return self.link.wind.value
 
     # ---- link events -------------------------------------------------------------------------
     def on_telemetry(self, telemetry: Telemetry, now: float) -> None:
@@ -281,3 +288,7 @@ class OnboardCore:
         if self.round is None or self.round.mission != mission:
             return None
         return self.round.outcome
+
+    def teammate_outcomes(self, mission: int) -> dict[int, TargetOutcome]:
+        """Each teammate's latest outcome as it signed it: relayed to whoever asks by name."""
+        return self.mission.heard_outcomes(mission)

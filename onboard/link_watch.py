@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 
 from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
+from onboard.planner.wind_estimate import WindEstimate
 from onboard.state_report import Say
-from onboard.wind_estimate import WindEstimate
 
 #: With no telemetry for this long (wall seconds), the autopilot link counts as lost.
 LINK_LOST_S = 3.0

@@ -26,8 +26,8 @@ from fleet.transport.cli import (
 )
 from fleet.transport.zenoh_bus import BusConnectError
 from fleet.transport.zenoh_config import uses_mtls
-from onboard.approach_highs import load_highs_core
 from onboard.core import CONFIRM_LIMIT_S, LINK_RELEASE_S
+from onboard.planner.approach_highs import load_highs_core
 from onboard.process import OnboardProcess, OnboardSettings
 
 log = logging.getLogger("onboard")
@@ -104,7 +104,7 @@ def fork_preload() -> None:
     """What a fork server (fleet.launch.fork_server) loads before it forks onboards:
     the approach model and HiGHS's compiled core, which each onboard otherwise loads
     when it builds its model, so their pages are shared too."""
-    importlib.import_module("onboard.approach_model")
+    importlib.import_module("onboard.planner.approach_model")
     load_highs_core()
 
 

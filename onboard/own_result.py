@@ -55,7 +55,7 @@ class OwnResult:
             return
         kind, text = plan_status(result, mission_round.mission)
         self.say(kind, text, now, mission=mission_round.mission)
-        # An infinite time is a target no route reaches (onboard.route_plan): no answer.
+        # An infinite time is a target no route reaches (onboard.planner.route_plan): no answer.
         times = tuple(t if math.isfinite(t) else None for t in result.times)
         self.publish(mission_round, times, now, result.model_times, result.fallback_times)
 

@@ -1,7 +1,7 @@
 """The onboard process: wires the link adapter, the bus edge and the module logic.
 
 Threads: the link loop (onboard.link_adapter), the planner worker
-(onboard.planner_worker), Zenoh's own callback threads, and this main loop, which alone
+(onboard.planner.planner_worker), Zenoh's own callback threads, and this main loop, which alone
 touches the module's state: every other thread hands it events through one queue,
 except telemetry, which the link loop publishes itself and leaves in a one-message slot
 that the main loop reads on its next turn (`_from_link`).
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import msgspec
 import zenoh
 
-from fleet.geo.wind import CALM_AIR, Wind
+from fleet.geo.wind import airspeed
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.mission.messages import (
     BROADCAST,
@@ -56,7 +56,7 @@ from onboard.autopilot_commands import AutopilotCommand
 from onboard.bus_edge import BusEdge, BusEvent, PresenceEvent
 from onboard.core import CONFIRM_LIMIT_S, LINK_RELEASE_S, OnboardCore
 from onboard.link_adapter import LinkAdapter
-from onboard.planner_worker import PlannerWorker
+from onboard.planner.planner_worker import PlannerWorker
 
 log = logging.getLogger(__name__)
 #: Refused input, logged at most every few seconds (a flood cannot fill the log).
@@ -131,6 +131,13 @@ class _Outputs:
 
     def fetch_missions(self) -> None:
         self.process.node.fetch(self.process.space.all_mission_targets, MissionTargets)
+
+    def fetch_outcomes(self, mission: int, uavs: tuple[int, ...]) -> None:
+        """Ask for these teammates' own outcomes, by name: each teammate that heard one
+        relays it with its author's signature (the UAV itself may be gone)."""
+        for uav in uavs:
+            key = self.process.space.mission_outcome(mission, uav)
+            self.process.node.fetch(key, TargetOutcome)
 
 
 class OnboardProcess:
@@ -264,12 +271,12 @@ class OnboardProcess:
         if latest is None:
             return
         telemetry, at = latest
-        if telemetry.gps is not None:
-            # The airspeed held: the ground velocity less the wind the autopilot reports.
-            gps, sensor = telemetry.gps, telemetry.sensor
-            wind = Wind.from_piccolo(sensor.wind_south, sensor.wind_west) if sensor else CALM_AIR
-            self.planner.prepare(math.hypot(gps.vel_east - wind.east, gps.vel_north - wind.north))
         self.core.on_telemetry(telemetry, at)
+        if telemetry.gps is not None:
+            # The airspeed held, in the smoothed wind this telemetry was just averaged
+            # into: the one wind the module plans with.
+            gps = telemetry.gps
+            self.planner.prepare(airspeed((gps.vel_east, gps.vel_north), self.core.wind))
 
     def _on_event(self, event: Event | None, now: float) -> None:
         # The aircraft's latest position first: a track change is judged against it.
@@ -414,3 +421,10 @@ class OnboardProcess:
             # Reply with the concrete key, or consolidation would merge the replies.
             if message is not None and query.intersects(key):
                 query.reply(key, message)
+        # A teammate's outcome only to a query naming it: relayed as its UAV signed it
+        # (the bus passes its envelope on), for a UAV or a ground that heard it named
+        # in a hint; a query for every outcome gets each UAV's own from that UAV.
+        for uav, relayed in self.core.teammate_outcomes(mission).items():
+            key = self.space.mission_outcome(mission, uav)
+            if query.key == key:
+                query.reply(key, relayed)

@@ -1,14 +1,15 @@
 """Flying a target around no-fly zones: the route as a chain of autopilot waypoints.
 
 The route is planned again when the target is written, from the aircraft's position
-then, on the same inflated zones the approach time was computed on
-(onboard.route_plan), so the route flown is the one timed, from where the aircraft now
+then, on the zones inflated exactly as for the approach time
+(fleet.geo.visibility.zone_map at the airspeed in the smoothed wind,
+onboard.planner.route_plan), so the route flown is the one timed, from where the aircraft now
 is. Its turns become waypoints `ROUTE_WAYPOINTS` (91, 92, ...), each one's `next` the
 following turn and the last turn's the target waypoint (90), whose `next` is the course
-to come back to, as without zones. The waypoints are written from the target back to
-the first turn, each only once the autopilot echoed the one before, so the autopilot
-never holds a chain leading to a waypoint it does not have; then the track to the first
-turn. The autopilot sequences the turns by itself (it moves on at each one's acceptance
+to come back to, as without zones. The waypoints are written from the target back to the
+first turn, each only once the autopilot echoed the one before, so the autopilot never
+holds a chain leading to a waypoint it does not have; then the track to the first turn.
+The autopilot sequences the turns by itself (it moves on at each one's acceptance
 radius), so the module's arrival and departure logic is the target's as before.
 """
 
@@ -19,11 +20,13 @@ from collections.abc import Sequence
 
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.mercator import MercatorProjection
+from fleet.geo.visibility import zone_map
+from fleet.geo.wind import Wind, airspeed
 from fleet.mission.messages import NoFlyZone, Target
 from fleet.mission.no_fly import local_zones
 from fleet.piccolo.telemetry import GpsBlock
 from fleet.piccolo.waypoint import Waypoint
-from onboard.route_plan import MAX_ROUTE_TURNS, zone_map
+from onboard.planner.route_plan import MAX_ROUTE_TURNS
 
 log = logging.getLogger(__name__)
 
@@ -33,14 +36,16 @@ _LIMITS = AircraftLimits()
 
 
 def route_turns(
-    gps: GpsBlock, target: Target, zones: Sequence[NoFlyZone]
+    gps: GpsBlock, target: Target, zones: Sequence[NoFlyZone], wind: Wind
 ) -> tuple[tuple[float, float], ...] | None:
     """The (latitude, longitude) of each turn of the route from `gps` to `target` around
-    `zones`: () for the straight line; None when no route reaches it now."""
+    `zones`, inflated at the airspeed `gps` gives in `wind` (the smoothed estimate the
+    approach time was planned in): () for the straight line; None when no route
+    reaches it now."""
     if not zones:
         return ()
     projection = MercatorProjection(gps.lat, gps.lon)
-    speed = (gps.vel_east**2 + gps.vel_north**2) ** 0.5
+    speed = airspeed((gps.vel_east, gps.vel_north), wind)
     route = zone_map(local_zones(projection, zones), _LIMITS, speed).route(
         (0.0, 0.0), projection.to_xy(target.lat, target.lon)
     )

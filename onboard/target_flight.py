@@ -236,7 +236,8 @@ class TargetFlight:
         gps = self.link.gps
         turns: tuple[tuple[float, float], ...] | None = ()
         if self.zones:
-            turns = None if gps is None else route_turns(gps, target, self.zones)
+            wind = self.link.wind.value
+            turns = None if gps is None else route_turns(gps, target, self.zones, wind)
         if turns is None:
             self._no_route = f"no route around the no-fly zones to target {target_index}"
             return

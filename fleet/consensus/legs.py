@@ -9,10 +9,10 @@ passes over: a closed form, not the approach model, which is too slow for T x T 
 (200 targets: 39,800 legs).
 
 With no-fly zones, a leg whose straight line crosses one is the shortest route around
-them (fleet.geo.visibility, the zones inflated as the onboard inflates them at
-`LEG_SPEED_MPS`): the mission fixes the zones, so every UAV still computes the same
-legs. A leg no route flies is infinite: the plan never queues it. Wind is left out: each
-UAV's estimate of it differs, and the legs must not.
+them (fleet.geo.visibility.zone_map, the onboard's inflation, at `LEG_SPEED_MPS`): the
+mission fixes the zones, so every UAV still computes the same legs. A leg no route flies
+is infinite: the plan never queues it. Wind is left out: each UAV's estimate of it
+differs, and the legs must not.
 
 Pure: no I/O.
 """
@@ -25,8 +25,7 @@ from collections.abc import Callable, Sequence
 from fleet.geo import great_circle
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.mercator import MercatorProjection
-from fleet.geo.visibility import ZoneMap
-from fleet.geo.zones import ZONE_MARGIN_M
+from fleet.geo.visibility import zone_map
 from fleet.mission.messages import NoFlyZone, Target
 from fleet.mission.no_fly import local_zones
 
@@ -69,17 +68,13 @@ def _zone_routes(
     """A leg's metres around the zones: the great circle where the line is clear, else
     the shortest route's length (inf where none), on a plane centred on the first target."""
     projection = MercatorProjection(targets[0].lat, targets[0].lon)
-    limits = AircraftLimits()
-    zone_map = ZoneMap(
-        local_zones(projection, zones),
-        limits.turn_radius(limits.clamp_airspeed(speed_mps)) + ZONE_MARGIN_M,
-    )
+    around = zone_map(local_zones(projection, zones), AircraftLimits(), speed_mps)
     points = [projection.to_xy(t.lat, t.lon) for t in targets]
 
     def metres(i: int, j: int, straight: float) -> float:
-        if zone_map.clear(points[i], points[j]):
+        if around.clear(points[i], points[j]):
             return straight
-        route = zone_map.route(points[i], points[j])
+        route = around.route(points[i], points[j])
         return math.inf if route is None else route.length
 
     return metres

@@ -16,7 +16,7 @@ A goal no route reaches gets None.
 
 The time of a route is its legs' times (`fleet.geo.wind.leg_time`: a straight leg at a
 constant airspeed in a constant wind, still air by default); the approach to the route's first
-point is the approach model's (onboard.route_plan).
+point is the approach model's (onboard.planner.route_plan).
 """
 
 from __future__ import annotations
@@ -27,10 +27,23 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.wind import CALM_AIR, Wind, leg_time
-from fleet.geo.zones import EPSILON_M, Point, Ring, convex_hull, inflate
+from fleet.geo.zones import EPSILON_M, ZONE_MARGIN_M, Point, Ring, convex_hull, inflate
 
-__all__ = ["Route", "ZoneMap", "legs_time"]
+__all__ = ["Route", "ZoneMap", "legs_time", "zone_clearance", "zone_map"]
+
+
+def zone_clearance(limits: AircraftLimits, airspeed: float) -> float:
+    """How far (m) a route keeps from every zone: the turn radius at `airspeed` (clamped
+    into the aircraft's envelope) plus `ZONE_MARGIN_M`."""
+    return limits.turn_radius(limits.clamp_airspeed(airspeed)) + ZONE_MARGIN_M
+
+
+def zone_map(zones: Sequence[Ring], limits: AircraftLimits, airspeed: float) -> ZoneMap:
+    """The zones (local metres) inflated for an aircraft flying at `airspeed` (m/s):
+    the one inflation every route is planned, timed and flown on."""
+    return ZoneMap(zones, zone_clearance(limits, airspeed))
 
 
 def legs_time(points: Sequence[Point], airspeed: float, wind: Wind = CALM_AIR) -> float:

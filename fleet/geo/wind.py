@@ -26,6 +26,8 @@ from typing import NamedTuple
 __all__ = [
     "CALM_AIR",
     "Wind",
+    "air_velocity",
+    "airspeed",
     "ground_speed_along",
     "leg_time",
     "straight_leg_time",
@@ -65,6 +67,20 @@ class Wind(NamedTuple):
 
 
 CALM_AIR = Wind()
+
+
+def air_velocity(ground_velocity: tuple[float, float], wind: Wind) -> tuple[float, float]:
+    """The velocity through the air (m/s, east and north) of an aircraft moving at
+    `ground_velocity` over the ground in `wind`: what it turns and holds its speed in."""
+    return (ground_velocity[0] - wind.east, ground_velocity[1] - wind.north)
+
+
+def airspeed(ground_velocity: tuple[float, float], wind: Wind) -> float:
+    """The airspeed (m/s) of an aircraft moving at `ground_velocity` in `wind`: what a
+    GPS velocity says once the wind is taken out. Every planner and every flight takes
+    it from here, with the one wind the aircraft plans with, so a time and the route
+    flown for it agree on the speed."""
+    return math.hypot(*air_velocity(ground_velocity, wind))
 
 
 def ground_speed_along(direction: tuple[float, float], airspeed: float, wind: Wind) -> float:

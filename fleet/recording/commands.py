@@ -30,6 +30,7 @@ from fleet.recording.recorder import (
 )
 from fleet.recording.replay import DEFAULT_REPLAY_PREFIX, Replayer
 from fleet.recording.report import report_json, report_lines
+from fleet.recording.thinning import DEFAULT_TELEMETRY_EVERY_S
 from fleet.recording.writer import McapSink, Rotation
 from fleet.transport.bus import Bus
 from fleet.transport.cli import (
@@ -88,6 +89,14 @@ def _record_parser(parser: argparse.ArgumentParser) -> None:
         metavar="S",
         help="one map fix (foxglove.LocationFix) per UAV this often; 0: one per telemetry "
         "(default %(default)g s)",
+    )
+    parser.add_argument(
+        "--telemetry-every",
+        type=non_negative_float,
+        default=DEFAULT_TELEMETRY_EVERY_S,
+        metavar="S",
+        help="one telemetry per UAV in the file this often (the fleet sends 20 Hz); 0: every "
+        "one (default %(default)g s)",
     )
     parser.add_argument(
         "--rotate-size", type=positive_float, metavar="MB", help="new file past MB megabytes"
@@ -171,6 +180,7 @@ class RecordOptions:
     key_space: KeySpace = DEFAULT_SPACE
     state_every: float = DEFAULT_STATE_EVERY_S
     fix_every: float = DEFAULT_FIX_EVERY_S
+    telemetry_every: float = DEFAULT_TELEMETRY_EVERY_S
     rotate_size: float | None = None
     rotate_every: float | None = None
     #: Do not record: finish `out`, left unfinished by a killed recorder.
@@ -195,6 +205,7 @@ def run_record(bus: Bus, args: RecordOptions, out: TextIO) -> int:
             state_every_s=args.state_every,
             on_failure=stop,
             fix_every_s=args.fix_every,
+            telemetry_every_s=args.telemetry_every,
         )
         try:
             recorder.start()

@@ -10,6 +10,9 @@ What is recorded:
 * a `foxglove.LocationFix` from each UAV's telemetry, for Foxglove's map, one every
   `fix_every_s` per UAV (1 s by default; 0: one per telemetry).
 
+Telemetry is recorded at most every `telemetry_every_s` per key (5 Hz; 0: every one;
+`fleet.recording.thinning`): the live rate is 20 Hz.
+
 Log time is the Zenoh timestamp the router stamped on the sample where there is one,
 else the time it was received. Zenoh delivers samples on its own threads, which only
 append them to a queue (no hand-off to a Python thread per sample, no wake-up); one
@@ -36,6 +39,7 @@ import zenoh
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace, uav_id_of
 from fleet.recording import channels
 from fleet.recording.channels import ChannelSpec
+from fleet.recording.thinning import DEFAULT_TELEMETRY_EVERY_S, TelemetryThinning
 from fleet.recording.writer import McapSink
 from fleet.transport import bus_codec
 from fleet.transport.bus import Declaration
@@ -115,6 +119,7 @@ class Recorder:
         on_failure: threading.Event | None = None,
         fix_every_s: float = DEFAULT_FIX_EVERY_S,
         in_router: bool = False,
+        telemetry_every_s: float = DEFAULT_TELEMETRY_EVERY_S,
     ) -> None:
         self._session = session
         self._in_router = in_router
@@ -124,6 +129,7 @@ class Recorder:
         self.expr = expr or f"{self.prefix}/**"
         self._state_every_s = state_every_s
         self._fix_every_ns = round(fix_every_s * 1e9)
+        self.thinning = TelemetryThinning(telemetry_every_s)
         # Appended on Zenoh's threads, taken on the writer's (deque's ends are atomic).
         self._queue: deque[Heard | zenoh.Sample] = deque()
         self._stop = threading.Event()
@@ -287,6 +293,9 @@ class Recorder:
         return spec
 
     def _write(self, heard: Heard) -> None:
+        spec = self._spec(heard.key)
+        if not self.thinning.keep(heard.key, spec.pattern, heard.time_ns):
+            return
         try:
             # Any JSON, but not too large or deep to decode safely (bus_codec's limits).
             value = bus_codec.decode_json(heard.payload, Any, heard.key)
@@ -299,7 +308,6 @@ class Recorder:
                 self._bad_keys.add(heard.key)
                 log.warning("not recorded: %s; further ones counted", error)
             return
-        spec = self._spec(heard.key)
         if not spec.schema_name and spec.topic not in self._unknown_keys:
             # A key of no known pattern is a channel of its own; a peer writing on ever new
             # keys (any UAV may, under its own tree) must not grow the recording's channel

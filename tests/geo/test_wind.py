@@ -8,7 +8,15 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fleet.geo.wind import CALM_AIR, Wind, ground_speed_along, leg_time, straight_leg_time
+from fleet.geo.wind import (
+    CALM_AIR,
+    Wind,
+    air_velocity,
+    airspeed,
+    ground_speed_along,
+    leg_time,
+    straight_leg_time,
+)
 from fleet.sim.aircraft import AircraftState
 from fleet.sim.aircraft import Wind as SimWind
 from fleet.sim.guidance import fly_to_point
@@ -91,3 +99,26 @@ def test_at_most_keeps_the_direction() -> None:
     assert Wind(3.0, 4.0).at_most(10.0) == Wind(3.0, 4.0)
     capped = Wind(6.0, 8.0).at_most(5.0)
     assert capped.east == pytest.approx(3.0) and capped.north == pytest.approx(4.0)
+
+
+def test_the_airspeed_is_the_ground_velocity_less_the_wind() -> None:
+    # Flying east at 32 m/s over the ground with a 12 m/s westerly: 20 m/s through the air.
+    assert air_velocity((32.0, 0.0), Wind(east=12.0)) == (20.0, 0.0)
+    assert airspeed((32.0, 0.0), Wind(east=12.0)) == pytest.approx(20.0)
+    # Crabbing north across it: the air velocity points upwind of the track.
+    assert air_velocity((0.0, 16.0), Wind(east=12.0)) == (-12.0, 16.0)
+    assert airspeed((0.0, 16.0), Wind(east=12.0)) == pytest.approx(20.0)
+    assert airspeed((3.0, -4.0), CALM_AIR) == pytest.approx(5.0)
+
+
+@given(
+    st.floats(-40.0, 40.0), st.floats(-40.0, 40.0), st.floats(-20.0, 20.0), st.floats(-20.0, 20.0)
+)
+def test_flying_the_air_velocity_in_the_wind_gives_the_ground_velocity(
+    east: float, north: float, wind_east: float, wind_north: float
+) -> None:
+    wind = Wind(wind_east, wind_north)
+    air = air_velocity((east, north), wind)
+    assert air[0] + wind.east == pytest.approx(east, abs=1e-9)
+    assert air[1] + wind.north == pytest.approx(north, abs=1e-9)
+    assert airspeed((east, north), wind) == pytest.approx(math.hypot(*air))

@@ -10,11 +10,13 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
+from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.mercator import MercatorProjection
-from fleet.geo.visibility import ZoneMap, legs_time
+from fleet.geo.visibility import ZoneMap, legs_time, zone_clearance, zone_map
 from fleet.geo.wind import Wind
 from fleet.geo.zones import (
     MAX_ZONE_VERTICES,
+    ZONE_MARGIN_M,
     ZoneError,
     convex_hull,
     inflate,
@@ -122,6 +124,27 @@ def test_ring_to_local_puts_the_reference_at_the_origin() -> None:
     ring = ring_to_local(projection, [(42.0, -71.0), (42.01, -71.0), (42.0, -70.99)])
     assert ring[0] == pytest.approx((0.0, 0.0), abs=1e-6)
     assert ring[1][1] == pytest.approx(1111.0, rel=0.01)
+
+
+def test_the_clearance_is_the_turn_radius_at_the_airspeed_held_plus_the_margin() -> None:
+    limits = AircraftLimits()
+    assert zone_clearance(limits, 22.0) == pytest.approx(limits.turn_radius(22.0) + ZONE_MARGIN_M)
+    # Faster or slower than the aircraft can fly: the turn radius of the envelope's edge.
+    top = limits.turn_radius(limits.max_airspeed) + ZONE_MARGIN_M
+    assert zone_clearance(limits, 45.0) == pytest.approx(top)
+    bottom = limits.turn_radius(limits.min_airspeed) + ZONE_MARGIN_M
+    assert zone_clearance(limits, 0.0) == pytest.approx(bottom)
+    slow, cruise, fast = (zone_clearance(limits, v) for v in (16.0, 22.0, 28.0))
+    assert slow < cruise < fast
+
+
+def test_the_zone_map_inflates_every_zone_by_the_clearance() -> None:
+    limits = AircraftLimits()
+    zones = (SQUARE, octagon(2000.0, 0.0, 300.0))
+    inflated = zone_map(zones, limits, 25.0)
+    clearance = zone_clearance(limits, 25.0)
+    assert inflated.zones == tuple(inflate(zone, clearance) for zone in zones)
+    assert inflated.zones == ZoneMap(zones, clearance).zones
 
 
 def test_a_routes_time_is_its_legs_times_in_the_wind() -> None:

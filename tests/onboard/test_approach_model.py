@@ -1,4 +1,4 @@
-"""Tests of the approach-time model (onboard.approach_model)."""
+"""Tests of the approach-time model (onboard.planner.approach_model)."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from fleet.geo.wind import Wind
 from fleet.sim.aircraft import AircraftState
 from fleet.sim.aircraft import Wind as SimWind
 from fleet.sim.guidance import fly_to_point
-from onboard.approach_model import (
+from onboard.planner.approach_model import (
     PLANNABLE_WIND_SHARE,
     ApproachTimeModel,
     LpBackend,
@@ -222,7 +222,7 @@ def test_the_lp_on_highs_gives_the_pyomo_models_times() -> None:
 @pytest.mark.e2e
 def test_the_onboard_model_loads_neither_pyomo_nor_numpy() -> None:
     probe = (
-        "import sys; from onboard.approach_model import ApproachTimeModel;"
+        "import sys; from onboard.planner.approach_model import ApproachTimeModel;"
         "ApproachTimeModel().solve((0.0, 0.0), (30.0, 0.0), [(2000.0, 500.0)]);"
         "print(sorted(m.split('.')[0] for m in sys.modules"
         " if m.split('.')[0] in ('pyomo', 'numpy', 'highspy')))"
@@ -237,7 +237,7 @@ def test_the_onboard_model_loads_neither_pyomo_nor_numpy() -> None:
 def test_highspy_imported_after_the_core_reuses_it() -> None:
     """Pyomo's `import highspy` after the onboard loaded the core alone (as in these tests)."""
     probe = (
-        "from onboard.approach_highs import load_highs_core; core = load_highs_core();"
+        "from onboard.planner.approach_highs import load_highs_core; core = load_highs_core();"
         "import sys, highspy; assert sys.modules['highspy._core'] is core;"
         "print(highspy.Highs().version())"
     )

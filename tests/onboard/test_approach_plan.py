@@ -18,7 +18,7 @@ from onboard.approach_plan import plan_status
 from onboard.core import (
     OnboardCore,
 )
-from onboard.planner_worker import PlanRequest, PlanResult
+from onboard.planner.planner_worker import PlanRequest, PlanResult
 from tests.onboard.core_harness import (
     TARGETS,
     TWO_TARGETS,

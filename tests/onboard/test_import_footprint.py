@@ -1,5 +1,5 @@
 """What an idle onboard process must not load: the solver stack until a plan is asked
-for (onboard.planner_worker builds it lazily), and hashlib or OpenSSL ever (the
+for (onboard.planner.planner_worker builds it lazily), and hashlib or OpenSSL ever (the
 consensus digest is fleet.consensus.digest's own SHA-256)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Tests of the background planner (onboard.planner_worker): the RunMILP contract."""
+"""Tests of the background planner (onboard.planner.planner_worker): the RunMILP contract."""
 
 from __future__ import annotations
 
@@ -11,12 +11,12 @@ import pytest
 
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.wind import CALM_AIR, Wind
-from onboard.approach_model import (
+from onboard.planner.approach_model import (
     ApproachTimeModel,
     TargetSolution,
     TargetStatus,
 )
-from onboard.planner_worker import (
+from onboard.planner.planner_worker import (
     PLANNABLE_WIND_SHARE,
     PlannerWorker,
     PlanRequest,
@@ -283,7 +283,7 @@ def test_prepare_builds_the_model_at_cruise_speed_before_the_first_run(
             time.sleep(0.01)
         assert worker.model_speed() == 22.0
         worker.prepare(28.0)  # built already: the next run adopts a new speed, not this
-        caplog.set_level("INFO", logger="onboard.planner_worker")
+        caplog.set_level("INFO", logger="onboard.planner.planner_worker")
         run = PlanRequest((0.0, 0.0), (22.0, 0.0), ((2200.0, 0.0),), 30.0, cruise_speed=22.0)
         assert worker.run(run)
         result = wait_result(worker)
@@ -323,7 +323,7 @@ def test_real_model_answers_pass_the_dubins_check_and_are_counted(
 
 
 def test_fallback_and_model_plan_in_the_same_wind() -> None:
-    from onboard import approach_model
+    from onboard.planner import approach_model
 
     assert PLANNABLE_WIND_SHARE == approach_model.PLANNABLE_WIND_SHARE
     limits = AircraftLimits(max_airspeed=22.0)

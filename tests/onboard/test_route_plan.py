@@ -1,4 +1,4 @@
-"""Approach times and flights around no-fly zones (onboard.route_plan, onboard.route_flight,
+"""Approach times and flights around no-fly zones (onboard.planner.route_plan, onboard.route_flight,
 onboard.zone_watch): the real planner and model, and the core with a recording output."""
 
 from __future__ import annotations
@@ -9,16 +9,18 @@ from collections.abc import Iterator
 import pytest
 
 from fleet.geo.aircraft import AircraftLimits
-from fleet.geo.visibility import legs_time
+from fleet.geo.mercator import MercatorProjection
+from fleet.geo.visibility import legs_time, zone_map
 from fleet.geo.wind import Wind
 from fleet.mission.messages import MissionTargets, NoFlyZone, StatusText, Target, UavResult
 from fleet.mission.status_kind import StatusKind
+from fleet.piccolo.telemetry import GpsBlock
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from fleet.transport.bus_codec import DROPPED, DropReason
-from onboard.planner_worker import PlannerWorker, PlanRequest, PlanResult
-from onboard.route_flight import ROUTE_WAYPOINTS, route_writes
-from onboard.route_plan import route_targets
+from onboard.planner.planner_worker import PlannerWorker, PlanRequest, PlanResult
+from onboard.planner.route_plan import route_targets
+from onboard.route_flight import ROUTE_WAYPOINTS, route_turns, route_writes
 from onboard.target_flight import TARGET_WAYPOINT
 from tests.onboard.core_harness import TARGETS, make_core, telemetry_at
 from tests.onboard.test_planner_worker import wait_result
@@ -78,6 +80,29 @@ def test_times_are_those_of_routes_around_the_zones(worker: PlannerWorker) -> No
     # In the pen: no route, no time.
     assert around.routes[2] is None and around.times[2] == math.inf
     assert around.request.targets == (OPEN_AIR, BEHIND_WALL, PENNED)
+
+
+def test_the_route_flown_is_inflated_exactly_as_the_route_timed_in_a_wind() -> None:
+    # 32 m/s over the ground in a 12 m/s tailwind: 20 m/s through the air, the speed
+    # whose turn radius both the time and the flight inflate the zones by.
+    wind = Wind(east=12.0)
+    projection = MercatorProjection(42.0, -71.0)
+    gps = GpsBlock(lat=42.0, lon=-71.0, alt=100.0, vel_north=0.0, vel_east=32.0, vel_down=0.0)
+    target = Target(*projection.to_latlon(*BEHIND_WALL), 100.0)
+    zone = NoFlyZone(ring=tuple(projection.to_latlon(x, y) for x, y in WALL))
+    wall = tuple(projection.to_xy(lat, lon) for lat, lon in zone.ring)
+    timed = route_targets((0.0, 0.0), (32.0, 0.0), (BEHIND_WALL,), (wall,), LIMITS, wind).routes[0]
+    assert timed is not None and timed.detours
+    flown = route_turns(gps, target, (zone,), wind)
+    assert flown is not None
+    turns = [projection.to_xy(lat, lon) for lat, lon in flown]
+    assert len(turns) == len(timed.points) - 1
+    for turn, point in zip(turns, timed.points, strict=False):
+        assert turn == pytest.approx(point, abs=0.01)
+    # Inflated at the ground speed instead, the turns would be elsewhere.
+    by_ground = zone_map((wall,), LIMITS, 32.0).route((0.0, 0.0), BEHIND_WALL)
+    assert by_ground is not None
+    assert max(math.dist(a, b) for a, b in zip(turns, by_ground.points, strict=False)) > 20.0
 
 
 def test_a_route_is_written_target_first_then_each_turn_then_tracked() -> None:

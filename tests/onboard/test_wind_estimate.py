@@ -1,4 +1,4 @@
-"""Tests of the smoothed wind estimate (onboard.wind_estimate)."""
+"""Tests of the smoothed wind estimate (onboard.planner.wind_estimate)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,9 @@ import pytest
 
 from fleet.geo.wind import CALM_AIR, Wind
 from fleet.piccolo.telemetry import SensorBlock, Telemetry
-from onboard.wind_estimate import WindEstimate
+from onboard.planner.wind_estimate import WindEstimate
+from tests.onboard.core_harness import make_core
+from tests.support.link_samples import sample_telemetry
 
 
 def telemetry(wind_south: float, wind_west: float) -> Telemetry:
@@ -50,3 +52,15 @@ def test_corrupt_estimates_are_dropped_and_counted() -> None:
     assert (estimate.samples, estimate.dropped) == (2, 2)
     estimate.on_telemetry(Telemetry(system_time_ms=0), 3.0)  # no sensor block: nothing
     assert estimate.samples == 2
+
+
+def test_the_module_plans_with_the_smoothed_wind_not_the_latest_report() -> None:
+    core, _ = make_core()  # its first telemetry at 0 s
+    reports = [telemetry(0.0, -10.0), telemetry(0.0, -20.0)]  # 10 m/s east, then a gust
+    expected = WindEstimate()
+    expected.on_telemetry(sample_telemetry(), 0.0)
+    for now, report in zip((10.0, 11.0), reports, strict=True):
+        core.on_telemetry(report, now)
+        expected.on_telemetry(report, now)
+    assert core.wind == expected.value
+    assert core.wind.east < 20.0  # the 1 s gust weighed by its share, not taken whole

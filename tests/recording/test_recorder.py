@@ -78,10 +78,17 @@ def test_in_the_router_samples_wait_in_zenoh_and_map_fixes_come_once_a_second(
     tmp_path: Path,
 ) -> None:
     """`fleet up`'s recorder: on the router's own session, Zenoh queues the samples (no
-    Python on the routing threads); telemetry at 20 Hz gives one map fix a second."""
+    Python on the routing threads); telemetry at 20 Hz gives one map fix a second (every
+    telemetry recorded here: `telemetry_every_s=0`)."""
     port = free_port()
     with router_session(port) as router, client_session(port) as fleet:
-        recorder = Recorder(router, McapSink(tmp_path / "r.mcap"), state_every_s=0, in_router=True)
+        recorder = Recorder(
+            router,
+            McapSink(tmp_path / "r.mcap"),
+            state_every_s=0,
+            in_router=True,
+            telemetry_every_s=0,
+        )
         recorder.start()
         try:
             telemetry = Telemetry(0, gps=GpsBlock(35.7, -120.7, 600.0, 0.0, 22.0, 0.0))

@@ -51,20 +51,38 @@ def test_a_finished_file_has_schemas_channels_and_a_summary(tmp_path: Path) -> N
 
 
 def test_an_unfinished_file_reads_back_up_to_its_last_flush(tmp_path: Path) -> None:
-    # What a SIGKILLed recorder leaves: records flushed, no summary, no footer.
+    # What a SIGKILLed recorder leaves: chunks flushed, no summary, no footer.
     clock = FakeClock()
     sink = McapSink(tmp_path / "live.mcap", flush_every_s=0.5, clock=clock)
-    _write(sink, 100, clock, step=0.01)  # 1 s of messages: flushed at least once
+    _write(sink, 50, clock, step=0.01)
+    sink.flush()
+    first_chunk_ends = (tmp_path / "live.mcap").stat().st_size
+    _write(sink, 50, clock, step=0.01)
     sink.flush()
     shutil.copy(tmp_path / "live.mcap", tmp_path / "killed.mcap")
     recording = read_recording(tmp_path / "killed.mcap")
     assert len(recording.messages) == 100
     assert "killed.mcap" in next(iter(recording.truncated))
-    # Cut mid-record, as a kill during a write would.
+    # Cut inside the second chunk, as a kill during its write would: the first reads back.
     data = (tmp_path / "killed.mcap").read_bytes()
-    (tmp_path / "cut.mcap").write_bytes(data[:-7])
-    assert len(read_recording(tmp_path / "cut.mcap").messages) == 99
+    (tmp_path / "cut.mcap").write_bytes(data[: first_chunk_ends + 40])
+    assert len(read_recording(tmp_path / "cut.mcap").messages) == 50
     sink.close()
+
+
+def test_chunks_are_lz4_compressed_and_read_by_mcap_s_own_reader(tmp_path: Path) -> None:
+    sink = McapSink(tmp_path / "c.mcap")
+    _write(sink, 1000)
+    sink.close()
+    size = (tmp_path / "c.mcap").stat().st_size
+    # The same message a thousand times (each also has 16 bytes of index, uncompressed).
+    assert size < 1000 * len(TELEMETRY) / 2, size
+    with open(tmp_path / "c.mcap", "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert summary is not None
+        assert {index.compression for index in summary.chunk_indexes} == {"lz4"}
+        assert sum(1 for _ in reader.iter_messages()) == 1000
 
 
 def test_recover_rewrites_an_unfinished_file_into_a_finished_one(tmp_path: Path) -> None:

@@ -25,7 +25,7 @@ from fleet.sim.scenario import resolve_scenario
 from fleet.transport.bus import Bus
 from fleet.transport.bus_factory import MEMORY_SCHEME, forget_memory_network, memory_network
 from fleet.transport.memory import MemoryNetwork, memory_link_pair
-from onboard.approach_highs import load_highs_core
+from onboard.planner.approach_highs import load_highs_core
 from onboard.process import OnboardProcess, OnboardSettings
 from tests.support.waiting import wait_until
 

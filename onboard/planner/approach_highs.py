@@ -2,7 +2,7 @@
 
 Why not through Pyomo
 ---------------------
-The model was written in Pyomo (`onboard.approach_pyomo.build_point_mass`) and handed to
+The model was written in Pyomo (`onboard.planner.approach_pyomo.build_point_mass`) and handed to
 HiGHS through Pyomo's persistent interface. Pyomo and numpy, which highspy's Python
 layer imports, hold ~37 MB resident in every onboard process (issue 14: fifty onboards
 on one box) and nothing of them is used after the model is translated: the LP scan only
@@ -16,7 +16,7 @@ scan on the Pyomo model, for the tests, the bench and its MILP reference.
 
 HiGHS runs with one thread and no output. Pyomo's public persistent `solve()` added
 ~2-4 ms per LP and redirected the process-wide stdout/stderr descriptors while HiGHS ran;
-neither path uses it (see `onboard.approach_pyomo`).
+neither path uses it (see `onboard.planner.approach_pyomo`).
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from types import ModuleType
 from typing import Any
 
 from fleet.geo.aircraft import AircraftLimits
-from onboard.approach_lp import (
+from onboard.planner.approach_lp import (
     ACCEL_INRADIUS,
     NORMALS,
     SPEED_INRADIUS,
@@ -141,7 +141,7 @@ def point_mass_lp(limits: AircraftLimits, steps: Sequence[float]) -> PointMassLp
     ey (the target, drifted by the wind to node k's time, minus the tested node's
     position), the target tx, ty and the wind wx, wy (fixed through their bounds, calm
     here) and the objective `gap` >= 0, the 16-gon norm of (ex, ey). Node 0 is at the
-    origin flying along +x at max speed. `onboard.approach_pyomo.build_point_mass` is
+    origin flying along +x at max speed. `onboard.planner.approach_pyomo.build_point_mass` is
     the same model in Pyomo; a coefficient written as Pyomo computes it (0.5 * dt * dt).
     """
     n = len(steps)

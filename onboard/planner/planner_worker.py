@@ -24,7 +24,7 @@ right after construction (~0.1 s), or, with `build_at_start=False`, when
 calls it on the first GPS telemetry), so the first mission does not rebuild it. HiGHS
 is loaded there, in the worker thread, not when this module is: an onboard process
 comes up and joins the fleet without it. The model is the LP straight on HiGHS
-(`onboard.approach_highs.HighsLp`): neither Pyomo nor numpy is ever loaded in an
+(`onboard.planner.approach_highs.HighsLp`): neither Pyomo nor numpy is ever loaded in an
 onboard process.
 
 Every run ends with a time for every target. The model stops starting LPs once the
@@ -50,12 +50,12 @@ from typing import TYPE_CHECKING
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.dubins import dubins_time_in_wind
 from fleet.geo.visibility import Route
-from fleet.geo.wind import CALM_AIR, Wind
+from fleet.geo.wind import CALM_AIR, Wind, air_velocity, airspeed
 from onboard.native_thread import name_native_thread
-from onboard.route_plan import route_targets
+from onboard.planner.route_plan import route_targets
 
 if TYPE_CHECKING:
-    from onboard.approach_model import ApproachTimeModel, TargetSolution
+    from onboard.planner.approach_model import ApproachTimeModel, TargetSolution
 
 __all__ = ["PlanRequest", "PlanResult", "PlannerWorker", "fallback_time"]
 
@@ -73,7 +73,7 @@ SANITY_MIN_TURN_RADII = 3.0
 #: A cruise speed this close to the model's top speed reuses the model.
 CRUISE_SPEED_TOLERANCE = 0.5
 #: The largest wind, as a share of the airspeed, planned with: the model's own
-#: (`onboard.approach_model.PLANNABLE_WIND_SHARE`; a test checks they agree).
+#: (`onboard.planner.approach_model.PLANNABLE_WIND_SHARE`; a test checks they agree).
 PLANNABLE_WIND_SHARE = 0.8
 
 
@@ -89,7 +89,7 @@ class PlanRequest:
     #: model's top speed is this one. None: the limits' `max_airspeed`.
     cruise_speed: float | None = None
     #: No-fly zones (rings in the same local metres) every route keeps out of
-    #: (onboard.route_plan); none: every time is the approach model's to the target.
+    #: (onboard.planner.route_plan); none: every time is the approach model's to the target.
     zones: tuple[tuple[tuple[float, float], ...], ...] = ()
     #: The wind to plan in (the air mass's velocity, m/s); `velocity` is over the ground.
     wind: Wind = CALM_AIR
@@ -149,22 +149,22 @@ def fallback_time(
     does, and so is the wind (`PLANNABLE_WIND_SHARE` of the speed); with no velocity at
     all the heading is taken as east.
     """
-    air = (velocity[0] - wind.east, velocity[1] - wind.north)
-    reported = math.hypot(air[0], air[1])
+    air = air_velocity(velocity, wind)
+    reported = math.hypot(*air)
     speed = limits.clamp_airspeed(reported)
     if reported > 1e-9:
         flown = (air[0] * speed / reported, air[1] * speed / reported)
     else:
         flown = (speed, 0.0)
     radius = limits.turn_radius(speed)
-    # The model's own share (onboard.approach_model.PLANNABLE_WIND_SHARE), not imported:
+    # The model's own share (onboard.planner.approach_model.PLANNABLE_WIND_SHARE), not imported:
     # that module loads HiGHS.
     planned = wind.at_most(PLANNABLE_WIND_SHARE * speed)
     return dubins_time_in_wind(position, flown, target, radius, planned)
 
 
 def _default_model(limits: AircraftLimits, horizon_s: float) -> ApproachTimeModel:
-    from onboard.approach_model import ApproachTimeModel  # HiGHS: here only
+    from onboard.planner.approach_model import ApproachTimeModel  # HiGHS: here only
 
     return ApproachTimeModel(limits, horizon_s)
 
@@ -189,8 +189,10 @@ class PlannerWorker:
         that sleeps until something happens can wake up and take it.
         """
         self._limits = limits
+        #: The airframe's limits, whatever the cruise speed: routes around no-fly zones are
+        #: inflated on them, as the route flown is (onboard.route_flight).
+        self._airframe = limits
         self._notify = notify
-        self._ceiling = limits.max_airspeed  # the airframe's, whatever the cruise speed
         self._custom_factory = model_factory is not None
         self._factory: Callable[[], ApproachTimeModel] = model_factory or (
             lambda: _default_model(self._limits, horizon_s)
@@ -330,7 +332,7 @@ class PlannerWorker:
         """Rebuild the model (about 50 ms) when the aircraft's speed has moved on."""
         if cruise_speed is None or self._custom_factory:
             return
-        speed = min(max(cruise_speed, self._limits.min_airspeed), self._ceiling)
+        speed = self._airframe.clamp_airspeed(cruise_speed)
         if abs(speed - self._limits.max_airspeed) > CRUISE_SPEED_TOLERANCE:
             logger.info("approach model rebuilt for a cruise speed of %.1f m/s", speed)
             self._limits = replace(self._limits, max_airspeed=speed)
@@ -345,7 +347,7 @@ class PlannerWorker:
             request.velocity,
             request.targets,
             request.zones,
-            self._limits,
+            self._airframe,
             request.wind,
         )
         result = self._plan_aims(replace(request, targets=routed.aims), started)
@@ -414,8 +416,7 @@ class PlannerWorker:
     def _sanity_check(self, request: PlanRequest, solutions: Sequence[TargetSolution]) -> int:
         """Count (and log) model answers faster than the Dubins time by more than the
         model's stated error, where the check holds (beyond a few turn radii)."""
-        air = (request.velocity[0] - request.wind.east, request.velocity[1] - request.wind.north)
-        speed = self._limits.clamp_airspeed(math.hypot(*air))
+        speed = self._limits.clamp_airspeed(airspeed(request.velocity, request.wind))
         near = SANITY_MIN_TURN_RADII * self._limits.turn_radius(speed)
         defects = []
         for i, (sol, target) in enumerate(zip(solutions, request.targets, strict=False)):

@@ -1,11 +1,11 @@
 """The approach-time LP as a Pyomo model: the reference the onboard's LP is checked against.
 
-`build_point_mass` states the model of `onboard.approach_model` in Pyomo (the module
+`build_point_mass` states the model of `onboard.planner.approach_model` in Pyomo (the module
 docstring there explains it); `PyomoLp` hands it to HiGHS through Pyomo's persistent
 interface and changes it by variable bounds only. `ApproachTimeModel(...,
 backend=LpBackend.PYOMO)` runs the LP scan on it. The onboard process does not: it builds
 the very same LP (same rows, columns, order and coefficients) straight on HiGHS
-(`onboard.approach_highs.HighsLp`), without Pyomo or numpy in memory; the tests and
+(`onboard.planner.approach_highs.HighsLp`), without Pyomo or numpy in memory; the tests and
 `bench/bench_approach.py` check that both give the same times, and the bench's MILP
 reference is built from this model.
 
@@ -30,7 +30,7 @@ from pyomo.contrib.solver.common.factory import SolverFactory
 from pyomo.contrib.solver.common.results import TerminationCondition
 
 from fleet.geo.aircraft import AircraftLimits
-from onboard.approach_lp import (
+from onboard.planner.approach_lp import (
     ACCEL_INRADIUS,
     NORMALS,
     SIDES,
@@ -52,7 +52,7 @@ def build_point_mass(limits: AircraftLimits, steps: Sequence[float]) -> pyo.Conc
     origin flying along +x at max speed (change vx[0]'s bounds for another speed, and
     see `along_velocity_bounds`). The selection part (slacks sx, sy, gap vector ex, ey,
     target tx, ty, wind wx, wy and the objective `gap`) serves the LP scan; the bench's MILP
-    reference reuses the rest. `onboard.approach_highs.point_mass_lp` is the same LP,
+    reference reuses the rest. `onboard.planner.approach_highs.point_mass_lp` is the same LP,
     row for row.
     """
     n = len(steps)
@@ -102,7 +102,7 @@ def build_point_mass(limits: AircraftLimits, steps: Sequence[float]) -> pyo.Conc
         nx, ny = NORMALS[f]
         return nx * b.ax[k] + ny * b.ay[k] <= a_cap
 
-    # The target drifts through the air at minus the wind (`onboard.approach_lp`);
+    # The target drifts through the air at minus the wind (`onboard.planner.approach_lp`);
     # node 0 has no drift term, as in the arrays.
     def select_x(b: Any, k: int) -> Any:
         if k == 0:

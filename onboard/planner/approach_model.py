@@ -81,7 +81,7 @@ solution carries its Dubins time, the planner's sanity check of the model.
 
 Wind
 ----
-The model plans in the air mass (`onboard.approach_lp`): the air velocity is the ground
+The model plans in the air mass (`onboard.planner.approach_lp`): the air velocity is the ground
 velocity minus the wind; the turn bound and both 16-gons apply to it; the target drifts
 through the air at minus the wind. The bound before any LP is the exact first time the
 drifting 16-gon covers the target (`approach_lp.reach_time`); a refuted node's gap D
@@ -98,9 +98,9 @@ build the model with that as max_airspeed.
 
 Solvers
 -------
-The LP runs straight on HiGHS (`onboard.approach_highs`, where the reasons are), and as
-a Pyomo model for reference (`onboard.approach_pyomo`); both share the LP's shape
-(`onboard.approach_lp`).
+The LP runs straight on HiGHS (`onboard.planner.approach_highs`, where the reasons are), and as
+a Pyomo model for reference (`onboard.planner.approach_pyomo`); both share the LP's shape
+(`onboard.planner.approach_lp`).
 """
 
 from __future__ import annotations
@@ -117,9 +117,9 @@ from dataclasses import dataclass
 
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.dubins import dubins_time_in_wind
-from fleet.geo.wind import CALM_AIR, Wind, ground_speed_along
-from onboard.approach_highs import HighsLp
-from onboard.approach_lp import (
+from fleet.geo.wind import CALM_AIR, Wind, air_velocity, ground_speed_along
+from onboard.planner.approach_highs import HighsLp
+from onboard.planner.approach_lp import (
     SPEED_INRADIUS,
     ApproachModelError,
     BoundChange,
@@ -203,12 +203,12 @@ class LpBackend(enum.Enum):
     """What runs the LP scan's linear programs."""
 
     HIGHS = "highs"  # `HighsLp`: the arrays straight on HiGHS (the onboard's)
-    PYOMO = "pyomo"  # `onboard.approach_pyomo.PyomoLp`: the Pyomo model (the reference)
+    PYOMO = "pyomo"  # `onboard.planner.approach_pyomo.PyomoLp`: the Pyomo model (the reference)
 
 
 def _make_lp(backend: LpBackend, limits: AircraftLimits, steps: Sequence[float]) -> LinearProgram:
     if backend is LpBackend.PYOMO:
-        from onboard.approach_pyomo import PyomoLp  # Pyomo: the reference only
+        from onboard.planner.approach_pyomo import PyomoLp  # Pyomo: the reference only
 
         return PyomoLp(limits, steps)
     return HighsLp(limits, steps)
@@ -398,7 +398,7 @@ class ApproachTimeModel:
         if not all(math.isfinite(v) for v in values):
             raise ValueError("position, velocity, wind and targets must be finite")
         # The aircraft's velocity through the air: what it turns and holds its speed in.
-        vx, vy = velocity[0] - wind.east, velocity[1] - wind.north
+        vx, vy = air_velocity(velocity, wind)
         reported = math.hypot(vx, vy)
         # Unit heading; east when the aircraft reports no velocity at all.
         hx, hy = (vx / reported, vy / reported) if reported > 1e-9 else (1.0, 0.0)

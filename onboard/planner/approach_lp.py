@@ -1,6 +1,6 @@
-"""The point-mass LP's shape, shared by the LP the onboard runs (`onboard.approach_highs`)
-and its Pyomo reference (`onboard.approach_pyomo`): the 16-gons, how a column is named
-and changed, and what the LP scan (`onboard.approach_model`) asks of either; and the
+"""The point-mass LP's shape, shared by the LP the onboard runs (`onboard.planner.approach_highs`)
+and its Pyomo reference (`onboard.planner.approach_pyomo`): the 16-gons, how a column is named
+and changed, and what the LP scan (`onboard.planner.approach_model`) asks of either; and the
 16-gon gauge the scan proves its bounds with.
 
 Wind: the LP plans in the air mass. Its positions are the aircraft's in the air, and the

@@ -1,15 +1,15 @@
 """Approach times around no-fly zones: the route fixes the geometry, the model the timing.
 
 With no-fly zones, a target's time is the time of a route that stays out of every zone
-inflated by the turn radius at the aircraft's speed plus `ZONE_MARGIN_M`
-(fleet.geo.visibility.ZoneMap): the approach from the aircraft's position and heading
-to the route's first point is the approach model's (the LP, or its Dubins fallback,
-exactly as for a target in open air), and the legs after it are straight legs at that
-speed (`leg_time`). Where the straight line is clear, the route is the target alone
-and the time is the model's, as without zones. A target no route reaches, or whose
-route turns more often than the autopilot has waypoints for it (`MAX_ROUTE_TURNS`),
-gets an infinite time: published as None, so the team leaves it `unserved` unless
-another UAV reaches it.
+inflated by the turn radius at the aircraft's airspeed plus `ZONE_MARGIN_M`
+(fleet.geo.visibility.zone_map, the inflation the route is flown on too): the approach
+from the aircraft's position and heading to the route's first point is the approach
+model's (the LP, or its Dubins fallback, exactly as for a target in open air), and the
+legs after it are straight legs at that speed (`leg_time`). Where the straight line is
+clear, the route is the target alone and the time is the model's, as without zones. A
+target no route reaches, or whose route turns more often than the autopilot has
+waypoints for it (`MAX_ROUTE_TURNS`), gets an infinite time: published as None, so the
+team leaves it `unserved` unless another UAV reaches it.
 """
 
 from __future__ import annotations
@@ -19,21 +19,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from fleet.geo.aircraft import AircraftLimits
-from fleet.geo.visibility import Route, ZoneMap, legs_time
-from fleet.geo.wind import CALM_AIR, Wind
-from fleet.geo.zones import ZONE_MARGIN_M as ZONE_MARGIN_M  # where legs.py reads it too
+from fleet.geo.visibility import Route, legs_time, zone_map
+from fleet.geo.wind import CALM_AIR, Wind, airspeed
 from fleet.geo.zones import Point, Ring
 
-__all__ = ["MAX_ROUTE_TURNS", "ZONE_MARGIN_M", "RoutedTargets", "route_targets", "zone_map"]
+__all__ = ["MAX_ROUTE_TURNS", "RoutedTargets", "route_targets"]
 
 #: Turns a route may have: one autopilot waypoint each (onboard.route_flight).
 MAX_ROUTE_TURNS = 9
-
-
-def zone_map(zones: Sequence[Ring], limits: AircraftLimits, speed: float) -> ZoneMap:
-    """The zones inflated for an aircraft flying at `speed` (m/s)."""
-    airspeed = limits.clamp_airspeed(speed)
-    return ZoneMap(zones, limits.turn_radius(airspeed) + ZONE_MARGIN_M)
 
 
 @dataclass(frozen=True)
@@ -61,7 +54,7 @@ def route_targets(
     """Routes from `position` to every target around `zones` (local metres); the legs
     after the first point timed in `wind` (still air by default). `velocity` is over the
     ground: the airspeed held is what the wind does not account for."""
-    speed = limits.clamp_airspeed(math.hypot(velocity[0] - wind.east, velocity[1] - wind.north))
+    speed = limits.clamp_airspeed(airspeed(velocity, wind))
     zone_routes = zone_map(zones, limits, speed)
     aims: list[Point] = []
     rest: list[float] = []
