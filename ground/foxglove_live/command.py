@@ -3,7 +3,8 @@
 A client of the fleet, as `ground-cli` is: it connects to the fleet's router with the
 usual Zenoh flags and serves, on 127.0.0.1:8765 by default, the topics `fleet record`
 writes (docs/foxglove.md). Prints `fleet foxglove: serving ws://HOST:PORT` once a client
-can connect, and serves until Ctrl-C/SIGTERM or `--duration`.
+can connect, and serves until Ctrl-C/SIGTERM or `--duration`. A handshake naming another
+Host, or from a web page of another Origin, is refused (`gate`).
 
 Exit status: 0 stopped; 1 cannot listen; 2 usage error or no Zenoh router.
 """
@@ -17,7 +18,6 @@ from dataclasses import dataclass
 from typing import TextIO
 
 import foxglove
-from foxglove.websocket import WebSocketServer
 
 from fleet.transport.bus import Bus
 from fleet.transport.bus_factory import unwrap
@@ -31,6 +31,7 @@ from fleet.transport.cli import (
 )
 from fleet.transport.command import BusOptions, Command, OptionsError, set_handler
 from ground.foxglove_live.bridge import DEFAULT_STATE_EVERY_S, FoxgloveBridge
+from ground.foxglove_live.gate import DEFAULT_ORIGINS, Gate, Rules, upstream_identity
 from ground.gui.cli import host_port
 
 PROG = "fleet foxglove"
@@ -58,6 +59,22 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "--allow-remote",
         action="store_true",
         help="allow a non-loopback --serve (the protocol has no access control)",
+    )
+    parser.add_argument(
+        "--allow-origin",
+        action="append",
+        default=[],
+        metavar="ORIGIN",
+        help="a web page origin that may connect, e.g. https://studio.example (repeatable; "
+        f"allowed always: {', '.join(DEFAULT_ORIGINS)}, and clients that send none)",
+    )
+    parser.add_argument(
+        "--allow-host",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="a host name clients may reach the server by besides its address and "
+        "localhost (repeatable)",
     )
     parser.add_argument(
         "--state-every",
@@ -91,6 +108,10 @@ def _is_loopback(host: str) -> bool:
 class FoxgloveOptions(BusOptions):
     #: Where Foxglove connects (HOST, PORT; port 0: any free port).
     serve: tuple[str, int]
+    #: Host names clients may reach the server by besides its address and localhost.
+    allow_host: tuple[str, ...] = ()
+    #: Web page origins that may connect besides DEFAULT_ORIGINS.
+    allow_origin: tuple[str, ...] = ()
     #: Query every UAV's state this often (0: never).
     state_every: float = DEFAULT_STATE_EVERY_S
     #: Stop after this long (None: at Ctrl-C/SIGTERM).
@@ -107,6 +128,8 @@ def foxglove_options(args: argparse.Namespace) -> FoxgloveOptions:
         )
     return FoxgloveOptions(
         serve=args.serve,
+        allow_host=tuple(args.allow_host),
+        allow_origin=tuple(args.allow_origin),
         state_every=args.state_every,
         duration=args.duration,
         key_space=args.key_space,
@@ -116,23 +139,40 @@ def foxglove_options(args: argparse.Namespace) -> FoxgloveOptions:
 def run(bus: Bus, options: FoxgloveOptions, out: TextIO) -> int:
     host, port = options.serve
     context = foxglove.Context()
+    certificate, key = upstream_identity()
     try:
-        server = foxglove.start_server(name="uav-fleet", host=host, port=port, context=context)
-    except RuntimeError as error:  # the SDK's FoxgloveError: the port is taken, ...
-        return fail(PROG, f"cannot listen on {host}:{port}: {error}", ExitCode.FAILED)
+        # Behind the gate: on loopback, any port, reached through TLS by the gate alone.
+        server = foxglove.start_server(
+            name="uav-fleet",
+            host="127.0.0.1",
+            port=0,
+            context=context,
+            tls_cert=certificate,
+            tls_key=key,
+        )
+    except RuntimeError as error:  # the SDK's FoxgloveError
+        return fail(PROG, f"cannot start the Foxglove server: {error}", ExitCode.FAILED)
+    rules = Rules.make(host, list(options.allow_host), list(options.allow_origin))
+    gate = Gate(host, port, rules, server.port, certificate)
+    try:
+        gate.start()
+    except OSError as error:
+        server.stop()
+        why = os.strerror(error.errno) if error.errno else str(error)
+        return fail(PROG, f"cannot listen on {host}:{port}: {why}", ExitCode.FAILED)
     try:
         # Connected once the port is ours: a taken port is said without a router.
-        return _serve(options, unwrap(bus), context, server, out)
+        return _serve(options, unwrap(bus), context, gate, out)
     finally:
-        server.stop()
+        server.stop()  # first: its clients are told it closes, through the gate
+        gate.stop()
+        if gate.refused:
+            refused = f"refused {sum(gate.refused.values())} client(s): {dict(gate.refused)}"
+            print(f"{PROG}: {refused}", file=out)
 
 
 def _serve(
-    args: FoxgloveOptions,
-    bus: Bus,
-    context: foxglove.Context,
-    server: WebSocketServer,
-    out: TextIO,
+    args: FoxgloveOptions, bus: Bus, context: foxglove.Context, gate: Gate, out: TextIO
 ) -> int:
     stop = threading.Event()
     bridge = FoxgloveBridge(bus, context, args.key_space, state_every_s=args.state_every)
@@ -142,7 +182,7 @@ def _serve(
             host = args.serve[0]
             where = f"[{host}]" if ":" in host else host
             print(
-                f"{READY_LINE} ws://{where}:{server.port} for {args.key_space.prefix}/** "
+                f"{READY_LINE} ws://{where}:{gate.port} for {args.key_space.prefix}/** "
                 f"(pid {os.getpid()})",
                 file=out,
                 flush=True,
