@@ -8,15 +8,16 @@ link and does not answer.
 
 from __future__ import annotations
 
-import argparse
 import json
 import logging
+from dataclasses import dataclass
+from typing import TextIO
 
 from fleet.mission.messages import RouterState
 from fleet.transport import bus_codec
 from fleet.transport.bus import Bus
 from fleet.transport.cli import ExitCode
-from fleet.transport.zenoh_bus import client_bus
+from fleet.transport.command import BusOptions, Command, options_from
 
 log = logging.getLogger(__name__)
 
@@ -41,13 +42,21 @@ def format_state(state: RouterState) -> str:
     return f"router {state.zid}: refused links: {refused}"
 
 
-def cmd_routers(args: argparse.Namespace) -> int:
-    with client_bus(args.zenoh) as bus:
-        states = router_states(bus, args.key_space.router_state(), args.query_timeout)
-    if args.json:
-        print(json.dumps([{"zid": s.zid, "refused_links": s.refused_links} for s in states]))
+@dataclass(frozen=True, kw_only=True)
+class RoutersOptions(BusOptions):
+    json: bool = False
+
+
+def run_routers(bus: Bus, options: RoutersOptions, out: TextIO) -> int:
+    states = router_states(bus, options.key_space.router_state(), options.query_timeout)
+    if options.json:
+        refused = [{"zid": s.zid, "refused_links": s.refused_links} for s in states]
+        print(json.dumps(refused), file=out)
     elif states:
-        print("\n".join(format_state(state) for state in states))
+        print("\n".join(format_state(state) for state in states), file=out)
     else:
-        print("no secure router answered")
+        print("no secure router answered", file=out)
     return ExitCode.OK
+
+
+ROUTERS = Command(options_from(RoutersOptions), run_routers)

@@ -61,11 +61,13 @@ from fleet.mission.key_space import DEFAULT_SPACE, KeySpace, uav_id_of
 from fleet.piccolo.telemetry import Telemetry
 from fleet.recording.recorder import READY_LINE, Recorder
 from fleet.recording.writer import McapSink
-from fleet.transport import bus_codec
+from fleet.transport.bus import Bus, BusSample, Declaration, decode_sample
+from fleet.transport.bus_factory import open_bus
 from fleet.transport.cli import CRASH_DUMP_ENV, PREFIX_ENV
 from fleet.transport.router import Router
 from fleet.transport.secure import SecureProfile
-from fleet.transport.zenoh_config import DEFAULT_ROUTER, build_config, make_config
+from fleet.transport.zenoh_bus import BusConnectError
+from fleet.transport.zenoh_config import CONNECT_ENV, DEFAULT_ROUTER, build_config, make_config
 
 log = logging.getLogger(__name__)
 
@@ -134,6 +136,9 @@ class Fleet:
     uav_routers: dict[int, str] = field(default_factory=dict)
     #: What forks the onboards, while the fleet runs (`FleetSpec.fork_onboards`).
     fork_server: ForkServer | None = None
+    #: Opens the bus a start is watched through when no router runs in this process (a
+    #: mesh): the program's root hands its factory down.
+    open_bus: Callable[[zenoh.Config], Bus] = open_bus
     log_dir: Path = field(init=False)
     _sim_ready: threading.Event = field(default_factory=threading.Event)
     _files: list[IO[bytes]] = field(default_factory=list)
@@ -259,8 +264,11 @@ class Fleet:
 
     def _child_env(self) -> dict[str, str]:
         # Each child ends with this process, however it dies (fleet.lifeline), and a
-        # crash of one, even while it imports, leaves its traceback in its log.
-        env = {**os.environ, PREFIX_ENV: self.spec.key_space.prefix, CRASH_DUMP_ENV: "1"}
+        # crash of one, even while it imports, leaves its traceback in its log. Every
+        # child is told its endpoints: an operator's $FLEET_ZENOH_CONNECT (which overrides
+        # a config file's) must not redirect it.
+        inherited = {k: v for k, v in os.environ.items() if k != CONNECT_ENV}
+        env = {**inherited, PREFIX_ENV: self.spec.key_space.prefix, CRASH_DUMP_ENV: "1"}
         return lifeline.child_env(env)
 
     def _onboard_module(self) -> str | None:
@@ -481,16 +489,20 @@ class Fleet:
                 f"(logs in {self.log_dir})"
             )
 
-    def _observer(self) -> zenoh.Session:
-        """A session that sees the fleet's key space: the embedded router's, or a client's."""
+    def _observer(self) -> Bus:
+        """A bus that sees the fleet's key space: the embedded router's session (not
+        closed with it), or a client of the fleet's routers (`Fleet.open_bus`)."""
         if self.router is not None:
-            return self.router.session
+            return self.router.bus()
         config = make_config("client", self.fallback_connect)
         if self.secure is not None:
             config = build_config(
                 config_file=str(self.secure.ground_config()), connect=self.fallback_connect
             )
-        return zenoh.open(config)
+        try:
+            return self.open_bus(config)
+        except BusConnectError as error:
+            raise LaunchError(f"cannot watch the fleet start: {error}") from None
 
     def _watch_start(self) -> None:
         """Watch every UAV's token and telemetry, from before the first onboard starts.
@@ -502,15 +514,11 @@ class Fleet:
         `bench/zenoh_write_filter.py` reproduces it). An onboard declares its telemetry
         publisher as its link comes up, which is when a start-up watch would end.
         """
-        watch = self._watch = _ReadyWatch()
-        session = self._observer()
-        if self.router is None:
-            watch.session = session  # a client of its own, closed once the UAVs are ready
+        bus = self._observer()
+        watch = self._watch = _ReadyWatch(bus)
         watch.declarations = [
-            session.liveliness().declare_subscriber(
-                self.spec.key_space.all_alive, watch.on_token, history=True
-            ),
-            session.declare_subscriber(self.spec.key_space.all_telemetry, watch.on_telemetry),
+            bus.subscribe_presence(self.spec.key_space.all_alive, watch.on_token),
+            bus.subscribe(self.spec.key_space.all_telemetry, watch.on_telemetry),
         ]
 
     def _watch_end(self) -> None:
@@ -541,7 +549,7 @@ class Fleet:
                 reported, next_report = counts, time.monotonic() + PROGRESS_PERIOD_S
             self._check_running(deadline, _waiting_for(expected, alive, flowing))
         log.info("every UAV is alive with telemetry: %s", ", ".join(map(str, sorted(expected))))
-        if watch.session is not None:  # a client's: its end is harmless
+        if self.router is None:  # a client's: its end is harmless
             self._watch_end()
 
     def _report(self, text: str) -> None:
@@ -593,33 +601,28 @@ class Fleet:
 class _ReadyWatch:
     """Which UAVs' tokens and telemetry with a GPS fix were seen (on Zenoh's threads)."""
 
+    bus: Bus
     alive: set[int] = field(default_factory=set)
     flowing: set[int] = field(default_factory=set)
     changed: threading.Event = field(default_factory=threading.Event)
-    declarations: list[zenoh.Subscriber[None]] = field(default_factory=list)
-    #: The client session it opened (a mesh's), None on the router's own.
-    session: zenoh.Session | None = None
+    declarations: list[Declaration] = field(default_factory=list)
 
-    def on_token(self, sample: zenoh.Sample) -> None:
-        uav = _uav_of(sample)
+    def on_token(self, key: str, present: bool) -> None:
+        uav = _uav_of(key)
         if uav is None:
             return
-        if sample.kind == zenoh.SampleKind.PUT:
+        if present:
             self.alive.add(uav)
         else:
             self.alive.discard(uav)
         self.changed.set()
 
-    def on_telemetry(self, sample: zenoh.Sample) -> None:
-        uav = _uav_of(sample)
+    def on_telemetry(self, sample: BusSample) -> None:
+        uav = _uav_of(sample.key)
         if uav is None or uav in self.flowing:
             return
-        try:
-            telemetry = bus_codec.decode(sample.payload.to_bytes(), Telemetry, str(sample.key_expr))
-        except bus_codec.BadMessage as error:
-            log.warning("ignored %s", error)
-            return
-        if telemetry.gps is not None:
+        telemetry = decode_sample(sample, Telemetry)
+        if telemetry is not None and telemetry.gps is not None:
             self.flowing.add(uav)
             self.changed.set()
 
@@ -628,14 +631,12 @@ class _ReadyWatch:
             with contextlib.suppress(zenoh.ZError):  # the session closed already
                 declaration.undeclare()
         self.declarations.clear()
-        if self.session is not None:
-            self.session.close()
-            self.session = None
+        self.bus.close()  # the router's session stays open (Router.bus)
 
 
-def _uav_of(sample: zenoh.Sample) -> int | None:
+def _uav_of(key: str) -> int | None:
     try:
-        return uav_id_of(str(sample.key_expr))
+        return uav_id_of(key)
     except ValueError:
         return None
 

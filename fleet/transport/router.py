@@ -28,6 +28,7 @@ from fleet.errors import CertError, FleetError
 from fleet.mission.access import ROUTER
 from fleet.mission.messages import RouterState
 from fleet.transport import refusal_watch
+from fleet.transport.bus import Bus
 from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.cli import (
     ExitCode,
@@ -38,6 +39,7 @@ from fleet.transport.cli import (
     stop_on_signals,
 )
 from fleet.transport.secure import SecureProfile
+from fleet.transport.zenoh_bus import ZenohBus
 from fleet.transport.zenoh_config import DEFAULT_ROUTER, make_config
 
 log = logging.getLogger(__name__)
@@ -93,6 +95,11 @@ class Router:
         if self._session is None:
             raise RuntimeError("the router is not open")
         return self._session
+
+    def bus(self) -> Bus:
+        """A bus on the router's own session, which stays the router's: closing the bus
+        leaves it open (the launcher watches a fleet start through it)."""
+        return ZenohBus(self.session, owns_session=False)
 
     @property
     def zid(self) -> str:

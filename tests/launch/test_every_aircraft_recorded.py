@@ -44,7 +44,7 @@ def telemetry_counts(path: Path) -> Counter[int]:
 def test_a_recording_of_four_uavs_has_every_uavs_telemetry(tmp_path: Path) -> None:
     up = start(
         "fleet up",
-        [sys.executable, "-m", "ground.fleet_cli", "up", "--uavs", str(len(UAVS)),
+        [sys.executable, "-m", "programs.fleet_cli", "up", "--uavs", str(len(UAVS)),
          "--speedup", "10", "--listen", f"tcp/127.0.0.1:{free_port()}", "--log-dir", str(tmp_path)],
     )  # fmt: skip
     recording = tmp_path / "fleet.mcap"
