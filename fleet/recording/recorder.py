@@ -38,6 +38,7 @@ from fleet.mission.key_space import DEFAULT_SPACE, KeySpace, uav_id_of
 from fleet.recording import channels
 from fleet.recording.bus_tap import BATCH_S, DEFAULT_STATE_EVERY_S, BusTap, Heard
 from fleet.recording.channels import ChannelSpec
+from fleet.recording.streams import StreamCounts
 from fleet.recording.thinning import DEFAULT_TELEMETRY_EVERY_S, TelemetryThinning
 from fleet.recording.writer import McapSink
 from fleet.transport.bus import Bus
@@ -99,6 +100,8 @@ class Recorder:
         self.thinning = TelemetryThinning(telemetry_every_s)
         self._last_fix_ns: dict[int, int] = {}
         self._fix_specs: dict[int, ChannelSpec] = {}  # by UAV
+        #: Samples recorded per UAV and channel; whose telemetry stopped (`fleet up` asks).
+        self.streams = StreamCounts(self.prefix)
         #: Why writing stopped (the disk is full, ...); `on_failure` is set then.
         self.failure: str | None = None
         self._on_failure = on_failure
@@ -144,6 +147,7 @@ class Recorder:
     def write(self, heard: Heard, spec: ChannelSpec, value: Any) -> None:
         self.sink.write(spec, heard.payload, heard.time_ns, heard.time_ns)
         self.stats.recorded[spec.pattern] += 1
+        self.streams.heard(heard.key, value)
         parsed = self.tap.space.parse(heard.key)
         if parsed is not None and parsed.spec is TELEMETRY and isinstance(value, dict):
             self._write_fix(heard, value)
