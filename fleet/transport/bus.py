@@ -17,7 +17,7 @@ import logging
 from abc import ABC, abstractmethod
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol, TypeVar
 
 import msgspec
@@ -41,14 +41,15 @@ class BusSample:
 
     `deleted`: the key was deleted (Zenoh's DELETE kind), `payload` is then empty.
     `time_ns`: when it was put, ns since the epoch, by the timestamp the router stamped
-    on it (None: the bus knows none, or the subscription asked for no details).
+    on it (None: the bus knows none, or the subscription asked for no details). When,
+    not what: two samples of the same value are equal whenever they were put.
     """
 
     key: str
     payload: bytes
     encoding: str = JSON_ENCODING
     deleted: bool = False
-    time_ns: int | None = None
+    time_ns: int | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)
