@@ -5,6 +5,7 @@ on any bus, the in-process one included: `--connect memory:NAME`) or as a user r
 from __future__ import annotations
 
 import io
+import logging
 import os
 import subprocess
 import sys
@@ -31,15 +32,27 @@ def ground_cli_here(
 ) -> subprocess.CompletedProcess[str]:
     """`ground-cli [--connect C] ARGV` run by its root in this process: its exit status,
     and what it printed on stdout and stderr (a usage error's exit is its status)."""
+    from fleet.transport import bus_codec
     from ground.cli import main
 
     args = [*_connect(connect), *argv]
     out, err = io.StringIO(), io.StringIO()
-    with redirect_stdout(out), redirect_stderr(err):
-        try:
-            status = main(args)
-        except SystemExit as exited:  # argparse's usage errors
-            status = exited.code if isinstance(exited.code, int) else 2
+    # What a process of its own would have: its warnings on its stderr, and its own
+    # count of the bus messages it refused.
+    handler = logging.StreamHandler(err)
+    handler.setLevel(logging.WARNING)
+    root = logging.getLogger()
+    root.addHandler(handler)
+    dropped, bus_codec.DROPPED = bus_codec.DROPPED, bus_codec.DropCounter()
+    try:
+        with redirect_stdout(out), redirect_stderr(err):
+            try:
+                status = main(args)
+            except SystemExit as exited:  # argparse's usage errors
+                status = exited.code if isinstance(exited.code, int) else 2
+    finally:
+        bus_codec.DROPPED = dropped
+        root.removeHandler(handler)
     return subprocess.CompletedProcess(
         ["ground-cli", *args], status, out.getvalue(), err.getvalue()
     )
