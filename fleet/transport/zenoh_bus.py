@@ -95,10 +95,11 @@ def _sample(sample: zenoh.Sample) -> BusSample:
     )
 
 
-def _reply(reply: zenoh.Reply) -> BusReply:
+def _reply(reply: zenoh.Reply, author: str | None = None) -> BusReply:
     sample = reply.ok
     if sample is not None:
-        return BusReply(str(sample.key_expr), sample.payload.to_bytes(), True, str(sample.encoding))
+        key, payload = str(sample.key_expr), sample.payload.to_bytes()
+        return BusReply(key, payload, True, str(sample.encoding), author)
     error = reply.err
     if error is None:  # neither: not produced by zenoh 1.x, kept for the type checker
         return BusReply("", b"", False, "")
@@ -274,7 +275,19 @@ class ZenohBus(Bus):
         )
         options.update(self._query_options(selector, payload))
         replies = self.session.get(selector, timeout=timeout, **options)
-        return [_reply(reply) for reply in replies if self._accepted(reply)]
+        if self.signing is None:
+            return [_reply(reply) for reply in replies]
+        answers: list[BusReply] = []
+        for reply in replies:
+            sample = reply.ok
+            if sample is None:
+                answers.append(_reply(reply))
+                continue
+            key, payload = str(sample.key_expr), sample.payload.to_bytes()
+            accepted, author = self.signing.check_reply(key, payload, _attachment(sample))
+            if accepted:
+                answers.append(_reply(reply, author))
+        return answers
 
     def declare_queryable(self, key_expr: str, notify: QueryNotify | None = None) -> Queryable:
         return ZenohQueryable(self.session, key_expr, notify, self.signing)
