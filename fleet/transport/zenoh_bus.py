@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import logging
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -32,6 +33,7 @@ import zenoh
 
 from fleet.errors import CertError, FleetError, RosterError
 from fleet.mission.delivery import Delivery
+from fleet.mission.key_space import space_of
 from fleet.transport import bus_codec, bus_qos
 from fleet.transport.bus import (
     Bus,
@@ -95,10 +97,11 @@ def _sample(sample: zenoh.Sample) -> BusSample:
     )
 
 
-def _reply(reply: zenoh.Reply) -> BusReply:
+def _reply(reply: zenoh.Reply, author: str | None = None) -> BusReply:
     sample = reply.ok
     if sample is not None:
-        return BusReply(str(sample.key_expr), sample.payload.to_bytes(), True, str(sample.encoding))
+        key, payload = str(sample.key_expr), sample.payload.to_bytes()
+        return BusReply(key, payload, True, str(sample.encoding), author)
     error = reply.err
     if error is None:  # neither: not produced by zenoh 1.x, kept for the type checker
         return BusReply("", b"", False, "")
@@ -161,12 +164,44 @@ class ZenohQueryable(Queryable):
 class ZenohBus(Bus):
     """A Bus over a Zenoh session, which it owns (closed by `close`)."""
 
-    def __init__(self, session: zenoh.Session, signing: BusSigning | None = None) -> None:
+    def __init__(
+        self,
+        session: zenoh.Session,
+        signing: BusSigning | None = None,
+        *,
+        owns_session: bool = True,
+    ) -> None:
         self.session = session
+        #: False: the session is someone else's (an embedded router's), left open by `close`.
+        self.owns_session = owns_session
         #: The secure profile's signed commands (None: nothing signed or checked).
         self.signing = signing
         #: Declared publishers of the keys put at a steady rate (telemetry), by key.
         self._publishers: dict[str, zenoh.Publisher] = {}
+        #: The roster subscriptions, one per key prefix this bus has used (secure only).
+        self._rosters: dict[str, zenoh.Subscriber[None]] = {}
+        self._rosters_lock = threading.Lock()
+
+    def _watch_roster(self, key_expr: str) -> None:
+        """In the secure profile, hear the roster on the prefix of `key_expr` (once per
+        prefix, from the first key this bus uses there): a revocation put to the running
+        fleet (`fleet certs revoke`) is applied at once, no restart needed."""
+        signing = self.signing
+        space = space_of(key_expr) if signing is not None else None
+        if signing is None or space is None:
+            return
+        with self._rosters_lock:
+            if space.prefix in self._rosters:
+                return
+
+            def on_roster(sample: zenoh.Sample) -> None:
+                received = self._received(sample, Delivery.PUT)
+                if received is not None:
+                    signing.apply_roster(received.key, received.payload)
+
+            self._rosters[space.prefix] = self.session.declare_subscriber(
+                space.roster(), direct(on_roster)
+            )
 
     @classmethod
     def open(cls, config: zenoh.Config) -> ZenohBus:
@@ -218,6 +253,7 @@ class ZenohBus(Bus):
         self, key_expr: str, callback: SampleCallback, *, details: bool = False
     ) -> Declaration:
         convert = _sample if details else _plain
+        self._watch_roster(key_expr)
 
         def on_sample(sample: zenoh.Sample) -> None:
             received = self._received(sample, Delivery.PUT, convert)
@@ -230,6 +266,8 @@ class ZenohBus(Bus):
     def get(
         self, selector: str, callback: SampleCallback, timeout: float, payload: bytes = b""
     ) -> None:
+        self._watch_roster(selector)
+
         def on_reply(reply: zenoh.Reply) -> None:
             if reply.ok is not None:
                 received = self._received(reply.ok, Delivery.REPLY)
@@ -264,11 +302,25 @@ class ZenohBus(Bus):
             if every_reply
             else {}
         )
+        self._watch_roster(selector)
         options.update(self._query_options(selector, payload))
         replies = self.session.get(selector, timeout=timeout, **options)
-        return [_reply(reply) for reply in replies if self._accepted(reply)]
+        if self.signing is None:
+            return [_reply(reply) for reply in replies]
+        answers: list[BusReply] = []
+        for reply in replies:
+            sample = reply.ok
+            if sample is None:
+                answers.append(_reply(reply))
+                continue
+            key, payload = str(sample.key_expr), sample.payload.to_bytes()
+            accepted, author = self.signing.check_reply(key, payload, _attachment(sample))
+            if accepted:
+                answers.append(_reply(reply, author))
+        return answers
 
     def declare_queryable(self, key_expr: str, notify: QueryNotify | None = None) -> Queryable:
+        self._watch_roster(key_expr)
         return ZenohQueryable(self.session, key_expr, notify, self.signing)
 
     def declare_token(self, key: str) -> Declaration:
@@ -280,6 +332,8 @@ class ZenohBus(Bus):
         return [str(reply.ok.key_expr) for reply in replies if reply.ok is not None]
 
     def subscribe_presence(self, key_expr: str, callback: PresenceCallback) -> Declaration:
+        self._watch_roster(key_expr)
+
         def on_token(sample: zenoh.Sample) -> None:
             callback(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
 
@@ -289,8 +343,24 @@ class ZenohBus(Bus):
         return subscriber
 
     def close(self) -> None:
+        if not self.owns_session:
+            for publisher in self._publishers.values():
+                publisher.undeclare()
+            self._publishers.clear()
+            return
         self._publishers.clear()  # closing the session undeclares them
         self.session.close()
+
+
+def session_of(bus: Bus) -> zenoh.Session:
+    """The Zenoh session under `bus`, for what still speaks raw Zenoh (the recorder,
+    the replayer); a FleetError if `bus` is not a Zenoh bus (the in-process one)."""
+    from fleet.transport.bus_factory import unwrap
+
+    opened = unwrap(bus)
+    if not isinstance(opened, ZenohBus):
+        raise BusConnectError(f"this command needs a Zenoh session, not {type(opened).__name__}")
+    return opened.session
 
 
 def signing_of(config: zenoh.Config) -> BusSigning | None:
@@ -320,7 +390,7 @@ def connect(target: ClientTarget, *, open_timeout_s: float = DEFAULT_OPEN_TIMEOU
     try:
         signing = signing_of(config)
     except (CertError, RosterError) as error:
-        raise BusConnectError(f"cannot sign or check commands: {error}") from None
+        raise BusConnectError(f"cannot sign or check commands: {error}") from error
     config.insert_json5("transport/unicast/open_timeout", json.dumps(round(open_timeout_s * 1000)))
     try:
         session = zenoh.open(config)
