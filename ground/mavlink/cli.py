@@ -5,12 +5,14 @@
 
 It connects to the fleet as `ground-cli` does (the Zenoh flags), prints one line when it
 serves, and runs until Ctrl-C or SIGTERM; then it says how much MAVLink input it
-dropped and why.
+dropped and why. With `--signing-key FILE` every station must sign its frames (MAVLink 2
+signing); on any address but loopback that is required, unless `--insecure`.
 """
 
 from __future__ import annotations
 
 import argparse
+import ipaddress
 import logging
 import sys
 import threading
@@ -28,10 +30,11 @@ from fleet.transport.cli import (
     zenoh_config,
 )
 from fleet.transport.zenoh_bus import BusConnectError, client_bus
-from ground.mavlink.endpoint import Endpoint, EndpointError, InputDrops
+from ground.mavlink.endpoint import Endpoint, EndpointError, InputDrops, parse_url
 from ground.mavlink.fleet_link import FleetLink, TeamChoice
 from ground.mavlink.gateway import Gateway
 from ground.mavlink.requests import Requests
+from ground.mavlink.signing import SigningKeyError, Verifier, load_keys
 from ground.mavlink.sysids import SysIdError, SysIdMap, sysid_pair
 
 log = logging.getLogger(__name__)
@@ -69,6 +72,20 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "1-254 are their own system id unless mapped",
     )
     parser.add_argument(
+        "--signing-key",
+        type=Path,
+        metavar="FILE",
+        help="MAVLink 2 signing: every frame a station sends must be signed with one of the "
+        "stations' secrets in FILE (`NAME PASSPHRASE` a line, readable by you only); needed "
+        "on any address but loopback",
+    )
+    parser.add_argument(
+        "--insecure",
+        action="store_true",
+        help="allow a non-loopback --out without --signing-key (anyone who reaches it "
+        "commands the fleet)",
+    )
+    parser.add_argument(
         "--mission-team",
         choices=("uav", "live"),
         default="uav",
@@ -90,15 +107,40 @@ def _identity_line(config_file: str | None) -> str:
     )
 
 
+def _is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def _verifier(args: argparse.Namespace) -> Verifier | None:
+    """The stations' secrets (`--signing-key`); None without. SigningKeyError if the file
+    cannot be used, EndpointError if a non-loopback --out has no secret and no --insecure."""
+    if args.signing_key is not None:
+        return Verifier(load_keys(args.signing_key))
+    host = parse_url(args.out)[1][0]
+    if not _is_loopback(host) and not args.insecure:
+        raise EndpointError(
+            f"--out {args.out} is not loopback: anyone who reaches it could upload missions "
+            "and RTL aircraft. Give the stations' secrets (--signing-key FILE) or add "
+            "--insecure."
+        )
+    return None
+
+
 def run(args: argparse.Namespace) -> int:
     try:
         sysids = SysIdMap(args.sysid)
         config = zenoh_config(args)
-    except (SysIdError, ZenohConfigError) as error:
+        verifier = _verifier(args)
+    except (SysIdError, ZenohConfigError, SigningKeyError, EndpointError) as error:
         return fail(PROG, f"error: {error}")
     drops = InputDrops()
     try:
-        endpoint = Endpoint(args.out, drops)
+        endpoint = Endpoint(args.out, drops, verifier=verifier)
     except EndpointError as error:
         return fail(PROG, f"error: {error}")
     team = TeamChoice.LIVE if args.mission_team == "live" else TeamChoice.UAV
@@ -134,8 +176,13 @@ def _serve(
         )
         refresher.start()
         print(_identity_line(args.zenoh_config), flush=True)
+        signed = (
+            f"signed ({len(endpoint.verifier.keys)} station secret(s))"
+            if endpoint.verifier is not None
+            else "unsigned"
+        )
         print(
-            f"{PROG}: serving on {args.out} (local port {endpoint.local_port}), "
+            f"{PROG}: serving on {args.out} (local port {endpoint.local_port}, {signed}), "
             f"missions to {'every live UAV' if team is TeamChoice.LIVE else 'the UAV alone'}",
             flush=True,
         )

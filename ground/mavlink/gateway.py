@@ -29,9 +29,10 @@ from fleet.mission.phase import Phase, Severity
 from fleet.transport.bus import Bus
 from ground.alerts import StatusRecord
 from ground.fleet_view import FleetView, UavView
-from ground.mavlink import vehicle
-from ground.mavlink.endpoint import Endpoint, InputDrops
+from ground.mavlink import signing, vehicle
+from ground.mavlink.endpoint import Address, Endpoint, Incoming, InputDrops
 from ground.mavlink.fleet_link import FleetLink
+from ground.mavlink.signing import StationKey, signing_encoder
 from ground.mavlink.sysids import SysIdMap
 
 log = logging.getLogger(__name__)
@@ -69,8 +70,11 @@ class Gateway:
         self.drops: InputDrops = endpoint.drops
         self._clock = clock
         self._started = clock()
-        self._encoders: dict[int, mavlink2.MAVLink] = {}
-        self.outbox: queue.SimpleQueue[tuple[int, mavlink2.MAVLink_message]] = queue.SimpleQueue()
+        self._encoders: dict[tuple[int, str | None], mavlink2.MAVLink] = {}
+        #: (from system, message, to the station at this address or None: every station)
+        self.outbox: queue.SimpleQueue[tuple[int, mavlink2.MAVLink_message, Address | None]] = (
+            queue.SimpleQueue()
+        )
         self._statuses: queue.Queue[StatusRecord] = queue.Queue(STATUS_BACKLOG)
         self._chunk_id = 0
         self.statuses_lost = 0  #: status messages not sent: more came than the loop sent
@@ -131,18 +135,26 @@ class Gateway:
     def boot_ms(self) -> int:
         return int((self._clock() - self._started) * 1000)
 
-    def send(self, sysid: int, message: mavlink2.MAVLink_message) -> None:
-        encoder = self._encoders.get(sysid)
-        if encoder is None:
-            encoder = self._encoders[sysid] = mavlink2.MAVLink(None, sysid, 1)
-        data = message.pack(encoder)
-        encoder.seq = (encoder.seq + 1) % 256
-        self.endpoint.send(bytes(data))
+    def send(
+        self, sysid: int, message: mavlink2.MAVLink_message, to: Address | None = None
+    ) -> None:
+        """`message` from system `sysid` to every station (or the one at `to`: an answer
+        goes to the station that asked), signed with each station's secret when the
+        gateway signs (an encoder per system and secret)."""
+
+        def pack(key: StationKey | None) -> bytes:
+            slot = (sysid, key.name if key is not None else None)
+            encoder = self._encoders.get(slot)
+            if encoder is None:
+                encoder = self._encoders[slot] = signing_encoder(sysid, key)
+            return signing.pack(encoder, message, time.time)
+
+        self.endpoint.send(pack, to)
 
     def run(
         self,
         stop: threading.Event,
-        handle: Callable[[mavlink2.MAVLink_message], None],
+        handle: Callable[[Incoming], None],
         tick: Callable[[], None],
     ) -> None:
         """Until `stop`: read and `handle` input, send what workers answered, `tick`
@@ -150,7 +162,7 @@ class Gateway:
         while not stop.is_set():
             for incoming in self.endpoint.receive(0.05):
                 try:
-                    handle(incoming.message)
+                    handle(incoming)
                 except Exception:  # one bad message must not end the gateway
                     log.exception("handling %s failed", incoming.message.get_type())
             self.send_answers()
@@ -161,10 +173,10 @@ class Gateway:
         """Send what the workers answered (the loop does it after each read)."""
         while True:
             try:
-                sysid, message = self.outbox.get_nowait()
+                sysid, message, to = self.outbox.get_nowait()
             except queue.Empty:
                 return
-            self.send(sysid, message)
+            self.send(sysid, message, to)
 
     def live_vehicles(self) -> list[tuple[Vehicle, UavView]]:
         """The live UAVs that have a system id, with their view."""
