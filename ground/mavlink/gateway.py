@@ -1,10 +1,11 @@
 """The gateway: every live UAV as a MAVLink 2 vehicle on one endpoint.
 
 One thread runs the MAVLink side (`run`): it reads the endpoint, answers, and streams
-each UAV's messages from its system id (HEARTBEAT, SYS_STATUS and MISSION_CURRENT at
-1 Hz, GLOBAL_POSITION_INT, ATTITUDE and VFR_HUD at `POSITION_HZ`; STATUSTEXT as status
-messages arrive). The fleet side is the ground's `FleetView` (subscriptions) refreshed
-by state queries once a second on a thread of its own; what blocks on the fleet
+each UAV's messages from its system id (HEARTBEAT, SYS_STATUS, EXTENDED_SYS_STATE,
+GPS_RAW_INT, HOME_POSITION and MISSION_CURRENT at 1 Hz, GLOBAL_POSITION_INT, ATTITUDE
+and VFR_HUD at `POSITION_HZ`; STATUSTEXT as status messages arrive). The fleet side is
+the ground's `FleetView` (subscriptions) refreshed by state queries once a second on a
+thread of its own; what blocks on the fleet
 (sending a mission, confirming an abort) runs on worker threads whose answers come
 back to the loop through the outbox, so a ground station is never kept waiting by
 Zenoh, and the loop alone writes to the endpoint.
@@ -80,6 +81,7 @@ class Gateway:
         self.statuses_lost = 0  #: status messages not sent: more came than the loop sent
         self._chunk_lock = threading.Lock()
         self.vehicles: dict[int, Vehicle] = {}  #: by system id
+        self._homes: dict[int, tuple[float, float]] = {}  #: by Piccolo ID
         self._hidden_said: set[int] = set()
         self._missions: dict[int, MissionTargets] = {}
         self._missions_lock = threading.Lock()
@@ -216,12 +218,25 @@ class Gateway:
                     # A value no MAVLink field can hold, from the bus: skip this turn.
                     log.warning("UAV %d: a message not sent: %s", found.piccolo, error)
 
+    def home_of(self, piccolo: int) -> tuple[float, float] | None:
+        """Where the gateway first heard UAV `piccolo` (its HOME_POSITION), None before."""
+        home = self._homes.get(piccolo)
+        telemetry = self.view.telemetry(piccolo) if home is None else None
+        if telemetry is not None and telemetry.gps is not None:
+            home = self._homes[piccolo] = (telemetry.gps.lat, telemetry.gps.lon)
+        return home
+
     def _stream(self, found: Vehicle, view: UavView, slow: bool) -> None:
         sysid, boot = found.sysid, self.boot_ms()
         telemetry = self.view.telemetry(found.piccolo)
         if slow:
-            self.send(sysid, vehicle.heartbeat(view))
-            self.send(sysid, vehicle.sys_status(telemetry, self.drops.total()))
+            self.send(sysid, vehicle.heartbeat(view, telemetry))
+            self.send(sysid, vehicle.sys_status(view, telemetry, self.drops.total()))
+            self.send(sysid, vehicle.extended_sys_state(telemetry))
+            if telemetry is not None and (raw := vehicle.gps_raw(telemetry, boot)) is not None:
+                self.send(sysid, raw)
+            if (home := self.home_of(found.piccolo)) is not None:
+                self.send(sysid, vehicle.home_position(*home))
             self._mission_progress(found, view)
         if telemetry is not None:
             for message in (

@@ -37,6 +37,7 @@ from ground.mavlink.mission_protocol import (
     download_item,
     item_from_message,
 )
+from ground.mavlink.parameters import find, param_value, parameters
 
 log = logging.getLogger(__name__)
 
@@ -61,6 +62,9 @@ class Requests:
     def handle(self, incoming: Incoming) -> None:
         message = incoming.message
         self._to = incoming.peer  # answers go to the station that asked
+        if message.get_type() == "TIMESYNC":
+            self._timesync(message)
+            return
         target = getattr(message, "target_system", None)
         if target is None:
             return  # a station's heartbeat or telemetry: nothing to answer
@@ -89,6 +93,8 @@ class Requests:
             self._abort(sysid, piccolo, partner, _SET_MODE_ACK)
         elif kind == "SET_MODE":
             self._command_ack(sysid, partner, _SET_MODE_ACK, mavlink2.MAV_RESULT_UNSUPPORTED)
+        elif kind in ("PARAM_REQUEST_LIST", "PARAM_REQUEST_READ", "PARAM_SET"):
+            self._parameters(sysid, piccolo, kind, message)
         elif kind == "MISSION_SET_CURRENT":
             # The vehicle answers with the item it flies: the fleet chose it, not the station.
             self.gateway.say(piccolo, "the fleet chooses each UAV's target", Severity.WARNING)
@@ -110,6 +116,37 @@ class Requests:
         if targets is not None and view.target is not None:
             current = vehicle.mission_current(view.target, len(targets.targets), False)
             self._reply(found.sysid, current)
+
+    # ---- parameters and time ---------------------------------------------------------------
+    def _parameters(self, sysid: int, piccolo: int, kind: str, message: object) -> None:
+        params = parameters(piccolo)
+        if kind == "PARAM_REQUEST_LIST":
+            for index in range(len(params)):
+                self._reply(sysid, param_value(params, index))
+            return
+        name = getattr(message, "param_id", b"")
+        found = find(params, name, int(getattr(message, "param_index", -1)))
+        if found is None:
+            # The protocol's answer to an unknown name: none (the station times out).
+            log.info("system %d: no parameter %r", sysid, name)
+            return
+        index = found
+        if kind == "PARAM_SET":
+            # Refused the protocol's way: the value it still has.
+            self.gateway.say(
+                piccolo, f"{params[index].name} is read-only: not changed", Severity.WARNING
+            )
+        self._reply(sysid, param_value(params, index))
+
+    def _timesync(self, message: object) -> None:
+        """A station's TIMESYNC request (tc1 = 0) answered from every vehicle shown: tc1
+        our time (ns), ts1 theirs."""
+        if int(getattr(message, "tc1")) != 0:  # noqa: B009
+            return  # an answer to a request of ours: the gateway sends none
+        now_ns = time.monotonic_ns()
+        for found, _ in self.gateway.live_vehicles():
+            ts1 = int(getattr(message, "ts1"))  # noqa: B009
+            self._reply(found.sysid, mavlink2.MAVLink_timesync_message(now_ns, ts1))
 
     # ---- mission upload ----------------------------------------------------------------------
     def _count(self, sysid: int, piccolo: int, partner: tuple[int, int], message: object) -> None:
@@ -299,10 +336,17 @@ class Requests:
         view, telemetry = found[1], self.gateway.view.telemetry(piccolo)
         boot = self.gateway.boot_ms()
         built: mavlink2.MAVLink_message | None = None
+        home = self.gateway.home_of(piccolo)
         if message_id == mavlink2.MAVLINK_MSG_ID_HEARTBEAT:
-            built = vehicle.heartbeat(view)
+            built = vehicle.heartbeat(view, telemetry)
         elif message_id == mavlink2.MAVLINK_MSG_ID_SYS_STATUS:
-            built = vehicle.sys_status(telemetry, self.gateway.drops.total())
+            built = vehicle.sys_status(view, telemetry, self.gateway.drops.total())
+        elif message_id == mavlink2.MAVLINK_MSG_ID_EXTENDED_SYS_STATE:
+            built = vehicle.extended_sys_state(telemetry)
+        elif message_id == mavlink2.MAVLINK_MSG_ID_HOME_POSITION and home is not None:
+            built = vehicle.home_position(*home)
+        elif telemetry is not None and message_id == mavlink2.MAVLINK_MSG_ID_GPS_RAW_INT:
+            built = vehicle.gps_raw(telemetry, boot)
         elif telemetry is not None and message_id == mavlink2.MAVLINK_MSG_ID_GLOBAL_POSITION_INT:
             built = vehicle.global_position(telemetry, boot)
         elif telemetry is not None and message_id == mavlink2.MAVLINK_MSG_ID_ATTITUDE:

@@ -25,6 +25,7 @@ from ground.mavlink.gateway import Gateway
 from ground.mavlink.requests import Requests
 from ground.mavlink.signing import StationKey
 from ground.mavlink.sysids import SysIdMap
+from ground.mavlink.vehicle import FleetMode
 from tests.support.waiting import wait_until
 
 STATION = (255, 190)
@@ -264,7 +265,7 @@ def test_mission_progress_follows_the_reported_phase(harness: Harness) -> None:
     assert (current.seq, current.total) == (1, 2)
     assert harness.take("MISSION_ITEM_REACHED") == []
     (beat,) = harness.take("HEARTBEAT")
-    assert beat.custom_mode == 15  # GUIDED
+    assert beat.custom_mode == FleetMode.GUIDED  # PX4 OFFBOARD: the fleet steers it
     harness.views = [UavView(id=74, mission=7, target=1, phase="reached")]
     for _ in range(2):
         harness.gateway._next_slow = harness.gateway._next_fast = 0.0
@@ -349,3 +350,36 @@ def test_a_second_station_can_neither_take_over_nor_join_an_open_upload(harness:
     harness.handle(mavlink2.MAVLink_mission_count_message(74, 1, 1, 0), OTHER)
     (request,) = harness.take("MISSION_REQUEST_INT")
     assert (request, OTHER) in harness.to
+
+
+def test_parameters_are_listed_read_and_refused_to_be_set(harness: Harness) -> None:
+    harness.handle(mavlink2.MAVLink_param_request_list_message(74, 1))
+    listed = harness.take("PARAM_VALUE")
+    assert [p.param_index for p in listed] == list(range(5))
+    assert {p.param_count for p in listed} == {5}
+    values = {p.param_id: p.param_value for p in listed}
+    assert values["FLT_PICCOLO_ID"] == 74 and values["FLT_ACCEPT_RAD"] == 75.0
+    harness.handle(mavlink2.MAVLink_param_request_read_message(74, 1, b"FLT_BANK_LIM", -1))
+    (read,) = harness.take("PARAM_VALUE")
+    assert (read.param_id, read.param_value, read.param_index) == ("FLT_BANK_LIM", 30.0, 3)
+    harness.handle(mavlink2.MAVLink_param_request_read_message(74, 1, b"", 0))
+    assert harness.take("PARAM_VALUE")[0].param_id == "FLT_PICCOLO_ID"
+    harness.handle(mavlink2.MAVLink_param_request_read_message(74, 1, b"NO_SUCH", -1))
+    assert harness.take("PARAM_VALUE") == []
+    harness.handle(
+        mavlink2.MAVLink_param_set_message(
+            74, 1, b"FLT_BANK_LIM", 60.0, mavlink2.MAV_PARAM_TYPE_REAL32
+        )
+    )
+    (unchanged,) = harness.take("PARAM_VALUE")
+    assert unchanged.param_value == 30.0  # the protocol's refusal: the value it still has
+    assert "read-only" in harness.take("STATUSTEXT")[0].text
+
+
+def test_timesync_is_answered_with_the_stations_own_time(harness: Harness) -> None:
+    harness.handle(mavlink2.MAVLink_timesync_message(0, 123456789))
+    (answer,) = harness.take("TIMESYNC")
+    assert answer.ts1 == 123456789 and answer.tc1 > 0
+    assert answer.get_srcSystem() == 74
+    harness.handle(mavlink2.MAVLink_timesync_message(5, 123456789))  # an answer: not ours
+    assert harness.take("TIMESYNC") == []
