@@ -4,9 +4,11 @@ Write waypoint TARGET_WAYPOINT at the target with `next` = the waypoint the airc
 tracking, then track it; when the autopilot moves on from it, the aircraft is back on
 its original course by itself. `flying` once the autopilot echoed the track command,
 `reached` once telemetry put the aircraft within REACHED_RADIUS_M of the target, or
-once the autopilot moved on from the target waypoint to its `next` after a link outage
-hid the arrival (the autopilot sequences only on reaching a waypoint: its echo is the
-observation), `preempted` when the autopilot left the target route anywhere else or
+once the autopilot moved on from the target waypoint during a link outage that hid the
+arrival: to its `next` (the autopilot sequences only on reaching a waypoint: its echo
+is the observation), or to any later waypoint when the fixes either side of the outage
+say the aircraft could have passed through the target's radius meanwhile
+(onboard.outage_arrival), `preempted` when the autopilot left the target route anywhere else or
 the ground commanded it directly. A target that cannot be flown (`failure`) is the mission's to
 release (onboard.mission_participation).
 
@@ -39,6 +41,7 @@ from onboard.autopilot_commands import AutopilotCommand, CommandTracker, Complet
 from onboard.link_watch import LinkWatch
 from onboard.loiter import LOITER_ANCHOR, LOITER_WAYPOINTS, loiter_writes
 from onboard.mission_phase import MissionPhase
+from onboard.outage_arrival import FixHistory, passed_target
 from onboard.route_flight import ROUTE_WAYPOINTS, route_turns, route_writes
 from onboard.state_report import Say
 
@@ -93,6 +96,11 @@ class TargetFlight:
     _target_tracked: bool = False  #: the autopilot echoed the track to the target waypoint
     _target_next: int | None = None  #: where the target waypoint sends the autopilot on
     _outages_when_tracked: int = 0  #: link outages before the target route was echoed
+    #: The latest fix, and the last before the latest outage (onboard.outage_arrival).
+    _fixes: FixHistory = field(default_factory=FixHistory)
+    #: The waypoint the autopilot left the target route for during an outage, while no
+    #: fix since the outage tells whether that was the arrival.
+    _departed_to: int | None = None
     resuming: bool = False  #: a resume of the course is sent and not echoed yet
     _operator_track: bool = False  #: the ground commanded the target waypoint or its track
     #: The mission's no-fly zones: a target is flown by a route around them.
@@ -108,15 +116,21 @@ class TargetFlight:
         """Hold `target` (at `where`), or none; its route not echoed yet."""
         self.target, self._target_at = target, where
         self._target_tracked = False
+        self._departed_to = None
         self._no_route = None
         self.route = ()
 
     # ---- what the autopilot says -------------------------------------------------------
     def on_telemetry(self, now: float) -> FlightNews | None:
+        self._fixes.on_fix(self.link.gps, self.link.outages)
         if self.life.holds_target():
             distance = self._target_distance()
             if distance is not None and distance <= REACHED_RADIUS_M:
                 return self._reached(distance, now)
+            if self._departed_to is not None and self.life.phase == Phase.FLYING:
+                # The autopilot left the target route during an outage: judged on the
+                # first fix after it.
+                return self._left_target_route(self._departed_to, now)
         return None
 
     def _target_distance(self) -> float | None:
@@ -159,16 +173,27 @@ class TargetFlight:
 
     def _left_target_route(self, waypoint: int, now: float) -> FlightNews | None:
         """The autopilot stopped tracking the target: arrival if telemetry says so."""
+        self._departed_to = None
         distance = self._target_distance()
         if distance is not None and distance <= REACHED_RADIUS_M:
             return self._reached(distance, now)
-        if (
-            waypoint == self._target_next
-            and self.link.outages > self._outages_when_tracked
-            and distance is not None
-        ):
-            how = f"the autopilot moved on to waypoint {waypoint} during a link outage; now "
-            return self._reached(distance, now, how)
+        outages = self.link.outages
+        if outages > self._outages_when_tracked and distance is not None:
+            # A link outage hid what happened: read it from the fixes either side of it
+            # (onboard.outage_arrival), however many waypoints the autopilot went through.
+            if not self._fixes.fresh_since(outages):
+                self._departed_to = waypoint  # no fix since the outage yet: judged on it
+                return None
+            before, after = self._fixes.before_outage, self._fixes.latest
+            passed = (
+                before is not None
+                and after is not None
+                and self._target_at is not None
+                and passed_target(before, after, self._target_at, REACHED_RADIUS_M)
+            )
+            if waypoint == self._target_next or passed:
+                how = f"the autopilot moved on to waypoint {waypoint} during a link outage; now "
+                return self._reached(distance, now, how)
         where = "unknown distance" if distance is None else f"{distance:.0f} m"
         why = f"autopilot left the target route for waypoint {waypoint} at {where}"
         self.life.observe(Observation.LEFT_ROUTE, why)

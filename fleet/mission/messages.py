@@ -298,3 +298,6 @@ class RouterState(msgspec.Struct, frozen=True):
 
     zid: str
     refused_links: Annotated[dict[str, RefusalCount], Meta(max_length=MAX_REFUSAL_KINDS)]
+    #: The query's payload it answers (the ground's random challenge): a signed answer
+    #: to an earlier query cannot be replayed for a later one. None: none was asked.
+    challenge: Annotated[str, Meta(max_length=64)] | None = None

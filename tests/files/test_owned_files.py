@@ -12,7 +12,7 @@ from fleet.errors import CertError
 from fleet.files.certs import write_identities
 from fleet.files.owned_files import check_directory, check_replaceable, read_own
 from fleet.files.signers import RosterError, revoke
-from ground.fleet_cli import main as fleet_main
+from programs.fleet_cli import main as fleet_main
 
 #: Another user (nobody): the attacker, where the test may chown to it (as root).
 ATTACKER = 65534

@@ -12,6 +12,7 @@ import sys
 import threading
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TextIO
 
 import pytest
 import zenoh
@@ -28,13 +29,14 @@ from fleet.transport.cli import (
     non_negative_float,
     piccolo_id,
     positive_float,
-    run_standalone,
     setup_logging,
     stop_on_signals,
     tcp_port,
     zenoh_config,
 )
+from fleet.transport.command import LocalCommand, run_standalone
 from fleet.transport.zenoh_config import CONFIG_ENV, CONNECT_ENV, endpoints
+from tests.support.ground_cli import ground_cli_here
 from tests.support.processes import router_session
 from tests.support.waiting import wait_until
 
@@ -124,6 +126,21 @@ def test_no_flags_give_a_client_of_the_default_router(monkeypatch: pytest.Monkey
     assert config.get_json("scouting/multicast/enabled") == "false"
 
 
+def test_the_environment_and_connect_override_a_config_file_s_router(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`fleet up --secure` says `export FLEET_ZENOH_CONNECT=tls/...:PORT` beside the
+    identity's config file, which names the default port: the exported router wins, and
+    --connect wins over both."""
+    path = write_config(tmp_path / "zenoh.json5", "tcp/127.0.0.1:7447")
+    monkeypatch.setenv(CONNECT_ENV, "tcp/127.0.0.1:18350")
+    assert endpoints(zenoh_config(parse("--zenoh-config", str(path)))) == ["tcp/127.0.0.1:18350"]
+    flags = ("--zenoh-config", str(path), "--connect", "tcp/127.0.0.1:9")
+    assert endpoints(zenoh_config(parse(*flags))) == ["tcp/127.0.0.1:9"]
+    monkeypatch.delenv(CONNECT_ENV)
+    assert endpoints(zenoh_config(parse("--zenoh-config", str(path)))) == ["tcp/127.0.0.1:7447"]
+
+
 def test_a_config_file_is_honoured_by_a_real_session(
     router: tuple[zenoh.Session, str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -186,27 +203,40 @@ def test_a_malformed_endpoint_is_refused() -> None:
         zenoh_config(parse("--connect", "localhost"))
 
 
-@pytest.mark.e2e
-def test_ground_cli_uses_the_config_file(router: tuple[zenoh.Session, str], tmp_path: Path) -> None:
+def test_ground_cli_uses_the_config_file(
+    router: tuple[zenoh.Session, str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     _, endpoint = router
+    for name in (CONNECT_ENV, CONFIG_ENV):
+        monkeypatch.delenv(name, raising=False)
     path = write_config(tmp_path / "zenoh.json5", endpoint)
-    done = run_program("ground.cli", "--zenoh-config", str(path), "uavs", "--json")
+    done = ground_cli_here("--zenoh-config", str(path), "uavs", "--json")
     assert done.returncode == ExitCode.OK, done.stderr
     assert json.loads(done.stdout) == []
 
 
 @pytest.mark.parametrize("program", ["ground.cli", "onboard.main"])
-@pytest.mark.e2e
-def test_a_bad_config_file_exits_2_with_the_reason(program: str, tmp_path: Path) -> None:
+def test_a_bad_config_file_exits_2_with_the_reason(
+    program: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
     bad = tmp_path / "bad.json5"
     bad.write_text("{ mode: ")
-    env = {**env_without_zenoh(), CONFIG_ENV: str(bad)}
-    onboard_args = ["--id", "7", "--program", "x", "--payload", "y"]
-    args = ["uavs"] if program == "ground.cli" else onboard_args
-    done = run_program(program, *args, env=env)
-    assert done.returncode == 2
-    assert f"Zenoh config {bad} is not valid" in done.stderr
-    assert "Traceback" not in done.stderr
+    monkeypatch.delenv(CONNECT_ENV, raising=False)
+    monkeypatch.setenv(CONFIG_ENV, str(bad))
+    if program == "ground.cli":
+        done = ground_cli_here("uavs")
+        status, err = done.returncode, done.stderr
+    else:
+        from onboard.main import main as onboard_main
+
+        status = onboard_main(["--id", "7", "--program", "x", "--payload", "y"])
+        err = capsys.readouterr().err
+    assert status == 2
+    assert f"Zenoh config {bad} is not valid" in err
+    assert "Traceback" not in err
 
 
 # ---- signals and logging -------------------------------------------------------------------------
@@ -255,18 +285,19 @@ def test_run_standalone_parses_the_command_and_v_then_returns_its_status(
     root = logging.getLogger()
     monkeypatch.setattr(root, "handlers", [])
     monkeypatch.setattr(root, "level", root.level)
-    seen: list[argparse.Namespace] = []
+    seen: list[str] = []
 
     def configure(parser: argparse.ArgumentParser) -> None:
         parser.add_argument("thing")
 
-    def run(args: argparse.Namespace) -> int:
-        seen.append(args)
+    def run(thing: str, out: TextIO) -> int:
+        seen.append(thing)
         return ExitCode.FAILED
 
-    status = run_standalone("fleet x", "a command", configure, run, ["-v", "a"])
+    command = LocalCommand(lambda args: str(args.thing), run)
+    status = run_standalone("fleet x", "a command", configure, command, ["-v", "a"])
     assert status == ExitCode.FAILED
-    assert [(args.thing, args.verbose) for args in seen] == [("a", 1)]
+    assert seen == ["a"]
     assert root.level == logging.DEBUG
 
 
