@@ -324,9 +324,9 @@ def test_each_service_sees_its_own_key_and_no_other() -> None:
         if identity is None:
             assert seen == {}, name
             continue
-        # Never ca.key, never another's key; a signer has its own signing key (the
-        # router signs nothing).
-        own = {f"{identity}.key"} | ({f"{identity}.sign"} if identity != "router" else set())
+        # Never ca.key, never another's key; each has its own signing key (the router
+        # signs its answer about itself, `router/state`).
+        own = {f"{identity}.key", f"{identity}.sign"}
         assert keys == own, name
         # Every process checks signatures (and the router revocations) by the roster.
         assert {f"{CERTS}/ca.pem", f"{CERTS}/signers.json", f"{CERTS}/{identity}.pem"} <= set(

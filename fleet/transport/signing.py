@@ -33,7 +33,14 @@ import zenoh
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
 from fleet.files.certs import common_name
-from fleet.files.signers import ROSTER_FILE, load_roster, load_signing_key, signing_key_path
+from fleet.files.signers import (
+    ROSTER_FILE,
+    RosterError,
+    load_roster,
+    load_signing_key,
+    roster_of,
+    signing_key_path,
+)
 from fleet.mission.key_space import space_of
 from fleet.mission.signature import (
     DEFAULT_WINDOW_NS,
@@ -73,13 +80,18 @@ class BusSigning:
         *,
         window_ns: int = DEFAULT_WINDOW_NS,
         clock: Callable[[], int] = time.time_ns,
+        ca_pem: Path | None = None,
     ) -> None:
         self.identity = identity
         self._key = key
         self.roster = roster
+        #: The CA a roster heard on the bus must be signed by (None: none is believed).
+        self._ca_pem = ca_pem
         self._clock = clock
         self._lock = threading.Lock()
-        self._freshness = Freshness(window_ns)
+        # A live command signed before this process started is refused (a replay across
+        # its restart: the marks are in memory).
+        self._freshness = Freshness(window_ns, floor_ns=clock())
         #: The envelopes of the latest signed messages per key (by payload), as put by us
         #: or received: a reply with one of those payloads passes its envelope on, so a
         #: message keeps its author's signature and first time.
@@ -120,7 +132,7 @@ class BusSigning:
             log.warning("this identity (%s) is revoked: its messages will be refused", identity)
         log.info("signing as %s; %d signers, %d revoked", identity, len(roster.keys),
                  len(roster.revoked))  # fmt: skip
-        return cls(identity, key, roster)
+        return cls(identity, key, roster, ca_pem=ca_path)
 
     # ---- outgoing ---------------------------------------------------------------------
     def _stamp(self) -> int:
@@ -183,24 +195,63 @@ class BusSigning:
             log.debug("no signed copy of this %s to relay: replied unsigned", key)
         return payload, known
 
+    # ---- the roster, live -----------------------------------------------------------------
+    def apply_roster(self, key: str, payload: bytes) -> frozenset[str]:
+        """A roster heard on the bus (`fleet certs revoke` on a running fleet): if the CA
+        signed it, its revocations are added to ours (never removed: an older roster
+        replayed revives no one). Returns the identities newly revoked."""
+        if self._ca_pem is None:
+            return frozenset()
+        try:
+            document = json.loads(payload)
+            if not isinstance(document, dict):
+                raise RosterError(f"{key}: not a roster")
+            heard = roster_of(document, self._ca_pem, key)
+        except (ValueError, RecursionError, RosterError) as error:
+            bus_codec.DROPPED.add(Refusal.BAD_SIGNATURE)
+            log.warning("refused a roster on %s: %s", key, error)
+            return frozenset()
+        with self._lock:
+            new = heard.revoked - self.roster.revoked
+            if new:
+                self.roster = Roster(self.roster.keys, self.roster.revoked | new)
+        if new:
+            log.warning(
+                "revoked from now on (a roster heard on %s): %s", key, ", ".join(sorted(new))
+            )
+        if self.identity in new:
+            log.warning(
+                "this identity (%s) is revoked: its messages will be refused", self.identity
+            )
+        return new
+
     # ---- incoming ---------------------------------------------------------------------
     def check(self, key: str, payload: bytes, attachment: bytes, how: Delivery) -> bool:
         """Whether a message that arrived on `key` may be believed (refusals counted)."""
+        return self._checked(key, payload, attachment, how)[0]
+
+    def check_reply(self, key: str, payload: bytes, attachment: bytes) -> tuple[bool, str | None]:
+        """Whether a reply may be believed, and who signed it (None: a key not signed)."""
+        return self._checked(key, payload, attachment, Delivery.REPLY)
+
+    def _checked(
+        self, key: str, payload: bytes, attachment: bytes, how: Delivery
+    ) -> tuple[bool, str | None]:
         space = space_of(key)
         if space is None:
-            return True
+            return True, None
         envelope, refusal = verify(self.roster, space, key, payload, attachment, how)
         if envelope is None and refusal is None:
-            return True  # a key that is not signed
+            return True, None  # a key that is not signed
         if refusal is None and envelope is not None:
             with self._lock:
                 refusal = self._freshness.check(key, envelope, how, self._clock())
         if refusal is None:
             if envelope is not None and envelope.author != self.identity:
                 self._remember(key, payload, attachment)
-            return True
+            return True, envelope.author if envelope is not None else None
         self._refuse(key, refusal, envelope.author if envelope else None, how)
-        return False
+        return False, None
 
     def _refuse(self, key: str, refusal: Refusal, author: str | None, how: Delivery) -> None:
         bus_codec.DROPPED.add(refusal)

@@ -13,7 +13,10 @@ from fleet.mission.signature import Delivery, Envelope, Freshness, Refusal, Rost
 SPACE = KeySpace()
 S = 1_000_000_000
 NOW = 1_800_000_000 * S
-KEYS = {name: Ed25519PrivateKey.generate() for name in ("ground", "uav-74", "uav-112")}
+KEYS = {
+    name: Ed25519PrivateKey.generate()
+    for name in ("ground", "uav-74", "uav-112", "router", "router-74")
+}
 ROSTER = Roster({name: key.public_key() for name, key in KEYS.items()})
 
 
@@ -71,6 +74,21 @@ def test_a_message_signed_by_its_author_is_believed() -> None:
     assert verify(ROSTER, SPACE, SPACE.telemetry(74), b"{}", b"", Delivery.PUT) == (None, None)
 
 
+def test_a_routers_state_is_signed_by_a_router_for_itself() -> None:
+    """Any router answers `router/state` for itself: its own identity signs the answer
+    (shown as its word); a UAV's identity, or none, cannot."""
+    key, payload = SPACE.router_state(), b'{"zid": "aa", "refused_links": {}}'
+    assert signature.author_of(SPACE, key, Delivery.REPLY) == signature.ANY_ROUTER
+    for router in ("router", "router-74"):
+        envelope, refusal = verify(
+            ROSTER, SPACE, key, payload, signed(router, key, payload), Delivery.REPLY
+        )
+        assert refusal is None and envelope is not None and envelope.author == router
+    by_uav = verify(ROSTER, SPACE, key, payload, signed("uav-74", key, payload), Delivery.REPLY)
+    assert by_uav[1] is Refusal.NOT_ENTITLED
+    assert verify(ROSTER, SPACE, key, payload, b"", Delivery.REPLY)[1] is Refusal.UNSIGNED
+
+
 def test_forgeries_are_refused_each_for_its_reason() -> None:
     key, payload = SPACE.mission_targets(4_000_000_000), b'{"mission": 4000000000}'
     by_74 = signed("uav-74", key, payload)
@@ -115,6 +133,21 @@ def test_a_live_message_must_be_fresh_and_new_on_its_key() -> None:
     assert fresh.check(key, envelope_at(NOW - 1 * S), Delivery.PUT, NOW) is Refusal.REPLAYED
     # Another key, or another author, has its own mark.
     assert fresh.check(SPACE.opm(74), envelope_at(NOW - 2 * S), Delivery.PUT, NOW) is None
+
+
+def test_a_command_signed_before_the_process_started_is_a_replay_after_a_restart() -> None:
+    """The marks are in memory: a process started at NOW refuses the ground's "OPM off"
+    signed 14 s before (a replay across its restart), and takes the ones signed since.
+    What is not a command (a teammate's result) and a caught-up reply are not judged so."""
+    fresh = Freshness(window_ns=30 * S, floor_ns=NOW)
+    later = NOW + 1 * S
+    opm = SPACE.opm(112)
+    assert fresh.check(opm, envelope_at(NOW - 14 * S), Delivery.PUT, later) is Refusal.REPLAYED
+    assert fresh.check(opm, envelope_at(NOW + S // 2), Delivery.PUT, later) is None
+    result = SPACE.mission_result(5, 74)
+    assert fresh.check(result, envelope_at(NOW - 14 * S, "uav-74"), Delivery.PUT, later) is None
+    targets = SPACE.mission_targets(5)
+    assert fresh.check(targets, envelope_at(NOW - 14 * S), Delivery.REPLY, later) is None
 
 
 def test_a_caught_up_message_may_be_old_but_an_abort_not_older_than_its_mission() -> None:
