@@ -375,3 +375,34 @@ def test_a_second_station_cannot_take_over_or_join_an_upload(fleet_up: FleetUp) 
         rival.close()
         lines = stop(gateway)
     assert "'busy': 2" in exit_drops(lines), lines[-3:]
+
+
+def test_mavproxy_commands_once_it_signs_with_its_passphrase(fleet_up: FleetUp) -> None:
+    """MAVProxy's `signing key PASSPHRASE` derives the secret as the gateway does: before
+    it, its frames are refused (`unsigned`); after it, it is answered."""
+    passphrase = "operator-2026"  # MAVProxy takes one word
+    keys = fleet_up.tmp / "mavproxy.keys"
+    keys.write_text(f"mavproxy {passphrase}\n")
+    keys.chmod(0o600)
+    port = free_udp_port()
+    gateway = fleet_up.gateway(f"udpout:127.0.0.1:{port}", "--signing-key", str(keys))
+    proxy = start(
+        "mavproxy",
+        [sys.executable, "-m", "MAVProxy.mavproxy", f"--master=udpin:127.0.0.1:{port}",
+         f"--state-basedir={fleet_up.tmp / 'mavproxy-signed'}"],
+        env={"HOME": str(fleet_up.tmp)},
+        stdin=True,
+    )  # fmt: skip
+    try:
+        proxy.wait_for_line(lambda line: line.startswith("Detected vehicle"), WAIT_S)
+        assert proxy.process.stdin is not None
+        # Unsigned first (refused, counted), then signed.
+        proxy.process.stdin.write(f"wp list\nsigning key {passphrase}\nwp list\n")
+        proxy.process.stdin.flush()
+        proxy.wait_for_line(lambda line: line.startswith("Requesting 0 waypoints"), WAIT_S)
+        proxy.process.stdin.write("exit\n")
+        proxy.process.stdin.flush()
+    finally:
+        proxy.stop()
+        lines = stop(gateway)
+    assert "'unsigned'" in exit_drops(lines), lines[-3:]  # its frames before the key
