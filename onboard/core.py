@@ -27,6 +27,7 @@ from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
     MissionAbort,
+    PlanProposal,
     MissionProgress,
     MissionTargets,
     OpmCommand,
@@ -206,6 +207,9 @@ class OnboardCore:
 
     def on_abort(self, abort: MissionAbort, now: float) -> None:
         self.mission.on_abort(abort, now)
+
+    def on_proposal(self, proposal: PlanProposal, now: float) -> None:
+        self.mission.on_proposal(proposal, now)
 
     def on_alive(self, uav: int, alive: bool, now: float) -> None:
         self.mission.on_alive(uav, alive, now)

@@ -32,6 +32,7 @@ from fleet.mission.messages import (
     CommandResult,
     LinkHealth,
     MissionAbort,
+    PlanProposal,
     MissionTargets,
     OpmCommand,
     StatusText,
@@ -332,6 +333,8 @@ class OnboardProcess:
             core.on_assignment(message, now)
         elif isinstance(message, TargetOutcome):
             core.on_outcome(message, now)
+        elif isinstance(message, PlanProposal):
+            core.on_proposal(message, now)
         elif isinstance(message, MissionAbort):
             if via_payload:
                 self.node.publish(self.space.mission_abort(message.mission), message)
