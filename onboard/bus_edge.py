@@ -22,9 +22,9 @@ from fleet.mission.messages import (
     AssignmentHeader,
     AssignmentReport,
     MissionAbort,
-    PlanProposal,
     MissionTargets,
     OpmCommand,
+    PlanProposal,
     TargetOutcome,
     UavResult,
 )

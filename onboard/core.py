@@ -27,10 +27,10 @@ from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
     MissionAbort,
-    PlanProposal,
     MissionProgress,
     MissionTargets,
     OpmCommand,
+    PlanProposal,
     StatusText,
     TargetOutcome,
     UavResult,

@@ -29,8 +29,8 @@ from fleet.mission.lifecycle import Observation, advance
 from fleet.mission.messages import (
     AssignmentReport,
     MissionAbort,
-    PlanProposal,
     MissionTargets,
+    PlanProposal,
     StatusText,
     TargetOutcome,
     UavResult,
