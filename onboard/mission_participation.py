@@ -30,6 +30,7 @@ from fleet.mission.messages import (
     AssignmentReport,
     MissionAbort,
     MissionTargets,
+    PlanProposal,
     StatusText,
     TargetOutcome,
     UavResult,
@@ -205,9 +206,7 @@ class MissionParticipation:
     def _start_planning(self, now: float) -> None:
         gps = self.link.gps
         assert self.round is not None and gps is not None
-        telemetry = self.link.telemetry
-        sensor = telemetry.sensor if telemetry is not None else None
-        speed = sensor.true_airspeed() if sensor is not None else None
+        speed = self.link.airspeed()
         if not self.own.start(self.round, gps, now, self.link.wind.value, speed):
             self._decline(f"mission {self.round.mission}: the planner refused the request", now)
 
@@ -225,6 +224,17 @@ class MissionParticipation:
         mission_round.heard(now)
         if mission_round.committed is not None and mission_round.released:
             self._replan(now)  # it may have waited for this result
+
+    def on_proposal(self, proposal: PlanProposal, now: float) -> None:
+        """A plan proposed for the current mission: kept for the decision, which
+        verifies and scores it (fleet.consensus.proposal); after it, changes nothing."""
+        mission_round = self.round
+        if mission_round is not None and mission_round.add_proposal(proposal):
+            log.info(
+                "mission %d: a plan proposed by %d, to verify at the decision",
+                proposal.mission,
+                proposal.proposer,
+            )
 
     def on_assignment(self, report: AssignmentReport, now: float) -> None:
         mission_round = self.round

@@ -23,7 +23,6 @@ from dataclasses import dataclass
 import msgspec
 import zenoh
 
-from fleet.geo.wind import airspeed
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.mission.messages import (
     BROADCAST,
@@ -34,6 +33,7 @@ from fleet.mission.messages import (
     MissionAbort,
     MissionTargets,
     OpmCommand,
+    PlanProposal,
     StatusText,
     TargetOutcome,
     UavResult,
@@ -272,11 +272,9 @@ class OnboardProcess:
             return
         telemetry, at = latest
         self.core.on_telemetry(telemetry, at)
-        if telemetry.gps is not None:
-            # The airspeed held, in the smoothed wind this telemetry was just averaged
-            # into: the one wind the module plans with.
-            gps = telemetry.gps
-            self.planner.prepare(airspeed((gps.vel_east, gps.vel_north), self.core.wind))
+        speed = self.core.link.airspeed()  # the one the plans use, this telemetry taken in
+        if speed is not None:
+            self.planner.prepare(speed)
 
     def _on_event(self, event: Event | None, now: float) -> None:
         # The aircraft's latest position first: a track change is judged against it.
@@ -332,6 +330,8 @@ class OnboardProcess:
             core.on_assignment(message, now)
         elif isinstance(message, TargetOutcome):
             core.on_outcome(message, now)
+        elif isinstance(message, PlanProposal):
+            core.on_proposal(message, now)
         elif isinstance(message, MissionAbort):
             if via_payload:
                 self.node.publish(self.space.mission_abort(message.mission), message)
