@@ -6,11 +6,11 @@ A command arrives as one JSON object on the WebSocket, tagged by `cmd`:
     {"cmd": "abort", "id": 2}                 (the mission the page follows, else the latest)
     {"cmd": "opm", "id": 3, "uav": 74, "enabled": false}
 
-Each is acknowledged at once (`{"type": "ack", "id"}`: received, in its turn) and then
-gets one reply `{"type": "reply", "id", "ok", "message"}`. The page's ids are strings
-unique to the page and the press, so a command it sends again after a reconnect is
-answered, not done twice (`ground.gui.ledger`). A malformed command is refused with the
-reason and nothing is sent. Sending reuses the mission manager's own
+Each gets one reply `{"type": "reply", "id", "ok", "message", "mission"}` when done; a
+page's (a string id) is also acknowledged as soon as it is read (`{"type": "ack", "id"}`).
+The page's ids are unique to the page and the press, so a command it sends again after
+a reconnect is answered, not done twice (`ground.gui.ledger`). A malformed command is
+refused with the reason and nothing is sent. Sending reuses the mission manager's own
 code (`ground.mission_control`): the same mission ids, the same MissionTargets, the
 same follower, the same targets queryable as `ground-cli send-targets`. The calls here
 block on Zenoh queries: the server runs them off the event loop (`asyncio.to_thread`).

@@ -358,7 +358,9 @@ class GuiServer:
     ) -> None:
         async def answer() -> None:
             with contextlib.suppress(ConnectionError, RuntimeError):
-                if command_id is not None:
+                # A page's command (a string id) is acknowledged as soon as it is read; a
+                # script's (an integer id) gets its reply alone, as it always did.
+                if isinstance(command_id, str):
                     await ws.send_json({"type": "ack", "id": command_id})
                 reply = await asyncio.shield(outcome)
                 if not ws.closed:
