@@ -18,6 +18,7 @@ from __future__ import annotations
 import logging
 
 from fleet.errors import FleetError
+from fleet.mission.claims import reached_by
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     MissionAbort,
@@ -27,7 +28,7 @@ from fleet.mission.messages import (
 from fleet.transport.bus import Bus
 from ground.fleet_view import query_states
 from ground.mission_follower import MissionFollower
-from ground.mission_outcome import MissionOutcome, reached_by
+from ground.mission_outcome import MissionOutcome
 
 log = logging.getLogger(__name__)
 

@@ -15,6 +15,7 @@ import time
 from collections.abc import Callable, Iterable
 from typing import Any
 
+from fleet.mission import claims
 from fleet.mission.key_space import KeySpace, uav_id_of
 from fleet.mission.messages import (
     AssignmentReport,
@@ -123,6 +124,11 @@ class MissionFollower(Declarations):
             self.add_outcome(outcome)
 
     def add_outcome(self, outcome: TargetOutcome) -> None:
+        """A UAV's own outcome (its signature checked by the bus): a copy that claims less
+        than the one held is an older one, relayed by a teammate that missed the latest."""
+        with self._changed:
+            if not claims.newer(self.outcomes.get(outcome.uav), outcome):
+                return
         self._add("outcome", self.outcomes, outcome)
 
     def add_result(self, result: UavResult) -> None:
@@ -170,6 +176,14 @@ class MissionFollower(Declarations):
             self._space.mission_outcomes(self.mission), TargetOutcome, timeout_s
         ):
             self.add_outcome(outcome)
+        # A teammate's word that a UAV reached a target is a hint: ask, by name, for
+        # that UAV's own outcome, which its teammates relay with its signature (it may be
+        # gone).
+        for uav in sorted(claims.unconfirmed(self.outcome_snapshot().values())):
+            for _, outcome in self._bus.query_messages(
+                self._space.mission_outcome(self.mission, uav), TargetOutcome, timeout_s
+            ):
+                self.add_outcome(outcome)
         # The UAVs serve their current mission's targets: a later one supersedes ours.
         for _, targets in self._bus.query_messages(
             self._space.all_mission_targets, MissionTargets, timeout_s

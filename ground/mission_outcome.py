@@ -26,6 +26,7 @@ from typing import Any
 
 import msgspec
 
+from fleet.mission.claims import reached_by
 from fleet.mission.messages import (
     AssignmentReport,
     NoFlyZone,
@@ -41,20 +42,6 @@ log = logging.getLogger(__name__)
 #: A holder's phases that end its claim on its target short of reaching it: the target
 #: shows the phase, and the mission is no success while such a target is not reached.
 ENDED_SHORT = frozenset({Phase.PREEMPTED, Phase.FAILED, Phase.ABORTED})
-
-
-def reached_by(outcomes: Iterable[TargetOutcome]) -> dict[int, int]:
-    """Target index -> the UAV that reached it, from every outcome heard: each names its
-    own target and lists every target its UAV knew reached (a lost UAV's too)."""
-    reached: dict[int, int] = {}
-    heard = sorted(outcomes, key=lambda o: o.uav)
-    for outcome in heard:
-        if outcome.phase == Phase.REACHED and outcome.target is not None:
-            reached.setdefault(outcome.target, outcome.uav)
-    for outcome in heard:
-        for target, uav in outcome.reached.items():
-            reached.setdefault(target, uav)
-    return reached
 
 
 def _report_identity(report: AssignmentReport) -> tuple[str, tuple[tuple[int, int], ...]]:
@@ -128,7 +115,8 @@ class MissionOutcome:
         return max((report.epoch for report in self.assignments.values()), default=0)
 
     def reached_by(self) -> dict[int, int]:
-        """Target index -> the UAV whose telemetry put it inside the acceptance radius."""
+        """Target index -> the UAV whose telemetry put it inside the acceptance radius, as
+        that UAV's own outcome says (a teammate's word for it is a hint, not a fact)."""
         return reached_by(self.outcomes.values())
 
     @property

@@ -109,9 +109,10 @@ class BusEdge:
             self._declared.append(bus.subscribe(key, self._decoder(kind)))
         self.state_queries = bus.declare_queryable(space.state(self.uav_id), self.wake)
         self.command_queries = bus.declare_queryable(space.command(self.uav_id, "*"), self.wake)
-        # Each UAV answers for the targets and the abort of its current mission, and for
-        # its own result, assignment and outcome only, so
-        # a teammate's query for a missing result reaches the UAV that owes it.
+        # Each UAV answers for the targets and the abort of its current mission, for its
+        # own result and assignment only, so a teammate's query for a missing result
+        # reaches the UAV that owes it, and for every outcome: its own, and a teammate's
+        # relayed to a query naming it (a claim about another UAV is fetched from it).
         self.mission_queries = [
             bus.declare_queryable(key, self.wake)
             for key in (
@@ -119,7 +120,7 @@ class BusEdge:
                 space.all_mission_aborts,
                 space.results_of(self.uav_id),
                 space.assignments_of(self.uav_id),
-                space.outcomes_of(self.uav_id),
+                space.all_mission_outcomes,
             )
         ]
 

@@ -74,6 +74,7 @@ class Outputs(Protocol):
     def fetch_results(self, mission: int, uavs: tuple[int, ...]) -> None: ...
     def fetch_assignments(self, mission: int) -> None: ...
     def fetch_missions(self) -> None: ...
+    def fetch_outcomes(self, mission: int, uavs: tuple[int, ...]) -> None: ...
 
 
 class OnboardCore:
@@ -287,3 +288,7 @@ class OnboardCore:
         if self.round is None or self.round.mission != mission:
             return None
         return self.round.outcome
+
+    def teammate_outcomes(self, mission: int) -> dict[int, TargetOutcome]:
+        """Each teammate's latest outcome as it signed it: relayed to whoever asks by name."""
+        return self.mission.heard_outcomes(mission)

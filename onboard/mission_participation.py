@@ -23,6 +23,7 @@ from fleet.consensus.mission_round import (
     predicted_arrival,
     targets_problem,
 )
+from fleet.mission import claims
 from fleet.mission.key_space import KeySpace
 from fleet.mission.lifecycle import Observation, advance
 from fleet.mission.messages import (
@@ -59,6 +60,7 @@ class MissionOutputs(Protocol):
     def fetch_results(self, mission: int, uavs: tuple[int, ...]) -> None: ...
     def fetch_assignments(self, mission: int) -> None: ...
     def fetch_missions(self) -> None: ...
+    def fetch_outcomes(self, mission: int, uavs: tuple[int, ...]) -> None: ...
 
 
 @dataclass
@@ -261,7 +263,12 @@ class MissionParticipation:
             return
         if outcome.mission != mission_round.mission:
             return
-        mission_round.heard_reached(outcome.reached)
+        # Believed of its own UAV only: what it says a teammate reached is a hint, to be
+        # confirmed by that teammate's own outcome (a captured UAV could list ours).
+        if claims.newer(mission_round.outcomes.get(outcome.uav), outcome):
+            mission_round.outcomes[outcome.uav] = outcome  # relayed, by name, to whoever asks
+        mission_round.heard_reached(claims.own_claims(outcome))
+        self._fetch_hinted(mission_round, outcome)
         if outcome.phase == Phase.REACHED:
             mission_round.target_reached(outcome.uav, outcome.target)
             self._settle()
@@ -278,6 +285,29 @@ class MissionParticipation:
             )
             self._replan(now)
             self._settle()
+
+    def _fetch_hinted(self, mission_round: MissionRound, outcome: TargetOutcome) -> None:
+        """Ask, once each, for the own outcomes of the teammates `outcome` says reached a
+        target this UAV does not know they reached."""
+        asked = mission_round.hints_asked
+        wanted = {
+            uav
+            for target, uav in claims.hints(outcome).items()
+            if uav != self.uav_id
+            and uav in mission_round.team
+            and mission_round.reached_targets.get(target) != uav
+            and (uav, target) not in asked
+        }
+        asked.update((uav, t) for t, uav in claims.hints(outcome).items() if uav in wanted)
+        if wanted:
+            self.outputs.fetch_outcomes(mission_round.mission, tuple(sorted(wanted)))
+
+    def heard_outcomes(self, mission: int) -> dict[int, TargetOutcome]:
+        """Each teammate's latest outcome of `mission` as it signed it (relayed by name)."""
+        mission_round = self.round
+        if mission_round is None or mission_round.mission != mission:
+            return {}
+        return mission_round.outcomes
 
     def on_abort(self, abort: MissionAbort, now: float) -> None:
         """Abort is final: mission m never commits or flies after this, whatever arrives."""

@@ -132,6 +132,13 @@ class _Outputs:
     def fetch_missions(self) -> None:
         self.process.node.fetch(self.process.space.all_mission_targets, MissionTargets)
 
+    def fetch_outcomes(self, mission: int, uavs: tuple[int, ...]) -> None:
+        """Ask for these teammates' own outcomes, by name: each teammate that heard one
+        relays it with its author's signature (the UAV itself may be gone)."""
+        for uav in uavs:
+            key = self.process.space.mission_outcome(mission, uav)
+            self.process.node.fetch(key, TargetOutcome)
+
 
 class OnboardProcess:
     """One UAV's module. Its edges come from `settings` (serial ports by URL, a Zenoh
@@ -414,3 +421,10 @@ class OnboardProcess:
             # Reply with the concrete key, or consolidation would merge the replies.
             if message is not None and query.intersects(key):
                 query.reply(key, message)
+        # A teammate's outcome only to a query naming it: relayed as its UAV signed it
+        # (the bus passes its envelope on), for a UAV or a ground that heard it named
+        # in a hint; a query for every outcome gets each UAV's own from that UAV.
+        for uav, relayed in self.core.teammate_outcomes(mission).items():
+            key = self.space.mission_outcome(mission, uav)
+            if query.key == key:
+                query.reply(key, relayed)

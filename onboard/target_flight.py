@@ -20,6 +20,7 @@ from typing import Protocol
 import msgspec
 
 from fleet.geo.mercator import distance_m
+from fleet.geo.wind import airspeed
 from fleet.mission.key_space import KeySpace
 from fleet.mission.lifecycle import Observation
 from fleet.mission.messages import CommandResult, NoFlyZone, Target
@@ -30,6 +31,7 @@ from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from onboard.autopilot_commands import AutopilotCommand, CommandTracker, Completion
 from onboard.link_watch import LinkWatch
+from onboard.loiter import LOITER_ANCHOR, LOITER_WAYPOINTS, loiter_writes
 from onboard.mission_phase import MissionPhase
 from onboard.route_flight import ROUTE_WAYPOINTS, route_turns, route_writes
 from onboard.state_report import Say
@@ -156,7 +158,7 @@ class TargetFlight:
         flying = self.life.phase == Phase.FLYING
         if flying and self._target_tracked and _on_target_route(previous):
             self._left_target_route(track.waypoint, now)
-        if not self.life.holds_target():
+        if not self.life.holds_target() and track.waypoint not in LOITER_WAYPOINTS:
             self.original_waypoint = track.waypoint  # the course to come back to
 
     def _left_target_route(self, waypoint: int, now: float) -> None:
@@ -241,7 +243,18 @@ class TargetFlight:
         if turns is None:
             self._no_route = f"no route around the no-fly zones to target {target_index}"
             return
+        # With zones, the target leads to a loiter clear of them, never back to the
+        # course, which the module cannot see (onboard.loiter).
+        loiter: list[Waypoint] = []
+        if self.zones and gps is not None:
+            came_from = turns[-1] if turns else (gps.lat, gps.lon)
+            loiter = self._loiter(
+                (target.lat, target.lon), came_from, target.alt, f"after target {target_index}"
+            )
+            if loiter:
+                back_to = self._target_next = LOITER_ANCHOR
         writes, first = route_writes(TARGET_WAYPOINT, target, turns, back_to)
+        writes = [*loiter, *writes]
         self.route = turns
 
         def write_next(result: CommandResult) -> None:
@@ -310,23 +323,60 @@ class TargetFlight:
             return why, Phase.FAILED
         return None
 
+    def _loiter(
+        self, at: tuple[float, float], came_from: tuple[float, float], alt: float, what: str
+    ) -> list[Waypoint]:
+        """A loiter's writes at `at`, its leg onward from `came_from` (none found: [],
+        and the course it is, as without zones)."""
+        gps = self.link.gps
+        # Inflated at the airspeed in the smoothed wind, as the routes are.
+        speed = (
+            0.0 if gps is None else airspeed((gps.vel_east, gps.vel_north), self.link.wind.value)
+        )
+        toward = (2.0 * at[0] - came_from[0], 2.0 * at[1] - came_from[1])
+        writes = loiter_writes(at, toward, alt, self.zones, speed)
+        if writes is None:
+            log.warning("no loiter clear of the no-fly zones %s: the course instead", what)
+            return []
+        return writes
+
     def resume_course(self, now: float) -> None:
         """Track the course again; resent until echoed, across a link outage too, for an
         aircraft left tracking a target it gave up would fly it beside its new holder.
-        Only a newer track (a new target, the operator's) or a cancel ends it early."""
+        Only a newer track (a new target, the operator's) or a cancel ends it early.
+        With the mission's no-fly zones, loiter clear of them where it is instead."""
         if not self.enabled:
             return
         # No course seen yet (a restart on the target route): the flight plan's start,
         # as the target waypoint's own `next` is then (see `write_target`).
         back = 0 if self.original_waypoint is None else self.original_waypoint
+        gps = self.link.gps
+        writes: list[Waypoint] = []
+        if self.zones and gps is not None:
+            # Onward along its velocity: the loiter's leg starts the way it flies.
+            ahead = (gps.lat + gps.vel_north * 1e-5, gps.lon + gps.vel_east * 1e-5)
+            writes = self._loiter((gps.lat, gps.lon), ahead, gps.alt, "to wait in")
+            if writes:
+                back = LOITER_ANCHOR
 
         def done(result: CommandResult) -> None:
             self.resuming = False
             if not result.ok:
                 log.info("resume of waypoint %d ended: %s", back, result.detail)
 
+        def write_next(result: CommandResult) -> None:
+            if not result.ok:
+                done(result)
+            elif writes:
+                self.commands.submit(writes.pop(0), now, write_next, persistent=True)
+            else:
+                self.commands.submit(Track(back), now, done, persistent=True)
+
         self.resuming = True
-        self.commands.submit(Track(back), now, done, persistent=True)
+        if writes:
+            self.commands.submit(writes.pop(0), now, write_next, persistent=True)
+        else:
+            self.commands.submit(Track(back), now, done, persistent=True)
 
     def give_up(self, why: str, now: float) -> None:
         """Off the target: every write cancelled, back to the course."""

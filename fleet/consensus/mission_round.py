@@ -140,6 +140,11 @@ class MissionRound:
     reached_targets: dict[int, int] = field(default_factory=dict)
     #: How this UAV's own part ended (reached), or why it dropped out; None before.
     outcome: TargetOutcome | None = None
+    #: Each teammate's latest outcome as it signed it, relayed to whoever asks by name.
+    outcomes: dict[int, TargetOutcome] = field(default_factory=dict)
+    #: (UAV, target) pairs a teammate's outcome named reached whose own outcome this
+    #: UAV asked for (once each: a claim about another UAV is a hint, not a fact).
+    hints_asked: set[tuple[int, int]] = field(default_factory=set)
     #: The team as a set (membership is asked of every message heard).
     team: frozenset[int] = field(init=False, repr=False, compare=False)
     #: Each result's greedy order and digest bytes, computed as it arrives.

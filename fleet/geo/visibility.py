@@ -11,8 +11,9 @@ for three zones of eight vertices).
 A start or goal inside an inflated zone (an aircraft near an edge, a target close to a
 zone) leaves or enters that zone's inflation by the straight line, or via its inflated
 vertices: its first or last leg keeps out of the zone itself, not of its inflation. An
-aircraft already inside a zone is not stranded there: its first leg ignores that zone.
-A goal no route reaches gets None.
+aircraft already inside a zone is not stranded there: its first leg leaves the zone's
+inflation by the shortest way (the nearest point of its boundary, `exit_point`), and
+the route goes on from there. A goal no route reaches gets None.
 
 The time of a route is its legs' times (`fleet.geo.wind.leg_time`: a straight leg at a
 constant airspeed in a constant wind, still air by default); the approach to the route's first
@@ -151,8 +152,43 @@ class ZoneMap:
         """The shortest route from `start` to `goal` out of every zone; None if none."""
         leave, enter = self.containing(start), self.containing(goal)
         # Already inside a zone (blown in, or sent a mission there): its first leg leaves
-        # it, rather than no route at all.
+        # it by the shortest way, then the route goes on from there.
         within = next((i for i in leave if _inside_convex(start, self._core_edges[i])), None)
+        if within is not None:
+            exit_at = self.exit_point(start, within)
+            onward = self._route(exit_at, goal, self.containing(exit_at), enter, None)
+            return None if onward is None else Route(start, (exit_at, *onward.points))
+        return self._route(start, goal, leave, enter, within)
+
+    def exit_point(self, point: Point, index: int) -> Point:
+        """The nearest point out of zone `index`'s inflation from `point` inside it (a
+        metre beyond its boundary, so that the route on from there starts outside)."""
+        ring = self.zones[index]
+        best, best_d = point, math.inf
+        for a, b in zip(ring, (*ring[1:], ring[0]), strict=True):
+            near = _closest_on_segment(point, a, b)
+            d = math.dist(point, near)
+            if d < best_d:
+                best, best_d = near, d
+        # Outwards: along the edge's normal (the ring is counter-clockwise).
+        for a, b in zip(ring, (*ring[1:], ring[0]), strict=True):
+            if math.dist(_closest_on_segment(point, a, b), best) <= EPSILON_M:
+                length = math.dist(a, b)
+                if length > 0.0:
+                    return (
+                        best[0] + (b[1] - a[1]) / length * _EXIT_BEYOND_M,
+                        best[1] - (b[0] - a[0]) / length * _EXIT_BEYOND_M,
+                    )
+        return best
+
+    def _route(
+        self,
+        start: Point,
+        goal: Point,
+        leave: frozenset[int],
+        enter: frozenset[int],
+        within: int | None,
+    ) -> Route | None:
         if self.clear(start, goal, leave | enter, within):
             return Route(start, (goal,))
         n = len(self.vertices)
@@ -199,6 +235,19 @@ class ZoneMap:
 
 
 _Box = tuple[float, float, float, float]
+#: How far beyond a zone's inflation the shortest way out of it ends (m).
+_EXIT_BEYOND_M = 1.0
+
+
+def _closest_on_segment(p: Point, a: Point, b: Point) -> Point:
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    length2 = dx * dx + dy * dy
+    if length2 == 0.0:
+        return a
+    t = max(0.0, min(1.0, ((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / length2))
+    return (a[0] + t * dx, a[1] + t * dy)
+
+
 #: A convex ring's edges, each its start and unit direction (x0, y0, ux, uy).
 _Edges = list[tuple[float, float, float, float]]
 

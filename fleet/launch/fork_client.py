@@ -4,8 +4,9 @@
 child and returns a `ForkedProcess`, which has what the launcher uses of a
 `subprocess.Popen` (pid, poll, wait, send_signal, kill, returncode). Exit statuses come
 from the server, which collects its children; signals go through a pidfd, so a PID
-reused after its child ended is never signalled. A child that outlives its server is
-still stopped by its PID, and reports `UNKNOWN_STATUS` once it ends.
+reused after its child ended is never signalled. A child ends with its server (the
+kernel kills it: `fleet.lifeline`), and reports `UNKNOWN_STATUS` then, as no one could
+collect its status.
 """
 
 from __future__ import annotations

@@ -25,8 +25,10 @@ launcher starts its children: a session (process group) of its own, stdin from
 /dev/null, stdout and stderr appended to PATH, every other descriptor closed. What
 differs: the modules come imported, and an environment variable read only at import
 time is the server's. A malformed request is answered with an error, and the server
-goes on. The server ends when its stdin closes (the launcher is gone); children it
-started keep running, as `subprocess` children do, and are stopped by their PIDs.
+goes on. The server ends when its stdin closes (the launcher is gone), and each child
+it forked is bound to it (`fleet.lifeline`): when the server dies, however, the kernel
+kills its children, as the server is itself killed when its launcher dies. A crash of
+the server or of a child dumps its Python traceback into its log (`faulthandler`).
 
 The launcher's side is `fleet.launch.fork_client`.
 """
@@ -35,6 +37,7 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import faulthandler
 import gc
 import importlib
 import json
@@ -47,6 +50,8 @@ import traceback
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
+
+from fleet import lifeline
 
 #: The longest request line the server reads, bytes: an argv and an environment.
 MAX_REQUEST_BYTES = 1 << 20
@@ -98,9 +103,10 @@ def _preload(modules: Sequence[str]) -> None:
             hook()
 
 
-def _run_child(request: Request, output: int) -> int:
+def _run_child(request: Request, output: int, server: int) -> int:
     """In the forked child: become ``python -m MODULE *argv`` writing to `output` (its
-    log, opened by the server); its exit status."""
+    log, opened by the server), ending with the `server`; its exit status."""
+    lifeline.bind_to_parent(server)  # a fork does not inherit its parent's binding
     os.setsid()
     signal.set_wakeup_fd(-1)
     for number in (signal.SIGCHLD, signal.SIGINT, signal.SIGTERM):
@@ -112,6 +118,7 @@ def _run_child(request: Request, output: int) -> int:
     os.closerange(3, os.sysconf("SC_OPEN_MAX"))
     os.environ.clear()
     os.environ.update(request.env)
+    os.environ.pop(lifeline.PARENT_ENV, None)  # bound to the server above, not to that
     sys.argv = [request.module, *request.argv]
     # As `python -m` finds it: not imported yet (its imports are, which is the point).
     sys.modules.pop(request.module, None)
@@ -144,6 +151,7 @@ def _fork(request: Request) -> int:
     # The log is opened here, so a log that cannot be written is the request's error,
     # not a child that dies at once with nowhere to say why.
     output = os.open(request.log, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    server = os.getpid()
     try:
         pid = os.fork()
     except OSError:
@@ -152,7 +160,7 @@ def _fork(request: Request) -> int:
     if pid == 0:
         code = 1
         try:
-            code = _run_child(request, output)
+            code = _run_child(request, output, server)
         finally:
             os._exit(code)
     os.close(output)
@@ -173,6 +181,8 @@ def _reap() -> None:
 def serve(modules: Sequence[str]) -> int:
     """Import `modules`, then fork a child per request until stdin closes."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # a Ctrl-C is the launcher's to handle
+    if not faulthandler.is_enabled():  # on stderr: the server's log, then each child's
+        faulthandler.enable(all_threads=True)
     _preload(modules)
     gc.collect()
     gc.freeze()  # the children's collector leaves the imported objects (and their pages) alone

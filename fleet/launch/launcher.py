@@ -18,8 +18,10 @@ Children are started with `sys.executable -m ...` (no dependence on console scri
 being on PATH), in their own session (process group), so a Ctrl-C in the terminal
 reaches only the launcher, which then stops them in order (onboards, then simulator)
 by PID: SIGTERM, then SIGKILL after a grace period. Their output goes to one log file
-each in `log_dir`. A launcher killed with SIGKILL cannot stop its children; they are
-then stopped by PID from the log directory's `pids` file (`fleet.launch.children`).
+each in `log_dir`. A launcher that dies without stopping them (SIGKILL, a crash) takes
+them with it: each is bound to it by the kernel's parent-death signal
+(`fleet.lifeline`), the fork server's children to the fork server. They must then be
+started from the thread that lives as long as the fleet (the launcher's main thread).
 A generated fleet's scenario (`--uavs N`) is `fleet.launch.ring`'s.
 """
 
@@ -41,6 +43,7 @@ from typing import IO, Self
 
 import zenoh
 
+from fleet import lifeline
 from fleet.errors import CertError, FleetError
 from fleet.launch.children import STOP_GRACE_S, Child, ChildProcess, stop_children
 from fleet.launch.endpoints import (
@@ -59,7 +62,7 @@ from fleet.piccolo.telemetry import Telemetry
 from fleet.recording.recorder import READY_LINE, Recorder
 from fleet.recording.writer import McapSink
 from fleet.transport import bus_codec
-from fleet.transport.cli import PREFIX_ENV
+from fleet.transport.cli import CRASH_DUMP_ENV, PREFIX_ENV
 from fleet.transport.router import Router
 from fleet.transport.secure import SecureProfile
 from fleet.transport.zenoh_config import DEFAULT_ROUTER, build_config, make_config
@@ -251,7 +254,10 @@ class Fleet:
         return SecureProfile.load(self.spec.secure_dir, self.spec.key_space)
 
     def _child_env(self) -> dict[str, str]:
-        return {**os.environ, PREFIX_ENV: self.spec.key_space.prefix}
+        # Each child ends with this process, however it dies (fleet.lifeline), and a
+        # crash of one, even while it imports, leaves its traceback in its log.
+        env = {**os.environ, PREFIX_ENV: self.spec.key_space.prefix, CRASH_DUMP_ENV: "1"}
+        return lifeline.child_env(env)
 
     def _onboard_module(self) -> str | None:
         """The module the onboards run (`-m MODULE`), None if they run otherwise."""

@@ -180,9 +180,13 @@ ASSIGNMENT = KeySpec(
 REPLAN = KeySpec(
     "mission/{m}/replan/{id}", messages.AssignmentReport, urgency=Urgency.URGENT, note="epoch > 0"
 )
+#: Served by its UAV, and relayed (with its UAV's signature) by every teammate that
+#: heard it, to a query naming it: a claim that a UAV reached a target is believed from
+#: that UAV's own outcome only (fleet.mission.claims), which may outlive the UAV.
 OUTCOME = KeySpec(
     "mission/{m}/outcome/{id}", messages.TargetOutcome, carriage=Carriage.PUT | Carriage.QUERY,
-    urgency=Urgency.URGENT, reply=messages.TargetOutcome, servers=_OWN, uavs_fetch=True,
+    urgency=Urgency.URGENT, reply=messages.TargetOutcome,
+    servers=frozenset({Party.OWN_UAV, Party.ANY_UAV}), uavs_fetch=True,
 )  # fmt: skip
 #: Every UAV relays its current mission's abort to a teammate that was away.
 ABORT = KeySpec(

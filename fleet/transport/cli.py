@@ -9,6 +9,8 @@ handling, and exit codes.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import faulthandler
 import logging
 import math
 import os
@@ -199,8 +201,26 @@ def add_verbose_argument(parser: argparse.ArgumentParser) -> None:
     )
 
 
+#: Set to 1 in a child's environment, Python dumps its threads' tracebacks on a fatal
+#: signal from its first line on (what `enable_crash_dumps` does once it runs).
+CRASH_DUMP_ENV = "PYTHONFAULTHANDLER"
+
+
+def enable_crash_dumps() -> None:
+    """On SIGSEGV, SIGFPE, SIGABRT, SIGBUS or SIGILL, write every thread's Python
+    traceback to stderr (a child's log) before dying: a crash in a native library (Zenoh's
+    callbacks, HiGHS) otherwise leaves no word. Left as it is if already on (pytest's, or
+    $PYTHONFAULTHANDLER's)."""
+    if faulthandler.is_enabled():
+        return
+    with contextlib.suppress(ValueError, OSError):  # a stderr with no descriptor
+        faulthandler.enable(file=sys.stderr, all_threads=True)
+
+
 def setup_logging(verbose: int, *, base: int = logging.INFO, name: str = "") -> None:
-    """Log to stderr at `base`, one level lower per `-v` (DEBUG at most)."""
+    """Log to stderr at `base`, one level lower per `-v` (DEBUG at most); crashes dump
+    their tracebacks there too (`enable_crash_dumps`)."""
+    enable_crash_dumps()
     level = max(logging.DEBUG, base - 10 * verbose)
     tag = f"{name} " if name else ""
     logging.basicConfig(
@@ -258,6 +278,7 @@ def fail(prog: str, message: str, code: ExitCode = ExitCode.USAGE) -> ExitCode:
 
 
 __all__ = [
+    "CRASH_DUMP_ENV",
     "PREFIX_ENV",
     "ExitCode",
     "ZenohConfigError",
@@ -266,6 +287,7 @@ __all__ = [
     "add_verbose_argument",
     "add_zenoh_arguments",
     "bounded_int",
+    "enable_crash_dumps",
     "fail",
     "non_negative_float",
     "piccolo_id",

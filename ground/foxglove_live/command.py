@@ -3,7 +3,8 @@
 A client of the fleet, as `ground-cli` is: it connects to the fleet's router with the
 usual Zenoh flags and serves, on 127.0.0.1:8765 by default, the topics `fleet record`
 writes (docs/foxglove.md). Prints `fleet foxglove: serving ws://HOST:PORT` once a client
-can connect, and serves until Ctrl-C/SIGTERM or `--duration`.
+can connect, and serves until Ctrl-C/SIGTERM or `--duration`. A handshake naming another
+Host, or from a web page of another Origin, is refused (`gate`).
 
 Exit status: 0 stopped; 1 cannot listen; 2 usage error or no Zenoh router.
 """
@@ -15,7 +16,6 @@ import os
 import threading
 
 import foxglove
-from foxglove.websocket import WebSocketServer
 
 from fleet.transport.bus import Bus
 from fleet.transport.cli import (
@@ -30,6 +30,7 @@ from fleet.transport.cli import (
 )
 from fleet.transport.zenoh_bus import BusConnectError, client_bus
 from ground.foxglove_live.bridge import DEFAULT_STATE_EVERY_S, FoxgloveBridge
+from ground.foxglove_live.gate import DEFAULT_ORIGINS, Gate, Rules, upstream_identity
 from ground.gui.cli import host_port
 
 PROG = "fleet foxglove"
@@ -57,6 +58,22 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "--allow-remote",
         action="store_true",
         help="allow a non-loopback --serve (the protocol has no access control)",
+    )
+    parser.add_argument(
+        "--allow-origin",
+        action="append",
+        default=[],
+        metavar="ORIGIN",
+        help="a web page origin that may connect, e.g. https://studio.example (repeatable; "
+        f"allowed always: {', '.join(DEFAULT_ORIGINS)}, and clients that send none)",
+    )
+    parser.add_argument(
+        "--allow-host",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="a host name clients may reach the server by besides its address and "
+        "localhost (repeatable)",
     )
     parser.add_argument(
         "--state-every",
@@ -99,22 +116,41 @@ def run(args: argparse.Namespace) -> int:
     except ZenohConfigError as error:
         return fail(PROG, str(error))
     context = foxglove.Context()
+    certificate, key = upstream_identity()
     try:
-        server = foxglove.start_server(name="uav-fleet", host=host, port=port, context=context)
-    except RuntimeError as error:  # the SDK's FoxgloveError: the port is taken, ...
-        return fail(PROG, f"cannot listen on {host}:{port}: {error}", ExitCode.FAILED)
+        # Behind the gate: on loopback, any port, reached through TLS by the gate alone.
+        server = foxglove.start_server(
+            name="uav-fleet",
+            host="127.0.0.1",
+            port=0,
+            context=context,
+            tls_cert=certificate,
+            tls_key=key,
+        )
+    except RuntimeError as error:  # the SDK's FoxgloveError
+        return fail(PROG, f"cannot start the Foxglove server: {error}", ExitCode.FAILED)
+    gate = Gate(
+        host, port, Rules.make(host, args.allow_host, args.allow_origin), server.port, certificate
+    )
+    try:
+        gate.start()
+    except OSError as error:
+        server.stop()
+        why = os.strerror(error.errno) if error.errno else str(error)
+        return fail(PROG, f"cannot listen on {host}:{port}: {why}", ExitCode.FAILED)
     try:
         with client_bus(config) as bus:
-            return _serve(args, bus, context, server)
+            return _serve(args, bus, context, gate)
     except BusConnectError as error:
         return fail(PROG, str(error))
     finally:
-        server.stop()
+        server.stop()  # first: its clients are told it closes, through the gate
+        gate.stop()
+        if gate.refused:
+            print(f"{PROG}: refused {sum(gate.refused.values())} client(s): {dict(gate.refused)}")
 
 
-def _serve(
-    args: argparse.Namespace, bus: Bus, context: foxglove.Context, server: WebSocketServer
-) -> int:
+def _serve(args: argparse.Namespace, bus: Bus, context: foxglove.Context, gate: Gate) -> int:
     stop = threading.Event()
     bridge = FoxgloveBridge(bus, context, args.key_space, state_every_s=args.state_every)
     try:
@@ -123,7 +159,7 @@ def _serve(
             host = args.serve[0]
             where = f"[{host}]" if ":" in host else host
             print(
-                f"{READY_LINE} ws://{where}:{server.port} for {args.key_space.prefix}/** "
+                f"{READY_LINE} ws://{where}:{gate.port} for {args.key_space.prefix}/** "
                 f"(pid {os.getpid()})",
                 flush=True,
             )

@@ -20,6 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from fleet.mission import claims
 from fleet.mission.messages import AssignmentReport, MissionAbort, MissionTargets, TargetOutcome
 from fleet.mission.phase import Phase
 from fleet.recording import channels
@@ -182,14 +183,10 @@ class MissionMap:
         return tuple(t for t in self.queues.get(uav, ()) if t not in reached)
 
     def reached(self) -> dict[int, int]:
-        """Every target a UAV said it reached, and by whom (a UAV's latest outcome names
-        its last one; `reached` lists every one it knows of, along a queue)."""
-        done: dict[int, int] = {}
-        for o in self.outcomes.values():
-            done.update(o.reached)
-            if o.phase is Phase.REACHED and o.target is not None:
-                done[o.target] = o.uav
-        return done
+        """Every target a UAV said it reached itself, and by whom (a UAV's latest outcome
+        names its last one; `reached` lists every one it knows of, along a queue: what it
+        says of a teammate is not believed, `fleet.mission.claims`)."""
+        return claims.reached_by(self.outcomes.values())
 
 
 # ---- GeoJSON layers --------------------------------------------------------------------------

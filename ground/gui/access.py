@@ -20,47 +20,32 @@ the number refused meanwhile, so a flood cannot fill the log).
 from __future__ import annotations
 
 import hmac
-import ipaddress
 import logging
 import secrets
 
 from aiohttp import web
 
 from fleet.transport.refusal_log import RefusalLog
+from ground.host_check import HostAllowList
 
 log = logging.getLogger(__name__)
 
 SESSION_META = "fleet-session"
-_WILDCARDS = ("0.0.0.0", "::", "")
-
-
-def _normal(host: str) -> str:
-    host = host.strip().lower().rstrip(".").removeprefix("[").removesuffix("]")
-    try:
-        return str(ipaddress.ip_address(host))
-    except ValueError:
-        return host
 
 
 class Access:
     """The server's Host allow-list and session token, and what it refused."""
 
     def __init__(self, bound_host: str) -> None:
-        bound = _normal(bound_host)
-        self.any_host = bound in _WILDCARDS
-        # A loopback address typed as such is no rebinding (that needs a foreign name).
-        loopback = (
-            {"localhost", "127.0.0.1", "::1"}
-            if bound in ("localhost", "127.0.0.1", "::1")
-            else set()
-        )
-        self.allowed_hosts = frozenset({bound, "localhost", *loopback})
+        self._hosts = HostAllowList(bound_host)
+        self.any_host = self._hosts.any_host
+        self.allowed_hosts = self._hosts.hosts
         self.session = secrets.token_urlsafe(32)
         self.refused = 0
         self._refusals = RefusalLog(log)
 
     def host_allowed(self, host: str | None) -> bool:
-        return self.any_host or (host is not None and _normal(host) in self.allowed_hosts)
+        return self._hosts.allowed(host)
 
     def session_matches(self, given: str) -> bool:
         return hmac.compare_digest(given.encode(), self.session.encode())

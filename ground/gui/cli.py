@@ -2,8 +2,10 @@
 
 Prints `gui: serving on URL` once the page can be opened, and serves until Ctrl-C or
 SIGTERM. Listening on anything but loopback needs `--allow-remote`, and then a token
-(`--token`, `$FLEET_GUI_TOKEN`, or one generated and printed): the page commands
-aircraft, and plain HTTP carries no identity of its own (docs/gui.md).
+(`--token-file FILE`, made if missing, or `$FLEET_GUI_TOKEN`): the page commands
+aircraft, and plain HTTP carries no identity of its own (docs/gui.md). The token is
+never taken on the command line (`ps` shows every process's arguments to every user)
+and never printed.
 """
 
 from __future__ import annotations
@@ -13,10 +15,13 @@ import asyncio
 import os
 import secrets
 import signal
+import stat
 import sys
 import webbrowser
+from pathlib import Path
 from typing import TYPE_CHECKING
 
+from fleet.errors import FleetError
 from fleet.transport.cli import ExitCode, bounded_int, fail, positive_float
 from fleet.transport.zenoh_bus import client_bus
 
@@ -73,10 +78,14 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="allow a non-loopback --listen; a token is then required on every request",
     )
     gui.add_argument(
-        "--token",
-        default=os.environ.get(TOKEN_ENV) or None,
-        help=f"the access token (default ${TOKEN_ENV}; generated when needed and not given)",
+        "--token-file",
+        type=Path,
+        metavar="FILE",
+        help=f"the access token, read from FILE (a new random one is written there, readable "
+        f"by you only, if FILE does not exist); default ${TOKEN_ENV}",
     )
+    # Refused with a clear word: a token in argv is in every user's `ps`.
+    gui.add_argument("--token", dest="token_argv", help=argparse.SUPPRESS)
     gui.add_argument(
         "--rate",
         type=_rate,
@@ -88,21 +97,79 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     gui.set_defaults(handler=cmd_gui)
 
 
+class TokenError(FleetError, ValueError):
+    """A token file that cannot be used."""
+
+
+def read_token_file(path: Path) -> str:
+    """The token in `path`; a new random one written there (owner-only, never through a
+    link) if there is no such file. TokenError says what is wrong with the file."""
+    try:
+        descriptor = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
+    except FileNotFoundError:
+        token = secrets.token_urlsafe(24)
+        flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
+        try:
+            with os.fdopen(os.open(path, flags, 0o600), "w") as f:
+                f.write(token + "\n")
+        except OSError as error:
+            raise TokenError(f"{path}: cannot write a new token: {error.strerror}") from None
+        return token
+    except OSError as error:
+        raise TokenError(f"{path}: cannot read the token: {error.strerror}") from None
+    with os.fdopen(descriptor, "rb") as f:
+        info = os.fstat(f.fileno())
+        if info.st_mode & (stat.S_IRWXG | stat.S_IRWXO):
+            raise TokenError(
+                f"{path}: readable or writable by others (mode {stat.S_IMODE(info.st_mode):o}); "
+                f"chmod 600 {path}"
+            )
+        token = f.read(4096).decode("utf-8", "replace").strip()
+    if not token or any(c.isspace() for c in token):
+        raise TokenError(f"{path}: expected one token (no spaces) on one line")
+    return token
+
+
+def _token(args: argparse.Namespace) -> str | None:
+    """The token from `--token-file` or the environment; None if neither gives one."""
+    if args.token_file is not None:
+        return read_token_file(args.token_file)
+    return os.environ.get(TOKEN_ENV) or None
+
+
 def _config(args: argparse.Namespace) -> GuiConfig | str:
     """The server's config, or why the flags are refused."""
     # aiohttp is imported only by the command that serves.
     from ground.gui.server import GuiConfig, is_loopback
 
+    if args.token_argv is not None:
+        return (
+            "--token is not taken on the command line (every user's `ps` shows it): put "
+            f"it in a file only you can read (--token-file FILE) or in ${TOKEN_ENV}"
+        )
     host, port = args.http_listen
-    token = args.token
+    try:
+        token = _token(args)
+    except TokenError as error:
+        return str(error)
     if not is_loopback(host):
         if not args.allow_remote:
             return (
                 f"--listen {host}:{port} is not loopback: anyone who reaches it could send "
                 "missions and aborts. Add --allow-remote (a token is then required)."
             )
-        token = token or secrets.token_urlsafe(24)
+        if token is None:
+            return (
+                f"--listen {host}:{port} with --allow-remote needs a token: --token-file "
+                f"FILE (a new one is made there if FILE does not exist) or ${TOKEN_ENV}"
+            )
     return GuiConfig(host, port, token, args.rate, args.query_timeout, args.key_space)
+
+
+def _token_source(args: argparse.Namespace) -> str:
+    if args.token_file is not None:
+        return f"add ?token= with the token in {args.token_file}"
+    return f"add ?token= with ${TOKEN_ENV}"
 
 
 def cmd_gui(args: argparse.Namespace) -> int:
@@ -113,8 +180,11 @@ def cmd_gui(args: argparse.Namespace) -> int:
         return fail("ground-cli gui", config)
 
     def on_ready(url: str) -> None:
-        print(f"gui: serving on {url}", flush=True)
+        # Never the token itself: stdout goes to logs (fleet up's gui.log) and terminals.
+        where = "" if config.token is None else f" (token required: {_token_source(args)})"
+        print(f"gui: serving on {url}{where}", flush=True)
         if args.open:
+            # Without the token too: a browser started with it would show it in `ps`.
             webbrowser.open(url)
 
     async def main() -> None:

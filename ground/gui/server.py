@@ -21,8 +21,8 @@ The bus's callbacks run on its (Zenoh's) threads; they reach the loop only throu
 `loop.call_soon_threadsafe`. Blocking queries run in worker threads.
 
 Access: the page can send missions and aborts to aircraft, so by default it listens on
-loopback only. Listening anywhere else requires `--allow-remote` and a token (given, or
-generated and printed): every request must carry it (`?token=` or an
+loopback only. Listening anywhere else requires `--allow-remote` and a token (from a
+file or the environment, never argv, never printed): every request must carry it (`?token=` or an
 `Authorization: Bearer` header). In every case, so that a web page in the operator's
 browser cannot drive the fleet (`ground.gui.access`):
 
@@ -402,10 +402,8 @@ async def serve(bus: Bus, config: GuiConfig, on_ready: Callable[[str], None]) ->
         # The port the OS gave when asked for port 0.
         port = runner.addresses[0][1] if runner.addresses else config.port
         host = f"[{config.host}]" if ":" in config.host else config.host
-        url = f"http://{host}:{port}/"
-        if config.token is not None:
-            url += f"?token={config.token}"
-        on_ready(url)
+        # Without the token: the caller prints this URL (docs/gui.md).
+        on_ready(f"http://{host}:{port}/")
         await asyncio.Event().wait()
     finally:
         await runner.cleanup()

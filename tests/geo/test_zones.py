@@ -205,10 +205,18 @@ def zones_between(
     return zones
 
 
-def test_a_start_inside_a_zone_is_not_stranded() -> None:
+def test_a_start_inside_a_zone_leaves_it_by_the_shortest_way_and_is_not_stranded() -> None:
     zones = ZoneMap([SQUARE], 100.0)
-    route = zones.route((50.0, 50.0), (500.0, 50.0))
-    assert route is not None and route.points == ((500.0, 50.0),)
+    # 10 m from the square's west edge: out of its 100 m inflation 110 m west, although
+    # the goal lies east (leaving east would be 190 m inside).
+    route = zones.route((10.0, 50.0), (500.0, 50.0))
+    assert route is not None
+    exit_x, exit_y = route.points[0]
+    assert exit_x == pytest.approx(-101.0) and exit_y == pytest.approx(50.0)
+    assert not zones.containing(route.points[0])
+    assert route.points[-1] == (500.0, 50.0)
+    for a, b in itertools.pairwise(route.points):  # around it from there, never across
+        assert not segment_enters(a, b, zones.zones[0])
 
 
 def brute_force_length(

@@ -45,6 +45,10 @@ class MemoryUav:
         if result is not None:
             self._serve(SPACE.mission_result(targets.mission, self.uav), lambda: result)
 
+    def serve(self, key: str, message: msgspec.Struct) -> None:
+        """Answer queries on `key` (a concrete key) with `message`."""
+        self._serve(key, lambda: message)
+
     def _serve(self, key: str, value: Callable[[], msgspec.Struct]) -> None:
         def answer() -> None:
             while (query := queryable.try_recv()) is not None:

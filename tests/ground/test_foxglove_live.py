@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import re
 import shutil
+import socket
 import subprocess
 import sys
 import threading
@@ -293,3 +294,39 @@ def test_in_the_secure_profile_it_holds_the_grounds_identity(tmp_path: Path) -> 
         assert {e["message"]["uav"] for e in events(state, "message")} <= TEAM
     finally:
         stop_children([*reversed(children), up], 10.0)
+
+
+def test_a_web_page_of_another_origin_or_host_is_refused_and_foxglove_is_not(router: str) -> None:
+    """Any web page in the operator's browser could open ws://127.0.0.1:8765 (browsers
+    let every site connect anywhere, with the page's Origin): the server refuses a
+    foreign Origin or Host, and serves Foxglove's own clients (no Origin, or its app's)."""
+    fox, url = serve(router)
+    children: list[Child] = [fox]
+    try:
+        evil = node_client(url, "--origin", "https://evil.example", "--count", "1")
+        children.append(evil)
+        assert evil.process.wait(TIMEOUT_S) == 1
+        assert "403" in events(evil, "error")[0]["error"]
+        assert not events(evil, "serverInfo")
+        for extra in ([], ["--origin", "https://app.foxglove.dev"]):
+            client = node_client(url, "--topics", "^$", "--count", "0", *extra)
+            children.append(client)
+            client.wait_for_line(lambda line: '"serverInfo"' in line, TIMEOUT_S)
+        # DNS rebinding: the attacker's name for this address, with its own origin.
+        port = int(url.rsplit(":", 1)[1])
+        with socket.create_connection(("127.0.0.1", port), timeout=10) as raw:
+            raw.sendall(
+                b"GET / HTTP/1.1\r\nHost: rebind.evil.example:%d\r\nUpgrade: websocket\r\n"
+                b"Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                b"Sec-WebSocket-Version: 13\r\nSec-WebSocket-Protocol: foxglove.sdk.v1\r\n\r\n"
+                % port
+            )
+            answer = raw.recv(4096)
+        assert answer.startswith(b"HTTP/1.1 403") and b"host" in answer
+        stop_children(list(reversed(children)), 10.0)
+    finally:
+        stop_children(list(reversed(children)), 10.0)
+    assert fox.process.returncode == 0, fox.history[-10:]
+    assert not any("Traceback" in line for line in fox.history), fox.history
+    said = [line for line in fox.history if "refused 2 client(s)" in line]
+    assert said and "'origin': 1" in said[0] and "'host': 1" in said[0], fox.history[-3:]

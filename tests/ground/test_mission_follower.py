@@ -3,8 +3,10 @@ on loopback, with other Zenoh sessions standing in for another ground and the UA
 
 from __future__ import annotations
 
+from fleet.mission.claims import reached_by
 from fleet.mission.key_space import KeySpace
-from fleet.mission.messages import AssignmentReport, UavResult
+from fleet.mission.messages import AssignmentReport, TargetOutcome, UavResult
+from fleet.mission.phase import Phase
 from fleet.transport import bus_codec
 from fleet.transport.memory import MemoryNetwork
 from fleet.transport.zenoh_bus import ZenohBus
@@ -82,3 +84,22 @@ def test_a_fetch_collects_what_the_uavs_serve() -> None:
         follower.fetch(0.1)
         assert follower.snapshot() == ({7: result}, {})
         assert follower.superseded_by is None
+
+
+def test_a_teammates_word_is_a_hint_and_the_uavs_own_outcome_is_fetched_by_name() -> None:
+    """7 says 8 reached target 1: not believed; the follower asks for 8's own outcome by
+    name (8 is gone: a teammate relays it), and believes it from that."""
+    network = MemoryNetwork()
+    seven = MemoryUav(network, 7)
+    relayed = TargetOutcome(62, 8, 1, Phase.REACHED, reached={1: 8})
+    seven.serve(SPACE.mission_outcome(62, 8), relayed)
+    with MissionFollower(network.bus(), SPACE, 62) as follower:
+        follower.add_outcome(TargetOutcome(62, 7, 0, Phase.REACHED, reached={0: 7, 1: 8}))
+        assert reached_by(follower.outcome_snapshot().values()) == {0: 7}
+        follower.fetch(0.1)
+        assert follower.outcome_snapshot()[8] == relayed
+        assert reached_by(follower.outcome_snapshot().values()) == {0: 7, 1: 8}
+        # An older copy of 8's outcome (claiming less) does not replace it.
+        follower.add_outcome(TargetOutcome(62, 8, 3, Phase.REACHED, reached={3: 8, 1: 8}))
+        follower.add_outcome(TargetOutcome(62, 8, 3, Phase.REACHED, reached={3: 8}))
+        assert follower.outcome_snapshot()[8].reached == {3: 8, 1: 8}

@@ -147,6 +147,9 @@ def test_queued_targets_have_a_holder_a_place_and_a_predicted_arrival() -> None:
     assert states[2] == {"index": 2, "state": "assigned", "uav": 101, "place": 2, "eta_s": 130.0}
     assert outcome.unassigned() == [] and outcome.to_json()["queues"] == {"101": [0, 2], "102": [1]}
     assert any("UAV 101: target 0 ETA 40 s, then 2" in line for line in summary_lines(outcome))
-    # A lost UAV's reached target is told by any teammate's later outcome.
+    # A teammate's word that a lost UAV reached a target is a hint, not a fact: it is
+    # reached once that UAV's own outcome (relayed by a teammate) says so.
     outcome.outcomes = {102: TargetOutcome(6, 102, 1, Phase.REACHED, reached={0: 101, 1: 102})}
+    assert outcome.reached_by() == {1: 102}
+    outcome.outcomes[101] = TargetOutcome(6, 101, 0, Phase.REACHED, reached={0: 101})
     assert outcome.reached_by() == {0: 101, 1: 102}

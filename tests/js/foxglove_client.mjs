@@ -12,7 +12,8 @@
 // after --timeout seconds with fewer messages).
 //
 // usage: node foxglove_client.mjs ws://127.0.0.1:PORT [--topics REGEX] [--count N]
-//        [--timeout S]
+//        [--timeout S] [--origin ORIGIN]
+// (--origin: the Origin header a web page's browser would send; none by default)
 import wsProtocol from "@foxglove/ws-protocol";
 import protobuf from "protobufjs";
 import "protobufjs/ext/descriptor.js";
@@ -29,11 +30,16 @@ const option = (name, fallback) => {
 const topics = new RegExp(option("--topics", "."));
 const count = Number(option("--count", "10"));
 const timeout = Number(option("--timeout", "60"));
+const origin = option("--origin", undefined);
 
 const print = (object) => process.stdout.write(JSON.stringify(object) + "\n");
 
 // Subprotocols the SDK's server and the protocol library know, newest first.
-const ws = new WebSocket(url, ["foxglove.sdk.v1", FoxgloveClient.SUPPORTED_SUBPROTOCOL]);
+const ws = new WebSocket(
+  url,
+  ["foxglove.sdk.v1", FoxgloveClient.SUPPORTED_SUBPROTOCOL],
+  origin === undefined ? {} : { origin },
+);
 const client = new FoxgloveClient({ ws });
 const decoders = new Map(); // subscription id -> {topic, schemaName, decode}
 let received = 0;

@@ -1,6 +1,6 @@
 """The fork server (fleet.launch.fork_server, and its client fork_client): children as
 `python -m` would start them, their exit statuses, bad requests answered and survived,
-and children outliving it."""
+children ending with it, and a child's crash dumped into its log."""
 
 from __future__ import annotations
 
@@ -96,6 +96,30 @@ def test_an_uncaught_error_is_in_the_childs_log_with_status_1(
 
 
 @pytest.mark.e2e
+def test_a_child_that_crashes_leaves_its_python_traceback_in_its_log(
+    server: ForkServer, tmp_path: Path
+) -> None:
+    log_path = tmp_path / "child.log"
+    child = server.spawn(CHILD, ["segv"], log_path, env())
+    assert child.wait(TIMEOUT_S) == -signal.SIGSEGV
+    text = log_path.read_text()
+    assert "Fatal Python error: Segmentation fault" in text
+    assert "fork_child.py" in text  # where it crashed, in Python
+
+
+@pytest.mark.e2e
+def test_a_program_that_crashes_leaves_its_python_traceback_on_stderr() -> None:
+    # As `python -m` (no $PYTHONFAULTHANDLER): the program's logging set-up turns it on.
+    quiet = {k: v for k, v in os.environ.items() if k != "PYTHONFAULTHANDLER"}
+    done = subprocess.run(
+        [sys.executable, "-m", CHILD, "segv"], env=quiet, capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == -signal.SIGSEGV
+    assert "Fatal Python error: Segmentation fault" in done.stderr
+    assert "fork_child.py" in done.stderr
+
+
+@pytest.mark.e2e
 def test_a_refused_request_leaves_the_server_serving(server: ForkServer, tmp_path: Path) -> None:
     with pytest.raises(ForkServerError, match="not one this server imported"):
         server.spawn("json.tool", [], tmp_path / "x.log", env())
@@ -107,7 +131,7 @@ def test_a_refused_request_leaves_the_server_serving(server: ForkServer, tmp_pat
 
 
 @pytest.mark.e2e
-def test_children_outlive_their_server_and_are_still_stopped_by_pid(tmp_path: Path) -> None:
+def test_children_end_with_their_server_and_report_an_unknown_status(tmp_path: Path) -> None:
     server = ForkServer.start(sys.executable, [CHILD], tmp_path / "server.log", dict(os.environ))
     log_path = tmp_path / "child.log"
     try:
@@ -116,9 +140,8 @@ def test_children_outlive_their_server_and_are_still_stopped_by_pid(tmp_path: Pa
         wait_until(lambda: "waiting" in lines(log_path), TIMEOUT_S, "the child to start")
         server.process.send_signal(signal.SIGKILL)
         server.process.wait(TIMEOUT_S)
-        assert child.poll() is None  # the server's end is not the child's
-        child.send_signal(signal.SIGTERM)
-        # No one can collect its status now: it is known to have ended, not how.
+        # The kernel kills it with its server (fleet.lifeline); no one can collect its
+        # status now: it is known to have ended, not how.
         assert child.wait(TIMEOUT_S) == UNKNOWN_STATUS
     finally:
         server.close()

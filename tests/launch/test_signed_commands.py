@@ -15,14 +15,11 @@ from __future__ import annotations
 
 import json
 import signal
-import subprocess
 import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 from importlib.resources import files
-from pathlib import Path
 
 import pytest
 import zenoh
@@ -41,10 +38,11 @@ from fleet.mission.messages import (
     UavState,
 )
 from fleet.mission.phase import Phase
-from fleet.transport.bus_codec import ENCODING, decode, encode
-from fleet.transport.zenoh_config import build_config, make_config
-from tests.support import secure_clients, signed
+from fleet.transport.bus_codec import ENCODING, encode
+from fleet.transport.zenoh_config import make_config
+from tests.support import signed
 from tests.support.processes import Fleet, start
+from tests.support.secure_fleet import SignedFleet, mission_of, open_when_listening
 from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
@@ -56,53 +54,6 @@ ROGUE_MISSION = 0xFFFF_FFFF
 #: How long UAV 112 is frozen (SIGSTOP) so that it catches up when it resumes.
 FROZEN_S = 3.0
 TARGETS_FILE = str(files("fleet") / "scenarios" / "head_on_targets.bin")
-
-
-@dataclass
-class SignedFleet:
-    endpoint: str
-    certs: Path
-    fleet: Fleet
-    ground: zenoh.Session
-
-    def session(self, identity: str) -> zenoh.Session:
-        return secure_clients.session(self.certs, self.endpoint, identity)
-
-    def ground_cli(self, *argv: str) -> subprocess.CompletedProcess[str]:
-        return secure_clients.ground_cli(self.certs, self.endpoint, *argv)
-
-    def state(self, uav: int) -> UavState | None:
-        for reply in self.ground.get(SPACE.state(uav), timeout=5.0):
-            if reply.ok is not None:
-                return decode(reply.ok.payload.to_bytes(), UavState, SPACE.state(uav))
-        return None
-
-    def refused(self, uav: int, reason: str) -> int:
-        state = self.state(uav)
-        return state.link.drops.get(f"bus_{reason}", 0) if state and state.link else 0
-
-    def send_targets(self) -> int:
-        sent = self.ground_cli("send-targets", TARGETS_FILE, "--json")
-        assert sent.returncode == 0, sent.stderr[-3000:]
-        mission = json.loads(sent.stdout)["mission"]
-        assert isinstance(mission, int)
-        wait_until(lambda: mission_of(self.state(112)) == mission, 30.0, f"112 on {mission}")
-        return mission
-
-
-def mission_of(state: UavState | None) -> int | None:
-    return state.mission.mission if state and state.mission else None
-
-
-def open_when_listening(config_file: Path, endpoint: str) -> zenoh.Session:
-    deadline = time.monotonic() + 30.0
-    while True:
-        try:
-            return zenoh.open(build_config(config_file=str(config_file), connect=[endpoint]))
-        except zenoh.ZError:
-            if time.monotonic() > deadline:
-                raise
-            time.sleep(0.2)  # the router is starting: poll, bounded
 
 
 @pytest.fixture(scope="module")

@@ -109,7 +109,8 @@ POLICY_74 = [
     ),
     (
         "uav-74-relay", ("uav-74", "router-74"), ("ingress",), ("reply",),
-        {"fleet/mission/*/abort", "fleet/mission/*/targets"},
+        # A teammate's outcome, relayed with its own signature (fleet.mission.claims).
+        {"fleet/mission/*/abort", "fleet/mission/*/targets", "fleet/mission/*/outcome/*"},
     ),
     (
         "uav-74-alive", ("uav-74", "router-74"), ("ingress",), ("liveliness_token",),

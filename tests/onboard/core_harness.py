@@ -36,6 +36,7 @@ class Recorder:
     fetches: list[int] = field(default_factory=list)
     assignment_fetches: list[int] = field(default_factory=list)
     mission_fetches: int = 0
+    outcome_fetches: list[tuple[int, tuple[int, ...]]] = field(default_factory=list)
 
     def send_autopilot(self, command: AutopilotCommand) -> None:
         self.autopilot.append(command)
@@ -54,6 +55,9 @@ class Recorder:
 
     def fetch_missions(self) -> None:
         self.mission_fetches += 1
+
+    def fetch_outcomes(self, mission: int, uavs: tuple[int, ...]) -> None:
+        self.outcome_fetches.append((mission, uavs))
 
     def statuses(self) -> list[str]:
         return [m.text for _, m in self.published if isinstance(m, StatusText)]

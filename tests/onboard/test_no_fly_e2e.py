@@ -4,7 +4,9 @@ process, a real Zenoh router, and the real `ground-cli send-targets --no-fly`.""
 
 from __future__ import annotations
 
+import itertools
 import json
+import math
 import subprocess
 import sys
 from importlib.resources import files
@@ -15,9 +17,12 @@ import pytest
 from fleet.files.targets_io import read_targets, write_targets
 from fleet.files.zones_file import encode_zones
 from fleet.geo.mercator import MercatorProjection
+from fleet.geo.zones import point_in_ring
 from fleet.mission.messages import NoFlyZone
 from fleet.mission.phase import Phase, Severity
 from fleet.mission.status_kind import StatusKind
+from fleet.piccolo.telemetry import Telemetry
+from onboard.loiter import LOITER_WAYPOINTS
 from onboard.route_flight import ROUTE_WAYPOINTS
 from onboard.target_flight import TARGET_WAYPOINT
 from tests.conftest import Ground
@@ -110,3 +115,95 @@ def test_an_aircraft_inside_a_zone_is_an_error_on_the_ground_and_in_the_simulato
 
     wait_until(lambda: bool(incursions()), 30.0, "the incursion error")
     assert "inside no-fly zone 0 (start)" in incursions()[0]
+
+
+#: Between target 1 and the course's waypoint 0 (1000, 0), clear of the course's own
+#: legs (y = 0, x = 1000, y = -1000) and of the straight line from the start to target 1:
+#: only the way back to the course after the target crosses it.
+AFTER_TARGET = ((250, -600), (700, -600), (700, -150), (250, -150))
+#: How far the aircraft flies after its last target before the log is read (m).
+AFTER_FLIGHT_M = 4000.0
+
+
+def zone_of(corners: tuple[tuple[int, int], ...]) -> tuple[tuple[float, float], ...]:
+    return tuple((float(x), float(y)) for x, y in corners)
+
+
+def local_fix(t: Telemetry) -> tuple[float, float]:
+    assert t.gps is not None
+    return PLANE.to_xy(t.gps.lat, t.gps.lon)
+
+
+def test_after_its_last_target_the_aircraft_loiters_with_no_fix_inside_a_zone(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    targets, zones = files_for(tmp_path, (zone(AFTER_TARGET, "after"),))
+    endpoints = fleet.sim("single_uav", 10.0, 5.0, "--no-fly", str(zones))
+    fleet.onboard(112, endpoints[112], ground.router)
+    seen = ground.seen
+    wait_until(lambda: 112 in seen.telemetry, 30.0, "telemetry from UAV 112")
+    done = send(ground, targets, zones)
+    assert done.returncode == 0, done.stderr
+    wait_until(
+        lambda: any(o.phase == Phase.REACHED for o in seen.outcomes_of(112)),
+        120.0,
+        "target reached",
+    )
+    with seen.lock:
+        after = len(seen.telemetry[112])
+
+    def flown_since() -> float:
+        with seen.lock:
+            fixes = [local_fix(t) for t in seen.telemetry[112][after:]]
+        return sum(math.dist(a, b) for a, b in itertools.pairwise(fixes))
+
+    # What happens after the last target, for as long as the way back to the course
+    # would take twice over: an observed distance flown, not a time.
+    wait_until(lambda: flown_since() >= AFTER_FLIGHT_M, 120.0, "4 km flown after the target")
+    with seen.lock:
+        fixes = [local_fix(t) for t in seen.telemetry[112][after:]]
+    ring = zone_of(AFTER_TARGET)
+    inside = [fix for fix in fixes if point_in_ring(fix, ring)]
+    assert not inside, f"{len(inside)} fixes inside the zone after the target: {inside[:3]}"
+    assert set(seen.tracks[112][-4:]) <= set(LOITER_WAYPOINTS)  # it waits, loitering
+    # The simulator's own account, from every integration step of the flight.
+    sim = sim_child(fleet)
+    assert sim.stop() == 0
+    assert "no-fly incursions: UAV 112: 0" in "\n".join(sim.history)
+
+
+def test_an_aircraft_inside_a_zone_leaves_it_by_the_shortest_way_and_flies_its_target(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    targets, zones = files_for(tmp_path, (zone(AROUND_START, "start"),))
+    # Slow, so that it is still deep inside the zone when the mission arrives.
+    endpoints = fleet.sim("single_uav", 2.0, 5.0, "--no-fly", str(zones))
+    fleet.onboard(112, endpoints[112], ground.router)
+    seen = ground.seen
+    wait_until(lambda: 112 in seen.telemetry, 30.0, "telemetry from UAV 112")
+    done = send(ground, targets, zones)
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout)
+    assert report["agreed"] is True
+    assert {s["state"] for s in report["target_states"]} == {"assigned"}  # still offered
+    ring = zone_of(AROUND_START)
+    with seen.lock:
+        start = local_fix(seen.telemetry[112][-1])
+    assert point_in_ring(start, ring)
+
+    def first_fix_outside() -> tuple[float, float] | None:
+        with seen.lock:
+            fixes = [local_fix(t) for t in seen.telemetry[112]]
+        return next((f for f in fixes if not point_in_ring(f, ring)), None)
+
+    wait_until(lambda: first_fix_outside() is not None, 120.0, "the aircraft out of the zone")
+    out = first_fix_outside()
+    assert out is not None
+    # The target lies east-south-east, through the zone's east edge 800 m on; the shortest
+    # ways out are its north and south edges, 300 m either side of the start's line.
+    assert abs(out[1]) > 300.0 - 30.0 and out[0] < -1200.0, out
+    wait_until(
+        lambda: any(o.phase == Phase.REACHED for o in seen.outcomes_of(112)),
+        240.0,
+        "target reached",
+    )

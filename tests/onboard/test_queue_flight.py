@@ -64,3 +64,34 @@ def test_a_teammate_done_with_its_queue_is_not_released_when_it_goes() -> None:
     core.on_outcome(TargetOutcome(1, 74, 2, Phase.REACHED), 6.0)
     core.on_alive(74, False, 7.0)
     assert out.on(SPACE.mission_replan(1, 112)) == []
+
+
+def test_a_teammates_word_that_this_uav_reached_its_target_is_not_taken() -> None:
+    """A captured 74's own signed outcome lists 112's target as reached by 112: 112 flies
+    on to it, and its own outcome says nothing of it until it is there."""
+    core, out = _two_uav_plan()
+    core.on_outcome(TargetOutcome(1, 74, 0, Phase.REACHED, reached={0: 74, 1: 112}), 5.0)
+    assert core.state(5.0).mission.reached == {0: 74}  # type: ignore[union-attr]
+    _fly_and_reach(core, out, 1, 10.0)
+    (outcome,) = out.on(SPACE.mission_outcome(1, 112))
+    assert isinstance(outcome, TargetOutcome) and outcome.reached == {0: 74, 1: 112}
+
+
+def test_a_hint_about_a_teammate_is_fetched_from_it_once() -> None:
+    """74 says its teammate 200 reached a target: 200's own outcome is asked for by name,
+    once, and believed when it comes."""
+    core, out = make_core(uav=112)
+    for uav in (74, 200):
+        core.on_alive(uav, True, 0.0)
+    core.on_targets(MissionTargets(mission=1, team=(74, 112, 200), targets=TARGETS), 1.0)
+    core.on_result(UavResult(1, 74, (10.0, 90.0, 90.0)), 1.05)
+    core.on_result(UavResult(1, 200, (90.0, 90.0, 10.0)), 1.06)
+    core.tick(1.1)
+    hint = TargetOutcome(1, 74, 0, Phase.REACHED, reached={0: 74, 2: 200})
+    core.on_outcome(hint, 5.0)
+    core.on_outcome(hint, 5.5)
+    assert out.outcome_fetches == [(1, (200,))]
+    assert core.state(6.0).mission.reached == {0: 74}  # type: ignore[union-attr]
+    core.on_outcome(TargetOutcome(1, 200, 2, Phase.REACHED, reached={2: 200}), 7.0)
+    assert core.state(7.0).mission.reached == {0: 74, 2: 200}  # type: ignore[union-attr]
+    assert core.teammate_outcomes(1)[200].target == 2

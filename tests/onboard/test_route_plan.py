@@ -18,6 +18,7 @@ from fleet.piccolo.telemetry import GpsBlock
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from fleet.transport.bus_codec import DROPPED, DropReason
+from onboard.loiter import LOITER_ANCHOR, LOITER_FAR
 from onboard.planner.planner_worker import PlannerWorker, PlanRequest, PlanResult
 from onboard.planner.route_plan import route_targets
 from onboard.route_flight import ROUTE_WAYPOINTS, route_turns, route_writes
@@ -138,13 +139,18 @@ def test_the_core_flies_the_route_as_a_chain_of_echoed_waypoints() -> None:
         core.on_waypoint(command, now)  # the autopilot's echo: only then the next write
         now += 0.1
     assert command == Track(ROUTE_WAYPOINTS[0])
-    assert written[0].index == TARGET_WAYPOINT and written[0].next_index == 2
+    # With zones the target leads to a loiter clear of them, never back to the course
+    # (waypoint 2), which the module cannot see: written first, the far end first.
+    loiter, written = written[:2], written[2:]
+    pairs = [(w.index, w.next_index) for w in loiter]
+    assert pairs == [(LOITER_FAR, LOITER_ANCHOR), (LOITER_ANCHOR, LOITER_FAR)]
+    assert written[0].index == TARGET_WAYPOINT and written[0].next_index == LOITER_ANCHOR
     turns = written[1:]
     assert turns and all(w.index in ROUTE_WAYPOINTS for w in turns)
-    # The chain: 91 -> ... -> 90.
+    # The chain: 91 -> ... -> 90 -> the loiter.
     chain = {w.index: w.next_index for w in written}
     index, seen = ROUTE_WAYPOINTS[0], []
-    while index != 2:
+    while index != LOITER_ANCHOR:
         seen.append(index)
         index = chain[index]
     assert seen[-1] == TARGET_WAYPOINT and len(seen) == len(written)

@@ -1,14 +1,18 @@
 """A program for the fork server's tests (`python -m tests.support.fork_child MODE`).
 
 It prints its arguments, its session and `$FORK_CHILD_SAY`, then: `exit N` exits with
-status N; `wait` prints `waiting` and sleeps until a signal ends it; `raise` raises.
+status N; `wait` prints `waiting` and sleeps until a signal ends it; `raise` raises;
+`segv` sets up logging as every program of the project does, then crashes (SIGSEGV).
 """
 
 from __future__ import annotations
 
+import faulthandler
 import os
 import sys
 import time
+
+from fleet.transport.cli import setup_logging
 
 #: The longest a `wait` child lives, s: a test that forgets it still ends.
 WAIT_LIMIT_S = 120.0
@@ -20,6 +24,9 @@ def main(argv: list[str]) -> int:
     mode = argv[0] if argv else "exit"
     if mode == "raise":
         raise RuntimeError("the child's own error")
+    if mode == "segv":
+        setup_logging(0)
+        faulthandler._sigsegv()  # type: ignore[attr-defined]
     if mode == "wait":
         print("waiting", flush=True)
         time.sleep(WAIT_LIMIT_S)

@@ -5,7 +5,9 @@ then SIGKILL after a grace period (the launcher's `stop_children`). Zenoh sessio
 here are closed by the fixtures that open them. All traffic stays on 127.0.0.1.
 
 Unlike the launcher's children, whose output goes to log files, a test's child's output
-lines are read as they come, so a test can wait for one.
+lines are read as they come, so a test can wait for one. Like the launcher's children,
+each ends with the process that started it (`fleet.lifeline`: a test worker that
+crashes leaves none behind) and dumps its traceback if it crashes.
 """
 
 from __future__ import annotations
@@ -19,11 +21,14 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import zenoh
 
+from fleet import lifeline
 from fleet.launch.children import stop_children
 from fleet.launch.endpoints import SimEndpoints, free_port, parse_sim_line
+from fleet.transport.cli import CRASH_DUMP_ENV
 from fleet.transport.zenoh_config import make_config
 
 
@@ -83,7 +88,7 @@ def start(
         stderr=subprocess.STDOUT,
         text=True,
         start_new_session=True,
-        env={**os.environ, **(env or {})},
+        env=lifeline.child_env({**os.environ, CRASH_DUMP_ENV: "1", **(env or {})}),
     )
     child = Child(name, process)
 
@@ -171,3 +176,39 @@ def client_session(port: int) -> Iterator[zenoh.Session]:
         yield session
     finally:
         session.close()
+
+
+# ---- the process tree ------------------------------------------------------------------
+def running(pid: int) -> bool:
+    """Whether `pid` runs (a zombie, ended but not yet collected, does not)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+def command_line(pid: int) -> str:
+    try:
+        raw = Path(f"/proc/{pid}/cmdline").read_bytes()
+    except OSError:
+        return "?"
+    return " ".join(part.decode(errors="replace") for part in raw.split(b"\0") if part)
+
+
+def descendants(root: int) -> dict[int, str]:
+    """The processes under `root` (children, theirs, ...) that run, PID -> command line."""
+    children: dict[int, list[int]] = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            with contextlib.suppress(OSError, IndexError, ValueError):
+                stat = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()
+                children.setdefault(int(stat[1]), []).append(int(entry))
+    found: dict[int, str] = {}
+    todo = list(children.get(root, []))
+    while todo:
+        pid = todo.pop()
+        if running(pid):
+            found[pid] = command_line(pid)
+        todo.extend(children.get(pid, []))
+    return found

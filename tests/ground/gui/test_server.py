@@ -9,6 +9,7 @@ import sys
 import urllib.error
 import urllib.request
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import aiohttp
@@ -29,12 +30,13 @@ TARGETS = [Target(42.36, -71.09, 120.0), Target(42.365, -71.1, 110.0)]
 TOKEN = "s3cret-token"
 
 
-def start_gui(router: str, *extra: str) -> tuple[Child, str]:
+def start_gui(router: str, *extra: str, env: dict[str, str] | None = None) -> tuple[Child, str]:
     port = free_port()
     child = start(
         "ground-cli gui",
         [sys.executable, "-m", "ground.cli", "--connect", router, "gui",
          "--listen", f"127.0.0.1:{port}", *extra],
+        env=env,
     )  # fmt: skip
     child.wait_for_line(lambda line: line.startswith("gui: serving on"), 30.0)
     return child, f"http://127.0.0.1:{port}"
@@ -264,8 +266,13 @@ def test_a_websocket_without_the_pages_session_token_is_refused(gui: str) -> Non
     assert "HttpOnly" in cookie
 
 
-def test_a_token_when_given_guards_every_request(router: str, fakes: object) -> None:
-    child, url = start_gui(router, "--token", TOKEN)
+def test_a_token_when_given_guards_every_request(
+    router: str, fakes: object, tmp_path: Path
+) -> None:
+    token_file = tmp_path / "token"
+    token_file.write_text(TOKEN + "\n")
+    token_file.chmod(0o600)
+    child, url = start_gui(router, "--token-file", str(token_file))
     try:
         assert get(f"{url}/api/fleet")[0] == 401
         assert get(f"{url}/api/fleet?token=wrong")[0] == 401
@@ -273,6 +280,35 @@ def test_a_token_when_given_guards_every_request(router: str, fakes: object) -> 
         assert get(f"{url}/api/fleet", {"Authorization": f"Bearer {TOKEN}"})[0] == 200
     finally:
         assert child.stop() == 0
+    # Never printed: not with the URL, not in the log (the child's stdout and stderr).
+    assert not any(TOKEN in line for line in child.history), child.history
+    assert any(str(token_file) in line for line in child.history)
+
+
+def test_the_token_is_never_argv_and_a_made_one_is_never_printed(
+    router: str, fakes: object, tmp_path: Path
+) -> None:
+    done = run_cli("gui", "--token", TOKEN, endpoint=router)
+    assert done.returncode == 2 and "--token-file" in done.stderr and "ps" in done.stderr
+    # From the environment: enforced, and not printed either.
+    child, url = start_gui(router, env={"FLEET_GUI_TOKEN": TOKEN})
+    try:
+        assert get(f"{url}/api/fleet")[0] == 401
+        assert get(f"{url}/api/fleet?token={TOKEN}")[0] == 200
+    finally:
+        assert child.stop() == 0
+    assert not any(TOKEN in line for line in child.history), child.history
+    # A token file that does not exist yet: a new token, owner-only, in it and nowhere else.
+    made = tmp_path / "made-token"
+    child, url = start_gui(router, "--token-file", str(made))
+    try:
+        token = made.read_text().strip()
+        assert len(token) >= 24 and made.stat().st_mode & 0o077 == 0
+        assert get(f"{url}/api/fleet")[0] == 401
+        assert get(f"{url}/api/fleet?token={token}")[0] == 200
+    finally:
+        assert child.stop() == 0
+    assert not any(token in line for line in child.history), child.history
 
 
 def test_listening_beyond_loopback_needs_allow_remote() -> None:

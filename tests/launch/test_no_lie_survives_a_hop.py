@@ -1,0 +1,125 @@
+"""No lie survives a hop: a claim about an aircraft is believed only from that aircraft's
+own signed message. A secure fleet of real processes (router with mutual TLS and access
+control, the simulator, onboards 74 and 112, `ground-cli`) attacked by a captured UAV 74
+(its certificate and signing key), a captured UAV router (`router-74`), a revoked
+identity and a replay across an onboard's restart.
+
+Each refusal is observed, not assumed: the attacked UAV counts what it refused in its
+state's link drops, or a later message of the attacker's, sent in order after the lie,
+is seen handled first.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from fleet.geo.aircraft import AircraftLimits
+from fleet.mission.messages import TargetOutcome, UavState
+from fleet.mission.phase import Phase
+from fleet.mission.target_checks import REACHED_RADIUS_M
+from fleet.mission.targets_file import decode_targets
+from fleet.transport.bus_codec import ENCODING, encode
+from tests.support import signed
+from tests.support.secure_fleet import SPACE, TARGETS_FILE, SignedFleet, signed_fleet
+from tests.support.waiting import wait_until
+
+pytestmark = pytest.mark.e2e
+
+IDENTITIES = ["router", "router-74", "ground", "uav-74", "uav-112", "uav-300"]
+#: Slow enough that 112 is minutes from its target when it is lied about.
+SPEEDUP = 2.0
+MAX_AIRSPEED_M_S = AircraftLimits().max_airspeed
+TARGETS = decode_targets(Path(TARGETS_FILE).read_bytes(), TARGETS_FILE)
+
+
+@pytest.fixture(scope="module")
+def secure(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SignedFleet]:
+    certs = tmp_path_factory.mktemp("certs").resolve()
+    with signed_fleet(certs, IDENTITIES, speedup=SPEEDUP) as fleet:
+        yield fleet
+
+
+def distance_m(state: UavState, target: tuple[float, float]) -> float:
+    """Roughly how far `state`'s aircraft is from `target` (an equirectangular estimate)."""
+    assert state.telemetry is not None and state.telemetry.gps is not None
+    lat, lon = state.telemetry.gps.lat, state.telemetry.gps.lon
+    north = math.radians(target[0] - lat) * 6_371_000.0
+    east = math.radians(target[1] - lon) * 6_371_000.0 * math.cos(math.radians(lat))
+    return math.hypot(north, east)
+
+
+# ---- a captured aircraft lies about its teammate ----------------------------------------------
+class Reach:
+    """Whether an aircraft *could* have reached a spot since it was seen `away` metres
+    from it: no faster than the simulated airframe's top speed, sped up."""
+
+    def __init__(self, away: float) -> None:
+        self.away, self.since = away, time.monotonic()
+
+    def possible(self) -> bool:
+        flown = (time.monotonic() - self.since) * MAX_AIRSPEED_M_S * SPEEDUP
+        return self.away - flown <= REACHED_RADIUS_M
+
+
+def test_a_captured_uav_cannot_mark_its_teammates_target_reached(secure: SignedFleet) -> None:
+    """UAV 74's own, correctly signed outcome lists 112's target as reached by 112, put
+    live and served to the ground. 112 does not take it (nor re-sign it) and flies on,
+    and `ground-cli mission` does not show it reached."""
+    mission = secure.send_targets()
+
+    def committed() -> bool:
+        state = secure.state(112)
+        return bool(state and state.mission and state.mission.assignment and state.telemetry)
+
+    wait_until(committed, 60.0, "112 committed")
+    state = secure.state(112)
+    assert state is not None and state.mission is not None
+    report = state.mission.assignment
+    assert report is not None
+    queue = report.queues.get(112) or (report.pairs[112],)
+    target = queue[-1]  # the one 112 reaches last: the furthest off
+    where = TARGETS[target]
+    spot = (where.lat, where.lon)
+    reach = Reach(distance_m(state, spot))
+    assert not reach.possible(), "112 is already at its target"
+
+    key = SPACE.mission_outcome(mission, 74)
+    lie = encode(TargetOutcome(mission, 74, None, Phase.REACHED, reached={target: 112}))
+
+    def serve(query: zenoh.Query) -> None:
+        if query.key_expr.intersects(zenoh.KeyExpr(key)):
+            by_74 = signed.attachment(secure.certs, "uav-74", key, lie)
+            query.reply(key, lie, encoding=ENCODING, attachment=by_74)
+
+    with secure.session("uav-74") as attacker:
+        queryable = attacker.declare_queryable(SPACE.mission_outcomes(mission), serve)
+        before = secure.refused(112, "unsigned")
+
+        def lied() -> bool:
+            # Put until seen: the lie, then an unsigned message after it on the same
+            # session, which 112 refuses and counts once the lie has been handled.
+            by_74 = signed.attachment(secure.certs, "uav-74", key, lie)
+            attacker.put(key, lie, encoding=ENCODING, attachment=by_74)
+            attacker.put(key, lie, encoding=ENCODING)
+            return secure.refused(112, "unsigned") > before
+
+        wait_until(lied, 30.0, "112 handling 74's outcome")
+        after = secure.state(112)
+        assert after is not None and after.mission is not None
+        assert after.mission.reached.get(target) != 112 or reach.possible(), (
+            f"112 took 74's word that it reached target {target}"
+        )
+        shown = secure.ground_cli("mission", "--mission", str(mission), "--json")
+        queryable.undeclare()
+    assert shown.returncode in (0, 1), shown.stderr[-3000:]
+    states = {s["index"]: s for s in json.loads(shown.stdout)["target_states"]}
+    assert states[target]["state"] != "reached" or reach.possible(), (
+        f"the ground shows target {target} reached by {states[target]['uav']} on 74's word"
+    )
