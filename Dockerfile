@@ -14,6 +14,7 @@ COPY pyproject.toml README.md ./
 COPY fleet ./fleet
 COPY onboard ./onboard
 COPY ground ./ground
+COPY programs ./programs
 
 # Installed as a user would (not editable), then each console script is run once, so a
 # broken entry point fails the build rather than the fleet.

@@ -31,7 +31,7 @@ from mcap.writer import Writer
 from fleet.launch.endpoints import free_port
 from fleet.recording.reader import Recording, read_recording
 
-FLEET = (sys.executable, "-m", "ground.fleet_cli")
+FLEET = (sys.executable, "-m", "programs.fleet_cli")
 READY_S = 120.0
 
 

@@ -122,7 +122,7 @@ class FleetUp:
         self.ready = threading.Event()
         self.lines: list[str] = []
         env = {**os.environ, "PYTHONPATH": str(tree)}
-        argv = [sys.executable, "-m", "ground.fleet_cli", "up", "--uavs", str(n)]
+        argv = [sys.executable, "-m", "programs.fleet_cli", "up", "--uavs", str(n)]
         argv += ["--listen", f"tcp/127.0.0.1:{port}", "--log-dir", str(log_dir)]
         argv += ["--start-timeout", f"{timeout_s:g}"]
         # Started in the log folder: `python -m` puts the working directory first on the

@@ -18,27 +18,20 @@ from fleet.mission.target_checks import DEFAULT_MAX_REACH_M
 from fleet.transport import bus_codec
 from fleet.transport.cli import (
     ExitCode,
-    ZenohConfigError,
     add_query_timeout_argument,
     add_verbose_argument,
     add_zenoh_arguments,
     bounded_int,
-    fail,
     non_negative_float,
     piccolo_id,
     piccolo_ids,
     positive_float,
     setup_logging,
-    zenoh_config,
 )
-from fleet.transport.zenoh_bus import BusConnectError
-from ground.fleet_commands import cmd_keys, cmd_opm, cmd_uavs, cmd_watch
+from fleet.transport.command import run_parsed, set_handler
+from ground import fleet_commands, mission_commands, routers_command, send_command, targets_command
 from ground.gui import cli as gui_cli
-from ground.mission_commands import cmd_abort, cmd_mission
 from ground.mission_ids import MAX_MISSION_ID
-from ground.routers_command import cmd_routers
-from ground.send_command import cmd_send_targets
-from ground.targets_command import cmd_targets_make, cmd_targets_show
 
 log = logging.getLogger("ground")
 
@@ -76,14 +69,14 @@ def _add_uavs(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     """`uavs`: the live UAVs."""
     uavs = commands.add_parser("uavs", help="list the live UAVs")
     uavs.add_argument("--json", action="store_true", help="a JSON list of objects")
-    uavs.set_defaults(handler=cmd_uavs)
+    set_handler(uavs, fleet_commands.UAVS)
 
 
 def _add_routers(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """`routers`: each secure router's refused connections."""
     routers = commands.add_parser("routers", help="each secure router's refused connections")
     routers.add_argument("--json", action="store_true", help="a JSON list of objects")
-    routers.set_defaults(handler=cmd_routers)
+    set_handler(routers, routers_command.ROUTERS)
 
 
 def _add_send_targets(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -152,7 +145,7 @@ def _add_send_targets(commands: argparse._SubParsersAction[argparse.ArgumentPars
         "target is reached); default %(default)s",
     )
     send.add_argument("--json", action="store_true", help="print the outcome as one JSON object")
-    send.set_defaults(handler=cmd_send_targets)
+    set_handler(send, send_command.SEND_TARGETS)
 
 
 def _add_watch(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -167,7 +160,7 @@ def _add_watch(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     watch_cmd.add_argument(
         "--interval", type=positive_float, default=1.0, metavar="S", help="table period (1 s)"
     )
-    watch_cmd.set_defaults(handler=cmd_watch)
+    set_handler(watch_cmd, fleet_commands.WATCH)
 
 
 def _add_opm(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -182,7 +175,7 @@ def _add_opm(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> N
         metavar="HZ",
         help="status messages a second; 0: only on change (default 1)",
     )
-    opm.set_defaults(handler=cmd_opm)
+    set_handler(opm, fleet_commands.OPM)
 
 
 def _add_abort(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -197,7 +190,7 @@ def _add_abort(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         metavar="ID",
         help="abort this UAV alone; its teammates fly on (default: the whole team)",
     )
-    abort.set_defaults(handler=cmd_abort)
+    set_handler(abort, mission_commands.ABORT)
 
 
 def _add_mission(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -215,7 +208,7 @@ def _add_mission(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
         help="first wait up to S seconds for every target to be reached; exit 0 only if so",
     )
     status.add_argument("--json", action="store_true", help="print it as one JSON object")
-    status.set_defaults(handler=cmd_mission)
+    set_handler(status, mission_commands.MISSION)
 
 
 def _add_targets(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -229,11 +222,11 @@ def _add_targets(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     make.add_argument("--out", required=True, metavar="FILE")
     make.add_argument("targets", nargs="+", metavar="LAT,LON,ALT")
-    make.set_defaults(handler=cmd_targets_make)
+    set_handler(make, targets_command.MAKE)
     show = targets_commands.add_parser("show", help="read a targets file (Load Targets)")
     show.add_argument("file", metavar="FILE")
     show.add_argument("--json", action="store_true")
-    show.set_defaults(handler=cmd_targets_show)
+    set_handler(show, targets_command.SHOW)
 
 
 def _add_keys(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -256,28 +249,18 @@ def _add_keys(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     )
     keys_cmd.add_argument("--full", action="store_true", help="do not shorten long values")
     keys_cmd.add_argument("--json", action="store_true", help="a JSON list of objects")
-    keys_cmd.set_defaults(handler=cmd_keys)
+    set_handler(keys_cmd, fleet_commands.KEYS)
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    args = build_parser().parse_args(argv)
     setup_logging(args.verbose, base=logging.WARNING)
-    # Making and showing targets files is offline: a Zenoh config cannot stop it.
-    if args.command != "targets":
-        try:
-            args.zenoh = zenoh_config(args)
-        except ZenohConfigError as error:
-            return fail("ground-cli: error", str(error))
     try:
-        status: int = args.handler(args)
-    except BusConnectError as error:
-        return fail("ground-cli: error", str(error))
+        return run_parsed(args, "ground-cli")
     except KeyboardInterrupt:
         return ExitCode.INTERRUPTED
     finally:
         _report_drops()
-    return status
 
 
 def _report_drops() -> None:

@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import threading
+from dataclasses import dataclass
+from typing import Literal, TextIO
 
 from fleet.mission.messages import StatusText
 from fleet.mission.status_kind import StatusKind
-from fleet.transport.bus import BusSample, decode_sample
+from fleet.transport.bus import Bus, BusSample, decode_sample
 from fleet.transport.cli import ExitCode
-from fleet.transport.zenoh_bus import client_bus
+from fleet.transport.command import BusOptions, Command, options_from
 from ground import keyspace
 from ground.fleet_view import fleet_snapshot, format_table
 from ground.mission_control import send_opm
@@ -23,78 +24,108 @@ OPM_CONFIRM_S = 2.0
 OPM_ANSWERS = frozenset({StatusKind.MODULE_SET, StatusKind.OPM_REFUSED})
 
 
-def cmd_uavs(args: argparse.Namespace) -> int:
-    with client_bus(args.zenoh) as bus:
-        views = fleet_snapshot(bus, args.key_space, args.query_timeout)
-    if args.json:
-        print(json.dumps([v.to_json() for v in views]))
+@dataclass(frozen=True, kw_only=True)
+class UavsOptions(BusOptions):
+    json: bool = False
+
+
+def run_uavs(bus: Bus, options: UavsOptions, out: TextIO) -> int:
+    views = fleet_snapshot(bus, options.key_space, options.query_timeout)
+    if options.json:
+        print(json.dumps([v.to_json() for v in views]), file=out)
     elif views:
-        print(format_table(views))
+        print(format_table(views), file=out)
     else:
-        print("no live UAV")
+        print("no live UAV", file=out)
     return ExitCode.OK
 
 
-def cmd_watch(args: argparse.Namespace) -> int:
-    with client_bus(args.zenoh) as bus:
-        watch(
-            bus,
-            args.key_space,
-            sys.stdout,
-            count=args.count,
-            duration_s=args.duration,
-            interval_s=args.interval,
-            query_timeout_s=min(args.query_timeout, args.interval),
+@dataclass(frozen=True, kw_only=True)
+class WatchOptions(BusOptions):
+    count: int | None = None
+    duration: float | None = None
+    interval: float = 1.0
+
+
+def run_watch(bus: Bus, options: WatchOptions, out: TextIO) -> int:
+    watch(
+        bus,
+        options.key_space,
+        out,
+        count=options.count,
+        duration_s=options.duration,
+        interval_s=options.interval,
+        query_timeout_s=min(options.query_timeout, options.interval),
+    )
+    return ExitCode.OK
+
+
+@dataclass(frozen=True, kw_only=True)
+class OpmOptions(BusOptions):
+    uav: int
+    state: Literal["on", "off"]
+    status_rate: float = 1.0
+
+
+def run_opm(bus: Bus, options: OpmOptions, out: TextIO) -> int:
+    enabled = options.state == "on"
+    space = options.key_space
+    uav = options.uav
+    if not bus.live_tokens(space.alive(uav), options.query_timeout):
+        print(
+            f"error: UAV {uav} is not live (no {space.alive(uav)} token); nothing sent",
+            file=sys.stderr,
         )
+        return ExitCode.FAILED
+    confirmed = threading.Event()
+    answer: list[str] = []
+
+    def on_status(sample: BusSample) -> None:
+        status = decode_sample(sample, StatusText)
+        if status is not None and status.kind in OPM_ANSWERS:
+            answer.append(status.text)
+            confirmed.set()
+
+    # Listen before sending: the UAV answers with a status message at once.
+    subscription = bus.subscribe(space.status(uav), on_status)
+    try:
+        send_opm(bus, space, uav, enabled, options.status_rate)
+        print(f"UAV {uav}: planning module {options.state} sent", file=out)
+        if confirmed.wait(OPM_CONFIRM_S):
+            print(f"UAV {uav}: {answer[0]}", file=out)
+        else:
+            print(f"UAV {uav}: no confirmation within {OPM_CONFIRM_S:g} s", file=out)
+    finally:
+        subscription.undeclare()
     return ExitCode.OK
 
 
-def cmd_opm(args: argparse.Namespace) -> int:
-    enabled = args.state == "on"
-    space = args.key_space
-    with client_bus(args.zenoh) as bus:
-        if not bus.live_tokens(space.alive(args.uav), args.query_timeout):
-            print(
-                f"error: UAV {args.uav} is not live (no {space.alive(args.uav)} token); "
-                "nothing sent",
-                file=sys.stderr,
-            )
-            return ExitCode.FAILED
-        confirmed = threading.Event()
-        answer: list[str] = []
-
-        def on_status(sample: BusSample) -> None:
-            status = decode_sample(sample, StatusText)
-            if status is not None and status.kind in OPM_ANSWERS:
-                answer.append(status.text)
-                confirmed.set()
-
-        # Listen before sending: the UAV answers with a status message at once.
-        subscription = bus.subscribe(space.status(args.uav), on_status)
-        try:
-            send_opm(bus, space, args.uav, enabled, args.status_rate)
-            print(f"UAV {args.uav}: planning module {args.state} sent")
-            if confirmed.wait(OPM_CONFIRM_S):
-                print(f"UAV {args.uav}: {answer[0]}")
-            else:
-                print(f"UAV {args.uav}: no confirmation within {OPM_CONFIRM_S:g} s")
-        finally:
-            subscription.undeclare()
-    return ExitCode.OK
+@dataclass(frozen=True, kw_only=True)
+class KeysOptions(BusOptions):
+    expr: str | None = None
+    admin: bool = False
+    window: float = 1.0
+    full: bool = False
+    json: bool = False
 
 
-def cmd_keys(args: argparse.Namespace) -> int:
-    with client_bus(args.zenoh) as bus:
-        values = keyspace.collect(
-            bus,
-            args.expr or keyspace.default_expr(args.key_space),
-            window_s=args.window,
-            timeout_s=args.query_timeout,
-            admin=args.admin,
-        )
-    if args.json:
-        print(json.dumps([v.to_json() for v in values]))
+def run_keys(bus: Bus, options: KeysOptions, out: TextIO) -> int:
+    values = keyspace.collect(
+        bus,
+        options.expr or keyspace.default_expr(options.key_space),
+        window_s=options.window,
+        timeout_s=options.query_timeout,
+        admin=options.admin,
+    )
+    if options.json:
+        print(json.dumps([v.to_json() for v in values]), file=out)
     else:
-        for line in keyspace.format_lines(values, full=args.full):
-            print(line)
+        for line in keyspace.format_lines(values, full=options.full):
+            print(line, file=out)
     return ExitCode.OK
+
+
+UAVS = Command(options_from(UavsOptions), run_uavs)
+WATCH = Command(options_from(WatchOptions), run_watch)
+OPM = Command(options_from(OpmOptions), run_opm)
+KEYS = Command(options_from(KeysOptions), run_keys)

@@ -2,75 +2,99 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
+from dataclasses import dataclass
+from typing import TextIO
 
 from fleet.mission.key_space import KeySpace
 from fleet.mission.phase import Phase
 from fleet.transport.bus import Bus
 from fleet.transport.cli import ExitCode
-from fleet.transport.zenoh_bus import client_bus
+from fleet.transport.command import BusOptions, Command, options_from
 from ground.fleet_view import query_states
 from ground.mission_control import MissionError, mission_status, mission_targets_of, send_abort
 from ground.mission_ids import current_mission_id, missions_seen
-from ground.mission_summary import summary_lines
+from ground.mission_summary import summary_lines, unreached_lines
 
 #: How long `abort` waits for every UAV on the mission to report it aborted.
 ABORT_CONFIRM_S = 5.0
 
 
-def cmd_mission(args: argparse.Namespace) -> int:
-    with client_bus(args.zenoh) as bus:
-        mission = args.mission
-        if mission is None:
-            mission = current_mission_id(bus, args.key_space, args.query_timeout)
-        if mission is None:
-            print("error: no mission seen (give --mission)", file=sys.stderr)
-            return ExitCode.FAILED
-        try:
-            outcome = mission_status(
-                bus, args.key_space, mission, args.query_timeout, args.until_reached
-            )
-        except MissionError as error:
-            print(f"error: {error}", file=sys.stderr)
-            return ExitCode.FAILED
-    if args.json:
-        print(json.dumps(outcome.to_json()))
+@dataclass(frozen=True, kw_only=True)
+class MissionOptions(BusOptions):
+    #: The mission (None: the latest seen).
+    mission: int | None = None
+    #: First wait up to this long for every target to be reached; exit 0 only if so.
+    until_reached: float | None = None
+    json: bool = False
+
+
+def run_mission(bus: Bus, options: MissionOptions, out: TextIO) -> int:
+    mission = options.mission
+    if mission is None:
+        mission = current_mission_id(bus, options.key_space, options.query_timeout)
+    if mission is None:
+        print("error: no mission seen (give --mission)", file=sys.stderr)
+        return ExitCode.FAILED
+    try:
+        outcome = mission_status(
+            bus, options.key_space, mission, options.query_timeout, options.until_reached
+        )
+    except MissionError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return ExitCode.FAILED
+    if options.json:
+        print(json.dumps(outcome.to_json()), file=out)
     else:
-        print("\n".join(summary_lines(outcome)))
-    if args.until_reached is not None:
-        every = len(outcome.reached_by()) == len(outcome.targets)
-        return ExitCode.OK if every else ExitCode.FAILED
+        print("\n".join(summary_lines(outcome)), file=out)
+    if options.until_reached is not None:
+        missing = unreached_lines(outcome)
+        if missing:
+            print(
+                f"error: mission {mission}: not every target reached within "
+                f"{options.until_reached:g} s:",
+                file=sys.stderr,
+            )
+            print("\n".join(missing), file=sys.stderr)
+            return ExitCode.FAILED
+        return ExitCode.OK
     return ExitCode.OK if outcome.succeeded else ExitCode.FAILED
 
 
-def cmd_abort(args: argparse.Namespace) -> int:
-    with client_bus(args.zenoh) as bus:
-        seen = missions_seen(bus, args.key_space, args.query_timeout)
-        mission = args.mission
+@dataclass(frozen=True, kw_only=True)
+class AbortOptions(BusOptions):
+    #: The mission (None: the latest seen).
+    mission: int | None = None
+    #: Abort this UAV alone; its teammates fly on (None: the whole team).
+    uav: int | None = None
+
+
+def run_abort(bus: Bus, options: AbortOptions, out: TextIO) -> int:
+    seen = missions_seen(bus, options.key_space, options.query_timeout)
+    mission = options.mission
+    if mission is None:
+        mission = max(seen, default=None)
         if mission is None:
-            mission = max(seen, default=None)
-            if mission is None:
-                print("error: no mission to abort (none seen; give --mission)", file=sys.stderr)
-                return ExitCode.FAILED
-        elif mission not in seen:
-            known = ", ".join(map(str, sorted(seen))) or "none"
-            print(
-                f"error: mission {mission} is unknown to the fleet (missions seen: {known}); "
-                "nothing sent",
-                file=sys.stderr,
-            )
+            print("error: no mission to abort (none seen; give --mission)", file=sys.stderr)
             return ExitCode.FAILED
-        send_abort(bus, args.key_space, mission, args.uav)
-        to = "" if args.uav is None else f" to UAV {args.uav}"
-        print(f"mission {mission}: abort sent{to}")
-        return _confirm_abort(bus, args.key_space, mission, args.uav, args.query_timeout)
+    elif mission not in seen:
+        known = ", ".join(map(str, sorted(seen))) or "none"
+        print(
+            f"error: mission {mission} is unknown to the fleet (missions seen: {known}); "
+            "nothing sent",
+            file=sys.stderr,
+        )
+        return ExitCode.FAILED
+    send_abort(bus, options.key_space, mission, options.uav)
+    to = "" if options.uav is None else f" to UAV {options.uav}"
+    print(f"mission {mission}: abort sent{to}", file=out, flush=True)
+    return _confirm_abort(bus, options.key_space, mission, options.uav, options.query_timeout, out)
 
 
 def _confirm_abort(
-    bus: Bus, space: KeySpace, mission: int, uav: int | None, timeout_s: float
+    bus: Bus, space: KeySpace, mission: int, uav: int | None, timeout_s: float, out: TextIO
 ) -> int:
     """Wait until every UAV aborted (the mission's team, or `uav` alone) reports it.
 
@@ -107,7 +131,7 @@ def _confirm_abort(
             break
         time.sleep(0.2)  # polling the UAVs' state: each query is itself an observation
     confirmed = sorted(on_mission - set(pending))
-    print(f"mission {mission}: aborted by {', '.join(map(str, confirmed)) or 'no UAV'}")
+    print(f"mission {mission}: aborted by {', '.join(map(str, confirmed)) or 'no UAV'}", file=out)
     if uav is not None and uav not in on_mission and uav not in pending:
         print(f"error: UAV {uav} is not on mission {mission}", file=sys.stderr)
         return ExitCode.FAILED
@@ -116,3 +140,7 @@ def _confirm_abort(
         print(f"error: mission {mission}: not confirmed by {still}", file=sys.stderr)
         return ExitCode.FAILED
     return ExitCode.OK
+
+
+MISSION = Command(options_from(MissionOptions), run_mission)
+ABORT = Command(options_from(AbortOptions), run_abort)

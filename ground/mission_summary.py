@@ -67,3 +67,29 @@ def summary_lines(outcome: MissionOutcome) -> list[str]:
             why.append("not committed: " + ", ".join(map(str, agreement.missing)))
         lines.append(f"  agreed: no ({'; '.join(why)})")
     return lines
+
+
+def unreached_lines(outcome: MissionOutcome) -> list[str]:
+    """One line per target not reached: who holds it and where it stands, or why nobody
+    does (what `mission --until-reached` says when it gives up)."""
+    lines = []
+    for target in outcome.target_states():
+        state = target["state"]
+        if state == "reached":
+            continue
+        index, uav = target["index"], target["uav"]
+        if state == "assigned":
+            phase = outcome.phases.get(uav)
+            place, eta = target.get("place"), target.get("eta_s")
+            queued = f" (place {place} in its queue" if place is not None else ""
+            if queued:
+                queued += f", predicted {eta:.0f} s after the plan)" if eta is not None else ")"
+            where = f"; phase {phase}" if phase else ""
+            if uav in outcome.lost:
+                where += "; LOST (liveliness gone)"
+            lines.append(f"  target {index}: not reached: UAV {uav} holds it{queued}{where}")
+        elif state == "unserved":
+            lines.append(f"  target {index}: unserved: {target['reason']}")
+        else:
+            lines.append(f"  target {index}: {state} (UAV {uav}): {target['reason']}")
+    return lines

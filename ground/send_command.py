@@ -11,6 +11,7 @@ import argparse
 import json
 import sys
 import threading
+from dataclasses import dataclass
 from typing import TextIO
 
 from fleet.consensus.deadline import consensus_deadline
@@ -18,14 +19,16 @@ from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
     MissionTargets,
+    NoFlyZone,
     Target,
     TargetOutcome,
     UavResult,
 )
-from fleet.mission.target_checks import target_set_problems
+from fleet.mission.objective import Objective
+from fleet.mission.target_checks import DEFAULT_MAX_REACH_M, target_set_problems
 from fleet.transport.bus import Bus
 from fleet.transport.cli import ExitCode
-from fleet.transport.zenoh_bus import client_bus
+from fleet.transport.command import BusOptions, Command, OptionsError
 from ground.fleet_view import live_uav_ids, query_states
 from ground.mission_ack import MissionCollision, acknowledgement, wait_acknowledged
 from ground.mission_control import MissionError, publish_targets
@@ -86,96 +89,141 @@ def _progress_printer(out: TextIO, team: tuple[int, ...]) -> Listener:
     return on_message
 
 
-def cmd_send_targets(args: argparse.Namespace) -> int:
-    # The file is read and checked before anything touches the network: a bad file
-    # sends nothing.
+@dataclass(frozen=True, kw_only=True)
+class SendOptions(BusOptions):
+    """What `send-targets` sends and how it follows it."""
+
+    #: The targets, read and checked (`send_options` reads them from the file).
+    targets: tuple[Target, ...]
+    #: Where they came from, as the messages name it.
+    file: str = "targets"
+    #: The no-fly zones, checked against the targets.
+    zones: tuple[NoFlyZone, ...] = ()
+    #: The team (None: every live UAV).
+    team: tuple[int, ...] | None = None
+    #: Follow the mission until every UAV has committed, then watch for a rival.
+    wait: bool = False
+    #: How long --wait waits.
+    timeout: float = 60.0
+    #: How long each UAV waits for its teammates' results (None: by the team's size).
+    deadline: float | None = None
+    #: The mission id (None: one more than the highest seen).
+    mission: int | None = None
+    max_reach_km: float = DEFAULT_MAX_REACH_M / 1000.0
+    #: Send all the same a set that fails the checks, or to a team UAV not live.
+    force: bool = False
+    objective: Objective = Objective.GREEDY
+    json: bool = False
+
+
+def send_options(args: argparse.Namespace) -> SendOptions:
+    """The options of `send-targets`, its files read and checked first: a bad file sends
+    nothing, and is said before anything touches the network."""
     read = read_or_say(args.file, "nothing sent")
     if read is None:
-        return ExitCode.FAILED
+        raise OptionsError("", ExitCode.FAILED)
     targets = tuple(read)
     zones = zones_or_say(args.no_fly, targets)
     if zones is None:
+        raise OptionsError("", ExitCode.FAILED)
+    return SendOptions(
+        targets=targets,
+        file=args.file,
+        zones=zones,
+        team=args.team,
+        wait=args.wait,
+        timeout=args.timeout,
+        deadline=args.deadline,
+        mission=args.mission,
+        max_reach_km=args.max_reach_km,
+        force=args.force,
+        objective=args.objective,
+        json=args.json,
+        key_space=args.key_space,
+        query_timeout=args.query_timeout,
+    )
+
+
+def run_send_targets(bus: Bus, options: SendOptions, out: TextIO) -> int:
+    progress = sys.stderr if options.json else out
+    team = _team(bus, options)
+    if not team:
+        if not options.team:
+            print("error: no live UAV to send to (name the team with --team)", file=sys.stderr)
         return ExitCode.FAILED
-    progress = sys.stderr if args.json else sys.stdout
-    with client_bus(args.zenoh) as bus:
-        team = _team(bus, args)
-        if not team:
-            if not args.team:
-                print("error: no live UAV to send to (name the team with --team)", file=sys.stderr)
-            return ExitCode.FAILED
 
-        if not _targets_pass_checks(bus, args, targets, team):
-            return ExitCode.FAILED
-        deadline_s = args.deadline or consensus_deadline(len(team))
+    if not _targets_pass_checks(bus, options, team):
+        return ExitCode.FAILED
+    deadline_s = options.deadline or consensus_deadline(len(team))
 
-        def make(mission: int) -> MissionTargets:
-            return MissionTargets(
-                mission,
-                team,
-                targets,
-                deadline_s=deadline_s,
-                zones=zones,
-                objective=args.objective,
-            )
+    def make(mission: int) -> MissionTargets:
+        return MissionTargets(
+            mission,
+            team,
+            options.targets,
+            deadline_s=deadline_s,
+            zones=options.zones,
+            objective=options.objective,
+        )
 
-        try:
-            with claim_mission(
-                bus, args.key_space, make, args.query_timeout, mission=args.mission
-            ) as server:
-                outcome = _send_and_follow(bus, server, args, progress)
-        except MissionCollision as error:
-            print(f"error: {error}", file=sys.stderr)
-            return ExitCode.FAILED
-        except MissionError as error:
-            print(f"error: {error}; nothing sent", file=sys.stderr)
-            return ExitCode.FAILED
-    if args.json:
-        print(json.dumps(outcome.to_json()))
-    elif args.wait:
-        print("\n".join(summary_lines(outcome)))
-    if not args.wait:
+    try:
+        with claim_mission(
+            bus, options.key_space, make, options.query_timeout, mission=options.mission
+        ) as server:
+            outcome = _send_and_follow(bus, server, options, progress)
+    except MissionCollision as error:
+        print(f"error: {error}", file=sys.stderr)
+        return ExitCode.FAILED
+    except MissionError as error:
+        print(f"error: {error}; nothing sent", file=sys.stderr)
+        return ExitCode.FAILED
+    if options.json:
+        print(json.dumps(outcome.to_json()), file=out)
+    elif options.wait:
+        print("\n".join(summary_lines(outcome)), file=out)
+    if not options.wait:
         return ExitCode.OK
     return ExitCode.OK if outcome.succeeded else ExitCode.FAILED
 
 
 def _send_and_follow(
-    bus: Bus, server: TargetsServer, args: argparse.Namespace, progress: TextIO
+    bus: Bus, server: TargetsServer, options: SendOptions, progress: TextIO
 ) -> MissionOutcome:
     """Put the claimed mission and, with --wait, follow it to its commitments and then
     for as long as a rival ground's later mission may take (`_watch_for_rival`)."""
     message = server.targets
     mission, team, targets = message.mission, message.team, message.targets
-    listener = _progress_printer(progress, team) if args.wait else None
+    listener = _progress_printer(progress, team) if options.wait else None
     outcome = MissionOutcome(mission=mission, team=team, targets=targets, zones=message.zones)
-    with MissionFollower(bus, args.key_space, mission, listener, team) as follower:
-        publish_targets(bus, args.key_space, message)
+    with MissionFollower(bus, options.key_space, mission, listener, team) as follower:
+        publish_targets(bus, options.key_space, message)
         print(
-            f"mission {mission}: {len(targets)} targets from {args.file}"
+            f"mission {mission}: {len(targets)} targets from {options.file}"
             + (f" and {len(message.zones)} no-fly zones" if message.zones else "")
             + " sent to "
             f"{', '.join(map(str, team))}",
             file=progress,
             flush=True,
         )
-        if args.wait:
-            committed = follower.wait_committed(team, args.timeout, fetch_every_s=1.0)
+        if options.wait:
+            committed = follower.wait_committed(team, options.timeout, fetch_every_s=1.0)
             outcome.timed_out = not committed and follower.superseded_by is None
             if committed:
                 # The commitments heard are for this id: they must be for these targets.
-                seen = acknowledgement(bus, args.key_space, message, args.query_timeout)
+                seen = acknowledgement(bus, options.key_space, message, options.query_timeout)
                 if (collision := seen.collision(message)) is not None:
                     raise collision
-                _watch_for_rival(follower, server, args.query_timeout, progress)
+                _watch_for_rival(follower, server, options.query_timeout, progress)
         else:
             _report_delivery(
-                bus, args.key_space, message, min(DELIVERY_WAIT_S, args.timeout), progress
+                bus, options.key_space, message, min(DELIVERY_WAIT_S, options.timeout), progress
             )
-        follower.fetch(args.query_timeout)
+        follower.fetch(options.query_timeout)
         outcome.results, outcome.assignments = follower.snapshot()
         outcome.outcomes = follower.outcome_snapshot()
         outcome.lost = set(follower.lost) & set(team)
-        if args.wait:
-            _read_phases(bus, args.key_space, outcome, follower, args.query_timeout)
+        if options.wait:
+            _read_phases(bus, options.key_space, outcome, follower, options.query_timeout)
     return outcome
 
 
@@ -201,14 +249,14 @@ def _watch_for_rival(
     follower.wait_superseded(grace, fetch_every_s=1.0)
 
 
-def _team(bus: Bus, args: argparse.Namespace) -> tuple[int, ...]:
+def _team(bus: Bus, options: SendOptions) -> tuple[int, ...]:
     """`--team`, or every live UAV; () when a named member is not live (said why), unless
     --force, when it is warned about: the mission waits for it, which may be forever."""
-    live = live_uav_ids(bus, args.key_space, args.query_timeout)
-    if not args.team:
+    live = live_uav_ids(bus, options.key_space, options.query_timeout)
+    if not options.team:
         return tuple(live)
-    absent = ", ".join(str(uav) for uav in args.team if uav not in live)
-    if absent and not args.force:
+    absent = ", ".join(str(uav) for uav in options.team if uav not in live)
+    if absent and not options.force:
         print(
             f"error: not live now: {absent} (no liveliness token); nothing sent (--force "
             "sends to them all the same: a UAV that comes up fetches the mission)",
@@ -220,24 +268,22 @@ def _team(bus: Bus, args: argparse.Namespace) -> tuple[int, ...]:
             f"warning: not live now: {absent}; they can fetch the mission when they come up",
             file=sys.stderr,
         )
-    return tuple(args.team)
+    return tuple(options.team)
 
 
-def _targets_pass_checks(
-    bus: Bus, args: argparse.Namespace, targets: tuple[Target, ...], team: tuple[int, ...]
-) -> bool:
+def _targets_pass_checks(bus: Bus, options: SendOptions, team: tuple[int, ...]) -> bool:
     """The set's checks against the team's positions now; each problem said, and False
     unless --force (then they are warnings)."""
     positions = {
         uav: (state.telemetry.gps.lat, state.telemetry.gps.lon)
-        for uav, state in query_states(bus, args.key_space, args.query_timeout).items()
+        for uav, state in query_states(bus, options.key_space, options.query_timeout).items()
         if uav in team and state.telemetry is not None and state.telemetry.gps is not None
     }
-    problems = target_set_problems(targets, positions, args.max_reach_km * 1000.0)
-    severity = "warning" if args.force else "error"
+    problems = target_set_problems(options.targets, positions, options.max_reach_km * 1000.0)
+    severity = "warning" if options.force else "error"
     for problem in problems:
-        print(f"{severity}: {args.file}: {problem}", file=sys.stderr)
-    if problems and not args.force:
+        print(f"{severity}: {options.file}: {problem}", file=sys.stderr)
+    if problems and not options.force:
         print("error: nothing sent (--force sends it all the same)", file=sys.stderr)
         return False
     return True
@@ -274,3 +320,6 @@ def _read_phases(
             if state.mission is not None:
                 follower.note_later_mission(state.mission.mission)
     outcome.superseded_by = follower.superseded_by
+
+
+SEND_TARGETS = Command(send_options, run_send_targets)

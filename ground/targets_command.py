@@ -9,13 +9,16 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TextIO
 
 from fleet.errors import FleetError
 from fleet.files.targets_io import write_targets
 from fleet.mission.messages import Target
 from fleet.mission.targets_file import TargetsFileError
 from fleet.transport.cli import ExitCode
+from fleet.transport.command import LocalCommand, options_from
 from ground import targets_formats
 from ground.targets_formats import TargetsFormatError
 
@@ -64,16 +67,23 @@ def targets_table(targets: list[Target]) -> str:
     return "\n".join(lines)
 
 
-def cmd_targets_make(args: argparse.Namespace) -> int:
+@dataclass(frozen=True, kw_only=True)
+class MakeOptions:
+    out: str
+    #: LAT,LON,ALT each.
+    targets: tuple[str, ...]
+
+
+def run_make(options: MakeOptions, out: TextIO) -> int:
     try:
-        targets = make(args.out, args.targets)
+        targets = make(options.out, list(options.targets))
     except (TargetSyntaxError, TargetsFileError) as error:
-        print(f"error: {error}; {args.out} not written", file=sys.stderr)
+        print(f"error: {error}; {options.out} not written", file=sys.stderr)
         return ExitCode.FAILED
     except OSError as error:
-        print(f"error: cannot write {args.out}: {error.strerror}", file=sys.stderr)
+        print(f"error: cannot write {options.out}: {error.strerror}", file=sys.stderr)
         return ExitCode.FAILED
-    print(f"{args.out}: {len(targets)} targets written")
+    print(f"{options.out}: {len(targets)} targets written", file=out)
     return ExitCode.OK
 
 
@@ -89,12 +99,23 @@ def read_or_say(path: str, consequence: str = "") -> list[Target] | None:
     return None
 
 
-def cmd_targets_show(args: argparse.Namespace) -> int:
-    targets = read_or_say(args.file)
+@dataclass(frozen=True, kw_only=True)
+class ShowOptions:
+    file: str
+    json: bool = False
+
+
+def run_show(options: ShowOptions, out: TextIO) -> int:
+    targets = read_or_say(options.file)
     if targets is None:
         return ExitCode.FAILED
-    if args.json:
-        print(targets_json(targets))
-    else:
-        print(targets_table(targets))
+    print(targets_json(targets) if options.json else targets_table(targets), file=out)
     return ExitCode.OK
+
+
+def _make_options(args: argparse.Namespace) -> MakeOptions:
+    return MakeOptions(out=args.out, targets=tuple(args.targets))
+
+
+MAKE = LocalCommand(_make_options, run_make)
+SHOW = LocalCommand(options_from(ShowOptions), run_show)

@@ -34,6 +34,8 @@ class ApproachPlan:
     planner: Planner
     planning_budget_s: float = 2.0
     _request: PlanRequest | None = None  #: the plan asked for the current mission
+    #: Where the current request was posed from (lat, lon): its local frame's origin.
+    origin: tuple[float, float] | None = None
 
     def start(self, targets: MissionTargets, gps: GpsBlock, wind: Wind = CALM_AIR) -> bool:
         """Ask for the approach times from `gps` to `targets` in `wind` (the smoothed
@@ -53,6 +55,7 @@ class ApproachPlan:
         if not self.planner.run(request):
             return False
         self._request = request
+        self.origin = (gps.lat, gps.lon)
         return True
 
     def forget(self) -> None:

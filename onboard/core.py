@@ -160,11 +160,11 @@ class OnboardCore:
     # ---- link events -------------------------------------------------------------------------
     def on_telemetry(self, telemetry: Telemetry, now: float) -> None:
         self.link.on_telemetry(telemetry, now)
-        self.flight.on_telemetry(now)
+        self.mission.on_flight(self.flight.on_telemetry(now), now)
         self.zone_watch.check(self.link.gps, self.flight.zones, self.mission.current(), now)
 
     def on_track(self, track: Track, now: float) -> None:
-        self.flight.on_track(track, now)
+        self.mission.on_flight(self.flight.on_track(track, now), now)
 
     def on_waypoint(self, waypoint: Waypoint, now: float) -> None:
         self.flight.on_waypoint(waypoint, now)

@@ -10,6 +10,7 @@ import sys
 import zenoh
 
 from fleet.errors import CertError, RosterError
+from fleet.transport.bus_factory import open_bus
 from fleet.transport.cli import (
     ExitCode,
     ZenohConfigError,
@@ -23,7 +24,8 @@ from fleet.transport.cli import (
     stop_on_signals,
     zenoh_config,
 )
-from fleet.transport.zenoh_config import endpoints, error_text, uses_mtls
+from fleet.transport.zenoh_bus import BusConnectError
+from fleet.transport.zenoh_config import uses_mtls
 from onboard.core import CONFIRM_LIMIT_S, LINK_RELEASE_S
 from onboard.planner.approach_highs import load_highs_core
 from onboard.process import OnboardProcess, OnboardSettings
@@ -115,12 +117,16 @@ def main(argv: list[str] | None = None) -> int:
         return fail("onboard", str(error))
     settings = settings_from(args, config)
     try:
-        process = OnboardProcess(settings)
-    except zenoh.ZError as error:
-        where = ", ".join(endpoints(config)) or "the configured endpoints"
-        return fail("onboard", f"cannot join zenoh at {where}: {error_text(error)}")
-    except (CertError, RosterError) as error:  # its signing key or the roster
-        return fail("onboard", f"cannot sign or check commands: {error}", ExitCode.FAILED)
+        bus = open_bus(config)
+    except BusConnectError as error:
+        # Its signing key or the roster unreadable: a failure, not a usage error.
+        signing = isinstance(error.__cause__, CertError | RosterError)
+        return fail("onboard", str(error), ExitCode.FAILED if signing else ExitCode.USAGE)
+    try:
+        process = OnboardProcess(settings, bus=bus)
+    except BaseException:
+        bus.close()
+        raise
     with stop_on_signals(process.stop_requested.set):
         process.run()
     return ExitCode.OK

@@ -45,7 +45,7 @@ from onboard.mission_decision import MissionDecision
 from onboard.mission_phase import MissionPhase
 from onboard.own_result import OwnResult
 from onboard.state_report import Say
-from onboard.target_flight import TargetFlight
+from onboard.target_flight import FlightNews, TargetFlight
 from onboard.team_presence import TeamPresence
 
 log = logging.getLogger(__name__)
@@ -87,17 +87,24 @@ class MissionParticipation:
     _abort: MissionAbort | None = None  #: the abort this UAV obeyed last (relayed by query)
 
     def __post_init__(self) -> None:
-        self.flight.mission = self
         self.catch_up = CatchUp(self.outputs, lambda: self.round.mission if self.round else None)
         self.decision = MissionDecision(self.uav_id, self.outputs, self.team, self.say)
         self.own = OwnResult(
             self.uav_id, self.key_space, self.outputs, self.plan, self.life, self.say
         )
 
-    # ---- what the flight asks of its mission ------------------------------------------------
-    def superseded(self, mission: int) -> bool:
-        """A command's answer arrived after its mission was replaced or aborted."""
-        return self.round is None or self.round.mission != mission or mission in self._aborted
+    # ---- what the flight tells its mission ---------------------------------------------------
+    def on_flight(self, news: FlightNews | None, now: float) -> None:
+        """Act on what a flight event handler answered (onboard.target_flight)."""
+        if news is FlightNews.REACHED:
+            self.publish_outcome(Phase.REACHED, None, self.flight.target)
+            self.fly_next(now)
+        elif news is FlightNews.STALE_TARGET:
+            self._leave_stale_target(now)
+
+    def _leave_stale_target(self, now: float) -> None:
+        if self.decided():  # before, it may still be handed that very target
+            self.flight.leave_stale_target(now)
 
     def decided(self) -> bool:
         return self.round is not None and self.round.committed is not None
@@ -418,7 +425,7 @@ class MissionParticipation:
                 text = f"mission {report.mission}: no target assigned; keeping course"
                 self.say(StatusKind.NO_TARGET, text, now, mission=report.mission)
             if wanted is None:
-                flight.leave_stale_target(now)
+                self._leave_stale_target(now)
             return
         if flight.target is not None and self.life.holds_target():
             # Released, or handed another orphan by a later epoch: off the old target.
@@ -427,7 +434,7 @@ class MissionParticipation:
         if wanted is None or self.uav_id in report.released:
             flight.hold(None, None)
             self.life.observe(Observation.ASSIGNED_NONE)
-            flight.leave_stale_target(now)
+            self._leave_stale_target(now)
             return
         self._commit(report, wanted, now)
 
@@ -445,7 +452,8 @@ class MissionParticipation:
         if advance(self.life.phase, Observation.ASSIGNED_TARGET) != Phase.COMMITTED:
             self._refuse_orphan(report, target_index, now)
             return
-        self.flight.commit(target_index, self.round.targets.targets[target_index], now)
+        where = self.round.targets.targets[target_index]
+        self.flight.commit(report.mission, target_index, where, now)
         eta_s = predicted_arrival(report, self.uav_id, target_index)
         eta = f"{eta_s:.0f} s" if eta_s is not None else "unknown"
         self.say(

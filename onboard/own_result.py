@@ -10,7 +10,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import msgspec
+
 from fleet.consensus.mission_round import MissionRound
+from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.wind import CALM_AIR, Wind
 from fleet.mission.key_space import KeySpace
 from fleet.mission.lifecycle import Observation
@@ -20,7 +23,35 @@ from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock
 from onboard.approach_plan import ApproachPlan, plan_status
 from onboard.mission_phase import MissionPhase
+from onboard.planner.planner_worker import PlanRequest
 from onboard.state_report import ReportOutputs, Say
+
+_LIMITS = AircraftLimits()
+
+
+@dataclass(frozen=True, slots=True)
+class FlownAir:
+    """What the result says of how this UAV flies: its teammates time its legs by it
+    (fleet.consensus.legs.Air)."""
+
+    airspeed: float
+    wind: Wind
+    origin: tuple[float, float] | None
+
+
+def flown_air(request: PlanRequest, origin: tuple[float, float] | None) -> FlownAir | None:
+    """The airspeed and wind the approach times were planned at (the request's: the
+    smoothed wind, the GPS velocity less it), rounded to the centimetre per second; None
+    where the request has no cruise speed or a number is not finite."""
+    speed = request.cruise_speed
+    wind = request.wind
+    if speed is None or not all(math.isfinite(v) for v in (speed, wind.east, wind.north)):
+        return None
+    return FlownAir(
+        round(_LIMITS.clamp_airspeed(speed), 2),
+        Wind(round(wind.east, 2), round(wind.north, 2)),
+        origin,
+    )
 
 
 @dataclass
@@ -57,7 +88,14 @@ class OwnResult:
         self.say(kind, text, now, mission=mission_round.mission)
         # An infinite time is a target no route reaches (onboard.planner.route_plan): no answer.
         times = tuple(t if math.isfinite(t) else None for t in result.times)
-        self.publish(mission_round, times, now, result.model_times, result.fallback_times)
+        self.publish(
+            mission_round,
+            times,
+            now,
+            result.model_times,
+            result.fallback_times,
+            air=flown_air(result.request, self.plan.origin),
+        )
 
     def publish_none(self, mission_round: MissionRound, now: float) -> None:
         """Take no part: an all-None result says so to the team."""
@@ -70,6 +108,7 @@ class OwnResult:
         now: float,
         model_times: int | None = None,
         fallback_times: int | None = None,
+        air: FlownAir | None = None,
     ) -> None:
         result = UavResult(
             mission=mission_round.mission,
@@ -78,6 +117,15 @@ class OwnResult:
             model_times=model_times,
             fallback_times=fallback_times,
         )
+        if air is not None:
+            result = msgspec.structs.replace(
+                result,
+                airspeed=air.airspeed,
+                wind_east=air.wind.east,
+                wind_north=air.wind.north,
+                lat=None if air.origin is None else air.origin[0],
+                lon=None if air.origin is None else air.origin[1],
+            )
         mission_round.add_result(result)
         # Teammates are computing too: the first fetch waits one interval.
         mission_round.last_fetch = now

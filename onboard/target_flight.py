@@ -4,15 +4,23 @@ Write waypoint TARGET_WAYPOINT at the target with `next` = the waypoint the airc
 tracking, then track it; when the autopilot moves on from it, the aircraft is back on
 its original course by itself. `flying` once the autopilot echoed the track command,
 `reached` once telemetry put the aircraft within REACHED_RADIUS_M of the target, or
-once the autopilot moved on from the target waypoint to its `next` after a link outage
-hid the arrival (the autopilot sequences only on reaching a waypoint: its echo is the
-observation), `preempted` when the autopilot left the target route anywhere else or
+once the autopilot moved on from the target waypoint during a link outage that hid the
+arrival: to its `next` (the autopilot sequences only on reaching a waypoint: its echo
+is the observation), or to any later waypoint when the fixes either side of the outage
+say the aircraft could have passed through the target's radius meanwhile
+(onboard.outage_arrival), `preempted` when the autopilot left the target route anywhere else or
 the ground commanded it directly. A target that cannot be flown (`failure`) is the mission's to
 release (onboard.mission_participation).
+
+The flight holds no reference to the mission it is part of: what the mission must act
+on (a target reached, a stale target seen) comes back as the `FlightNews` its event
+handlers return, which the dispatcher (onboard.core) hands to the mission, and what it
+needs of the mission (which mission its commitment belongs to) comes in with `commit`.
 """
 
 from __future__ import annotations
 
+import enum
 import logging
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -33,6 +41,7 @@ from onboard.autopilot_commands import AutopilotCommand, CommandTracker, Complet
 from onboard.link_watch import LinkWatch
 from onboard.loiter import LOITER_ANCHOR, LOITER_WAYPOINTS, loiter_writes
 from onboard.mission_phase import MissionPhase
+from onboard.outage_arrival import FixHistory, passed_target
 from onboard.route_flight import ROUTE_WAYPOINTS, route_turns, route_writes
 from onboard.state_report import Say
 
@@ -52,26 +61,14 @@ class FlightOutputs(Protocol):
     def publish(self, key: str, message: msgspec.Struct) -> None: ...
 
 
-class FlightMission(Protocol):
-    """What flying a target needs of the mission it is part of."""
+class FlightNews(enum.Enum):
+    """What the flight tells the mission it is part of, as an event handler's answer."""
 
-    def superseded(self, mission: int) -> bool:
-        """A command's answer arrived after its mission was replaced or aborted."""
-        ...
-
-    def decided(self) -> bool:
-        """This UAV committed to an assignment of the current mission."""
-        ...
-
-    def current(self) -> int | None:
-        """The current mission's id (None: none)."""
-        ...
-
-    def publish_outcome(self, phase: Phase, reason: str | None, target: int | None) -> None: ...
-
-    def fly_next(self, now: float) -> None:
-        """The held target was reached: on to the next of this UAV's queue, if any."""
-        ...
+    #: The held target was reached: its outcome to publish, the next of the queue to fly.
+    REACHED = enum.auto()
+    #: Holding no target, the autopilot tracks the target route (left there before a
+    #: restart): once the mission is decided, back to the course (`leave_stale_target`).
+    STALE_TARGET = enum.auto()
 
 
 @dataclass
@@ -91,14 +88,19 @@ class TargetFlight:
     tracked_waypoint: int | None = None
     original_waypoint: int | None = None
     commands: CommandTracker = field(init=False)
-    #: The mission this flight is part of: attached by it (onboard.mission_participation).
-    mission: FlightMission = field(init=False)
+    #: The mission of the commitment (None: none, or replaced or aborted since).
+    mission: int | None = None
     target: int | None = None  #: the target this UAV holds (committed or flying to)
     _target_at: Target | None = None
     _committed_at: float = 0.0
     _target_tracked: bool = False  #: the autopilot echoed the track to the target waypoint
     _target_next: int | None = None  #: where the target waypoint sends the autopilot on
     _outages_when_tracked: int = 0  #: link outages before the target route was echoed
+    #: The latest fix, and the last before the latest outage (onboard.outage_arrival).
+    _fixes: FixHistory = field(default_factory=FixHistory)
+    #: The waypoint the autopilot left the target route for during an outage, while no
+    #: fix since the outage tells whether that was the arrival.
+    _departed_to: int | None = None
     resuming: bool = False  #: a resume of the course is sent and not echoed yet
     _operator_track: bool = False  #: the ground commanded the target waypoint or its track
     #: The mission's no-fly zones: a target is flown by a route around them.
@@ -114,15 +116,22 @@ class TargetFlight:
         """Hold `target` (at `where`), or none; its route not echoed yet."""
         self.target, self._target_at = target, where
         self._target_tracked = False
+        self._departed_to = None
         self._no_route = None
         self.route = ()
 
     # ---- what the autopilot says -------------------------------------------------------
-    def on_telemetry(self, now: float) -> None:
+    def on_telemetry(self, now: float) -> FlightNews | None:
+        self._fixes.on_fix(self.link.gps, self.link.outages)
         if self.life.holds_target():
             distance = self._target_distance()
             if distance is not None and distance <= REACHED_RADIUS_M:
-                self._reached(distance, now)
+                return self._reached(distance, now)
+            if self._departed_to is not None and self.life.phase == Phase.FLYING:
+                # The autopilot left the target route during an outage: judged on the
+                # first fix after it.
+                return self._left_target_route(self._departed_to, now)
+        return None
 
     def _target_distance(self) -> float | None:
         """Metres from the latest GPS fix to the held target; None if either is unknown."""
@@ -131,7 +140,7 @@ class TargetFlight:
             return None
         return distance_m((gps.lat, gps.lon), (self._target_at.lat, self._target_at.lon))
 
-    def _reached(self, distance: float, now: float, how: str = "") -> None:
+    def _reached(self, distance: float, now: float, how: str = "") -> FlightNews:
         # Reached before the track was echoed (it passed by): the target writes still
         # pending would only turn it back to where it has been.
         self.commands.cancel_where(_is_target_write, f"target {self.target} reached")
@@ -140,41 +149,51 @@ class TargetFlight:
             StatusKind.REACHED,
             f"reached target {self.target} ({how}{distance:.0f} m from it)",
             now,
-            mission=self.mission.current(),
+            mission=self.mission,
             target=self.target,
         )
-        self.mission.publish_outcome(Phase.REACHED, None, self.target)
-        self.mission.fly_next(now)
+        return FlightNews.REACHED
 
-    def on_track(self, track: Track, now: float) -> None:
+    def on_track(self, track: Track, now: float) -> FlightNews | None:
         self.commands.on_echo(track, now)
         previous, self.tracked_waypoint = self.tracked_waypoint, track.waypoint
         if previous != track.waypoint:
             self.outputs.publish(self.key_space.track(self.uav_id), track)
         if _on_target_route(track.waypoint):
             if not _on_target_route(previous) and self.target is None:
-                self.leave_stale_target(now)  # a restart's first track, after the re-plan
-            return
+                return FlightNews.STALE_TARGET  # a restart's first track, after the re-plan
+            return None
+        news = None
         flying = self.life.phase == Phase.FLYING
         if flying and self._target_tracked and _on_target_route(previous):
-            self._left_target_route(track.waypoint, now)
+            news = self._left_target_route(track.waypoint, now)
         if not self.life.holds_target() and track.waypoint not in LOITER_WAYPOINTS:
             self.original_waypoint = track.waypoint  # the course to come back to
+        return news
 
-    def _left_target_route(self, waypoint: int, now: float) -> None:
+    def _left_target_route(self, waypoint: int, now: float) -> FlightNews | None:
         """The autopilot stopped tracking the target: arrival if telemetry says so."""
+        self._departed_to = None
         distance = self._target_distance()
         if distance is not None and distance <= REACHED_RADIUS_M:
-            self._reached(distance, now)
-            return
-        if (
-            waypoint == self._target_next
-            and self.link.outages > self._outages_when_tracked
-            and distance is not None
-        ):
-            how = f"the autopilot moved on to waypoint {waypoint} during a link outage; now "
-            self._reached(distance, now, how)
-            return
+            return self._reached(distance, now)
+        outages = self.link.outages
+        if outages > self._outages_when_tracked and distance is not None:
+            # A link outage hid what happened: read it from the fixes either side of it
+            # (onboard.outage_arrival), however many waypoints the autopilot went through.
+            if not self._fixes.fresh_since(outages):
+                self._departed_to = waypoint  # no fix since the outage yet: judged on it
+                return None
+            before, after = self._fixes.before_outage, self._fixes.latest
+            passed = (
+                before is not None
+                and after is not None
+                and self._target_at is not None
+                and passed_target(before, after, self._target_at, REACHED_RADIUS_M)
+            )
+            if waypoint == self._target_next or passed:
+                how = f"the autopilot moved on to waypoint {waypoint} during a link outage; now "
+                return self._reached(distance, now, how)
         where = "unknown distance" if distance is None else f"{distance:.0f} m"
         why = f"autopilot left the target route for waypoint {waypoint} at {where}"
         self.life.observe(Observation.LEFT_ROUTE, why)
@@ -182,9 +201,10 @@ class TargetFlight:
             StatusKind.NOT_REACHED,
             f"warning: target not reached: {why}",
             now,
-            mission=self.mission.current(),
+            mission=self.mission,
             target=self.target,
         )
+        return None
 
     def on_waypoint(self, waypoint: Waypoint, now: float) -> None:
         self.commands.on_echo(waypoint, now)
@@ -215,16 +235,22 @@ class TargetFlight:
                 StatusKind.TARGET_GIVEN_UP,
                 f"warning: target {self.target} given up: {why}",
                 now,
-                mission=self.mission.current(),
+                mission=self.mission,
                 target=self.target,
             )
         self.commands.submit(command, now, on_done)
 
     # ---- flying the mission's target -------------------------------------------------------
-    def commit(self, target: int, where: Target, now: float) -> None:
-        """Hold `target` from `now`: the confirm limit runs from here."""
+    def commit(self, mission: int, target: int, where: Target, now: float) -> None:
+        """Hold `target` of `mission` from `now`: the confirm limit runs from here."""
         self.hold(target, where)
+        self.mission = mission
         self._committed_at = now
+
+    def superseded(self, mission: int) -> bool:
+        """A command's answer arrived after its mission was replaced or aborted (both
+        `restart` the flight)."""
+        return mission != self.mission
 
     def write_target(self, mission: int, now: float) -> None:
         """Write the held target's waypoint, then track it; both retried until echoed."""
@@ -266,7 +292,7 @@ class TargetFlight:
                 self.commands.submit(Track(first), now, tracked, persistent=True)
 
         def tracked(result: CommandResult) -> None:
-            if not result.ok or self.mission.superseded(mission) or self.target != target_index:
+            if not result.ok or self.superseded(mission) or self.target != target_index:
                 return
             self._target_tracked = True
             self._outages_when_tracked = self.link.outages
@@ -283,7 +309,7 @@ class TargetFlight:
 
     def _still_committed(self, mission: int, target_index: int) -> bool:
         return (
-            not self.mission.superseded(mission)
+            not self.superseded(mission)
             and self.target == target_index
             and self.life.phase == Phase.COMMITTED
         )
@@ -291,11 +317,11 @@ class TargetFlight:
     def leave_stale_target(self, now: float) -> None:
         """Holding no target, yet the autopilot tracks the target waypoint: left there by
         this module before a restart, and the target is another UAV's now (a re-plan
-        released this one while it was away). Back to the course, or it flies it too."""
+        released this one while it was away). Back to the course, or it flies it too.
+        The mission calls it only once it decided: before, it may still be handed that
+        very target."""
         if not _on_target_route(self.tracked_waypoint) or self.resuming or self._operator_track:
             return
-        if not self.mission.decided():
-            return  # nothing decided yet: it may still be handed that very target
         self.say(
             StatusKind.STALE_TARGET_LEFT,
             "warning: the autopilot still tracks the target waypoint of a target this UAV "
@@ -387,6 +413,7 @@ class TargetFlight:
         """A new mission, or an abort: every write cancelled; back to the course if a
         target was held or a resume was still pending (a link outage): it goes on."""
         resuming = self.resuming
+        self.mission = None  # every answer still to come is to a superseded mission
         self.commands.cancel_all(why)
         if self.life.holds_target() or resuming:
             self.resume_course(now)

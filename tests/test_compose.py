@@ -138,7 +138,7 @@ def _parser_for(script: str) -> Callable[[], argparse.ArgumentParser]:
         from ground.cli import build_parser as ground_parser
 
         return ground_parser
-    from ground.fleet_cli import build_parser as fleet_parser
+    from programs.fleet_cli import build_parser as fleet_parser
 
     return fleet_parser
 
@@ -324,9 +324,9 @@ def test_each_service_sees_its_own_key_and_no_other() -> None:
         if identity is None:
             assert seen == {}, name
             continue
-        # Never ca.key, never another's key; a signer has its own signing key (the
-        # router signs nothing).
-        own = {f"{identity}.key"} | ({f"{identity}.sign"} if identity != "router" else set())
+        # Never ca.key, never another's key; each has its own signing key (the router
+        # signs its answer about itself, `router/state`).
+        own = {f"{identity}.key", f"{identity}.sign"}
         assert keys == own, name
         # Every process checks signatures (and the router revocations) by the roster.
         assert {f"{CERTS}/ca.pem", f"{CERTS}/signers.json", f"{CERTS}/{identity}.pem"} <= set(
@@ -388,7 +388,7 @@ def test_each_secure_client_uses_its_own_identity_over_tls() -> None:
 def test_the_documented_certs_command_makes_every_file_the_profile_names(
     tmp_path: Path,
 ) -> None:
-    from ground.fleet_cli import main as fleet_main
+    from programs.fleet_cli import main as fleet_main
 
     header = (REPO / "compose.secure.yaml").read_text()
     line = next(line for line in header.splitlines() if "fleet certs make" in line)

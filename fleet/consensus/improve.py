@@ -24,7 +24,7 @@ import math
 from collections.abc import Callable, Sequence
 
 from fleet.consensus.assignment import time_or_inf
-from fleet.consensus.queues import Legs, Queues, Times
+from fleet.consensus.queues import Legs, Queues, Times, leg_count, legs_of, reference_legs
 from fleet.mission.objective import Objective
 
 #: Passes over every target at most (a pass with no improvement ends the search).
@@ -47,14 +47,16 @@ def improve(queues: Queues, times: Times, legs: Legs, objective: Objective) -> Q
 class _Search:
     def __init__(self, queues: Queues, times: Times, legs: Legs, objective: Objective) -> None:
         self.queues = queues
-        self.legs = legs
         self.min_max = objective is Objective.MIN_MAX
         self.uavs = sorted(queues)
+        # Each UAV's own table (fleet.consensus.legs.AirLegs), or the one they share.
+        self.legs = {uav: legs_of(legs, uav) for uav in self.uavs}
         self.rows = {uav: [time_or_inf(t) for t in times[uav]] for uav in self.uavs}
-        count = len(legs)
+        count = leg_count(legs)
+        shared = reference_legs(legs)
         # Sorting (leg, index) pairs in C: the nearest first, ties by index.
         self.near = [
-            [j for _, j in sorted(zip(legs[i], range(count), strict=True)) if j != i][:NEIGHBOURS]
+            [j for _, j in sorted(zip(shared[i], range(count), strict=True)) if j != i][:NEIGHBOURS]
             for i in range(count)
         ]
         self.best_uavs = [
@@ -77,8 +79,9 @@ class _Search:
         if queue:
             clock = self.rows[uav][queue[0]]
             out.append(clock)
+            legs = self.legs[uav]
             for previous, target in itertools.pairwise(queue):
-                clock += self.legs[previous][target]
+                clock += legs[previous][target]
                 out.append(clock)
         return out
 
@@ -127,7 +130,7 @@ class _Search:
     def _removal(self, home: int, start: int) -> tuple[float, float] | None:
         """(sum, end) of `home`'s queue without its target at `start`; None if the next
         target cannot head it."""
-        queue, arrivals, legs = self.queues[home], self.arrivals[home], self.legs
+        queue, arrivals, legs = self.queues[home], self.arrivals[home], self.legs[home]
         last = len(queue) - 1
         total, end = self.cost[home]
         if last == 0:
@@ -145,7 +148,7 @@ class _Search:
 
     def _insertion(self, uav: int, index: int, target: int) -> tuple[float, float]:
         """(sum, end) of `uav`'s queue with `target` inserted at `index`."""
-        queue, arrivals, legs = self.queues[uav], self.arrivals[uav], self.legs
+        queue, arrivals, legs = self.queues[uav], self.arrivals[uav], self.legs[uav]
         total, end = self.cost[uav]
         if index == 0:
             at = self.rows[uav][target]

@@ -32,8 +32,8 @@ from dataclasses import dataclass, field
 
 import msgspec
 
-from fleet.consensus.assignment import results_digest
-from fleet.consensus.legs import leg_times
+from fleet.consensus.assignment import air_bytes, results_digest
+from fleet.consensus.legs import Air, AirLegs, LegGeometry, leg_times
 from fleet.consensus.objectives import plan_digest, plan_queues
 from fleet.consensus.queues import UNREACHABLE
 from fleet.consensus.replan import missing_times, replan
@@ -155,13 +155,35 @@ class MissionRound:
 
     @functools.cached_property
     def legs(self) -> list[list[float]]:
-        """Target-to-target times, from the mission alone (fleet.consensus.legs)."""
+        """Target-to-target times in still air, from the mission alone: one table for
+        every UAV, what a target's neighbours are found by (fleet.consensus.legs)."""
         return leg_times(self.targets.targets, zones=self.targets.zones)
 
+    @functools.cached_property
+    def geometry(self) -> LegGeometry:
+        """Every leg's length and direction (and route round the zones), from the mission
+        alone: each UAV's legs are timed from it in its own air."""
+        return LegGeometry.of(self.targets.targets, self.targets.zones)
+
     def prepare(self) -> list[list[float]]:
-        """The legs, computed now (while the approach times are planned), not when every
-        UAV decides at once on the last result: the consensus window (issue 28)."""
+        """The legs' geometry and the still-air table, computed now (while the approach
+        times are planned), not when every UAV decides at once on the last result: the
+        consensus window (issue 28)."""
+        _ = self.geometry
         return self.legs
+
+    def air_legs(self, uavs: Iterable[int]) -> AirLegs:
+        """Each of `uavs`' legs in the air its result says it flies in (its airspeed and
+        smoothed wind, digested with its times)."""
+        air = {uav: Air.of(self.results[uav]) for uav in uavs if uav in self.results}
+        return AirLegs(self.geometry, air, self.legs)
+
+    def _air_bytes(self, uavs: Iterable[int]) -> dict[int, bytes]:
+        out = {}
+        for uav in uavs:
+            r = self.results[uav]
+            out[uav] = air_bytes(uav, (r.airspeed, r.wind_east, r.wind_north, r.lat, r.lon))
+        return out
 
     def queue_of(self, uav: int) -> tuple[int, ...]:
         """`uav`'s queue in the plan this UAV follows (empty before the commitment)."""
@@ -306,7 +328,7 @@ class MissionRound:
             if uav in alive or uav == self.own_id
         }
         objective = self.targets.objective
-        plan = plan_queues(used, self.legs, objective, self.rows.orders(used))
+        plan = plan_queues(used, self.air_legs(used), objective, self.rows.orders(used))
         heads = plan.heads()
         self.committed = self.base = self._report(
             target=heads.get(self.own_id),
@@ -316,7 +338,12 @@ class MissionRound:
             unserved={t: UNREACHABLE for t in plan.unassigned},
             team=tuple(sorted(used)),
             digest=plan_digest(
-                results_digest(used, zones_bytes(self.targets.zones), self.rows.packed(used)),
+                results_digest(
+                    used,
+                    zones_bytes(self.targets.zones),
+                    self.rows.packed(used),
+                    self._air_bytes(used),
+                ),
                 objective,
             ),
         )
@@ -437,7 +464,7 @@ class MissionRound:
         while a candidate's results are missing (`replan_missing`)."""
         if self.base is None or self.replan_missing():
             return None
-        plan = replan(self.base, self._times(), self.released, self.legs)
+        plan = replan(self.base, self._times(), self.released, self.air_legs(self.base.team))
         heads = plan.pairs
         self.committed = self._report(
             target=heads.get(self.own_id),

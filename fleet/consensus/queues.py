@@ -7,8 +7,9 @@ coordinator. The input:
 * `times[uav][t]`: UAV `uav`'s approach time (s) to target `t` from its own model,
   None (or NaN, or an infinity) where it has none. A UAV only ever queues a target it
   has a finite approach time to: its model says it can reach it.
-* `legs[i][j]`: the time from target i to target j (`fleet.consensus.legs`: closed form
-  from the mission alone, so identical on every UAV).
+* `legs[i][j]`: the time from target i to target j: one table for every UAV, or each
+  UAV's own (`LegTables`: `fleet.consensus.legs.AirLegs`, timed at that UAV's airspeed
+  in the wind its digested result carries, so identical on every UAV).
 
 A queue's arrivals are cumulative: the first target at its approach time, each next one
 a leg later. The objectives (`fleet.mission.objective.Objective`):
@@ -28,13 +29,80 @@ mapping given. Pure: no I/O.
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 from fleet.consensus.assignment import greedy_assign, usable
 
 Times = Mapping[int, Sequence[float | None]]
-Legs = Sequence[Sequence[float]]
+#: legs[i][j]: seconds from target i to target j.
+Matrix = Sequence[Sequence[float]]
+
+
+class Rows(Protocol):
+    """legs[i][j], as the search reads it: a `Matrix`, or rows computed when first asked."""
+
+    def __getitem__(self, i: int, /) -> Sequence[float]: ...
+
+
+class LegTables(ABC):
+    """Each UAV's own leg table, and the arrivals along a queue in it.
+
+    `of(uav)[i][j]` is the pairwise time the search plans with; `arrivals` may time a
+    queue more exactly (a leg's turn depends on the leg before it): what the plan
+    reports and is scored by. Both must be functions of the digested input only.
+    """
+
+    @property
+    @abstractmethod
+    def count(self) -> int:
+        """The number of targets."""
+
+    @abstractmethod
+    def of(self, uav: int) -> Rows:
+        """UAV `uav`'s legs[i][j]."""
+
+    @abstractmethod
+    def reference(self) -> Matrix:
+        """One table for every UAV: what a target's neighbours are found by."""
+
+    @abstractmethod
+    def arrivals(self, uav: int, first: float, queue: Sequence[int]) -> list[float]:
+        """The arrival at each target of `uav`'s `queue`, the first at `first`."""
+
+
+#: One table for every UAV, or each UAV's own.
+Legs = Matrix | LegTables
+
+
+def leg_count(legs: Legs) -> int:
+    """The number of targets the legs are between."""
+    return legs.count if isinstance(legs, LegTables) else len(legs)
+
+
+def legs_of(legs: Legs, uav: int) -> Rows:
+    """UAV `uav`'s table."""
+    return legs.of(uav) if isinstance(legs, LegTables) else legs
+
+
+def reference_legs(legs: Legs) -> Matrix:
+    """The one table neighbourhoods are found by."""
+    return legs.reference() if isinstance(legs, LegTables) else legs
+
+
+def queue_arrivals(times: Times, legs: Legs, uav: int, queue: Sequence[int]) -> list[float]:
+    """The arrivals along `uav`'s `queue`: what a plan reports and is scored by."""
+    if isinstance(legs, LegTables):
+        if not queue:
+            return []
+        first = times[uav][queue[0]]
+        assert first is not None
+        return legs.arrivals(uav, first, queue)
+    return arrivals_of(times[uav], legs, queue)
+
+
 Queues = dict[int, list[int]]
 #: Each UAV's targets in the greedy's order (`fleet.consensus.assignment.row_order`).
 Orders = Mapping[int, Sequence[int]]
@@ -68,17 +136,19 @@ class QueuePlan:
 
 def check_input(times: Times, legs: Legs) -> int:
     """The number of targets; ValueError naming the first row of the wrong length."""
-    count = len(legs)
+    count = leg_count(legs)
     for uav, row in times.items():
         if len(row) != count:
             raise ValueError(f"UAV {uav}: expected {count} approach times, got {len(row)}")
+    if isinstance(legs, LegTables):
+        return count
     for i, row in enumerate(legs):
         if len(row) != count:
             raise ValueError(f"legs from target {i}: expected {count}, got {len(row)}")
     return count
 
 
-def arrivals_of(row: Sequence[float | None], legs: Legs, queue: Sequence[int]) -> list[float]:
+def arrivals_of(row: Sequence[float | None], legs: Rows, queue: Sequence[int]) -> list[float]:
     """The arrival time at each target of one UAV's queue (its approach times `row`)."""
     out: list[float] = []
     clock = 0.0
@@ -98,11 +168,11 @@ def arrivals_of(row: Sequence[float | None], legs: Legs, queue: Sequence[int]) -
 def finish(plan: Queues, times: Times, legs: Legs) -> QueuePlan:
     """The plan of these queues: arrivals computed, unassigned = the targets in none."""
     uavs = sorted(times)
-    count = len(legs)
+    count = leg_count(legs)
     queued = {t for queue in plan.values() for t in queue}
     return QueuePlan(
         queues={uav: tuple(plan.get(uav, ())) for uav in uavs},
-        arrivals={uav: tuple(arrivals_of(times[uav], legs, plan.get(uav, ()))) for uav in uavs},
+        arrivals={uav: tuple(queue_arrivals(times, legs, uav, plan.get(uav, ()))) for uav in uavs},
         unassigned=tuple(t for t in range(count) if t not in queued),
     )
 
@@ -132,7 +202,7 @@ def append_earliest(
         row, queue, clock = times[uav], queues[uav], clocks[uav]
         found: tuple[float, int] | None = None
         if queue:
-            legs_from = legs[queue[-1]]
+            legs_from = legs_of(legs, uav)[queue[-1]]
             for t in left:
                 if usable(row[t]):
                     value = clock + legs_from[t]
@@ -169,7 +239,7 @@ def append_earliest(
 def greedy_queues(times: Times, legs: Legs, orders: Orders | None = None) -> Queues:
     """The thesis's one-each greedy, then the rest appended where reached earliest
     (`orders`: each UAV's `row_order`, where computed beforehand)."""
-    count = len(legs)
+    count = leg_count(legs)
     heads = greedy_assign(times, count, orders).pairs
     queues: Queues = {uav: [heads[uav]] if uav in heads else [] for uav in sorted(times)}
     clocks = {uav: _head_time(times, uav, queues[uav]) for uav in queues}
@@ -189,6 +259,6 @@ def _head_time(times: Times, uav: int, queue: list[int]) -> float:
 def plan_clocks(queues: Queues, times: Times, legs: Legs) -> dict[int, float]:
     """When each UAV finishes its queue (0 for an empty one)."""
     return {
-        uav: (arrivals_of(times[uav], legs, queue)[-1] if queue else 0.0)
+        uav: (queue_arrivals(times, legs, uav, queue)[-1] if queue else 0.0)
         for uav, queue in queues.items()
     }

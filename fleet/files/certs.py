@@ -10,8 +10,10 @@ Identities have one role each. Only a router's certificate may serve (TLS server
 and the names of the hosts it is reached at); it may also connect, to another router. Every
 other identity (the ground, a UAV) may only connect: a client checks that the router it
 dialled presents a server certificate for that host, so a stolen UAV key cannot pose as a
-router. Private keys are created owner-only with O_EXCL and never through a symlink; an
-existing CA is replaced only when asked (`force`).
+router. Private keys are created owner-only with O_EXCL and never through a symlink, only
+in a directory no other user can change, never over a file another user owns or one
+with a second (hard) link (`owned_files`); an existing CA is replaced only when asked
+(`force`).
 """
 
 from __future__ import annotations
@@ -19,7 +21,6 @@ from __future__ import annotations
 import datetime
 import ipaddress
 import json
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -30,6 +31,7 @@ from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
 from fleet.errors import CertError as CertError  # raised here, defined where it is light
+from fleet.files.owned_files import check_directory, write_new
 from fleet.files.signers import write_signers
 from fleet.mission.access import is_router_identity
 
@@ -167,17 +169,11 @@ def _key_pem(key: ec.EllipticCurvePrivateKey) -> bytes:
 
 
 def _write(path: Path, data: bytes, private: bool = False) -> None:
-    """Write `path` afresh: any old file (or symlink) there is removed first, and the new
-    one is created exclusively without following a link, so a pre-made file's mode or a
-    planted symlink cannot carry a private key elsewhere or leave it readable."""
-    try:
-        path.unlink(missing_ok=True)
-        flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
-        descriptor = os.open(path, flags, 0o600 if private else 0o644)
-        with os.fdopen(descriptor, "wb") as f:
-            f.write(data)
-    except OSError as error:
-        raise CertError(f"cannot write {path}: {error.strerror or error}") from None
+    """Write `path` afresh: an old file of this user's with one link (or a symlink) is
+    removed first, anything else refused, and the new one created exclusively without
+    following a link, so a pre-made file's mode, a planted symlink or hard link cannot
+    carry a private key elsewhere or leave it readable (`owned_files`)."""
+    write_new(path, data, CertError, private)
 
 
 @dataclass(frozen=True)
@@ -261,6 +257,7 @@ def write_identities(
         directory.mkdir(parents=True, exist_ok=True)
     except OSError as error:
         raise CertError(f"cannot create {directory}: {error.strerror or error}") from None
+    check_directory(directory, CertError)
     ca_files = [directory / f"{CA_NAME}.{suffix}" for suffix in ("pem", "key")]
     existing = [path for path in ca_files if path.is_symlink() or path.exists()]
     if existing and not force:

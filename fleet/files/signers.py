@@ -15,7 +15,6 @@ A process needs only its own `NAME.sign`, `signers.json` and `ca.pem`
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +25,7 @@ from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
 from fleet.errors import RosterError as RosterError  # raised here, defined where it is light
+from fleet.files.owned_files import check_directory, read_own, write_new
 from fleet.mission.signature import Roster
 
 ROSTER_FILE = "signers.json"
@@ -40,15 +40,8 @@ def signing_key_path(directory: Path, name: str) -> Path:
 
 
 def _write_private(path: Path, data: bytes) -> None:
-    # No symlink followed, and 0600 even when the file existed with wider rights.
-    flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW
-    try:
-        descriptor = os.open(path, flags, 0o600)
-        os.fchmod(descriptor, 0o600)
-        with os.fdopen(descriptor, "wb") as f:
-            f.write(data)
-    except OSError as error:
-        raise RosterError(f"cannot write {path}: {error.strerror or error}") from None
+    # A new owner-only file: never through a symlink, never into a planted hard link.
+    write_new(path, data, RosterError, private=True)
 
 
 def _canonical(signers: dict[str, str], revoked: list[str]) -> bytes:
@@ -66,12 +59,9 @@ def _write_roster(
     body = _canonical(signers, revoked)
     signature = ca_key.sign(body, ec.ECDSA(hashes.SHA256()))
     document = {**json.loads(body), "signature": signature.hex()}
-    path = directory / ROSTER_FILE
-    try:
-        path.unlink(missing_ok=True)  # a new file, never written through a planted link
-        path.write_text(json.dumps(document, indent=2) + "\n")
-    except OSError as error:
-        raise RosterError(f"cannot write {path}: {error.strerror or error}") from None
+    # A new file, never written through a planted link.
+    text = json.dumps(document, indent=2) + "\n"
+    write_new(directory / ROSTER_FILE, text.encode(), RosterError)
 
 
 def write_signers(directory: Path, names: list[str], ca_key: ec.EllipticCurvePrivateKey) -> None:
@@ -148,8 +138,9 @@ def load_signing_key(path: Path) -> Ed25519PrivateKey:
 def _ca_key(directory: Path) -> ec.EllipticCurvePrivateKey:
     path = directory / f"{CA_NAME}.key"
     try:
-        key = serialization.load_pem_private_key(path.read_bytes(), password=None)
-    except (OSError, ValueError, TypeError) as error:
+        data = read_own(path, RosterError)
+        key = serialization.load_pem_private_key(data, password=None)
+    except (RosterError, ValueError, TypeError) as error:
         raise RosterError(f"{path}: the CA key is needed to sign the roster: {error}") from None
     if not isinstance(key, ec.EllipticCurvePrivateKey):
         raise RosterError(f"{path}: not the fleet's (ECDSA) CA key")
@@ -165,7 +156,9 @@ def revoked_identities(directory: Path) -> frozenset[str]:
 
 
 def revoke(directory: Path, names: list[str]) -> Roster:
-    """Withdraw `names`: list them as revoked in the roster, signed again by the CA."""
+    """Withdraw `names`: list them as revoked in the roster, signed again by the CA,
+    in a directory no other user can change (`owned_files`)."""
+    check_directory(directory.resolve(), RosterError)
     roster = load_roster(directory)
     unknown = [n for n in names if n not in roster.keys]
     if unknown:

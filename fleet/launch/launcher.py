@@ -61,11 +61,13 @@ from fleet.mission.key_space import DEFAULT_SPACE, KeySpace, uav_id_of
 from fleet.piccolo.telemetry import Telemetry
 from fleet.recording.recorder import READY_LINE, Recorder
 from fleet.recording.writer import McapSink
-from fleet.transport import bus_codec
+from fleet.transport.bus import Bus, BusSample, decode_sample
+from fleet.transport.bus_factory import open_bus
 from fleet.transport.cli import CRASH_DUMP_ENV, PREFIX_ENV
 from fleet.transport.router import Router
 from fleet.transport.secure import SecureProfile
-from fleet.transport.zenoh_config import DEFAULT_ROUTER, build_config, make_config
+from fleet.transport.zenoh_bus import BusConnectError
+from fleet.transport.zenoh_config import CONNECT_ENV, DEFAULT_ROUTER, build_config, make_config
 
 log = logging.getLogger(__name__)
 
@@ -132,6 +134,9 @@ class Fleet:
     uav_routers: dict[int, str] = field(default_factory=dict)
     #: What forks the onboards, while the fleet runs (`FleetSpec.fork_onboards`).
     fork_server: ForkServer | None = None
+    #: Opens the bus a start is watched through when no router runs in this process (a
+    #: mesh): the program's root hands its factory down.
+    open_bus: Callable[[zenoh.Config], Bus] = open_bus
     log_dir: Path = field(init=False)
     _sim_ready: threading.Event = field(default_factory=threading.Event)
     _files: list[IO[bytes]] = field(default_factory=list)
@@ -255,8 +260,11 @@ class Fleet:
 
     def _child_env(self) -> dict[str, str]:
         # Each child ends with this process, however it dies (fleet.lifeline), and a
-        # crash of one, even while it imports, leaves its traceback in its log.
-        env = {**os.environ, PREFIX_ENV: self.spec.key_space.prefix, CRASH_DUMP_ENV: "1"}
+        # crash of one, even while it imports, leaves its traceback in its log. Every
+        # child is told its endpoints: an operator's $FLEET_ZENOH_CONNECT (which overrides
+        # a config file's) must not redirect it.
+        inherited = {k: v for k, v in os.environ.items() if k != CONNECT_ENV}
+        env = {**inherited, PREFIX_ENV: self.spec.key_space.prefix, CRASH_DUMP_ENV: "1"}
         return lifeline.child_env(env)
 
     def _onboard_module(self) -> str | None:
@@ -477,16 +485,20 @@ class Fleet:
                 f"(logs in {self.log_dir})"
             )
 
-    def _observer(self) -> zenoh.Session:
-        """A session that sees the fleet's key space: the embedded router's, or a client's."""
+    def _observer(self) -> Bus:
+        """A bus that sees the fleet's key space: the embedded router's session (not
+        closed with it), or a client of the fleet's routers (`Fleet.open_bus`)."""
         if self.router is not None:
-            return self.router.session
+            return self.router.bus()
         config = make_config("client", self.fallback_connect)
         if self.secure is not None:
             config = build_config(
                 config_file=str(self.secure.ground_config()), connect=self.fallback_connect
             )
-        return zenoh.open(config)
+        try:
+            return self.open_bus(config)
+        except BusConnectError as error:
+            raise LaunchError(f"cannot watch the fleet start: {error}") from None
 
     def _wait_ready(self, deadline: float) -> None:
         """Wait until every UAV is alive and its telemetry flows.
@@ -495,50 +507,40 @@ class Fleet:
         may not be up yet. A telemetry sample with a GPS fix on its telemetry key means
         the link is up and the autopilot talks, so its state already holds a position.
         """
-        session = self._observer()
+        bus = self._observer()
         try:
-            self._wait_flowing(session, deadline)
+            self._wait_flowing(bus, deadline)
         finally:
-            if self.router is None:
-                session.close()
+            bus.close()
 
-    def _wait_flowing(self, session: zenoh.Session, deadline: float) -> None:
+    def _wait_flowing(self, bus: Bus, deadline: float) -> None:
         expected = set(self.uav_ids)
         alive: set[int] = set()
         flowing: set[int] = set()
         changed = threading.Event()
 
-        def on_token(sample: zenoh.Sample) -> None:
-            uav = _uav_of(sample)
+        def on_token(key: str, present: bool) -> None:
+            uav = _uav_of(key)
             if uav is None:
                 return
-            if sample.kind == zenoh.SampleKind.PUT:
+            if present:
                 alive.add(uav)
             else:
                 alive.discard(uav)
             changed.set()
 
-        def on_telemetry(sample: zenoh.Sample) -> None:
-            uav = _uav_of(sample)
+        def on_telemetry(sample: BusSample) -> None:
+            uav = _uav_of(sample.key)
             if uav is None or uav in flowing:
                 return
-            try:
-                telemetry = bus_codec.decode(
-                    sample.payload.to_bytes(), Telemetry, str(sample.key_expr)
-                )
-            except bus_codec.BadMessage as error:
-                log.warning("ignored %s", error)
-                return
-            if telemetry.gps is not None:
+            telemetry = decode_sample(sample, Telemetry)
+            if telemetry is not None and telemetry.gps is not None:
                 flowing.add(uav)
                 changed.set()
 
-        with (
-            session.liveliness().declare_subscriber(
-                self.spec.key_space.all_alive, on_token, history=True
-            ),
-            session.declare_subscriber(self.spec.key_space.all_telemetry, on_telemetry),
-        ):
+        presence = bus.subscribe_presence(self.spec.key_space.all_alive, on_token)
+        telemetry = bus.subscribe(self.spec.key_space.all_telemetry, on_telemetry)
+        try:
             reported, next_report = (-1, -1), 0.0
             while not expected <= alive & flowing:
                 changed.wait(0.2)
@@ -550,6 +552,9 @@ class Fleet:
                     )
                     reported, next_report = counts, time.monotonic() + PROGRESS_PERIOD_S
                 self._check_running(deadline, _waiting_for(expected, alive, flowing))
+        finally:
+            telemetry.undeclare()
+            presence.undeclare()
         log.info("every UAV is alive with telemetry: %s", ", ".join(map(str, sorted(expected))))
 
     def _report(self, text: str) -> None:
@@ -595,9 +600,9 @@ class Fleet:
             self.router = None
 
 
-def _uav_of(sample: zenoh.Sample) -> int | None:
+def _uav_of(key: str) -> int | None:
     try:
-        return uav_id_of(str(sample.key_expr))
+        return uav_id_of(key)
     except ValueError:
         return None
 

@@ -2,7 +2,7 @@
 
 `fleet up (SCENARIO | --uavs N)` starts the router, the simulator and one onboard per
 UAV (`fleet.launch.launcher`), waits until every UAV is ready, prints how to connect,
-and runs until Ctrl-C or SIGTERM, then stops everything. `fleet demo` (ground.demo)
+and runs until Ctrl-C or SIGTERM, then stops everything. `fleet demo` (programs.demo)
 builds on it.
 """
 
@@ -14,7 +14,9 @@ import logging
 import sys
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TextIO
 
 from fleet.files.certs import endpoint_host
 from fleet.launch.children import Child
@@ -24,6 +26,7 @@ from fleet.launch.supervisor import ChildLost, RestartPolicy, supervise
 from fleet.launch.topology import Topology
 from fleet.mission.access import GROUND
 from fleet.mission.key_registry import DEFAULT_PREFIX
+from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.sim.scenario import ScenarioError, resolve_scenario
 from fleet.transport.cli import (
     PREFIX_ENV,
@@ -34,6 +37,7 @@ from fleet.transport.cli import (
     positive_float,
     stop_on_signals,
 )
+from fleet.transport.command import LocalCommand, OptionsError, set_handler
 from fleet.transport.zenoh_config import CONFIG_ENV, CONNECT_ENV, DEFAULT_ROUTER
 
 log = logging.getLogger(__name__)
@@ -98,9 +102,24 @@ def common_arguments(parser: argparse.ArgumentParser, speedup: float) -> None:
     )
 
 
-def recording_path(fleet: Fleet, args: argparse.Namespace) -> Path | None:
+@dataclass(frozen=True, kw_only=True)
+class LaunchOptions:
+    """What `fleet up` and `fleet demo` both take (`common_arguments`)."""
+
+    key_space: KeySpace = DEFAULT_SPACE
+    speedup: float = 1.0
+    log_dir: Path | None = None
+    #: Also serve the page there (`ground-cli gui`); None: not.
+    gui: str | None = None
+    start_timeout: float = DEFAULT_START_TIMEOUT_S
+    #: Record the run to RECORDING_NAME in its log folder.
+    record: bool = True
+    fork_onboards: bool = True
+
+
+def recording_path(fleet: Fleet, options: LaunchOptions) -> Path | None:
     """Where the run is recorded (in its log folder), or None with --no-record."""
-    return fleet.log_dir / RECORDING_NAME if args.record else None
+    return fleet.log_dir / RECORDING_NAME if options.record else None
 
 
 def add_up_parser(
@@ -157,12 +176,12 @@ def add_up_parser(
         "30 s); without it a dead module is reported and the rest of the fleet flies on",
     )
     common_arguments(parser, speedup=1.0)
-    parser.set_defaults(run=run_up, func=run_up)
+    set_handler(parser, UP)
     return parser
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """Register `up`; it sets `run` (and `func`) to its handler."""
+    """Register `up`."""
     add_up_parser(subparsers)
 
 
@@ -173,21 +192,52 @@ def scenario_info(name: str) -> tuple[str, Path | None]:
 
 
 # ---- fleet up ---------------------------------------------------------------------------------
-def run_up(args: argparse.Namespace) -> int:
+@dataclass(frozen=True, kw_only=True)
+class UpOptions(LaunchOptions):
+    #: A shipped scenario name or a TOML file (None: `uavs` generated ones).
+    scenario: str | None = None
+    uavs: int | None = None
+    listen: str = DEFAULT_ROUTER
+    secure: Path | None = None
+    insecure: bool = False
+    topology: Topology = Topology.STAR
+    restart: bool = False
+
+
+def up_options(args: argparse.Namespace) -> UpOptions:
+    """The options of `fleet up`; an open router beyond loopback without --insecure, or
+    neither a scenario nor --uavs, is a usage error. `--gui NAME` (no HOST:PORT) took
+    the scenario as the page's address: it is moved back."""
+    problem = open_listener_problem(args.listen, args.insecure)
+    if problem is not None:
+        raise OptionsError(problem)
+    scenario, gui = args.scenario, args.gui
+    if scenario is None and args.uavs is None:
+        if gui is None or ":" in gui:
+            raise OptionsError("give a SCENARIO (a shipped name or a TOML file) or --uavs N")
+        scenario, gui = gui, DEFAULT_GUI_LISTEN
+    return UpOptions(
+        scenario=scenario,
+        uavs=args.uavs,
+        listen=args.listen,
+        secure=args.secure,
+        insecure=args.insecure,
+        topology=args.topology,
+        restart=args.restart,
+        key_space=args.key_space,
+        speedup=args.speedup,
+        log_dir=args.log_dir,
+        gui=gui,
+        start_timeout=args.start_timeout,
+        record=args.record,
+        fork_onboards=args.fork_onboards,
+    )
+
+
+def run_up(options: UpOptions, out: TextIO) -> int:
     stop = threading.Event()
     with stop_on_signals(stop.set):
-        return _run_up(args, stop)
-
-
-def _scenario_from_gui(args: argparse.Namespace) -> str | None:
-    """Why neither a scenario nor --uavs was given, or None once one is: `--gui NAME`
-    (no HOST:PORT) took the scenario as the page's address, so it is moved back."""
-    if args.scenario is not None or args.uavs is not None:
-        return None
-    if args.gui is not None and ":" not in args.gui:
-        args.scenario, args.gui = args.gui, DEFAULT_GUI_LISTEN
-        return None
-    return "give a SCENARIO (a shipped name or a TOML file) or --uavs N"
+        return _run_up(options, stop)
 
 
 def open_listener_problem(listen: str, insecure: bool) -> str | None:
@@ -209,10 +259,7 @@ def open_listener_problem(listen: str, insecure: bool) -> str | None:
     )
 
 
-def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
-    problem = open_listener_problem(args.listen, args.insecure) or _scenario_from_gui(args)
-    if problem is not None:
-        return fail("fleet up", problem)
+def _run_up(args: UpOptions, stop: threading.Event) -> int:
     spec = FleetSpec(
         scenario="",
         listen=args.listen,
@@ -230,6 +277,7 @@ def _run_up(args: argparse.Namespace, stop: threading.Event) -> int:
         path.write_text(ring_scenario(args.uavs))
         spec.scenario = str(path)
     else:
+        assert args.scenario is not None  # up_options: a scenario or --uavs
         spec.scenario = args.scenario
     spec.record = recording_path(fleet, args)
     try:
@@ -310,3 +358,6 @@ def _print_banner(fleet: Fleet, targets_path: Path | None, gui_line: str | None)
         "Ctrl-C (or SIGTERM) stops the fleet.",
     ]
     print("\n".join(lines), flush=True)
+
+
+UP = LocalCommand(up_options, run_up)

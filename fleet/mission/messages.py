@@ -130,6 +130,11 @@ class UavResult(msgspec.Struct, frozen=True):
     `model_times` and `fallback_times` say how many of the times came from the approach
     model and how many from the Dubins fallback (optional: None from a UAV that does not
     say, and over the payload link, whose binary message has no room for them).
+    `airspeed` (m/s), `wind_east` and `wind_north` (m/s, the smoothed wind the times
+    were planned in, the way it blows to) and `lat`, `lon` (where the UAV planned from)
+    time the legs of its queue (fleet.consensus.legs, docs/queues.md); None from a UAV
+    that does not say (the legs are then in still air at 22 m/s). Digested with the
+    times: every UAV plans the same legs.
     """
 
     mission: MissionId
@@ -137,6 +142,11 @@ class UavResult(msgspec.Struct, frozen=True):
     times: Annotated[tuple[float | None, ...], Meta(max_length=MAX_TARGETS)]
     model_times: Annotated[int, Meta(ge=0)] | None = None
     fallback_times: Annotated[int, Meta(ge=0)] | None = None
+    airspeed: Annotated[float, Meta(gt=0.0, le=200.0)] | None = None
+    wind_east: Annotated[float, Meta(ge=-200.0, le=200.0)] | None = None
+    wind_north: Annotated[float, Meta(ge=-200.0, le=200.0)] | None = None
+    lat: Latitude | None = None
+    lon: Longitude | None = None
 
 
 class MissionAbort(msgspec.Struct, frozen=True):
@@ -288,3 +298,6 @@ class RouterState(msgspec.Struct, frozen=True):
 
     zid: str
     refused_links: Annotated[dict[str, RefusalCount], Meta(max_length=MAX_REFUSAL_KINDS)]
+    #: The query's payload it answers (the ground's random challenge): a signed answer
+    #: to an earlier query cannot be replayed for a later one. None: none was asked.
+    challenge: Annotated[str, Meta(max_length=64)] | None = None

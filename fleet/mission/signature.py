@@ -34,9 +34,18 @@ from enum import StrEnum
 from cryptography.exceptions import InvalidSignature
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
-from fleet.mission.access import GROUND, uav_identity
+from fleet.mission.access import GROUND, is_router_identity, uav_identity
 from fleet.mission.delivery import Delivery as Delivery  # its own light module
-from fleet.mission.key_registry import REGISTRY, STATE, TARGETS, Carriage, KeySpec, Party, Role
+from fleet.mission.key_registry import (
+    REGISTRY,
+    ROUTER_STATE,
+    STATE,
+    TARGETS,
+    Carriage,
+    KeySpec,
+    Party,
+    Role,
+)
 from fleet.mission.key_space import KeySpace, space_of
 
 #: The attachment starts with this: a signature envelope, version 1.
@@ -51,6 +60,9 @@ MAX_AUTHOR_BYTES = 64
 DEFAULT_WINDOW_NS = 30 * 1_000_000_000
 #: The (author, key) high-water marks kept; older entries past the window are pruned.
 MAX_MARKS = 4096
+#: The author `author_of` names for a key any router answers for itself (its state):
+#: the envelope must be a router identity's, and the reply is that router's word only.
+ANY_ROUTER = "router*"
 
 
 class Refusal(StrEnum):
@@ -109,7 +121,7 @@ def sign(key_pair: Ed25519PrivateKey, author: str, key: str, payload: bytes, now
 
 
 def _needs_signature(spec: KeySpec) -> bool:
-    return spec.role is Role.COMMAND or spec.tree == "mission" or spec is STATE
+    return spec.role is Role.COMMAND or spec.tree == "mission" or spec in (STATE, ROUTER_STATE)
 
 
 #: The keys whose messages must be signed (every other key travels as before).
@@ -140,6 +152,8 @@ def author_of(space: KeySpace, key: str, delivery: Delivery) -> str | None:
         # A query's payload is a command only on a query-only key (the autopilot's).
         return _party(spec.writer, parsed.uav) if query_only else None
     if delivery is Delivery.REPLY and query_only:
+        if Party.ROUTER in spec.servers:
+            return ANY_ROUTER
         servers = [p for p in spec.servers if p is Party.OWN_UAV]
         return _party(servers[0], parsed.uav) if servers else None
     return _party(spec.writer, parsed.uav)
@@ -174,7 +188,10 @@ def verify(
     public = roster.keys.get(envelope.author)
     if public is None:
         return envelope, Refusal.UNKNOWN_AUTHOR
-    if envelope.author != author:
+    entitled = (
+        is_router_identity(envelope.author) if author == ANY_ROUTER else envelope.author == author
+    )
+    if not entitled:
         return envelope, Refusal.NOT_ENTITLED
     try:
         public.verify(

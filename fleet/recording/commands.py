@@ -12,11 +12,13 @@ import logging
 import os
 import sys
 import threading
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, TextIO
 
 import zenoh
 
-from fleet.mission.key_space import KeySpace
+from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.recording.mission_log import build_timeline
 from fleet.recording.plot import PlotError, parse_at, render
 from fleet.recording.reader import Recording, RecordingError, read_recording, recover
@@ -30,6 +32,7 @@ from fleet.recording.replay import DEFAULT_REPLAY_PREFIX, Replayer
 from fleet.recording.report import report_json, report_lines
 from fleet.recording.thinning import DEFAULT_TELEMETRY_EVERY_S
 from fleet.recording.writer import McapSink, Rotation
+from fleet.transport.bus import Bus
 from fleet.transport.cli import (
     PREFIX_ENV,
     ExitCode,
@@ -40,11 +43,21 @@ from fleet.transport.cli import (
     positive_float,
     setup_logging,
     stop_on_signals,
-    zenoh_config,
 )
-from fleet.transport.zenoh_config import ZenohConfigError, endpoints, error_text
+from fleet.transport.command import (
+    Command,
+    LocalCommand,
+    options_from,
+    run_parsed,
+    set_handler,
+)
+from fleet.transport.zenoh_bus import session_of
+from fleet.transport.zenoh_config import error_text
 
 log = logging.getLogger(__name__)
+
+#: A replay's own key space (never $FLEET_KEY_PREFIX, so it is not taken for the fleet).
+REPLAY_SPACE = KeySpace(DEFAULT_REPLAY_PREFIX)
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -97,7 +110,7 @@ def _record_parser(parser: argparse.ArgumentParser) -> None:
         help="do not record: rewrite OUT.mcap, left unfinished by a killed recorder, "
         "into a finished file",
     )
-    parser.set_defaults(func=run_record)
+    set_handler(parser, RECORD)
 
 
 def _replay_parser(parser: argparse.ArgumentParser) -> None:
@@ -118,7 +131,8 @@ def _replay_parser(parser: argparse.ArgumentParser) -> None:
     add_zenoh_arguments(parser)
     # One prefix flag, --key-prefix, as every command has; a replay's own default is
     # `replay`, never $FLEET_KEY_PREFIX, so it is not mistaken for the live fleet.
-    parser.set_defaults(func=run_replay, key_space=KeySpace(DEFAULT_REPLAY_PREFIX))
+    set_handler(parser, REPLAY)
+    parser.set_defaults(key_space=REPLAY_SPACE)
 
 
 def _plot_parser(parser: argparse.ArgumentParser) -> None:
@@ -134,32 +148,17 @@ def _plot_parser(parser: argparse.ArgumentParser) -> None:
         "comma-separated (default: every event seen)",
     )
     parser.add_argument("--mission", type=int, metavar="M", help="which mission (the last)")
-    parser.set_defaults(func=run_plot)
+    set_handler(parser, PLOT)
 
 
 def _report_parser(parser: argparse.ArgumentParser) -> None:
     parser.description = "Per mission: team, targets, assignment, agreement, arrivals, faults."
     parser.add_argument("file", type=Path, nargs="+", metavar="FILE.mcap")
     parser.add_argument("--json", action="store_true", help="one JSON object")
-    parser.set_defaults(func=run_report)
+    set_handler(parser, REPORT)
 
 
-# ---- sessions -----------------------------------------------------------------
-def _open(args: argparse.Namespace, prog: str) -> zenoh.Session | None:
-    """A session as the Zenoh flags ask; None (said on stderr) if there is none."""
-    try:
-        config = zenoh_config(args)
-    except ZenohConfigError as error:
-        fail(prog, str(error))
-        return None
-    try:
-        return zenoh.open(config)
-    except zenoh.ZError as error:
-        where = ", ".join(endpoints(config)) or "the configured endpoints"
-        fail(prog, f"no Zenoh router answers at {where} ({error_text(error)})")
-        return None
-
-
+# ---- reading -----------------------------------------------------------------
 def _read(paths: list[Path], command: str) -> Recording | None:
     try:
         recording = read_recording(paths)
@@ -172,18 +171,32 @@ def _read(paths: list[Path], command: str) -> Recording | None:
 
 
 # ---- fleet record ---------------------------------------------------------------------------
-def run_record(args: argparse.Namespace) -> int:
+@dataclass(frozen=True, kw_only=True)
+class RecordOptions:
+    out: Path
+    #: What to record (None: the key space's every key).
+    expr: str | None = None
+    duration: float | None = None
+    key_space: KeySpace = DEFAULT_SPACE
+    state_every: float = DEFAULT_STATE_EVERY_S
+    fix_every: float = DEFAULT_FIX_EVERY_S
+    telemetry_every: float = DEFAULT_TELEMETRY_EVERY_S
+    rotate_size: float | None = None
+    rotate_every: float | None = None
+    #: Do not record: finish `out`, left unfinished by a killed recorder.
+    recover: bool = False
+
+
+def run_record(bus: Bus, args: RecordOptions, out: TextIO) -> int:
     if args.recover:
-        return _recover(args.out)
+        return _recover(args.out, out)
     rotation = Rotation(
         max_bytes=round((args.rotate_size or 0) * 1_000_000),
         max_seconds=args.rotate_every or 0.0,
     )
-    session = _open(args, "fleet record")
-    if session is None:
-        return ExitCode.USAGE
+    session = session_of(bus)
     stop = threading.Event()
-    with session, stop_on_signals(stop.set):
+    with stop_on_signals(stop.set):
         recorder = Recorder(
             session,
             McapSink(args.out, rotation),
@@ -203,7 +216,9 @@ def run_record(args: argparse.Namespace) -> int:
         except zenoh.ZError as error:
             recorder.stop()
             return fail("fleet record", f"cannot subscribe to {recorder.expr}: {error_text(error)}")
-        print(f"{READY_LINE} {recorder.expr} to {args.out} (pid {os.getpid()})", flush=True)
+        print(
+            f"{READY_LINE} {recorder.expr} to {args.out} (pid {os.getpid()})", file=out, flush=True
+        )
         try:
             stop.wait(args.duration)
         finally:
@@ -215,12 +230,13 @@ def run_record(args: argparse.Namespace) -> int:
     print(
         f"fleet record: {recorder.sink.messages} messages in {files}"
         + (f"; {dropped} dropped: {dict(recorder.stats.dropped)}" if dropped else ""),
+        file=out,
         flush=True,
     )
     return ExitCode.OK
 
 
-def _recover(path: Path) -> int:
+def _recover(path: Path, out: TextIO) -> int:
     temporary = path.with_name(path.name + ".recovering")
     try:
         recording = recover(path, temporary)
@@ -234,67 +250,103 @@ def _recover(path: Path) -> int:
     os.replace(temporary, path)
     why = recording.truncated.get(str(path))
     state = f"it had ended early ({why})" if why else "it was already complete"
-    print(f"fleet record --recover: {path}: {len(recording.messages)} messages kept; {state}")
+    print(
+        f"fleet record --recover: {path}: {len(recording.messages)} messages kept; {state}",
+        file=out,
+    )
     return ExitCode.OK
 
 
 # ---- fleet replay ---------------------------------------------------------------------------
-def run_replay(args: argparse.Namespace) -> int:
+@dataclass(frozen=True, kw_only=True)
+class ReplayOptions:
+    file: list[Path]
+    rate: float = 1.0
+    #: Keep the UAVs' last state served this long after the end.
+    hold: float = 0.0
+    key_space: KeySpace = REPLAY_SPACE
+
+
+def run_replay(bus: Bus, args: ReplayOptions, out: TextIO) -> int:
     recording = _read(args.file, "replay")
     if recording is None:
         return ExitCode.FAILED
-    session = _open(args, "fleet replay")
-    if session is None:
-        return ExitCode.USAGE
+    session = session_of(bus)
     stop = threading.Event()
-    with session, stop_on_signals(stop.set):
+    with stop_on_signals(stop.set):
         prefix = args.key_space.prefix
         replayer = Replayer(session, recording, prefix=prefix, rate=args.rate, stop=stop)
         print(
             f"fleet replay: {len(recording.messages)} messages at {args.rate:g}x under "
             f"{prefix}/** (see it with {PREFIX_ENV}={prefix} ground-cli watch)",
+            file=out,
             flush=True,
         )
         try:
             finished = replayer.run()
             if finished and args.hold > 0:
-                print(f"fleet replay: end reached; holding {args.hold:g} s", flush=True)
+                print(f"fleet replay: end reached; holding {args.hold:g} s", file=out, flush=True)
                 replayer.hold(args.hold)
         finally:
             replayer.close()
     stats = replayer.stats
     print(
         f"fleet replay: {'done' if finished else 'stopped'}: {stats.published} published, "
-        f"{stats.skipped} commands and map fixes not replayed, {stats.bad} undecodable"
+        f"{stats.skipped} commands and map fixes not replayed, {stats.bad} undecodable",
+        file=out,
     )
     return ExitCode.OK if finished else ExitCode.INTERRUPTED
 
 
 # ---- fleet plot, fleet report ---------------------------------------------------------------
-def run_plot(args: argparse.Namespace) -> int:
+@dataclass(frozen=True, kw_only=True)
+class PlotOptions:
+    file: list[Path]
+    out: Path
+    #: The panels: events or seconds (empty: every event seen).
+    at: list[Any] = field(default_factory=list)
+    #: Which mission (None: the last).
+    mission: int | None = None
+
+
+def run_plot(args: PlotOptions, out: TextIO) -> int:
     recording = _read(args.file, "plot")
     if recording is None:
         return ExitCode.FAILED
     try:
-        out = render(build_timeline(recording.messages), args.out, mission=args.mission, at=args.at)
+        drawn = render(
+            build_timeline(recording.messages), args.out, mission=args.mission, at=args.at
+        )
     except PlotError as error:
         return fail("fleet plot", str(error))
     except OSError as error:
         return fail("fleet plot", f"cannot write {args.out}: {error.strerror}", ExitCode.FAILED)
-    print(f"fleet plot: {out}")
+    print(f"fleet plot: {drawn}", file=out)
     return ExitCode.OK
 
 
-def run_report(args: argparse.Namespace) -> int:
+@dataclass(frozen=True, kw_only=True)
+class ReportOptions:
+    file: list[Path]
+    json: bool = False
+
+
+def run_report(args: ReportOptions, out: TextIO) -> int:
     recording = _read(args.file, "report")
     if recording is None:
         return ExitCode.FAILED
     timeline = build_timeline(recording.messages)
     if args.json:
-        print(json.dumps(report_json(timeline)))
+        print(json.dumps(report_json(timeline)), file=out)
     else:
-        print("\n".join(report_lines(timeline)))
+        print("\n".join(report_lines(timeline)), file=out)
     return ExitCode.OK
+
+
+RECORD = Command(options_from(RecordOptions), run_record)
+REPLAY = Command(options_from(ReplayOptions), run_replay)
+PLOT = LocalCommand(options_from(PlotOptions), run_plot)
+REPORT = LocalCommand(options_from(ReportOptions), run_report)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -304,8 +356,7 @@ def main(argv: list[str] | None = None) -> int:
     add_parser(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(argv)
     setup_logging(args.verbose)
-    status: int = args.func(args)
-    return status
+    return run_parsed(args, f"fleet {args.command}")
 
 
 if __name__ == "__main__":

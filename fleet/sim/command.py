@@ -15,6 +15,8 @@ import argparse
 import logging
 import sys
 from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TextIO
 
 from fleet.files.zones_file import read_zones
 from fleet.sim.autopilot import (
@@ -38,10 +40,10 @@ from fleet.transport.cli import (
     fail,
     non_negative_float,
     positive_float,
-    run_standalone,
     stop_on_signals,
     tcp_port,
 )
+from fleet.transport.command import LocalCommand, options_from, run_standalone, set_handler
 
 logger = logging.getLogger(__name__)
 
@@ -133,7 +135,7 @@ def _shipped_names() -> list[str]:
 def add_parser(
     subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
 ) -> argparse.ArgumentParser:
-    """Register the `sim` subcommand; its handler is `run` (also set as `func`)."""
+    """Register the `sim` subcommand."""
     parser = subparsers.add_parser(
         "sim",
         help="simulated Piccolo autopilots (hardware-in-the-loop stand-in)",
@@ -141,11 +143,29 @@ def add_parser(
         "aircraft's program, payload and ground ports.",
     )
     configure_parser(parser)
-    parser.set_defaults(func=run)
+    set_handler(parser, SIM)
     return parser
 
 
-def _build(args: argparse.Namespace) -> list[SimulatedAutopilot]:
+@dataclass(frozen=True, kw_only=True)
+class SimOptions:
+    #: A scenario TOML file, or a shipped scenario's name.
+    scenario: str
+    #: Simulate only this Piccolo ID (None: every aircraft of the scenario).
+    uav: int | None = None
+    host: str = DEFAULT_HOST
+    program_port: int = DEFAULT_PROGRAM_PORT
+    payload_port: int = DEFAULT_PAYLOAD_PORT
+    ground_port: int = DEFAULT_GROUND_PORT
+    speedup: float = DEFAULT_SPEEDUP
+    telemetry_hz: float = DEFAULT_TELEMETRY_HZ
+    pty: bool = False
+    acceptance_radius: float = DEFAULT_ACCEPTANCE_RADIUS
+    #: No-fly zones (GeoJSON) whose incursions are logged (None: the scenario's).
+    no_fly: str | None = None
+
+
+def _build(args: SimOptions) -> list[SimulatedAutopilot]:
     scenario = resolve_scenario(args.scenario)
     uavs = scenario.uavs if args.uav is None else (scenario.uav(args.uav),)
     settings = AutopilotSettings(
@@ -168,7 +188,7 @@ def _build(args: argparse.Namespace) -> list[SimulatedAutopilot]:
     return [SimulatedAutopilot(uav, settings, scenario.weather) for uav in uavs]
 
 
-def run(args: argparse.Namespace) -> int:
+def run(args: SimOptions, out: TextIO) -> int:
     """Run the simulator until SIGTERM or SIGINT; return the exit status."""
     try:
         autopilots = _build(args)
@@ -192,8 +212,8 @@ def run(args: argparse.Namespace) -> int:
         except OSError as error:
             return fail("fleet sim", str(error.strerror or error), ExitCode.FAILED)
         for endpoint in endpoints:
-            print(endpoint.line())
-        print("ready", flush=True)
+            print(endpoint.line(), file=out)
+        print("ready", file=out, flush=True)
         logger.info("simulating at speedup %g", args.speedup)
         server.run()
     logger.info("stopped at simulated time %.1f s", server.time_ms / 1000.0)
@@ -207,8 +227,11 @@ def run(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     return run_standalone(
-        "fleet sim", "Run simulated Piccolo autopilots for a scenario.", configure_parser, run, argv
+        "fleet sim", "Run simulated Piccolo autopilots for a scenario.", configure_parser, SIM, argv
     )
+
+
+SIM = LocalCommand(options_from(SimOptions), run)
 
 
 if __name__ == "__main__":

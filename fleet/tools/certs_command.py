@@ -12,12 +12,15 @@ See `fleet.files.certs`, `fleet.files.signers` and docs/security.md.
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TextIO
 
 from fleet.files.certs import DEFAULT_VALID_DAYS, CertError, write_identities
 from fleet.files.signers import ROSTER_FILE, RosterError, revoke, signing_key_path
 from fleet.mission.access import GROUND, ROUTER, uav_identity, uav_router_identity
 from fleet.transport.cli import ExitCode, bounded_int, fail, piccolo_ids
+from fleet.transport.command import LocalCommand, options_from, set_handler
 
 DEFAULT_SECURE_ROUTER = "tls/127.0.0.1:7447"
 
@@ -72,7 +75,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         action="store_true",
         help="replace the CA already in DIR (every identity it issued stops being trusted)",
     )
-    make.set_defaults(func=run_make)
+    set_handler(make, MAKE)
     revoke = actions.add_parser(
         "revoke",
         help="withdraw identities (a lost aircraft): its signed messages and connections "
@@ -80,10 +83,25 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     revoke.add_argument("directory", type=Path, metavar="DIR")
     revoke.add_argument("names", nargs="+", metavar="NAME", help="identities, e.g. uav-74")
-    revoke.set_defaults(func=run_revoke)
+    set_handler(revoke, REVOKE)
 
 
-def run_make(args: argparse.Namespace) -> int:
+@dataclass(frozen=True, kw_only=True)
+class MakeOptions:
+    directory: Path
+    uavs: tuple[int, ...] = ()
+    #: An identity for the ground too.
+    ground: bool = False
+    #: The router endpoints the client configs name (None: DEFAULT_SECURE_ROUTER).
+    connect: list[str] | None = None
+    days: int = DEFAULT_VALID_DAYS
+    #: Where `directory` is on the machines that use the configs.
+    seen_as: Path | None = None
+    #: Replace the CA already there.
+    force: bool = False
+
+
+def run_make(args: MakeOptions, out: TextIO) -> int:
     connect = args.connect or [DEFAULT_SECURE_ROUTER]
     bad = [e for e in connect if not e.startswith("tls/")]
     if bad:
@@ -96,21 +114,33 @@ def run_make(args: argparse.Namespace) -> int:
     except (CertError, RosterError) as error:
         return fail("fleet certs", str(error), ExitCode.FAILED)
     directory = written[0].directory
-    print(f"fleet certs: CA {directory / 'ca.pem'}, signers {directory / ROSTER_FILE}")
+    print(f"fleet certs: CA {directory / 'ca.pem'}, signers {directory / ROSTER_FILE}", file=out)
     for files in written:
         made = (files.certificate, files.key, files.client_config)
         signing = signing_key_path(directory, files.name)
-        print(f"  {files.name}: {' '.join(path.name for path in (*made, signing))}")
+        print(f"  {files.name}: {' '.join(path.name for path in (*made, signing))}", file=out)
     return ExitCode.OK
 
 
-def run_revoke(args: argparse.Namespace) -> int:
+@dataclass(frozen=True, kw_only=True)
+class RevokeOptions:
+    directory: Path
+    #: Identities, e.g. uav-74.
+    names: list[str]
+
+
+def run_revoke(args: RevokeOptions, out: TextIO) -> int:
     try:
         roster = revoke(args.directory, list(args.names))
     except RosterError as error:
         return fail("fleet certs", str(error), ExitCode.FAILED)
     print(
-        f"fleet certs: {args.directory / ROSTER_FILE} revokes {', '.join(sorted(roster.revoked))}"
+        f"fleet certs: {args.directory / ROSTER_FILE} revokes {', '.join(sorted(roster.revoked))}",
+        file=out,
     )
-    print("  copy it to every machine and restart the router and every process")
+    print("  copy it to every machine and restart the router and every process", file=out)
     return ExitCode.OK
+
+
+MAKE = LocalCommand(options_from(MakeOptions), run_make)
+REVOKE = LocalCommand(options_from(RevokeOptions), run_revoke)

@@ -12,7 +12,8 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Iterator, Sequence
-from typing import IO, Any
+from dataclasses import dataclass
+from typing import IO, Any, TextIO
 
 import msgspec
 
@@ -20,7 +21,8 @@ from fleet.mission.messages import MissionAbort, MissionTargets, OpmCommand, Sta
 from fleet.payload.link import AutopilotEvent, LinkEvent, PiccoloLink, StreamHeader
 from fleet.payload.protocol import UnknownPlanningMessage
 from fleet.piccolo.autopilot_messages import UnknownAutopilotMessage
-from fleet.transport.cli import ExitCode, fail, run_standalone
+from fleet.transport.cli import ExitCode, fail
+from fleet.transport.command import LocalCommand, options_from, run_standalone, set_handler
 
 CHUNK = 65536
 
@@ -39,7 +41,7 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """Register the `decode` subcommand; its handler is `run`."""
+    """Register the `decode` subcommand."""
     parser = subparsers.add_parser(
         "decode",
         help="decode a captured Piccolo link byte stream to JSON lines",
@@ -47,7 +49,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     configure_parser(parser)
-    parser.set_defaults(func=run)
+    set_handler(parser, DECODE)
 
 
 def _header(header: StreamHeader) -> dict[str, int]:
@@ -102,29 +104,37 @@ def decode_stream(source: IO[bytes]) -> Iterator[dict[str, Any]]:
     yield {"drops": link.drop_counters(), "packets": link.stream_decoder.packets}
 
 
-def run(args: argparse.Namespace) -> int:
-    """Print the records of the capture `args.capture` (a path, or - for stdin)."""
+@dataclass(frozen=True, kw_only=True)
+class DecodeOptions:
+    #: A capture file, or - for standard input.
+    capture: str
+
+
+def run(options: DecodeOptions, out: TextIO) -> int:
+    """Print the records of the capture (a path, or - for stdin)."""
     try:
-        if args.capture == "-":
-            _write_records(sys.stdin.buffer)
+        if options.capture == "-":
+            _write_records(sys.stdin.buffer, out)
         else:
-            with open(args.capture, "rb") as capture:
-                _write_records(capture)
+            with open(options.capture, "rb") as capture:
+                _write_records(capture, out)
     except OSError as error:
-        return fail("fleet decode", f"cannot read {args.capture}: {error.strerror}")
+        return fail("fleet decode", f"cannot read {options.capture}: {error.strerror}")
     return ExitCode.OK
 
 
-def _write_records(source: IO[bytes]) -> None:
+def _write_records(source: IO[bytes], out: TextIO) -> None:
     encoder = msgspec.json.Encoder()
-    out = sys.stdout.buffer
     for record in decode_stream(source):
-        out.write(encoder.encode(record) + b"\n")
+        out.write(encoder.encode(record).decode() + "\n")
     out.flush()
 
 
+DECODE = LocalCommand(options_from(DecodeOptions), run)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    return run_standalone("fleet decode", __doc__ or "", configure_parser, run, argv)
+    return run_standalone("fleet decode", __doc__ or "", configure_parser, DECODE, argv)
 
 
 if __name__ == "__main__":

@@ -57,6 +57,8 @@ class BusReply:
     payload: bytes
     ok: bool = True
     encoding: str = JSON_ENCODING
+    #: Who signed it, its signature checked (the secure profile); None when unsigned.
+    author: str | None = None
 
 
 def decode_sample(sample: BusSample, kind: type[T]) -> T | None:

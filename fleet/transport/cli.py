@@ -28,6 +28,7 @@ import zenoh
 from fleet.mission.key_registry import DEFAULT_PREFIX
 from fleet.mission.key_space import KeySpace
 from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
+from fleet.transport.bus_factory import MEMORY_SCHEME
 from fleet.transport.zenoh_config import (
     CONFIG_ENV,
     CONNECT_ENV,
@@ -194,6 +195,15 @@ def zenoh_config(args: argparse.Namespace) -> zenoh.Config:
     )
 
 
+def bus_spec(args: argparse.Namespace) -> str | zenoh.Config:
+    """What `open_bus` opens for the Zenoh flags: `--connect memory:NAME` (the in-process
+    bus, for tests driving a program's root), else the Zenoh config they ask for."""
+    connect = getattr(args, "connect", None) or []
+    if len(connect) == 1 and connect[0].startswith(MEMORY_SCHEME):
+        return str(connect[0])
+    return zenoh_config(args)
+
+
 # ---- logging ------------------------------------------------------------------------------------
 def add_verbose_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
@@ -228,23 +238,6 @@ def setup_logging(verbose: int, *, base: int = logging.INFO, name: str = "") -> 
         format=f"%(asctime)s {tag}%(name)s %(levelname)s %(message)s",
         stream=sys.stderr,
     )
-
-
-def run_standalone(
-    prog: str,
-    description: str,
-    configure: Callable[[argparse.ArgumentParser], None],
-    run: Callable[[argparse.Namespace], int],
-    argv: Sequence[str] | None = None,
-) -> int:
-    """Run one `fleet` subcommand on its own (``python -m its.module``): its arguments
-    (`configure`), ``-v`` and logging, then `run`; returns its exit status."""
-    parser = argparse.ArgumentParser(prog=prog, description=description)
-    configure(parser)
-    add_verbose_argument(parser)
-    args = parser.parse_args(argv)
-    setup_logging(args.verbose)
-    return run(args)
 
 
 # ---- signals ------------------------------------------------------------------------------------
@@ -287,13 +280,13 @@ __all__ = [
     "add_verbose_argument",
     "add_zenoh_arguments",
     "bounded_int",
+    "bus_spec",
     "enable_crash_dumps",
     "fail",
     "non_negative_float",
     "piccolo_id",
     "piccolo_ids",
     "positive_float",
-    "run_standalone",
     "setup_logging",
     "stop_on_signals",
     "tcp_port",

@@ -18,6 +18,7 @@ import argparse
 import logging
 import sys
 import threading
+import time
 from pathlib import Path
 from types import TracebackType
 from typing import Self
@@ -27,7 +28,9 @@ import zenoh
 from fleet.errors import CertError, FleetError
 from fleet.mission.access import ROUTER
 from fleet.mission.messages import RouterState
+from fleet.mission.signature import sign
 from fleet.transport import refusal_watch
+from fleet.transport.bus import Bus
 from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.cli import (
     ExitCode,
@@ -38,6 +41,7 @@ from fleet.transport.cli import (
     stop_on_signals,
 )
 from fleet.transport.secure import SecureProfile
+from fleet.transport.zenoh_bus import ZenohBus
 from fleet.transport.zenoh_config import DEFAULT_ROUTER, make_config
 
 log = logging.getLogger(__name__)
@@ -94,6 +98,11 @@ class Router:
             raise RuntimeError("the router is not open")
         return self._session
 
+    def bus(self) -> Bus:
+        """A bus on the router's own session, which stays the router's: closing the bus
+        leaves it open (the launcher watches a fleet start through it)."""
+        return ZenohBus(self.session, owns_session=False)
+
     @property
     def zid(self) -> str:
         return str(self.session.zid())
@@ -118,11 +127,20 @@ class Router:
         log.info("zenoh router %s listening on %s", self.zid, ", ".join(self.listen))
 
     def _serve_state(self, key: str) -> None:
-        """Answer `key` (`ground-cli routers`) with this router's refused links."""
+        """Answer `key` (`ground-cli routers`) with this router's refused links, signed by
+        this router's own identity (when the fleet has signing keys) and bound to the
+        query's challenge: a router answers for itself, and for no other."""
+        signing = self.secure.signing_key() if self.secure is not None else None
 
         def answer(query: zenoh.Query) -> None:
-            state = RouterState(self.zid, self.refused_links)
-            query.reply(key, encode(state), encoding=ENCODING)
+            asked = query.payload.to_bytes() if query.payload is not None else b""
+            challenge = asked.decode("ascii", "replace")[:64] if asked else None
+            payload = encode(RouterState(self.zid, self.refused_links, challenge))
+            attachment = None
+            if signing is not None and self.secure is not None:
+                name = self.secure.router_name
+                attachment = sign(signing, name, key, payload, time.time_ns())
+            query.reply(key, payload, encoding=ENCODING, attachment=attachment)
 
         self.session.declare_queryable(key, answer)
 

@@ -16,9 +16,16 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import zenoh
+from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
 from fleet.files.certs import CertError, IdentityFiles, tls_settings
-from fleet.files.signers import RosterError, revoked_identities
+from fleet.files.signers import (
+    ROSTER_FILE,
+    RosterError,
+    load_signing_key,
+    revoked_identities,
+    signing_key_path,
+)
 from fleet.mission.access import GROUND, ROUTER, Grant, fleet_policy, uav_identity
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.transport.acl import access_control
@@ -58,6 +65,16 @@ class SecureProfile:
         profile = cls(directory, tuple(uav_ids), key_space, router_name, revoked)
         profile.identity(router_name).check()
         return profile
+
+    def signing_key(self) -> Ed25519PrivateKey | None:
+        """The router identity's own signing key (what it answers for itself is signed),
+        or None for identities made before signed messages (no roster)."""
+        if not (self.directory / ROSTER_FILE).is_file():
+            return None
+        try:
+            return load_signing_key(signing_key_path(self.directory, self.router_name))
+        except RosterError as error:
+            raise CertError(str(error)) from None
 
     def identity(self, name: str) -> IdentityFiles:
         return IdentityFiles(self.directory, name)

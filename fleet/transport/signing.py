@@ -186,21 +186,30 @@ class BusSigning:
     # ---- incoming ---------------------------------------------------------------------
     def check(self, key: str, payload: bytes, attachment: bytes, how: Delivery) -> bool:
         """Whether a message that arrived on `key` may be believed (refusals counted)."""
+        return self._checked(key, payload, attachment, how)[0]
+
+    def check_reply(self, key: str, payload: bytes, attachment: bytes) -> tuple[bool, str | None]:
+        """Whether a reply may be believed, and who signed it (None: a key not signed)."""
+        return self._checked(key, payload, attachment, Delivery.REPLY)
+
+    def _checked(
+        self, key: str, payload: bytes, attachment: bytes, how: Delivery
+    ) -> tuple[bool, str | None]:
         space = space_of(key)
         if space is None:
-            return True
+            return True, None
         envelope, refusal = verify(self.roster, space, key, payload, attachment, how)
         if envelope is None and refusal is None:
-            return True  # a key that is not signed
+            return True, None  # a key that is not signed
         if refusal is None and envelope is not None:
             with self._lock:
                 refusal = self._freshness.check(key, envelope, how, self._clock())
         if refusal is None:
             if envelope is not None and envelope.author != self.identity:
                 self._remember(key, payload, attachment)
-            return True
+            return True, envelope.author if envelope is not None else None
         self._refuse(key, refusal, envelope.author if envelope else None, how)
-        return False
+        return False, None
 
     def _refuse(self, key: str, refusal: Refusal, author: str | None, how: Delivery) -> None:
         bus_codec.DROPPED.add(refusal)

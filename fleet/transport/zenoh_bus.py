@@ -95,10 +95,11 @@ def _sample(sample: zenoh.Sample) -> BusSample:
     )
 
 
-def _reply(reply: zenoh.Reply) -> BusReply:
+def _reply(reply: zenoh.Reply, author: str | None = None) -> BusReply:
     sample = reply.ok
     if sample is not None:
-        return BusReply(str(sample.key_expr), sample.payload.to_bytes(), True, str(sample.encoding))
+        key, payload = str(sample.key_expr), sample.payload.to_bytes()
+        return BusReply(key, payload, True, str(sample.encoding), author)
     error = reply.err
     if error is None:  # neither: not produced by zenoh 1.x, kept for the type checker
         return BusReply("", b"", False, "")
@@ -161,8 +162,16 @@ class ZenohQueryable(Queryable):
 class ZenohBus(Bus):
     """A Bus over a Zenoh session, which it owns (closed by `close`)."""
 
-    def __init__(self, session: zenoh.Session, signing: BusSigning | None = None) -> None:
+    def __init__(
+        self,
+        session: zenoh.Session,
+        signing: BusSigning | None = None,
+        *,
+        owns_session: bool = True,
+    ) -> None:
         self.session = session
+        #: False: the session is someone else's (an embedded router's), left open by `close`.
+        self.owns_session = owns_session
         #: The secure profile's signed commands (None: nothing signed or checked).
         self.signing = signing
         #: Declared publishers of the keys put at a steady rate (telemetry), by key.
@@ -266,7 +275,19 @@ class ZenohBus(Bus):
         )
         options.update(self._query_options(selector, payload))
         replies = self.session.get(selector, timeout=timeout, **options)
-        return [_reply(reply) for reply in replies if self._accepted(reply)]
+        if self.signing is None:
+            return [_reply(reply) for reply in replies]
+        answers: list[BusReply] = []
+        for reply in replies:
+            sample = reply.ok
+            if sample is None:
+                answers.append(_reply(reply))
+                continue
+            key, payload = str(sample.key_expr), sample.payload.to_bytes()
+            accepted, author = self.signing.check_reply(key, payload, _attachment(sample))
+            if accepted:
+                answers.append(_reply(reply, author))
+        return answers
 
     def declare_queryable(self, key_expr: str, notify: QueryNotify | None = None) -> Queryable:
         return ZenohQueryable(self.session, key_expr, notify, self.signing)
@@ -289,8 +310,24 @@ class ZenohBus(Bus):
         return subscriber
 
     def close(self) -> None:
+        if not self.owns_session:
+            for publisher in self._publishers.values():
+                publisher.undeclare()
+            self._publishers.clear()
+            return
         self._publishers.clear()  # closing the session undeclares them
         self.session.close()
+
+
+def session_of(bus: Bus) -> zenoh.Session:
+    """The Zenoh session under `bus`, for what still speaks raw Zenoh (the recorder,
+    the replayer); a FleetError if `bus` is not a Zenoh bus (the in-process one)."""
+    from fleet.transport.bus_factory import unwrap
+
+    opened = unwrap(bus)
+    if not isinstance(opened, ZenohBus):
+        raise BusConnectError(f"this command needs a Zenoh session, not {type(opened).__name__}")
+    return opened.session
 
 
 def signing_of(config: zenoh.Config) -> BusSigning | None:
@@ -320,7 +357,7 @@ def connect(target: ClientTarget, *, open_timeout_s: float = DEFAULT_OPEN_TIMEOU
     try:
         signing = signing_of(config)
     except (CertError, RosterError) as error:
-        raise BusConnectError(f"cannot sign or check commands: {error}") from None
+        raise BusConnectError(f"cannot sign or check commands: {error}") from error
     config.insert_json5("transport/unicast/open_timeout", json.dumps(round(open_timeout_s * 1000)))
     try:
         session = zenoh.open(config)

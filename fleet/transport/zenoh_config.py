@@ -108,8 +108,13 @@ def build_config(
 
     Without `config_file`: `make_config` in `mode` (client by default), a client
     connecting to `default_connect()` unless `connect` names endpoints. With it: the
-    file, with `mode`, `connect` and `listen` (when given) replacing the file's values.
+    file, with `mode`, `connect` and `listen` (when given) replacing the file's values;
+    $FLEET_ZENOH_CONNECT, when set and `connect` is not given, replaces the file's
+    endpoints too (the secure profile's `export` lines name the router's real port, which
+    a copied config file may not).
     """
+    if config_file is not None and not connect and os.environ.get(CONNECT_ENV):
+        connect = [os.environ[CONNECT_ENV]]
     for endpoint in (*(connect or ()), *(listen or ())):
         check_endpoint(endpoint)
     if config_file is None:

@@ -14,21 +14,22 @@ from __future__ import annotations
 import argparse
 import os
 import threading
+from dataclasses import dataclass
+from typing import TextIO
 
 import foxglove
 
 from fleet.transport.bus import Bus
+from fleet.transport.bus_factory import unwrap
 from fleet.transport.cli import (
     ExitCode,
-    ZenohConfigError,
     add_zenoh_arguments,
     fail,
     non_negative_float,
     positive_float,
     stop_on_signals,
-    zenoh_config,
 )
-from fleet.transport.zenoh_bus import BusConnectError, client_bus
+from fleet.transport.command import BusOptions, Command, OptionsError, set_handler
 from ground.foxglove_live.bridge import DEFAULT_STATE_EVERY_S, FoxgloveBridge
 from ground.foxglove_live.gate import DEFAULT_ORIGINS, Gate, Rules, upstream_identity
 from ground.gui.cli import host_port
@@ -84,7 +85,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     parser.add_argument("--duration", type=positive_float, metavar="S", help="stop after S s")
     add_zenoh_arguments(parser)
-    parser.set_defaults(func=run)
+    set_handler(parser, FOXGLOVE)
 
 
 def _address(text: str) -> tuple[str, int]:
@@ -103,18 +104,40 @@ def _is_loopback(host: str) -> bool:
     return is_loopback(host)
 
 
-def run(args: argparse.Namespace) -> int:
+@dataclass(frozen=True, kw_only=True)
+class FoxgloveOptions(BusOptions):
+    #: Where Foxglove connects (HOST, PORT; port 0: any free port).
+    serve: tuple[str, int]
+    #: Host names clients may reach the server by besides its address and localhost.
+    allow_host: tuple[str, ...] = ()
+    #: Web page origins that may connect besides DEFAULT_ORIGINS.
+    allow_origin: tuple[str, ...] = ()
+    #: Query every UAV's state this often (0: never).
+    state_every: float = DEFAULT_STATE_EVERY_S
+    #: Stop after this long (None: at Ctrl-C/SIGTERM).
+    duration: float | None = None
+
+
+def foxglove_options(args: argparse.Namespace) -> FoxgloveOptions:
+    """The options; serving beyond loopback without --allow-remote is a usage error."""
     host, port = args.serve
     if not _is_loopback(host) and not args.allow_remote:
-        return fail(
-            PROG,
+        raise OptionsError(
             f"--serve {host}:{port} is not loopback: anyone who reaches it would see the "
-            "fleet (the Foxglove protocol has no access control). Add --allow-remote.",
+            "fleet (the Foxglove protocol has no access control). Add --allow-remote."
         )
-    try:
-        config = zenoh_config(args)
-    except ZenohConfigError as error:
-        return fail(PROG, str(error))
+    return FoxgloveOptions(
+        serve=args.serve,
+        allow_host=tuple(args.allow_host),
+        allow_origin=tuple(args.allow_origin),
+        state_every=args.state_every,
+        duration=args.duration,
+        key_space=args.key_space,
+    )
+
+
+def run(bus: Bus, options: FoxgloveOptions, out: TextIO) -> int:
+    host, port = options.serve
     context = foxglove.Context()
     certificate, key = upstream_identity()
     try:
@@ -129,9 +152,8 @@ def run(args: argparse.Namespace) -> int:
         )
     except RuntimeError as error:  # the SDK's FoxgloveError
         return fail(PROG, f"cannot start the Foxglove server: {error}", ExitCode.FAILED)
-    gate = Gate(
-        host, port, Rules.make(host, args.allow_host, args.allow_origin), server.port, certificate
-    )
+    rules = Rules.make(host, list(options.allow_host), list(options.allow_origin))
+    gate = Gate(host, port, rules, server.port, certificate)
     try:
         gate.start()
     except OSError as error:
@@ -139,18 +161,19 @@ def run(args: argparse.Namespace) -> int:
         why = os.strerror(error.errno) if error.errno else str(error)
         return fail(PROG, f"cannot listen on {host}:{port}: {why}", ExitCode.FAILED)
     try:
-        with client_bus(config) as bus:
-            return _serve(args, bus, context, gate)
-    except BusConnectError as error:
-        return fail(PROG, str(error))
+        # Connected once the port is ours: a taken port is said without a router.
+        return _serve(options, unwrap(bus), context, gate, out)
     finally:
         server.stop()  # first: its clients are told it closes, through the gate
         gate.stop()
         if gate.refused:
-            print(f"{PROG}: refused {sum(gate.refused.values())} client(s): {dict(gate.refused)}")
+            refused = f"refused {sum(gate.refused.values())} client(s): {dict(gate.refused)}"
+            print(f"{PROG}: {refused}", file=out)
 
 
-def _serve(args: argparse.Namespace, bus: Bus, context: foxglove.Context, gate: Gate) -> int:
+def _serve(
+    args: FoxgloveOptions, bus: Bus, context: foxglove.Context, gate: Gate, out: TextIO
+) -> int:
     stop = threading.Event()
     bridge = FoxgloveBridge(bus, context, args.key_space, state_every_s=args.state_every)
     try:
@@ -161,6 +184,7 @@ def _serve(args: argparse.Namespace, bus: Bus, context: foxglove.Context, gate: 
             print(
                 f"{READY_LINE} ws://{where}:{gate.port} for {args.key_space.prefix}/** "
                 f"(pid {os.getpid()})",
+                file=out,
                 flush=True,
             )
             stop.wait(args.duration)
@@ -170,6 +194,10 @@ def _serve(args: argparse.Namespace, bus: Bus, context: foxglove.Context, gate: 
     print(
         f"{PROG}: {sum(bridge.published.values())} messages on {len(bridge.topics())} topics"
         + (f"; {dropped} dropped: {dict(bridge.dropped)}" if dropped else ""),
+        file=out,
         flush=True,
     )
     return ExitCode.OK
+
+
+FOXGLOVE = Command(foxglove_options, run)

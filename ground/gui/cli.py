@@ -18,15 +18,14 @@ import signal
 import stat
 import sys
 import webbrowser
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TextIO
 
 from fleet.errors import FleetError
-from fleet.transport.cli import ExitCode, bounded_int, fail, positive_float
-from fleet.transport.zenoh_bus import client_bus
-
-if TYPE_CHECKING:
-    from ground.gui.server import GuiConfig
+from fleet.transport.bus import Bus
+from fleet.transport.cli import ExitCode, bounded_int, positive_float
+from fleet.transport.command import BusOptions, Command, OptionsError, set_handler
 
 DEFAULT_LISTEN = "127.0.0.1:8321"
 TOKEN_ENV = "FLEET_GUI_TOKEN"
@@ -94,7 +93,7 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="snapshots pushed a second at most (1-10, default %(default)g)",
     )
     gui.add_argument("--open", action="store_true", help="open the page in a web browser")
-    gui.set_defaults(handler=cmd_gui)
+    set_handler(gui, GUI)
 
 
 class TokenError(FleetError, ValueError):
@@ -137,33 +136,57 @@ def _token(args: argparse.Namespace) -> str | None:
     return os.environ.get(TOKEN_ENV) or None
 
 
-def _config(args: argparse.Namespace) -> GuiConfig | str:
-    """The server's config, or why the flags are refused."""
+@dataclass(frozen=True, kw_only=True)
+class GuiOptions(BusOptions):
+    host: str = "127.0.0.1"
+    port: int = 8321
+    #: Required on every request when set.
+    token: str | None = None
+    #: Where the token comes from, as the ready line says it (never the token).
+    token_source: str = ""
+    rate: float = DEFAULT_RATE_HZ
+    #: Open the page in a web browser once it is served.
+    open: bool = False
+
+
+def gui_options(args: argparse.Namespace) -> GuiOptions:
+    """The page's options, or OptionsError saying why the flags are refused: a token on
+    the command line, an unusable token file, a non-loopback --listen without
+    --allow-remote, or with it but no token."""
     # aiohttp is imported only by the command that serves.
-    from ground.gui.server import GuiConfig, is_loopback
+    from ground.gui.server import is_loopback
 
     if args.token_argv is not None:
-        return (
-            "--token is not taken on the command line (every user's `ps` shows it): put "
+        raise OptionsError(
+            "gui: --token is not taken on the command line (every user's `ps` shows it): put "
             f"it in a file only you can read (--token-file FILE) or in ${TOKEN_ENV}"
         )
     host, port = args.http_listen
     try:
         token = _token(args)
     except TokenError as error:
-        return str(error)
+        raise OptionsError(f"gui: {error}") from None
     if not is_loopback(host):
         if not args.allow_remote:
-            return (
-                f"--listen {host}:{port} is not loopback: anyone who reaches it could send "
+            raise OptionsError(
+                f"gui: --listen {host}:{port} is not loopback: anyone who reaches it could send "
                 "missions and aborts. Add --allow-remote (a token is then required)."
             )
         if token is None:
-            return (
-                f"--listen {host}:{port} with --allow-remote needs a token: --token-file "
+            raise OptionsError(
+                f"gui: --listen {host}:{port} with --allow-remote needs a token: --token-file "
                 f"FILE (a new one is made there if FILE does not exist) or ${TOKEN_ENV}"
             )
-    return GuiConfig(host, port, token, args.rate, args.query_timeout, args.key_space)
+    return GuiOptions(
+        host=host,
+        port=port,
+        token=token,
+        token_source=_token_source(args),
+        rate=args.rate,
+        open=args.open,
+        key_space=args.key_space,
+        query_timeout=args.query_timeout,
+    )
 
 
 def _token_source(args: argparse.Namespace) -> str:
@@ -172,18 +195,23 @@ def _token_source(args: argparse.Namespace) -> str:
     return f"add ?token= with ${TOKEN_ENV}"
 
 
-def cmd_gui(args: argparse.Namespace) -> int:
-    from ground.gui.server import serve
+def run_gui(bus: Bus, options: GuiOptions, out: TextIO) -> int:
+    from ground.gui.server import GuiConfig, serve
 
-    config = _config(args)
-    if isinstance(config, str):
-        return fail("ground-cli gui", config)
+    config = GuiConfig(
+        options.host,
+        options.port,
+        options.token,
+        options.rate,
+        options.query_timeout,
+        options.key_space,
+    )
 
     def on_ready(url: str) -> None:
         # Never the token itself: stdout goes to logs (fleet up's gui.log) and terminals.
-        where = "" if config.token is None else f" (token required: {_token_source(args)})"
-        print(f"gui: serving on {url}{where}", flush=True)
-        if args.open:
+        where = "" if config.token is None else f" (token required: {options.token_source})"
+        print(f"gui: serving on {url}{where}", file=out, flush=True)
+        if options.open:
             # Without the token too: a browser started with it would show it in `ps`.
             webbrowser.open(url)
 
@@ -195,13 +223,15 @@ def cmd_gui(args: argparse.Namespace) -> int:
             loop.add_signal_handler(sig, task.cancel)
         await serve(bus, config, on_ready)
 
-    with client_bus(args.zenoh) as bus:
-        try:
-            asyncio.run(main())
-        except asyncio.CancelledError:
-            pass
-        except OSError as error:
-            print(f"ground-cli gui: error: cannot listen: {error}", file=sys.stderr)
-            return ExitCode.FAILED
-    print("gui: stopped")
+    try:
+        asyncio.run(main())
+    except asyncio.CancelledError:
+        pass
+    except OSError as error:
+        print(f"ground-cli gui: error: cannot listen: {error}", file=sys.stderr)
+        return ExitCode.FAILED
+    print("gui: stopped", file=out)
     return ExitCode.OK
+
+
+GUI = Command(gui_options, run_gui)

@@ -14,20 +14,27 @@ import argparse
 import logging
 import sys
 import threading
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal, TextIO
 
 from fleet.mission.access import GROUND
 from fleet.transport.bus import Bus
+from fleet.transport.bus_factory import unwrap
 from fleet.transport.cli import (
     ExitCode,
-    ZenohConfigError,
     add_query_timeout_argument,
     add_zenoh_arguments,
     fail,
     stop_on_signals,
-    zenoh_config,
 )
-from fleet.transport.zenoh_bus import BusConnectError, client_bus
+from fleet.transport.command import (
+    BusOptions,
+    Command,
+    OptionsError,
+    run_standalone,
+    set_handler,
+)
 from ground.mavlink.endpoint import Endpoint, EndpointError, InputDrops
 from ground.mavlink.fleet_link import FleetLink, TeamChoice
 from ground.mavlink.gateway import Gateway
@@ -48,7 +55,7 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     configure(parser)
-    parser.set_defaults(func=run)
+    set_handler(parser, MAVLINK)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -90,40 +97,61 @@ def _identity_line(config_file: str | None) -> str:
     )
 
 
-def run(args: argparse.Namespace) -> int:
+@dataclass(frozen=True, kw_only=True)
+class MavlinkOptions(BusOptions):
+    #: Where stations are: udpout:HOST:PORT, udpin:HOST:PORT or tcpin:HOST:PORT.
+    out: str = DEFAULT_OUT
+    sysids: SysIdMap
+    #: Who flies a mission uploaded to a UAV: that UAV alone, or every live UAV.
+    mission_team: Literal["uav", "live"] = "uav"
+    #: The Zenoh config file it connects with (None: an open fleet), for its first line.
+    zenoh_config: str | None = None
+
+
+def mavlink_options(args: argparse.Namespace) -> MavlinkOptions:
+    """The options; two UAVs on one system id is a usage error."""
     try:
         sysids = SysIdMap(args.sysid)
-        config = zenoh_config(args)
-    except (SysIdError, ZenohConfigError) as error:
-        return fail(PROG, f"error: {error}")
+    except SysIdError as error:
+        raise OptionsError(f"error: {error}") from None
+    return MavlinkOptions(
+        out=args.out,
+        sysids=sysids,
+        mission_team=args.mission_team,
+        zenoh_config=args.zenoh_config,
+        key_space=args.key_space,
+        query_timeout=args.query_timeout,
+    )
+
+
+def run(bus: Bus, options: MavlinkOptions, out: TextIO) -> int:
     drops = InputDrops()
     try:
-        endpoint = Endpoint(args.out, drops)
+        endpoint = Endpoint(options.out, drops)
     except EndpointError as error:
         return fail(PROG, f"error: {error}")
-    team = TeamChoice.LIVE if args.mission_team == "live" else TeamChoice.UAV
+    team = TeamChoice.LIVE if options.mission_team == "live" else TeamChoice.UAV
     stop = threading.Event()
     try:
-        with stop_on_signals(stop.set), client_bus(config) as bus:
-            return _serve(args, bus, endpoint, sysids, team, stop)
-    except BusConnectError as error:
-        return fail(PROG, f"error: {error}")
+        with stop_on_signals(stop.set):
+            # Connected once the endpoint is open: a bad or taken one is said first.
+            return _serve(options, unwrap(bus), endpoint, team, stop, out)
     finally:
         endpoint.close()
         if drops.total():
-            print(f"{PROG}: dropped {drops.total()} MAVLink input(s): {drops.counts()}")
+            print(f"{PROG}: dropped {drops.total()} MAVLink input(s): {drops.counts()}", file=out)
 
 
 def _serve(
-    args: argparse.Namespace,
+    args: MavlinkOptions,
     bus: Bus,
     endpoint: Endpoint,
-    sysids: SysIdMap,
     team: TeamChoice,
     stop: threading.Event,
+    out: TextIO,
 ) -> int:
     fleet = FleetLink(bus, args.key_space, args.query_timeout)
-    gateway = Gateway(bus, args.key_space, fleet, endpoint, sysids)
+    gateway = Gateway(bus, args.key_space, fleet, endpoint, args.sysids)
     requests = Requests(gateway, team)
     with gateway.view:
         refresher = threading.Thread(
@@ -133,10 +161,11 @@ def _serve(
             daemon=True,
         )
         refresher.start()
-        print(_identity_line(args.zenoh_config), flush=True)
+        print(_identity_line(args.zenoh_config), file=out, flush=True)
         print(
             f"{PROG}: serving on {args.out} (local port {endpoint.local_port}), "
             f"missions to {'every live UAV' if team is TeamChoice.LIVE else 'the UAV alone'}",
+            file=out,
             flush=True,
         )
         try:
@@ -149,7 +178,8 @@ def _serve(
     return ExitCode.OK
 
 
-if __name__ == "__main__":
-    from fleet.transport.cli import run_standalone
+MAVLINK = Command(mavlink_options, run)
 
-    sys.exit(run_standalone(PROG, __doc__ or "", configure, run))
+
+if __name__ == "__main__":
+    sys.exit(run_standalone(PROG, __doc__ or "", configure, MAVLINK))

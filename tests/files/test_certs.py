@@ -13,7 +13,7 @@ from cryptography import x509
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
 from fleet.files.certs import IdentityFiles, common_name, endpoint_host
-from ground.fleet_cli import main as fleet_main
+from programs.fleet_cli import main as fleet_main
 
 
 def make(directory: Path, *extra: str) -> int:

@@ -3,7 +3,7 @@ when the fleet's CA signed them, and revocation."""
 
 from __future__ import annotations
 
-import argparse
+import io
 import json
 import stat
 from pathlib import Path
@@ -22,7 +22,7 @@ from fleet.files.signers import (
 )
 from fleet.mission.key_space import KeySpace
 from fleet.mission.signature import Delivery, sign, verify
-from fleet.tools.certs_command import run_revoke
+from fleet.tools.certs_command import RevokeOptions, run_revoke
 
 NAMES = ["router", "ground", "uav-74", "uav-112"]
 
@@ -75,8 +75,9 @@ def test_revoking_an_identity_lists_it_and_keeps_the_roster_signed(
     with pytest.raises(RosterError, match="no identity named 'uav-9'"):
         revoke(certs, ["uav-9"])
 
-    assert run_revoke(argparse.Namespace(directory=certs, names=["uav-112"])) == 0
-    assert "revokes uav-112, uav-74" in capsys.readouterr().out
+    out = io.StringIO()
+    assert run_revoke(RevokeOptions(directory=certs, names=["uav-112"]), out) == 0
+    assert "revokes uav-112, uav-74" in out.getvalue()
     assert revoked_identities(certs) == {"uav-74", "uav-112"}
 
 

@@ -48,7 +48,7 @@ def test_an_aborted_uav_s_target_and_an_aborted_mission_are_reported_aborted(
     recording = tmp_path / "abort.mcap"
     recorder = start(
         "fleet record",
-        [sys.executable, "-m", "ground.fleet_cli", "record", str(recording),
+        [sys.executable, "-m", "programs.fleet_cli", "record", str(recording),
          "--connect", ground.router],
     )  # fmt: skip
     fleet.children.append(recorder)
@@ -112,7 +112,7 @@ def test_an_aborted_uav_s_target_and_an_aborted_mission_are_reported_aborted(
 
 def fleet_cli(*args: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
-        [sys.executable, "-m", "ground.fleet_cli", *args],
+        [sys.executable, "-m", "programs.fleet_cli", *args],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,

@@ -11,14 +11,15 @@ from pathlib import Path
 
 import pytest
 
-from fleet.launch.up_command import DEFAULT_GUI_LISTEN, _scenario_from_gui, add_up_parser
+from fleet.launch.up_command import DEFAULT_GUI_LISTEN, add_up_parser, up_options
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import Target
 from fleet.transport.cli import PREFIX_ENV
+from fleet.transport.command import OptionsError
 from ground import targets_formats
 from ground.cli import main
-from ground.fleet_cli import build_parser
 from ground.gui.cli import host_port
+from programs.fleet_cli import build_parser
 
 TARGETS = [Target(35.73, -120.75, 600.0), Target(35.70, -120.79, 610.0)]
 
@@ -60,15 +61,13 @@ def _up_args(*argv: str) -> argparse.Namespace:
 
 
 def test_fleet_up_gui_then_a_scenario_runs_the_scenario_with_the_page() -> None:
-    args = _up_args("--gui", "head_on")
-    assert _scenario_from_gui(args) is None
-    assert (args.scenario, args.gui) == ("head_on", DEFAULT_GUI_LISTEN)
-    args = _up_args("head_on", "--gui", "127.0.0.1:9000")
-    assert _scenario_from_gui(args) is None
-    assert (args.scenario, args.gui) == ("head_on", "127.0.0.1:9000")
-    assert _scenario_from_gui(_up_args("--gui")) == (
-        "give a SCENARIO (a shipped name or a TOML file) or --uavs N"
-    )
+    options = up_options(_up_args("--gui", "head_on"))
+    assert (options.scenario, options.gui) == ("head_on", DEFAULT_GUI_LISTEN)
+    options = up_options(_up_args("head_on", "--gui", "127.0.0.1:9000"))
+    assert (options.scenario, options.gui) == ("head_on", "127.0.0.1:9000")
+    with pytest.raises(OptionsError) as refused:
+        up_options(_up_args("--gui"))
+    assert refused.value.message == "give a SCENARIO (a shipped name or a TOML file) or --uavs N"
 
 
 def test_fleet_replay_has_one_prefix_flag_defaulting_to_replay(

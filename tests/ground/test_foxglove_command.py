@@ -8,7 +8,7 @@ import pytest
 
 from fleet.launch.endpoints import free_port
 from fleet.transport.cli import ExitCode
-from ground.fleet_cli import main
+from programs.fleet_cli import main
 
 
 def test_serving_beyond_loopback_needs_allow_remote(capsys: pytest.CaptureFixture[str]) -> None:

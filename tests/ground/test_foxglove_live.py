@@ -40,7 +40,7 @@ pytestmark = pytest.mark.e2e
 
 SPACE = KeySpace()
 TEAM = {74, 112}
-FLEET = [sys.executable, "-m", "ground.fleet_cli"]
+FLEET = [sys.executable, "-m", "programs.fleet_cli"]
 JS = Path(__file__).resolve().parents[1] / "js"
 FIXES = 60
 TIMEOUT_S = 120.0

@@ -31,7 +31,7 @@ def run(*argv: str) -> subprocess.CompletedProcess[str]:
 def test_fleet_demo_runs_the_thesis_multi_uav_scenario(tmp_path: Path) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     done = run(
-        "-m", "ground.fleet_cli", "demo", "--json", "--listen", endpoint,
+        "-m", "programs.fleet_cli", "demo", "--json", "--listen", endpoint,
         "--log-dir", str(tmp_path),
         "--timeout", "100",
     )  # fmt: skip
@@ -56,7 +56,7 @@ def test_fleet_up_then_ground_cli_single_uav(tmp_path: Path) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     up = start(
         "fleet up",
-        [sys.executable, "-m", "ground.fleet_cli", "up", "single_uav", "--listen", endpoint,
+        [sys.executable, "-m", "programs.fleet_cli", "up", "single_uav", "--listen", endpoint,
          "--speedup", "5", "--log-dir", str(tmp_path)],
     )  # fmt: skip
     try:

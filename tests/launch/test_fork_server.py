@@ -176,7 +176,7 @@ def test_fleet_up_forks_its_onboards_unless_told_not_to(tmp_path: Path, forked: 
     flags = [] if forked else ["--no-fork-server"]
     up = start(
         "fleet up",
-        [sys.executable, "-m", "ground.fleet_cli", "up", "--uavs", "2", "--no-record",
+        [sys.executable, "-m", "programs.fleet_cli", "up", "--uavs", "2", "--no-record",
          "--listen", f"tcp/127.0.0.1:{free_port()}", "--log-dir", str(tmp_path), *flags],
     )  # fmt: skip
     try:

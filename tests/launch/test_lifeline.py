@@ -82,7 +82,7 @@ def test_fleet_up_killed_with_sigkill_leaves_no_process(tmp_path: Path, flags: l
     gui = ["--gui", f"127.0.0.1:{free_port()}"] if flags == ["--gui"] else flags
     up = start(
         "fleet up",
-        [sys.executable, "-m", "ground.fleet_cli", "up", "--uavs", "2",
+        [sys.executable, "-m", "programs.fleet_cli", "up", "--uavs", "2",
          "--listen", f"tcp/127.0.0.1:{free_port()}", "--log-dir", str(tmp_path), *gui],
     )  # fmt: skip
     tree: dict[int, str] = {}

@@ -16,16 +16,18 @@ import math
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 import zenoh
 
 from fleet.geo.aircraft import AircraftLimits
-from fleet.mission.messages import TargetOutcome, UavState
+from fleet.mission.messages import RouterState, TargetOutcome, UavState
 from fleet.mission.phase import Phase
 from fleet.mission.target_checks import REACHED_RADIUS_M
 from fleet.mission.targets_file import decode_targets
 from fleet.transport.bus_codec import ENCODING, encode
+from fleet.transport.zenoh_config import make_config
 from tests.support import signed
 from tests.support.secure_fleet import SPACE, TARGETS_FILE, SignedFleet, signed_fleet
 from tests.support.waiting import wait_until
@@ -123,3 +125,48 @@ def test_a_captured_uav_cannot_mark_its_teammates_target_reached(secure: SignedF
     assert states[target]["state"] != "reached" or reach.possible(), (
         f"the ground shows target {target} reached by {states[target]['uav']} on 74's word"
     )
+
+
+# ---- a captured UAV router speaks for another router ------------------------------------------
+def routers(secure: SignedFleet) -> list[dict[str, Any]]:
+    answer = secure.ground_cli("routers", "--json")
+    assert answer.returncode == 0, answer.stderr[-3000:]
+    found: list[dict[str, Any]] = json.loads(answer.stdout)
+    return found
+
+
+def test_a_uav_routers_key_cannot_answer_for_another_router(secure: SignedFleet) -> None:
+    """`router-74`'s key answers `router/state` with the fleet router's zid and no refused
+    link, after the real one. The ground shows the real router's count as its own, and
+    the forgery as `router-74`'s word."""
+    (real,) = routers(secure)
+    no_certificate = make_config("client", [secure.endpoint])
+    ca = json.dumps(str(secure.certs / "ca.pem"))
+    no_certificate.insert_json5("transport/link/tls/root_ca_certificate", ca)
+    with pytest.raises(zenoh.ZError, match="Unable to connect"):
+        zenoh.open(no_certificate)
+    refused = real["refused_links"].get("no_certificate", 0) + 1
+    wait_until(
+        lambda: routers(secure)[0]["refused_links"].get("no_certificate", 0) >= refused,
+        30.0,
+        "the router counting the refused link",
+    )
+    key = SPACE.router_state()
+    lie = encode(RouterState(real["zid"], {}))
+
+    def answer_late(query: zenoh.Query) -> None:
+        time.sleep(0.5)  # after the real router's answer: the later one used to win
+        by_router_74 = signed.attachment(secure.certs, "router-74", key, lie)
+        query.reply(key, lie, encoding=ENCODING, attachment=by_router_74)
+
+    with secure.session("router-74") as rogue:
+        queryable = rogue.declare_queryable(key, answer_late)
+        shown = routers(secure)
+        queryable.undeclare()
+    for entry in shown:
+        if entry["zid"] == real["zid"] and not entry["refused_links"]:
+            assert entry.get("identity") == "router-74", f"the forgery shown as {entry}"
+    assert any(
+        e.get("identity") == "router" and e["refused_links"].get("no_certificate", 0) >= refused
+        for e in shown
+    ), shown

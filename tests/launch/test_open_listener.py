@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from fleet.launch.up_command import open_listener_problem
-from ground.fleet_cli import main as fleet_main
+from programs.fleet_cli import main as fleet_main
 
 
 @pytest.mark.parametrize(

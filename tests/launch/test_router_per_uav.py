@@ -71,7 +71,7 @@ def mesh(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Mesh]:
         identity = ["--zenoh-config", str(tmp_path / "certs" / "ground.json5")]
     up = start(
         "fleet up --topology router-per-uav",
-        [sys.executable, "-m", "ground.fleet_cli", "up", "head_on", "--topology",
+        [sys.executable, "-m", "programs.fleet_cli", "up", "head_on", "--topology",
          "router-per-uav", "--listen", ground, "--speedup", "5", "--log-dir", str(tmp_path),
          *secure],
     )  # fmt: skip

@@ -65,7 +65,7 @@ def secure_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureFle
     write_identities(certs, ["router", "ground", "uav-74", "uav-112"], [endpoint])
     up = start(
         "fleet up --secure",
-        [sys.executable, "-m", "ground.fleet_cli", "up", "head_on", "--secure", str(certs),
+        [sys.executable, "-m", "programs.fleet_cli", "up", "head_on", "--secure", str(certs),
          "--listen", endpoint, "--speedup", "5", "--log-dir", str(certs / "logs")],
     )  # fmt: skip
     try:

@@ -27,7 +27,7 @@ CLI_TIMEOUT_S = 60.0
 def fleet_up(tmp_path: Path, port: int, *extra: str) -> Child:
     up = start(
         "fleet up",
-        [sys.executable, "-m", "ground.fleet_cli", "up", "--uavs", "3",
+        [sys.executable, "-m", "programs.fleet_cli", "up", "--uavs", "3",
          "--listen", f"tcp/127.0.0.1:{port}", "--speedup", "3", "--no-record",
          "--log-dir", str(tmp_path), *extra],
     )  # fmt: skip
@@ -128,7 +128,7 @@ def test_a_recording_that_fails_is_said_and_fails_the_run(tmp_path: Path) -> Non
     (tmp_path / "fleet.mcap").symlink_to("/dev/full")
     up = start(
         "fleet up",
-        [sys.executable, "-m", "ground.fleet_cli", "up", "--uavs", "1",
+        [sys.executable, "-m", "programs.fleet_cli", "up", "--uavs", "1",
          "--listen", f"tcp/127.0.0.1:{free_port()}", "--log-dir", str(tmp_path)],
     )  # fmt: skip
     try:

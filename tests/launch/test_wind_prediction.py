@@ -63,7 +63,7 @@ def test_three_uavs_arrive_when_they_said_in_a_10_ms_wind(tmp_path: Path) -> Non
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     up = start(
         "fleet up",
-        [sys.executable, "-m", "ground.fleet_cli", "up", "windy", "--listen", endpoint,
+        [sys.executable, "-m", "programs.fleet_cli", "up", "windy", "--listen", endpoint,
          "--speedup", "3", "--log-dir", str(tmp_path)],
     )  # fmt: skip
     try:
@@ -82,7 +82,7 @@ def test_three_uavs_arrive_when_they_said_in_a_10_ms_wind(tmp_path: Path) -> Non
     finally:
         up.process.send_signal(signal.SIGTERM)
         assert up.process.wait(60) == 0
-    report = run("-m", "ground.fleet_cli", "report", str(tmp_path / "fleet.mcap"), "--json")
+    report = run("-m", "programs.fleet_cli", "report", str(tmp_path / "fleet.mcap"), "--json")
     assert report.returncode == 0, report.stderr[-3000:]
     (mission,) = json.loads(report.stdout)["missions"]
     for uav in ("201", "202", "203"):

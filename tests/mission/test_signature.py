@@ -13,7 +13,10 @@ from fleet.mission.signature import Delivery, Envelope, Freshness, Refusal, Rost
 SPACE = KeySpace()
 S = 1_000_000_000
 NOW = 1_800_000_000 * S
-KEYS = {name: Ed25519PrivateKey.generate() for name in ("ground", "uav-74", "uav-112")}
+KEYS = {
+    name: Ed25519PrivateKey.generate()
+    for name in ("ground", "uav-74", "uav-112", "router", "router-74")
+}
 ROSTER = Roster({name: key.public_key() for name, key in KEYS.items()})
 
 
@@ -69,6 +72,21 @@ def test_a_message_signed_by_its_author_is_believed() -> None:
     )
     assert refusal is None and envelope is not None and envelope.author == "ground"
     assert verify(ROSTER, SPACE, SPACE.telemetry(74), b"{}", b"", Delivery.PUT) == (None, None)
+
+
+def test_a_routers_state_is_signed_by_a_router_for_itself() -> None:
+    """Any router answers `router/state` for itself: its own identity signs the answer
+    (shown as its word); a UAV's identity, or none, cannot."""
+    key, payload = SPACE.router_state(), b'{"zid": "aa", "refused_links": {}}'
+    assert signature.author_of(SPACE, key, Delivery.REPLY) == signature.ANY_ROUTER
+    for router in ("router", "router-74"):
+        envelope, refusal = verify(
+            ROSTER, SPACE, key, payload, signed(router, key, payload), Delivery.REPLY
+        )
+        assert refusal is None and envelope is not None and envelope.author == router
+    by_uav = verify(ROSTER, SPACE, key, payload, signed("uav-74", key, payload), Delivery.REPLY)
+    assert by_uav[1] is Refusal.NOT_ENTITLED
+    assert verify(ROSTER, SPACE, key, payload, b"", Delivery.REPLY)[1] is Refusal.UNSIGNED
 
 
 def test_forgeries_are_refused_each_for_its_reason() -> None:

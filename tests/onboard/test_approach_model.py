@@ -298,12 +298,23 @@ def test_wind_lp_on_highs_gives_the_pyomo_models_times() -> None:
 
 
 def test_wind_faster_than_plannable_is_scaled_down(model: ApproachTimeModel) -> None:
-    (gale,) = model.solve((0.0, 0.0), (V, 0.0), [(-2000.0, 0.0)], wind=Wind(40.0, 0.0))
-    capped = Wind(PLANNABLE_WIND_SHARE * LIMITS.min_airspeed, 0.0)
-    assert gale is not None and math.isfinite(gale)
+    # Flying east at V through the air in a 50 m/s gale from the south-west: planned as
+    # the same wind scaled down to PLANNABLE_WIND_SHARE of V, its direction kept.
+    gale = Wind(30.0, 40.0)
+    capped = Wind(30.0 * PLANNABLE_WIND_SHARE * V / 50.0, 40.0 * PLANNABLE_WIND_SHARE * V / 50.0)
+    assert capped.speed == pytest.approx(PLANNABLE_WIND_SHARE * V)
+    targets = [(-2000.0, -1500.0), (0.0, 3000.0), (2500.0, -500.0)]  # up-, down- and crosswind
+    in_gale = model.solve((0.0, 0.0), (V + gale.east, gale.north), targets, wind=gale)
+    in_capped = model.solve((0.0, 0.0), (V + capped.east, capped.north), targets, wind=capped)
+    assert all(t is not None and math.isfinite(t) for t in in_gale)
+    assert in_gale == pytest.approx(in_capped, rel=1e-9)
+    # Any wind beyond the cap plans as the cap; a weaker one as itself.
+    for share, beyond in ((0.9, True), (0.7, False)):
+        other = Wind(gale.east * share * V / 50.0, gale.north * share * V / 50.0)
+        times = model.solve((0.0, 0.0), (V + other.east, other.north), targets, wind=other)
+        assert (times == pytest.approx(in_capped, rel=1e-9)) is beyond
     with pytest.raises(ValueError, match="finite"):
         model.solve((0.0, 0.0), (V, 0.0), [(1.0, 0.0)], wind=Wind(math.nan, 0.0))
-    assert capped.speed < LIMITS.min_airspeed
 
 
 @pytest.mark.parametrize("bearing", [30.0, 150.0, 210.0])

@@ -45,9 +45,15 @@ def test_a_stale_plan_is_never_used_for_the_next_mission() -> None:
     assert out.on(SPACE.mission_result(2, 112)) == []
     planner.answer(second, (7.0, 8.0))
     core.tick(0.2)
-    assert out.on(SPACE.mission_result(2, 112)) == [
-        UavResult(2, 112, (7.0, 8.0), model_times=2, fallback_times=0)
-    ]
+    (published,) = out.on(SPACE.mission_result(2, 112))
+    assert isinstance(published, UavResult)
+    assert (published.mission, published.uav, published.times) == (2, 112, (7.0, 8.0))
+    assert (published.model_times, published.fallback_times) == (2, 0)
+    # How it flies, for its teammates to time its legs: the request's speed and wind.
+    gps = sample_telemetry().gps
+    assert gps is not None
+    assert (published.lat, published.lon) == (gps.lat, gps.lon)
+    assert published.airspeed == pytest.approx(math.hypot(gps.vel_east, gps.vel_north), abs=0.01)
 
 
 def test_the_planning_budget_grows_with_the_missions_deadline() -> None:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import time
+import tomllib
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import replace
@@ -17,6 +18,7 @@ from fleet.launch.ring import ring_scenario
 from fleet.mission.messages import MissionTargets, Target
 from fleet.mission.phase import Phase
 from fleet.mission.target_checks import REACHED_RADIUS_M
+from fleet.sim.flight_plan import racetrack
 from onboard.core import CONFIRM_LIMIT_S, LINK_LOST_S, TARGET_WAYPOINT
 from tests.conftest import Ground
 from tests.onboard.test_multi_uav import wait_for_telemetry
@@ -126,5 +128,58 @@ def test_a_target_reached_during_a_link_outage_is_reported_reached(
     assert not any("target not reached" in s for s in statuses), statuses
     reached = next(s for s in statuses if "reached target 0" in s)
     assert "during a link outage" in reached  # the autopilot's word: no fix was near it
+    assert seen.closest_approach(uav, lat, lon) > REACHED_RADIUS_M  # telemetry never saw it
+    assert any(o.phase == Phase.REACHED for o in seen.outcomes_of(uav))
+
+
+#: How far short of the course's waypoint 0 the target lies (m): the autopilot reaches
+#: the target, its `next` (waypoint 0) 150 m on, and moves on to waypoint 1, all unseen.
+SHORT_OF_WAYPOINT_M = 150.0
+
+
+def test_an_arrival_hidden_by_an_outage_that_also_hid_the_next_waypoint_is_reached(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    seen = ground.seen
+    with one_uav_behind_a_proxy(fleet, ground, tmp_path, 3.0) as (uav, proxy):
+        # The ring's one UAV starts at corner 3 of its racetrack, tracking corner 0 3 km
+        # dead ahead (fleet.sim.flight_plan.racetrack).
+        (spec,) = tomllib.loads(ring_scenario(1))["uav"]
+        corners = racetrack(spec["lat"], spec["lon"], spec["alt"], spec["heading"])
+        course = MercatorProjection(spec["lat"], spec["lon"])
+        x0, y0 = course.to_xy(corners[0][0], corners[0][1])
+        along = 1.0 - SHORT_OF_WAYPOINT_M / math.hypot(x0, y0)
+        lat, lon = course.to_latlon(x0 * along, y0 * along)
+        ground.send(MissionTargets(mission=1, team=(uav,), targets=(Target(lat, lon, 600.0),)))
+        wait_until(
+            lambda: any("flying to target 0" in s for s in seen.statuses(uav)), 30.0, "flying"
+        )
+        wait_until(
+            lambda: seen.closest_approach(uav, lat, lon) < 500.0, 120.0, "500 m from the target"
+        )
+        proxy.cut()  # the fault: the link drops just before the arrival
+        # The simulator's own log: the target, then waypoint 0, both passed unseen.
+        sim = fleet.children[0]
+        wait_until(
+            lambda: any(f"uav {uav}: reached waypoint 0, on to 1" in s for s in sim.history),
+            60.0,
+            "the autopilot past the target and its next waypoint",
+        )
+        assert any(f"reached waypoint {TARGET_WAYPOINT}, on to 0" in s for s in sim.history)
+        wait_until(
+            lambda: any("autopilot link lost" in s for s in seen.statuses(uav)),
+            30.0,
+            "the outage seen by the module",
+        )
+        proxy.restore()
+        wait_until(
+            lambda: any("reached target 0" in s or "not reached" in s for s in seen.statuses(uav)),
+            60.0,
+            "the module's reading of the outage",
+        )
+    statuses = seen.statuses(uav)
+    assert not any("target not reached" in s for s in statuses), statuses
+    reached = next(s for s in statuses if "reached target 0" in s)
+    assert "moved on to waypoint 1 during a link outage" in reached, reached
     assert seen.closest_approach(uav, lat, lon) > REACHED_RADIUS_M  # telemetry never saw it
     assert any(o.phase == Phase.REACHED for o in seen.outcomes_of(uav))

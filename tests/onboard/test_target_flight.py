@@ -8,6 +8,7 @@ import math
 import pytest
 
 from fleet.mission.key_space import KeySpace
+from fleet.mission.lifecycle import Observation
 from fleet.mission.messages import (
     AssignmentReport,
     MissionAbort,
@@ -25,6 +26,9 @@ from onboard.core import (
     TARGET_WAYPOINT,
     OnboardCore,
 )
+from onboard.link_watch import LinkWatch
+from onboard.mission_phase import MissionPhase
+from onboard.target_flight import FlightNews, TargetFlight
 from tests.onboard.core_harness import (
     TARGETS,
     TWO_TARGETS,
@@ -47,9 +51,10 @@ def test_single_uav_flies_to_the_fastest_target_then_resumes() -> None:
     core, out = make_core()
     core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 1.0)
     core.tick(1.1)
-    assert out.on(SPACE.mission_result(1, 112)) == [
-        UavResult(1, 112, (80.0, 40.0, 60.0), model_times=3, fallback_times=0)
-    ]
+    (result,) = out.on(SPACE.mission_result(1, 112))
+    assert isinstance(result, UavResult)
+    assert (result.mission, result.uav, result.times) == (1, 112, (80.0, 40.0, 60.0))
+    assert (result.model_times, result.fallback_times) == (3, 0)
     (report,) = out.on(SPACE.mission_assignment(1, 112))
     assert isinstance(report, AssignmentReport) and report.target == 1 and report.eta_s == 40.0
     (waypoint,) = out.autopilot
@@ -250,3 +255,23 @@ def test_a_restarted_uav_left_on_the_target_route_leaves_it_when_the_re_plan_rel
     assert recorder.autopilot[-1] == Track(0)  # resent until echoed
     core.on_track(Track(0), 5.1)
     assert core.commands.pending == 0
+
+
+def test_the_flight_tells_its_mission_by_its_answers_not_by_a_reference_to_it() -> None:
+    """A flight stands alone: its commitment carries the mission, an arrival comes back
+    as the answer of the telemetry that saw it, and a restart supersedes the mission."""
+    recorder = Recorder()
+    life = MissionPhase()
+    link = LinkWatch(lambda *_args, **_kwargs: None)
+    flight = TargetFlight(112, SPACE, recorder, life, link, lambda *_args, **_kwargs: None)
+    assert flight.mission is None
+    link.on_telemetry(sample_telemetry(), 0.0)
+    life.observe(Observation.MISSION_STARTED)
+    life.observe(Observation.ASSIGNED_TARGET)
+    flight.commit(7, 1, TARGETS[1], 1.0)
+    assert flight.mission == 7 and not flight.superseded(7) and flight.superseded(6)
+    assert flight.on_telemetry(2.0) is None  # far from the target
+    link.on_telemetry(telemetry_at(TARGETS[1].lat, TARGETS[1].lon), 3.0)
+    assert flight.on_telemetry(3.0) is FlightNews.REACHED
+    flight.restart("mission 8 started", 4.0)
+    assert flight.mission is None and flight.superseded(7)

@@ -37,7 +37,7 @@ SPACE = KeySpace()
 pytestmark = pytest.mark.e2e
 
 TIMEOUT_S = 120
-FLEET = ("-m", "ground.fleet_cli")
+FLEET = ("-m", "programs.fleet_cli")
 TEAM = {74, 112}
 #: A generous bound on a recording's size (compressed, telemetry at 5 Hz).
 MAX_BYTES_PER_AIRCRAFT_MINUTE = 265_000

@@ -125,7 +125,7 @@ def test_a_large_fleet_is_asked_its_states_at_most_ten_a_second() -> None:
 
 def _fleet(*argv: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "ground.fleet_cli", *argv],
+        [sys.executable, "-m", "programs.fleet_cli", *argv],
         capture_output=True,
         text=True,
         timeout=60,

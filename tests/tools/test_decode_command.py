@@ -1,4 +1,4 @@
-"""`fleet decode`, run as the installed command does (`python -m ground.fleet_cli`)."""
+"""`fleet decode`, run as the installed command does (`python -m programs.fleet_cli`)."""
 
 import json
 import subprocess
@@ -20,7 +20,7 @@ FIXTURES = Path(__file__).parent.parent / "fixtures"
 
 def _fleet_decode(capture: str, data: bytes = b"") -> subprocess.CompletedProcess[bytes]:
     return subprocess.run(
-        [sys.executable, "-m", "ground.fleet_cli", "decode", capture],
+        [sys.executable, "-m", "programs.fleet_cli", "decode", capture],
         input=data,
         capture_output=True,
         timeout=60,

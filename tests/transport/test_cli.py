@@ -12,6 +12,7 @@ import sys
 import threading
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TextIO
 
 import pytest
 import zenoh
@@ -28,12 +29,12 @@ from fleet.transport.cli import (
     non_negative_float,
     piccolo_id,
     positive_float,
-    run_standalone,
     setup_logging,
     stop_on_signals,
     tcp_port,
     zenoh_config,
 )
+from fleet.transport.command import LocalCommand, run_standalone
 from fleet.transport.zenoh_config import CONFIG_ENV, CONNECT_ENV, endpoints
 from tests.support.processes import router_session
 from tests.support.waiting import wait_until
@@ -122,6 +123,21 @@ def test_no_flags_give_a_client_of_the_default_router(monkeypatch: pytest.Monkey
     assert json.loads(config.get_json("mode")) == "client"
     assert endpoints(config) == ["tcp/127.0.0.1:7999"]
     assert config.get_json("scouting/multicast/enabled") == "false"
+
+
+def test_the_environment_and_connect_override_a_config_file_s_router(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`fleet up --secure` says `export FLEET_ZENOH_CONNECT=tls/...:PORT` beside the
+    identity's config file, which names the default port: the exported router wins, and
+    --connect wins over both."""
+    path = write_config(tmp_path / "zenoh.json5", "tcp/127.0.0.1:7447")
+    monkeypatch.setenv(CONNECT_ENV, "tcp/127.0.0.1:18350")
+    assert endpoints(zenoh_config(parse("--zenoh-config", str(path)))) == ["tcp/127.0.0.1:18350"]
+    flags = ("--zenoh-config", str(path), "--connect", "tcp/127.0.0.1:9")
+    assert endpoints(zenoh_config(parse(*flags))) == ["tcp/127.0.0.1:9"]
+    monkeypatch.delenv(CONNECT_ENV)
+    assert endpoints(zenoh_config(parse("--zenoh-config", str(path)))) == ["tcp/127.0.0.1:7447"]
 
 
 def test_a_config_file_is_honoured_by_a_real_session(
@@ -255,18 +271,19 @@ def test_run_standalone_parses_the_command_and_v_then_returns_its_status(
     root = logging.getLogger()
     monkeypatch.setattr(root, "handlers", [])
     monkeypatch.setattr(root, "level", root.level)
-    seen: list[argparse.Namespace] = []
+    seen: list[str] = []
 
     def configure(parser: argparse.ArgumentParser) -> None:
         parser.add_argument("thing")
 
-    def run(args: argparse.Namespace) -> int:
-        seen.append(args)
+    def run(thing: str, out: TextIO) -> int:
+        seen.append(thing)
         return ExitCode.FAILED
 
-    status = run_standalone("fleet x", "a command", configure, run, ["-v", "a"])
+    command = LocalCommand(lambda args: str(args.thing), run)
+    status = run_standalone("fleet x", "a command", configure, command, ["-v", "a"])
     assert status == ExitCode.FAILED
-    assert [(args.thing, args.verbose) for args in seen] == [("a", 1)]
+    assert seen == ["a"]
     assert root.level == logging.DEBUG
 
 

@@ -239,7 +239,7 @@ def test_fleet_up_command_stops_every_child_on_sigterm(tmp_path: Path) -> None:
         [
             sys.executable,
             "-m",
-            "ground.fleet_cli",
+            "programs.fleet_cli",
             "up",
             "--uavs",
             "2",
@@ -298,7 +298,7 @@ def test_fleet_up_command_stops_every_child_on_sigterm(tmp_path: Path) -> None:
 def test_fleet_up_refuses_an_unknown_scenario_before_starting_anything(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from ground.fleet_cli import main
+    from programs.fleet_cli import main
 
     endpoint = free_endpoint()
     status = main(["up", "no_such_scenario", "--listen", endpoint, "--log-dir", str(tmp_path)])

@@ -87,7 +87,7 @@ def fleet_with_gui(tmp_path: Path) -> Iterator[tuple[str, str]]:
     page = f"127.0.0.1:{free_port()}"
     up = start(
         "fleet up",
-        [sys.executable, "-m", "ground.fleet_cli", "up", "head_on", "--listen", router,
+        [sys.executable, "-m", "programs.fleet_cli", "up", "head_on", "--listen", router,
          "--speedup", "10", "--gui", page, "--log-dir", str(tmp_path / "logs")],
     )  # fmt: skip
     try:

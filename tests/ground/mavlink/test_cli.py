@@ -6,8 +6,8 @@ import socket
 
 import pytest
 
-from ground.fleet_cli import main
 from ground.mavlink.cli import _identity_line
+from programs.fleet_cli import main
 
 
 def test_two_uavs_on_one_system_id_are_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:

@@ -55,7 +55,7 @@ class FleetUp:
     def gateway(self, out: str, *extra: str) -> Child:
         child = start(
             "fleet mavlink",
-            [sys.executable, "-m", "ground.fleet_cli", "mavlink", "--connect", self.endpoint,
+            [sys.executable, "-m", "programs.fleet_cli", "mavlink", "--connect", self.endpoint,
              "--out", out, *extra],
         )  # fmt: skip
         child.wait_for_line(lambda line: "fleet mavlink: serving on" in line, WAIT_S)
@@ -68,7 +68,7 @@ def fleet_up(tmp_path_factory: pytest.TempPathFactory) -> Iterator[FleetUp]:
     port = free_port()
     up = start(
         "fleet up",
-        [sys.executable, "-m", "ground.fleet_cli", "up", "--uavs", str(len(UAVS)),
+        [sys.executable, "-m", "programs.fleet_cli", "up", "--uavs", str(len(UAVS)),
          "--speedup", "5", "--listen", f"tcp/127.0.0.1:{port}", "--log-dir", str(tmp / "logs"),
          "--no-record"],
     )  # fmt: skip

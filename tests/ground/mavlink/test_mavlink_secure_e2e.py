@@ -34,7 +34,7 @@ class SecureFleet:
     def gateway(self, identity: str, port: int) -> Child:
         child = start(
             "fleet mavlink",
-            [sys.executable, "-m", "ground.fleet_cli", "mavlink",
+            [sys.executable, "-m", "programs.fleet_cli", "mavlink",
              "--zenoh-config", str(self.certs / f"{identity}.json5"),
              "--connect", self.endpoint, "--out", f"udpin:127.0.0.1:{port}"],
         )  # fmt: skip
@@ -48,7 +48,7 @@ def secure_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureFle
     write_identities(certs, ["router", "ground", "uav-74", "uav-112"], [endpoint])
     up = start(
         "fleet up --secure",
-        [sys.executable, "-m", "ground.fleet_cli", "up", "head_on", "--secure", str(certs),
+        [sys.executable, "-m", "programs.fleet_cli", "up", "head_on", "--secure", str(certs),
          "--listen", endpoint, "--speedup", "5", "--log-dir", str(certs / "logs"),
          "--no-record"],
     )  # fmt: skip

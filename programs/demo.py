@@ -4,8 +4,8 @@ It runs a local fleet (`fleet.launch`) on free ports, sends the scenario's targe
 team, waits for the consensus and checks that every UAV committed the same assignment,
 then watches until every assigned UAV has reached its target, prints who got which
 target, and stops everything. Exit 0 when the team agreed and every assigned UAV reached
-its target. It lives in `ground` because it is a ground station: it uses the mission
-manager's own code.
+its target. It is a program of its own, above `ground`: a ground station that starts a
+fleet, it uses both the launcher and the mission manager's own code.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from typing import Any, TextIO
 
 from fleet.geo.mercator import distance_m
 from fleet.launch.launcher import Fleet, FleetSpec, LaunchError
-from fleet.launch.up_command import common_arguments, recording_path, start_gui
+from fleet.launch.up_command import LaunchOptions, common_arguments, recording_path, start_gui
 from fleet.mission.messages import (
     AssignmentReport,
     MissionTargets,
@@ -37,8 +37,9 @@ from fleet.recording.mission_log import build_timeline
 from fleet.recording.plot import PlotError, render
 from fleet.recording.reader import RecordingError, read_recording
 from fleet.sim.scenario import ScenarioError, resolve_scenario
+from fleet.transport.bus_factory import opened_bus
 from fleet.transport.cli import ExitCode, fail, positive_float, stop_on_signals
-from fleet.transport.zenoh_bus import client_bus
+from fleet.transport.command import LocalCommand, options_from, set_handler
 
 # The demo is a ground station: it uses the mission manager's own code.
 from ground.alerts import StatusRecord
@@ -92,13 +93,24 @@ def add_demo_parser(
     )
     parser.add_argument("--json", action="store_true", help="print the outcome as JSON")
     common_arguments(parser, speedup=DEMO_SPEEDUP)
-    parser.set_defaults(run=run_demo, func=run_demo)
+    set_handler(parser, DEMO)
     return parser
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """Register `demo`; it sets `run` (and `func`) to its handler."""
+    """Register `demo`."""
     add_demo_parser(subparsers)
+
+
+@dataclass(frozen=True, kw_only=True)
+class DemoOptions(LaunchOptions):
+    scenario: str = DEMO_SCENARIO
+    #: The router's endpoint (None: a free port on 127.0.0.1).
+    listen: str | None = None
+    #: Wall seconds to wait for the targets to be reached.
+    timeout: float = DEMO_REACH_TIMEOUT_S
+    json: bool = False
+    speedup: float = DEMO_SPEEDUP
 
 
 # ---- fleet demo -----------------------------------------------------------------------------
@@ -117,13 +129,13 @@ class Arrival:
     after_s: float  #: wall seconds from the commitment
 
 
-def run_demo(args: argparse.Namespace) -> int:
+def run_demo(options: DemoOptions, out: TextIO) -> int:
     stop = threading.Event()
     with stop_on_signals(stop.set):
-        return _run_demo(args, stop)
+        return _run_demo(options, stop, out)
 
 
-def _run_demo(args: argparse.Namespace, stop: threading.Event) -> int:
+def _run_demo(args: DemoOptions, stop: threading.Event, out: TextIO) -> int:
     try:
         scenario = resolve_scenario(args.scenario)
         targets = tuple(scenario.targets())
@@ -140,7 +152,7 @@ def _run_demo(args: argparse.Namespace, stop: threading.Event) -> int:
         key_space=args.key_space,
         fork_onboards=args.fork_onboards,
     )
-    say = _sayer(sys.stderr if args.json else sys.stdout)
+    say = _sayer(sys.stderr if args.json else out)
     fleet = Fleet(spec, stop_requested=stop)
     say(f"demo: {scenario.description or scenario.name} at speedup {args.speedup:g}")
     say(f"demo: logs in {fleet.log_dir}")
@@ -165,9 +177,9 @@ def _run_demo(args: argparse.Namespace, stop: threading.Event) -> int:
     # The recorder finished its file when the fleet stopped: draw the mission from it.
     report["plot"] = _plot(spec.record, fleet.log_dir / PLOT_NAME, say)
     if args.json:
-        print(json.dumps(report))
+        print(json.dumps(report), file=out)
     else:
-        print("\n".join(_demo_summary(report)))
+        print("\n".join(_demo_summary(report)), file=out)
     return ExitCode.OK if report["success"] else ExitCode.FAILED
 
 
@@ -197,7 +209,7 @@ def _sayer(out: TextIO) -> Callable[[str], None]:
 def _fly_demo(
     fleet: Fleet,
     targets: tuple[Target, ...],
-    args: argparse.Namespace,
+    args: DemoOptions,
     stop: threading.Event,
     say: Callable[[str], None],
 ) -> dict[str, Any]:
@@ -216,7 +228,8 @@ def _fly_demo(
         if isinstance(message, AssignmentReport):
             say(f"demo: UAV {message.uav} committed target {message.target}")
 
-    with client_bus(fleet.connect) as bus, FleetView(bus, args.key_space, on_status) as view:
+    # The demo is its own program's root: it opens its bus once the fleet it started runs.
+    with opened_bus(fleet.connect) as bus, FleetView(bus, args.key_space, on_status) as view:
         # A UAV refuses a mission before its first GPS fix, so wait for telemetry.
         deadline = time.monotonic() + args.start_timeout
         while not stop.is_set() and time.monotonic() < deadline:
@@ -321,7 +334,7 @@ def _left_target_waypoint(view: FleetView, uav: int, target: Target) -> bool:
 
 
 def _demo_report(
-    args: argparse.Namespace, fleet: Fleet, outcome: MissionOutcome, arrivals: dict[int, Arrival]
+    args: DemoOptions, fleet: Fleet, outcome: MissionOutcome, arrivals: dict[int, Arrival]
 ) -> dict[str, Any]:
     report: dict[str, Any] = outcome.to_json()
     assigned = [uav for uav in outcome.team if outcome.target_of(uav) is not None]
@@ -365,3 +378,6 @@ def _demo_summary(report: dict[str, Any]) -> list[str]:
     )
     lines.append("demo: success" if report["success"] else "demo: FAILED")
     return lines
+
+
+DEMO = LocalCommand(options_from(DemoOptions), run_demo)
