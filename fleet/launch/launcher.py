@@ -61,7 +61,7 @@ from fleet.mission.key_space import DEFAULT_SPACE, KeySpace, uav_id_of
 from fleet.piccolo.telemetry import Telemetry
 from fleet.recording.recorder import READY_LINE, Recorder
 from fleet.recording.writer import McapSink
-from fleet.transport.bus import Bus, BusSample, decode_sample
+from fleet.transport.bus import Bus, BusSample, Declaration, decode_sample
 from fleet.transport.bus_factory import open_bus
 from fleet.transport.cli import CRASH_DUMP_ENV, PREFIX_ENV
 from fleet.transport.router import Router
@@ -130,6 +130,8 @@ class Fleet:
     recorder: Recorder | None = None
     #: Why the in-process recording stopped before the fleet did (a full disk, ...).
     recording_failure: str | None = None
+    #: Telemetry samples the in-process recorder wrote per UAV, once the fleet stopped.
+    recorded_telemetry: dict[int, int] = field(default_factory=dict)
     #: The routers of a router-per-uav mesh: UAV id -> the endpoint clients connect to.
     uav_routers: dict[int, str] = field(default_factory=dict)
     #: What forks the onboards, while the fleet runs (`FleetSpec.fork_onboards`).
@@ -141,6 +143,7 @@ class Fleet:
     _sim_ready: threading.Event = field(default_factory=threading.Event)
     _files: list[IO[bytes]] = field(default_factory=list)
     _readers: list[threading.Thread] = field(default_factory=list)
+    _watch: _ReadyWatch | None = None
 
     def __post_init__(self) -> None:
         if self.spec.log_dir is not None:
@@ -208,6 +211,7 @@ class Fleet:
                 self.fork_server.wait_ready(max(0.0, deadline - time.monotonic()))
             except ForkServerError as error:
                 raise LaunchError(f"{error}; see {self.log_dir / 'fork-server.log'}") from None
+        self._watch_start()
         for endpoints in self.endpoints:
             self._start_onboard(endpoints)
         self._write_pids()
@@ -500,6 +504,28 @@ class Fleet:
         except BusConnectError as error:
             raise LaunchError(f"cannot watch the fleet start: {error}") from None
 
+    def _watch_start(self) -> None:
+        """Watch every UAV's token and telemetry, from before the first onboard starts.
+
+        On the router's own session the watch stays declared until the fleet stops:
+        Zenoh 1.10 loses the subscribers a client's declared publisher matches when a
+        subscriber on the router's session is undeclared while that publisher is being
+        declared (its telemetry then reaches nobody, while its other keys flow;
+        `bench/zenoh_write_filter.py` reproduces it). An onboard declares its telemetry
+        publisher as its link comes up, which is when a start-up watch would end.
+        """
+        bus = self._observer()
+        watch = self._watch = _ReadyWatch(bus)
+        watch.declarations = [
+            bus.subscribe_presence(self.spec.key_space.all_alive, watch.on_token),
+            bus.subscribe(self.spec.key_space.all_telemetry, watch.on_telemetry),
+        ]
+
+    def _watch_end(self) -> None:
+        watch, self._watch = self._watch, None
+        if watch is not None:
+            watch.close()
+
     def _wait_ready(self, deadline: float) -> None:
         """Wait until every UAV is alive and its telemetry flows.
 
@@ -507,55 +533,24 @@ class Fleet:
         may not be up yet. A telemetry sample with a GPS fix on its telemetry key means
         the link is up and the autopilot talks, so its state already holds a position.
         """
-        bus = self._observer()
-        try:
-            self._wait_flowing(bus, deadline)
-        finally:
-            bus.close()
-
-    def _wait_flowing(self, bus: Bus, deadline: float) -> None:
+        watch = self._watch
+        assert watch is not None, "the watch starts before the onboards"
         expected = set(self.uav_ids)
-        alive: set[int] = set()
-        flowing: set[int] = set()
-        changed = threading.Event()
-
-        def on_token(key: str, present: bool) -> None:
-            uav = _uav_of(key)
-            if uav is None:
-                return
-            if present:
-                alive.add(uav)
-            else:
-                alive.discard(uav)
-            changed.set()
-
-        def on_telemetry(sample: BusSample) -> None:
-            uav = _uav_of(sample.key)
-            if uav is None or uav in flowing:
-                return
-            telemetry = decode_sample(sample, Telemetry)
-            if telemetry is not None and telemetry.gps is not None:
-                flowing.add(uav)
-                changed.set()
-
-        presence = bus.subscribe_presence(self.spec.key_space.all_alive, on_token)
-        telemetry = bus.subscribe(self.spec.key_space.all_telemetry, on_telemetry)
-        try:
-            reported, next_report = (-1, -1), 0.0
-            while not expected <= alive & flowing:
-                changed.wait(0.2)
-                changed.clear()
-                counts = (len(expected & alive), len(expected & alive & flowing))
-                if counts != reported and time.monotonic() >= next_report:
-                    self._report(
-                        f"{counts[0]} of {len(expected)} UAVs alive, {counts[1]} with telemetry"
-                    )
-                    reported, next_report = counts, time.monotonic() + PROGRESS_PERIOD_S
-                self._check_running(deadline, _waiting_for(expected, alive, flowing))
-        finally:
-            telemetry.undeclare()
-            presence.undeclare()
+        reported, next_report = (-1, -1), 0.0
+        while not expected <= watch.alive & watch.flowing:
+            watch.changed.wait(0.2)
+            watch.changed.clear()
+            alive, flowing = set(watch.alive), set(watch.flowing)
+            counts = (len(expected & alive), len(expected & alive & flowing))
+            if counts != reported and time.monotonic() >= next_report:
+                self._report(
+                    f"{counts[0]} of {len(expected)} UAVs alive, {counts[1]} with telemetry"
+                )
+                reported, next_report = counts, time.monotonic() + PROGRESS_PERIOD_S
+            self._check_running(deadline, _waiting_for(expected, alive, flowing))
         log.info("every UAV is alive with telemetry: %s", ", ".join(map(str, sorted(expected))))
+        if self.router is None:  # a client's: its end is harmless
+            self._watch_end()
 
     def _report(self, text: str) -> None:
         # Said once: to the progress callback (`fleet up` prints it), else to the log.
@@ -578,6 +573,7 @@ class Fleet:
         others = [c for c in self.children if c not in onboards]
         stop_children(onboards)
         stop_children(others)
+        self._watch_end()
         # The simulator's output reader ends at EOF, now that the simulator has exited.
         for reader in self._readers:
             reader.join(timeout=STOP_GRACE_S)
@@ -594,10 +590,48 @@ class Fleet:
         if self.recorder is not None:
             self.recorder.stop()
             self.recording_failure = self.recorder.failure
+            self.recorded_telemetry = self.recorder.streams.telemetry()
             self.recorder = None
         if self.router is not None:
             self.router.close()
             self.router = None
+
+
+@dataclass
+class _ReadyWatch:
+    """Which UAVs' tokens and telemetry with a GPS fix were seen (on Zenoh's threads)."""
+
+    bus: Bus
+    alive: set[int] = field(default_factory=set)
+    flowing: set[int] = field(default_factory=set)
+    changed: threading.Event = field(default_factory=threading.Event)
+    declarations: list[Declaration] = field(default_factory=list)
+
+    def on_token(self, key: str, present: bool) -> None:
+        uav = _uav_of(key)
+        if uav is None:
+            return
+        if present:
+            self.alive.add(uav)
+        else:
+            self.alive.discard(uav)
+        self.changed.set()
+
+    def on_telemetry(self, sample: BusSample) -> None:
+        uav = _uav_of(sample.key)
+        if uav is None or uav in self.flowing:
+            return
+        telemetry = decode_sample(sample, Telemetry)
+        if telemetry is not None and telemetry.gps is not None:
+            self.flowing.add(uav)
+            self.changed.set()
+
+    def close(self) -> None:
+        for declaration in self.declarations:
+            with contextlib.suppress(zenoh.ZError):  # the session closed already
+                declaration.undeclare()
+        self.declarations.clear()
+        self.bus.close()  # the router's session stays open (Router.bus)
 
 
 def _uav_of(key: str) -> int | None:

@@ -5,7 +5,9 @@ the fleet flies on, as a fleet of one container per UAV would: its death is told
 (which child, its exit status, the last lines of its log) and, with a restart policy,
 it is started again after a back-off that doubles at each death of the same child. An
 essential child (the ground's router, the simulator every aircraft's link runs
-through, the recorder) dying ends the run.
+through, the recorder) dying ends the run. A UAV whose telemetry stops reaching the
+fleet's recorder while the fleet's other streams flow is told once (and again if it
+stops again after it came back).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from dataclasses import dataclass, field
 
 from fleet.launch.children import Child
 from fleet.launch.launcher import Fleet, LaunchError
+from fleet.recording.streams import Stall
 
 log = logging.getLogger(__name__)
 
@@ -57,6 +60,18 @@ class _Supervision:
     #: Child name -> (the dead child, when to restart it).
     pending: dict[str, tuple[Child, float]] = field(default_factory=dict)
     told: set[int] = field(default_factory=set)  #: pids whose death was told
+    on_stall: Callable[[Stall], None] | None = None
+    stalled: set[int] = field(default_factory=set)  #: UAVs whose stopped telemetry was told
+
+    def look_at_streams(self) -> None:
+        recorder = self.fleet.recorder
+        if recorder is None or self.on_stall is None:
+            return
+        stalls = recorder.streams.stalled()
+        for stall in stalls:
+            if stall.uav not in self.stalled:
+                self.on_stall(stall)
+        self.stalled = {stall.uav for stall in stalls}
 
     def look(self, now: float) -> Child | None:
         """Handle the non-essential deaths and restarts due; the first dead essential
@@ -94,17 +109,24 @@ def _log_lost(lost: ChildLost) -> None:
     log.warning("%s exited with status %s; the fleet goes on", lost.child.name, lost.status)
 
 
+def _log_stall(stall: Stall) -> None:
+    log.warning("%s", stall)
+
+
 def supervise(
     fleet: Fleet,
     stop: threading.Event,
     on_death: Callable[[Child], None] | None = None,
     on_lost: Callable[[ChildLost], None] = _log_lost,
     restart: RestartPolicy | None = None,
+    on_stall: Callable[[Stall], None] = _log_stall,
 ) -> bool:
     """Block until `stop` is set (True) or an essential child dies (False, after
-    `on_death`); non-essential deaths go to `on_lost` and, with `restart`, are restarted."""
-    supervision = _Supervision(fleet, restart, on_lost)
+    `on_death`); non-essential deaths go to `on_lost` and, with `restart`, are restarted;
+    a UAV's telemetry that stops reaching the recorder goes to `on_stall`."""
+    supervision = _Supervision(fleet, restart, on_lost, on_stall=on_stall)
     while not stop.wait(POLL_S):
+        supervision.look_at_streams()
         dead = supervision.look(time.monotonic())
         if dead is not None:
             if on_death is not None:

@@ -27,6 +27,7 @@ from fleet.launch.topology import Topology
 from fleet.mission.access import GROUND
 from fleet.mission.key_registry import DEFAULT_PREFIX
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
+from fleet.recording.streams import Stall, short_streams
 from fleet.sim.scenario import ScenarioError, resolve_scenario
 from fleet.transport.cli import (
     PREFIX_ENV,
@@ -300,7 +301,7 @@ def _run_up(args: UpOptions, stop: threading.Event) -> int:
                 )
 
             policy = RestartPolicy() if args.restart else None
-            stopped_cleanly = supervise(fleet, stop, on_death, _print_lost, policy)
+            stopped_cleanly = supervise(fleet, stop, on_death, _print_lost, policy, _print_stall)
             print("fleet up: stopping", flush=True)
     except LaunchError as error:
         if stop.is_set():
@@ -313,6 +314,9 @@ def _run_up(args: UpOptions, stop: threading.Event) -> int:
         return ExitCode.FAILED
     if spec.record is not None:
         print(f"fleet up: recorded to {spec.record}")
+        for line in short_streams(fleet.recorded_telemetry):
+            log.warning("%s", line)
+            print(f"fleet up: {line}")
     return ExitCode.OK if stopped_cleanly else ExitCode.FAILED
 
 
@@ -326,6 +330,11 @@ def _print_lost(lost: ChildLost) -> None:
         file=sys.stderr,
         flush=True,
     )
+
+
+def _print_stall(stall: Stall) -> None:
+    log.warning("%s", stall)
+    print(f"fleet up: {stall}", flush=True)
 
 
 def _print_progress(text: str) -> None:

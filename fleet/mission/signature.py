@@ -205,10 +205,19 @@ def verify(
 class Freshness:
     """Replay refusal with bounded memory: the last timestamp accepted per (author, key)
     for live messages, and the timestamp of each mission's targets (a bounded number of
-    missions) against which that mission's other commands are judged."""
+    missions) against which that mission's other commands are judged.
 
-    def __init__(self, window_ns: int = DEFAULT_WINDOW_NS) -> None:
+    The marks live in memory, so a restarted process would believe a command replayed
+    from before its restart (the ground's "OPM off", 14 s old, after its "OPM on"). So a
+    live command signed before `floor_ns` (the receiving process's start, by its own
+    clock) is refused: it was meant for an earlier run of this process, or is a replay.
+    A command reaches a process only while it is subscribed, so a genuine one is never
+    older than it (clocks agreeing: GPS or NTP time).
+    """
+
+    def __init__(self, window_ns: int = DEFAULT_WINDOW_NS, floor_ns: int = 0) -> None:
         self.window_ns = window_ns
+        self.floor_ns = floor_ns
         self._marks: OrderedDict[tuple[str, str], int] = OrderedDict()
         self._missions: OrderedDict[str, int] = OrderedDict()
 
@@ -232,6 +241,8 @@ class Freshness:
             return None  # a caught-up message is old by nature; its key binds it
         if now_ns - stamp > self.window_ns:
             return Refusal.STALE
+        if stamp < self.floor_ns and parsed is not None and parsed.spec.role is Role.COMMAND:
+            return Refusal.REPLAYED  # signed before this process started
         mark = (envelope.author, key)
         last = self._marks.get(mark)
         if last is not None and stamp <= last:

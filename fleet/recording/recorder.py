@@ -39,6 +39,7 @@ import zenoh
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace, uav_id_of
 from fleet.recording import channels
 from fleet.recording.channels import ChannelSpec
+from fleet.recording.streams import StreamCounts
 from fleet.recording.thinning import DEFAULT_TELEMETRY_EVERY_S, TelemetryThinning
 from fleet.recording.writer import McapSink
 from fleet.transport import bus_codec
@@ -141,6 +142,8 @@ class Recorder:
         self._specs: dict[str, ChannelSpec] = {}  # by key
         self._fix_specs: dict[int, ChannelSpec] = {}  # by UAV
         self.stats = RecorderStats()
+        #: Samples recorded per UAV and channel; whose telemetry stopped (`fleet up` asks).
+        self.streams = StreamCounts(self.prefix)
         #: Why writing stopped (the disk is full, ...); `on_failure` is set then.
         self.failure: str | None = None
         self._on_failure = on_failure
@@ -318,6 +321,7 @@ class Recorder:
             self._unknown_keys.add(spec.topic)
         self.sink.write(spec, heard.payload, heard.time_ns, heard.time_ns)
         self.stats.recorded[spec.pattern] += 1
+        self.streams.heard(heard.key, value)
         if spec.pattern.endswith("/telemetry") and isinstance(value, dict):
             self._write_fix(heard, value)
 

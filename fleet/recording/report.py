@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from fleet.recording.mission_log import MissionLog, Timeline, Track
+from fleet.recording.streams import stopped_telemetry
 
 
 def _round(value: float | None, digits: int = 1) -> float | None:
@@ -46,10 +47,24 @@ def _rounded_legs(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     ]
 
 
+def telemetry_problems(timeline: Timeline) -> list[str]:
+    """Each UAV (with telemetry, or in a mission's team) whose telemetry stopped, or
+    never began, while another UAV's went on."""
+    uavs = set(timeline.tracks) | {uav for log in timeline.missions for uav in log.team}
+    last: dict[int, float | None] = {}
+    samples: dict[int, int] = {}
+    for uav in uavs:
+        track = timeline.tracks.get(uav)
+        last[uav] = track.times[-1] if track is not None and track.times else None
+        samples[uav] = len(track.times) if track is not None else 0
+    return stopped_telemetry(last, samples)
+
+
 def report_json(timeline: Timeline) -> dict[str, Any]:
     return {
         "duration_s": round(timeline.end, 3),
         "uavs": sorted(timeline.tracks),
+        "telemetry_problems": telemetry_problems(timeline),
         "undecodable_messages": timeline.undecodable,
         "missions": [mission_json(log, timeline.tracks) for log in timeline.missions],
     }
@@ -62,6 +77,7 @@ def _seconds(value: float | None) -> str:
 def report_lines(timeline: Timeline) -> list[str]:
     uavs = ", ".join(map(str, sorted(timeline.tracks))) or "none"
     lines = [f"recording: {timeline.end:.1f} s; UAVs with telemetry: {uavs}"]
+    lines += [f"warning: {problem}" for problem in telemetry_problems(timeline)]
     if not timeline.missions:
         lines.append("no mission in this recording")
     for log in timeline.missions:

@@ -79,7 +79,9 @@ class BusSigning:
         self.roster = roster
         self._clock = clock
         self._lock = threading.Lock()
-        self._freshness = Freshness(window_ns)
+        # A live command signed before this process started is refused (a replay across
+        # its restart: the marks are in memory).
+        self._freshness = Freshness(window_ns, floor_ns=clock())
         #: The envelopes of the latest signed messages per key (by payload), as put by us
         #: or received: a reply with one of those payloads passes its envelope on, so a
         #: message keeps its author's signature and first time.

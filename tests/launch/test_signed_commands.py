@@ -336,3 +336,37 @@ def test_a_uav_that_missed_the_mission_believes_it_relayed_by_its_teammate(
         frozen.process.send_signal(signal.SIGCONT)
     wait_until(lambda: mission_of(secure.state(112)) == mission, 60.0, "112 caught up")
     assert {reason: secure.refused(112, reason) for reason in refusals} == before
+
+
+# ---- a replay across a restart (last: it restarts 112's onboard) ---------------------------------
+def test_a_restarted_onboard_refuses_the_grounds_command_from_before_its_restart(
+    signed_fleet: SignedFleet,
+) -> None:
+    """The ground's genuine "OPM off", then "OPM on"; 112's onboard restarts; a captured
+    router replays the "off", seconds old (within the 30 s window): the new process,
+    whose replay marks are in memory, refuses it as signed before it started."""
+    secure = signed_fleet
+    with captured_router(secure) as rogue:
+        recorder = Recorder(rogue)
+        wait_until(lambda: secure.state(112) is not None, 10.0)
+        for setting in ("off", "on"):
+            switched = secure.ground_cli("opm", "112", setting)
+            assert switched.returncode == 0, switched.stderr
+        off = encode(OpmCommand(enabled=False))
+        off_signature = recorder.find(SPACE.opm(112), off)
+        assert off_signature, "the captured router saw the ground's signed OPM off"
+        old = secure.fleet.onboard_child(112)
+        old.kill()
+        secure.fleet.restart(old)
+        wait_until(lambda: secure.state(112) is not None, 60.0, "112's onboard back")
+
+        def replayed() -> bool:
+            # Put until handled: 112's new subscription reaches the router in time.
+            rogue.put(SPACE.opm(112), off, encoding=ENCODING, attachment=off_signature)
+            state = secure.state(112)
+            return secure.refused(112, "replayed") > 0 or (state is not None and not state.enabled)
+
+        wait_until(replayed, 30.0, "112 handling the replayed OPM off")
+        recorder.subscriber.undeclare()
+    state = secure.state(112)
+    assert state is not None and state.enabled, "the restarted 112 obeyed the old OPM off"

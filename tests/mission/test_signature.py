@@ -135,6 +135,21 @@ def test_a_live_message_must_be_fresh_and_new_on_its_key() -> None:
     assert fresh.check(SPACE.opm(74), envelope_at(NOW - 2 * S), Delivery.PUT, NOW) is None
 
 
+def test_a_command_signed_before_the_process_started_is_a_replay_after_a_restart() -> None:
+    """The marks are in memory: a process started at NOW refuses the ground's "OPM off"
+    signed 14 s before (a replay across its restart), and takes the ones signed since.
+    What is not a command (a teammate's result) and a caught-up reply are not judged so."""
+    fresh = Freshness(window_ns=30 * S, floor_ns=NOW)
+    later = NOW + 1 * S
+    opm = SPACE.opm(112)
+    assert fresh.check(opm, envelope_at(NOW - 14 * S), Delivery.PUT, later) is Refusal.REPLAYED
+    assert fresh.check(opm, envelope_at(NOW + S // 2), Delivery.PUT, later) is None
+    result = SPACE.mission_result(5, 74)
+    assert fresh.check(result, envelope_at(NOW - 14 * S, "uav-74"), Delivery.PUT, later) is None
+    targets = SPACE.mission_targets(5)
+    assert fresh.check(targets, envelope_at(NOW - 14 * S), Delivery.REPLY, later) is None
+
+
 def test_a_caught_up_message_may_be_old_but_an_abort_not_older_than_its_mission() -> None:
     fresh = Freshness(window_ns=30 * S)
     hour = 3600 * S
