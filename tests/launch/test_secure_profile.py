@@ -318,13 +318,15 @@ def test_the_grounds_abort_and_opm_commands_go_through(secure_fleet: SecureFleet
         assert switched.returncode == 0, switched.stderr
 
 
+@pytest.mark.e2e
 def test_the_uavs_state_reaches_the_routers_session_without_zenoh_errors(
     secure_fleet: SecureFleet,
 ) -> None:
     """Each UAV puts its state once a second; `fleet up`'s router hears it (its recorder
-    subscribes there). Its ready-wait's subscriptions, once undeclared, made Zenoh drop
-    each of these puts on the router's session with "Received Data for unknown key_expr"
-    (twice a second for a whole secure run): none now, after a dozen states were put."""
+    subscribes there). When `fleet up` undeclared the subscriptions it waited for the
+    fleet with on the router's session, Zenoh dropped each of these puts there with
+    "Received Data for unknown key_expr" (twice a second for a whole secure run): none
+    now, after a dozen states were put."""
     puts: list[str] = []
     lock = threading.Lock()
 
