@@ -33,7 +33,6 @@ from fleet.mission.messages import (
     UavResult,
 )
 from fleet.recording.mission_log import build_timeline
-from fleet.recording.plot import PlotError, render
 from fleet.recording.reader import RecordingError, read_recording
 from fleet.sim.scenario import ScenarioError, resolve_scenario
 from fleet.transport.bus_factory import opened_bus
@@ -184,6 +183,8 @@ def _plot(recording: Path | None, out: Path, say: Callable[[str], None]) -> str 
     """Draw the recorded mission into `out`; its path, or None (and why) if it could not."""
     if recording is None:
         return None
+    from fleet.recording.plot import PlotError, render  # matplotlib only once it draws
+
     try:
         render(build_timeline(read_recording(recording).messages), out)
     except (RecordingError, PlotError, OSError) as error:

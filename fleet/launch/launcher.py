@@ -55,6 +55,7 @@ from fleet.launch.endpoints import (
     parse_sim_line,
 )
 from fleet.launch.fork_client import ForkServer, ForkServerError
+from fleet.launch.holders import port_holders, uav_holders
 from fleet.launch.topology import Topology, fallbacks, ring_links
 from fleet.mission.access import ROUTER, uav_router_identity
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace, uav_id_of
@@ -185,6 +186,7 @@ class Fleet:
     # ---- starting -------------------------------------------------------------------
     def start(self) -> None:
         deadline = time.monotonic() + self.spec.start_timeout_s
+        self._refuse_held_port()
         try:
             self.secure = self._secure_profile()
             if self.spec.topology is Topology.STAR:
@@ -202,6 +204,7 @@ class Fleet:
             # Its own process, so it can die (or be killed) without the launcher.
             self._start_router("router-ground", self.spec.listen, [], deadline)
         self._start_sim(deadline)
+        self._refuse_held_uavs()
         self._report(f"simulator up with {len(self.endpoints)} aircraft; starting their onboards")
         if self.spec.topology is Topology.ROUTER_PER_UAV:
             self._start_uav_routers(deadline)
@@ -216,6 +219,27 @@ class Fleet:
             self._start_onboard(endpoints)
         self._write_pids()
         self._wait_ready(deadline)
+
+    def _refuse_held_port(self) -> None:
+        """LaunchError naming the processes that listen on the router's port."""
+        port = host_port(self.connect)[1]
+        holders = port_holders(port)
+        if holders:
+            raise LaunchError(
+                f"port {port} of {self.spec.listen} is held by "
+                f"{'; '.join(map(str, holders))}: stop it, or give another --listen"
+            )
+
+    def _refuse_held_uavs(self) -> None:
+        """LaunchError naming the onboards of other fleets that would join this one with
+        its Piccolo IDs (they connect to its router's port)."""
+        port = host_port(self.connect)[1]
+        holders = uav_holders(port, self.uav_ids)
+        if holders:
+            raise LaunchError(
+                f"UAV {', '.join(map(str, self.uav_ids))}: onboard modules of another fleet "
+                f"would join this one on port {port}: {'; '.join(map(str, holders))}; stop them"
+            )
 
     def _start_router(
         self, name: str, listen: str, connect: list[str], deadline: float, identity: str = ROUTER

@@ -20,7 +20,6 @@ import zenoh
 
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.recording.mission_log import build_timeline
-from fleet.recording.plot import PlotError, parse_at, render
 from fleet.recording.reader import Recording, RecordingError, read_recording, recover
 from fleet.recording.recorder import (
     DEFAULT_FIX_EVERY_S,
@@ -58,6 +57,13 @@ log = logging.getLogger(__name__)
 
 #: A replay's own key space (never $FLEET_KEY_PREFIX, so it is not taken for the fleet).
 REPLAY_SPACE = KeySpace(DEFAULT_REPLAY_PREFIX)
+
+
+def _parse_at(text: str) -> list[Any]:
+    # matplotlib (half a second of CPU) only for the command that draws.
+    from fleet.recording.plot import parse_at
+
+    return parse_at(text)
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -141,7 +147,7 @@ def _plot_parser(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, required=True, metavar="PNG")
     parser.add_argument(
         "--at",
-        type=parse_at,
+        type=_parse_at,
         default=[],
         metavar="EVENTS",
         help="panels: events (sent,committed,course change,reached,resumed) or seconds, "
@@ -313,6 +319,8 @@ def run_plot(args: PlotOptions, out: TextIO) -> int:
     recording = _read(args.file, "plot")
     if recording is None:
         return ExitCode.FAILED
+    from fleet.recording.plot import PlotError, render  # matplotlib only to draw
+
     try:
         drawn = render(
             build_timeline(recording.messages), args.out, mission=args.mission, at=args.at

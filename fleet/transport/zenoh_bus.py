@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import logging
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -32,6 +33,7 @@ import zenoh
 
 from fleet.errors import CertError, FleetError, RosterError
 from fleet.mission.delivery import Delivery
+from fleet.mission.key_space import space_of
 from fleet.transport import bus_codec, bus_qos
 from fleet.transport.bus import (
     Bus,
@@ -176,6 +178,30 @@ class ZenohBus(Bus):
         self.signing = signing
         #: Declared publishers of the keys put at a steady rate (telemetry), by key.
         self._publishers: dict[str, zenoh.Publisher] = {}
+        #: The roster subscriptions, one per key prefix this bus has used (secure only).
+        self._rosters: dict[str, zenoh.Subscriber[None]] = {}
+        self._rosters_lock = threading.Lock()
+
+    def _watch_roster(self, key_expr: str) -> None:
+        """In the secure profile, hear the roster on the prefix of `key_expr` (once per
+        prefix, from the first key this bus uses there): a revocation put to the running
+        fleet (`fleet certs revoke`) is applied at once, no restart needed."""
+        signing = self.signing
+        space = space_of(key_expr) if signing is not None else None
+        if signing is None or space is None:
+            return
+        with self._rosters_lock:
+            if space.prefix in self._rosters:
+                return
+
+            def on_roster(sample: zenoh.Sample) -> None:
+                received = self._received(sample, Delivery.PUT)
+                if received is not None:
+                    signing.apply_roster(received.key, received.payload)
+
+            self._rosters[space.prefix] = self.session.declare_subscriber(
+                space.roster(), direct(on_roster)
+            )
 
     @classmethod
     def open(cls, config: zenoh.Config) -> ZenohBus:
@@ -227,6 +253,7 @@ class ZenohBus(Bus):
         self, key_expr: str, callback: SampleCallback, *, details: bool = False
     ) -> Declaration:
         convert = _sample if details else _plain
+        self._watch_roster(key_expr)
 
         def on_sample(sample: zenoh.Sample) -> None:
             received = self._received(sample, Delivery.PUT, convert)
@@ -239,6 +266,8 @@ class ZenohBus(Bus):
     def get(
         self, selector: str, callback: SampleCallback, timeout: float, payload: bytes = b""
     ) -> None:
+        self._watch_roster(selector)
+
         def on_reply(reply: zenoh.Reply) -> None:
             if reply.ok is not None:
                 received = self._received(reply.ok, Delivery.REPLY)
@@ -273,6 +302,7 @@ class ZenohBus(Bus):
             if every_reply
             else {}
         )
+        self._watch_roster(selector)
         options.update(self._query_options(selector, payload))
         replies = self.session.get(selector, timeout=timeout, **options)
         if self.signing is None:
@@ -290,6 +320,7 @@ class ZenohBus(Bus):
         return answers
 
     def declare_queryable(self, key_expr: str, notify: QueryNotify | None = None) -> Queryable:
+        self._watch_roster(key_expr)
         return ZenohQueryable(self.session, key_expr, notify, self.signing)
 
     def declare_token(self, key: str) -> Declaration:
@@ -301,6 +332,8 @@ class ZenohBus(Bus):
         return [str(reply.ok.key_expr) for reply in replies if reply.ok is not None]
 
     def subscribe_presence(self, key_expr: str, callback: PresenceCallback) -> Declaration:
+        self._watch_roster(key_expr)
+
         def on_token(sample: zenoh.Sample) -> None:
             callback(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
 

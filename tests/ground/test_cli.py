@@ -1,20 +1,21 @@
-"""`ground-cli` end to end: the real CLI in a subprocess, a real Zenoh router on loopback,
-and `FakeOnboard` (tests/support/fake_onboard.py), a test double of the onboard process,
-in the test process.
+"""`ground-cli` from its root to the bus: the real program (`ground.cli.main`, its
+parser, its commands) run in the test's process on the in-process bus, with two
+`FakeOnboard`s (tests/support/fake_onboard.py), test doubles of the onboard process.
+What needs a real router (its admin space) is in test_cli_keys.py.
 """
 
 from __future__ import annotations
 
+import io
 import itertools
 import json
-import os
 import struct
 import subprocess
-import sys
+import threading
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-import zenoh
 
 from fleet.consensus.assignment import greedy_assign
 from fleet.files.targets_io import write_targets
@@ -30,10 +31,12 @@ from fleet.mission.messages import (
 )
 from fleet.mission.phase import Phase
 from fleet.mission.status_kind import StatusKind
-from fleet.transport import bus_codec
-from fleet.transport.zenoh_config import CONNECT_ENV, make_config
+from fleet.transport.bus_factory import opened_bus
+from fleet.transport.zenoh_config import CONFIG_ENV, CONNECT_ENV
+from ground.fleet_commands import WatchOptions, run_watch
 from ground.mission_outcome import MissionOutcome, check_agreement
-from tests.support.fake_onboard import FakeOnboard, approach_time
+from tests.support.fake_onboard import FakeOnboard, approach_time, fake_pair, memory_bus
+from tests.support.ground_cli import ground_cli_here
 from tests.support.processes import free_endpoint
 from tests.support.waiting import wait_until
 
@@ -51,30 +54,25 @@ TARGETS = (
 MARKER_MISSIONS = itertools.count(0xFFFF_0000)
 
 
-def run_cli(
-    *args: str, endpoint: str | None, env_connect: str | None = None
-) -> subprocess.CompletedProcess[str]:
-    """`ground-cli ARGS` with `--connect endpoint` (None: none), and $FLEET_ZENOH_CONNECT
-    set to `env_connect` (None: unset)."""
-    env = {k: v for k, v in os.environ.items() if k != CONNECT_ENV}
-    if env_connect is not None:
-        env[CONNECT_ENV] = env_connect
-    command = [sys.executable, "-m", "ground.cli"]
-    if endpoint is not None:
-        command += ["--connect", endpoint]
-    return subprocess.run(
-        [*command, *args],
-        cwd=REPO,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=CLI_TIMEOUT_S,
-        check=False,
-    )
+def run_cli(*args: str, endpoint: str | None) -> subprocess.CompletedProcess[str]:
+    """`ground-cli ARGS` with `--connect endpoint` (None: none), in this process."""
+    return ground_cli_here(*args, connect=endpoint)
+
+
+@pytest.fixture(scope="module")
+def router() -> Iterator[str]:
+    """The fleet's bus: an in-process one (`memory:NAME`), as `--connect` takes it."""
+    with memory_bus(__name__) as spec:
+        yield spec
+
+
+@pytest.fixture(scope="module")
+def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
+    with fake_pair(router) as pair:
+        yield pair
 
 
 # ---- against a router with two fake UAVs --------------------------------------------------------
-@pytest.mark.e2e
 def test_uavs_json_lists_the_live_uavs(router: str, fakes: dict[int, FakeOnboard]) -> None:
     done = run_cli("uavs", "--json", endpoint=router)
     assert done.returncode == 0, done.stderr
@@ -90,7 +88,6 @@ def test_uavs_json_lists_the_live_uavs(router: str, fakes: dict[int, FakeOnboard
         assert rows[uav]["enabled"] is True
 
 
-@pytest.mark.e2e
 def test_uavs_table(router: str, fakes: dict[int, FakeOnboard]) -> None:
     done = run_cli("uavs", endpoint=router)
     assert done.returncode == 0, done.stderr
@@ -99,7 +96,6 @@ def test_uavs_table(router: str, fakes: dict[int, FakeOnboard]) -> None:
     assert [line.split()[0] for line in lines[1:]] == ["74", "112"]
 
 
-@pytest.mark.e2e
 def test_send_targets_wait_json(router: str, fakes: dict[int, FakeOnboard], tmp_path: Path) -> None:
     path = tmp_path / "targets.bin"
     write_targets(path, TARGETS)
@@ -144,7 +140,6 @@ def test_send_targets_wait_json(router: str, fakes: dict[int, FakeOnboard], tmp_
     assert wait_until(lambda: any(t.mission == mission + 1 for t in fakes[74].targets))
 
 
-@pytest.mark.e2e
 def test_send_targets_names_who_disagreed(
     router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
 ) -> None:
@@ -175,7 +170,6 @@ def test_send_targets_names_who_disagreed(
         (struct.pack("<6d", 35.7, -120.7, 600.0, 35.7, -120.7, -1e9), "altitude -1000000000.0"),
     ],
 )
-@pytest.mark.e2e
 def test_bad_targets_file_is_refused_and_nothing_sent(
     router: str, fakes: dict[int, FakeOnboard], tmp_path: Path, data: bytes, where: str
 ) -> None:
@@ -198,41 +192,14 @@ def assert_nothing_sent_since(
     # before it exited (its session's close flushes): once every fake has the marker,
     # a put from the command would have been seen.
     marker = MissionTargets(mission=next(MARKER_MISSIONS), team=(1,), targets=())
-    with zenoh.open(make_config("client", [router])) as session:
-        session.put(
-            SPACE.mission_targets(marker.mission),
-            bus_codec.encode(marker),
-            encoding=bus_codec.ENCODING,
-        )
+    with opened_bus(router) as bus:
+        bus.publish(SPACE.mission_targets(marker.mission), marker)
         assert wait_until(lambda: all(marker in fake.targets for fake in fakes.values()))
     assert {uav: len(fake.targets) for uav, fake in fakes.items()} == {
         uav: count + 1 for uav, count in before.items()
     }
 
 
-@pytest.mark.e2e
-def test_keys_shows_telemetry_state_and_token(router: str, fakes: dict[int, FakeOnboard]) -> None:
-    done = run_cli(
-        "keys", "fleet/uav/74/**", "--json", "--window", "0.5", "--admin", endpoint=router
-    )
-    assert done.returncode == 0, done.stderr
-    found = {item["key"]: item for item in json.loads(done.stdout)}
-    telemetry = found["fleet/uav/74/telemetry"]
-    assert telemetry["via"] == "subscription"
-    assert telemetry["encoding"].startswith("application/json")
-    assert telemetry["value"]["gps"]["lat"] == pytest.approx(fakes[74].lat)
-    assert found["fleet/uav/74/state"]["value"]["uav"] == 74
-    assert found["fleet/uav/74/alive"]["via"] == "liveliness"
-    assert not any(key.startswith("fleet/uav/112") for key in found)
-    admin = [key for key in found if key.startswith("@/")]
-    assert any("/router" in key for key in admin), admin
-
-    text = run_cli("keys", "--window", "0.3", endpoint=router)
-    assert text.returncode == 0, text.stderr
-    assert any(line.startswith("fleet/uav/112/telemetry = {") for line in text.stdout.splitlines())
-
-
-@pytest.mark.e2e
 def test_opm_arrives_with_its_payload(router: str, fakes: dict[int, FakeOnboard]) -> None:
     done = run_cli("opm", "74", "off", "--status-rate", "2.5", endpoint=router)
     assert done.returncode == 0, done.stderr
@@ -262,7 +229,6 @@ def send_mission(router: str, fakes: dict[int, FakeOnboard], tmp_path: Path) -> 
     return mission
 
 
-@pytest.mark.e2e
 def test_uavs_json_gives_each_uav_its_mission_target_phase_and_link_age(
     router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
 ) -> None:
@@ -281,7 +247,6 @@ def test_uavs_json_gives_each_uav_its_mission_target_phase_and_link_age(
         assert "link_age_s" in row and row["link_age_s"] is None
 
 
-@pytest.mark.e2e
 def test_abort_arrives_for_the_current_or_named_mission(
     router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
 ) -> None:
@@ -305,7 +270,6 @@ def test_abort_arrives_for_the_current_or_named_mission(
     assert MissionAbort(4242) not in fakes[112].aborts
 
 
-@pytest.mark.e2e
 def test_abort_of_one_uav_leaves_its_teammate_on_the_mission(
     router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
 ) -> None:
@@ -318,7 +282,6 @@ def test_abort_of_one_uav_leaves_its_teammate_on_the_mission(
     assert MissionAbort(mission, uav=74) in fakes[112].aborts  # seen, and not obeyed
 
 
-@pytest.mark.e2e
 def test_watch_shows_the_table_and_status_messages(
     router: str, fakes: dict[int, FakeOnboard]
 ) -> None:
@@ -331,31 +294,24 @@ def test_watch_shows_the_table_and_status_messages(
     assert any("UAV 74: fake 74 tick" in line for line in lines), done.stdout
 
 
-@pytest.mark.e2e
 def test_watch_keeps_a_warning_in_view_while_info_streams_past(
     router: str, fakes: dict[int, FakeOnboard]
 ) -> None:
-    command = [sys.executable, "-m", "ground.cli", "--connect", router]
-    watch = subprocess.Popen(
-        [*command, "watch", "--count", "6", "--interval", "0.3"],
-        cwd=REPO,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
-    try:
-        assert watch.stdout is not None
-        first = watch.stdout.readline()  # the first frame: watch is subscribed
-        assert first.startswith("-- "), first
-        # The severity the message carries counts, not its wording.
-        fakes[112].put(SPACE.status(112), StatusText("GPS fix degraded", StatusKind.WARNING))
-        out, err = watch.communicate(timeout=CLI_TIMEOUT_S)
-    finally:
-        if watch.poll() is None:
-            watch.kill()
-            watch.communicate()
-    assert watch.returncode == 0, err
+    frames = _Frames()
+    done: list[int] = []
+    with opened_bus(router) as bus:
+        options = WatchOptions(count=6, interval=0.3)
+        watch = threading.Thread(target=lambda: done.append(run_watch(bus, options, frames)))
+        watch.start()
+        try:
+            # The first frame: watch is subscribed.
+            assert frames.first.wait(CLI_TIMEOUT_S), frames.getvalue()
+            # The severity the message carries counts, not its wording.
+            fakes[112].put(SPACE.status(112), StatusText("GPS fix degraded", StatusKind.WARNING))
+        finally:
+            watch.join(CLI_TIMEOUT_S)
+    out = frames.getvalue()
+    assert done == [0], out
     lines = out.splitlines()
     # Appended as it arrived, severity first...
     assert any(
@@ -368,8 +324,21 @@ def test_watch_keeps_a_warning_in_view_while_info_streams_past(
     assert "UAV 112: GPS fix degraded" in last_frame
 
 
+class _Frames(io.StringIO):
+    """What `watch` writes; `first` is set once a frame began."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.first = threading.Event()
+
+    def write(self, text: str) -> int:
+        written = super().write(text)
+        if text.startswith("-- "):
+            self.first.set()
+        return written
+
+
 # ---- without a router ---------------------------------------------------------------------
-@pytest.mark.e2e
 def test_no_router_is_a_clear_error_not_a_hang() -> None:
     endpoint = free_endpoint()
     for command in (["uavs"], ["keys"], ["abort", "--mission", "1"]):
@@ -379,10 +348,11 @@ def test_no_router_is_a_clear_error_not_a_hang() -> None:
         assert "Traceback" not in done.stderr
 
 
-@pytest.mark.e2e
-def test_connect_comes_from_the_environment() -> None:
+def test_connect_comes_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
     endpoint = free_endpoint()
-    done = run_cli("uavs", endpoint=None, env_connect=endpoint)
+    monkeypatch.delenv(CONFIG_ENV, raising=False)
+    monkeypatch.setenv(CONNECT_ENV, endpoint)
+    done = run_cli("uavs", endpoint=None)
     assert done.returncode == 2
     assert endpoint in done.stderr
 

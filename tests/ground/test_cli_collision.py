@@ -1,11 +1,12 @@
 """`ground-cli send-targets` verifies the acknowledgement by content: a UAV that holds
 another mission under the id sent (and ignores the new one, as an onboard does with an
 id not above its own) is a collision, reported with a non-zero exit code, not
-"delivered". Against a real router with fake UAVs (tests/support/fake_onboard.py)."""
+"delivered". On the in-process bus with fake UAVs (tests/support/fake_onboard.py)."""
 
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -14,10 +15,22 @@ from fleet.consensus.targets_digest import targets_digest
 from fleet.files.targets_io import write_targets
 from fleet.mission.messages import Target
 from tests.ground.test_cli import TARGETS, run_cli
-from tests.support.fake_onboard import FakeOnboard
+from tests.support.fake_onboard import FakeOnboard, fake_pair, memory_bus
 from tests.support.waiting import wait_until
 
-pytestmark = pytest.mark.e2e
+
+@pytest.fixture(scope="module")
+def router() -> Iterator[str]:
+    """The fleet's bus: an in-process one (`memory:NAME`), as `--connect` takes it."""
+    with memory_bus(__name__) as spec:
+        yield spec
+
+
+@pytest.fixture(scope="module")
+def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
+    with fake_pair(router) as pair:
+        yield pair
+
 
 OTHER = (Target(42.3620, -71.0920, 125.0),)
 

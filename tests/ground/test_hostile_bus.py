@@ -14,20 +14,32 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import zenoh
 
 from fleet.files.targets_io import write_targets
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionProgress, UavResult, UavState
 from fleet.mission.phase import Phase
+from fleet.transport.bus import Queryable
 from fleet.transport.bus_codec import MAX_PAYLOAD_BYTES, encode
-from fleet.transport.zenoh_config import make_config
+from fleet.transport.bus_factory import open_bus
 from tests.ground.test_cli import TARGETS, run_cli
-from tests.support.fake_onboard import FakeOnboard
+from tests.support.fake_onboard import FakeOnboard, fake_pair, memory_bus
 
 SPACE = KeySpace()
 
-pytestmark = pytest.mark.e2e
+
+@pytest.fixture(scope="module")
+def router() -> Iterator[str]:
+    """The fleet's bus, the rogue's too: an in-process one (`memory:NAME`)."""
+    with memory_bus(__name__) as spec:
+        yield spec
+
+
+@pytest.fixture(scope="module")
+def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
+    with fake_pair(router) as pair:
+        yield pair
+
 
 DEPTH = 50_000  #: 300 kB: under the size limit, far over any nesting limit
 PAYLOADS = {
@@ -45,44 +57,51 @@ PAYLOADS = {
 class Rogue:
     """A client that answers and publishes `payload` wherever the ground looks."""
 
-    def __init__(self, endpoint: str, payload: bytes) -> None:
+    def __init__(self, where: str, payload: bytes) -> None:
         self.payload = payload
-        self.session = zenoh.open(make_config("client", [endpoint]))
+        self.bus = open_bus(where)
         self.stop = threading.Event()
+        self.queryables: list[Queryable] = []
+        self.queryables = [
+            self.bus.declare_queryable(SPACE.state(999), self._answer),
+            self.bus.declare_queryable("fleet/mission/**", self._answer),
+        ]
         self.declared: list[Any] = [
-            self.session.declare_queryable(SPACE.state(999), self._answer),
-            self.session.declare_queryable("fleet/mission/**", self._answer),
-            self.session.liveliness().declare_token(SPACE.alive(999)),
-            self.session.liveliness().declare_token("fleet/uav/abc/alive"),
+            *self.queryables,
+            self.bus.declare_token(SPACE.alive(999)),
+            self.bus.declare_token("fleet/uav/abc/alive"),
         ]
         self.thread = threading.Thread(target=self._publish, daemon=True)
         self.thread.start()
 
-    def _answer(self, query: zenoh.Query) -> None:
+    def _answer(self) -> None:
         answers = (
             SPACE.state(999),
             "fleet/uav/abc/state",
             SPACE.mission_result(7, 74),
             SPACE.mission_targets(2**32 - 1),  # would make the next mission id 2^32
         )
-        for key in answers:
-            if query.key_expr.intersects(zenoh.KeyExpr(key)):
-                query.reply(key, self.payload)
+        for queryable in self.queryables:
+            while (query := queryable.try_recv()) is not None:
+                for key in answers:
+                    if query.intersects(key):
+                        query.reply_bytes(key, self.payload)
+                query.drop()
 
     def _publish(self) -> None:
         forged = encode(UavResult(7, 112, (1.0, 1.0, 1.0)))
         while not self.stop.wait(0.2):
             for leaf in ("telemetry", "track", "waypoint/3", "status"):
-                self.session.put(SPACE.uav(999, leaf), self.payload)
-            self.session.put(SPACE.mission_result(7, 74), forged)
-            self.session.put(SPACE.mission_assignment(7, 999), self.payload)
+                self.bus.put(SPACE.uav(999, leaf), self.payload)
+            self.bus.put(SPACE.mission_result(7, 74), forged)
+            self.bus.put(SPACE.mission_assignment(7, 999), self.payload)
 
     def close(self) -> None:
         self.stop.set()
         self.thread.join()
         for declared in self.declared:
             declared.undeclare()
-        self.session.close()
+        self.bus.close()
 
 
 @pytest.fixture(params=sorted(PAYLOADS))

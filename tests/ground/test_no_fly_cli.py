@@ -1,19 +1,32 @@
-"""`ground-cli send-targets --no-fly` end to end: the real CLI in a subprocess, a real
-Zenoh router on loopback, two `FakeOnboard`s (tests/support/fake_onboard.py)."""
+"""`ground-cli send-targets --no-fly` from its root: the real program in the test's
+process on the in-process bus, two `FakeOnboard`s (tests/support/fake_onboard.py)."""
 
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from fleet.files.targets_io import write_targets
 from tests.ground.test_cli import TARGETS, assert_nothing_sent_since, run_cli
-from tests.support.fake_onboard import FakeOnboard
+from tests.support.fake_onboard import FakeOnboard, fake_pair, memory_bus
 from tests.support.waiting import wait_until
 
-pytestmark = pytest.mark.e2e
+
+@pytest.fixture(scope="module")
+def router() -> Iterator[str]:
+    """The fleet's bus: an in-process one (`memory:NAME`), as `--connect` takes it."""
+    with memory_bus(__name__) as spec:
+        yield spec
+
+
+@pytest.fixture(scope="module")
+def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
+    with fake_pair(router) as pair:
+        yield pair
+
 
 #: A square between the two targets TARGETS[0] and TARGETS[2] (none of them inside).
 ZONE = [[-71.094, 42.356], [-71.086, 42.356], [-71.086, 42.359], [-71.094, 42.359]]

@@ -1,10 +1,11 @@
 """`ground-cli send-targets` refuses target sets nobody should fly, naming the targets
 and why, and sends nothing (so does a team naming a UAV that is not live); `--force`
-sends them all the same. Against a router with two fake UAVs near Boston (their
+sends them all the same. On the in-process bus with two fake UAVs near Boston (their
 positions come from their state)."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -12,9 +13,20 @@ import pytest
 from fleet.files.targets_io import write_targets
 from fleet.mission.messages import Target
 from tests.ground.test_cli import TARGETS, run_cli
-from tests.support.fake_onboard import FakeOnboard
+from tests.support.fake_onboard import FakeOnboard, fake_pair, memory_bus
 
-pytestmark = pytest.mark.e2e
+
+@pytest.fixture(scope="module")
+def router() -> Iterator[str]:
+    """The fleet's bus: an in-process one (`memory:NAME`), as `--connect` takes it."""
+    with memory_bus(__name__) as spec:
+        yield spec
+
+
+@pytest.fixture(scope="module")
+def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
+    with fake_pair(router) as pair:
+        yield pair
 
 
 @pytest.mark.parametrize(

@@ -279,44 +279,7 @@ def test_two_send_targets_at_once_get_different_ids_and_the_superseded_one_says_
     assert sorted(reports[winner]["taking_part"]) == team
 
 
-@pytest.mark.parametrize("apart_s", [0.05, 0.5])
-def test_two_grounds_racing_an_unheld_team_exactly_one_reports_success(
-    fleet: Fleet, ground: Ground, tmp_path: Path, apart_s: float
-) -> None:
-    """Unlike the test above the team is not held: it commits to the first mission in
-    tens of milliseconds, before the second ground has chosen its id (which is then
-    higher, no collision), and then switches to the second. Before the fix both grounds
-    exited 0 with success and no superseded_by (the first one only watched for a later
-    mission when its id had been contested)."""
-    team = start_ring(fleet, ground, tmp_path, 2)
-    options = ("--wait", "--json", "--deadline", "10", "--timeout", "60")
-    files = [tmp_path / "first.bin", tmp_path / "second.bin"]
-    for path, seed in zip(files, (11, 12), strict=True):
-        write_targets(path, ring_targets(2, seed=seed))
-    sends = [ground_cli(ground.router, "send-targets", str(files[0]), *options)]
-    time.sleep(apart_s)  # the fault: a second operator, a moment later
-    sends.append(ground_cli(ground.router, "send-targets", str(files[1]), *options))
-    finished = [finish(send, 120) for send in sends]
-    errs = "\n".join(err for _, _, err in finished)
-    reports = [json.loads(out) for _, out, _ in finished]
-    missions = [report["mission"] for report in reports]
-    assert missions[0] != missions[1], errs
-    later = max(missions)
-    # The team flies the later mission: each UAV's latest commitment is to it.
-    seen = ground.seen
-    wait_until(
-        lambda: all(
-            (report := seen.assignments.get(uav)) is not None and report.mission == later
-            for uav in team
-        ),
-        10.0,
-        f"every UAV committed to mission {later}",
-    )
-    winner, loser = sorted(range(2), key=lambda i: reports[i]["mission"] != later)
-    assert (reports[winner]["success"], reports[winner]["superseded_by"]) == (True, None), errs
-    assert finished[winner][0] == 0, errs
-    assert (reports[loser]["success"], reports[loser]["superseded_by"]) == (False, later), errs
-    assert finished[loser][0] == 1, errs
+# Two grounds racing an unheld team: tests/ground/test_send_race.py, in memory.
 
 
 def test_an_abort_queued_while_a_uav_holding_its_result_is_frozen_is_final(

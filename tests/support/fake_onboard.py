@@ -1,16 +1,19 @@
-"""Test doubles of the onboard process, as the ground and the launcher see it over Zenoh.
+"""Test doubles of the onboard process, as the ground and the launcher see it on the bus.
 
-`FakeOnboard` runs in the test's process (the ground's tests and bench_ground_scale);
-`FAKE_ONBOARD` is a script the launcher runs in place of `onboard.main` (`python -c`).
+`FakeOnboard` runs in the test's process (the ground's tests and bench_ground_scale), on
+any bus: a Zenoh router's endpoint, or `memory:NAME` for the in-process bus the fast
+tier's ground tests use (`open_bus`). `FAKE_ONBOARD` is a script the launcher runs in
+place of `onboard.main` (`python -c`).
 """
 
 from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import msgspec
-import zenoh
 
 from fleet.consensus.assignment import greedy_assign, results_digest
 from fleet.consensus.targets_digest import targets_digest
@@ -28,7 +31,8 @@ from fleet.mission.messages import (
 from fleet.mission.phase import Phase
 from fleet.piccolo.telemetry import GpsBlock, SensorBlock, Telemetry
 from fleet.transport import bus_codec
-from fleet.transport.zenoh_config import make_config
+from fleet.transport.bus import Bus, BusSample, Queryable
+from fleet.transport.bus_factory import MEMORY_SCHEME, forget_memory_network, open_bus
 
 SPACE = KeySpace()
 
@@ -40,7 +44,8 @@ import argparse, signal, threading, zenoh
 from fleet.transport.cli import add_key_prefix_argument
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from fleet.transport import bus_codec
-from fleet.transport.zenoh_config import make_config
+from fleet.transport.bus import Bus, BusSample, Queryable
+from fleet.transport.bus_factory import MEMORY_SCHEME, forget_memory_network, open_bus
 parser = argparse.ArgumentParser()
 parser.add_argument("--id", type=int, required=True)
 parser.add_argument("--connect", required=True)
@@ -64,9 +69,9 @@ def approach_time(uav: int, target: int) -> float:
 
 
 class FakeOnboard:
-    """Test double of the `onboard` process, as seen from Zenoh."""
+    """Test double of the `onboard` process, as seen on the bus."""
 
-    def __init__(self, endpoint: str, uav_id: int, lat: float, lon: float, alt: float) -> None:
+    def __init__(self, where: str | Bus, uav_id: int, lat: float, lon: float, alt: float) -> None:
         self.uav_id = uav_id
         self.lat, self.lon, self.alt = lat, lon, alt
         self.targets: list[MissionTargets] = []
@@ -81,28 +86,33 @@ class FakeOnboard:
         self._served: dict[str, bytes] = {}
         self._lock = threading.Lock()
         self._stop = threading.Event()
-        self.session = zenoh.open(make_config("client", [endpoint]))
+        #: Its own bus (an endpoint or memory:NAME opened here), or the one it was given.
+        self.bus = open_bus(where) if isinstance(where, str) else where
         try:
+            self._state: Queryable = self.bus.declare_queryable(
+                SPACE.state(uav_id), self._on_state_query
+            )
+            self._missions: Queryable = self.bus.declare_queryable(
+                f"{SPACE.prefix}/mission/*/**", self._on_mission_query
+            )
             self._declared = [
-                self.session.liveliness().declare_token(SPACE.alive(uav_id)),
-                self.session.declare_queryable(SPACE.state(uav_id), self._on_state_query),
-                self.session.declare_queryable(
-                    f"{SPACE.prefix}/mission/*/**", self._on_mission_query
-                ),
-                self.session.declare_subscriber(SPACE.all_mission_targets, self._on_targets),
-                self.session.declare_subscriber(SPACE.all_mission_aborts, self._on_abort),
-                self.session.declare_subscriber(SPACE.opm(uav_id), self._on_opm),
+                self.bus.declare_token(SPACE.alive(uav_id)),
+                self._state,
+                self._missions,
+                self.bus.subscribe(SPACE.all_mission_targets, self._on_targets),
+                self.bus.subscribe(SPACE.all_mission_aborts, self._on_abort),
+                self.bus.subscribe(SPACE.opm(uav_id), self._on_opm),
             ]
             self._thread = threading.Thread(target=self._publish_loop, daemon=True)
             self._thread.start()
         except BaseException:
-            self.session.close()
+            self.bus.close()
             raise
 
     def close(self) -> None:
         self._stop.set()
         self._thread.join(timeout=5)
-        self.session.close()
+        self.bus.close()
 
     def telemetry(self) -> Telemetry:
         return Telemetry(
@@ -112,7 +122,7 @@ class FakeOnboard:
         )
 
     def put(self, key: str, message: msgspec.Struct) -> None:
-        self.session.put(key, bus_codec.encode(message), encoding=bus_codec.ENCODING)
+        self.bus.put(key, bus_codec.encode(message))
 
     def _publish_loop(self) -> None:
         ticks = 0
@@ -133,20 +143,22 @@ class FakeOnboard:
             mission=self.mission,
         )
 
-    def _on_state_query(self, query: zenoh.Query) -> None:
-        query.reply(
-            SPACE.state(self.uav_id), bus_codec.encode(self.state()), encoding=bus_codec.ENCODING
-        )
+    def _on_state_query(self) -> None:
+        while (query := self._state.try_recv()) is not None:
+            query.reply(SPACE.state(self.uav_id), self.state())
+            query.drop()
 
-    def _on_mission_query(self, query: zenoh.Query) -> None:
-        with self._lock:
-            served = dict(self._served)
-        for key, payload in served.items():
-            if query.key_expr.intersects(key):
-                query.reply(key, payload, encoding=bus_codec.ENCODING)
+    def _on_mission_query(self) -> None:
+        while (query := self._missions.try_recv()) is not None:
+            with self._lock:
+                served = dict(self._served)
+            for key, payload in served.items():
+                if query.intersects(key):
+                    query.reply_bytes(key, payload)
+            query.drop()
 
-    def _on_targets(self, sample: zenoh.Sample) -> None:
-        targets = msgspec.json.decode(sample.payload.to_bytes(), type=MissionTargets)
+    def _on_targets(self, sample: BusSample) -> None:
+        targets = msgspec.json.decode(sample.payload, type=MissionTargets)
         with self._lock:
             self.targets.append(targets)
         if self.uav_id not in targets.team:
@@ -183,16 +195,16 @@ class FakeOnboard:
         if self.publish_assignment:
             self.put(SPACE.mission_assignment(m, self.uav_id), report)
 
-    def _on_abort(self, sample: zenoh.Sample) -> None:
-        abort = msgspec.json.decode(sample.payload.to_bytes(), type=MissionAbort)
+    def _on_abort(self, sample: BusSample) -> None:
+        abort = msgspec.json.decode(sample.payload, type=MissionAbort)
         with self._lock:
             self.aborts.append(abort)
             mine = abort.uav is None or abort.uav == self.uav_id
             if mine and self.mission is not None and self.mission.mission == abort.mission:
                 self.mission = msgspec.structs.replace(self.mission, phase=Phase.ABORTED)
 
-    def _on_opm(self, sample: zenoh.Sample) -> None:
-        command = msgspec.json.decode(sample.payload.to_bytes(), type=OpmCommand)
+    def _on_opm(self, sample: BusSample) -> None:
+        command = msgspec.json.decode(sample.payload, type=OpmCommand)
         with self._lock:
             self.opms.append(command)
         self.enabled = command.enabled
@@ -200,3 +212,25 @@ class FakeOnboard:
             SPACE.status(self.uav_id),
             StatusText(f"module {'on' if command.enabled else 'off'}, status every 1 s"),
         )
+
+
+@contextmanager
+def memory_bus(name: str) -> Iterator[str]:
+    """`memory:NAME`, the spec of an in-process bus, forgotten on exit."""
+    try:
+        yield f"{MEMORY_SCHEME}{name}"
+    finally:
+        forget_memory_network(name)
+
+
+@contextmanager
+def fake_pair(where: str) -> Iterator[dict[int, FakeOnboard]]:
+    """The ground tests' two fake UAVs near Boston, 74 and 112, on the bus `where`."""
+    opened: dict[int, FakeOnboard] = {}
+    try:
+        opened[74] = FakeOnboard(where, 74, 42.3500, -71.1000, 150.0)
+        opened[112] = FakeOnboard(where, 112, 42.3700, -71.0800, 160.0)
+        yield opened
+    finally:
+        for fake in opened.values():
+            fake.close()

@@ -36,6 +36,7 @@ from fleet.transport.cli import (
 )
 from fleet.transport.command import LocalCommand, run_standalone
 from fleet.transport.zenoh_config import CONFIG_ENV, CONNECT_ENV, endpoints
+from tests.support.ground_cli import ground_cli_here
 from tests.support.processes import router_session
 from tests.support.waiting import wait_until
 
@@ -202,27 +203,40 @@ def test_a_malformed_endpoint_is_refused() -> None:
         zenoh_config(parse("--connect", "localhost"))
 
 
-@pytest.mark.e2e
-def test_ground_cli_uses_the_config_file(router: tuple[zenoh.Session, str], tmp_path: Path) -> None:
+def test_ground_cli_uses_the_config_file(
+    router: tuple[zenoh.Session, str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     _, endpoint = router
+    for name in (CONNECT_ENV, CONFIG_ENV):
+        monkeypatch.delenv(name, raising=False)
     path = write_config(tmp_path / "zenoh.json5", endpoint)
-    done = run_program("ground.cli", "--zenoh-config", str(path), "uavs", "--json")
+    done = ground_cli_here("--zenoh-config", str(path), "uavs", "--json")
     assert done.returncode == ExitCode.OK, done.stderr
     assert json.loads(done.stdout) == []
 
 
 @pytest.mark.parametrize("program", ["ground.cli", "onboard.main"])
-@pytest.mark.e2e
-def test_a_bad_config_file_exits_2_with_the_reason(program: str, tmp_path: Path) -> None:
+def test_a_bad_config_file_exits_2_with_the_reason(
+    program: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
     bad = tmp_path / "bad.json5"
     bad.write_text("{ mode: ")
-    env = {**env_without_zenoh(), CONFIG_ENV: str(bad)}
-    onboard_args = ["--id", "7", "--program", "x", "--payload", "y"]
-    args = ["uavs"] if program == "ground.cli" else onboard_args
-    done = run_program(program, *args, env=env)
-    assert done.returncode == 2
-    assert f"Zenoh config {bad} is not valid" in done.stderr
-    assert "Traceback" not in done.stderr
+    monkeypatch.delenv(CONNECT_ENV, raising=False)
+    monkeypatch.setenv(CONFIG_ENV, str(bad))
+    if program == "ground.cli":
+        done = ground_cli_here("uavs")
+        status, err = done.returncode, done.stderr
+    else:
+        from onboard.main import main as onboard_main
+
+        status = onboard_main(["--id", "7", "--program", "x", "--payload", "y"])
+        err = capsys.readouterr().err
+    assert status == 2
+    assert f"Zenoh config {bad} is not valid" in err
+    assert "Traceback" not in err
 
 
 # ---- signals and logging -------------------------------------------------------------------------

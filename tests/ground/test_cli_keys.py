@@ -1,0 +1,34 @@
+"""`ground-cli keys` against a real Zenoh router: the router's own admin space is listed
+with the fleet's keys (the rest of `ground-cli` runs on the in-process bus,
+test_cli.py)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from tests.support.fake_onboard import FakeOnboard
+from tests.support.ground_cli import ground_cli
+
+
+@pytest.mark.e2e
+def test_keys_shows_telemetry_state_and_token(router: str, fakes: dict[int, FakeOnboard]) -> None:
+    done = ground_cli(
+        "keys", "fleet/uav/74/**", "--json", "--window", "0.5", "--admin", connect=router
+    )
+    assert done.returncode == 0, done.stderr
+    found = {item["key"]: item for item in json.loads(done.stdout)}
+    telemetry = found["fleet/uav/74/telemetry"]
+    assert telemetry["via"] == "subscription"
+    assert telemetry["encoding"].startswith("application/json")
+    assert telemetry["value"]["gps"]["lat"] == pytest.approx(fakes[74].lat)
+    assert found["fleet/uav/74/state"]["value"]["uav"] == 74
+    assert found["fleet/uav/74/alive"]["via"] == "liveliness"
+    assert not any(key.startswith("fleet/uav/112") for key in found)
+    admin = [key for key in found if key.startswith("@/")]
+    assert any("/router" in key for key in admin), admin
+
+    text = ground_cli("keys", "--window", "0.3", connect=router)
+    assert text.returncode == 0, text.stderr
+    assert any(line.startswith("fleet/uav/112/telemetry = {") for line in text.stdout.splitlines())
