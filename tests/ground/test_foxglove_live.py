@@ -254,6 +254,9 @@ def test_a_foxglove_client_sees_the_fleet_as_the_bus_and_the_recorder_do(tmp_pat
             stop_children([record, fox], 10.0)
             assert record.process.returncode == 0, "\n".join(record.history[-10:])
             assert fox.process.returncode == 0, "\n".join(fox.history[-10:])
+            # Its clients left (each node client exits without a closing handshake, as a
+            # closed tab does): news, not errors.
+            assert not [line for line in fox.history if " ERROR " in line], fox.history[-10:]
     finally:
         stop_children([*reversed(children), up], 10.0)
 
