@@ -44,6 +44,7 @@ from fleet.transport.bus import (
     PresenceCallback,
     Queryable,
     QueryNotify,
+    RingSubscription,
     SampleCallback,
 )
 from fleet.transport.zenoh_config import (
@@ -88,12 +89,21 @@ def _plain(sample: zenoh.Sample) -> BusSample:
     return BusSample(str(sample.key_expr), sample.payload.to_bytes())
 
 
+def sample_time_ns(timestamp: zenoh.Timestamp | None) -> int | None:
+    """A Zenoh timestamp in ns since the epoch (None for none)."""
+    if timestamp is None:
+        return None
+    moment = timestamp.get_time()
+    return int(moment.timestamp()) * 1_000_000_000 + moment.microsecond * 1000
+
+
 def _sample(sample: zenoh.Sample) -> BusSample:
     return BusSample(
         str(sample.key_expr),
         sample.payload.to_bytes(),
         str(sample.encoding),
         sample.kind == zenoh.SampleKind.DELETE,
+        sample_time_ns(sample.timestamp),
     )
 
 
@@ -159,6 +169,32 @@ class ZenohQueryable(Queryable):
 
     def undeclare(self) -> None:
         self._queryable.undeclare()
+
+
+class _ZenohRing:
+    """Zenoh's own ring channel: the samples wait in Zenoh, converted (and their
+    signatures checked) only when taken."""
+
+    def __init__(self, bus: ZenohBus, key_expr: str, limit: int) -> None:
+        self._bus = bus
+        self._subscriber = bus.session.declare_subscriber(
+            key_expr, zenoh.handlers.RingChannel(limit)
+        )
+
+    def try_recv(self) -> BusSample | None:
+        while True:
+            try:
+                sample = self._subscriber.try_recv()
+            except zenoh.ZError:  # the session closed under the subscriber
+                return None
+            if sample is None:
+                return None
+            received = self._bus._received(sample, Delivery.PUT)
+            if received is not None:
+                return received
+
+    def undeclare(self) -> None:
+        self._subscriber.undeclare()
 
 
 class ZenohBus(Bus):
@@ -262,6 +298,9 @@ class ZenohBus(Bus):
 
         subscriber: Declaration = self.session.declare_subscriber(key_expr, direct(on_sample))
         return subscriber
+
+    def subscribe_ring(self, key_expr: str, limit: int) -> RingSubscription:
+        return _ZenohRing(self, key_expr, limit)
 
     def get(
         self, selector: str, callback: SampleCallback, timeout: float, payload: bytes = b""

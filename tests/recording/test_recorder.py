@@ -16,11 +16,13 @@ from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import StatusText
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
+from fleet.recording.bus_tap import state_period
 from fleet.recording.reader import read_recording
-from fleet.recording.recorder import Recorder, state_period
+from fleet.recording.recorder import Recorder
 from fleet.recording.replay import replayable
 from fleet.recording.writer import McapSink
 from fleet.transport.bus_codec import ENCODING, encode
+from fleet.transport.zenoh_bus import ZenohBus
 from tests.support.ground_cli import fleet_here
 from tests.support.processes import client_session, router_session
 from tests.support.waiting import wait_until
@@ -40,7 +42,7 @@ def wait_recorded(recorder: Recorder, pattern: str, count: int, what: str) -> No
 def test_records_puts_and_tokens_and_drops_what_is_not_json(tmp_path: Path) -> None:
     port = free_port()
     with router_session(port), client_session(port) as fleet, client_session(port) as ground:
-        recorder = Recorder(ground, McapSink(tmp_path / "r.mcap"), state_every_s=0)
+        recorder = Recorder(ZenohBus(ground), McapSink(tmp_path / "r.mcap"), state_every_s=0)
         recorder.start()
         try:
             # Puts before the router knows the subscription reach nobody (a busy machine).
@@ -84,7 +86,7 @@ def test_in_the_router_samples_wait_in_zenoh_and_map_fixes_come_once_a_second(
     port = free_port()
     with router_session(port) as router, client_session(port) as fleet:
         recorder = Recorder(
-            router,
+            ZenohBus(router),
             McapSink(tmp_path / "r.mcap"),
             state_every_s=0,
             in_router=True,
@@ -201,7 +203,7 @@ def test_ever_new_unknown_keys_do_not_grow_the_recording_without_bound(
     monkeypatch.setattr("fleet.recording.recorder.MAX_UNKNOWN_KEYS", 3)
     port = free_port()
     with router_session(port), client_session(port) as fleet, client_session(port) as ground:
-        recorder = Recorder(ground, McapSink(tmp_path / "r.mcap"), state_every_s=0)
+        recorder = Recorder(ZenohBus(ground), McapSink(tmp_path / "r.mcap"), state_every_s=0)
         recorder.start()
         try:
             # Puts before the router knows the subscription reach nobody (a busy machine).
