@@ -28,7 +28,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from fleet.launch.endpoints import free_port
 from ground.mavlink.signing import passphrase_secret, timestamp_now
 from tests.ground.mavlink.stations import free_udp_port, receiver
-from tests.support.processes import Child, start
+from tests.support.processes import Child, start, start_fleet_up, wait_fleet_up
 from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
@@ -66,14 +66,19 @@ class FleetUp:
 def fleet_up(tmp_path_factory: pytest.TempPathFactory) -> Iterator[FleetUp]:
     tmp = tmp_path_factory.mktemp("mavlink-stations")
     port = free_port()
-    up = start(
-        "fleet up",
-        [sys.executable, "-m", "programs.fleet_cli", "up", "--uavs", str(len(UAVS)),
-         "--speedup", "5", "--listen", f"tcp/127.0.0.1:{port}", "--log-dir", str(tmp / "logs"),
-         "--no-record"],
-    )  # fmt: skip
+    up = start_fleet_up(
+        "--uavs",
+        str(len(UAVS)),
+        "--speedup",
+        "5",
+        "--listen",
+        f"tcp/127.0.0.1:{port}",
+        "--log-dir",
+        str(tmp / "logs"),
+        "--no-record",
+    )
     try:
-        up.wait_for_line(lambda line: "stops the fleet" in line, START_S)
+        wait_fleet_up(up, START_S)
         yield FleetUp(port, tmp)
     finally:
         up.process.send_signal(signal.SIGTERM)
