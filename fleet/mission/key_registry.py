@@ -29,6 +29,7 @@ Layout (under the prefix, `fleet` by default):
                                  teammates subscribe to (docs/lifecycle.md)
     mission/{m}/outcome/{id}     TargetOutcome: reached, failed or link_lost
     mission/{m}/abort            MissionAbort, ground -> team (served too)
+    mission/{m}/proposal         PlanProposal, ground -> team: a plan to verify
     router/state                 queryable: RouterState, served by each secure router
     roster                       RosterDocument, ground -> all: the CA-signed roster of
                                  signers, put when an identity is revoked
@@ -196,6 +197,12 @@ ABORT = KeySpec(
     carriage=Carriage.PUT | Carriage.QUERY, writer=Party.GROUND, urgency=Urgency.URGENT,
     reply=messages.MissionAbort, servers=frozenset({Party.ANY_UAV}), uavs_fetch=True,
 )  # fmt: skip
+#: A plan proposed by the ground (a routing solver), verified by every UAV before it is
+#: adopted (fleet.consensus.proposal); heard by subscription, before the decision.
+PROPOSAL = KeySpec(
+    "mission/{m}/proposal", messages.PlanProposal, role=Role.COMMAND, writer=Party.GROUND,
+    urgency=Urgency.URGENT,
+)  # fmt: skip
 
 #: Asked with no payload, and answered by each secure router (fleet/transport/router.py),
 #: not by a fleet member: one reply per router, so it is asked with every reply kept.
@@ -215,7 +222,7 @@ ROSTER = KeySpec(
 #: Every key of the fleet. Order is kept wherever keys are listed (schemas, grants).
 REGISTRY: tuple[KeySpec, ...] = (
     ALIVE, TELEMETRY, TRACK, WAYPOINT, STATUS, LINK, STATE, OPM, CMD_WAYPOINT, CMD_TRACK,
-    TARGETS, RESULT, ASSIGNMENT, REPLAN, OUTCOME, ABORT, ROUTER_STATE, ROSTER,
+    TARGETS, RESULT, ASSIGNMENT, REPLAN, OUTCOME, ABORT, PROPOSAL, ROUTER_STATE, ROSTER,
 )  # fmt: skip
 
 #: The JSON Schema file (without `.schema.json`) of each struct that travels on a key.
@@ -232,6 +239,7 @@ SCHEMA_FILES: dict[type[msgspec.Struct], str] = {
     messages.UavResult: "uav_result",
     messages.AssignmentReport: "assignment_report",
     messages.MissionAbort: "mission_abort",
+    messages.PlanProposal: "plan_proposal",
     messages.TargetOutcome: "target_outcome",
     messages.RouterState: "router_state",
     messages.RosterDocument: "roster",
