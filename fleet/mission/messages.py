@@ -340,3 +340,20 @@ class RosterDocument(msgspec.Struct, frozen=True):
     ]
     revoked: Annotated[list[IdentityName], Meta(max_length=MAX_IDENTITIES)]
     signature: Annotated[str, Meta(max_length=512)]
+
+
+#: Samples one digest may vouch for: half a second of a UAV's streams is a few dozen.
+MAX_DIGEST_SAMPLES = 1024
+
+
+class StreamDigest(msgspec.Struct, frozen=True):
+    """What a UAV put on its unsigned streams (telemetry, track, waypoint echoes, status,
+    link health) since its last digest: the hash of each sample (key and payload,
+    `fleet.transport.stream_auth`), hex. Signed by the UAV: a receiver believes a stream
+    sample once a digest of its author lists it, so one signature covers many samples."""
+
+    uav: PiccoloId
+    hashes: Annotated[
+        list[Annotated[str, Meta(min_length=32, max_length=32)]],
+        Meta(max_length=MAX_DIGEST_SAMPLES),
+    ]
