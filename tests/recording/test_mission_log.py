@@ -25,7 +25,7 @@ from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from fleet.piccolo.track import Track
 from fleet.recording import channels
-from fleet.recording.mission_log import build_timeline
+from fleet.recording.mission_log import Timeline, build_timeline
 from fleet.recording.plot import PlotError, parse_at, render
 from fleet.recording.reader import RecordedMessage
 from fleet.recording.report import report_json, report_lines
@@ -237,20 +237,11 @@ def test_the_mission_s_zones_are_read_and_drawn_under_the_tracks(tmp_path: Path)
     assert build_timeline([bad]).undecodable == 1
 
 
-def test_a_tour_s_legs_predicted_and_flown(tmp_path: Path) -> None:
-    """UAV 1 queues targets 0 then 1 (issue 23): each leg's predicted time from the
-    plan's arrivals, its flown time on the aircraft's clock between reached outcomes."""
+def tour_of_two() -> Timeline:
+    """UAV 1 queues targets 0 then 1, planned to arrive at 45 s and 120 s, and reaches
+    them at 7 s and 12 s on its clock (each leg flown in 50 s of telemetry time)."""
     tour = AssignmentReport(
-        mission=5,
-        uav=1,
-        target=0,
-        pairs={1: 0},
-        unassigned=(),
-        team=(1,),
-        digest="d1",
-        eta_s=45.0,
-        queues={1: (0, 1)},
-        arrivals={1: (45.0, 120.0)},
+        5, 1, 0, {1: 0}, (), (1,), "d1", eta_s=45.0, queues={1: (0, 1)}, arrivals={1: (45.0, 120.0)}
     )
     messages = [
         *(telemetry(t, 1, 35.72, -120.80 + 0.004 * t, 100 + 10 * t) for t in range(0, 14)),
@@ -259,7 +250,13 @@ def test_a_tour_s_legs_predicted_and_flown(tmp_path: Path) -> None:
         message(7.0, "fleet/mission/5/outcome/1", TargetOutcome(5, 1, 0, Phase.REACHED)),
         message(12.0, "fleet/mission/5/outcome/1", TargetOutcome(5, 1, 1, Phase.REACHED)),
     ]
-    timeline = build_timeline(messages)
+    return build_timeline(messages)
+
+
+def test_a_tour_s_legs_predicted_and_flown(tmp_path: Path) -> None:
+    """UAV 1 queues targets 0 then 1 (issue 23): each leg's predicted time from the
+    plan's arrivals, its flown time on the aircraft's clock between reached outcomes."""
+    timeline = tour_of_two()
     (log,) = timeline.missions
     assert log.legs(1, timeline.tracks) == [
         {"target": 0, "predicted_s": 45.0, "flown_s": 50.0},
@@ -278,17 +275,7 @@ def test_a_tour_s_legs_predicted_and_flown(tmp_path: Path) -> None:
 def test_every_leg_off_by_more_than_10_percent_is_flagged() -> None:
     """Target 1's leg was predicted 75 s and flown in 50 s: +50 %, flagged in the text
     and the JSON; target 0's (45 s predicted, 50 s flown: -10 %) is not."""
-    tour = AssignmentReport(
-        5, 1, 0, {1: 0}, (), (1,), "d1", eta_s=45.0, queues={1: (0, 1)}, arrivals={1: (45.0, 120.0)}
-    )
-    messages = [
-        *(telemetry(t, 1, 35.72, -120.80 + 0.004 * t, 100 + 10 * t) for t in range(0, 14)),
-        message(1.0, "fleet/mission/5/targets", MissionTargets(5, (1,), TARGETS)),
-        message(2.0, "fleet/mission/5/assignment/1", tour),
-        message(7.0, "fleet/mission/5/outcome/1", TargetOutcome(5, 1, 0, Phase.REACHED)),
-        message(12.0, "fleet/mission/5/outcome/1", TargetOutcome(5, 1, 1, Phase.REACHED)),
-    ]
-    timeline = build_timeline(messages)
+    timeline = tour_of_two()
     legs = report_json(timeline)["missions"][0]["legs"]["1"]
     assert [(leg["off"], leg["error"]) for leg in legs] == [(False, -0.1), (True, 0.5)]
     lines = report_lines(timeline)
