@@ -175,7 +175,7 @@ class MissionRound:
     def prepare(self) -> list[list[float]]:
         """The legs' geometry and the still-air table, computed now (while the approach
         times are planned), not when every UAV decides at once on the last result: the
-        consensus window (issue 28)."""
+        consensus window."""
         _ = self.geometry
         return self.legs
 
