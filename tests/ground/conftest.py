@@ -1,4 +1,5 @@
-"""Fixtures of the ground's tests: a router on loopback with two fake UAVs on it
+"""Fixtures of the ground's tests: a router on loopback (or, where a module overrides
+`router` with `memory_router`, an in-process bus) with two fake UAVs on it
 (`FakeOnboard`), shared by the `ground-cli` and `ground-cli gui` tests of a module."""
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import zenoh
 from fleet.transport.router import Router
 from fleet.transport.zenoh_bus import ZenohBus
 from fleet.transport.zenoh_config import make_config
-from tests.support.fake_onboard import FakeOnboard
+from tests.support.fake_onboard import FakeOnboard, fake_pair, memory_bus
 from tests.support.processes import free_endpoint
 
 
@@ -23,15 +24,18 @@ def router() -> Iterator[str]:
 
 
 @pytest.fixture(scope="module")
+def memory_router(request: pytest.FixtureRequest) -> Iterator[str]:
+    """An in-process bus (`memory:NAME`, one per test module), as `--connect` takes it;
+    a module runs its tests on it by overriding `router` with it."""
+    with memory_bus(request.module.__name__) as spec:
+        yield spec
+
+
+@pytest.fixture(scope="module")
 def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
-    opened: dict[int, FakeOnboard] = {}
-    try:
-        opened[74] = FakeOnboard(router, 74, 42.3500, -71.1000, 150.0)
-        opened[112] = FakeOnboard(router, 112, 42.3700, -71.0800, 160.0)
-        yield opened
-    finally:
-        for fake in opened.values():
-            fake.close()
+    """The two fake UAVs (74 and 112) on this module's `router`."""
+    with fake_pair(router) as pair:
+        yield pair
 
 
 @pytest.fixture

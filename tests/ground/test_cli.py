@@ -12,7 +12,6 @@ import json
 import struct
 import subprocess
 import threading
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -37,7 +36,7 @@ from fleet.transport.bus_factory import opened_bus
 from fleet.transport.zenoh_config import CONFIG_ENV, CONNECT_ENV
 from ground.fleet_commands import WatchOptions, run_watch
 from ground.mission_outcome import MissionOutcome, check_agreement
-from tests.support.fake_onboard import FakeOnboard, approach_time, fake_pair, memory_bus
+from tests.support.fake_onboard import FakeOnboard, approach_time
 from tests.support.ground_cli import ground_cli_here
 from tests.support.processes import free_endpoint
 from tests.support.waiting import wait_until
@@ -62,16 +61,9 @@ def run_cli(*args: str, endpoint: str | None) -> subprocess.CompletedProcess[str
 
 
 @pytest.fixture(scope="module")
-def router() -> Iterator[str]:
+def router(memory_router: str) -> str:
     """The fleet's bus: an in-process one (`memory:NAME`), as `--connect` takes it."""
-    with memory_bus(__name__) as spec:
-        yield spec
-
-
-@pytest.fixture(scope="module")
-def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
-    with fake_pair(router) as pair:
-        yield pair
+    return memory_router
 
 
 # ---- against a router with two fake UAVs --------------------------------------------------------

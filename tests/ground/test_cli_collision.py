@@ -6,7 +6,6 @@ id not above its own) is a collision, reported with a non-zero exit code, not
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -15,21 +14,14 @@ from fleet.consensus.targets_digest import targets_digest
 from fleet.files.targets_io import write_targets
 from fleet.mission.messages import Target
 from tests.ground.test_cli import TARGETS, run_cli
-from tests.support.fake_onboard import FakeOnboard, fake_pair, memory_bus
+from tests.support.fake_onboard import FakeOnboard
 from tests.support.waiting import wait_until
 
 
 @pytest.fixture(scope="module")
-def router() -> Iterator[str]:
+def router(memory_router: str) -> str:
     """The fleet's bus: an in-process one (`memory:NAME`), as `--connect` takes it."""
-    with memory_bus(__name__) as spec:
-        yield spec
-
-
-@pytest.fixture(scope="module")
-def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
-    with fake_pair(router) as pair:
-        yield pair
+    return memory_router
 
 
 OTHER = (Target(42.3620, -71.0920, 125.0),)

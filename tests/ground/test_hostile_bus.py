@@ -23,22 +23,15 @@ from fleet.transport.bus import Queryable
 from fleet.transport.bus_codec import MAX_PAYLOAD_BYTES, encode
 from fleet.transport.bus_factory import open_bus
 from tests.ground.test_cli import TARGETS, run_cli
-from tests.support.fake_onboard import FakeOnboard, fake_pair, memory_bus
+from tests.support.fake_onboard import FakeOnboard
 
 SPACE = KeySpace()
 
 
 @pytest.fixture(scope="module")
-def router() -> Iterator[str]:
+def router(memory_router: str) -> str:
     """The fleet's bus, the rogue's too: an in-process one (`memory:NAME`)."""
-    with memory_bus(__name__) as spec:
-        yield spec
-
-
-@pytest.fixture(scope="module")
-def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
-    with fake_pair(router) as pair:
-        yield pair
+    return memory_router
 
 
 DEPTH = 50_000  #: 300 kB: under the size limit, far over any nesting limit

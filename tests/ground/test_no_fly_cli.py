@@ -4,28 +4,20 @@ process on the in-process bus, two `FakeOnboard`s (tests/support/fake_onboard.py
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from fleet.files.targets_io import write_targets
 from tests.ground.test_cli import TARGETS, assert_nothing_sent_since, run_cli
-from tests.support.fake_onboard import FakeOnboard, fake_pair, memory_bus
+from tests.support.fake_onboard import FakeOnboard
 from tests.support.waiting import wait_until
 
 
 @pytest.fixture(scope="module")
-def router() -> Iterator[str]:
+def router(memory_router: str) -> str:
     """The fleet's bus: an in-process one (`memory:NAME`), as `--connect` takes it."""
-    with memory_bus(__name__) as spec:
-        yield spec
-
-
-@pytest.fixture(scope="module")
-def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
-    with fake_pair(router) as pair:
-        yield pair
+    return memory_router
 
 
 #: A square between the two targets TARGETS[0] and TARGETS[2] (none of them inside).

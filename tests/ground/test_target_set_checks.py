@@ -5,7 +5,6 @@ positions come from their state)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -13,20 +12,13 @@ import pytest
 from fleet.files.targets_io import write_targets
 from fleet.mission.messages import Target
 from tests.ground.test_cli import TARGETS, run_cli
-from tests.support.fake_onboard import FakeOnboard, fake_pair, memory_bus
+from tests.support.fake_onboard import FakeOnboard
 
 
 @pytest.fixture(scope="module")
-def router() -> Iterator[str]:
+def router(memory_router: str) -> str:
     """The fleet's bus: an in-process one (`memory:NAME`), as `--connect` takes it."""
-    with memory_bus(__name__) as spec:
-        yield spec
-
-
-@pytest.fixture(scope="module")
-def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
-    with fake_pair(router) as pair:
-        yield pair
+    return memory_router
 
 
 @pytest.mark.parametrize(

@@ -22,7 +22,7 @@ from fleet.mission.messages import Target
 from fleet.mission.targets_file import encode_targets
 from fleet.transport.bus_factory import opened_bus
 from tests.ground.test_cli import run_cli
-from tests.support.fake_onboard import FakeOnboard, fake_pair, memory_bus
+from tests.support.fake_onboard import FakeOnboard, fake_pair
 from tests.support.gui_page import serving, websocket_url
 from tests.support.processes import Child, start
 from tests.support.waiting import wait_until
@@ -44,10 +44,9 @@ def start_gui(router: str, *extra: str, env: dict[str, str] | None = None) -> tu
 
 
 @pytest.fixture(scope="module")
-def memory() -> Iterator[str]:
+def memory(memory_router: str) -> str:
     """The fleet's bus for the page served in this process: an in-process one."""
-    with memory_bus(__name__) as spec:
-        yield spec
+    return memory_router
 
 
 @pytest.fixture(scope="module")
