@@ -37,7 +37,7 @@ from fleet.recording.reader import RecordingError, read_recording
 from fleet.sim.scenario import ScenarioError, resolve_scenario
 from fleet.transport.bus_factory import opened_bus
 from fleet.transport.cli import ExitCode, fail, positive_float, stop_on_signals
-from fleet.transport.command import LocalCommand, options_from, set_handler
+from fleet.transport.command import LocalCommand, add_command, options_from
 
 # The demo is a ground station: it uses the mission manager's own code.
 from ground.alerts import StatusRecord
@@ -62,8 +62,10 @@ PLOT_NAME = "mission.png"
 def add_demo_parser(
     subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
 ) -> argparse.ArgumentParser:
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "demo",
+        DEMO,
         help="the thesis's multi-UAV scenario end to end (head_on)",
         description="Run a scenario end to end on free ports: up, send its targets, "
         "check the consensus, watch every UAV reach its target, stop.",
@@ -89,7 +91,6 @@ def add_demo_parser(
     )
     parser.add_argument("--json", action="store_true", help="print the outcome as JSON")
     common_arguments(parser, speedup=DEMO_SPEEDUP)
-    set_handler(parser, DEMO)
     return parser
 
 

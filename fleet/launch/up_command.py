@@ -38,7 +38,7 @@ from fleet.transport.cli import (
     positive_float,
     stop_on_signals,
 )
-from fleet.transport.command import LocalCommand, OptionsError, set_handler
+from fleet.transport.command import LocalCommand, OptionsError, add_command
 from fleet.transport.zenoh_config import CONFIG_ENV, CONNECT_ENV, DEFAULT_ROUTER
 
 log = logging.getLogger(__name__)
@@ -126,8 +126,10 @@ def recording_path(fleet: Fleet, options: LaunchOptions) -> Path | None:
 def add_up_parser(
     subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
 ) -> argparse.ArgumentParser:
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "up",
+        UP,
         help="run a simulated fleet: router, simulator and one onboard per UAV",
         description="Run a simulated fleet on this machine until Ctrl-C or SIGTERM.",
     )
@@ -177,7 +179,6 @@ def add_up_parser(
         "30 s); without it a dead module is reported and the rest of the fleet flies on",
     )
     common_arguments(parser, speedup=1.0)
-    set_handler(parser, UP)
     return parser
 
 

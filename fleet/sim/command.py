@@ -43,7 +43,7 @@ from fleet.transport.cli import (
     stop_on_signals,
     tcp_port,
 )
-from fleet.transport.command import LocalCommand, options_from, run_standalone, set_handler
+from fleet.transport.command import LocalCommand, add_command, options_from, run_standalone
 
 logger = logging.getLogger(__name__)
 
@@ -136,15 +136,15 @@ def add_parser(
     subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
 ) -> argparse.ArgumentParser:
     """Register the `sim` subcommand."""
-    parser = subparsers.add_parser(
+    return add_command(
+        subparsers,
         "sim",
+        SIM,
         help="simulated Piccolo autopilots (hardware-in-the-loop stand-in)",
         description="Run simulated Piccolo autopilots for a scenario, serving each "
         "aircraft's program, payload and ground ports.",
+        configure=configure_parser,
     )
-    configure_parser(parser)
-    set_handler(parser, SIM)
-    return parser
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -22,7 +22,7 @@ from fleet.payload.link import AutopilotEvent, LinkEvent, PiccoloLink, StreamHea
 from fleet.payload.protocol import UnknownPlanningMessage
 from fleet.piccolo.autopilot_messages import UnknownAutopilotMessage
 from fleet.transport.cli import ExitCode, fail
-from fleet.transport.command import LocalCommand, options_from, run_standalone, set_handler
+from fleet.transport.command import LocalCommand, add_command, options_from, run_standalone
 
 CHUNK = 65536
 
@@ -42,14 +42,14 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Register the `decode` subcommand."""
-    parser = subparsers.add_parser(
+    add_command(
+        subparsers,
         "decode",
+        DECODE,
         help="decode a captured Piccolo link byte stream to JSON lines",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        doc=__doc__,
+        configure=configure_parser,
     )
-    configure_parser(parser)
-    set_handler(parser, DECODE)
 
 
 def _header(header: StreamHeader) -> dict[str, int]:

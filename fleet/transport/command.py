@@ -92,6 +92,33 @@ def set_handler(parser: argparse.ArgumentParser, command: Command[Any] | LocalCo
     parser.set_defaults(**{HANDLER: command})
 
 
+def add_command(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+    name: str,
+    command: Command[Any] | LocalCommand[Any],
+    *,
+    help: str,
+    description: str | None = None,
+    doc: str | None = None,
+    configure: Callable[[argparse.ArgumentParser], None] | None = None,
+) -> argparse.ArgumentParser:
+    """Register the subcommand `name`, which runs `command`, with its one-line `help` and
+    either a `description` (one paragraph, wrapped) or a `doc` (its module's docstring,
+    printed as written); `configure` adds its arguments. Returns its parser."""
+    parser = subparsers.add_parser(
+        name,
+        help=help,
+        description=doc if doc is not None else description,
+        formatter_class=(
+            argparse.RawDescriptionHelpFormatter if doc is not None else argparse.HelpFormatter
+        ),
+    )
+    if configure is not None:
+        configure(parser)
+    set_handler(parser, command)
+    return parser
+
+
 def run_parsed(args: argparse.Namespace, prog: str, out: TextIO | None = None) -> int:
     """Run the command the parsed `args` name: build its options, open the bus the Zenoh
     flags ask for (`OnFirstUse`; none for a LocalCommand), run it, close the bus. Usage

@@ -29,7 +29,7 @@ from fleet.transport.cli import (
     positive_float,
     stop_on_signals,
 )
-from fleet.transport.command import BusOptions, Command, OptionsError, set_handler
+from fleet.transport.command import BusOptions, Command, OptionsError, add_command
 from ground.foxglove_live.bridge import DEFAULT_STATE_EVERY_S, FoxgloveBridge
 from ground.foxglove_live.client_log import quiet_client_resets
 from ground.foxglove_live.gate import DEFAULT_ORIGINS, Gate, Rules, upstream_identity
@@ -43,11 +43,12 @@ READY_LINE = f"{PROG}: serving"
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command(
+        subparsers,
         "foxglove",
+        FOXGLOVE,
         help="serve the live fleet to Foxglove (WebSocket)",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        doc=__doc__,
     )
     parser.add_argument(
         "--serve",
@@ -86,7 +87,6 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     parser.add_argument("--duration", type=positive_float, metavar="S", help="stop after S s")
     add_zenoh_arguments(parser)
-    set_handler(parser, FOXGLOVE)
 
 
 def _address(text: str) -> tuple[str, int]:

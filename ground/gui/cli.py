@@ -25,7 +25,7 @@ from typing import TextIO
 from fleet.errors import FleetError
 from fleet.transport.bus import Bus
 from fleet.transport.cli import ExitCode, bounded_int, positive_float
-from fleet.transport.command import BusOptions, Command, OptionsError, set_handler
+from fleet.transport.command import BusOptions, Command, OptionsError, add_command
 
 DEFAULT_LISTEN = "127.0.0.1:8321"
 TOKEN_ENV = "FLEET_GUI_TOKEN"
@@ -56,11 +56,12 @@ def host_port(text: str) -> tuple[str, int]:
 
 
 def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    gui = commands.add_parser(
+    gui = add_command(
+        commands,
         "gui",
+        GUI,
         help="serve the Mission Manager's page (map, targets, send, abort)",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        doc=__doc__,
     )
     # Not `listen`: ground-cli's own --listen is a Zenoh endpoint.
     gui.add_argument(
@@ -93,7 +94,6 @@ def add_parser(commands: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="snapshots pushed a second at most (1-10, default %(default)g)",
     )
     gui.add_argument("--open", action="store_true", help="open the page in a web browser")
-    set_handler(gui, GUI)
 
 
 class TokenError(FleetError, ValueError):

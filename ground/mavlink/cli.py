@@ -34,8 +34,8 @@ from fleet.transport.command import (
     BusOptions,
     Command,
     OptionsError,
+    add_command,
     run_standalone,
-    set_handler,
 )
 from ground.mavlink.endpoint import Endpoint, EndpointError, InputDrops, parse_url
 from ground.mavlink.fleet_link import FleetLink, TeamChoice
@@ -51,14 +51,14 @@ PROG = "fleet mavlink"
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    parser = subparsers.add_parser(
+    add_command(
+        subparsers,
         "mavlink",
+        MAVLINK,
         help="show every live UAV to MAVLink ground stations (QGroundControl, MAVProxy, MAVSDK)",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        doc=__doc__,
+        configure=configure,
     )
-    configure(parser)
-    set_handler(parser, MAVLINK)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
