@@ -28,7 +28,7 @@ from fleet.mission.objective import Objective
 from fleet.mission.target_checks import DEFAULT_MAX_REACH_M, target_set_problems
 from fleet.transport.bus import Bus
 from fleet.transport.cli import ExitCode
-from fleet.transport.command import BusOptions, Command, OptionsError
+from fleet.transport.command import BusOptions, Command, OptionsError, fields_from
 from ground.fleet_view import live_uav_ids, query_states
 from ground.mission_ack import MissionCollision, acknowledgement, wait_acknowledged
 from ground.mission_control import MissionError, publish_targets
@@ -130,23 +130,7 @@ def send_options(args: argparse.Namespace) -> SendOptions:
     zones = zones_or_say(args.no_fly, targets)
     if zones is None:
         raise OptionsError("", ExitCode.FAILED)
-    return SendOptions(
-        targets=targets,
-        file=args.file,
-        zones=zones,
-        team=args.team,
-        wait=args.wait,
-        timeout=args.timeout,
-        deadline=args.deadline,
-        mission=args.mission,
-        max_reach_km=args.max_reach_km,
-        force=args.force,
-        objective=args.objective,
-        propose=getattr(args, "propose", False),
-        json=args.json,
-        key_space=args.key_space,
-        query_timeout=args.query_timeout,
-    )
+    return fields_from(SendOptions, args, targets=targets, zones=zones)
 
 
 def run_send_targets(bus: Bus, options: SendOptions, out: TextIO) -> int:

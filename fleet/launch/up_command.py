@@ -38,7 +38,7 @@ from fleet.transport.cli import (
     positive_float,
     stop_on_signals,
 )
-from fleet.transport.command import LocalCommand, OptionsError, add_command
+from fleet.transport.command import LocalCommand, OptionsError, add_command, fields_from
 from fleet.transport.zenoh_config import CONFIG_ENV, CONNECT_ENV, DEFAULT_ROUTER
 
 log = logging.getLogger(__name__)
@@ -218,22 +218,7 @@ def up_options(args: argparse.Namespace) -> UpOptions:
         if gui is None or ":" in gui:
             raise OptionsError("give a SCENARIO (a shipped name or a TOML file) or --uavs N")
         scenario, gui = gui, DEFAULT_GUI_LISTEN
-    return UpOptions(
-        scenario=scenario,
-        uavs=args.uavs,
-        listen=args.listen,
-        secure=args.secure,
-        insecure=args.insecure,
-        topology=args.topology,
-        restart=args.restart,
-        key_space=args.key_space,
-        speedup=args.speedup,
-        log_dir=args.log_dir,
-        gui=gui,
-        start_timeout=args.start_timeout,
-        record=args.record,
-        fork_onboards=args.fork_onboards,
-    )
+    return fields_from(UpOptions, args, scenario=scenario, gui=gui)
 
 
 def run_up(options: UpOptions, out: TextIO) -> int:

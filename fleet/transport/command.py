@@ -75,14 +75,20 @@ class BusOptions:
     query_timeout: float = 1.0
 
 
-def options_from(kind: type[Opts]) -> Callable[[argparse.Namespace], Opts]:
-    """A builder of the dataclass `kind` from the parsed flags of its fields' names (a flag
-    not on the command line leaves the field's default)."""
+def fields_from(kind: type[Opts], args: argparse.Namespace, **given: Any) -> Opts:
+    """The dataclass `kind` from the parsed flags of its fields' names (a flag not on the
+    command line leaves the field's default), and `given` for the fields the flags do not
+    say as they are (read from a file, checked, renamed)."""
     names = [field.name for field in dataclasses.fields(kind)]  # type: ignore[arg-type]
+    flags = {name: getattr(args, name) for name in names if hasattr(args, name)}
+    return kind(**(flags | given))
+
+
+def options_from(kind: type[Opts]) -> Callable[[argparse.Namespace], Opts]:
+    """A builder of the dataclass `kind` from the parsed flags of its fields' names."""
 
     def build(args: argparse.Namespace) -> Opts:
-        given = {name: getattr(args, name) for name in names if hasattr(args, name)}
-        return kind(**given)
+        return fields_from(kind, args)
 
     return build
 

@@ -35,6 +35,7 @@ from fleet.transport.command import (
     Command,
     OptionsError,
     add_command,
+    fields_from,
     run_standalone,
 )
 from ground.mavlink.endpoint import Endpoint, EndpointError, InputDrops, parse_url
@@ -159,15 +160,7 @@ def mavlink_options(args: argparse.Namespace) -> MavlinkOptions:
         verifier = _verifier(args.out, args.signing_key, args.insecure)
     except (SysIdError, SigningKeyError, EndpointError) as error:
         raise OptionsError(f"error: {error}") from None
-    return MavlinkOptions(
-        out=args.out,
-        sysids=sysids,
-        mission_team=args.mission_team,
-        zenoh_config=args.zenoh_config,
-        key_space=args.key_space,
-        query_timeout=args.query_timeout,
-        verifier=verifier,
-    )
+    return fields_from(MavlinkOptions, args, sysids=sysids, verifier=verifier)
 
 
 def run(bus: Bus, options: MavlinkOptions, out: TextIO) -> int:
