@@ -80,6 +80,27 @@ def _validity(lifetime: datetime.timedelta) -> tuple[datetime.datetime, datetime
     return now - datetime.timedelta(hours=1), now + lifetime
 
 
+def certificate_builder(
+    key: ec.EllipticCurvePrivateKey,
+    subject: x509.Name,
+    issuer: x509.Name,
+    lifetime: datetime.timedelta,
+) -> x509.CertificateBuilder:
+    """A certificate of `key` for `subject` from `issuer` (itself for a self-signed one),
+    valid from an hour ago for `lifetime`, with a random serial: the caller adds its
+    extensions and signs it."""
+    start, end = _validity(lifetime)
+    return (
+        x509.CertificateBuilder()
+        .subject_name(subject)
+        .issuer_name(issuer)
+        .public_key(key.public_key())
+        .serial_number(x509.random_serial_number())
+        .not_valid_before(start)
+        .not_valid_after(end)
+    )
+
+
 def _days(days: int) -> datetime.timedelta:
     return datetime.timedelta(days=days)
 
@@ -89,16 +110,9 @@ DEFAULT_LIFETIME = _days(DEFAULT_VALID_DAYS)
 
 def make_authority(days: int = DEFAULT_VALID_DAYS) -> Authority:
     key = ec.generate_private_key(ec.SECP256R1())
-    start, end = _validity(_days(days))
     name = _name("uav-fleet CA")
     certificate = (
-        x509.CertificateBuilder()
-        .subject_name(name)
-        .issuer_name(name)
-        .public_key(key.public_key())
-        .serial_number(x509.random_serial_number())
-        .not_valid_before(start)
-        .not_valid_after(end)
+        certificate_builder(key, name, name, _days(days))
         .add_extension(x509.BasicConstraints(ca=True, path_length=0), critical=True)
         .add_extension(
             x509.KeyUsage(
@@ -132,18 +146,11 @@ def issue(
     identity's may only connect, and names no host.
     """
     key = ec.generate_private_key(ec.SECP256R1())
-    start, end = _validity(lifetime)
     ca_key_id = x509.AuthorityKeyIdentifier.from_issuer_public_key(authority.key.public_key())
     router = is_router_identity(common_name)
     usages = [ExtendedKeyUsageOID.SERVER_AUTH] if router else []
     builder = (
-        x509.CertificateBuilder()
-        .subject_name(_name(common_name))
-        .issuer_name(authority.certificate.subject)
-        .public_key(key.public_key())
-        .serial_number(x509.random_serial_number())
-        .not_valid_before(start)
-        .not_valid_after(end)
+        certificate_builder(key, _name(common_name), authority.certificate.subject, lifetime)
         .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
         .add_extension(
             x509.ExtendedKeyUsage([*usages, ExtendedKeyUsageOID.CLIENT_AUTH]), critical=True

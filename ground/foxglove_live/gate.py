@@ -38,6 +38,7 @@ from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import NameOID
 
+from fleet.files.certs import certificate_builder
 from fleet.transport.refusal_log import RefusalLog
 from ground.host_check import HostAllowList, host_of_header
 
@@ -102,15 +103,8 @@ def upstream_identity() -> tuple[bytes, bytes]:
     """A certificate and key (PEM) for the SDK's server on loopback, made for this run."""
     key = ec.generate_private_key(ec.SECP256R1())
     name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, "fleet foxglove (loopback)")])
-    now = datetime.datetime.now(datetime.UTC)
     certificate = (
-        x509.CertificateBuilder()
-        .subject_name(name)
-        .issuer_name(name)
-        .public_key(key.public_key())
-        .serial_number(x509.random_serial_number())
-        .not_valid_before(now - datetime.timedelta(hours=1))
-        .not_valid_after(now + datetime.timedelta(days=365))
+        certificate_builder(key, name, name, datetime.timedelta(days=365))
         .add_extension(
             x509.SubjectAlternativeName([x509.IPAddress(ipaddress.ip_address(_LOOPBACK))]),
             critical=False,

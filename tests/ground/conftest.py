@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from contextlib import contextmanager
 
 import pytest
 import zenoh
@@ -38,21 +39,25 @@ def fakes(router: str) -> Iterator[dict[int, FakeOnboard]]:
         yield pair
 
 
-@pytest.fixture
-def session(router: str) -> Iterator[ZenohBus]:
-    """The ground's bus (`.session` is its Zenoh session)."""
+@contextmanager
+def client_bus(router: str) -> Iterator[ZenohBus]:
+    """A Zenoh client's bus on `router` (`.session` is its Zenoh session), closed on exit."""
     opened = ZenohBus(zenoh.open(make_config("client", [router])))
     try:
         yield opened
     finally:
         opened.close()
+
+
+@pytest.fixture
+def session(router: str) -> Iterator[ZenohBus]:
+    """The ground's bus (`.session` is its Zenoh session)."""
+    with client_bus(router) as opened:
+        yield opened
 
 
 @pytest.fixture
 def rival(router: str) -> Iterator[ZenohBus]:
     """Another ground's bus."""
-    opened = ZenohBus(zenoh.open(make_config("client", [router])))
-    try:
+    with client_bus(router) as opened:
         yield opened
-    finally:
-        opened.close()
