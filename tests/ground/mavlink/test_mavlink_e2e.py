@@ -6,91 +6,31 @@ other side. What the fleet did is checked with `ground-cli`, as an operator woul
 
 from __future__ import annotations
 
-import json
 import math
-import signal
 import socket
-import subprocess
 import sys
-import time
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from fleet.launch.endpoints import free_port
+from tests.ground.mavlink.mavlink_fleet import FleetUp, running_fleet, stop
 from tests.ground.mavlink.stations import free_udp_port, receiver
 from tests.support.ground_view import GroundView
-from tests.support.processes import Child, client_session, start, start_fleet_up, wait_fleet_up
+from tests.support.processes import client_session, start
 from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
 
 UAVS = (101, 102, 103)
-START_S = 90.0
 WAIT_S = 60.0
-
-
-class FleetUp:
-    def __init__(self, port: int, up: Child, tmp: Path) -> None:
-        self.port = port
-        self.endpoint = f"tcp/127.0.0.1:{port}"
-        self.up = up
-        self.tmp = tmp
-
-    def ground_cli(self, *argv: str) -> Any:
-        done = subprocess.run(
-            [sys.executable, "-m", "ground.cli", "--connect", self.endpoint, *argv],
-            capture_output=True, text=True, timeout=WAIT_S, check=False,
-        )  # fmt: skip
-        assert done.returncode in (0, 1), done.stderr
-        return json.loads(done.stdout) if done.stdout.strip() else None
-
-    def uav(self, piccolo: int) -> dict[str, Any]:
-        views = self.ground_cli("uavs", "--json") or []
-        return next((v for v in views if v["id"] == piccolo), {})
-
-    def gateway(self, out: str, *extra: str) -> Child:
-        child = start(
-            "fleet mavlink",
-            [sys.executable, "-m", "programs.fleet_cli", "mavlink", "--connect", self.endpoint,
-             "--out", out, *extra],
-        )  # fmt: skip
-        child.wait_for_line(lambda line: "fleet mavlink: serving on" in line, WAIT_S)
-        return child
 
 
 @pytest.fixture(scope="module")
 def fleet_up(tmp_path_factory: pytest.TempPathFactory) -> Iterator[FleetUp]:
-    tmp = tmp_path_factory.mktemp("mavlink")
-    port = free_port()
-    up = start_fleet_up(
-        "--uavs",
-        str(len(UAVS)),
-        "--speedup",
-        "5",
-        "--listen",
-        f"tcp/127.0.0.1:{port}",
-        "--log-dir",
-        str(tmp / "logs"),
-        "--no-record",
-    )
-    try:
-        wait_fleet_up(up, START_S)
-        yield FleetUp(port, up, tmp)
-    finally:
-        up.process.send_signal(signal.SIGTERM)
-        up.process.wait(30)
-
-
-def stop(child: Child) -> list[str]:
-    """SIGTERM, wait, and its whole output."""
-    assert child.process.poll() is None, f"{child.name} died:\n" + "\n".join(child.history)
-    child.stop(grace=15.0)
-    time.sleep(0.2)  # the reader thread takes the last lines off the pipe
-    return child.history
+    with running_fleet(len(UAVS), tmp_path_factory.mktemp("mavlink")) as running:
+        yield running
 
 
 def latest_mission(fleet: FleetUp, mission: int | None = None) -> dict[str, Any]:

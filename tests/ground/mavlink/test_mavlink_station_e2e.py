@@ -12,14 +12,9 @@ obeyed, a second station taking over or joining an upload.
 
 from __future__ import annotations
 
-import json
-import signal
 import socket
-import subprocess
 import sys
-import time
 from collections.abc import Callable, Iterator
-from pathlib import Path
 from typing import Any
 
 import pytest
@@ -27,69 +22,22 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from fleet.launch.endpoints import free_port
 from ground.mavlink.signing import passphrase_secret, timestamp_now
+from tests.ground.mavlink.mavlink_fleet import FleetUp, running_fleet, stop
 from tests.ground.mavlink.stations import free_udp_port, receiver
-from tests.support.processes import Child, start, start_fleet_up, wait_fleet_up
+from tests.support.processes import start
 from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
 
 UAVS = (101, 102)
-START_S = 90.0
 WAIT_S = 60.0
 PASSPHRASE = "correct horse battery staple"
 
 
-class FleetUp:
-    def __init__(self, port: int, tmp: Path) -> None:
-        self.endpoint = f"tcp/127.0.0.1:{port}"
-        self.tmp = tmp
-
-    def ground_cli(self, *argv: str) -> Any:
-        done = subprocess.run(
-            [sys.executable, "-m", "ground.cli", "--connect", self.endpoint, *argv],
-            capture_output=True, text=True, timeout=WAIT_S, check=False,
-        )  # fmt: skip
-        assert done.returncode in (0, 1), done.stderr
-        return json.loads(done.stdout) if done.stdout.strip() else None
-
-    def gateway(self, out: str, *extra: str) -> Child:
-        child = start(
-            "fleet mavlink",
-            [sys.executable, "-m", "programs.fleet_cli", "mavlink", "--connect", self.endpoint,
-             "--out", out, *extra],
-        )  # fmt: skip
-        child.wait_for_line(lambda line: "fleet mavlink: serving on" in line, WAIT_S)
-        return child
-
-
 @pytest.fixture(scope="module")
 def fleet_up(tmp_path_factory: pytest.TempPathFactory) -> Iterator[FleetUp]:
-    tmp = tmp_path_factory.mktemp("mavlink-stations")
-    port = free_port()
-    up = start_fleet_up(
-        "--uavs",
-        str(len(UAVS)),
-        "--speedup",
-        "5",
-        "--listen",
-        f"tcp/127.0.0.1:{port}",
-        "--log-dir",
-        str(tmp / "logs"),
-        "--no-record",
-    )
-    try:
-        wait_fleet_up(up, START_S)
-        yield FleetUp(port, tmp)
-    finally:
-        up.process.send_signal(signal.SIGTERM)
-        up.process.wait(30)
-
-
-def stop(child: Child) -> list[str]:
-    assert child.process.poll() is None, f"{child.name} died:\n" + "\n".join(child.history)
-    child.stop(grace=15.0)
-    time.sleep(0.2)  # the reader thread takes the last lines off the pipe
-    return child.history
+    with running_fleet(len(UAVS), tmp_path_factory.mktemp("mavlink-stations")) as running:
+        yield running
 
 
 def exit_drops(lines: list[str]) -> str:

@@ -1,0 +1,81 @@
+"""The fleet side of the `fleet mavlink` end-to-end tests: `fleet up` with simulated UAVs
+on a TCP port, `ground-cli` against it, and the gateway as its own process."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from fleet.launch.endpoints import free_port
+from tests.ground.mavlink.stations import WAIT_S
+from tests.support.processes import Child, start, start_fleet_up, wait_fleet_up
+
+#: How long `fleet up` may take to say its fleet is up.
+START_S = 90.0
+
+
+class FleetUp:
+    def __init__(self, port: int, up: Child, tmp: Path) -> None:
+        self.port = port
+        self.endpoint = f"tcp/127.0.0.1:{port}"
+        self.up = up
+        self.tmp = tmp
+
+    def ground_cli(self, *argv: str) -> Any:
+        done = subprocess.run(
+            [sys.executable, "-m", "ground.cli", "--connect", self.endpoint, *argv],
+            capture_output=True, text=True, timeout=WAIT_S, check=False,
+        )  # fmt: skip
+        assert done.returncode in (0, 1), done.stderr
+        return json.loads(done.stdout) if done.stdout.strip() else None
+
+    def uav(self, piccolo: int) -> dict[str, Any]:
+        views = self.ground_cli("uavs", "--json") or []
+        return next((v for v in views if v["id"] == piccolo), {})
+
+    def gateway(self, out: str, *extra: str) -> Child:
+        child = start(
+            "fleet mavlink",
+            [sys.executable, "-m", "programs.fleet_cli", "mavlink", "--connect", self.endpoint,
+             "--out", out, *extra],
+        )  # fmt: skip
+        child.wait_for_line(lambda line: "fleet mavlink: serving on" in line, WAIT_S)
+        return child
+
+
+@contextmanager
+def running_fleet(uavs: int, tmp: Path) -> Iterator[FleetUp]:
+    """`fleet up --uavs N` at five times real time, logging under `tmp`, until exit."""
+    port = free_port()
+    up = start_fleet_up(
+        "--uavs",
+        str(uavs),
+        "--speedup",
+        "5",
+        "--listen",
+        f"tcp/127.0.0.1:{port}",
+        "--log-dir",
+        str(tmp / "logs"),
+        "--no-record",
+    )
+    try:
+        wait_fleet_up(up, START_S)
+        yield FleetUp(port, up, tmp)
+    finally:
+        up.process.send_signal(signal.SIGTERM)
+        up.process.wait(30)
+
+
+def stop(child: Child) -> list[str]:
+    """SIGTERM, wait, and its whole output."""
+    assert child.process.poll() is None, f"{child.name} died:\n" + "\n".join(child.history)
+    child.stop(grace=15.0)
+    time.sleep(0.2)  # the reader thread takes the last lines off the pipe
+    return child.history
