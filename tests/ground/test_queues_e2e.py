@@ -16,6 +16,7 @@ from fleet.mission.phase import Phase
 from tests.conftest import Ground
 from tests.ground.test_truth import finish, ground_cli, targets_file
 from tests.onboard.test_multi_uav import start_ring
+from tests.support.agreement import assert_one_plan
 from tests.support.processes import Fleet
 from tests.support.targets import ring_targets
 from tests.support.waiting import wait_until
@@ -54,18 +55,7 @@ def _send(
     seen = ground.seen
     wait_until(lambda: set(team) <= set(seen.assignments), 30.0, "every commitment")
     reports = {uav: seen.assignments[uav] for uav in team}
-    # Every UAV agrees: one digest, the same queues, every target in exactly one queue.
-    assert len({(r.digest, str(r.queues)) for r in reports.values()}) == 1
-    queued = [t for q in reports[team[0]].queues.values() for t in q]
-    assert sorted(queued) == list(range(len(TARGETS)))
-    # The JSON tells each target its holder, its place in that queue and its arrival.
-    for state in report["target_states"]:
-        holder = state["uav"]
-        queue = reports[team[0]].queues[holder]
-        assert state["place"] == queue.index(state["index"]) + 1
-        assert state["eta_s"] == pytest.approx(
-            reports[team[0]].arrivals[holder][state["place"] - 1]
-        )
+    assert_one_plan(report, reports, len(TARGETS))
     return reports
 
 

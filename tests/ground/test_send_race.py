@@ -16,6 +16,7 @@ import io
 import json
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -23,11 +24,10 @@ import pytest
 
 from fleet.launch.ring import ring_scenario
 from fleet.mission.key_space import KeySpace
-from fleet.mission.messages import AssignmentReport
-from fleet.transport.bus import BusSample, decode_sample
 from fleet.transport.bus_factory import open_bus
 from fleet.transport.faulty_bus import FaultRule
 from ground.send_command import SendOptions, run_send_targets
+from tests.support.agreement import AssignmentsHeard
 from tests.support.memory_world import memory_fleet
 from tests.support.targets import ring_targets
 from tests.support.waiting import wait_until
@@ -35,6 +35,19 @@ from tests.support.waiting import wait_until
 SPACE = KeySpace()
 #: How long a ground may take; generous for a loaded machine.
 SEND_S = 120.0
+
+
+def race(send: Callable[[int, int], None], apart_s: float) -> None:
+    """Two grounds: `send(0, 11)`, and `apart_s` later `send(1, 12)`, each on a thread
+    of its own; both have ended on return."""
+    grounds = [threading.Thread(target=send, args=(0, 11))]
+    grounds[0].start()
+    time.sleep(apart_s)  # the fault: a second operator, a moment later
+    grounds.append(threading.Thread(target=send, args=(1, 12)))
+    grounds[1].start()
+    for ground in grounds:
+        ground.join(SEND_S)
+    assert not any(ground.is_alive() for ground in grounds)
 
 
 @pytest.mark.parametrize("apart_s", [0.05, 0.5])
@@ -45,16 +58,7 @@ def test_two_grounds_racing_an_unheld_team_exactly_one_reports_success(
     scenario.write_text(ring_scenario(2))
     with memory_fleet(str(scenario)) as fleet:
         team = list(fleet.ids)
-        latest: dict[int, AssignmentReport] = {}
-        lock = threading.Lock()
-
-        def on_assignment(sample: BusSample) -> None:
-            report = decode_sample(sample, AssignmentReport)
-            if report is not None:
-                with lock:
-                    latest[report.uav] = report
-
-        fleet.bus().subscribe(f"{SPACE.prefix}/mission/*/assignment/*", on_assignment)
+        heard = AssignmentsHeard(fleet.bus(), SPACE)
         outs = [io.StringIO(), io.StringIO()]
         statuses: list[int | None] = [None, None]
 
@@ -68,14 +72,7 @@ def test_two_grounds_racing_an_unheld_team_exactly_one_reports_success(
             )
             statuses[index] = run_send_targets(fleet.bus(), options, outs[index])
 
-        grounds = [threading.Thread(target=send, args=(0, 11))]
-        grounds[0].start()
-        time.sleep(apart_s)  # the fault: a second operator, a moment later
-        grounds.append(threading.Thread(target=send, args=(1, 12)))
-        grounds[1].start()
-        for ground in grounds:
-            ground.join(SEND_S)
-        assert not any(ground.is_alive() for ground in grounds)
+        race(send, apart_s)
         reports: list[dict[str, Any]] = [json.loads(out.getvalue()) for out in outs]
         missions = [report["mission"] for report in reports]
         assert missions[0] != missions[1], reports
@@ -83,8 +80,8 @@ def test_two_grounds_racing_an_unheld_team_exactly_one_reports_success(
 
         # The team flies the later mission: each UAV's latest commitment is to it.
         def all_on_later() -> bool:
-            with lock:
-                return all(uav in latest and latest[uav].mission == later for uav in team)
+            latest = heard.latest()
+            return all(uav in latest and latest[uav].mission == later for uav in team)
 
         wait_until(all_on_later, 10.0, f"every UAV committed to mission {later}")
     winner, loser = sorted(range(2), key=lambda i: reports[i]["mission"] != later)
@@ -121,14 +118,7 @@ def test_two_send_targets_at_once_get_different_ids_and_the_superseded_one_says_
             finally:
                 bus.close()
 
-        grounds = [threading.Thread(target=send, args=(0, 11))]
-        grounds[0].start()
-        time.sleep(apart_s)  # the fault: a second operator, a moment later
-        grounds.append(threading.Thread(target=send, args=(1, 12)))
-        grounds[1].start()
-        for ground in grounds:
-            ground.join(SEND_S)
-        assert not any(ground.is_alive() for ground in grounds)
+        race(send, apart_s)
     reports: list[dict[str, Any]] = [json.loads(out.getvalue()) for out in outs]
     missions = [report["mission"] for report in reports]
     assert missions[0] != missions[1], reports
