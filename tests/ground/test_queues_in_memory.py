@@ -12,12 +12,11 @@ from pathlib import Path
 
 import pytest
 
-from fleet.launch.ring import ring_scenario
 from fleet.mission.key_space import KeySpace
 from fleet.mission.objective import Objective
 from ground.send_command import SendOptions, run_send_targets
 from tests.support.agreement import AssignmentsHeard, assert_one_plan
-from tests.support.memory_world import memory_fleet
+from tests.support.memory_world import memory_fleet, ring_file
 from tests.support.targets import ring_targets
 from tests.support.waiting import wait_until
 
@@ -29,9 +28,7 @@ TARGETS = ring_targets(8, seed=23)
 def test_every_uav_agrees_on_the_plan_of_each_objective(
     tmp_path: Path, objective: Objective
 ) -> None:
-    scenario = tmp_path / "ring.toml"
-    scenario.write_text(ring_scenario(3))
-    with memory_fleet(str(scenario)) as fleet:
+    with memory_fleet(ring_file(tmp_path, 3)) as fleet:
         team = list(fleet.ids)
         seen = AssignmentsHeard(fleet.bus(), SPACE)
         out = io.StringIO()

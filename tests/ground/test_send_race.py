@@ -22,13 +22,12 @@ from typing import Any
 
 import pytest
 
-from fleet.launch.ring import ring_scenario
 from fleet.mission.key_space import KeySpace
 from fleet.transport.bus_factory import open_bus
 from fleet.transport.faulty_bus import FaultRule
 from ground.send_command import SendOptions, run_send_targets
 from tests.support.agreement import AssignmentsHeard
-from tests.support.memory_world import memory_fleet
+from tests.support.memory_world import memory_fleet, ring_file
 from tests.support.targets import ring_targets
 from tests.support.waiting import wait_until
 
@@ -54,9 +53,7 @@ def race(send: Callable[[int, int], None], apart_s: float) -> None:
 def test_two_grounds_racing_an_unheld_team_exactly_one_reports_success(
     tmp_path: Path, apart_s: float
 ) -> None:
-    scenario = tmp_path / "ring.toml"
-    scenario.write_text(ring_scenario(2))
-    with memory_fleet(str(scenario)) as fleet:
+    with memory_fleet(ring_file(tmp_path, 2)) as fleet:
         team = list(fleet.ids)
         heard = AssignmentsHeard(fleet.bus(), SPACE)
         outs = [io.StringIO(), io.StringIO()]
@@ -99,10 +96,8 @@ HOLD_S = 1.5
 def test_two_send_targets_at_once_get_different_ids_and_the_superseded_one_says_so(
     tmp_path: Path, apart_s: float
 ) -> None:
-    scenario = tmp_path / "ring.toml"
-    scenario.write_text(ring_scenario(2))
     held = FaultRule(SPACE.all_mission_targets, delay_s=HOLD_S)
-    with memory_fleet(str(scenario)) as fleet:
+    with memory_fleet(ring_file(tmp_path, 2)) as fleet:
         team = list(fleet.ids)
         outs = [io.StringIO(), io.StringIO()]
         statuses: list[int | None] = [None, None]

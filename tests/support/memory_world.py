@@ -16,7 +16,9 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from pathlib import Path
 
+from fleet.launch.ring import ring_scenario
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import NoFlyZone, UavState
 from fleet.sim.autopilot import AutopilotSettings, SimulatedAutopilot
@@ -88,6 +90,14 @@ def _fly(aircraft: list[LinkedAutopilot], speedup: float, stop: threading.Event)
         now_ms = int((time.monotonic() - start) * speedup * 1000)
         for one in aircraft:
             one.pump(now_ms)
+
+
+def ring_file(folder: Path, uavs: int) -> str:
+    """The ring scenario of `uavs` UAVs (`fleet up --uavs N`'s), written to
+    folder/ring.toml: its path, as `memory_fleet` takes it."""
+    path = folder / "ring.toml"
+    path.write_text(ring_scenario(uavs))
+    return str(path)
 
 
 @contextmanager
