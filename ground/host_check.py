@@ -16,6 +16,17 @@ _WILDCARDS = ("0.0.0.0", "::", "")
 _LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
 
 
+def is_loopback(host: str) -> bool:
+    """`host` (a name or an address) is this machine only: `localhost` or a loopback
+    address; any other name may resolve elsewhere."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
 def normal_host(host: str) -> str:
     """`[::1]`, `LOCALHOST.`, `127.000.0.1` -> the one spelling compared."""
     host = host.strip().lower().rstrip(".").removeprefix("[").removesuffix("]")

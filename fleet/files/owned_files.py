@@ -117,3 +117,19 @@ def read_own(path: Path, error: type[FleetError], limit: int = 1 << 20) -> bytes
                 f"{info.st_nlink} links): not used"
             )
         return f.read(limit)
+
+
+def read_private(path: Path, error: type[FleetError], limit: int) -> bytes:
+    """The first `limit` bytes of `path`, a secret (a token, passphrases): opened without
+    following a link, and refused (`error`) if its group or others may read or write it.
+    An OSError opening or reading it passes through: the caller says it (or, for a file
+    not there yet, makes one)."""
+    descriptor = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
+    with os.fdopen(descriptor, "rb") as f:
+        info = os.fstat(f.fileno())
+        if info.st_mode & (stat.S_IRWXG | stat.S_IRWXO):
+            raise error(
+                f"{path}: readable or writable by others (mode {stat.S_IMODE(info.st_mode):o}); "
+                f"chmod 600 {path}"
+            )
+        return f.read(limit)

@@ -34,6 +34,7 @@ from ground.foxglove_live.bridge import DEFAULT_STATE_EVERY_S, FoxgloveBridge
 from ground.foxglove_live.client_log import quiet_client_resets
 from ground.foxglove_live.gate import DEFAULT_ORIGINS, Gate, Rules, upstream_identity
 from ground.gui.cli import host_port
+from ground.host_check import is_loopback
 
 PROG = "fleet foxglove"
 #: Foxglove's own default: its "Open connection" dialog offers ws://localhost:8765.
@@ -99,12 +100,6 @@ def _address(text: str) -> tuple[str, int]:
         ) from None
 
 
-def _is_loopback(host: str) -> bool:
-    from ground.gui.server import is_loopback  # aiohttp only when asked
-
-    return is_loopback(host)
-
-
 @dataclass(frozen=True, kw_only=True)
 class FoxgloveOptions(BusOptions):
     #: Where Foxglove connects (HOST, PORT; port 0: any free port).
@@ -122,7 +117,7 @@ class FoxgloveOptions(BusOptions):
 def foxglove_options(args: argparse.Namespace) -> FoxgloveOptions:
     """The options; serving beyond loopback without --allow-remote is a usage error."""
     host, port = args.serve
-    if not _is_loopback(host) and not args.allow_remote:
+    if not is_loopback(host) and not args.allow_remote:
         raise OptionsError(
             f"--serve {host}:{port} is not loopback: anyone who reaches it would see the "
             "fleet (the Foxglove protocol has no access control). Add --allow-remote."

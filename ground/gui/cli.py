@@ -15,7 +15,6 @@ import asyncio
 import os
 import secrets
 import signal
-import stat
 import sys
 import webbrowser
 from dataclasses import dataclass
@@ -23,9 +22,11 @@ from pathlib import Path
 from typing import TextIO
 
 from fleet.errors import FleetError
+from fleet.files.owned_files import read_private
 from fleet.transport.bus import Bus
 from fleet.transport.cli import ExitCode, bounded_int, positive_float
 from fleet.transport.command import BusOptions, Command, OptionsError, add_command
+from ground.host_check import is_loopback
 
 DEFAULT_LISTEN = "127.0.0.1:8321"
 TOKEN_ENV = "FLEET_GUI_TOKEN"
@@ -104,7 +105,7 @@ def read_token_file(path: Path) -> str:
     """The token in `path`; a new random one written there (owner-only, never through a
     link) if there is no such file. TokenError says what is wrong with the file."""
     try:
-        descriptor = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
+        token = read_private(path, TokenError, 4096).decode("utf-8", "replace").strip()
     except FileNotFoundError:
         token = secrets.token_urlsafe(24)
         flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
@@ -116,14 +117,6 @@ def read_token_file(path: Path) -> str:
         return token
     except OSError as error:
         raise TokenError(f"{path}: cannot read the token: {error.strerror}") from None
-    with os.fdopen(descriptor, "rb") as f:
-        info = os.fstat(f.fileno())
-        if info.st_mode & (stat.S_IRWXG | stat.S_IRWXO):
-            raise TokenError(
-                f"{path}: readable or writable by others (mode {stat.S_IMODE(info.st_mode):o}); "
-                f"chmod 600 {path}"
-            )
-        token = f.read(4096).decode("utf-8", "replace").strip()
     if not token or any(c.isspace() for c in token):
         raise TokenError(f"{path}: expected one token (no spaces) on one line")
     return token
@@ -153,9 +146,6 @@ def gui_options(args: argparse.Namespace) -> GuiOptions:
     """The page's options, or OptionsError saying why the flags are refused: a token on
     the command line, an unusable token file, a non-loopback --listen without
     --allow-remote, or with it but no token."""
-    # aiohttp is imported only by the command that serves.
-    from ground.gui.server import is_loopback
-
     if args.token_argv is not None:
         raise OptionsError(
             "gui: --token is not taken on the command line (every user's `ps` shows it): put "

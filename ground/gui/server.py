@@ -38,7 +38,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import hmac
-import ipaddress
 import json
 import logging
 import time
@@ -97,15 +96,6 @@ class GuiConfig:
     rate_hz: float
     query_timeout_s: float
     key_space: KeySpace  #: the fleet's keys (--key-prefix)
-
-
-def is_loopback(host: str) -> bool:
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
 
 
 class GuiServer:

@@ -12,7 +12,6 @@ signing); on any address but loopback that is required, unless `--insecure`.
 from __future__ import annotations
 
 import argparse
-import ipaddress
 import logging
 import sys
 import threading
@@ -38,6 +37,7 @@ from fleet.transport.command import (
     fields_from,
     run_standalone,
 )
+from ground.host_check import is_loopback
 from ground.mavlink.endpoint import Endpoint, EndpointError, InputDrops, parse_url
 from ground.mavlink.fleet_link import FleetLink, TeamChoice
 from ground.mavlink.gateway import Gateway
@@ -128,22 +128,13 @@ class MavlinkOptions(BusOptions):
     verifier: Verifier | None = None
 
 
-def _is_loopback(host: str) -> bool:
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
-
-
 def _verifier(out: str, signing_key: Path | None, insecure: bool) -> Verifier | None:
     """The stations' secrets (`--signing-key`); None without. SigningKeyError if the file
     cannot be used, EndpointError if a non-loopback --out has no secret and no --insecure."""
     if signing_key is not None:
         return Verifier(load_keys(signing_key))
     host = parse_url(out)[1][0]
-    if not _is_loopback(host) and not insecure:
+    if not is_loopback(host) and not insecure:
         raise EndpointError(
             f"--out {out} is not loopback: anyone who reaches it could upload missions "
             "and RTL aircraft. Give the stations' secrets (--signing-key FILE) or add "

@@ -18,8 +18,6 @@ from __future__ import annotations
 
 import hashlib
 import hmac
-import os
-import stat
 import time
 from collections import OrderedDict
 from collections.abc import Callable
@@ -30,6 +28,7 @@ from pathlib import Path
 from pymavlink.dialects.v20 import common as mavlink2
 
 from fleet.errors import FleetError
+from fleet.files.owned_files import read_private
 
 #: The signing timestamp's epoch (2015-01-01 UTC) and unit (10 µs).
 EPOCH_2015 = 1420070400
@@ -60,17 +59,9 @@ def passphrase_secret(passphrase: str) -> bytes:
 def load_keys(path: Path) -> tuple[StationKey, ...]:
     """The stations' secrets in `path` (`NAME PASSPHRASE` a line)."""
     try:
-        descriptor = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
+        text = read_private(path, SigningKeyError, MAX_KEY_FILE).decode("utf-8", "replace")
     except OSError as error:
         raise SigningKeyError(f"{path}: {error.strerror or error}") from None
-    with os.fdopen(descriptor, "rb") as f:
-        info = os.fstat(f.fileno())
-        if info.st_mode & (stat.S_IRWXG | stat.S_IRWXO):
-            raise SigningKeyError(
-                f"{path}: readable or writable by others (mode {stat.S_IMODE(info.st_mode):o}); "
-                f"chmod 600 {path}"
-            )
-        text = f.read(MAX_KEY_FILE).decode("utf-8", "replace")
     keys: dict[str, StationKey] = {}
     for number, line in enumerate(text.splitlines(), 1):
         line = line.strip()
