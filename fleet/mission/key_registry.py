@@ -19,6 +19,8 @@ Layout (under the prefix, `fleet` by default):
     uav/{id}/status              StatusText (thesis PAYLOAD_STATUS)
     uav/{id}/link                LinkHealth
     uav/{id}/state               UavState, put at the OPM status rate and served
+    uav/{id}/digest              StreamDigest: the hashes of the UAV's stream samples
+                                 (telemetry ... link) since its last, signed
     uav/{id}/opm                 OpmCommand, ground -> UAV
     uav/{id}/cmd/waypoint        queryable: Waypoint in, CommandResult out
     uav/{id}/cmd/track           queryable: Track in, CommandResult out
@@ -151,6 +153,8 @@ STATE = KeySpec(
     reply=messages.UavState, servers=_OWN, uavs_fetch=True,
     note="put at the OPM status rate; query reply",
 )  # fmt: skip
+#: Signed by its UAV, twice a second while it streams: vouches for its unsigned samples.
+DIGEST = KeySpec("uav/{id}/digest", messages.StreamDigest, recording=Recording.UNHEARD)
 OPM = KeySpec(
     "uav/{id}/opm", messages.OpmCommand, role=Role.COMMAND, writer=Party.GROUND,
     urgency=Urgency.URGENT,
@@ -221,7 +225,7 @@ ROSTER = KeySpec(
 
 #: Every key of the fleet. Order is kept wherever keys are listed (schemas, grants).
 REGISTRY: tuple[KeySpec, ...] = (
-    ALIVE, TELEMETRY, TRACK, WAYPOINT, STATUS, LINK, STATE, OPM, CMD_WAYPOINT, CMD_TRACK,
+    ALIVE, TELEMETRY, TRACK, WAYPOINT, STATUS, LINK, STATE, DIGEST, OPM, CMD_WAYPOINT, CMD_TRACK,
     TARGETS, RESULT, ASSIGNMENT, REPLAN, OUTCOME, ABORT, PROPOSAL, ROUTER_STATE, ROSTER,
 )  # fmt: skip
 
@@ -243,4 +247,5 @@ SCHEMA_FILES: dict[type[msgspec.Struct], str] = {
     messages.TargetOutcome: "target_outcome",
     messages.RouterState: "router_state",
     messages.RosterDocument: "roster",
+    messages.StreamDigest: "stream_digest",
 }

@@ -187,6 +187,13 @@ class KeySpace:
     def roster(self) -> str:
         return self.key(reg.ROSTER)
 
+    def digest(self, uav_id: int) -> str:
+        return self.key(reg.DIGEST, id=uav_id)
+
+    @property
+    def all_digests(self) -> str:
+        return self.key(reg.DIGEST)
+
     @property
     def all_mission_targets(self) -> str:
         return self.key(reg.TARGETS)

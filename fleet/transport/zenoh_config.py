@@ -7,7 +7,7 @@ router-mode session opens in milliseconds rather than 500 ms.
 Shared memory is off too (`SHARED_MEMORY_OFF`). Zenoh's default turns it on lazily: the
 first message over 3 KB a process sends (a 50-target mission, a UAV's state with its
 mission) makes it create a 16 MiB pool and map its peers' pools, which put 20-35 MB
-resident in every such process (issue 14: fifty onboards on one box). Fleet messages are
+resident in every such process (fifty onboards on one box). Fleet messages are
 small, and the aircraft of a real fleet share no memory.
 
 A deployment that needs more (TLS, access control, shared memory, timeouts) gives a full
@@ -46,11 +46,18 @@ def default_connect() -> str:
     return os.environ.get(CONNECT_ENV, DEFAULT_ROUTER)
 
 
+#: Where in Zenoh's Rust source an error was made: nothing a user can act on.
+_RUST_LOCATION = re.compile(r"\s+at \S+\.rs:\d+\.?")
+
+
 def error_text(error: BaseException) -> str:
-    """A Zenoh error's first line, without the Rust source location Zenoh appends."""
+    """A Zenoh error's first line, without the Rust source locations Zenoh appends (one
+    per error it wraps: "... [127.0.0.1:7447: Address already in use (os error 98) at
+    /root/.cargo/.../tcp.rs:61.] at /root/.cargo/.../unicast.rs:338.")."""
     text = str(error).strip()
     first = text.splitlines()[0] if text else type(error).__name__
-    return first.split("  at ")[0].split(" at /")[0].strip()
+    first = _RUST_LOCATION.sub("", first)
+    return first.replace("[", "(").replace("]", ")").rstrip(". ").strip()
 
 
 def check_endpoint(endpoint: str) -> str:

@@ -110,6 +110,8 @@ class MissionMap:
     aborted: set[int] = field(default_factory=set)
     team_aborted: bool = False
     positions: dict[int, tuple[float, float]] = field(default_factory=dict)
+    #: Each UAV's latest fix (altitude and heading too: the 3D scene draws them).
+    fixes: dict[int, Fix] = field(default_factory=dict)
 
     @property
     def mission(self) -> int | None:
@@ -161,6 +163,7 @@ class MissionMap:
 
     def on_fix(self, fix: Fix) -> None:
         self.positions[fix.uav] = (fix.latitude, fix.longitude)
+        self.fixes[fix.uav] = fix
 
     def target_of(self, uav: int) -> int | None:
         """The index of the target `uav` flies to, if it still does: the first of its
@@ -261,7 +264,7 @@ def assignment_lines(view: MissionMap) -> list[Feature]:
 
 
 def tour_lines(view: MissionMap) -> list[Feature]:
-    """Each UAV's tour (issue 23): a line through the rest of its queue,
+    """Each UAV's tour: a line through the rest of its queue,
     from its current target on, in the UAV's colour; none for a queue of one."""
     if view.targets is None:
         return []
