@@ -44,7 +44,7 @@ def one_uav_second(sender: mavlink2.MAVLink) -> int:
     size = 0
     messages: list[mavlink2.MAVLink_message | None] = [
         vehicle.heartbeat(VIEW),
-        vehicle.sys_status(TELEMETRY, 0),
+        vehicle.sys_status(VIEW, TELEMETRY, 0),
         vehicle.mission_current(1, 3, False),
     ]
     for tick in range(4):

@@ -65,10 +65,16 @@ class OwnResult:
     say: Say
 
     def start(
-        self, mission_round: MissionRound, gps: GpsBlock, now: float, wind: Wind = CALM_AIR
+        self,
+        mission_round: MissionRound,
+        gps: GpsBlock,
+        now: float,
+        wind: Wind = CALM_AIR,
+        true_airspeed: float | None = None,
     ) -> bool:
-        """Start computing the approach times in `wind`; False if the planner refused."""
-        if not self.plan.start(mission_round.targets, gps, wind):
+        """Start computing the approach times in `wind` at `true_airspeed` (None: from
+        the GPS); False if the planner refused."""
+        if not self.plan.start(mission_round.targets, gps, wind, true_airspeed):
             return False
         self.say(
             StatusKind.COMPUTING,

@@ -123,7 +123,7 @@ class _Outputs:
 
     def fetch_assignments(self, mission: int) -> None:
         """What the team decided on `mission` while this UAV was away: the assignments,
-        the outcomes (who reached its target: never released later; who dropped out)
+        the outcomes (who reached which target: not flown again; who dropped out)
         and an abort (which teammates relay by query)."""
         self.process.node.fetch(self.process.space.mission_assignments(mission), AssignmentReport)
         self.process.node.fetch(self.process.space.mission_outcomes(mission), TargetOutcome)

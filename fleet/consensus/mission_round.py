@@ -78,7 +78,7 @@ class Settled:
     report's header alone (`AssignmentHeader`), that the report changes nothing for it.
 
     Every part only grows while the UAV runs (the mission id, the commitment, the abort,
-    the released and reached UAVs, the epoch followed), so a report an older snapshot
+    the released UAVs, the epoch followed), so a report an older snapshot
     `covers` changes nothing under the UAV's later state either: a bus thread may check
     reports against a snapshot while the main loop moves on.
     """
@@ -88,7 +88,7 @@ class Settled:
     committed: bool
     aborted: bool
     team: frozenset[int]
-    #: Team UAVs released or reached: a report releasing them again changes nothing.
+    #: Team UAVs released: a report releasing them again changes nothing.
     done: frozenset[int]
     #: Without epoch 0 (`MissionRound.base` None), the epoch followed: a later one is
     #: taken (`MissionRound.follow`). None with epoch 0: later epochs are re-planned
@@ -134,7 +134,8 @@ class MissionRound:
     base: AssignmentReport | None = None
     #: Team UAVs that dropped out of the mission after the commitment (only grows).
     released: set[int] = field(default_factory=set)
-    #: Team UAVs that reached every target of their queue: never released.
+    #: Team UAVs that reached every target of their queue. Released like any other when
+    #: they go (liveliness), so that a later epoch never hands them an orphan.
     reached: set[int] = field(default_factory=set)
     #: Targets some UAV reported reaching, and by whom: skipped when a queue comes to them.
     reached_targets: dict[int, int] = field(default_factory=dict)
@@ -202,8 +203,7 @@ class MissionRound:
         return None
 
     def target_reached(self, uav: int, target: int | None) -> None:
-        """`uav` reported reaching `target`: a UAV whose whole queue is reached is never
-        released (its liveliness may go: it has nothing left to hand on)."""
+        """`uav` reported reaching `target`: skipped by whoever's queue comes to it."""
         if target is not None:
             self.reached_targets.setdefault(target, uav)
         self._update_reached()
@@ -240,7 +240,7 @@ class MissionRound:
             committed=committed is not None,
             aborted=aborted,
             team=self.team,
-            done=frozenset(self.released | self.reached),
+            done=frozenset(self.released),
             following=committed.epoch if committed is not None and self.base is None else None,
         )
 
@@ -447,7 +447,9 @@ class MissionRound:
     # ---- after the commitment ---------------------------------------------------------
     def release(self, uavs: Iterable[int]) -> bool:
         """Mark team UAVs as out of the mission; True if that changes the re-plan input."""
-        new = {uav for uav in uavs if uav in self.team} - self.released - self.reached
+        # A UAV done with its queue is released too when it goes: it holds nothing a
+        # later epoch may hand it, and every teammate releases it alike (liveliness).
+        new = {uav for uav in uavs if uav in self.team} - self.released
         self.released |= new
         if self.base is None:
             return False

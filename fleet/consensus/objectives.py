@@ -24,6 +24,7 @@ from collections.abc import Sequence
 from fleet.consensus.assignment import time_or_inf
 from fleet.consensus.digest import sha256
 from fleet.consensus.improve import improve
+from fleet.consensus.makespan import ruin_and_recreate, shorten_longest
 from fleet.consensus.queues import (
     Legs,
     Orders,
@@ -61,10 +62,13 @@ def plan_queues(
         if objective is Objective.GREEDY:
             return finish(queues, times, legs)
         best = improve(queues, times, legs, objective)
+        if objective is Objective.MIN_MAX:
+            best = shorten_longest(ruin_and_recreate(best, times, legs), times, legs)
         if objective is Objective.MIN_MAX and len(uavs) * count <= SECOND_START_UP_TO:
             # The relocations alone stall on the last arrival; a second start, from the
             # min-sum plan, often ends lower. The better of the two by (last, total).
             other = improve(improve(queues, times, legs, Objective.MIN_SUM), times, legs, objective)
+            other = shorten_longest(ruin_and_recreate(other, times, legs), times, legs)
             best = min(best, other, key=lambda q: _last_total(q, times, legs))
         return finish(best, times, legs)
     pairs = min_sum_assign(times, count) if objective is Objective.MIN_SUM else None

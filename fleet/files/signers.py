@@ -97,8 +97,17 @@ def load_roster(directory: Path, ca_pem: Path | None = None) -> Roster:
     """The roster in `directory`, checked against the CA in `ca_pem` (default
     `directory/ca.pem`); RosterError names the file and what is wrong."""
     path = directory / ROSTER_FILE
-    ca_pem = ca_pem or directory / f"{CA_NAME}.pem"
-    document = _read_roster(path)
+    return roster_of(_read_roster(path), ca_pem or directory / f"{CA_NAME}.pem", str(path))
+
+
+def roster_document(directory: Path) -> bytes:
+    """The roster file's bytes as written (what `fleet certs revoke` puts to the fleet)."""
+    return json.dumps(_read_roster(directory / ROSTER_FILE)).encode()
+
+
+def roster_of(document: dict[str, Any], ca_pem: Path, source: str) -> Roster:
+    """The roster `document` says, if the CA in `ca_pem` signed it; RosterError names
+    `source` (a file, or the key it was heard on) and what is wrong."""
     try:
         signers = document["signers"]
         revoked = document["revoked"]
@@ -111,7 +120,7 @@ def load_roster(directory: Path, ca_pem: Path | None = None) -> Roster:
         }
         body = _canonical({str(k): str(v) for k, v in signers.items()}, [str(r) for r in revoked])
     except (KeyError, TypeError, ValueError) as error:
-        raise RosterError(f"{path}: malformed roster: {error}") from None
+        raise RosterError(f"{source}: malformed roster: {error}") from None
     try:
         authority = x509.load_pem_x509_certificate(ca_pem.read_bytes()).public_key()
     except (OSError, ValueError) as error:
@@ -121,7 +130,7 @@ def load_roster(directory: Path, ca_pem: Path | None = None) -> Roster:
     try:
         authority.verify(signature, body, ec.ECDSA(hashes.SHA256()))
     except InvalidSignature:
-        raise RosterError(f"{path}: not signed by the CA in {ca_pem}") from None
+        raise RosterError(f"{source}: not signed by the CA in {ca_pem}") from None
     return Roster(keys, frozenset(str(r) for r in revoked))
 
 

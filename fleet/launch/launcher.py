@@ -67,7 +67,7 @@ from fleet.transport.bus_factory import open_bus
 from fleet.transport.cli import CRASH_DUMP_ENV, PREFIX_ENV
 from fleet.transport.router import Router
 from fleet.transport.secure import SecureProfile
-from fleet.transport.zenoh_bus import BusConnectError
+from fleet.transport.zenoh_bus import BusConnectError, ZenohBus
 from fleet.transport.zenoh_config import CONNECT_ENV, DEFAULT_ROUTER, build_config, make_config
 
 log = logging.getLogger(__name__)
@@ -371,7 +371,8 @@ class Fleet:
     def _record_in_router(self, path: Path) -> None:
         assert self.router is not None
         recorder = Recorder(
-            self.router.session,
+            # The router's own session, unsigned: everything heard is recorded as it is.
+            ZenohBus(self.router.session),
             McapSink(path),
             key_space=self.spec.key_space,
             on_failure=threading.Event(),  # the fleet flies on; `stop` says why it ended

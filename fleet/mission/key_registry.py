@@ -30,6 +30,8 @@ Layout (under the prefix, `fleet` by default):
     mission/{m}/outcome/{id}     TargetOutcome: reached, failed or link_lost
     mission/{m}/abort            MissionAbort, ground -> team (served too)
     router/state                 queryable: RouterState, served by each secure router
+    roster                       RosterDocument, ground -> all: the CA-signed roster of
+                                 signers, put when an identity is revoked
 """
 
 from __future__ import annotations
@@ -203,10 +205,17 @@ ROUTER_STATE = KeySpec(
     servers=frozenset({Party.ROUTER}),
 )  # fmt: skip
 
+#: The roster of signers (signed by the CA inside, and by the ground that puts it), put
+#: by `fleet certs revoke` to a running fleet: revocation without a restart.
+ROSTER = KeySpec(
+    "roster", messages.RosterDocument, role=Role.COMMAND, writer=Party.GROUND,
+    urgency=Urgency.URGENT,
+)  # fmt: skip
+
 #: Every key of the fleet. Order is kept wherever keys are listed (schemas, grants).
 REGISTRY: tuple[KeySpec, ...] = (
     ALIVE, TELEMETRY, TRACK, WAYPOINT, STATUS, LINK, STATE, OPM, CMD_WAYPOINT, CMD_TRACK,
-    TARGETS, RESULT, ASSIGNMENT, REPLAN, OUTCOME, ABORT, ROUTER_STATE,
+    TARGETS, RESULT, ASSIGNMENT, REPLAN, OUTCOME, ABORT, ROUTER_STATE, ROSTER,
 )  # fmt: skip
 
 #: The JSON Schema file (without `.schema.json`) of each struct that travels on a key.
@@ -225,4 +234,5 @@ SCHEMA_FILES: dict[type[msgspec.Struct], str] = {
     messages.MissionAbort: "mission_abort",
     messages.TargetOutcome: "target_outcome",
     messages.RouterState: "router_state",
+    messages.RosterDocument: "roster",
 }

@@ -181,6 +181,9 @@ class KeySpace:
     def router_state(self) -> str:
         return self.key(reg.ROUTER_STATE)
 
+    def roster(self) -> str:
+        return self.key(reg.ROSTER)
+
     @property
     def all_mission_targets(self) -> str:
         return self.key(reg.TARGETS)

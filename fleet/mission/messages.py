@@ -301,3 +301,21 @@ class RouterState(msgspec.Struct, frozen=True):
     #: The query's payload it answers (the ground's random challenge): a signed answer
     #: to an earlier query cannot be replayed for a later one. None: none was asked.
     challenge: Annotated[str, Meta(max_length=64)] | None = None
+
+
+#: Identities a roster may name (a ground, routers, and two per UAV: well above any fleet).
+MAX_IDENTITIES = 4096
+IdentityName = Annotated[str, Meta(min_length=1, max_length=64)]
+
+
+class RosterDocument(msgspec.Struct, frozen=True):
+    """The fleet's roster of signers as `fleet certs` writes it (`signers.json`): each
+    identity's public signing key (hex), the identities withdrawn, and the CA's signature
+    over both. Put on `roster` when an identity is revoked: every running process checks
+    the CA's signature and refuses the revoked identities from then on."""
+
+    signers: Annotated[
+        dict[IdentityName, Annotated[str, Meta(max_length=64)]], Meta(max_length=MAX_IDENTITIES)
+    ]
+    revoked: Annotated[list[IdentityName], Meta(max_length=MAX_IDENTITIES)]
+    signature: Annotated[str, Meta(max_length=512)]

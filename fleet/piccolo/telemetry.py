@@ -76,6 +76,14 @@ class SensorBlock(msgspec.Struct, frozen=True):
     outside_air_temp: int = 15  #: deg C
     static_pressure: float = 101324.0  #: Pa
 
+    def true_airspeed(self) -> float | None:
+        """The true airspeed (m/s): the indicated one over the square root of the density
+        ratio; None where the block says nothing usable (no density, no airspeed)."""
+        ias, density = self.indicated_airspeed, self.density_ratio
+        if not (math.isfinite(ias) and ias > 0.0 and math.isfinite(density) and density > 0.0):
+            return None
+        return ias / math.sqrt(density)
+
 
 class RawBlock(msgspec.Struct, frozen=True):
     p: float  #: deg/s

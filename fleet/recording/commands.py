@@ -32,6 +32,7 @@ from fleet.recording.report import report_json, report_lines
 from fleet.recording.thinning import DEFAULT_TELEMETRY_EVERY_S
 from fleet.recording.writer import McapSink, Rotation
 from fleet.transport.bus import Bus
+from fleet.transport.bus_factory import unwrap
 from fleet.transport.cli import (
     PREFIX_ENV,
     ExitCode,
@@ -200,11 +201,11 @@ def run_record(bus: Bus, args: RecordOptions, out: TextIO) -> int:
         max_bytes=round((args.rotate_size or 0) * 1_000_000),
         max_seconds=args.rotate_every or 0.0,
     )
-    session = session_of(bus)
+    bus = unwrap(bus)  # connected before the file is made: no router, no file
     stop = threading.Event()
     with stop_on_signals(stop.set):
         recorder = Recorder(
-            session,
+            bus,
             McapSink(args.out, rotation),
             expr=args.expr,
             key_space=args.key_space,

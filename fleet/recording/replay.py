@@ -22,6 +22,8 @@ from dataclasses import dataclass, field
 import msgspec
 import zenoh
 
+from fleet.mission import key_registry as reg
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import UavState
 from fleet.piccolo.telemetry import Telemetry
 from fleet.recording import channels
@@ -62,14 +64,17 @@ class Replayer:
     _tokens: dict[int, zenoh.LivelinessToken] = field(default_factory=dict)
     _lock: threading.Lock = field(default_factory=threading.Lock)
 
+    @property
+    def space(self) -> KeySpace:
+        """The keys the replay puts and serves: the recorded ones under `prefix`."""
+        return KeySpace(self.prefix)
+
     def run(self) -> bool:
         """Replay to the end (True) or until `stop` is set (False)."""
         messages = self.recording.messages
         if not messages:
             return True
-        queryable = self.session.declare_queryable(
-            f"{self.prefix}/uav/*/{channels.STATE_LEAF}", self._on_state_query
-        )
+        queryable = self.session.declare_queryable(self.space.all_state, self._on_state_query)
         try:
             first = messages[0].log_time_ns
             started = time.monotonic()
@@ -99,16 +104,17 @@ class Replayer:
             self.stats.skipped += 1
             return
         key = channels.with_prefix(message.topic, self.prefix)
-        leaf = channels.strip_prefix(message.topic).split("/")
-        uav = int(leaf[1]) if leaf[0] == "uav" and len(leaf) > 2 and leaf[1].isdigit() else None
-        if uav is not None and leaf[2] == channels.ALIVE_LEAF:
-            self._set_alive(uav, message)
-            return
-        if uav is not None and leaf[2] == channels.STATE_LEAF:
-            self._keep_state(uav, message)
-            return
-        if uav is not None and leaf[2] == "telemetry":
-            self._keep_telemetry(uav, message)
+        parsed = self.space.parse(key)
+        uav = int(parsed.uav) if parsed and parsed.uav and parsed.uav.isdigit() else None
+        if uav is not None and parsed is not None:
+            if parsed.spec is reg.ALIVE:
+                self._set_alive(uav, message)
+                return
+            if parsed.spec is reg.STATE:
+                self._keep_state(uav, message)
+                return
+            if parsed.spec is reg.TELEMETRY:
+                self._keep_telemetry(uav, message)
         self.session.put(key, message.data, encoding=bus_codec.ENCODING)
         self.stats.published += 1
 
@@ -123,7 +129,7 @@ class Replayer:
             token.undeclare()
 
     def _declare_token(self, uav: int) -> zenoh.LivelinessToken:
-        return self.session.liveliness().declare_token(f"{self.prefix}/uav/{uav}/alive")
+        return self.session.liveliness().declare_token(self.space.alive(uav))
 
     def _keep_state(self, uav: int, message: RecordedMessage) -> None:
         try:
@@ -152,7 +158,7 @@ class Replayer:
             states = dict(self._states)
             telemetry = dict(self._telemetry)
         for uav, state in states.items():
-            key = f"{self.prefix}/uav/{uav}/{channels.STATE_LEAF}"
+            key = self.space.state(uav)
             if not zenoh.KeyExpr(key).intersects(query.key_expr):
                 continue
             latest = telemetry.get(uav, state.telemetry)

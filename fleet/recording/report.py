@@ -40,9 +40,33 @@ def mission_json(log: MissionLog, tracks: dict[int, Track] | None = None) -> dic
     }
 
 
+#: A leg whose predicted time is off the flown one by more than this share is flagged.
+LEG_TOLERANCE = 0.10
+
+
+def leg_error(row: dict[str, Any]) -> float | None:
+    """(predicted - flown) / flown of one leg; None where either is missing."""
+    predicted, flown = row["predicted_s"], row["flown_s"]
+    if predicted is None or flown is None or flown <= 0.0:
+        return None
+    return float((predicted - flown) / flown)
+
+
+def leg_off(row: dict[str, Any]) -> bool:
+    """The leg's predicted time is off the flown one by more than LEG_TOLERANCE."""
+    error = leg_error(row)
+    return error is not None and abs(error) > LEG_TOLERANCE
+
+
 def _rounded_legs(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return [
-        {**row, "predicted_s": _round(row["predicted_s"]), "flown_s": _round(row["flown_s"])}
+        {
+            **row,
+            "predicted_s": _round(row["predicted_s"]),
+            "flown_s": _round(row["flown_s"]),
+            "error": _round(leg_error(row), 3),
+            "off": leg_off(row),
+        }
         for row in rows
     ]
 
@@ -87,19 +111,40 @@ def report_lines(timeline: Timeline) -> list[str]:
 
 
 def _tour_lines(log: MissionLog, tracks: dict[int, Track]) -> list[str]:
-    """Each UAV with more than one target: its tour, predicted vs flown per leg."""
+    """Each UAV with more than one target: its tour, predicted vs flown per leg; every
+    leg (a first one too) off by more than LEG_TOLERANCE flagged, and counted."""
     lines: list[str] = []
+    off = 0
     for uav in log.team:
         rows = log.legs(uav, tracks)
+        off += sum(leg_off(row) for row in rows)
         if len(rows) < 2:
+            lines += [
+                f"  UAV {uav} to {row['target']}: {_seconds(row['predicted_s'])} predicted, "
+                f"{_seconds(row['flown_s'])} flown{_flag(row)}"
+                for row in rows
+                if leg_off(row)
+            ]
             continue
         legs = ", ".join(
             f"{row['target']} ({_seconds(row['predicted_s'])} predicted, "
-            f"{_seconds(row['flown_s'])} flown)"
+            f"{_seconds(row['flown_s'])} flown){_flag(row)}"
             for row in rows
         )
         lines.append(f"  UAV {uav} tour: {legs}")
+    if off:
+        lines.append(
+            f"  {off} leg(s) predicted off the time flown by more than {LEG_TOLERANCE:.0%}"
+        )
     return lines
+
+
+def _flag(row: dict[str, Any]) -> str:
+    """' OFF by +12 %' for a leg off by more than LEG_TOLERANCE, else nothing."""
+    error = leg_error(row)
+    if error is None or abs(error) <= LEG_TOLERANCE:
+        return ""
+    return f" OFF by {100 * error:+.0f} %"
 
 
 def _mission_lines(log: MissionLog) -> list[str]:

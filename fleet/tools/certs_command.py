@@ -12,15 +12,31 @@ See `fleet.files.certs`, `fleet.files.signers` and docs/security.md.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
 from fleet.files.certs import DEFAULT_VALID_DAYS, CertError, write_identities
-from fleet.files.signers import ROSTER_FILE, RosterError, revoke, signing_key_path
+from fleet.files.signers import (
+    ROSTER_FILE,
+    RosterError,
+    revoke,
+    roster_document,
+    signing_key_path,
+)
 from fleet.mission.access import GROUND, ROUTER, uav_identity, uav_router_identity
-from fleet.transport.cli import ExitCode, bounded_int, fail, piccolo_ids
+from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
+from fleet.transport.cli import (
+    ExitCode,
+    add_key_prefix_argument,
+    bounded_int,
+    fail,
+    piccolo_ids,
+)
 from fleet.transport.command import LocalCommand, options_from, set_handler
+from fleet.transport.zenoh_config import ZenohConfigError, build_config, endpoints
 
 DEFAULT_SECURE_ROUTER = "tls/127.0.0.1:7447"
 
@@ -78,12 +94,34 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     set_handler(make, MAKE)
     revoke = actions.add_parser(
         "revoke",
-        help="withdraw identities (a lost aircraft): its signed messages and connections "
-        "are refused once each process restarts with the new roster",
+        help="withdraw identities (a lost aircraft): the new roster is put to the running "
+        "fleet (as DIR/ground.json5), whose processes refuse their messages at once",
     )
     revoke.add_argument("directory", type=Path, metavar="DIR")
     revoke.add_argument("names", nargs="+", metavar="NAME", help="identities, e.g. uav-74")
+    _add_publish_arguments(revoke)
     set_handler(revoke, REVOKE)
+    publish = actions.add_parser(
+        "publish",
+        help="put DIR's roster to the running fleet again (a process that was cut off "
+        "when an identity was revoked)",
+    )
+    publish.add_argument("directory", type=Path, metavar="DIR")
+    _add_publish_arguments(publish)
+    set_handler(publish, PUBLISH)
+
+
+def _add_publish_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--connect",
+        action="append",
+        metavar="ENDPOINT",
+        help="the fleet's router (default: the endpoints DIR/ground.json5 names)",
+    )
+    parser.add_argument(
+        "--no-publish", action="store_true", help="only write the roster; put nothing"
+    )
+    add_key_prefix_argument(parser)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -123,10 +161,27 @@ def run_make(args: MakeOptions, out: TextIO) -> int:
 
 
 @dataclass(frozen=True, kw_only=True)
-class RevokeOptions:
+class PublishOptions:
     directory: Path
+    #: The router to put the roster through (None: those DIR/ground.json5 names).
+    connect: list[str] | None = None
+    #: Only write the roster.
+    no_publish: bool = False
+    key_space: KeySpace = DEFAULT_SPACE
+
+
+@dataclass(frozen=True, kw_only=True)
+class RevokeOptions(PublishOptions):
     #: Identities, e.g. uav-74.
     names: list[str]
+
+
+#: How many times the roster is put, this far apart (s): a put is not acknowledged, and
+#: every copy after the first changes nothing where it arrived.
+PUTS = 3
+PUT_EVERY_S = 0.2
+#: How long to try to reach the fleet's router.
+OPEN_TIMEOUT_S = 5.0
 
 
 def run_revoke(args: RevokeOptions, out: TextIO) -> int:
@@ -138,9 +193,45 @@ def run_revoke(args: RevokeOptions, out: TextIO) -> int:
         f"fleet certs: {args.directory / ROSTER_FILE} revokes {', '.join(sorted(roster.revoked))}",
         file=out,
     )
-    print("  copy it to every machine and restart the router and every process", file=out)
+    return run_publish(args, out)
+
+
+def run_publish(args: PublishOptions, out: TextIO) -> int:
+    """Put the roster on `roster` as the ground: every process connected now (each
+    checks the CA's signature) refuses the revoked identities from then on."""
+    restart = "  copy it to every machine: a process started later loads it from there"
+    ground = args.directory / f"{GROUND}.json5"
+    if args.no_publish or not ground.is_file():
+        if not args.no_publish:
+            print(
+                f"  no {ground.name} in {args.directory}: nothing put to a running fleet", file=out
+            )
+        print(f"{restart}, and restart the running ones", file=out)
+        return ExitCode.OK
+    from fleet.transport.zenoh_bus import BusConnectError, connect
+
+    try:
+        document = roster_document(args.directory)
+        config = build_config(config_file=str(ground), connect=args.connect)
+        where = ", ".join(endpoints(config))
+        with contextlib.closing(connect(config, open_timeout_s=OPEN_TIMEOUT_S)) as bus:
+            if not bus.signed:
+                return fail("fleet certs", f"{ground}: not a secure identity: nothing put")
+            for attempt in range(PUTS):
+                bus.put(args.key_space.roster(), document)
+                if attempt + 1 < PUTS:
+                    time.sleep(PUT_EVERY_S)
+    except (RosterError, ZenohConfigError) as error:
+        return fail("fleet certs", str(error), ExitCode.FAILED)
+    except BusConnectError as error:
+        print(f"  no fleet reached ({error})", file=out)
+        print(f"{restart}, and restart the running ones (or `fleet certs publish`)", file=out)
+        return ExitCode.OK
+    print(f"  put on {args.key_space.roster()} through {where}, as {GROUND}", file=out)
+    print(restart, file=out)
     return ExitCode.OK
 
 
 MAKE = LocalCommand(options_from(MakeOptions), run_make)
 REVOKE = LocalCommand(options_from(RevokeOptions), run_revoke)
+PUBLISH = LocalCommand(options_from(PublishOptions), run_publish)

@@ -17,7 +17,7 @@ import logging
 from abc import ABC, abstractmethod
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol, TypeVar
 
 import msgspec
@@ -40,12 +40,16 @@ class BusSample:
     """A value seen on the bus: a publication, or a successful reply to a query.
 
     `deleted`: the key was deleted (Zenoh's DELETE kind), `payload` is then empty.
+    `time_ns`: when it was put, ns since the epoch, by the timestamp the router stamped
+    on it (None: the bus knows none, or the subscription asked for no details). When,
+    not what: two samples of the same value are equal whenever they were put.
     """
 
     key: str
     payload: bytes
     encoding: str = JSON_ENCODING
     deleted: bool = False
+    time_ns: int | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)
@@ -80,6 +84,33 @@ class Declaration(Protocol):
     """Something declared on the bus (a subscription, a token); undeclared when done."""
 
     def undeclare(self) -> None: ...
+
+
+class RingSubscription(Protocol):
+    """Samples kept for the subscriber to take (`Bus.subscribe_ring`)."""
+
+    def try_recv(self) -> BusSample | None:
+        """The oldest sample kept, or None if there is none."""
+        ...
+
+    def undeclare(self) -> None: ...
+
+
+class _DequeRing:
+    """`subscribe_ring` on any bus: a callback appends to a bounded deque."""
+
+    def __init__(self, bus: Bus, key_expr: str, limit: int) -> None:
+        self._samples: deque[BusSample] = deque(maxlen=limit)
+        self._declared = bus.subscribe(key_expr, self._samples.append, details=True)
+
+    def try_recv(self) -> BusSample | None:
+        try:
+            return self._samples.popleft()
+        except IndexError:
+            return None
+
+    def undeclare(self) -> None:
+        self._declared.undeclare()
 
 
 class BusQuery(ABC):
@@ -151,6 +182,13 @@ class Bus(ABC):
         are read off Zenoh's sample only with `details` (`ground-cli keys` shows them);
         else they are the defaults, JSON and False: the fleet's messages are JSON, and
         reading them costs ~20 % of a sample's conversion on every subscription."""
+
+    def subscribe_ring(self, key_expr: str, limit: int) -> RingSubscription:
+        """Every sample put under `key_expr` (with its details), kept in a ring of `limit`
+        (past it the oldest go, uncounted) for the subscriber to take with `try_recv`:
+        no callback of the subscriber runs on the bus's threads. On Zenoh the ring is
+        Zenoh's own, so not even a Python callback does (the router's own session)."""
+        return _DequeRing(self, key_expr, limit)
 
     @abstractmethod
     def get(

@@ -30,6 +30,7 @@ from fleet.transport.bus import (
     PresenceCallback,
     Queryable,
     QueryNotify,
+    RingSubscription,
     SampleCallback,
 )
 
@@ -147,6 +148,9 @@ class OnFirstUse(Bus):
         self, key_expr: str, callback: SampleCallback, *, details: bool = False
     ) -> Declaration:
         return self.opened.subscribe(key_expr, callback, details=details)
+
+    def subscribe_ring(self, key_expr: str, limit: int) -> RingSubscription:
+        return self.opened.subscribe_ring(key_expr, limit)
 
     def get(
         self, selector: str, callback: SampleCallback, timeout: float, payload: bytes = b""

@@ -33,7 +33,14 @@ import zenoh
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
 from fleet.files.certs import common_name
-from fleet.files.signers import ROSTER_FILE, load_roster, load_signing_key, signing_key_path
+from fleet.files.signers import (
+    ROSTER_FILE,
+    RosterError,
+    load_roster,
+    load_signing_key,
+    roster_of,
+    signing_key_path,
+)
 from fleet.mission.key_space import space_of
 from fleet.mission.signature import (
     DEFAULT_WINDOW_NS,
@@ -73,10 +80,13 @@ class BusSigning:
         *,
         window_ns: int = DEFAULT_WINDOW_NS,
         clock: Callable[[], int] = time.time_ns,
+        ca_pem: Path | None = None,
     ) -> None:
         self.identity = identity
         self._key = key
         self.roster = roster
+        #: The CA a roster heard on the bus must be signed by (None: none is believed).
+        self._ca_pem = ca_pem
         self._clock = clock
         self._lock = threading.Lock()
         # A live command signed before this process started is refused (a replay across
@@ -122,7 +132,7 @@ class BusSigning:
             log.warning("this identity (%s) is revoked: its messages will be refused", identity)
         log.info("signing as %s; %d signers, %d revoked", identity, len(roster.keys),
                  len(roster.revoked))  # fmt: skip
-        return cls(identity, key, roster)
+        return cls(identity, key, roster, ca_pem=ca_path)
 
     # ---- outgoing ---------------------------------------------------------------------
     def _stamp(self) -> int:
@@ -184,6 +194,36 @@ class BusSigning:
         if known is None:
             log.debug("no signed copy of this %s to relay: replied unsigned", key)
         return payload, known
+
+    # ---- the roster, live -----------------------------------------------------------------
+    def apply_roster(self, key: str, payload: bytes) -> frozenset[str]:
+        """A roster heard on the bus (`fleet certs revoke` on a running fleet): if the CA
+        signed it, its revocations are added to ours (never removed: an older roster
+        replayed revives no one). Returns the identities newly revoked."""
+        if self._ca_pem is None:
+            return frozenset()
+        try:
+            document = json.loads(payload)
+            if not isinstance(document, dict):
+                raise RosterError(f"{key}: not a roster")
+            heard = roster_of(document, self._ca_pem, key)
+        except (ValueError, RecursionError, RosterError) as error:
+            bus_codec.DROPPED.add(Refusal.BAD_SIGNATURE)
+            log.warning("refused a roster on %s: %s", key, error)
+            return frozenset()
+        with self._lock:
+            new = heard.revoked - self.roster.revoked
+            if new:
+                self.roster = Roster(self.roster.keys, self.roster.revoked | new)
+        if new:
+            log.warning(
+                "revoked from now on (a roster heard on %s): %s", key, ", ".join(sorted(new))
+            )
+        if self.identity in new:
+            log.warning(
+                "this identity (%s) is revoked: its messages will be refused", self.identity
+            )
+        return new
 
     # ---- incoming ---------------------------------------------------------------------
     def check(self, key: str, payload: bytes, attachment: bytes, how: Delivery) -> bool:

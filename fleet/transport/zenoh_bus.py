@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import logging
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -32,6 +33,7 @@ import zenoh
 
 from fleet.errors import CertError, FleetError, RosterError
 from fleet.mission.delivery import Delivery
+from fleet.mission.key_space import space_of
 from fleet.transport import bus_codec, bus_qos
 from fleet.transport.bus import (
     Bus,
@@ -42,6 +44,7 @@ from fleet.transport.bus import (
     PresenceCallback,
     Queryable,
     QueryNotify,
+    RingSubscription,
     SampleCallback,
 )
 from fleet.transport.zenoh_config import (
@@ -86,12 +89,21 @@ def _plain(sample: zenoh.Sample) -> BusSample:
     return BusSample(str(sample.key_expr), sample.payload.to_bytes())
 
 
+def sample_time_ns(timestamp: zenoh.Timestamp | None) -> int | None:
+    """A Zenoh timestamp in ns since the epoch (None for none)."""
+    if timestamp is None:
+        return None
+    moment = timestamp.get_time()
+    return int(moment.timestamp()) * 1_000_000_000 + moment.microsecond * 1000
+
+
 def _sample(sample: zenoh.Sample) -> BusSample:
     return BusSample(
         str(sample.key_expr),
         sample.payload.to_bytes(),
         str(sample.encoding),
         sample.kind == zenoh.SampleKind.DELETE,
+        sample_time_ns(sample.timestamp),
     )
 
 
@@ -159,6 +171,32 @@ class ZenohQueryable(Queryable):
         self._queryable.undeclare()
 
 
+class _ZenohRing:
+    """Zenoh's own ring channel: the samples wait in Zenoh, converted (and their
+    signatures checked) only when taken."""
+
+    def __init__(self, bus: ZenohBus, key_expr: str, limit: int) -> None:
+        self._bus = bus
+        self._subscriber = bus.session.declare_subscriber(
+            key_expr, zenoh.handlers.RingChannel(limit)
+        )
+
+    def try_recv(self) -> BusSample | None:
+        while True:
+            try:
+                sample = self._subscriber.try_recv()
+            except zenoh.ZError:  # the session closed under the subscriber
+                return None
+            if sample is None:
+                return None
+            received = self._bus._received(sample, Delivery.PUT)
+            if received is not None:
+                return received
+
+    def undeclare(self) -> None:
+        self._subscriber.undeclare()
+
+
 class ZenohBus(Bus):
     """A Bus over a Zenoh session, which it owns (closed by `close`)."""
 
@@ -176,6 +214,30 @@ class ZenohBus(Bus):
         self.signing = signing
         #: Declared publishers of the keys put at a steady rate (telemetry), by key.
         self._publishers: dict[str, zenoh.Publisher] = {}
+        #: The roster subscriptions, one per key prefix this bus has used (secure only).
+        self._rosters: dict[str, zenoh.Subscriber[None]] = {}
+        self._rosters_lock = threading.Lock()
+
+    def _watch_roster(self, key_expr: str) -> None:
+        """In the secure profile, hear the roster on the prefix of `key_expr` (once per
+        prefix, from the first key this bus uses there): a revocation put to the running
+        fleet (`fleet certs revoke`) is applied at once, no restart needed."""
+        signing = self.signing
+        space = space_of(key_expr) if signing is not None else None
+        if signing is None or space is None:
+            return
+        with self._rosters_lock:
+            if space.prefix in self._rosters:
+                return
+
+            def on_roster(sample: zenoh.Sample) -> None:
+                received = self._received(sample, Delivery.PUT)
+                if received is not None:
+                    signing.apply_roster(received.key, received.payload)
+
+            self._rosters[space.prefix] = self.session.declare_subscriber(
+                space.roster(), direct(on_roster)
+            )
 
     @classmethod
     def open(cls, config: zenoh.Config) -> ZenohBus:
@@ -227,6 +289,7 @@ class ZenohBus(Bus):
         self, key_expr: str, callback: SampleCallback, *, details: bool = False
     ) -> Declaration:
         convert = _sample if details else _plain
+        self._watch_roster(key_expr)
 
         def on_sample(sample: zenoh.Sample) -> None:
             received = self._received(sample, Delivery.PUT, convert)
@@ -236,9 +299,14 @@ class ZenohBus(Bus):
         subscriber: Declaration = self.session.declare_subscriber(key_expr, direct(on_sample))
         return subscriber
 
+    def subscribe_ring(self, key_expr: str, limit: int) -> RingSubscription:
+        return _ZenohRing(self, key_expr, limit)
+
     def get(
         self, selector: str, callback: SampleCallback, timeout: float, payload: bytes = b""
     ) -> None:
+        self._watch_roster(selector)
+
         def on_reply(reply: zenoh.Reply) -> None:
             if reply.ok is not None:
                 received = self._received(reply.ok, Delivery.REPLY)
@@ -273,6 +341,7 @@ class ZenohBus(Bus):
             if every_reply
             else {}
         )
+        self._watch_roster(selector)
         options.update(self._query_options(selector, payload))
         replies = self.session.get(selector, timeout=timeout, **options)
         if self.signing is None:
@@ -290,6 +359,7 @@ class ZenohBus(Bus):
         return answers
 
     def declare_queryable(self, key_expr: str, notify: QueryNotify | None = None) -> Queryable:
+        self._watch_roster(key_expr)
         return ZenohQueryable(self.session, key_expr, notify, self.signing)
 
     def declare_token(self, key: str) -> Declaration:
@@ -301,6 +371,8 @@ class ZenohBus(Bus):
         return [str(reply.ok.key_expr) for reply in replies if reply.ok is not None]
 
     def subscribe_presence(self, key_expr: str, callback: PresenceCallback) -> Declaration:
+        self._watch_roster(key_expr)
+
         def on_token(sample: zenoh.Sample) -> None:
             callback(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
 

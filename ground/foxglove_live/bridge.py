@@ -15,19 +15,18 @@ One more topic, live only: `{prefix}/map/targets`, the current mission as GeoJSO
 (`map_layers`), sent when the mission changes and every second, so a client that
 connects late sees it.
 
-Bus callbacks only queue what they hear; one thread decodes and logs to the channels.
-A payload that is not JSON, too large or nested too deep, is dropped, counted and logged
-once per key; so is a sample beyond the queue's limit, or a key beyond `MAX_CHANNELS`.
+What it hears is what `fleet record` hears, by the same tap (fleet.recording.bus_tap):
+bus callbacks only queue, one worker decodes and logs to the channels. A payload that
+is not JSON, too large or nested too deep, is dropped, counted and logged once per key;
+so is a sample beyond the queue's limit, or a key beyond `MAX_CHANNELS`.
 """
 
 from __future__ import annotations
 
 import logging
-import queue
 import threading
 import time
 from collections import Counter
-from dataclasses import dataclass
 from typing import Any
 
 import foxglove
@@ -38,20 +37,25 @@ from fleet.mission import key_registry as reg
 from fleet.mission.key_space import KeySpace, uav_id_of
 from fleet.mission.messages import AssignmentReport, MissionAbort, MissionTargets, TargetOutcome
 from fleet.recording import channels
+from fleet.recording.bus_tap import DEFAULT_STATE_EVERY_S, BusTap, Heard
+from fleet.recording.channels import ChannelSpec
 from fleet.transport import bus_codec
-from fleet.transport.bus import Bus, BusSample, Declaration
+from fleet.transport.bus import Bus
 from ground.foxglove_live import map_layers
 from ground.foxglove_live.map_layers import Fix, MissionMap
 
 log = logging.getLogger(__name__)
 
-DEFAULT_STATE_EVERY_S = 1.0
+__all__ = ["DEFAULT_STATE_EVERY_S", "FoxgloveBridge", "location_fix"]
+
 #: How often the mission's GeoJSON is sent again while nothing changes.
 MAP_EVERY_S = 1.0
 #: Samples waiting beyond this are dropped (and counted), not queued.
 QUEUE_LIMIT = 10_000
 #: Channels at most: keys beyond it (a publisher making up keys) are dropped and counted.
 MAX_CHANNELS = 4096
+#: The tap's worker takes what is queued this often, seconds: a live view's latency.
+BATCH_S = 0.05
 
 _MISSION_KINDS: dict[reg.KeySpec, type[Any]] = {
     reg.TARGETS: MissionTargets,
@@ -62,19 +66,8 @@ _MISSION_KINDS: dict[reg.KeySpec, type[Any]] = {
 }
 
 
-@dataclass(frozen=True)
-class Heard:
-    key: str
-    payload: bytes
-    time_ns: int
-
-
-#: Queued by the ticker: send the map again.
-_TICK = Heard("", b"", 0)
-
-
 class FoxgloveBridge:
-    """Subscribes on `bus` and logs what it hears to channels of `context`.
+    """Logs what a tap on `bus` hears to channels of `context`.
 
     `start()` returns once the subscriptions are declared; `stop()` undeclares them and
     logs what is still queued.
@@ -88,50 +81,41 @@ class FoxgloveBridge:
         *,
         state_every_s: float = DEFAULT_STATE_EVERY_S,
     ) -> None:
-        self._bus = bus
         self._context = context
         self._space = key_space
-        self._state_every_s = state_every_s
-        self._queue: queue.Queue[Heard | None] = queue.Queue()
-        self._stop = threading.Event()
-        self._threads: list[threading.Thread] = []
-        self._declared: list[Declaration] = []
         # Each channel with its pattern, by topic (by UAV for the fixes): a channel's spec
         # is derived once, when its key is first heard, never per message.
         self._json: dict[str, tuple[foxglove.Channel, str]] = {}
         self._fixes: dict[int, tuple[LocationFixChannel, str]] = {}
         self._map_channel: GeoJsonChannel | None = None
-        self._bad_keys: set[str] = set()
+        self._last_map = 0.0
         self._lock = threading.Lock()
         self.map = MissionMap()
         #: Messages logged, per channel pattern (the map's topic for the GeoJSON).
         self.published: Counter[str] = Counter()
-        #: Dropped, per reason.
-        self.dropped: Counter[str] = Counter()
+        self.tap = BusTap(
+            bus,
+            self,
+            key_space,
+            state_every_s=state_every_s,
+            queue_limit=QUEUE_LIMIT,
+            batch_s=min(BATCH_S, MAP_EVERY_S / 2),
+            max_channels=MAX_CHANNELS,
+            name="publisher",
+            refused="not shown",
+        )
+
+    @property
+    def dropped(self) -> Counter[str]:
+        """Dropped, per reason."""
+        return self.tap.dropped
 
     # ---- life cycle ---------------------------------------------------------------------------
     def start(self) -> None:
-        # With details: a deleted key is told apart from an empty put (`_on_sample`).
-        self._declared.append(
-            self._bus.subscribe(self._space.everything, self._on_sample, details=True)
-        )
-        self._declared.append(self._bus.subscribe_presence(self._space.all_alive, self._on_alive))
-        self._threads = [
-            threading.Thread(target=self._publish_loop, name="foxglove-publish"),
-            threading.Thread(target=self._tick_loop, name="foxglove-ticker"),
-        ]
-        for thread in self._threads:
-            thread.start()
+        self.tap.start()
 
     def stop(self) -> None:
-        for declared in self._declared:
-            declared.undeclare()
-        self._declared.clear()
-        self._stop.set()
-        self._queue.put(None)
-        for thread in self._threads:
-            thread.join()
-        self._threads.clear()
+        self.tap.stop()
 
     def topics(self) -> dict[str, str]:
         """Each channel's topic and schema name ("" for none), as a client sees them.
@@ -143,92 +127,32 @@ class FoxgloveBridge:
             found[self._map_channel.topic()] = GeoJson.get_schema().name
         return found
 
-    # ---- the bus's threads: only queue ----------------------------------------------------------
-    def _drop(self, reason: str) -> None:
-        with self._lock:
-            self.dropped[reason] += 1
+    # ---- the tap's sink (its worker thread) ---------------------------------------------------
+    def keep(self, heard: Heard, spec: ChannelSpec) -> bool:
+        return True
 
-    def _enqueue(self, heard: Heard) -> None:
-        if self._queue.qsize() >= QUEUE_LIMIT:
-            self._drop("publisher behind")
-            return
-        self._queue.put(heard)
-
-    def _on_sample(self, sample: BusSample) -> None:
-        if sample.deleted:
-            self._drop("delete")
-            return
-        self._enqueue(Heard(sample.key, sample.payload, time.time_ns()))
-
-    def _on_alive(self, key: str, alive: bool) -> None:
-        payload = b'{"alive":true}' if alive else b'{"alive":false}'
-        self._enqueue(Heard(key, payload, time.time_ns()))
-
-    def _tick_loop(self) -> None:
-        """The map every MAP_EVERY_S at least, the state query every `state_every_s`."""
-        state_every = self._state_every_s
-        every = min(state_every, MAP_EVERY_S) if state_every > 0 else MAP_EVERY_S
-        next_query = time.monotonic()
-        while not self._stop.wait(every):
-            if state_every > 0 and time.monotonic() >= next_query:
-                next_query = time.monotonic() + state_every
-                try:
-                    self._bus.get(self._space.all_state, self._on_sample, timeout=state_every)
-                except Exception as error:  # the session closing under it: try again later
-                    log.warning("state query failed: %s", error)
-            self._enqueue(_TICK)
-
-    # ---- the publishing thread ------------------------------------------------------------------
-    def _publish_loop(self) -> None:
-        last_map = 0.0
-        while True:
-            heard = self._queue.get()
-            if heard is None:
-                break
-            try:
-                if heard is not _TICK:
-                    self._publish(heard)
-                elif time.monotonic() - last_map >= MAP_EVERY_S / 2:
-                    self._send_map()
-                    last_map = time.monotonic()
-            except Exception:  # a bug here must not end the server: log it, go on
-                log.exception("cannot publish %s", heard.key or "the map")
-                self._drop("error")
-
-    def _publish(self, heard: Heard) -> None:
-        try:
-            value = bus_codec.decode_json(heard.payload, Any, heard.key)
-        except bus_codec.BadMessage as error:
-            reason = error.reason
-            self._drop("not JSON" if reason is bus_codec.DropReason.INVALID else str(reason))
-            self._log_bad_once(heard.key, str(error))
-            return
-        entry = self._json.get(heard.key) or self._json_channel(heard.key)
-        if entry is None:
-            return
+    def write(self, heard: Heard, spec: ChannelSpec, value: Any) -> None:
+        entry = self._json.get(heard.key) or self._json_channel(heard.key, spec)
         channel, pattern = entry
         channel.log(heard.payload, log_time=heard.time_ns)
         self._count(pattern)
-        if pattern.endswith(f"/{reg.TELEMETRY.leaf}"):
+        parsed = self._space.parse(heard.key)
+        if parsed is not None and parsed.spec is reg.TELEMETRY:
             self._publish_fix(heard, value)
-        else:
-            self._follow_mission(heard)
+        elif parsed is not None and parsed.spec in _MISSION_KINDS:
+            self._follow_mission(heard, _MISSION_KINDS[parsed.spec])
 
-    def _log_bad_once(self, key: str, why: str) -> None:
-        if key not in self._bad_keys and len(self._bad_keys) < MAX_CHANNELS:
-            self._bad_keys.add(key)
-            log.warning("not shown: %s; further ones counted", why)
+    def tick(self) -> None:
+        """The map again, every MAP_EVERY_S at least, so a client that connects late sees it."""
+        if time.monotonic() - self._last_map >= MAP_EVERY_S / 2:
+            self._send_map()
 
     def _count(self, pattern: str) -> None:
         with self._lock:
             self.published[pattern] += 1
 
-    def _json_channel(self, key: str) -> tuple[foxglove.Channel, str] | None:
-        """A new channel for `key`; None (counted) past MAX_CHANNELS."""
-        if len(self._json) >= MAX_CHANNELS:
-            self._drop("too many keys")
-            return None
-        spec = channels.heard_channel(self._space.prefix, key)
+    def _json_channel(self, key: str, spec: ChannelSpec) -> tuple[foxglove.Channel, str]:
+        """A new channel for `key` (the tap bounds how many)."""
         # A key of no known pattern has no schema: named "" as in a recording (the SDK
         # would make up a name for None).
         schema = foxglove.Schema(
@@ -262,16 +186,11 @@ class FoxgloveBridge:
         self._count(pattern)
         self.map.on_fix(fix)
 
-    def _follow_mission(self, heard: Heard) -> None:
-        parsed = self._space.parse(heard.key)
-        kind = None if parsed is None else _MISSION_KINDS.get(parsed.spec)
-        if kind is None:
-            return
+    def _follow_mission(self, heard: Heard, kind: type[Any]) -> None:
         try:
             message = bus_codec.decode(heard.payload, kind, heard.key)
         except bus_codec.BadMessage as error:
-            self._drop(str(error.reason))
-            self._log_bad_once(heard.key, str(error))
+            self.tap.refuse(heard.key, error, as_json=False)
             return
         if isinstance(message, MissionTargets):
             changed = self.map.on_targets(message)
@@ -285,6 +204,7 @@ class FoxgloveBridge:
             self._send_map()
 
     def _send_map(self) -> None:
+        self._last_map = time.monotonic()
         if self.map.targets is None:
             return
         if self._map_channel is None:

@@ -5,12 +5,14 @@
 
 It connects to the fleet as `ground-cli` does (the Zenoh flags), prints one line when it
 serves, and runs until Ctrl-C or SIGTERM; then it says how much MAVLink input it
-dropped and why.
+dropped and why. With `--signing-key FILE` every station must sign its frames (MAVLink 2
+signing); on any address but loopback that is required, unless `--insecure`.
 """
 
 from __future__ import annotations
 
 import argparse
+import ipaddress
 import logging
 import sys
 import threading
@@ -35,10 +37,11 @@ from fleet.transport.command import (
     run_standalone,
     set_handler,
 )
-from ground.mavlink.endpoint import Endpoint, EndpointError, InputDrops
+from ground.mavlink.endpoint import Endpoint, EndpointError, InputDrops, parse_url
 from ground.mavlink.fleet_link import FleetLink, TeamChoice
 from ground.mavlink.gateway import Gateway
 from ground.mavlink.requests import Requests
+from ground.mavlink.signing import SigningKeyError, Verifier, load_keys
 from ground.mavlink.sysids import SysIdError, SysIdMap, sysid_pair
 
 log = logging.getLogger(__name__)
@@ -76,6 +79,20 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "1-254 are their own system id unless mapped",
     )
     parser.add_argument(
+        "--signing-key",
+        type=Path,
+        metavar="FILE",
+        help="MAVLink 2 signing: every frame a station sends must be signed with one of the "
+        "stations' secrets in FILE (`NAME PASSPHRASE` a line, readable by you only); needed "
+        "on any address but loopback",
+    )
+    parser.add_argument(
+        "--insecure",
+        action="store_true",
+        help="allow a non-loopback --out without --signing-key (anyone who reaches it "
+        "commands the fleet)",
+    )
+    parser.add_argument(
         "--mission-team",
         choices=("uav", "live"),
         default="uav",
@@ -106,13 +123,41 @@ class MavlinkOptions(BusOptions):
     mission_team: Literal["uav", "live"] = "uav"
     #: The Zenoh config file it connects with (None: an open fleet), for its first line.
     zenoh_config: str | None = None
+    #: The stations' secrets (`--signing-key`): every frame must be signed; None: unsigned.
+    verifier: Verifier | None = None
+
+
+def _is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def _verifier(out: str, signing_key: Path | None, insecure: bool) -> Verifier | None:
+    """The stations' secrets (`--signing-key`); None without. SigningKeyError if the file
+    cannot be used, EndpointError if a non-loopback --out has no secret and no --insecure."""
+    if signing_key is not None:
+        return Verifier(load_keys(signing_key))
+    host = parse_url(out)[1][0]
+    if not _is_loopback(host) and not insecure:
+        raise EndpointError(
+            f"--out {out} is not loopback: anyone who reaches it could upload missions "
+            "and RTL aircraft. Give the stations' secrets (--signing-key FILE) or add "
+            "--insecure."
+        )
+    return None
 
 
 def mavlink_options(args: argparse.Namespace) -> MavlinkOptions:
-    """The options; two UAVs on one system id is a usage error."""
+    """The options; two UAVs on one system id, an unusable signing-key file, or a
+    non-loopback --out without one (and no --insecure) is a usage error."""
     try:
         sysids = SysIdMap(args.sysid)
-    except SysIdError as error:
+        verifier = _verifier(args.out, args.signing_key, args.insecure)
+    except (SysIdError, SigningKeyError, EndpointError) as error:
         raise OptionsError(f"error: {error}") from None
     return MavlinkOptions(
         out=args.out,
@@ -121,13 +166,14 @@ def mavlink_options(args: argparse.Namespace) -> MavlinkOptions:
         zenoh_config=args.zenoh_config,
         key_space=args.key_space,
         query_timeout=args.query_timeout,
+        verifier=verifier,
     )
 
 
 def run(bus: Bus, options: MavlinkOptions, out: TextIO) -> int:
     drops = InputDrops()
     try:
-        endpoint = Endpoint(options.out, drops)
+        endpoint = Endpoint(options.out, drops, verifier=options.verifier)
     except EndpointError as error:
         return fail(PROG, f"error: {error}")
     team = TeamChoice.LIVE if options.mission_team == "live" else TeamChoice.UAV
@@ -162,8 +208,13 @@ def _serve(
         )
         refresher.start()
         print(_identity_line(args.zenoh_config), file=out, flush=True)
+        signed = (
+            f"signed ({len(endpoint.verifier.keys)} station secret(s))"
+            if endpoint.verifier is not None
+            else "unsigned"
+        )
         print(
-            f"{PROG}: serving on {args.out} (local port {endpoint.local_port}), "
+            f"{PROG}: serving on {args.out} (local port {endpoint.local_port}, {signed}), "
             f"missions to {'every live UAV' if team is TeamChoice.LIVE else 'the UAV alone'}",
             file=out,
             flush=True,

@@ -1,10 +1,11 @@
 """The gateway: every live UAV as a MAVLink 2 vehicle on one endpoint.
 
 One thread runs the MAVLink side (`run`): it reads the endpoint, answers, and streams
-each UAV's messages from its system id (HEARTBEAT, SYS_STATUS and MISSION_CURRENT at
-1 Hz, GLOBAL_POSITION_INT, ATTITUDE and VFR_HUD at `POSITION_HZ`; STATUSTEXT as status
-messages arrive). The fleet side is the ground's `FleetView` (subscriptions) refreshed
-by state queries once a second on a thread of its own; what blocks on the fleet
+each UAV's messages from its system id (HEARTBEAT, SYS_STATUS, EXTENDED_SYS_STATE,
+GPS_RAW_INT, HOME_POSITION and MISSION_CURRENT at 1 Hz, GLOBAL_POSITION_INT, ATTITUDE
+and VFR_HUD at `POSITION_HZ`; STATUSTEXT as status messages arrive). The fleet side is
+the ground's `FleetView` (subscriptions) refreshed by state queries once a second on a
+thread of its own; what blocks on the fleet
 (sending a mission, confirming an abort) runs on worker threads whose answers come
 back to the loop through the outbox, so a ground station is never kept waiting by
 Zenoh, and the loop alone writes to the endpoint.
@@ -29,9 +30,10 @@ from fleet.mission.phase import Phase, Severity
 from fleet.transport.bus import Bus
 from ground.alerts import StatusRecord
 from ground.fleet_view import FleetView, UavView
-from ground.mavlink import vehicle
-from ground.mavlink.endpoint import Endpoint, InputDrops
+from ground.mavlink import signing, vehicle
+from ground.mavlink.endpoint import Address, Endpoint, Incoming, InputDrops
 from ground.mavlink.fleet_link import FleetLink
+from ground.mavlink.signing import StationKey, signing_encoder
 from ground.mavlink.sysids import SysIdMap
 
 log = logging.getLogger(__name__)
@@ -69,13 +71,17 @@ class Gateway:
         self.drops: InputDrops = endpoint.drops
         self._clock = clock
         self._started = clock()
-        self._encoders: dict[int, mavlink2.MAVLink] = {}
-        self.outbox: queue.SimpleQueue[tuple[int, mavlink2.MAVLink_message]] = queue.SimpleQueue()
+        self._encoders: dict[tuple[int, str | None], mavlink2.MAVLink] = {}
+        #: (from system, message, to the station at this address or None: every station)
+        self.outbox: queue.SimpleQueue[tuple[int, mavlink2.MAVLink_message, Address | None]] = (
+            queue.SimpleQueue()
+        )
         self._statuses: queue.Queue[StatusRecord] = queue.Queue(STATUS_BACKLOG)
         self._chunk_id = 0
         self.statuses_lost = 0  #: status messages not sent: more came than the loop sent
         self._chunk_lock = threading.Lock()
         self.vehicles: dict[int, Vehicle] = {}  #: by system id
+        self._homes: dict[int, tuple[float, float]] = {}  #: by Piccolo ID
         self._hidden_said: set[int] = set()
         self._missions: dict[int, MissionTargets] = {}
         self._missions_lock = threading.Lock()
@@ -131,18 +137,26 @@ class Gateway:
     def boot_ms(self) -> int:
         return int((self._clock() - self._started) * 1000)
 
-    def send(self, sysid: int, message: mavlink2.MAVLink_message) -> None:
-        encoder = self._encoders.get(sysid)
-        if encoder is None:
-            encoder = self._encoders[sysid] = mavlink2.MAVLink(None, sysid, 1)
-        data = message.pack(encoder)
-        encoder.seq = (encoder.seq + 1) % 256
-        self.endpoint.send(bytes(data))
+    def send(
+        self, sysid: int, message: mavlink2.MAVLink_message, to: Address | None = None
+    ) -> None:
+        """`message` from system `sysid` to every station (or the one at `to`: an answer
+        goes to the station that asked), signed with each station's secret when the
+        gateway signs (an encoder per system and secret)."""
+
+        def pack(key: StationKey | None) -> bytes:
+            slot = (sysid, key.name if key is not None else None)
+            encoder = self._encoders.get(slot)
+            if encoder is None:
+                encoder = self._encoders[slot] = signing_encoder(sysid, key)
+            return signing.pack(encoder, message, time.time)
+
+        self.endpoint.send(pack, to)
 
     def run(
         self,
         stop: threading.Event,
-        handle: Callable[[mavlink2.MAVLink_message], None],
+        handle: Callable[[Incoming], None],
         tick: Callable[[], None],
     ) -> None:
         """Until `stop`: read and `handle` input, send what workers answered, `tick`
@@ -150,7 +164,7 @@ class Gateway:
         while not stop.is_set():
             for incoming in self.endpoint.receive(0.05):
                 try:
-                    handle(incoming.message)
+                    handle(incoming)
                 except Exception:  # one bad message must not end the gateway
                     log.exception("handling %s failed", incoming.message.get_type())
             self.send_answers()
@@ -161,10 +175,10 @@ class Gateway:
         """Send what the workers answered (the loop does it after each read)."""
         while True:
             try:
-                sysid, message = self.outbox.get_nowait()
+                sysid, message, to = self.outbox.get_nowait()
             except queue.Empty:
                 return
-            self.send(sysid, message)
+            self.send(sysid, message, to)
 
     def live_vehicles(self) -> list[tuple[Vehicle, UavView]]:
         """The live UAVs that have a system id, with their view."""
@@ -204,12 +218,25 @@ class Gateway:
                     # A value no MAVLink field can hold, from the bus: skip this turn.
                     log.warning("UAV %d: a message not sent: %s", found.piccolo, error)
 
+    def home_of(self, piccolo: int) -> tuple[float, float] | None:
+        """Where the gateway first heard UAV `piccolo` (its HOME_POSITION), None before."""
+        home = self._homes.get(piccolo)
+        telemetry = self.view.telemetry(piccolo) if home is None else None
+        if telemetry is not None and telemetry.gps is not None:
+            home = self._homes[piccolo] = (telemetry.gps.lat, telemetry.gps.lon)
+        return home
+
     def _stream(self, found: Vehicle, view: UavView, slow: bool) -> None:
         sysid, boot = found.sysid, self.boot_ms()
         telemetry = self.view.telemetry(found.piccolo)
         if slow:
-            self.send(sysid, vehicle.heartbeat(view))
-            self.send(sysid, vehicle.sys_status(telemetry, self.drops.total()))
+            self.send(sysid, vehicle.heartbeat(view, telemetry))
+            self.send(sysid, vehicle.sys_status(view, telemetry, self.drops.total()))
+            self.send(sysid, vehicle.extended_sys_state(telemetry))
+            if telemetry is not None and (raw := vehicle.gps_raw(telemetry, boot)) is not None:
+                self.send(sysid, raw)
+            if (home := self.home_of(found.piccolo)) is not None:
+                self.send(sysid, vehicle.home_position(*home))
             self._mission_progress(found, view)
         if telemetry is not None:
             for message in (

@@ -24,7 +24,7 @@ from fleet.mission.phase import Severity
 from ground.fleet_view import UavView
 from ground.mavlink import vehicle
 from ground.mavlink.commands import Action, decide, is_rtl_mode
-from ground.mavlink.endpoint import Drop
+from ground.mavlink.endpoint import Address, Drop, Incoming
 from ground.mavlink.fleet_link import AbortResult, TeamChoice
 from ground.mavlink.gateway import Gateway, Vehicle
 from ground.mavlink.mission_protocol import (
@@ -37,6 +37,7 @@ from ground.mavlink.mission_protocol import (
     download_item,
     item_from_message,
 )
+from ground.mavlink.parameters import find, param_value, parameters
 
 log = logging.getLogger(__name__)
 
@@ -51,12 +52,19 @@ class Requests:
         self.gateway = gateway
         self.team = team
         self._clock = clock
-        self.uploads: dict[int, MissionUpload] = {}  #: by system id
+        self.uploads: dict[int, MissionUpload] = {}  #: by system id: one at a time
+        self._uploaders: dict[int, Address] = {}  #: the station of each open upload
+        self._to: Address | None = None  #: the station whose message is being handled
         self._sending: dict[int, Future[None]] = {}  #: a finished upload with the fleet
         self._aborting: dict[int, Future[None]] = {}
 
     # ---- dispatch ----------------------------------------------------------------------------
-    def handle(self, message: mavlink2.MAVLink_message) -> None:
+    def handle(self, incoming: Incoming) -> None:
+        message = incoming.message
+        self._to = incoming.peer  # answers go to the station that asked
+        if message.get_type() == "TIMESYNC":
+            self._timesync(message)
+            return
         target = getattr(message, "target_system", None)
         if target is None:
             return  # a station's heartbeat or telemetry: nothing to answer
@@ -85,6 +93,8 @@ class Requests:
             self._abort(sysid, piccolo, partner, _SET_MODE_ACK)
         elif kind == "SET_MODE":
             self._command_ack(sysid, partner, _SET_MODE_ACK, mavlink2.MAV_RESULT_UNSUPPORTED)
+        elif kind in ("PARAM_REQUEST_LIST", "PARAM_REQUEST_READ", "PARAM_SET"):
+            self._parameters(sysid, piccolo, kind, message)
         elif kind == "MISSION_SET_CURRENT":
             # The vehicle answers with the item it flies: the fleet chose it, not the station.
             self.gateway.say(piccolo, "the fleet chooses each UAV's target", Severity.WARNING)
@@ -98,13 +108,45 @@ class Requests:
         for sysid, upload in list(self.uploads.items()):
             step = upload.on_tick(now)
             if step is not None:
+                self._to = self._uploaders.get(sysid)
                 self._step(sysid, 0, upload.partner, step)
 
     def _progress_now(self, found: Vehicle, view: UavView) -> None:
         targets = self.gateway.mission_of(view.mission)
         if targets is not None and view.target is not None:
             current = vehicle.mission_current(view.target, len(targets.targets), False)
-            self.gateway.send(found.sysid, current)
+            self._reply(found.sysid, current)
+
+    # ---- parameters and time ---------------------------------------------------------------
+    def _parameters(self, sysid: int, piccolo: int, kind: str, message: object) -> None:
+        params = parameters(piccolo)
+        if kind == "PARAM_REQUEST_LIST":
+            for index in range(len(params)):
+                self._reply(sysid, param_value(params, index))
+            return
+        name = getattr(message, "param_id", b"")
+        found = find(params, name, int(getattr(message, "param_index", -1)))
+        if found is None:
+            # The protocol's answer to an unknown name: none (the station times out).
+            log.info("system %d: no parameter %r", sysid, name)
+            return
+        index = found
+        if kind == "PARAM_SET":
+            # Refused the protocol's way: the value it still has.
+            self.gateway.say(
+                piccolo, f"{params[index].name} is read-only: not changed", Severity.WARNING
+            )
+        self._reply(sysid, param_value(params, index))
+
+    def _timesync(self, message: object) -> None:
+        """A station's TIMESYNC request (tc1 = 0) answered from every vehicle shown: tc1
+        our time (ns), ts1 theirs."""
+        if int(getattr(message, "tc1")) != 0:  # noqa: B009
+            return  # an answer to a request of ours: the gateway sends none
+        now_ns = time.monotonic_ns()
+        for found, _ in self.gateway.live_vehicles():
+            ts1 = int(getattr(message, "ts1"))  # noqa: B009
+            self._reply(found.sysid, mavlink2.MAVLink_timesync_message(now_ns, ts1))
 
     # ---- mission upload ----------------------------------------------------------------------
     def _count(self, sysid: int, piccolo: int, partner: tuple[int, int], message: object) -> None:
@@ -115,19 +157,41 @@ class Requests:
             refusal = Refusal(mavlink2.MAV_MISSION_DENIED, "the last mission is still being sent")
             self._ack(sysid, partner, refusal, mission_type)
             return
+        open_upload = self.uploads.get(sysid)
+        if open_upload is not None and (open_upload.partner, self._uploaders.get(sysid)) != (
+            partner,
+            self._to,
+        ):
+            # One upload at a time: another station's count neither restarts nor joins it.
+            self.gateway.drops.add(Drop.BUSY)
+            refusal = Refusal(
+                mavlink2.MAV_MISSION_DENIED,
+                f"another station is uploading a mission to UAV {piccolo}; try again",
+            )
+            self._ack(sysid, partner, refusal, mission_type)
+            return
         upload, step = MissionUpload.start(partner, count, mission_type, self._clock())
         if upload is None:
             self.gateway.drops.add(Drop.REFUSED)
-            self.uploads.pop(sysid, None)
+            self._close_upload(sysid)
         else:
-            # A new MISSION_COUNT restarts the transfer (the protocol's rule).
+            # A new MISSION_COUNT from its station restarts the transfer (the protocol's rule).
             self.uploads[sysid] = upload
+            if self._to is not None:
+                self._uploaders[sysid] = self._to
         self._step(sysid, piccolo, partner, step, mission_type)
+
+    def _close_upload(self, sysid: int) -> None:
+        self.uploads.pop(sysid, None)
+        self._uploaders.pop(sysid, None)
 
     def _item(self, sysid: int, piccolo: int, partner: tuple[int, int], message: object) -> None:
         upload = self.uploads.get(sysid)
-        if upload is None or upload.partner != partner:
+        if upload is None:
             return  # a late repeat of an item of a transfer that is over
+        if upload.partner != partner or self._uploaders.get(sysid) != self._to:
+            self.gateway.drops.add(Drop.BUSY)  # another station's item: never mixed in
+            return
         step = upload.on_item(item_from_message(message), self._clock())
         if step is not None:
             self._step(sysid, piccolo, partner, step)
@@ -141,23 +205,28 @@ class Requests:
         mission_type: int = _MISSION,
     ) -> None:
         if isinstance(step, Request):
-            self.gateway.send(
+            self._reply(
                 sysid,
                 mavlink2.MAVLink_mission_request_int_message(
                     partner[0], partner[1], step.seq, mission_type
                 ),
             )
         elif isinstance(step, Refuse):
-            self.uploads.pop(sysid, None)
+            self._close_upload(sysid)
             self._ack(sysid, partner, step.refusal, mission_type)
         elif isinstance(step, Complete):
-            self.uploads.pop(sysid, None)
+            self._close_upload(sysid)
             self._sending[sysid] = self.gateway.workers.submit(
-                self._send_mission, sysid, piccolo, partner, step.targets
+                self._send_mission, sysid, piccolo, partner, step.targets, self._to
             )
 
     def _send_mission(
-        self, sysid: int, piccolo: int, partner: tuple[int, int], targets: tuple[Target, ...]
+        self,
+        sysid: int,
+        piccolo: int,
+        partner: tuple[int, int],
+        targets: tuple[Target, ...],
+        to: Address | None,
     ) -> None:
         """(A worker.) Hand the mission to the fleet; MISSION_ACK says if it took it."""
         live = self.gateway.view.live_ids()
@@ -168,13 +237,12 @@ class Requests:
                 mavlink2.MAV_MISSION_DENIED if outcome.sent is None else mavlink2.MAV_MISSION_ERROR
             )
             what = "not sent" if outcome.sent is None else "sent"
-            self._post_ack(sysid, partner, Refusal(result, f"{what}: {outcome.problem}"))
+            self._post_ack(sysid, partner, Refusal(result, f"{what}: {outcome.problem}"), to)
             return
         self.gateway.remember_mission(MissionTargets(outcome.mission, outcome.team, targets))
         team = ", ".join(map(str, outcome.team))
-        self.gateway.outbox.put(
-            (sysid, mavlink2.MAVLink_mission_ack_message(*partner, mavlink2.MAV_MISSION_ACCEPTED))
-        )
+        accepted = mavlink2.MAVLink_mission_ack_message(*partner, mavlink2.MAV_MISSION_ACCEPTED)
+        self.gateway.outbox.put((sysid, accepted, to))
         self._post_text(piccolo, f"mission {outcome.mission}: {len(targets)} targets to {team}")
 
     def _ack(
@@ -182,22 +250,28 @@ class Requests:
     ) -> None:
         log.warning("system %d: mission refused: %s", sysid, refusal.reason)
         self.gateway.say(self._piccolo(sysid), refusal.reason, Severity.ERROR)
-        self.gateway.send(
+        self._reply(
             sysid, mavlink2.MAVLink_mission_ack_message(*partner, refusal.result, mission_type)
         )
 
-    def _post_ack(self, sysid: int, partner: tuple[int, int], refusal: Refusal) -> None:
+    def _reply(self, sysid: int, message: mavlink2.MAVLink_message) -> None:
+        """An answer, to the station that asked only."""
+        self.gateway.send(sysid, message, self._to)
+
+    def _post_ack(
+        self, sysid: int, partner: tuple[int, int], refusal: Refusal, to: Address | None
+    ) -> None:
         log.warning("system %d: mission refused: %s", sysid, refusal.reason)
         self._post_text(self._piccolo(sysid), refusal.reason, Severity.ERROR)
         self.gateway.outbox.put(
-            (sysid, mavlink2.MAVLink_mission_ack_message(*partner, refusal.result))
+            (sysid, mavlink2.MAVLink_mission_ack_message(*partner, refusal.result), to)
         )
 
     def _post_text(self, piccolo: int, text: str, severity: Severity = Severity.INFO) -> None:
         sysid = self.gateway.sysids.sysid_of(piccolo)
         if sysid is not None:
             for message in self.gateway.status_texts(text, severity):
-                self.gateway.outbox.put((sysid, message))
+                self.gateway.outbox.put((sysid, message, None))
 
     def _piccolo(self, sysid: int) -> int:
         found = self.gateway.vehicles.get(sysid)
@@ -210,9 +284,7 @@ class Requests:
         mission_type = int(getattr(message, "mission_type", _MISSION))
         targets = self.gateway.mission_of(mission)
         count = len(targets.targets) if targets is not None and mission_type == _MISSION else 0
-        self.gateway.send(
-            sysid, mavlink2.MAVLink_mission_count_message(*partner, count, mission_type)
-        )
+        self._reply(sysid, mavlink2.MAVLink_mission_count_message(*partner, count, mission_type))
 
     def _download_item(
         self, sysid: int, view: UavView, partner: tuple[int, int], message: object
@@ -228,7 +300,7 @@ class Requests:
             refusal = Refusal(mavlink2.MAV_MISSION_INVALID_SEQUENCE, f"no mission item {seq}")
             self._ack(sysid, partner, refusal)
             return
-        self.gateway.send(sysid, item)
+        self._reply(sysid, item)
 
     # ---- commands ----------------------------------------------------------------------------
     def _command(self, sysid: int, piccolo: int, partner: tuple[int, int], message: object) -> None:
@@ -256,7 +328,7 @@ class Requests:
 
     def _send_requested(self, sysid: int, piccolo: int, message_id: int) -> None:
         if message_id == mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
-            self.gateway.send(sysid, vehicle.autopilot_version(piccolo))
+            self._reply(sysid, vehicle.autopilot_version(piccolo))
             return
         found = self.gateway.vehicle(sysid)
         if found is None:
@@ -264,10 +336,17 @@ class Requests:
         view, telemetry = found[1], self.gateway.view.telemetry(piccolo)
         boot = self.gateway.boot_ms()
         built: mavlink2.MAVLink_message | None = None
+        home = self.gateway.home_of(piccolo)
         if message_id == mavlink2.MAVLINK_MSG_ID_HEARTBEAT:
-            built = vehicle.heartbeat(view)
+            built = vehicle.heartbeat(view, telemetry)
         elif message_id == mavlink2.MAVLINK_MSG_ID_SYS_STATUS:
-            built = vehicle.sys_status(telemetry, self.gateway.drops.total())
+            built = vehicle.sys_status(view, telemetry, self.gateway.drops.total())
+        elif message_id == mavlink2.MAVLINK_MSG_ID_EXTENDED_SYS_STATE:
+            built = vehicle.extended_sys_state(telemetry)
+        elif message_id == mavlink2.MAVLINK_MSG_ID_HOME_POSITION and home is not None:
+            built = vehicle.home_position(*home)
+        elif telemetry is not None and message_id == mavlink2.MAVLINK_MSG_ID_GPS_RAW_INT:
+            built = vehicle.gps_raw(telemetry, boot)
         elif telemetry is not None and message_id == mavlink2.MAVLINK_MSG_ID_GLOBAL_POSITION_INT:
             built = vehicle.global_position(telemetry, boot)
         elif telemetry is not None and message_id == mavlink2.MAVLINK_MSG_ID_ATTITUDE:
@@ -275,10 +354,10 @@ class Requests:
         elif telemetry is not None and message_id == mavlink2.MAVLINK_MSG_ID_VFR_HUD:
             built = vehicle.vfr_hud(view, telemetry)
         if built is not None:
-            self.gateway.send(sysid, built)
+            self._reply(sysid, built)
 
     def _command_ack(self, sysid: int, partner: tuple[int, int], command: int, result: int) -> None:
-        self.gateway.send(sysid, _command_ack(partner, command, result))
+        self._reply(sysid, _command_ack(partner, command, result))
 
     def _abort(self, sysid: int, piccolo: int, partner: tuple[int, int], command: int) -> None:
         pending = self._aborting.get(sysid)
@@ -287,11 +366,11 @@ class Requests:
             return
         self._command_ack(sysid, partner, command, mavlink2.MAV_RESULT_IN_PROGRESS)
         self._aborting[sysid] = self.gateway.workers.submit(
-            self._abort_and_confirm, sysid, piccolo, partner, command
+            self._abort_and_confirm, sysid, piccolo, partner, command, self._to
         )
 
     def _abort_and_confirm(
-        self, sysid: int, piccolo: int, partner: tuple[int, int], command: int
+        self, sysid: int, piccolo: int, partner: tuple[int, int], command: int, to: Address | None
     ) -> None:
         """(A worker.) The final COMMAND_ACK only once the UAV said it aborted."""
         result, text = self.gateway.fleet.abort(piccolo)
@@ -303,7 +382,7 @@ class Requests:
         log.info("system %d: RTL: %s", sysid, text)
         severity = Severity.INFO if result is AbortResult.CONFIRMED else Severity.WARNING
         self._post_text(piccolo, f"RTL: {text}", severity)
-        self.gateway.outbox.put((sysid, _command_ack(partner, command, mav_result)))
+        self.gateway.outbox.put((sysid, _command_ack(partner, command, mav_result), to))
 
 
 def _command_ack(

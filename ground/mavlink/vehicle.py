@@ -15,7 +15,7 @@ from enum import IntEnum
 from pymavlink.dialects.v20 import common as mavlink2
 
 from fleet.mission.phase import Phase, Severity
-from fleet.piccolo.telemetry import Telemetry
+from fleet.piccolo.telemetry import GPS_3D_FIX, Telemetry
 from ground.fleet_view import UavView
 
 #: The length of STATUSTEXT's text field; longer texts go in chunks (MAVLink 2 `id`).
@@ -34,16 +34,37 @@ CAPABILITIES = (
 _ZEROS = (0,) * 8
 
 
+def px4_mode(main: int, sub: int = 0) -> int:
+    """A custom mode in PX4's encoding (main mode in byte 2, sub mode in byte 3): what
+    MAVSDK decodes for an autopilot that is neither PX4 nor ArduPilot."""
+    return (main << 16) | (sub << 24)
+
+
 class FleetMode(IntEnum):
     """HEARTBEAT.custom_mode: what the UAV is doing for the fleet, from its phase.
 
-    The numbers are ArduPlane's for the nearest mode, so that MAVProxy and Mission
-    Planner, which read a fixed-wing's custom mode as ArduPlane's, show a fitting name.
+    In PX4's encoding, which MAVSDK maps for a generic autopilot (its Telemetry's flight
+    mode: OFFBOARD, MISSION, RETURN_TO_LAUNCH, never UNKNOWN); QGroundControl names a
+    generic autopilot's mode from the base mode's flags; MAVProxy and Mission Planner,
+    which read a fixed-wing's custom mode as ArduPlane's, show the number.
     """
 
-    AUTO = 10  #: no fleet target: flying its autopilot's own flight plan
-    RTL = 11  #: the mission was aborted (RTL asked for it): the autopilot's course resumed
-    GUIDED = 15  #: on a fleet mission: planning, committed or flying to its target
+    #: No fleet target: flying its autopilot's own flight plan (PX4 AUTO/MISSION)
+    AUTO = px4_mode(4, 4)
+    #: The mission was aborted (RTL asked for it): the autopilot's course resumed
+    #: (PX4 AUTO/RTL)
+    RTL = px4_mode(4, 5)
+    #: On a fleet mission: the onboard planning module steers the autopilot from outside
+    #: its own plan (PX4 OFFBOARD)
+    GUIDED = px4_mode(6)
+
+
+#: ArduPlane's RTL custom mode: what MAVProxy's `mode RTL` sends a fixed-wing.
+ARDUPLANE_RTL = 11
+#: Telemetry older than this (s) is a link that is down: its sensors are not vouched for.
+LINK_STALE_S = 3.0
+#: An indicated airspeed at or above this (m/s) is an aircraft in the air.
+FLYING_AIRSPEED = 10.0
 
 
 _MISSION_PHASES = frozenset({Phase.COMPUTING, Phase.WAITING, Phase.COMMITTED, Phase.FLYING})
@@ -75,15 +96,29 @@ def state_of(phase: Phase) -> int:
     return int(mavlink2.MAV_STATE_ACTIVE)
 
 
-def heartbeat(view: UavView) -> mavlink2.MAVLink_heartbeat_message:
+def link_up(view: UavView) -> bool:
+    """Whether the UAV's telemetry is fresh and its autopilot link not reported lost."""
+    fresh = view.telemetry_age_s is not None and view.telemetry_age_s < LINK_STALE_S
+    return fresh and phase_of(view) != Phase.LINK_LOST
+
+
+def in_air(telemetry: Telemetry | None) -> bool | None:
+    """Whether the telemetry shows the aircraft flying (its airspeed); None unknown."""
+    if telemetry is None or telemetry.sensor is None:
+        return None
+    return telemetry.sensor.indicated_airspeed >= FLYING_AIRSPEED
+
+
+def heartbeat(
+    view: UavView, telemetry: Telemetry | None = None
+) -> mavlink2.MAVLink_heartbeat_message:
     phase = phase_of(view)
     mode = mode_of(phase)
-    # An aircraft in the air: armed, stabilised by its autopilot, in the fleet's modes.
-    base = (
-        mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
-        | mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
-        | mavlink2.MAV_MODE_FLAG_STABILIZE_ENABLED
-    )
+    # Armed only while its telemetry shows it flying: the Piccolo link says nothing of
+    # arming, and a station must not be told "ARMED" of an aircraft nobody has seen fly.
+    base = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink2.MAV_MODE_FLAG_STABILIZE_ENABLED
+    if in_air(telemetry):
+        base |= mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
     if mode == FleetMode.GUIDED:
         base |= mavlink2.MAV_MODE_FLAG_GUIDED_ENABLED
     else:
@@ -175,23 +210,97 @@ def vfr_hud(view: UavView, telemetry: Telemetry) -> mavlink2.MAVLink_vfr_hud_mes
     )
 
 
+#: What an autopilot flying the aircraft controls: present and enabled always; healthy
+#: only while the link shows it doing so.
+_CONTROL = (
+    mavlink2.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
+    | mavlink2.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION
+    | mavlink2.MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL
+    | mavlink2.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL
+)
+_INERTIAL = (
+    mavlink2.MAV_SYS_STATUS_SENSOR_3D_GYRO
+    | mavlink2.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+    | mavlink2.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE
+)
+
+
+def gps_fix(telemetry: Telemetry | None) -> int:
+    """GPS_FIX_TYPE of the telemetry's GPS block (3D only when the Piccolo says so)."""
+    if telemetry is None or telemetry.gps is None:
+        return int(mavlink2.GPS_FIX_TYPE_NO_GPS)
+    if telemetry.gps.gps_status & GPS_3D_FIX == GPS_3D_FIX:
+        return int(mavlink2.GPS_FIX_TYPE_3D_FIX)
+    return int(mavlink2.GPS_FIX_TYPE_NO_FIX)
+
+
 def sys_status(
-    telemetry: Telemetry | None, errors_comm: int
+    view: UavView, telemetry: Telemetry | None, errors_comm: int
 ) -> mavlink2.MAVLink_sys_status_message:
-    """SYS_STATUS: the sensors the telemetry shows, no battery figures (not reported by a
-    Piccolo's telemetry); `errors_comm` is the gateway's count of dropped input."""
-    sensors = 0
+    """SYS_STATUS: the sensors the telemetry shows, healthy only while the link is up
+    (fresh telemetry, its autopilot link not lost) and, for the GPS, with a 3D fix; no
+    battery figures (not reported by a Piccolo's telemetry); `errors_comm` is the
+    gateway's count of dropped input. The geofence bit is healthy, not present: there
+    is no breach to report (MAVProxy says "fence breach" when it is clear)."""
+    present = _CONTROL if telemetry is not None else 0
     if telemetry is not None and telemetry.gps is not None:
-        sensors |= mavlink2.MAV_SYS_STATUS_SENSOR_GPS
+        present |= mavlink2.MAV_SYS_STATUS_SENSOR_GPS
     if telemetry is not None and telemetry.sensor is not None:
-        sensors |= (
-            mavlink2.MAV_SYS_STATUS_SENSOR_3D_GYRO
-            | mavlink2.MAV_SYS_STATUS_SENSOR_3D_ACCEL
-            | mavlink2.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE
-        )
+        present |= _INERTIAL
+    if telemetry is not None and telemetry.magnetometer is not None:
+        present |= mavlink2.MAV_SYS_STATUS_SENSOR_3D_MAG
+    health = mavlink2.MAV_SYS_STATUS_GEOFENCE
+    if link_up(view):
+        health |= present
+        if gps_fix(telemetry) < mavlink2.GPS_FIX_TYPE_3D_FIX:
+            health &= ~mavlink2.MAV_SYS_STATUS_SENSOR_GPS
     return mavlink2.MAVLink_sys_status_message(
-        sensors, sensors, sensors, 0, 65535, -1, -1, 0, min(errors_comm, 65535), 0, 0, 0, 0
+        present, present, health, 0, 65535, -1, -1, 0, min(errors_comm, 65535), 0, 0, 0, 0
     )
+
+
+def gps_raw(telemetry: Telemetry, boot_ms: int) -> mavlink2.MAVLink_gps_raw_int_message | None:
+    """GPS_RAW_INT: the GPS block as the receiver gave it, satellites included."""
+    gps = telemetry.gps
+    if gps is None:
+        return None
+    speed = math.hypot(gps.vel_north, gps.vel_east)
+    course = math.degrees(math.atan2(gps.vel_east, gps.vel_north)) % 360.0
+    return mavlink2.MAVLink_gps_raw_int_message(
+        boot_ms * 1000,
+        gps_fix(telemetry),
+        _deg_e7(gps.lat),
+        _deg_e7(gps.lon),
+        _mm(gps.alt),
+        _clamped(gps.dop * 100, 0, 65534) if gps.dop > 0 else 65535,
+        65535,
+        _clamped(speed * 100, 0, 65534),
+        _clamped(course * 100, 0, 35999) if speed > 0.5 else 65535,
+        _clamped(max(gps.sats_visible, gps.sats_tracked), 0, 254),
+        _mm(gps.alt),  # the Piccolo's altitude is above the ellipsoid
+    )
+
+
+def home_position(lat: float, lon: float) -> mavlink2.MAVLink_home_position_message:
+    """HOME_POSITION: where the gateway first heard the UAV, at 0 m, which is what the
+    relative altitudes (GLOBAL_POSITION_INT, missions) are measured from: the Piccolo
+    link carries no home of its own."""
+    return mavlink2.MAVLink_home_position_message(
+        _deg_e7(lat), _deg_e7(lon), 0, 0.0, 0.0, 0.0, (1.0, 0.0, 0.0, 0.0), 0.0, 0.0, 0.0
+    )
+
+
+def extended_sys_state(telemetry: Telemetry | None) -> mavlink2.MAVLink_extended_sys_state_message:
+    """EXTENDED_SYS_STATE: a fixed-wing (no VTOL state), in the air by its airspeed."""
+    flying = in_air(telemetry)
+    landed = (
+        mavlink2.MAV_LANDED_STATE_UNDEFINED
+        if flying is None
+        else mavlink2.MAV_LANDED_STATE_IN_AIR
+        if flying
+        else mavlink2.MAV_LANDED_STATE_ON_GROUND
+    )
+    return mavlink2.MAVLink_extended_sys_state_message(mavlink2.MAV_VTOL_STATE_UNDEFINED, landed)
 
 
 def autopilot_version(piccolo: int) -> mavlink2.MAVLink_autopilot_version_message:

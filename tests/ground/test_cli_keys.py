@@ -1,6 +1,6 @@
-"""`ground-cli keys` against a real Zenoh router: the router's own admin space is listed
-with the fleet's keys (the rest of `ground-cli` runs on the in-process bus,
-test_cli.py)."""
+"""`ground-cli keys` against a real Zenoh router (embedded in the test's process, its
+fake UAVs too: tests/ground/conftest.py): the router's own admin space is listed with
+the fleet's keys (the rest of `ground-cli` runs on the in-process bus, test_cli.py)."""
 
 from __future__ import annotations
 
@@ -9,12 +9,11 @@ import json
 import pytest
 
 from tests.support.fake_onboard import FakeOnboard
-from tests.support.ground_cli import ground_cli
+from tests.support.ground_cli import ground_cli_here
 
 
-@pytest.mark.e2e
 def test_keys_shows_telemetry_state_and_token(router: str, fakes: dict[int, FakeOnboard]) -> None:
-    done = ground_cli(
+    done = ground_cli_here(
         "keys", "fleet/uav/74/**", "--json", "--window", "0.5", "--admin", connect=router
     )
     assert done.returncode == 0, done.stderr
@@ -29,6 +28,6 @@ def test_keys_shows_telemetry_state_and_token(router: str, fakes: dict[int, Fake
     admin = [key for key in found if key.startswith("@/")]
     assert any("/router" in key for key in admin), admin
 
-    text = ground_cli("keys", "--window", "0.3", connect=router)
+    text = ground_cli_here("keys", "--window", "0.3", connect=router)
     assert text.returncode == 0, text.stderr
     assert any(line.startswith("fleet/uav/112/telemetry = {") for line in text.stdout.splitlines())

@@ -132,7 +132,7 @@ def test_hostile_input_is_dropped_and_counted(live: Live, caplog: pytest.LogCapt
     live.fleet.put(SPACE.telemetry(75), b"x" * (bus_codec.MAX_PAYLOAD_BYTES + 1))
     # JSON, but not the mission's targets: shown as heard, not drawn.
     live.fleet.put(SPACE.mission_targets(6), b'{"mission": "six"}')
-    live.bridge._on_sample(BusSample(SPACE.status(74), b"", deleted=True))
+    live.bridge.tap.on_sample(BusSample(SPACE.status(74), b"", deleted=True))
     written = live.stopped()
     assert live.bridge.dropped == {
         "not JSON": 2,
@@ -147,7 +147,7 @@ def test_hostile_input_is_dropped_and_counted(live: Live, caplog: pytest.LogCapt
 
 
 def test_keys_beyond_the_limit_are_dropped(live: Live, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(bridge_module, "MAX_CHANNELS", 3)
+    monkeypatch.setattr(live.bridge.tap, "max_channels", 3)
     for index in range(5):
         live.fleet.put(SPACE.waypoint(74, index), b"{}")
     live.stopped()

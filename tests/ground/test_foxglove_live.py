@@ -33,7 +33,7 @@ from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace, uav_id_of
 from fleet.recording.recorder import READY_LINE as RECORD_READY
 from ground.foxglove_live.command import READY_LINE as FOXGLOVE_READY
-from tests.support.processes import Child, client_session, start
+from tests.support.processes import Child, client_session, start, wait_fleet_up
 from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
@@ -68,7 +68,7 @@ def fleet_up(tmp_path: Path, endpoint: str, *extra: str) -> Child:
          "--log-dir", str(tmp_path / "run"), *extra],
     )  # fmt: skip
     try:
-        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+        wait_fleet_up(up, 90.0)
     except AssertionError:
         stop_children([up], 10.0)
         raise

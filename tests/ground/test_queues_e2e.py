@@ -2,7 +2,7 @@
 
 Three UAVs and eight targets: every target reached, and `mission --until-reached` says
 so; the same with a holder SIGKILLed after its first target, mid-queue, its queue going
-to the others; `min-sum` and `min-max` each agreed by every UAV (one digest)."""
+to the others; `min-sum` and `min-max` each agreed by every UAV is test_queues_in_memory.py."""
 
 from __future__ import annotations
 
@@ -147,10 +147,4 @@ def test_a_holder_killed_mid_queue_hands_its_queue_on_and_every_target_is_reache
     assert report["epoch"] == 1 and report["lost"] == [victim]
 
 
-@pytest.mark.parametrize("objective", ["min-sum", "min-max"])
-def test_every_uav_agrees_on_the_plan_of_each_objective(
-    fleet: Fleet, ground: Ground, tmp_path: Path, objective: str
-) -> None:
-    team = start_ring(fleet, ground, tmp_path, 3, SPEEDUP, telemetry_hz=5.0)
-    reports = _send(ground, tmp_path, team, "--objective", objective)
-    assert {str(r.objective) for r in reports.values()} == {objective}
+# Every UAV agreeing on the plan of each objective: tests/ground/test_queues_in_memory.py.

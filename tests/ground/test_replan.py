@@ -9,7 +9,9 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
-from fleet.launch.ring import ring_scenario
+from fleet.geo.mercator import MercatorProjection
+from fleet.launch.ring import GENERATED_CENTRE, ring_scenario
+from fleet.mission.messages import Target
 from fleet.mission.phase import Phase
 from onboard.core import LINK_LOST_S, TARGET_WAYPOINT
 from tests.conftest import Ground
@@ -227,3 +229,58 @@ def test_a_holder_restarted_after_the_re_plan_adopts_the_latest_epoch_and_leaves
     # Turned back on its way, not by arriving: it never came within reach of that target.
     orphan = ring_targets(2, seed=7)[holders[victim]]
     assert seen.closest_approach(victim, orphan.lat, orphan.lon) > 75.0
+
+
+#: Three UAVs on the ring (101 at (0, 1500) flying west, 102 and 103 120 and 240 degrees
+#: on) and three targets, local metres from the ring's centre: A 700 m ahead of 101,
+#: which reaches it first; C 800 m ahead of 102; B 1 km beyond A, which 103 holds (its
+#: nearest free target) while 101's finishing time (A, then the leg to B) is the lowest
+#: of the team's: with 101 gone and B orphaned, B goes to 101's queue unless 101 is
+#: released.
+FINISHER_TARGETS = ((-700.0, 1500.0), (-1700.0, 1700.0), (1699.0, -57.0))
+
+
+def test_a_finished_uav_killed_then_a_holder_killed_every_orphan_is_flown_by_a_live_uav(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    team = start_ring(fleet, ground, tmp_path, 3, SPEEDUP, telemetry_hz=5.0)
+    seen = ground.seen
+    plane = MercatorProjection(*GENERATED_CENTRE)
+    targets = tuple(Target(*plane.to_latlon(x, y), 600.0) for x, y in FINISHER_TARGETS)
+    path = targets_file(tmp_path, targets)
+    send = ground_cli(ground.router, "send-targets", str(path), "--team", ",".join(map(str, team)))
+    assert finish(send, 60)[0] == 0
+    wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "every commitment")
+    holders = {int(uav): target for uav, target in seen.assignments[team[0]].pairs.items()}
+    assert holders == {101: 0, 102: 2, 103: 1}, holders
+    finisher, holder, survivor = 101, 103, 102
+    wait_until(
+        lambda: any(o.phase == Phase.REACHED for o in seen.outcomes_of(finisher)),
+        REACH_TIMEOUT_S,
+        "the finisher's whole queue reached",
+    )
+    for victim, epoch in ((finisher, 1), (holder, 2)):  # one after the other
+        child = fleet.onboard_child(victim)
+        child.process.kill()
+        child.process.wait(10)
+        wait_until(
+            lambda e=epoch: seen.assignments[survivor].epoch == e,
+            30.0,
+            f"UAV {survivor} re-planning epoch {epoch}",
+        )
+    replanned = seen.assignments[survivor]
+    assert replanned.released == (finisher, holder)
+    assert finisher not in replanned.queues  # the dead UAV holds nothing
+    assert 1 in replanned.queues[survivor]  # the live UAV flies the orphan
+
+    status, out, err = finish(
+        ground_cli(ground.router, "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json"),
+        REACH_TIMEOUT_S + 60,
+    )
+    report = json.loads(out)
+    states = {s["index"]: s for s in report["target_states"]}
+    assert (states[1]["state"], states[1]["uav"]) == ("reached", survivor), err
+    assert (states[0]["state"], states[0]["uav"]) == ("reached", finisher), err
+    assert states[2]["state"] == "reached", err
+    assert status == 0, err
+    assert seen.closest_approach(survivor, targets[1].lat, targets[1].lon) <= 75.0

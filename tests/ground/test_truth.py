@@ -13,7 +13,6 @@ import time
 from pathlib import Path
 
 import msgspec
-import pytest
 
 from fleet.files.targets_io import write_targets
 from fleet.mission.key_space import KeySpace
@@ -227,96 +226,8 @@ def test_an_abort_while_the_team_waits_for_a_frozen_teammate_is_final(
     assert all(seen.latest_track(uav) != TARGET_WAYPOINT for uav in team)
 
 
-@pytest.mark.parametrize("apart_s", [0.0, 0.05])
-def test_two_send_targets_at_once_get_different_ids_and_the_superseded_one_says_so(
-    fleet: Fleet, ground: Ground, tmp_path: Path, apart_s: float
-) -> None:
-    team = start_ring(fleet, ground, tmp_path, 2)
-    first = tmp_path / "first.bin"
-    second = tmp_path / "second.bin"
-    write_targets(first, ring_targets(2, seed=11))
-    write_targets(second, ring_targets(2, seed=12))
-    args = ("--wait", "--json", "--deadline", "10", "--timeout", "60")
-    # The team is held (SIGSTOP) until both missions are on the bus: a 2-target mission
-    # completes in tens of milliseconds, far sooner than a second ground-cli starts, so
-    # unheld the first could be over before the second exists (and then it is rightly
-    # not superseded). Short queries keep the hold well under the 3 s after which a UAV
-    # counts its autopilot link as lost (and would decline).
-    quick = ("--query-timeout", "0.3")
-    onboards = [c for c in fleet.children if c.name.startswith("onboard ")]
-    for child in onboards:
-        child.process.send_signal(signal.SIGSTOP)
-    try:
-        sends = [ground_cli(ground.router, *quick, "send-targets", str(first), *args)]
-        if apart_s:
-            time.sleep(apart_s)  # the fault: a second operator, a moment later
-        sends.append(ground_cli(ground.router, *quick, "send-targets", str(second), *args))
-        for send in sends:  # each ground's progress says when its mission is out
-            assert send.stderr is not None
-            lines = [send.stderr.readline()]
-            while lines[-1] and "sent to" not in lines[-1]:
-                lines.append(send.stderr.readline())  # a claim's warnings come first
-            assert "sent to" in lines[-1], "".join(lines)
-    finally:
-        for child in onboards:
-            child.process.send_signal(signal.SIGCONT)
-    finished = [finish(send, 120) for send in sends]
-    reports = [json.loads(out) for _, out, _ in finished]
-    errs = "\n".join(err for _, _, err in finished)
-    missions = [report["mission"] for report in reports]
-    assert missions[0] != missions[1], errs
-    later = max(missions)
-    winner, loser = sorted(range(2), key=lambda i: reports[i]["mission"] != later)
-    # The later mission is the one the team flies: it agreed, and says so.
-    assert reports[winner]["superseded_by"] is None, errs
-    assert reports[winner]["success"] is True, errs
-    assert finished[winner][0] == 0, errs
-    # The earlier one is reported superseded by it: no success, a non-zero exit.
-    assert reports[loser]["superseded_by"] == later, errs
-    assert reports[loser]["success"] is False
-    assert {s["state"] for s in reports[loser]["target_states"]} <= {"unserved", "reached"}
-    assert finished[loser][0] == 1
-    assert sorted(reports[winner]["taking_part"]) == team
-
-
-@pytest.mark.parametrize("apart_s", [0.05, 0.5])
-def test_two_grounds_racing_an_unheld_team_exactly_one_reports_success(
-    fleet: Fleet, ground: Ground, tmp_path: Path, apart_s: float
-) -> None:
-    """Unlike the test above the team is not held: it commits to the first mission in
-    tens of milliseconds, before the second ground has chosen its id (which is then
-    higher, no collision), and then switches to the second. Before the fix both grounds
-    exited 0 with success and no superseded_by (the first one only watched for a later
-    mission when its id had been contested)."""
-    team = start_ring(fleet, ground, tmp_path, 2)
-    options = ("--wait", "--json", "--deadline", "10", "--timeout", "60")
-    files = [tmp_path / "first.bin", tmp_path / "second.bin"]
-    for path, seed in zip(files, (11, 12), strict=True):
-        write_targets(path, ring_targets(2, seed=seed))
-    sends = [ground_cli(ground.router, "send-targets", str(files[0]), *options)]
-    time.sleep(apart_s)  # the fault: a second operator, a moment later
-    sends.append(ground_cli(ground.router, "send-targets", str(files[1]), *options))
-    finished = [finish(send, 120) for send in sends]
-    errs = "\n".join(err for _, _, err in finished)
-    reports = [json.loads(out) for _, out, _ in finished]
-    missions = [report["mission"] for report in reports]
-    assert missions[0] != missions[1], errs
-    later = max(missions)
-    # The team flies the later mission: each UAV's latest commitment is to it.
-    seen = ground.seen
-    wait_until(
-        lambda: all(
-            (report := seen.assignments.get(uav)) is not None and report.mission == later
-            for uav in team
-        ),
-        10.0,
-        f"every UAV committed to mission {later}",
-    )
-    winner, loser = sorted(range(2), key=lambda i: reports[i]["mission"] != later)
-    assert (reports[winner]["success"], reports[winner]["superseded_by"]) == (True, None), errs
-    assert finished[winner][0] == 0, errs
-    assert (reports[loser]["success"], reports[loser]["superseded_by"]) == (False, later), errs
-    assert finished[loser][0] == 1, errs
+# Two send-targets at once, the team held or not: tests/ground/test_send_race.py, in
+# memory.
 
 
 def test_an_abort_queued_while_a_uav_holding_its_result_is_frozen_is_final(

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from fleet.launch.endpoints import free_port
-from tests.support.processes import start
+from tests.support.processes import start_fleet_up, wait_fleet_up
 
 pytestmark = pytest.mark.e2e
 
@@ -54,13 +54,11 @@ def test_fleet_demo_runs_the_thesis_multi_uav_scenario(tmp_path: Path) -> None:
 
 def test_fleet_up_then_ground_cli_single_uav(tmp_path: Path) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    up = start(
-        "fleet up",
-        [sys.executable, "-m", "programs.fleet_cli", "up", "single_uav", "--listen", endpoint,
-         "--speedup", "5", "--log-dir", str(tmp_path)],
-    )  # fmt: skip
+    up = start_fleet_up(
+        "single_uav", "--listen", endpoint, "--speedup", "5", "--log-dir", str(tmp_path)
+    )
     try:
-        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+        wait_fleet_up(up, 90.0)
         ground = ("-m", "ground.cli", "--connect", endpoint)
         listed = run(*ground, "uavs", "--json")
         assert listed.returncode == 0, listed.stderr

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import signal
 import statistics
-import sys
 from collections import Counter
 from pathlib import Path
 
@@ -14,7 +13,7 @@ import pytest
 
 from fleet.launch.endpoints import free_port
 from fleet.recording.reader import RecordingError, read_recording
-from tests.support.processes import start
+from tests.support.processes import start_fleet_up, wait_fleet_up
 from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
@@ -42,14 +41,19 @@ def telemetry_counts(path: Path) -> Counter[int]:
 
 
 def test_a_recording_of_four_uavs_has_every_uavs_telemetry(tmp_path: Path) -> None:
-    up = start(
-        "fleet up",
-        [sys.executable, "-m", "programs.fleet_cli", "up", "--uavs", str(len(UAVS)),
-         "--speedup", "10", "--listen", f"tcp/127.0.0.1:{free_port()}", "--log-dir", str(tmp_path)],
-    )  # fmt: skip
+    up = start_fleet_up(
+        "--uavs",
+        str(len(UAVS)),
+        "--speedup",
+        "10",
+        "--listen",
+        f"tcp/127.0.0.1:{free_port()}",
+        "--log-dir",
+        str(tmp_path),
+    )
     recording = tmp_path / "fleet.mcap"
     try:
-        up.wait_for_line(lambda line: "stops the fleet" in line, 120.0)
+        wait_fleet_up(up, 120.0)
         wait_until(
             lambda: statistics.median(telemetry_counts(recording)[u] for u in UAVS) >= SAMPLES,
             300.0,

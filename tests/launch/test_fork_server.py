@@ -16,7 +16,7 @@ import pytest
 from fleet.launch.endpoints import free_port
 from fleet.launch.fork_client import UNKNOWN_STATUS, ForkServer, ForkServerError
 from fleet.launch.fork_server import parse_request
-from tests.support.processes import start
+from tests.support.processes import start_fleet_up, wait_fleet_up
 from tests.support.waiting import wait_until
 
 CHILD = "tests.support.fork_child"
@@ -174,13 +174,18 @@ def pids_by_name(log_dir: Path) -> dict[str, int]:
 @pytest.mark.parametrize("forked", [True, False], ids=["fork-server", "no-fork-server"])
 def test_fleet_up_forks_its_onboards_unless_told_not_to(tmp_path: Path, forked: bool) -> None:
     flags = [] if forked else ["--no-fork-server"]
-    up = start(
-        "fleet up",
-        [sys.executable, "-m", "programs.fleet_cli", "up", "--uavs", "2", "--no-record",
-         "--listen", f"tcp/127.0.0.1:{free_port()}", "--log-dir", str(tmp_path), *flags],
-    )  # fmt: skip
+    up = start_fleet_up(
+        "--uavs",
+        "2",
+        "--no-record",
+        "--listen",
+        f"tcp/127.0.0.1:{free_port()}",
+        "--log-dir",
+        str(tmp_path),
+        *flags,
+    )
     try:
-        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+        wait_fleet_up(up, 90.0)
         pids = pids_by_name(tmp_path)
         onboards = [pids["onboard-101"], pids["onboard-102"]]
         if forked:

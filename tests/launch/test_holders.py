@@ -11,7 +11,7 @@ import pytest
 
 from fleet.launch.endpoints import free_port
 from fleet.launch.holders import uav_holders
-from tests.support.processes import start
+from tests.support.processes import start, wait_fleet_up
 
 pytestmark = pytest.mark.e2e
 
@@ -29,7 +29,7 @@ def test_a_second_fleet_up_on_a_held_port_says_who_holds_it(tmp_path: Path) -> N
     port = free_port()
     first = start("first fleet up", fleet_up(port, tmp_path / "first"))
     try:
-        first.wait_for_line(lambda line: "stops the fleet" in line, START_S)
+        wait_fleet_up(first, START_S)
         second = start("second fleet up", fleet_up(port, tmp_path / "second"))
         assert second.process.wait(START_S) == 1
         said = "\n".join(second.history)

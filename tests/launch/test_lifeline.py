@@ -14,7 +14,7 @@ import pytest
 
 from fleet import lifeline
 from fleet.launch.endpoints import free_port
-from tests.support.processes import descendants, running, start
+from tests.support.processes import descendants, running, start, start_fleet_up, wait_fleet_up
 from tests.support.waiting import wait_until
 
 #: Generous for a loaded machine: the kernel kills them at once, but a start takes long.
@@ -80,14 +80,12 @@ def test_a_bound_child_ends_when_its_parent_is_killed() -> None:
 )
 def test_fleet_up_killed_with_sigkill_leaves_no_process(tmp_path: Path, flags: list[str]) -> None:
     gui = ["--gui", f"127.0.0.1:{free_port()}"] if flags == ["--gui"] else flags
-    up = start(
-        "fleet up",
-        [sys.executable, "-m", "programs.fleet_cli", "up", "--uavs", "2",
-         "--listen", f"tcp/127.0.0.1:{free_port()}", "--log-dir", str(tmp_path), *gui],
-    )  # fmt: skip
+    up = start_fleet_up(
+        "--uavs", "2", "--listen", f"tcp/127.0.0.1:{free_port()}", "--log-dir", str(tmp_path), *gui
+    )
     tree: dict[int, str] = {}
     try:
-        up.wait_for_line(lambda line: "stops the fleet" in line, START_S)
+        wait_fleet_up(up, START_S)
         tree = descendants(up.pid)
         listed = {int(line.split()[0]) for line in (tmp_path / "pids").read_text().splitlines()}
         assert listed <= set(tree), (listed, tree)  # the pids file's and any others

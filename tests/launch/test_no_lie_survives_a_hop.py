@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
+import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -22,7 +24,7 @@ import pytest
 import zenoh
 
 from fleet.geo.aircraft import AircraftLimits
-from fleet.mission.messages import RouterState, TargetOutcome, UavState
+from fleet.mission.messages import RouterState, TargetOutcome, UavResult, UavState
 from fleet.mission.phase import Phase
 from fleet.mission.target_checks import REACHED_RADIUS_M
 from fleet.mission.targets_file import decode_targets
@@ -170,3 +172,34 @@ def test_a_uav_routers_key_cannot_answer_for_another_router(secure: SignedFleet)
         e.get("identity") == "router" and e["refused_links"].get("no_certificate", 0) >= refused
         for e in shown
     ), shown
+
+
+# ---- revocation reaches running processes -----------------------------------------------------
+def test_a_revoked_identitys_open_session_is_refused_within_seconds(secure: SignedFleet) -> None:
+    """UAV 300's session is open and its signed messages believed; `fleet certs revoke`
+    on the running fleet puts the CA-signed roster, and 112 refuses what 300 signs from
+    then on, with no restart (the router cannot drop the session: its messages are
+    refused by every receiver instead)."""
+    mission = secure.send_targets()
+    key = SPACE.mission_result(mission, 300)
+    result = encode(UavResult(mission, 300, (1.0, 1.0, 1.0)))
+    with secure.session("uav-300") as lost:
+        before = secure.refused(112, "revoked")
+        lost.put(key, result, encoding=ENCODING,
+                 attachment=signed.attachment(secure.certs, "uav-300", key, result))  # fmt: skip
+        revoked = subprocess.run(
+            [sys.executable, "-m", "programs.fleet_cli", "certs", "revoke", str(secure.certs),
+             "uav-300", "--connect", secure.endpoint],
+            capture_output=True, text=True, timeout=120, check=False,
+        )  # fmt: skip
+        assert revoked.returncode == 0, revoked.stderr[-3000:]
+        assert f"put on {SPACE.roster()}" in revoked.stdout, revoked.stdout
+        since = time.monotonic()
+
+        def refused() -> bool:
+            by_300 = signed.attachment(secure.certs, "uav-300", key, result)
+            lost.put(key, result, encoding=ENCODING, attachment=by_300)
+            return secure.refused(112, "revoked") > before
+
+        wait_until(refused, 30.0, "112 refusing the revoked UAV 300")
+        assert time.monotonic() - since < 30.0

@@ -26,7 +26,7 @@ import pytest
 from fleet.files.certs import write_identities
 from fleet.launch.endpoints import free_port
 from fleet.launch.topology import fallbacks, ring_links
-from tests.support.processes import Child, start
+from tests.support.processes import Child, start, wait_fleet_up
 
 pytestmark = pytest.mark.e2e
 
@@ -78,7 +78,7 @@ def mesh(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Mesh]:
     try:
         line = up.wait_for_line(lambda line: "UAV routers:" in line, 90.0)
         uav_routers = re.findall(rf"{proto}/127\.0\.0\.1:\d+", line)
-        up.wait_for_line(lambda line: "stops the fleet" in line, 10.0)
+        wait_fleet_up(up, 10.0)
         yield Mesh(up, ground, uav_routers, identity)
     finally:
         up.process.send_signal(signal.SIGTERM)

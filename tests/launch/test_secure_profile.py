@@ -32,7 +32,7 @@ from fleet.piccolo.waypoint import Waypoint
 from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.zenoh_config import build_config, make_config
 from tests.support import secure_clients, signed
-from tests.support.processes import Child, start
+from tests.support.processes import Child, start, wait_fleet_up
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
@@ -69,7 +69,7 @@ def secure_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureFle
          "--listen", endpoint, "--speedup", "5", "--log-dir", str(certs / "logs")],
     )  # fmt: skip
     try:
-        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+        wait_fleet_up(up, 90.0)
         yield SecureFleet(endpoint, certs.resolve(), up)
     finally:
         up.process.send_signal(signal.SIGTERM)

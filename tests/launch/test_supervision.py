@@ -15,7 +15,7 @@ from fleet.files.targets_io import write_targets
 from fleet.launch.endpoints import free_port
 from fleet.transport.cli import ExitCode
 from tests.support.ground_view import GroundView
-from tests.support.processes import Child, client_session, start
+from tests.support.processes import Child, client_session, start, start_fleet_up, wait_fleet_up
 from tests.support.targets import ring_targets
 from tests.support.waiting import wait_until
 
@@ -25,14 +25,20 @@ CLI_TIMEOUT_S = 60.0
 
 
 def fleet_up(tmp_path: Path, port: int, *extra: str) -> Child:
-    up = start(
-        "fleet up",
-        [sys.executable, "-m", "programs.fleet_cli", "up", "--uavs", "3",
-         "--listen", f"tcp/127.0.0.1:{port}", "--speedup", "3", "--no-record",
-         "--log-dir", str(tmp_path), *extra],
-    )  # fmt: skip
+    up = start_fleet_up(
+        "--uavs",
+        "3",
+        "--listen",
+        f"tcp/127.0.0.1:{port}",
+        "--speedup",
+        "3",
+        "--no-record",
+        "--log-dir",
+        str(tmp_path),
+        *extra,
+    )
     try:
-        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+        wait_fleet_up(up, 90.0)
         # Each progress line said once (it used to be printed and logged both).
         said = sum("simulator up with 3 aircraft" in line for line in up.history)
         assert said == 1, up.history
@@ -126,13 +132,11 @@ def test_restart_brings_a_dead_onboard_back(tmp_path: Path) -> None:
 def test_a_recording_that_fails_is_said_and_fails_the_run(tmp_path: Path) -> None:
     # The disk is full from the first write: the recording is the device that refuses.
     (tmp_path / "fleet.mcap").symlink_to("/dev/full")
-    up = start(
-        "fleet up",
-        [sys.executable, "-m", "programs.fleet_cli", "up", "--uavs", "1",
-         "--listen", f"tcp/127.0.0.1:{free_port()}", "--log-dir", str(tmp_path)],
-    )  # fmt: skip
+    up = start_fleet_up(
+        "--uavs", "1", "--listen", f"tcp/127.0.0.1:{free_port()}", "--log-dir", str(tmp_path)
+    )
     try:
-        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+        wait_fleet_up(up, 90.0)
     finally:
         up.process.send_signal(signal.SIGTERM)
         status = up.process.wait(30)

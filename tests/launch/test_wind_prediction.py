@@ -27,7 +27,7 @@ from fleet.geo.mercator import MercatorProjection
 from fleet.geo.wind import Wind
 from fleet.launch.endpoints import free_port
 from fleet.sim.scenario import shipped_scenario, shipped_scenario_path
-from tests.support.processes import start
+from tests.support.processes import start_fleet_up, wait_fleet_up
 
 pytestmark = pytest.mark.e2e
 
@@ -61,13 +61,9 @@ def test_still_air_times_would_fail_this_test() -> None:
 
 def test_three_uavs_arrive_when_they_said_in_a_10_ms_wind(tmp_path: Path) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    up = start(
-        "fleet up",
-        [sys.executable, "-m", "programs.fleet_cli", "up", "windy", "--listen", endpoint,
-         "--speedup", "3", "--log-dir", str(tmp_path)],
-    )  # fmt: skip
+    up = start_fleet_up("windy", "--listen", endpoint, "--speedup", "3", "--log-dir", str(tmp_path))
     try:
-        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+        wait_fleet_up(up, 90.0)
         ground = ("-m", "ground.cli", "--connect", endpoint)
         targets = shipped_scenario_path("windy").with_name("windy_targets.bin")
         sent = run(*ground, "send-targets", str(targets), "--wait", "--json",

@@ -93,7 +93,8 @@ POLICY_74 = [
     ("fleet-read", ("ground", "uav-74", "router-74"), ("ingress",), _READ, {"fleet/**"}),
     (
         "ground-command", ("ground",), ("ingress",), ("put",),
-        {"fleet/mission/*/abort", "fleet/mission/*/targets", "fleet/uav/*/opm"},
+        # The roster: a revocation put to the running fleet.
+        {"fleet/mission/*/abort", "fleet/mission/*/targets", "fleet/uav/*/opm", "fleet/roster"},
     ),
     ("ground-query", ("ground",), ("ingress",), ("query",), {"@/**", "fleet/**"}),
     (

@@ -44,7 +44,7 @@ def test_patterns_are_distinct_and_use_known_placeholders() -> None:
     assert len({spec.pattern for spec in REGISTRY}) == len(REGISTRY)
     for spec in REGISTRY:
         assert set(spec.placeholders) <= set(reg.PLACEHOLDERS), spec.pattern
-        assert spec.tree in ("uav", "mission", "router")
+        assert spec.tree in ("uav", "mission", "router", "roster")
 
 
 def test_every_message_that_travels_on_a_key_is_in_the_registry() -> None:

@@ -53,7 +53,13 @@ def test_a_stale_plan_is_never_used_for_the_next_mission() -> None:
     gps = sample_telemetry().gps
     assert gps is not None
     assert (published.lat, published.lon) == (gps.lat, gps.lon)
-    assert published.airspeed == pytest.approx(math.hypot(gps.vel_east, gps.vel_north), abs=0.01)
+    # The airspeed is the air data's (the indicated over the root of the density ratio),
+    # not the GPS velocity less the wind, which moves with every gust.
+    sensor = sample_telemetry().sensor
+    assert sensor is not None
+    speed = sensor.indicated_airspeed / math.sqrt(sensor.density_ratio)
+    assert published.airspeed == pytest.approx(speed, abs=0.01)
+    assert planner.requests[1].cruise_speed == pytest.approx(speed)
 
 
 def test_the_planning_budget_grows_with_the_missions_deadline() -> None:
@@ -81,11 +87,30 @@ def test_the_plan_is_asked_in_the_smoothed_reported_wind() -> None:
     core.on_targets(MissionTargets(mission=2, team=(112,), targets=TARGETS), 2.1)
     first, second = planner.requests
     assert first.wind == Wind(east=6.0, north=2.0)
-    # The airspeed held is the ground velocity (21.5 east, 3 north) less the wind.
-    assert first.cruise_speed == pytest.approx(math.hypot(15.5, 1.0))
+    # The airspeed held is the air data's (22 m/s indicated at sea level), not the
+    # ground velocity less a wind estimate.
+    assert first.cruise_speed == pytest.approx(22.0)
     kept = math.exp(-2.0 / 20.0)
     assert second.wind.east == pytest.approx(6.0 * kept)
     assert second.wind.north == pytest.approx(2.0 * kept)
+
+
+def test_without_air_data_the_airspeed_is_the_ground_velocity_less_the_wind() -> None:
+    planner = ScriptedPlanner((80.0, 40.0, 60.0))
+    core = OnboardCore(uav_id=112, outputs=Recorder(), planner=planner)
+    telemetry = sample_telemetry()
+    assert telemetry.gps is not None and telemetry.sensor is not None
+    no_pitot = msgspec.structs.replace(
+        telemetry,
+        sensor=msgspec.structs.replace(
+            telemetry.sensor, wind_south=-2.0, wind_west=-6.0, indicated_airspeed=0.0
+        ),
+    )
+    core.on_telemetry(no_pitot, 0.0)
+    core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 0.1)
+    (request,) = planner.requests
+    # The ground velocity (21.5 east, 3 north) less the wind (6 east, 2 north).
+    assert request.cruise_speed == pytest.approx(math.hypot(15.5, 1.0))
 
 
 def test_the_status_says_the_wind_planned_in() -> None:

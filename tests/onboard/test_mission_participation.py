@@ -20,6 +20,7 @@ from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from onboard.core import (
     LINK_LOST_S,
+    LIVELINESS_GRACE_S,
     TARGET_WAYPOINT,
     OnboardCore,
 )
@@ -244,13 +245,32 @@ def test_a_teammates_failure_outcome_releases_it_and_a_reached_one_does_not() ->
     core, out = make_core(200, (30.0, 35.0))
     commit_three_uav_team(core)
     core.on_outcome(TargetOutcome(3, 74, 0, Phase.REACHED), 4.0)
-    core.on_alive(74, False, 5.0)  # gone after reaching: nothing orphaned
     assert out.on(SPACE.mission_assignment(3, 200))[-1].epoch == 0  # type: ignore[attr-defined]
     core.on_telemetry(sample_telemetry(), 6.0)
     core.on_outcome(TargetOutcome(3, 112, 1, Phase.FAILED, "waypoint not echoed"), 6.0)
     report = out.on(SPACE.mission_assignment(3, 200))[-1]
     assert isinstance(report, AssignmentReport) and report.target == 1
     assert report.released == (112,)
+
+
+def test_a_finished_teammate_that_goes_is_released_and_its_reached_target_not_flown_again() -> None:
+    core, out = make_core(200, (30.0, 35.0))
+    commit_three_uav_team(core)
+    core.on_outcome(TargetOutcome(3, 74, 0, Phase.REACHED), 4.0)
+    core.on_telemetry(sample_telemetry(), 5.0)
+    core.on_alive(74, False, 5.0)
+    core.tick(5.0 + LIVELINESS_GRACE_S)  # gone past the grace, after reaching its queue
+    report = out.on(SPACE.mission_assignment(3, 200))[-1]
+    assert isinstance(report, AssignmentReport)
+    # Released like any UAV that goes: a later epoch never hands it an orphan.
+    assert (report.epoch, report.released) == (1, (74,))
+    assert 74 not in report.queues
+    # Its target, handed on with its queue, was reached: nobody flies it again.
+    assert core.state(5.0 + LIVELINESS_GRACE_S).phase != Phase.COMMITTED
+    core.on_outcome(TargetOutcome(3, 112, 1, Phase.FAILED, "waypoint not echoed"), 8.0)
+    report = out.on(SPACE.mission_assignment(3, 200))[-1]
+    assert isinstance(report, AssignmentReport) and report.released == (74, 112)
+    assert 74 not in report.queues and 1 in report.queues[200]  # the live UAV flies it
 
 
 def test_an_orphan_handed_to_a_uav_without_autopilot_link_is_released_again() -> None:

@@ -267,8 +267,7 @@ def test_a_catch_up_fetches_the_assignments_outcomes_and_abort() -> None:
     asked: list[tuple[str, type]] = []
     node = SimpleNamespace(fetch=lambda key, kind: asked.append((key, kind)))
     _Outputs(SimpleNamespace(node=node, space=SPACE)).fetch_assignments(5)  # type: ignore[arg-type]
-    # A restarted UAV learns who reached its target, so it never releases that UAV later
-    # (which would put it at an epoch its teammates never reach).
+    # A restarted UAV learns who reached which target, so that it never flies one again.
     assert asked == [
         (SPACE.mission_assignments(5), AssignmentReport),
         (SPACE.mission_outcomes(5), TargetOutcome),

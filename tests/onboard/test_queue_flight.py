@@ -58,12 +58,20 @@ def test_a_holder_lost_mid_queue_hands_its_rest_to_a_busy_survivor() -> None:
     assert core.state(22.0).phase == Phase.REACHED
 
 
-def test_a_teammate_done_with_its_queue_is_not_released_when_it_goes() -> None:
+def test_a_teammate_done_with_its_queue_is_released_when_it_goes_and_nothing_flown_again() -> None:
     core, out = _two_uav_plan()
     core.on_outcome(TargetOutcome(1, 74, 0, Phase.REACHED), 5.0)
     core.on_outcome(TargetOutcome(1, 74, 2, Phase.REACHED), 6.0)
     core.on_alive(74, False, 7.0)
-    assert out.on(SPACE.mission_replan(1, 112)) == []
+    # Released like any UAV that goes: a later epoch never hands it anything.
+    (replan,) = out.on(SPACE.mission_replan(1, 112))
+    assert isinstance(replan, AssignmentReport)
+    assert replan.released == (74,) and 74 not in replan.queues
+    # Its queue, handed on, was reached: 112 flies its own target and stops there.
+    _fly_and_reach(core, out, 1, 10.0)
+    assert core.state(12.0).phase == Phase.REACHED
+    writes = [c for c in out.autopilot if isinstance(c, Waypoint) and c.index == TARGET_WAYPOINT]
+    assert {(w.lat, w.lon) for w in writes} == {(TARGETS[1].lat, TARGETS[1].lon)}
 
 
 def test_a_teammates_word_that_this_uav_reached_its_target_is_not_taken() -> None:

@@ -275,6 +275,27 @@ def test_a_tour_s_legs_predicted_and_flown(tmp_path: Path) -> None:
     assert render(timeline, tmp_path / "tour.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_every_leg_off_by_more_than_10_percent_is_flagged() -> None:
+    """Target 1's leg was predicted 75 s and flown in 50 s: +50 %, flagged in the text
+    and the JSON; target 0's (45 s predicted, 50 s flown: -10 %) is not."""
+    tour = AssignmentReport(
+        5, 1, 0, {1: 0}, (), (1,), "d1", eta_s=45.0, queues={1: (0, 1)}, arrivals={1: (45.0, 120.0)}
+    )
+    messages = [
+        *(telemetry(t, 1, 35.72, -120.80 + 0.004 * t, 100 + 10 * t) for t in range(0, 14)),
+        message(1.0, "fleet/mission/5/targets", MissionTargets(5, (1,), TARGETS)),
+        message(2.0, "fleet/mission/5/assignment/1", tour),
+        message(7.0, "fleet/mission/5/outcome/1", TargetOutcome(5, 1, 0, Phase.REACHED)),
+        message(12.0, "fleet/mission/5/outcome/1", TargetOutcome(5, 1, 1, Phase.REACHED)),
+    ]
+    timeline = build_timeline(messages)
+    legs = report_json(timeline)["missions"][0]["legs"]["1"]
+    assert [(leg["off"], leg["error"]) for leg in legs] == [(False, -0.1), (True, 0.5)]
+    lines = report_lines(timeline)
+    assert any("1 (75.0 s predicted, 50.0 s flown) OFF by +50 %" in line for line in lines)
+    assert any("1 leg(s) predicted off the time flown by more than 10%" in line for line in lines)
+
+
 def test_a_tour_after_a_re_plan_has_the_dropped_uav_s_targets(tmp_path: Path) -> None:
     """UAV 2 drops out; the re-plan appends its target 1 to UAV 1's queue: the report's
     tour of UAV 1 is 0 then 1, UAV 2's stays what it committed to."""

@@ -29,7 +29,7 @@ from fleet.recording.reader import read_recording
 from fleet.recording.recorder import DEFAULT_FIX_EVERY_S
 from fleet.recording.thinning import DEFAULT_TELEMETRY_EVERY_S
 from fleet.transport.cli import PREFIX_ENV
-from tests.support.processes import Child, client_session, start
+from tests.support.processes import Child, client_session, start, wait_fleet_up
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
@@ -132,7 +132,7 @@ def test_record_a_mission_kill_a_recorder_replay_and_plot(tmp_path: Path) -> Non
     )  # fmt: skip
     second: Child | None = None
     try:
-        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+        wait_fleet_up(up, 90.0)
         assert any("recording to" in line for line in up.history)
         second = start(
             "fleet record",

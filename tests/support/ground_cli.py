@@ -1,6 +1,7 @@
-"""Running `ground-cli` from a test: in the test's process (its root, `ground.cli.main`,
-on any bus, the in-process one included: `--connect memory:NAME`) or as a user runs it
-(`python -m ground.cli` in a process of its own, for the end-to-end tests)."""
+"""Running `ground-cli` (and `fleet`) from a test: in the test's process (the program's
+root, `ground.cli.main`, on any bus, the in-process one included: `--connect
+memory:NAME`) or as a user runs it (`python -m ground.cli` in a process of its own, for
+the end-to-end tests)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import logging
 import os
 import subprocess
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
 
@@ -27,18 +28,16 @@ def _connect(connect: str | Sequence[str] | None) -> list[str]:
     return [arg for endpoint in endpoints for arg in ("--connect", endpoint)]
 
 
-def ground_cli_here(
-    *argv: str, connect: str | Sequence[str] | None = None
+def run_here(
+    main: Callable[[list[str]], int], argv: list[str], prog: str
 ) -> subprocess.CompletedProcess[str]:
-    """`ground-cli [--connect C] ARGV` run by its root in this process: its exit status,
-    and what it printed on stdout and stderr (a usage error's exit is its status)."""
+    """A program's root `main(argv)` run in this process: its exit status, and what it
+    printed on stdout and stderr (a usage error's exit is its status). It gets what a
+    process of its own would have: its warnings on its stderr, and its own count of the
+    bus messages it refused."""
     from fleet.transport import bus_codec
-    from ground.cli import main
 
-    args = [*_connect(connect), *argv]
     out, err = io.StringIO(), io.StringIO()
-    # What a process of its own would have: its warnings on its stderr, and its own
-    # count of the bus messages it refused.
     handler = logging.StreamHandler(err)
     handler.setLevel(logging.WARNING)
     root = logging.getLogger()
@@ -47,15 +46,29 @@ def ground_cli_here(
     try:
         with redirect_stdout(out), redirect_stderr(err):
             try:
-                status = main(args)
+                status = main(argv)
             except SystemExit as exited:  # argparse's usage errors
                 status = exited.code if isinstance(exited.code, int) else 2
     finally:
         bus_codec.DROPPED = dropped
         root.removeHandler(handler)
-    return subprocess.CompletedProcess(
-        ["ground-cli", *args], status, out.getvalue(), err.getvalue()
-    )
+    return subprocess.CompletedProcess([prog, *argv], status, out.getvalue(), err.getvalue())
+
+
+def ground_cli_here(
+    *argv: str, connect: str | Sequence[str] | None = None
+) -> subprocess.CompletedProcess[str]:
+    """`ground-cli [--connect C] ARGV` run by its root in this process (`run_here`)."""
+    from ground.cli import main
+
+    return run_here(main, [*_connect(connect), *argv], "ground-cli")
+
+
+def fleet_here(*argv: str) -> subprocess.CompletedProcess[str]:
+    """`fleet ARGV` run by its root in this process (`run_here`)."""
+    from programs.fleet_cli import main
+
+    return run_here(main, list(argv), "fleet")
 
 
 def ground_cli(

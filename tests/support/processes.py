@@ -103,6 +103,20 @@ def start(
     return child
 
 
+#: What `fleet up` prints last once every UAV is up (the end of its banner).
+FLEET_UP_READY = "stops the fleet"
+
+
+def start_fleet_up(*argv: str, env: dict[str, str] | None = None) -> Child:
+    """`fleet up ARGV` started as a user starts it (`python -m programs.fleet_cli up`)."""
+    return start("fleet up", [sys.executable, "-m", "programs.fleet_cli", "up", *argv], env)
+
+
+def wait_fleet_up(up: Child, timeout: float) -> str:
+    """The line of `fleet up` that says every UAV is up, once printed."""
+    return up.wait_for_line(lambda line: FLEET_UP_READY in line, timeout)
+
+
 class Fleet:
     """Children of one test: stopped together, in reverse order, whatever happens."""
 

@@ -3,6 +3,7 @@ a `ZenohBus` with `BusSigning` signs, relays and refuses."""
 
 from __future__ import annotations
 
+import json
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -13,7 +14,13 @@ import pytest
 import zenoh
 
 from fleet.files.certs import write_identities
-from fleet.files.signers import load_roster, load_signing_key, signing_key_path
+from fleet.files.signers import (
+    load_roster,
+    load_signing_key,
+    revoke,
+    roster_document,
+    signing_key_path,
+)
 from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionAbort, MissionTargets, Target
@@ -255,3 +262,41 @@ def test_a_relay_passes_on_the_envelope_of_the_very_mission_it_holds(certs: Path
         if mission % 100 == 0:
             assert uav.reply(key, held) == (held, held_put)
     assert uav.reply(key, held) == (held, held_put)
+
+
+# ---- the roster, live ----------------------------------------------------------------------------
+def test_a_roster_put_by_the_ground_revokes_at_once_and_never_revives(
+    tmp_path: Path, endpoint: str
+) -> None:
+    """A revocation put on `roster` (CA-signed, put by the ground) is applied by a running
+    bus: what the revoked identity signs is refused from then on. A roster the CA did not
+    sign changes nothing, and an older roster replayed revives no one."""
+    write_identities(tmp_path, ["router", "ground", "uav-74", "uav-112"], [])
+    older = roster_document(tmp_path)
+
+    def bus(identity: str) -> ZenohBus:
+        made = signed_bus(tmp_path, endpoint, identity)
+        assert made.signing is not None
+        made.signing = BusSigning(
+            identity, made.signing._key, made.signing.roster, ca_pem=tmp_path / "ca.pem"
+        )
+        return made
+
+    ground, uav = bus("ground"), bus("uav-112")
+    try:
+        heard: list[str] = []
+        uav.subscribe(SPACE.all_mission_results, lambda sample: heard.append(sample.key))
+        assert uav.signing is not None
+        revoke(tmp_path, ["uav-74"])
+        forged = json.loads(roster_document(tmp_path))
+        forged["revoked"] = ["uav-112"]
+        ground.put(SPACE.roster(), json.dumps(forged).encode())  # not the CA's: refused
+        ground.put(SPACE.roster(), roster_document(tmp_path))
+        wait_until(lambda: "uav-74" in uav.signing.roster.revoked, TIMEOUT_S * 5, "revoked")  # type: ignore[union-attr]
+        assert "uav-112" not in uav.signing.roster.revoked
+        ground.put(SPACE.roster(), older)
+        assert uav.signing.apply_roster(SPACE.roster(), older) == frozenset()
+        assert "uav-74" in uav.signing.roster.revoked
+    finally:
+        ground.close()
+        uav.close()

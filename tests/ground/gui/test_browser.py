@@ -35,7 +35,7 @@ from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, Target
 from ground.gui.server import MAX_UPLOAD
 from tests.support.ground_view import GroundView
-from tests.support.processes import Child, client_session, start
+from tests.support.processes import Child, client_session, start_fleet_up, wait_fleet_up
 from tests.support.waiting import wait_until
 
 webdriver = pytest.importorskip("selenium.webdriver")
@@ -78,13 +78,19 @@ def fleet_with_gui(tmp_path: Path) -> Iterator[tuple[str, str]]:
     """`fleet up head_on --gui`: (the page's URL, the router's endpoint)."""
     router = f"tcp/127.0.0.1:{free_port()}"
     page = f"127.0.0.1:{free_port()}"
-    up = start(
-        "fleet up",
-        [sys.executable, "-m", "programs.fleet_cli", "up", "head_on", "--listen", router,
-         "--speedup", "10", "--gui", page, "--log-dir", str(tmp_path / "logs")],
-    )  # fmt: skip
+    up = start_fleet_up(
+        "head_on",
+        "--listen",
+        router,
+        "--speedup",
+        "10",
+        "--gui",
+        page,
+        "--log-dir",
+        str(tmp_path / "logs"),
+    )
     try:
-        up.wait_for_line(lambda line: "stops the fleet" in line, 120.0)
+        wait_fleet_up(up, 120.0)
         _wait_serving(f"http://{page}/", up)
         yield f"http://{page}/", router
     finally:

@@ -1,5 +1,7 @@
-"""`ground-cli gui` as a real subprocess against a real router and two fake UAVs: the
-HTTP API, the WebSocket's snapshots and commands, and its access rules."""
+"""`ground-cli gui`: the HTTP API, the WebSocket's snapshots and commands, and its access
+rules, against the page served in the test's process on the in-process bus with two
+fake UAVs; what only a process shows (its argv, its output, SIGTERM) against
+`ground-cli gui` as a real subprocess and a real router."""
 
 from __future__ import annotations
 
@@ -18,13 +20,12 @@ import pytest
 from fleet.launch.endpoints import free_port
 from fleet.mission.messages import Target
 from fleet.mission.targets_file import encode_targets
+from fleet.transport.bus_factory import opened_bus
 from tests.ground.test_cli import run_cli
-from tests.support.fake_onboard import FakeOnboard
-from tests.support.gui_page import websocket_url
+from tests.support.fake_onboard import FakeOnboard, fake_pair, memory_bus
+from tests.support.gui_page import serving, websocket_url
 from tests.support.processes import Child, start
 from tests.support.waiting import wait_until
-
-pytestmark = pytest.mark.e2e
 
 TARGETS = [Target(42.36, -71.09, 120.0), Target(42.365, -71.1, 110.0)]
 TOKEN = "s3cret-token"
@@ -43,12 +44,22 @@ def start_gui(router: str, *extra: str, env: dict[str, str] | None = None) -> tu
 
 
 @pytest.fixture(scope="module")
-def gui(router: str, fakes: dict[int, FakeOnboard]) -> Iterator[str]:
-    child, url = start_gui(router)
-    try:
+def memory() -> Iterator[str]:
+    """The fleet's bus for the page served in this process: an in-process one."""
+    with memory_bus(__name__) as spec:
+        yield spec
+
+
+@pytest.fixture(scope="module")
+def mfakes(memory: str) -> Iterator[dict[int, FakeOnboard]]:
+    with fake_pair(memory) as pair:
+        yield pair
+
+
+@pytest.fixture(scope="module")
+def gui(memory: str, mfakes: dict[int, FakeOnboard]) -> Iterator[str]:
+    with opened_bus(memory) as bus, serving(bus) as url:
         yield url
-    finally:
-        assert child.stop() == 0, "\n".join(child.history[-20:])
 
 
 def ws_url(page: str) -> str:
@@ -74,7 +85,7 @@ def post(url: str, body: bytes) -> tuple[int, bytes]:
         return error.code, error.read()
 
 
-def test_api_fleet_is_what_uavs_json_says(gui: str, router: str) -> None:
+def test_api_fleet_is_what_uavs_json_says(gui: str, memory: str) -> None:
     def both_known() -> bool:
         status, page = get(f"{gui}/api/fleet")
         assert status == 200
@@ -85,7 +96,7 @@ def test_api_fleet_is_what_uavs_json_says(gui: str, router: str) -> None:
     # A live view: the UAVs' tokens, telemetry and first state answers fill it in.
     assert wait_until(both_known, 10.0)
     _, page = get(f"{gui}/api/fleet")
-    cli = run_cli("uavs", "--json", endpoint=router)
+    cli = run_cli("uavs", "--json", endpoint=memory)
     assert cli.returncode == 0, cli.stderr
     expected = json.loads(cli.stdout)
     assert [row["id"] for row in page] == [row["id"] for row in expected] == [74, 112]
@@ -136,9 +147,8 @@ async def _session_with(url: str, commands: list[dict[str, Any]]) -> list[dict[s
     return replies
 
 
-def test_send_and_abort_from_the_websocket(
-    gui: str, fakes: dict[int, FakeOnboard], router: str
-) -> None:
+def test_send_and_abort_from_the_websocket(gui: str, mfakes: dict[int, FakeOnboard]) -> None:
+    fakes = mfakes
     targets: list[dict[str, float]] = [{"lat": t.lat, "lon": t.lon, "alt": t.alt} for t in TARGETS]
     before = len(fakes[74].targets)
     malformed, empty_team, bad_target, sent = asyncio.run(
@@ -174,8 +184,10 @@ def test_send_and_abort_from_the_websocket(
 
 
 def test_opm_from_the_websocket_and_its_confirmation_in_the_snapshot(
-    gui: str, fakes: dict[int, FakeOnboard]
+    gui: str, mfakes: dict[int, FakeOnboard]
 ) -> None:
+    fakes = mfakes
+
     async def scenario() -> tuple[dict[str, Any], list[dict[str, Any]]]:
         async with aiohttp.ClientSession() as http, http.ws_connect(ws_url(gui)) as ws:
             await ws.send_str(json.dumps({"cmd": "opm", "id": 9, "uav": 112, "enabled": False}))
@@ -266,6 +278,7 @@ def test_a_websocket_without_the_pages_session_token_is_refused(gui: str) -> Non
     assert "HttpOnly" in cookie
 
 
+@pytest.mark.e2e
 def test_a_token_when_given_guards_every_request(
     router: str, fakes: object, tmp_path: Path
 ) -> None:
@@ -285,6 +298,7 @@ def test_a_token_when_given_guards_every_request(
     assert any(str(token_file) in line for line in child.history)
 
 
+@pytest.mark.e2e
 def test_the_token_is_never_argv_and_a_made_one_is_never_printed(
     router: str, fakes: object, tmp_path: Path
 ) -> None:
@@ -317,6 +331,7 @@ def test_listening_beyond_loopback_needs_allow_remote() -> None:
     assert "not loopback" in done.stderr and "--allow-remote" in done.stderr
 
 
+@pytest.mark.e2e
 def test_sigterm_with_a_page_open_closes_its_socket_as_going_away(
     router: str, fakes: dict[int, FakeOnboard]
 ) -> None:

@@ -1,19 +1,23 @@
 """No-fly zones through the page's server: Load and Save as GeoJSON, and a Send that
-carries zones (or is refused for a target inside one, nothing sent). The real
-`ground-cli gui` against a router with two `FakeOnboard`s (tests/ground/gui/test_server.py)."""
+carries zones (or is refused for a target inside one, nothing sent). The page's
+server in the test's process on the in-process bus with two `FakeOnboard`s
+(tests/ground/gui/test_server.py)."""
 
 from __future__ import annotations
 
 import asyncio
 import json
 
-import pytest
-
-from tests.ground.gui.test_server import TARGETS, _session_with, gui, post  # noqa: F401
+from tests.ground.gui.test_server import (  # noqa: F401
+    TARGETS,
+    _session_with,
+    gui,
+    memory,
+    mfakes,
+    post,
+)
 from tests.support.fake_onboard import FakeOnboard
 from tests.support.waiting import wait_until
-
-pytestmark = pytest.mark.e2e
 
 #: A box beside TARGETS (none inside), and one around TARGETS[0] (42.36, -71.09).
 BESIDE = [[-71.080, 42.350], [-71.070, 42.350], [-71.070, 42.355], [-71.080, 42.355]]
@@ -38,8 +42,9 @@ def test_zones_are_loaded_and_saved_as_geojson(gui: str) -> None:  # noqa: F811
 
 def test_a_send_carries_the_zones_and_a_target_inside_one_sends_nothing(
     gui: str,  # noqa: F811
-    fakes: dict[int, FakeOnboard],
+    mfakes: dict[int, FakeOnboard],  # noqa: F811
 ) -> None:
+    fakes = mfakes
     targets = [{"lat": t.lat, "lon": t.lon, "alt": t.alt} for t in TARGETS]
 
     def zone(ring: list[list[float]]) -> dict[str, object]:

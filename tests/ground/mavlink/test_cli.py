@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import socket
+from pathlib import Path
 
 import pytest
 
@@ -40,3 +41,22 @@ def test_the_identity_it_holds_is_said() -> None:
     assert "ground's identity" in _identity_line("/certs/ground.json5")
     assert "not the ground's identity" in _identity_line("/certs/uav-74.json5")
     assert "open fleet" in _identity_line(None)
+
+
+@pytest.mark.parametrize("out", ["udpin:0.0.0.0:14550", "udpout:192.168.1.20:14550"])
+def test_a_non_loopback_out_needs_signing_or_insecure(
+    out: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["mavlink", "--out", out]) == 2
+    err = capsys.readouterr().err
+    assert "not loopback" in err and "--signing-key" in err and "--insecure" in err
+
+
+def test_a_signing_key_file_others_can_read_is_a_usage_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    keys = tmp_path / "keys"
+    keys.write_text("operator secret words\n")
+    keys.chmod(0o644)
+    assert main(["mavlink", "--out", "udpin:0.0.0.0:0", "--signing-key", str(keys)]) == 2
+    assert "chmod 600" in capsys.readouterr().err

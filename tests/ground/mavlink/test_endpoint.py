@@ -57,7 +57,7 @@ def test_udpin_decodes_a_station_and_answers_it(udpin: tuple[Endpoint, socket.so
     (incoming,) = collect(endpoint, 1)
     assert incoming.message.get_type() == "HEARTBEAT"
     assert incoming.message.get_srcSystem() == 255
-    endpoint.send(b"answer")
+    endpoint.send(lambda _: b"answer")
     assert station.recv(100) == b"answer"
 
 
@@ -67,10 +67,10 @@ def test_a_station_that_cannot_be_sent_to_never_silences_the_others(
     endpoint, station = udpin
     # A datagram's source no reply can reach (port 0, as a forged datagram can claim) is
     # a peer before the station, the first the endpoint sends to.
-    endpoint._peer(("127.0.0.1", 0))
+    endpoint._peer(("127.0.0.1", 0)).station = True
     station.send(frame())
     collect(endpoint, 1)
-    endpoint.send(b"answer")
+    endpoint.send(lambda _: b"answer")
     assert station.recv(100) == b"answer"
     assert ("127.0.0.1", 0) not in endpoint._peers  # forgotten, not retried every frame
 
@@ -141,7 +141,7 @@ def test_tcpin_decodes_a_frame_split_across_reads() -> None:
             station.sendall(data[5:])
             (incoming,) = collect(endpoint, 1)
             assert incoming.message.get_type() == "HEARTBEAT"
-            endpoint.send(b"hello")
+            endpoint.send(lambda _: b"hello")
             assert station.recv(5) == b"hello"
     finally:
         endpoint.close()
@@ -155,7 +155,7 @@ def test_udpout_sends_to_the_station_and_hears_its_answer() -> None:
         port = station.getsockname()[1]
         endpoint = Endpoint(f"udpout:127.0.0.1:{port}", InputDrops())
         try:
-            endpoint.send(b"beat")
+            endpoint.send(lambda _: b"beat")
             data, address = station.recvfrom(100)
             assert data == b"beat"
             station.sendto(frame(), address)
@@ -172,7 +172,7 @@ def test_udpout_with_nobody_listening_is_not_an_error() -> None:
     endpoint = Endpoint(f"udpout:127.0.0.1:{port}", InputDrops())
     try:
         for _ in range(3):
-            endpoint.send(b"beat")
+            endpoint.send(lambda _: b"beat")
             assert endpoint.receive(0.05) == []
     finally:
         endpoint.close()

@@ -23,7 +23,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from fleet.launch.endpoints import free_port
 from tests.ground.mavlink.stations import free_udp_port, receiver
 from tests.support.ground_view import GroundView
-from tests.support.processes import Child, client_session, start
+from tests.support.processes import Child, client_session, start, start_fleet_up, wait_fleet_up
 from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
@@ -66,14 +66,19 @@ class FleetUp:
 def fleet_up(tmp_path_factory: pytest.TempPathFactory) -> Iterator[FleetUp]:
     tmp = tmp_path_factory.mktemp("mavlink")
     port = free_port()
-    up = start(
-        "fleet up",
-        [sys.executable, "-m", "programs.fleet_cli", "up", "--uavs", str(len(UAVS)),
-         "--speedup", "5", "--listen", f"tcp/127.0.0.1:{port}", "--log-dir", str(tmp / "logs"),
-         "--no-record"],
-    )  # fmt: skip
+    up = start_fleet_up(
+        "--uavs",
+        str(len(UAVS)),
+        "--speedup",
+        "5",
+        "--listen",
+        f"tcp/127.0.0.1:{port}",
+        "--log-dir",
+        str(tmp / "logs"),
+        "--no-record",
+    )
     try:
-        up.wait_for_line(lambda line: "stops the fleet" in line, START_S)
+        wait_fleet_up(up, START_S)
         yield FleetUp(port, up, tmp)
     finally:
         up.process.send_signal(signal.SIGTERM)

@@ -18,7 +18,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from fleet.files.certs import write_identities
 from fleet.launch.endpoints import free_port
 from tests.ground.mavlink.stations import free_udp_port, receiver
-from tests.support.processes import Child, start
+from tests.support.processes import Child, start, wait_fleet_up
 
 pytestmark = pytest.mark.e2e
 
@@ -53,7 +53,7 @@ def secure_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureFle
          "--no-record"],
     )  # fmt: skip
     try:
-        up.wait_for_line(lambda line: "stops the fleet" in line, WAIT_S)
+        wait_fleet_up(up, WAIT_S)
         yield SecureFleet(endpoint, certs.resolve())
     finally:
         up.process.send_signal(signal.SIGTERM)

@@ -10,7 +10,7 @@ nothing dropped silently.
 from __future__ import annotations
 
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
@@ -19,14 +19,18 @@ from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, Target
 from fleet.transport.memory import MemoryNetwork
 from ground.fleet_view import UavView
-from ground.mavlink.endpoint import Drop, Endpoint, InputDrops
+from ground.mavlink.endpoint import Address, Drop, Endpoint, Incoming, InputDrops
 from ground.mavlink.fleet_link import AbortResult, FleetLink, SendOutcome, TeamChoice
 from ground.mavlink.gateway import Gateway
 from ground.mavlink.requests import Requests
+from ground.mavlink.signing import StationKey
 from ground.mavlink.sysids import SysIdMap
+from ground.mavlink.vehicle import FleetMode
 from tests.support.waiting import wait_until
 
 STATION = (255, 190)
+ADDRESS = ("127.0.0.1", 14550)  #: where the station's datagrams come from
+OTHER = ("127.0.0.1", 14551)  #: another station, with the same system and component ids
 _station = mavlink2.MAVLink(None, *STATION)
 
 
@@ -75,10 +79,16 @@ class Harness:
         self.requests = requests
         self.views = [UavView(id=74, phase="idle")]
         self.sent: list[mavlink2.MAVLink_message] = []
+        self.to: list[tuple[mavlink2.MAVLink_message, Address | None]] = []
         self._parser = mavlink2.MAVLink(None)
 
-    def capture(self, data: bytes) -> None:
-        self.sent += self._parser.parse_buffer(data) or []
+    def capture(
+        self, pack: Callable[[StationKey | None], bytes], to: Address | None = None
+    ) -> None:
+        """What the gateway sends (to the station at `to`, None: to every station)."""
+        for message in self._parser.parse_buffer(pack(None)) or []:
+            self.sent.append(message)
+            self.to.append((message, to))
 
     def take(self, kind: str) -> list[mavlink2.MAVLink_message]:
         self.gateway.send_answers()
@@ -97,8 +107,8 @@ class Harness:
         wait_until(arrived, 5.0, f"{count} {kind}")
         return got
 
-    def handle(self, message: mavlink2.MAVLink_message) -> None:
-        self.requests.handle(from_station(message))
+    def handle(self, message: mavlink2.MAVLink_message, station: Address = ADDRESS) -> None:
+        self.requests.handle(Incoming(from_station(message), station))
 
 
 @pytest.fixture
@@ -255,7 +265,7 @@ def test_mission_progress_follows_the_reported_phase(harness: Harness) -> None:
     assert (current.seq, current.total) == (1, 2)
     assert harness.take("MISSION_ITEM_REACHED") == []
     (beat,) = harness.take("HEARTBEAT")
-    assert beat.custom_mode == 15  # GUIDED
+    assert beat.custom_mode == FleetMode.GUIDED  # PX4 OFFBOARD: the fleet steers it
     harness.views = [UavView(id=74, mission=7, target=1, phase="reached")]
     for _ in range(2):
         harness.gateway._next_slow = harness.gateway._next_fast = 0.0
@@ -313,3 +323,63 @@ def test_a_hostile_telemetry_value_does_not_stop_the_streams(
     assert harness.take("HEARTBEAT")
     (position,) = harness.take("GLOBAL_POSITION_INT")
     assert position.alt == 2**31 - 1
+
+
+def test_a_second_station_can_neither_take_over_nor_join_an_open_upload(harness: Harness) -> None:
+    harness.handle(mavlink2.MAVLink_mission_count_message(74, 1, 2, 0))
+    (request,) = harness.take("MISSION_REQUEST_INT")
+    assert request.seq == 0
+    # Another station (same ids 255/190, another address) counts, then sends an item.
+    harness.handle(mavlink2.MAVLink_mission_count_message(74, 1, 1, 0), OTHER)
+    (refused,) = harness.take("MISSION_ACK")
+    assert refused.type == mavlink2.MAV_MISSION_DENIED
+    assert (refused, OTHER) in harness.to  # told to it alone
+    harness.handle(waypoint(0), OTHER)
+    assert harness.take("MISSION_REQUEST_INT") == []
+    assert harness.gateway.drops.counts() == {Drop.BUSY: 2}
+    # The operator's upload goes on, untouched.
+    harness.handle(waypoint(0))
+    (request,) = harness.take("MISSION_REQUEST_INT")
+    assert request.seq == 1 and (request, ADDRESS) in harness.to
+    harness.handle(waypoint(1))
+    (ack,) = harness.wait_for("MISSION_ACK")
+    assert ack.type == mavlink2.MAV_MISSION_ACCEPTED
+    ((_, targets, _),) = harness.fleet.sent
+    assert [round(t.lat, 4) for t in targets] == [35.7, 35.71]
+    # Once it is over, the other station may upload.
+    harness.handle(mavlink2.MAVLink_mission_count_message(74, 1, 1, 0), OTHER)
+    (request,) = harness.take("MISSION_REQUEST_INT")
+    assert (request, OTHER) in harness.to
+
+
+def test_parameters_are_listed_read_and_refused_to_be_set(harness: Harness) -> None:
+    harness.handle(mavlink2.MAVLink_param_request_list_message(74, 1))
+    listed = harness.take("PARAM_VALUE")
+    assert [p.param_index for p in listed] == list(range(5))
+    assert {p.param_count for p in listed} == {5}
+    values = {p.param_id: p.param_value for p in listed}
+    assert values["FLT_PICCOLO_ID"] == 74 and values["FLT_ACCEPT_RAD"] == 75.0
+    harness.handle(mavlink2.MAVLink_param_request_read_message(74, 1, b"FLT_BANK_LIM", -1))
+    (read,) = harness.take("PARAM_VALUE")
+    assert (read.param_id, read.param_value, read.param_index) == ("FLT_BANK_LIM", 30.0, 3)
+    harness.handle(mavlink2.MAVLink_param_request_read_message(74, 1, b"", 0))
+    assert harness.take("PARAM_VALUE")[0].param_id == "FLT_PICCOLO_ID"
+    harness.handle(mavlink2.MAVLink_param_request_read_message(74, 1, b"NO_SUCH", -1))
+    assert harness.take("PARAM_VALUE") == []
+    harness.handle(
+        mavlink2.MAVLink_param_set_message(
+            74, 1, b"FLT_BANK_LIM", 60.0, mavlink2.MAV_PARAM_TYPE_REAL32
+        )
+    )
+    (unchanged,) = harness.take("PARAM_VALUE")
+    assert unchanged.param_value == 30.0  # the protocol's refusal: the value it still has
+    assert "read-only" in harness.take("STATUSTEXT")[0].text
+
+
+def test_timesync_is_answered_with_the_stations_own_time(harness: Harness) -> None:
+    harness.handle(mavlink2.MAVLink_timesync_message(0, 123456789))
+    (answer,) = harness.take("TIMESYNC")
+    assert answer.ts1 == 123456789 and answer.tc1 > 0
+    assert answer.get_srcSystem() == 74
+    harness.handle(mavlink2.MAVLink_timesync_message(5, 123456789))  # an answer: not ours
+    assert harness.take("TIMESYNC") == []

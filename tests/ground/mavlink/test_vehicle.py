@@ -79,11 +79,11 @@ def test_no_gps_no_position_no_sensor_no_attitude() -> None:
     assert vehicle.global_position(bare, 0) is None
     assert vehicle.attitude(bare, 0) is None
     assert vehicle.vfr_hud(UavView(id=1), bare) is None
-    assert vehicle.sys_status(None, 0).onboard_control_sensors_present == 0
+    assert vehicle.sys_status(UavView(id=1), None, 0).onboard_control_sensors_present == 0
 
 
 def test_sys_status_counts_dropped_input() -> None:
-    status = vehicle.sys_status(TELEMETRY, 70000)
+    status = vehicle.sys_status(UavView(id=1), TELEMETRY, 70000)
     assert status.errors_comm == 65535
     assert status.onboard_control_sensors_present & mavlink2.MAV_SYS_STATUS_SENSOR_GPS
 
@@ -132,7 +132,8 @@ def test_messages_pack_as_mavlink_2() -> None:
         (mavlink2.MAV_CMD_NAV_TAKEOFF, (0, 0, 0), Action.UNSUPPORTED),
         (mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, (33, 1e5, 0), Action.UNSUPPORTED),
         (mavlink2.MAV_CMD_REQUEST_MESSAGE, (148, 0, 0), Action.SEND_MESSAGE),
-        (mavlink2.MAV_CMD_REQUEST_MESSAGE, (242, 0, 0), Action.UNSUPPORTED),
+        (mavlink2.MAV_CMD_REQUEST_MESSAGE, (242, 0, 0), Action.SEND_MESSAGE),  # home
+        (mavlink2.MAV_CMD_REQUEST_MESSAGE, (147, 0, 0), Action.UNSUPPORTED),  # battery
         (mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, (1, 0, 0), Action.SEND_MESSAGE),
     ],
 )
@@ -167,3 +168,57 @@ def test_values_no_field_can_hold_are_clamped_not_raised() -> None:
     view = UavView(id=1, heading=359.7, airspeed=math.nan)
     hud = vehicle.vfr_hud(view, TELEMETRY)
     assert hud is not None and hud.heading == 0
+
+
+# ---- what QGroundControl and MAVSDK read at connect --------------------------------------
+LIVE = UavView(id=74, telemetry_age_s=0.2, phase="idle")
+
+
+def test_health_reflects_the_link_and_the_gps_fix() -> None:
+    status = vehicle.sys_status(LIVE, TELEMETRY, 0)
+    gps = mavlink2.MAV_SYS_STATUS_SENSOR_GPS
+    gyro = mavlink2.MAV_SYS_STATUS_SENSOR_3D_GYRO
+    assert status.onboard_control_sensors_health & (gps | gyro) == gps | gyro
+    assert status.onboard_control_sensors_health & mavlink2.MAV_SYS_STATUS_GEOFENCE  # no breach
+    assert not status.onboard_control_sensors_present & mavlink2.MAV_SYS_STATUS_GEOFENCE
+    for down in (
+        UavView(id=74, telemetry_age_s=10.0, phase="idle"),  # stale telemetry
+        UavView(id=74, telemetry_age_s=0.2, phase="link_lost"),
+    ):
+        stale = vehicle.sys_status(down, TELEMETRY, 0)
+        assert stale.onboard_control_sensors_present & (gps | gyro) == gps | gyro
+        assert not stale.onboard_control_sensors_health & (gps | gyro)
+    no_fix = Telemetry(
+        system_time_ms=0, gps=GpsBlock(35.7, -120.8, 600.0, 0, 0, 0, gps_status=0), sensor=None
+    )
+    assert not vehicle.sys_status(LIVE, no_fix, 0).onboard_control_sensors_health & gps
+
+
+def test_armed_only_while_the_telemetry_shows_it_flying() -> None:
+    armed = mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
+    assert vehicle.heartbeat(LIVE, TELEMETRY).base_mode & armed
+    assert not vehicle.heartbeat(LIVE, None).base_mode & armed
+    parked = Telemetry(
+        system_time_ms=0, sensor=SensorBlock(roll=0, pitch=0, yaw=0, indicated_airspeed=0.0)
+    )
+    assert not vehicle.heartbeat(LIVE, parked).base_mode & armed
+    assert vehicle.extended_sys_state(TELEMETRY).landed_state == mavlink2.MAV_LANDED_STATE_IN_AIR
+    assert vehicle.extended_sys_state(parked).landed_state == mavlink2.MAV_LANDED_STATE_ON_GROUND
+    assert vehicle.extended_sys_state(None).landed_state == mavlink2.MAV_LANDED_STATE_UNDEFINED
+
+
+def test_gps_raw_carries_the_satellites_and_the_fix() -> None:
+    telemetry = Telemetry(
+        system_time_ms=0, gps=GpsBlock(35.7, -120.8, 600.0, 3.0, 4.0, 0.0, 1.2, 9, 8)
+    )
+    raw = vehicle.gps_raw(telemetry, 1000)
+    assert raw is not None
+    assert (raw.satellites_visible, raw.fix_type) == (9, mavlink2.GPS_FIX_TYPE_3D_FIX)
+    assert (raw.lat, raw.vel, raw.eph) == (357000000, 500, 120)
+
+
+def test_modes_are_in_px4s_encoding_and_mavproxys_rtl_still_aborts() -> None:
+    assert FleetMode.GUIDED == 6 << 16  # OFFBOARD
+    assert FleetMode.RTL == (4 << 16) | (5 << 24)  # AUTO/RTL
+    flag = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+    assert is_rtl_mode(flag, vehicle.ARDUPLANE_RTL)  # `mode RTL` in MAVProxy

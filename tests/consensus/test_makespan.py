@@ -1,0 +1,56 @@
+"""The min-max search beyond relocations: a bisection on the last arrival by ruin and
+recreate, then moves on the longest queue. Never worse, every target kept once, the
+same plan every time."""
+
+from __future__ import annotations
+
+import math
+import random
+
+from fleet.consensus.improve import improve
+from fleet.consensus.makespan import ruin_and_recreate, shorten_longest
+from fleet.consensus.objectives import plan_queues
+from fleet.consensus.queues import finish, greedy_queues
+from fleet.mission.objective import Objective
+
+
+def _instance(
+    seed: int, uavs: int, targets: int
+) -> tuple[dict[int, list[float | None]], list[list[float]]]:
+    rng = random.Random(seed)
+    side = 2000.0 * math.sqrt(targets)
+    where = [(rng.uniform(0, side), rng.uniform(0, side)) for _ in range(uavs)]
+    goals = [(rng.uniform(0, side), rng.uniform(0, side)) for _ in range(targets)]
+    times: dict[int, list[float | None]] = {
+        101 + i: [math.dist(u, g) / 22.0 for g in goals] for i, u in enumerate(where)
+    }
+    legs = [[math.dist(a, b) / 22.0 for b in goals] for a in goals]
+    return times, legs
+
+
+def test_the_searches_never_lengthen_the_plan_and_keep_every_target_once() -> None:
+    for seed in range(6):
+        times, legs = _instance(seed, 4, 18)
+        start = improve(greedy_queues(times, legs), times, legs, Objective.MIN_MAX)
+        before = finish(start, times, legs).makespan()
+        for search in (ruin_and_recreate, shorten_longest):
+            after = search(start, times, legs)
+            assert sorted(t for q in after.values() for t in q) == list(range(18))
+            assert finish(after, times, legs).makespan() <= before + 1e-9
+
+
+def test_the_min_max_plan_is_the_same_every_time_and_no_longer_than_the_relocations() -> None:
+    times, legs = _instance(7, 5, 20)
+    first = plan_queues(times, legs, Objective.MIN_MAX)
+    assert plan_queues(times, legs, Objective.MIN_MAX) == first
+    relocated = improve(greedy_queues(times, legs), times, legs, Objective.MIN_MAX)
+    assert first.makespan() <= finish(relocated, times, legs).makespan() + 1e-9
+
+
+def test_an_unreachable_head_is_never_made() -> None:
+    """UAV 102 reaches target 0 only: the searches never give it another first."""
+    times, legs = _instance(3, 2, 6)
+    times[102] = [times[102][0], *([None] * 5)]
+    plan = plan_queues(times, legs, Objective.MIN_MAX)
+    assert set(plan.queues[102]) <= {0}
+    assert sorted(t for q in plan.queues.values() for t in q) == list(range(6))
