@@ -1,10 +1,11 @@
 """`fleet mavlink`'s costs, each against a reference measured in the same run.
 
 * Streams: one UAV-second of what the gateway sends (HEARTBEAT, SYS_STATUS,
-  MISSION_CURRENT once; GLOBAL_POSITION_INT, ATTITUDE, VFR_HUD four times), built from a
-  view and a telemetry packet and packed as MAVLink 2; the reference is packing as many
-  ready-made HEARTBEATs, pymavlink's cheapest message. Gives the UAVs one core can
-  stream.
+  EXTENDED_SYS_STATE, GPS_RAW_INT, HOME_POSITION, MISSION_CURRENT once;
+  GLOBAL_POSITION_INT, ATTITUDE, VFR_HUD four times), built from a view and a telemetry
+  packet and packed as MAVLink 2; the reference is packing as many ready-made
+  HEARTBEATs, pymavlink's cheapest message. Gives the UAVs one core can stream; the same
+  signed (MAVLink 2 signing, `--signing-key`) against unsigned.
 * A flood: 50-frame datagrams from one station on loopback, drained by the endpoint
   once the station's share is spent (dropped unread); the reference is parsing the same
   datagrams with pymavlink, what every datagram would cost without the share.
@@ -25,6 +26,7 @@ from ground.fleet_view import UavView
 from ground.mavlink import endpoint as endpoint_module
 from ground.mavlink import vehicle
 from ground.mavlink.endpoint import Endpoint, InputDrops
+from ground.mavlink.signing import StationKey, passphrase_secret, signing_encoder
 
 SECONDS = 2000  #: UAV-seconds of streams built
 DATAGRAMS = 2000
@@ -43,8 +45,11 @@ def one_uav_second(sender: mavlink2.MAVLink) -> int:
     """Build and pack what the gateway sends for one UAV in one second; bytes packed."""
     size = 0
     messages: list[mavlink2.MAVLink_message | None] = [
-        vehicle.heartbeat(VIEW),
+        vehicle.heartbeat(VIEW, TELEMETRY),
         vehicle.sys_status(VIEW, TELEMETRY, 0),
+        vehicle.extended_sys_state(TELEMETRY),
+        vehicle.gps_raw(TELEMETRY, 1000),
+        vehicle.home_position(35.70, -120.79),
         vehicle.mission_current(1, 3, False),
     ]
     for tick in range(4):
@@ -59,6 +64,9 @@ def one_uav_second(sender: mavlink2.MAVLink) -> int:
     return size
 
 
+MESSAGES = 18  #: in one UAV-second
+
+
 def bench_streams() -> None:
     sender = mavlink2.MAVLink(None, 74, 1)
     started = time.process_time()
@@ -67,15 +75,21 @@ def bench_streams() -> None:
     ours = time.process_time() - started
     beat = vehicle.heartbeat(VIEW)
     started = time.process_time()
-    for _ in range(SECONDS * 15):
+    for _ in range(SECONDS * MESSAGES):
         beat.pack(sender)
     reference = time.process_time() - started
+    signer = signing_encoder(74, StationKey("bench", passphrase_secret("bench")))
+    started = time.process_time()
+    for _ in range(SECONDS):
+        one_uav_second(signer)
+    signed = time.process_time() - started
     per_uav_us = ours / SECONDS * 1e6
     print(
-        f"streams: {per_uav_us:.0f} us of CPU (process time) per UAV-second (15 messages, "
-        f"{one_uav_second(sender)} bytes), {ours / reference:.2f} x packing 15 ready "
-        f"HEARTBEATs ({reference / SECONDS * 1e6:.0f} us); one core streams "
-        f"{1e6 / per_uav_us:.0f} UAVs (building and packing alone)"
+        f"streams: {per_uav_us:.0f} us of CPU (process time) per UAV-second ({MESSAGES} "
+        f"messages, {one_uav_second(sender)} bytes), {ours / reference:.2f} x packing "
+        f"{MESSAGES} ready HEARTBEATs ({reference / SECONDS * 1e6:.0f} us); one core streams "
+        f"{1e6 / per_uav_us:.0f} UAVs (building and packing alone); signed: "
+        f"{signed / SECONDS * 1e6:.0f} us, {signed / ours:.2f} x unsigned"
     )
 
 

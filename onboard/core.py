@@ -18,8 +18,6 @@ from __future__ import annotations
 import math
 from typing import Protocol
 
-import msgspec
-
 from fleet.consensus.mission_round import MissionRound, Settled
 from fleet.consensus.targets_digest import targets_digest
 from fleet.geo.wind import Wind
@@ -30,7 +28,6 @@ from fleet.mission.messages import (
     MissionProgress,
     MissionTargets,
     OpmCommand,
-    StatusText,
     TargetOutcome,
     UavResult,
     UavState,
@@ -44,10 +41,16 @@ from onboard.approach_plan import ApproachPlan, Planner
 from onboard.autopilot_commands import AutopilotCommand, CommandTracker, Completion
 from onboard.catch_up import CATCH_UP_INTERVAL_S
 from onboard.link_watch import LINK_LOST_S, LinkWatch
-from onboard.mission_participation import MissionParticipation
+from onboard.mission_participation import MissionOutputs, MissionParticipation
 from onboard.mission_phase import MissionPhase
-from onboard.state_report import Say, StateReport, overall_phase
-from onboard.target_flight import CONFIRM_LIMIT_S, LINK_RELEASE_S, TARGET_WAYPOINT, TargetFlight
+from onboard.state_report import ReportOutputs, Say, StateReport, overall_phase
+from onboard.target_flight import (
+    CONFIRM_LIMIT_S,
+    LINK_RELEASE_S,
+    TARGET_WAYPOINT,
+    FlightOutputs,
+    TargetFlight,
+)
 from onboard.team_presence import LIVELINESS_GRACE_S, TeamPresence
 from onboard.zone_watch import ZoneWatch
 
@@ -65,16 +68,8 @@ __all__ = [
 ]
 
 
-class Outputs(Protocol):
-    """Where the module's decisions go."""
-
-    def send_autopilot(self, command: AutopilotCommand) -> None: ...
-    def publish(self, key: str, message: msgspec.Struct) -> None: ...
-    def send_ground(self, message: StatusText | UavResult) -> None: ...
-    def fetch_results(self, mission: int, uavs: tuple[int, ...]) -> None: ...
-    def fetch_assignments(self, mission: int) -> None: ...
-    def fetch_missions(self) -> None: ...
-    def fetch_outcomes(self, mission: int, uavs: tuple[int, ...]) -> None: ...
+class Outputs(MissionOutputs, FlightOutputs, ReportOutputs, Protocol):
+    """Where the module's decisions go: everything each of its roles sends."""
 
 
 class OnboardCore:

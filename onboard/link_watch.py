@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from fleet.geo.wind import airspeed
 from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from onboard.planner.wind_estimate import WindEstimate
@@ -41,6 +42,17 @@ class LinkWatch:
     @property
     def gps(self) -> GpsBlock | None:
         return self.telemetry.gps if self.telemetry else None
+
+    def airspeed(self) -> float | None:
+        """The airspeed held (m/s): the air data's true airspeed where the autopilot
+        reports one, else the GPS velocity less the smoothed wind; None without a GPS
+        fix. The one airspeed the module plans, times, routes and flies with."""
+        sensor = self.telemetry.sensor if self.telemetry else None
+        speed = sensor.true_airspeed() if sensor is not None else None
+        if speed is not None:
+            return speed
+        gps = self.gps
+        return None if gps is None else airspeed((gps.vel_east, gps.vel_north), self.wind.value)
 
     def lost(self, now: float) -> bool:
         """True while no telemetry has arrived for LINK_LOST_S (or none ever did)."""

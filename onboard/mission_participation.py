@@ -205,9 +205,7 @@ class MissionParticipation:
     def _start_planning(self, now: float) -> None:
         gps = self.link.gps
         assert self.round is not None and gps is not None
-        telemetry = self.link.telemetry
-        sensor = telemetry.sensor if telemetry is not None else None
-        speed = sensor.true_airspeed() if sensor is not None else None
+        speed = self.link.airspeed()
         if not self.own.start(self.round, gps, now, self.link.wind.value, speed):
             self._decline(f"mission {self.round.mission}: the planner refused the request", now)
 

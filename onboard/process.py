@@ -23,7 +23,6 @@ from dataclasses import dataclass
 import msgspec
 import zenoh
 
-from fleet.geo.wind import airspeed
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.mission.messages import (
     BROADCAST,
@@ -272,11 +271,9 @@ class OnboardProcess:
             return
         telemetry, at = latest
         self.core.on_telemetry(telemetry, at)
-        if telemetry.gps is not None:
-            # The airspeed held, in the smoothed wind this telemetry was just averaged
-            # into: the one wind the module plans with.
-            gps = telemetry.gps
-            self.planner.prepare(airspeed((gps.vel_east, gps.vel_north), self.core.wind))
+        speed = self.core.link.airspeed()  # the one the plans use, this telemetry taken in
+        if speed is not None:
+            self.planner.prepare(speed)
 
     def _on_event(self, event: Event | None, now: float) -> None:
         # The aircraft's latest position first: a track change is judged against it.

@@ -2,7 +2,7 @@
 
 The route is planned again when the target is written, from the aircraft's position
 then, on the zones inflated exactly as for the approach time
-(fleet.geo.visibility.zone_map at the airspeed in the smoothed wind,
+(fleet.geo.visibility.zone_map at the airspeed held, `LinkWatch.airspeed`,
 onboard.planner.route_plan), so the route flown is the one timed, from where the aircraft now
 is. Its turns become waypoints `ROUTE_WAYPOINTS` (91, 92, ...), each one's `next` the
 following turn and the last turn's the target waypoint (90), whose `next` is the course
@@ -21,7 +21,6 @@ from collections.abc import Sequence
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.mercator import MercatorProjection
 from fleet.geo.visibility import zone_map
-from fleet.geo.wind import Wind, airspeed
 from fleet.mission.messages import NoFlyZone, Target
 from fleet.mission.no_fly import local_zones
 from fleet.piccolo.telemetry import GpsBlock
@@ -36,16 +35,14 @@ _LIMITS = AircraftLimits()
 
 
 def route_turns(
-    gps: GpsBlock, target: Target, zones: Sequence[NoFlyZone], wind: Wind
+    gps: GpsBlock, target: Target, zones: Sequence[NoFlyZone], speed: float
 ) -> tuple[tuple[float, float], ...] | None:
     """The (latitude, longitude) of each turn of the route from `gps` to `target` around
-    `zones`, inflated at the airspeed `gps` gives in `wind` (the smoothed estimate the
-    approach time was planned in): () for the straight line; None when no route
-    reaches it now."""
+    `zones`, inflated at the airspeed `speed` (`LinkWatch.airspeed`, the one the approach
+    time was planned at): () for the straight line; None when no route reaches it now."""
     if not zones:
         return ()
     projection = MercatorProjection(gps.lat, gps.lon)
-    speed = airspeed((gps.vel_east, gps.vel_north), wind)
     route = zone_map(local_zones(projection, zones), _LIMITS, speed).route(
         (0.0, 0.0), projection.to_xy(target.lat, target.lon)
     )

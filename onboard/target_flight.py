@@ -28,7 +28,6 @@ from typing import Protocol
 import msgspec
 
 from fleet.geo.mercator import distance_m
-from fleet.geo.wind import airspeed
 from fleet.mission.key_space import KeySpace
 from fleet.mission.lifecycle import Observation
 from fleet.mission.messages import CommandResult, NoFlyZone, Target
@@ -120,6 +119,10 @@ class TargetFlight:
         self._no_route = None
         self.route = ()
 
+    def _say_of_target(self, kind: StatusKind, text: str, now: float) -> None:
+        """A status about the held target, naming it and its mission."""
+        self.say(kind, text, now, mission=self.mission, target=self.target)
+
     # ---- what the autopilot says -------------------------------------------------------
     def on_telemetry(self, now: float) -> FlightNews | None:
         self._fixes.on_fix(self.link.gps, self.link.outages)
@@ -145,13 +148,8 @@ class TargetFlight:
         # pending would only turn it back to where it has been.
         self.commands.cancel_where(_is_target_write, f"target {self.target} reached")
         self.life.observe(Observation.WITHIN_RADIUS)
-        self.say(
-            StatusKind.REACHED,
-            f"reached target {self.target} ({how}{distance:.0f} m from it)",
-            now,
-            mission=self.mission,
-            target=self.target,
-        )
+        text = f"reached target {self.target} ({how}{distance:.0f} m from it)"
+        self._say_of_target(StatusKind.REACHED, text, now)
         return FlightNews.REACHED
 
     def on_track(self, track: Track, now: float) -> FlightNews | None:
@@ -197,13 +195,7 @@ class TargetFlight:
         where = "unknown distance" if distance is None else f"{distance:.0f} m"
         why = f"autopilot left the target route for waypoint {waypoint} at {where}"
         self.life.observe(Observation.LEFT_ROUTE, why)
-        self.say(
-            StatusKind.NOT_REACHED,
-            f"warning: target not reached: {why}",
-            now,
-            mission=self.mission,
-            target=self.target,
-        )
+        self._say_of_target(StatusKind.NOT_REACHED, f"warning: target not reached: {why}", now)
         return None
 
     def on_waypoint(self, waypoint: Waypoint, now: float) -> None:
@@ -231,12 +223,8 @@ class TargetFlight:
             why = f"the ground commanded the autopilot directly ({what})"
             self.commands.cancel_all(why)
             self.life.observe(Observation.OPERATOR_COMMAND, why)
-            self.say(
-                StatusKind.TARGET_GIVEN_UP,
-                f"warning: target {self.target} given up: {why}",
-                now,
-                mission=self.mission,
-                target=self.target,
+            self._say_of_target(
+                StatusKind.TARGET_GIVEN_UP, f"warning: target {self.target} given up: {why}", now
             )
         self.commands.submit(command, now, on_done)
 
@@ -263,9 +251,11 @@ class TargetFlight:
         # Around the mission's no-fly zones, the route's turns come first (route_flight).
         gps = self.link.gps
         turns: tuple[tuple[float, float], ...] | None = ()
+        speed = self.link.airspeed()
         if self.zones:
-            wind = self.link.wind.value
-            turns = None if gps is None else route_turns(gps, target, self.zones, wind)
+            turns = None
+            if gps is not None and speed is not None:
+                turns = route_turns(gps, target, self.zones, speed)
         if turns is None:
             self._no_route = f"no route around the no-fly zones to target {target_index}"
             return
@@ -354,11 +344,8 @@ class TargetFlight:
     ) -> list[Waypoint]:
         """A loiter's writes at `at`, its leg onward from `came_from` (none found: [],
         and the course it is, as without zones)."""
-        gps = self.link.gps
-        # Inflated at the airspeed in the smoothed wind, as the routes are.
-        speed = (
-            0.0 if gps is None else airspeed((gps.vel_east, gps.vel_north), self.link.wind.value)
-        )
+        # Inflated at the airspeed held, as the routes are.
+        speed = self.link.airspeed() or 0.0
         toward = (2.0 * at[0] - came_from[0], 2.0 * at[1] - came_from[1])
         writes = loiter_writes(at, toward, alt, self.zones, speed)
         if writes is None:

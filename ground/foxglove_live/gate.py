@@ -11,7 +11,8 @@ clients through this gate:
   name given with `--allow-host` (`ground.host_check`);
 * its `Origin`, when it has one (a browser always sends it; Foxglove's own clients and
   scripts need not), must be allowed: Foxglove's web app (`https://app.foxglove.dev`),
-  its desktop app (`file://`), or one given with `--allow-origin`;
+  `file://` (pages loaded from files, as an Electron app's), or one given with
+  `--allow-origin`;
 * anything else is answered 403 with the reason, counted and logged (rate-limited).
 
 An accepted connection is passed on, byte for byte, to the SDK's server, which listens
@@ -42,7 +43,7 @@ from ground.host_check import HostAllowList, host_of_header
 
 log = logging.getLogger(__name__)
 
-#: Origins a browser-hosted Foxglove sends: the web app, and the desktop app's pages.
+#: Origins allowed by default: Foxglove's web app, and pages loaded from files.
 DEFAULT_ORIGINS = ("https://app.foxglove.dev", "file://")
 #: A handshake's head at most, and how long a client may take to send it.
 MAX_HEAD = 16_384

@@ -349,6 +349,7 @@ class PlannerWorker:
             request.zones,
             self._airframe,
             request.wind,
+            request.cruise_speed,
         )
         result = self._plan_aims(replace(request, targets=routed.aims), started)
         times = tuple(routed.time(i, t) for i, t in enumerate(result.times))

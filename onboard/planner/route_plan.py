@@ -50,11 +50,13 @@ def route_targets(
     zones: Sequence[Ring],
     limits: AircraftLimits,
     wind: Wind = CALM_AIR,
+    speed: float | None = None,
 ) -> RoutedTargets:
     """Routes from `position` to every target around `zones` (local metres); the legs
     after the first point timed in `wind` (still air by default). `velocity` is over the
-    ground: the airspeed held is what the wind does not account for."""
-    speed = limits.clamp_airspeed(airspeed(velocity, wind))
+    ground; `speed` is the airspeed held (the request's: `LinkWatch.airspeed`, the one
+    the route is flown at), else what the wind does not account for of `velocity`."""
+    speed = limits.clamp_airspeed(airspeed(velocity, wind) if speed is None else speed)
     zone_routes = zone_map(zones, limits, speed)
     aims: list[Point] = []
     rest: list[float] = []

@@ -270,6 +270,33 @@ def test_abort_arrives_for_the_current_or_named_mission(
     assert MissionAbort(4242) not in fakes[112].aborts
 
 
+def test_mission_until_reached_says_which_targets_were_not_reached_and_why(
+    router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
+) -> None:
+    fakes[74].serves_targets = True
+    try:
+        mission = send_mission(router, fakes, tmp_path)
+    finally:
+        fakes[74].serves_targets = False
+    done = run_cli("mission", "--until-reached", "0.5", endpoint=router)
+    assert done.returncode == 1
+    # The fakes never reach anything: each target is named with who holds it, or why not.
+    assert f"mission {mission}: not every target reached within 0.5 s" in done.stderr
+    holders: dict[int, int] = {}
+    for uav, fake in fakes.items():
+        assert fake.mission is not None and fake.mission.assignment is not None
+        if (target := fake.mission.assignment.target) is not None:
+            holders[target] = uav
+    for target in range(len(TARGETS)):
+        line = next(x for x in done.stderr.splitlines() if x.startswith(f"  target {target}: "))
+        if target in holders:
+            assert f"not reached: UAV {holders[target]} holds it" in line, line
+        else:
+            assert "unserved: " in line, line
+    # Without --until-reached, no such list: the summary says it all.
+    assert "not every target reached" not in run_cli("mission", endpoint=router).stderr
+
+
 def test_abort_of_one_uav_leaves_its_teammate_on_the_mission(
     router: str, fakes: dict[int, FakeOnboard], tmp_path: Path
 ) -> None:

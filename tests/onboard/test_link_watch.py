@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import msgspec
+import pytest
+
+from fleet.geo.wind import airspeed
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     MissionTargets,
@@ -46,3 +50,20 @@ def test_the_watch_says_lost_once_and_back_once() -> None:
     watch.check(3.0 + LINK_LOST_S)
     watch.on_telemetry(sample_telemetry(), 4.0 + LINK_LOST_S)
     assert [s.split(":")[0] for s in said] == ["error", "autopilot link back"]
+
+
+def test_the_airspeed_held_is_the_air_datas_else_the_gps_less_the_smoothed_wind() -> None:
+    watch = LinkWatch(lambda *_args, **_kwargs: None)
+    assert watch.airspeed() is None  # no telemetry, no GPS fix
+    telemetry = sample_telemetry()
+    assert telemetry.gps is not None and telemetry.sensor is not None
+    sensor = telemetry.sensor
+    thin_air = msgspec.structs.replace(sensor, indicated_airspeed=20.0, density_ratio=0.64)
+    watch.on_telemetry(msgspec.structs.replace(telemetry, sensor=thin_air), 0.0)
+    assert watch.airspeed() == pytest.approx(25.0)  # 20 / sqrt(0.64)
+    # No usable air data: the GPS velocity less the smoothed wind (fleet.geo.wind.airspeed).
+    no_pitot = msgspec.structs.replace(telemetry.sensor, indicated_airspeed=0.0, wind_west=-4.0)
+    watch.on_telemetry(msgspec.structs.replace(telemetry, sensor=no_pitot), 1.0)
+    gps = telemetry.gps
+    expected = airspeed((gps.vel_east, gps.vel_north), watch.wind.value)
+    assert watch.wind.value.east > 0.0 and watch.airspeed() == pytest.approx(expected)

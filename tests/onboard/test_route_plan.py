@@ -11,7 +11,7 @@ import pytest
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.mercator import MercatorProjection
 from fleet.geo.visibility import legs_time, zone_map
-from fleet.geo.wind import Wind
+from fleet.geo.wind import Wind, airspeed
 from fleet.mission.messages import MissionTargets, NoFlyZone, StatusText, Target, UavResult
 from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock
@@ -94,7 +94,7 @@ def test_the_route_flown_is_inflated_exactly_as_the_route_timed_in_a_wind() -> N
     wall = tuple(projection.to_xy(lat, lon) for lat, lon in zone.ring)
     timed = route_targets((0.0, 0.0), (32.0, 0.0), (BEHIND_WALL,), (wall,), LIMITS, wind).routes[0]
     assert timed is not None and timed.detours
-    flown = route_turns(gps, target, (zone,), wind)
+    flown = route_turns(gps, target, (zone,), airspeed((32.0, 0.0), wind))
     assert flown is not None
     turns = [projection.to_xy(lat, lon) for lat, lon in flown]
     assert len(turns) == len(timed.points) - 1
@@ -233,3 +233,15 @@ def test_a_routes_legs_are_timed_in_the_wind_of_the_plan() -> None:
     assert windy.routes[0] == route
     assert windy.rest_s[0] > calm.rest_s[0]
     assert windy.rest_s[0] == pytest.approx(legs_time(route.points, V, headwind))
+
+
+def test_the_planner_routes_at_the_airspeed_of_its_request_as_the_flight_does() -> None:
+    # The air data says 28 m/s; the GPS less the wind would say 20: the route is timed,
+    # and flown, inflated at the request's 28.
+    at_request = route_targets(
+        (0.0, 0.0), (32.0, 0.0), (BEHIND_WALL,), (WALL,), LIMITS, Wind(east=12.0), speed=28.0
+    ).routes[0]
+    fast = zone_map((WALL,), LIMITS, 28.0).route((0.0, 0.0), BEHIND_WALL)
+    slow = zone_map((WALL,), LIMITS, 20.0).route((0.0, 0.0), BEHIND_WALL)
+    assert at_request is not None and fast is not None and slow is not None
+    assert at_request.points == fast.points != slow.points

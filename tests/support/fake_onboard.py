@@ -82,6 +82,8 @@ class FakeOnboard:
         self.enabled = True
         #: True: ignore a mission whose id is not above the current one, as the onboard does
         self.keeps_current = False
+        #: True: answer queries for a mission's targets, as an onboard holding it does
+        self.serves_targets = False
         self.mission: MissionProgress | None = None
         self._served: dict[str, bytes] = {}
         self._lock = threading.Lock()
@@ -186,6 +188,8 @@ class FakeOnboard:
             eta_s=rows[self.uav_id][t] if (t := pairs.get(self.uav_id)) is not None else None,
         )
         with self._lock:
+            if self.serves_targets:
+                self._served[SPACE.mission_targets(m)] = bus_codec.encode(targets)
             self._served[SPACE.mission_result(m, self.uav_id)] = bus_codec.encode(result)
             self._served[SPACE.mission_assignment(m, self.uav_id)] = bus_codec.encode(report)
             self.mission = MissionProgress(

@@ -404,7 +404,10 @@ def test_mavproxy_commands_once_it_signs_with_its_passphrase(fleet_up: FleetUp) 
         # Unsigned first (refused, counted), then signed.
         proxy.process.stdin.write(f"wp list\nsigning key {passphrase}\nwp list\n")
         proxy.process.stdin.flush()
-        proxy.wait_for_line(lambda line: line.startswith("Requesting 0 waypoints"), WAIT_S)
+        # Answered: the count of the mission the UAV flies (none, or an earlier test's).
+        proxy.wait_for_line(
+            lambda line: line.startswith("Requesting ") and "waypoints" in line, WAIT_S
+        )
         proxy.process.stdin.write("exit\n")
         proxy.process.stdin.flush()
     finally:
