@@ -12,7 +12,13 @@ All N+1 sessions live in this one Python process, so every check and decode of t
 whole fleet runs under one interpreter lock: the worst case of "a fleet on one box", not
 one aircraft's cost (that is `bench.bench_signing`'s per-message figure).
 
-Run: .venv/bin/python -m bench.bench_signing_round [--uavs 50] [--rounds 5]
+Signed state: then each of the N UAVs streams telemetry at 20 Hz for --stream-seconds to
+the ground, which subscribes to every UAV's telemetry, unsigned and then signed (each
+sample believed once its UAV's signed digest, put every 0.5 s, lists it:
+`fleet.transport.stream_auth`), on fresh sessions each; the CPU time of this process (all
+N+1 sessions) per second of streaming is compared, and the samples the ground received.
+
+Run: .venv/bin/python -m bench.bench_signing_round [--uavs 50] [--rounds 5] [--stream-seconds 10]
 """
 
 from __future__ import annotations
@@ -31,7 +37,9 @@ from fleet.launch.endpoints import free_port
 from fleet.mission.access import GROUND, uav_identity
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, Target, UavResult
+from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from fleet.transport.bus import BusSample, SampleCallback, decode_sample
+from fleet.transport.bus_codec import encode
 from fleet.transport.router import Router
 from fleet.transport.signing import BusSigning
 from fleet.transport.zenoh_bus import ZenohBus, connect
@@ -101,10 +109,52 @@ def signing_of(certs: Path, identity: str) -> BusSigning:
     return BusSigning(identity, key, load_roster(certs))
 
 
+TELEMETRY_HZ = 20.0
+
+
+def stream_cost(
+    endpoint: str, certs: Path, uavs: list[int], signed: bool, seconds: float
+) -> tuple[float, int, int]:
+    """(CPU s per s in this process, samples put, samples the ground believed) while N
+    UAVs stream telemetry at TELEMETRY_HZ to a ground subscribed to all of it."""
+
+    def bus(identity: str) -> ZenohBus:
+        return ZenohBus(connect(endpoint).session, signing_of(certs, identity) if signed else None)
+
+    ground = bus(GROUND)
+    buses = {u: bus(uav_identity(u)) for u in uavs}
+    heard = [0]
+    lock = threading.Lock()
+
+    def on_telemetry(sample: BusSample) -> None:
+        with lock:
+            heard[0] += 1
+
+    ground.subscribe(SPACE.all_telemetry, on_telemetry)
+    time.sleep(1.0)  # the subscriptions reach the router (a fixed wait: a bench)
+    sample = encode(Telemetry(1000, gps=GpsBlock(35.7, -120.7, 600.0, 20.0, 0.0, 0.0)))
+    put = 0
+    cpu_start, start = time.process_time(), time.perf_counter()
+    period = 1.0 / TELEMETRY_HZ
+    tick = start
+    while time.perf_counter() - start < seconds:
+        for u, uav_bus in buses.items():
+            uav_bus.put(SPACE.telemetry(u), sample)
+            put += 1
+        tick += period
+        time.sleep(max(0.0, tick - time.perf_counter()))
+    time.sleep(1.0)  # the last digests and samples arrive (counted in the CPU too)
+    cpu = (time.process_time() - cpu_start) / (time.perf_counter() - start)
+    for each in (ground, *buses.values()):
+        each.close()
+    return cpu, put, heard[0]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--uavs", type=int, default=50)
     parser.add_argument("--rounds", type=int, default=5, help="rounds of each kind")
+    parser.add_argument("--stream-seconds", type=float, default=10.0)
     args = parser.parse_args()
     uavs = list(range(1, args.uavs + 1))
     endpoint = f"tcp/127.0.0.1:{free_port()}"
@@ -140,6 +190,10 @@ def main() -> None:
             team.close()
             for bus in (ground, *buses.values()):
                 bus.close()
+        streams = {
+            signed: stream_cost(endpoint, certs, uavs, signed, args.stream_seconds)
+            for signed in (False, True)
+        }
     unsigned, signed_s = (statistics.median(times[k]) for k in (False, True))
     deliveries = args.uavs * args.uavs
     print(f"N={args.uavs}: one round = targets to {args.uavs} UAVs, {args.uavs} results, "
@@ -150,6 +204,14 @@ def main() -> None:
           f"(all: {', '.join(f'{t * 1000:.0f}' for t in times[True])})")  # fmt: skip
     print(f"  signed / unsigned: {signed_s / unsigned:.2f}; "
           f"{(signed_s - unsigned) / deliveries * 1e6:.0f} us more per delivery")  # fmt: skip
+    print(f"signed state: {args.uavs} UAVs streaming telemetry at {TELEMETRY_HZ:.0f} Hz to "
+          f"the ground for {args.stream_seconds:.0f} s (all in this process)")  # fmt: skip
+    for signed, (cpu, put, heard) in streams.items():
+        kind = "digests" if signed else "unsigned"
+        print(f"  {kind:>8}: {cpu:.2f} CPU s per s; {heard} of {put} samples believed")
+    ratio = streams[True][0] / streams[False][0]
+    print(f"  with digests / unsigned: {ratio:.2f} "
+          f"(+{(streams[True][0] - streams[False][0]) * 1000:.0f} ms CPU per s)")  # fmt: skip
 
 
 if __name__ == "__main__":

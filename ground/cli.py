@@ -144,6 +144,13 @@ def _add_send_targets(commands: argparse._SubParsersAction[argparse.ArgumentPars
         "queues), min-sum (the total of arrival times), min-max (the time until the last "
         "target is reached); default %(default)s",
     )
+    send.add_argument(
+        "--propose",
+        action="store_true",
+        help="propose a plan solved by PyVRP (pip install '.[solver]') once the team's "
+        "results are in: every UAV verifies it and adopts it if it is valid and better "
+        "than its own (min-sum and min-max only)",
+    )
     send.add_argument("--json", action="store_true", help="print the outcome as one JSON object")
     set_handler(send, send_command.SEND_TARGETS)
 

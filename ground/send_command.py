@@ -36,6 +36,8 @@ from ground.mission_follower import Listener, MissionFollower
 from ground.mission_ids import TargetsServer, claim_mission, contest_grace_s
 from ground.mission_outcome import MissionOutcome, check_agreement
 from ground.mission_summary import summary_lines
+from ground.propose import DEFAULT_WINDOW_S, propose
+from ground.solver_plan import SolverUnavailable
 from ground.targets_command import read_or_say
 from ground.zones_command import zones_or_say
 
@@ -113,6 +115,8 @@ class SendOptions(BusOptions):
     #: Send all the same a set that fails the checks, or to a team UAV not live.
     force: bool = False
     objective: Objective = Objective.GREEDY
+    #: Propose a plan solved by PyVRP (ground.propose) once the results are in.
+    propose: bool = False
     json: bool = False
 
 
@@ -138,6 +142,7 @@ def send_options(args: argparse.Namespace) -> SendOptions:
         max_reach_km=args.max_reach_km,
         force=args.force,
         objective=args.objective,
+        propose=getattr(args, "propose", False),
         json=args.json,
         key_space=args.key_space,
         query_timeout=args.query_timeout,
@@ -155,6 +160,14 @@ def run_send_targets(bus: Bus, options: SendOptions, out: TextIO) -> int:
     if not _targets_pass_checks(bus, options, team):
         return ExitCode.FAILED
     deadline_s = options.deadline or consensus_deadline(len(team))
+    proposals_s = 0.0
+    if options.propose:
+        if options.objective is Objective.GREEDY:
+            print("error: --propose needs --objective min-sum or min-max", file=sys.stderr)
+            return ExitCode.FAILED
+        proposals_s = DEFAULT_WINDOW_S
+        # The UAVs decide at their deadline whatever they hold: after the window.
+        deadline_s = max(deadline_s, proposals_s + 5.0)
 
     def make(mission: int) -> MissionTargets:
         return MissionTargets(
@@ -164,6 +177,7 @@ def run_send_targets(bus: Bus, options: SendOptions, out: TextIO) -> int:
             deadline_s=deadline_s,
             zones=options.zones,
             objective=options.objective,
+            proposals_s=proposals_s,
         )
 
     try:
@@ -205,6 +219,8 @@ def _send_and_follow(
             file=progress,
             flush=True,
         )
+        if options.propose:
+            _propose(bus, options, message, follower, progress)
         if options.wait:
             committed = follower.wait_committed(team, options.timeout, fetch_every_s=1.0)
             outcome.timed_out = not committed and follower.superseded_by is None
@@ -225,6 +241,38 @@ def _send_and_follow(
         if options.wait:
             _read_phases(bus, options.key_space, outcome, follower, options.query_timeout)
     return outcome
+
+
+def _propose(
+    bus: Bus,
+    options: SendOptions,
+    message: MissionTargets,
+    follower: MissionFollower,
+    progress: TextIO,
+) -> None:
+    """Wait for the team's results (within the proposal window), then solve and publish
+    the ground's proposal; said on `progress` either way."""
+    team = set(message.team)
+    heard = follower.wait_until(
+        lambda: team <= follower.snapshot()[0].keys(),
+        message.proposals_s,
+        fetch_every_s=1.0,
+    )
+    results = follower.snapshot()[0]
+    if not heard or not results:
+        print(f"mission {message.mission}: no plan proposed (results missing)", file=progress)
+        return
+    try:
+        proposal, spent = propose(bus, options.key_space, message, results)
+    except SolverUnavailable as error:
+        print(f"mission {message.mission}: no plan proposed: {error}", file=progress)
+        return
+    queues = ", ".join(f"{uav}: {list(q)}" for uav, q in proposal.queues.items())
+    print(
+        f"mission {message.mission}: plan proposed ({spent:.2f} s of CPU): {queues}",
+        file=progress,
+        flush=True,
+    )
 
 
 def _watch_for_rival(

@@ -24,6 +24,7 @@ from fleet.mission.messages import (
     MissionAbort,
     MissionTargets,
     OpmCommand,
+    PlanProposal,
     TargetOutcome,
     UavResult,
 )
@@ -65,6 +66,7 @@ def _mission_subscriptions(space: KeySpace) -> tuple[tuple[str, type[msgspec.Str
         # committed too, and one that has not learns it by query (`fetch`).
         (space.all_mission_replans, AssignmentReport),
         (space.all_mission_aborts, MissionAbort),
+        (space.all_mission_proposals, PlanProposal),
         (space.all_mission_outcomes, TargetOutcome),
     )
 

@@ -28,6 +28,7 @@ from fleet.mission.messages import (
     MissionProgress,
     MissionTargets,
     OpmCommand,
+    PlanProposal,
     TargetOutcome,
     UavResult,
     UavState,
@@ -201,6 +202,9 @@ class OnboardCore:
 
     def on_abort(self, abort: MissionAbort, now: float) -> None:
         self.mission.on_abort(abort, now)
+
+    def on_proposal(self, proposal: PlanProposal, now: float) -> None:
+        self.mission.on_proposal(proposal, now)
 
     def on_alive(self, uav: int, alive: bool, now: float) -> None:
         self.mission.on_alive(uav, alive, now)

@@ -30,6 +30,7 @@ from fleet.mission.messages import (
     AssignmentReport,
     MissionAbort,
     MissionTargets,
+    PlanProposal,
     StatusText,
     TargetOutcome,
     UavResult,
@@ -223,6 +224,17 @@ class MissionParticipation:
         mission_round.heard(now)
         if mission_round.committed is not None and mission_round.released:
             self._replan(now)  # it may have waited for this result
+
+    def on_proposal(self, proposal: PlanProposal, now: float) -> None:
+        """A plan proposed for the current mission: kept for the decision, which
+        verifies and scores it (fleet.consensus.proposal); after it, changes nothing."""
+        mission_round = self.round
+        if mission_round is not None and mission_round.add_proposal(proposal):
+            log.info(
+                "mission %d: a plan proposed by %d, to verify at the decision",
+                proposal.mission,
+                proposal.proposer,
+            )
 
     def on_assignment(self, report: AssignmentReport, now: float) -> None:
         mission_round = self.round

@@ -33,6 +33,7 @@ from fleet.mission.messages import (
     MissionAbort,
     MissionTargets,
     OpmCommand,
+    PlanProposal,
     StatusText,
     TargetOutcome,
     UavResult,
@@ -329,6 +330,8 @@ class OnboardProcess:
             core.on_assignment(message, now)
         elif isinstance(message, TargetOutcome):
             core.on_outcome(message, now)
+        elif isinstance(message, PlanProposal):
+            core.on_proposal(message, now)
         elif isinstance(message, MissionAbort):
             if via_payload:
                 self.node.publish(self.space.mission_abort(message.mission), message)

@@ -2,10 +2,11 @@
 
 It runs a local fleet (`fleet.launch`) on free ports, sends the scenario's targets to the
 team, waits for the consensus and checks that every UAV committed the same assignment,
-then watches until every assigned UAV has reached its target, prints who got which
-target, and stops everything. Exit 0 when the team agreed and every assigned UAV reached
-its target. It is a program of its own, above `ground`: a ground station that starts a
-fleet, it uses both the launcher and the mission manager's own code.
+then watches each UAV fly its whole queue until every target is reached (as the UAV that
+reached it says, in its own outcome), prints who reached which target and when, and
+stops everything. Exit 0 when the team agreed and every target was reached. It is a
+program of its own, above `ground`: a ground station that starts a fleet, it uses both
+the launcher and the mission manager's own code.
 """
 
 from __future__ import annotations
@@ -22,7 +23,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
-from fleet.geo.mercator import distance_m
 from fleet.launch.launcher import Fleet, FleetSpec, LaunchError
 from fleet.launch.up_command import LaunchOptions, common_arguments, recording_path, start_gui
 from fleet.mission.messages import (
@@ -32,7 +32,6 @@ from fleet.mission.messages import (
     TargetOutcome,
     UavResult,
 )
-from fleet.mission.status_kind import StatusKind
 from fleet.recording.mission_log import build_timeline
 from fleet.recording.reader import RecordingError, read_recording
 from fleet.sim.scenario import ScenarioError, resolve_scenario
@@ -54,10 +53,8 @@ DEMO_SCENARIO = "head_on"
 DEMO_SPEEDUP = 10.0
 #: Wall seconds the demo waits for every UAV to commit its assignment.
 DEMO_COMMIT_TIMEOUT_S = 60.0
-#: Wall seconds the demo waits for every assigned UAV to reach its target.
+#: Wall seconds the demo waits for every target to be reached (whole queues).
 DEMO_REACH_TIMEOUT_S = 300.0
-#: A waypoint echo this close to a target (m) is the waypoint the UAV wrote for it.
-TARGET_WAYPOINT_MATCH_M = 30.0
 #: The mission's picture, drawn from the recording into the log folder.
 PLOT_NAME = "mission.png"
 
@@ -120,11 +117,11 @@ def free_tcp_endpoint(host: str = "127.0.0.1") -> str:
         return f"tcp/{host}:{s.getsockname()[1]}"
 
 
-@dataclass
+@dataclass(frozen=True)
 class Arrival:
-    """How a UAV was seen to reach its target."""
+    """A target reached: by whom, and when."""
 
-    how: str  #: status | phase | track
+    uav: int
     after_s: float  #: wall seconds from the commitment
 
 
@@ -245,7 +242,6 @@ def _fly_demo(
             MissionFollower(bus, args.key_space, mission, on_message) as follower,
             TargetsServer(bus, args.key_space, message),
         ):
-            sent_wall = time.time()
             publish_targets(bus, args.key_space, message)
             say(f"demo: mission {mission}: {len(targets)} targets sent to the team")
             committed = follower.wait_committed(
@@ -258,120 +254,105 @@ def _fly_demo(
             agreement = outcome.agreement
             say(f"demo: committed: {committed}; agreed: {agreement.agreed}")
             if committed and agreement.agreed:
-                arrivals = _watch_arrivals(
-                    view, outcome, sent_wall, committed_at, args.timeout, stop, say
-                )
+                arrivals = _watch_targets(follower, outcome, committed_at, args.timeout, stop, say)
     return _demo_report(args, fleet, outcome, arrivals)
 
 
-def _watch_arrivals(
-    view: FleetView,
+def _watch_targets(
+    follower: MissionFollower,
     outcome: MissionOutcome,
-    sent_wall: float,
     committed_at: float,
     timeout_s: float,
     stop: threading.Event,
     say: Callable[[str], None],
 ) -> dict[int, Arrival]:
-    """Wait until every assigned UAV reached its target; returns who did, and how.
-
-    Three signs, any of which counts: a `reached` status message of that UAV
-    (sent after the mission went out), its state's mission phase "reached", or its
-    track leaving the waypoint it wrote at the target (the waypoint echo within
-    TARGET_WAYPOINT_MATCH_M of the target).
-    """
-    assigned: dict[int, Target] = {}
-    for uav in outcome.team:
-        index = outcome.target_of(uav)
-        if index is not None:
-            assigned[uav] = outcome.targets[index]
+    """Wait until every target is reached, each UAV flying its whole queue (or until no
+    target is left that a UAV still flies to); returns each target reached, by whom and
+    when. A target is reached when the UAV that reached it says so in its own outcome."""
     arrivals: dict[int, Arrival] = {}
-    deadline = time.monotonic() + timeout_s
-    next_state = 0.0
-    while set(assigned) - set(arrivals) and not stop.is_set() and time.monotonic() < deadline:
-        now = time.monotonic()
-        if now >= next_state:
-            view.refresh_states(1.0)
-            next_state = now + 2.0
-        states = {v.id: v for v in view.snapshot(include_gone=True)}
-        for uav, place in assigned.items():
-            if uav in arrivals:
-                continue
-            how = None
-            if any(
-                record.uav == uav and record.time >= sent_wall and record.kind is StatusKind.REACHED
-                for record in view.recent_records()
-            ):
-                how = "status"
-            elif (
-                (state := states.get(uav)) is not None
-                and state.mission == outcome.mission
-                and state.phase == "reached"
-            ):
-                how = "phase"
-            elif _left_target_waypoint(view, uav, place):
-                how = "track"
-            if how is not None:
-                arrivals[uav] = Arrival(how, time.monotonic() - committed_at)
-                say(f"demo: UAV {uav} reached its target ({how})")
-        view.wait_changed(0.5)
+
+    def done() -> bool:
+        outcome.results, outcome.assignments = follower.snapshot()
+        outcome.outcomes = follower.outcome_snapshot()
+        for target, uav in sorted(outcome.reached_by().items()):
+            if target not in arrivals:
+                arrivals[target] = Arrival(uav, time.monotonic() - committed_at)
+                say(f"demo: UAV {uav} reached target {target}")
+        states = outcome.target_states()
+        return stop.is_set() or all(s["state"] != "assigned" for s in states)
+
+    follower.wait_until(done, timeout_s, fetch_every_s=2.0)
     return arrivals
-
-
-def _left_target_waypoint(view: FleetView, uav: int, target: Target) -> bool:
-    indices = [
-        index
-        for index, waypoint in view.waypoints(uav).items()
-        if distance_m((target.lat, target.lon), (waypoint.lat, waypoint.lon))
-        <= TARGET_WAYPOINT_MATCH_M
-    ]
-    history = view.track_history(uav)
-    for index in indices:
-        if index in history:
-            last = len(history) - 1 - history[::-1].index(index)
-            if last < len(history) - 1:
-                return True
-    return False
 
 
 def _demo_report(
     args: DemoOptions, fleet: Fleet, outcome: MissionOutcome, arrivals: dict[int, Arrival]
 ) -> dict[str, Any]:
     report: dict[str, Any] = outcome.to_json()
-    assigned = [uav for uav in outcome.team if outcome.target_of(uav) is not None]
+    queues = _queues(outcome)
+    # Wall time x speedup: the simulated flight time, as far as the simulator kept up.
+    simulated = {t: round(a.after_s * args.speedup, 1) for t, a in arrivals.items()}
     report.update(
         scenario=args.scenario,
         speedup=args.speedup,
-        reached={str(uav): uav in arrivals for uav in outcome.team},
-        reached_how={str(uav): a.how for uav, a in arrivals.items()},
-        # Wall time x speedup: the simulated flight time, as far as the simulator kept up.
-        flown_s={str(uav): round(a.after_s * args.speedup, 1) for uav, a in arrivals.items()},
+        # Each UAV: whether it reached every target of its queue.
+        reached={
+            str(uav): bool(queues.get(uav)) and all(t in arrivals for t in queues[uav])
+            for uav in outcome.team
+        },
+        # Each target reached: by whom, and after how many simulated seconds.
+        arrivals={str(t): {"uav": a.uav, "after_s": simulated[t]} for t, a in arrivals.items()},
+        # Each UAV: the simulated seconds until its last target, when it reached them all.
+        flown_s={
+            str(uav): max(simulated[t] for t in queue)
+            for uav, queue in queues.items()
+            if queue and all(t in arrivals for t in queue)
+        },
         log_dir=str(fleet.log_dir),
     )
     report["success"] = bool(
         report["complete"]
         and report["agreed"]
-        and assigned
-        and all(u in arrivals for u in assigned)
+        and outcome.targets
+        and all(t in arrivals for t in range(len(outcome.targets)))
     )
     return report
 
 
+def _queues(outcome: MissionOutcome) -> dict[int, tuple[int, ...]]:
+    """Each UAV's queue at the latest epoch (its one target, without queues)."""
+    latest = outcome.latest()
+    if latest is not None and latest.queues:
+        return dict(latest.queues)
+    return {
+        uav: (target,) for uav in outcome.team if (target := outcome.target_of(uav)) is not None
+    }
+
+
 def _demo_summary(report: dict[str, Any]) -> list[str]:
-    lines = [f"demo outcome: mission {report['mission']}, team {report['team']}"]
+    lines = [
+        f"demo outcome: mission {report['mission']}, team {report['team']}, "
+        f"{len(report['targets'])} targets"
+    ]
+    arrivals = report["arrivals"]
     for uav in report["team"]:
         key = str(uav)
-        target = report["assignment"].get(key)
-        eta = report["eta"].get(key)
-        flown = report["flown_s"].get(key)
-        parts = [f"UAV {uav}: target {target if target is not None else 'none'}"]
-        if eta is not None:
-            parts.append(f"predicted {eta:.0f} s")
-        if target is not None:
-            parts.append(
-                f"reached after ~{flown:.0f} s simulated" if flown is not None else "NOT reached"
+        queue = report["queues"].get(key) or (
+            [report["assignment"][key]] if report["assignment"].get(key) is not None else []
+        )
+        if not queue:
+            lines.append(f"  UAV {uav}: no target")
+            continue
+        legs = []
+        for target in queue:
+            arrival = arrivals.get(str(target))
+            reached = (
+                f"reached after ~{arrival['after_s']:.0f} s simulated"
+                if arrival is not None and arrival["uav"] == uav
+                else "NOT reached"
             )
-        lines.append("  " + ", ".join(parts))
+            legs.append(f"target {target} {reached}")
+        lines.append(f"  UAV {uav}: " + "; then ".join(legs))
     lines.append(f"  unassigned targets: {report['unassigned'] or 'none'}")
     lines.append(
         f"  agreed: {'yes' if report['agreed'] else 'no'}"

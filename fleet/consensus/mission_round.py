@@ -35,6 +35,7 @@ import msgspec
 from fleet.consensus.assignment import air_bytes, results_digest
 from fleet.consensus.legs import Air, AirLegs, LegGeometry, leg_times
 from fleet.consensus.objectives import plan_digest, plan_queues
+from fleet.consensus.proposal import choose, proposal_digest, proposal_problem
 from fleet.consensus.queues import UNREACHABLE
 from fleet.consensus.replan import missing_times, replan
 from fleet.consensus.report_checks import (
@@ -49,6 +50,7 @@ from fleet.mission.messages import (
     AssignmentHeader,
     AssignmentReport,
     MissionTargets,
+    PlanProposal,
     TargetOutcome,
     UavResult,
 )
@@ -150,6 +152,10 @@ class MissionRound:
     team: frozenset[int] = field(init=False, repr=False, compare=False)
     #: Each result's greedy order and digest bytes, computed as it arrives.
     rows: ResultRows = field(default_factory=ResultRows, repr=False, compare=False)
+    #: Plans proposed for this mission before the decision, by proposer (the latest).
+    proposals: dict[int, PlanProposal] = field(default_factory=dict)
+    #: Why each proposal refused at the decision was refused (proposer -> why).
+    refused_proposals: dict[int, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.team = team_set(self.targets.team)
@@ -277,7 +283,29 @@ class MissionRound:
     def ready(self, now: float, alive: set[int]) -> bool:
         if self.committed is not None or self.own_id not in self.results:
             return False
-        return not self.missing(alive) or now >= self.deadline
+        if now >= self.deadline:
+            return True
+        return not self.missing(alive) and not self.awaiting_proposal(now)
+
+    def awaiting_proposal(self, now: float) -> bool:
+        """The mission expects a proposed plan (`proposals_s`), none came yet, and its
+        window is still open: the decision waits for it (fleet.consensus.proposal)."""
+        window = self.targets.proposals_s
+        return window > 0.0 and not self.proposals and now < self.started + window
+
+    def add_proposal(self, proposal: PlanProposal) -> bool:
+        """Keep a proposed plan for this round's decision; False if it is another
+        mission's or came after the commitment (a late proposal changes nothing)."""
+        if proposal.mission != self.mission or self.committed is not None:
+            return False
+        self.proposals[proposal.proposer] = proposal
+        return True
+
+    def results_digest(self, used: dict[int, tuple[float | None, ...]]) -> str:
+        """The digest of exactly these results, as the decision computes it."""
+        return results_digest(
+            used, zones_bytes(self.targets.zones), self.rows.packed(used), self._air_bytes(used)
+        )
 
     def excluded(self, alive: set[int]) -> frozenset[int]:
         """Team UAVs whose results a decision now would leave out (missing, or gone)."""
@@ -328,7 +356,21 @@ class MissionRound:
             if uav in alive or uav == self.own_id
         }
         objective = self.targets.objective
-        plan = plan_queues(used, self.air_legs(used), objective, self.rows.orders(used))
+        legs = self.air_legs(used)
+        plan = plan_queues(used, legs, objective, self.rows.orders(used))
+        inputs = self.results_digest(used)
+        digest = plan_digest(inputs, objective)
+        if self.proposals:
+            valid = []
+            for proposer, proposal in sorted(self.proposals.items()):
+                problem = proposal_problem(proposal, self.mission, objective, inputs, used, legs)
+                if problem is None:
+                    valid.append(proposal)
+                else:
+                    self.refused_proposals[proposer] = problem
+            plan, adopted = choose(plan, valid, objective, used, legs)
+            if adopted is not None:
+                digest = proposal_digest(digest, adopted)
         heads = plan.heads()
         self.committed = self.base = self._report(
             target=heads.get(self.own_id),
@@ -337,15 +379,7 @@ class MissionRound:
             arrivals={uav: a for uav, a in plan.arrivals.items() if a},
             unserved={t: UNREACHABLE for t in plan.unassigned},
             team=tuple(sorted(used)),
-            digest=plan_digest(
-                results_digest(
-                    used,
-                    zones_bytes(self.targets.zones),
-                    self.rows.packed(used),
-                    self._air_bytes(used),
-                ),
-                objective,
-            ),
+            digest=digest,
         )
         self._update_reached()
         return self.committed

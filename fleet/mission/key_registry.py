@@ -19,6 +19,8 @@ Layout (under the prefix, `fleet` by default):
     uav/{id}/status              StatusText (thesis PAYLOAD_STATUS)
     uav/{id}/link                LinkHealth
     uav/{id}/state               UavState, put at the OPM status rate and served
+    uav/{id}/digest              StreamDigest: the hashes of the UAV's stream samples
+                                 (telemetry ... link) since its last, signed
     uav/{id}/opm                 OpmCommand, ground -> UAV
     uav/{id}/cmd/waypoint        queryable: Waypoint in, CommandResult out
     uav/{id}/cmd/track           queryable: Track in, CommandResult out
@@ -29,6 +31,7 @@ Layout (under the prefix, `fleet` by default):
                                  teammates subscribe to (docs/lifecycle.md)
     mission/{m}/outcome/{id}     TargetOutcome: reached, failed or link_lost
     mission/{m}/abort            MissionAbort, ground -> team (served too)
+    mission/{m}/proposal         PlanProposal, ground -> team: a plan to verify
     router/state                 queryable: RouterState, served by each secure router
     roster                       RosterDocument, ground -> all: the CA-signed roster of
                                  signers, put when an identity is revoked
@@ -150,6 +153,8 @@ STATE = KeySpec(
     reply=messages.UavState, servers=_OWN, uavs_fetch=True,
     note="put at the OPM status rate; query reply",
 )  # fmt: skip
+#: Signed by its UAV, twice a second while it streams: vouches for its unsigned samples.
+DIGEST = KeySpec("uav/{id}/digest", messages.StreamDigest, recording=Recording.UNHEARD)
 OPM = KeySpec(
     "uav/{id}/opm", messages.OpmCommand, role=Role.COMMAND, writer=Party.GROUND,
     urgency=Urgency.URGENT,
@@ -196,6 +201,12 @@ ABORT = KeySpec(
     carriage=Carriage.PUT | Carriage.QUERY, writer=Party.GROUND, urgency=Urgency.URGENT,
     reply=messages.MissionAbort, servers=frozenset({Party.ANY_UAV}), uavs_fetch=True,
 )  # fmt: skip
+#: A plan proposed by the ground (a routing solver), verified by every UAV before it is
+#: adopted (fleet.consensus.proposal); heard by subscription, before the decision.
+PROPOSAL = KeySpec(
+    "mission/{m}/proposal", messages.PlanProposal, role=Role.COMMAND, writer=Party.GROUND,
+    urgency=Urgency.URGENT,
+)  # fmt: skip
 
 #: Asked with no payload, and answered by each secure router (fleet/transport/router.py),
 #: not by a fleet member: one reply per router, so it is asked with every reply kept.
@@ -214,8 +225,8 @@ ROSTER = KeySpec(
 
 #: Every key of the fleet. Order is kept wherever keys are listed (schemas, grants).
 REGISTRY: tuple[KeySpec, ...] = (
-    ALIVE, TELEMETRY, TRACK, WAYPOINT, STATUS, LINK, STATE, OPM, CMD_WAYPOINT, CMD_TRACK,
-    TARGETS, RESULT, ASSIGNMENT, REPLAN, OUTCOME, ABORT, ROUTER_STATE, ROSTER,
+    ALIVE, TELEMETRY, TRACK, WAYPOINT, STATUS, LINK, STATE, DIGEST, OPM, CMD_WAYPOINT, CMD_TRACK,
+    TARGETS, RESULT, ASSIGNMENT, REPLAN, OUTCOME, ABORT, PROPOSAL, ROUTER_STATE, ROSTER,
 )  # fmt: skip
 
 #: The JSON Schema file (without `.schema.json`) of each struct that travels on a key.
@@ -232,7 +243,9 @@ SCHEMA_FILES: dict[type[msgspec.Struct], str] = {
     messages.UavResult: "uav_result",
     messages.AssignmentReport: "assignment_report",
     messages.MissionAbort: "mission_abort",
+    messages.PlanProposal: "plan_proposal",
     messages.TargetOutcome: "target_outcome",
     messages.RouterState: "router_state",
     messages.RosterDocument: "roster",
+    messages.StreamDigest: "stream_digest",
 }

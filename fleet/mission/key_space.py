@@ -141,6 +141,9 @@ class KeySpace:
     def mission_abort(self, mission: int) -> str:
         return self.key(reg.ABORT, m=mission)
 
+    def mission_proposal(self, mission: int) -> str:
+        return self.key(reg.PROPOSAL, m=mission)
+
     # --- one UAV's keys in every mission ---
 
     def results_of(self, uav_id: int) -> str:
@@ -184,6 +187,13 @@ class KeySpace:
     def roster(self) -> str:
         return self.key(reg.ROSTER)
 
+    def digest(self, uav_id: int) -> str:
+        return self.key(reg.DIGEST, id=uav_id)
+
+    @property
+    def all_digests(self) -> str:
+        return self.key(reg.DIGEST)
+
     @property
     def all_mission_targets(self) -> str:
         return self.key(reg.TARGETS)
@@ -203,6 +213,10 @@ class KeySpace:
     @property
     def all_mission_aborts(self) -> str:
         return self.key(reg.ABORT)
+
+    @property
+    def all_mission_proposals(self) -> str:
+        return self.key(reg.PROPOSAL)
 
     @property
     def all_mission_outcomes(self) -> str:

@@ -113,6 +113,9 @@ class MissionTargets(msgspec.Struct, frozen=True):
     mission that has some).
     `objective` is what the plan optimises (fleet.consensus.objectives); a mission sent
     before objectives existed, or over the binary payload link, is `greedy`.
+    `proposals_s`: how long (s after receipt) a UAV holding every teammate's result
+    waits for a proposed plan (`PlanProposal`) before it decides on the baseline alone;
+    0, none is expected (fleet.consensus.proposal).
     """
 
     mission: MissionId
@@ -121,6 +124,7 @@ class MissionTargets(msgspec.Struct, frozen=True):
     deadline_s: float = 10.0
     zones: Annotated[tuple[NoFlyZone, ...], Meta(max_length=MAX_ZONES)] = ()
     objective: Objective = Objective.GREEDY
+    proposals_s: Annotated[float, Meta(ge=0.0, le=3600.0)] = 0.0
 
 
 class UavResult(msgspec.Struct, frozen=True):
@@ -208,6 +212,23 @@ class AssignmentReport(msgspec.Struct, frozen=True):
     objective: Objective = Objective.GREEDY
     #: Why each target in `unassigned` is served by none.
     unserved: Annotated[dict[TargetIndex, str], Meta(max_length=MAX_TARGETS)] = {}
+
+
+class PlanProposal(msgspec.Struct, frozen=True):
+    """A plan proposed for a mission by any party (the ground, with a routing solver):
+    every UAV re-scores it with the deterministic scorer and adopts the best of the
+    baseline and the valid proposals (fleet.consensus.proposal).
+
+    `proposer` is the proposer's Piccolo ID (the ground's is MISSION_MANAGER); `digest`
+    the results digest of the inputs it was solved from (a UAV that holds other results
+    ignores it); `queues` every UAV's ordered queue.
+    """
+
+    mission: MissionId
+    proposer: Annotated[int, Meta(ge=1, le=0xFFFF)]
+    digest: Annotated[str, Meta(max_length=64)]
+    objective: Objective
+    queues: Annotated[dict[PiccoloId, Queue], Meta(max_length=MAX_TEAM)]
 
 
 class AssignmentHeader(msgspec.Struct, frozen=True):
@@ -319,3 +340,20 @@ class RosterDocument(msgspec.Struct, frozen=True):
     ]
     revoked: Annotated[list[IdentityName], Meta(max_length=MAX_IDENTITIES)]
     signature: Annotated[str, Meta(max_length=512)]
+
+
+#: Samples one digest may vouch for: half a second of a UAV's streams is a few dozen.
+MAX_DIGEST_SAMPLES = 1024
+
+
+class StreamDigest(msgspec.Struct, frozen=True):
+    """What a UAV put on its unsigned streams (telemetry, track, waypoint echoes, status,
+    link health) since its last digest: the hash of each sample (key and payload,
+    `fleet.transport.stream_auth`), hex. Signed by the UAV: a receiver believes a stream
+    sample once a digest of its author lists it, so one signature covers many samples."""
+
+    uav: PiccoloId
+    hashes: Annotated[
+        list[Annotated[str, Meta(min_length=32, max_length=32)]],
+        Meta(max_length=MAX_DIGEST_SAMPLES),
+    ]

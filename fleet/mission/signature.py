@@ -37,6 +37,7 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey,
 from fleet.mission.access import GROUND, is_router_identity, uav_identity
 from fleet.mission.delivery import Delivery as Delivery  # its own light module
 from fleet.mission.key_registry import (
+    DIGEST,
     REGISTRY,
     ROUTER_STATE,
     STATE,
@@ -77,6 +78,7 @@ class Refusal(StrEnum):
     STALE = "stale"  #: a live message outside the window, or from the future
     REPLAYED = "replayed"  #: not newer than the last accepted on that key, or older than
     #: its mission
+    UNVERIFIED = "unverified"  #: a stream sample no signed digest of its author listed
 
 
 @dataclass(frozen=True)
@@ -121,11 +123,32 @@ def sign(key_pair: Ed25519PrivateKey, author: str, key: str, payload: bytes, now
 
 
 def _needs_signature(spec: KeySpec) -> bool:
-    return spec.role is Role.COMMAND or spec.tree == "mission" or spec in (STATE, ROUTER_STATE)
+    return (
+        spec.role is Role.COMMAND or spec.tree == "mission" or spec in (STATE, ROUTER_STATE, DIGEST)
+    )
 
 
 #: The keys whose messages must be signed (every other key travels as before).
 SIGNED_KEYS: tuple[KeySpec, ...] = tuple(s for s in REGISTRY if _needs_signature(s))
+#: A UAV's streams (telemetry, track, waypoint echoes, status, link health): too many
+#: samples to sign each, so each is believed once its UAV's signed digest lists it
+#: (`fleet.transport.stream_auth`).
+STREAM_KEYS: tuple[KeySpec, ...] = tuple(
+    s
+    for s in REGISTRY
+    if s not in SIGNED_KEYS
+    and s.writer is Party.OWN_UAV
+    and s.carriage is Carriage.PUT
+    and s.tree == "uav"
+)
+
+
+def stream_uav(space: KeySpace, key: str) -> int | None:
+    """The UAV whose signed digest must vouch for a sample on `key` (None: not a stream)."""
+    parsed = space.parse(key)
+    if parsed is None or parsed.spec not in STREAM_KEYS or parsed.uav is None:
+        return None
+    return int(parsed.uav) if parsed.uav.isdecimal() else None
 
 
 def _party(party: Party, uav: str | None) -> str | None:

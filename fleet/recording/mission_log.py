@@ -76,6 +76,17 @@ class Track:
         i = self.until(t)
         return self.clock[i - 1] if i else None
 
+    def flown_between(self, start: float, stop: float) -> float | None:
+        """Seconds of the aircraft's clock from `start` to `stop` (recording times), or
+        None where the recording does not tell: no telemetry before `start`, or none
+        between the two while they are apart (a gap in the recording is not 0 s flown)."""
+        first, last = self.aircraft_time(start), self.aircraft_time(stop)
+        if first is None or last is None:
+            return None
+        if stop > start and self.until(stop) == self.until(start):
+            return None
+        return last - first
+
     def position(self, t: float) -> tuple[float, float] | None:
         i = self.until(t)
         return (self.lat[i - 1], self.lon[i - 1]) if i else None
@@ -145,8 +156,7 @@ class MissionLog:
             at = reached.get(target)
             flown = None
             if track is not None and at is not None and previous_at is not None:
-                start, stop = track.aircraft_time(previous_at), track.aircraft_time(at)
-                flown = None if start is None or stop is None else stop - start
+                flown = track.flown_between(previous_at, at)
             rows.append({"target": target, "predicted_s": plan, "flown_s": flown})
             previous_plan = planned[i] if i < len(planned) else previous_plan
             previous_at = at
@@ -213,6 +223,7 @@ class _Said:
     text: str
     reached: bool  #: it says the UAV arrived at its target
     fault: bool  #: a warning or an error
+    mission: int | None = None  #: the mission it speaks of, where it names one
 
 
 def _said(t: float, uav: int, value: dict[str, Any]) -> _Said:
@@ -222,7 +233,7 @@ def _said(t: float, uav: int, value: dict[str, Any]) -> _Said:
     else:  # recorded before status kinds (see the module's docstring)
         reached = status.text.startswith("reached")
         severity = msgspec.convert(value.get("severity", Severity.INFO), Severity)
-    return _Said(t, uav, status.text, reached, severity is not Severity.INFO)
+    return _Said(t, uav, status.text, reached, severity is not Severity.INFO, status.mission)
 
 
 def _leaf(topic: str) -> list[str]:
@@ -370,11 +381,19 @@ class _Builder:
                 back = [c for c in after[1:] if c[1] != after[0][1]]
                 if back:
                     log.resumed[uav] = back[0][0]
+            # A status names its mission: an arrival at an earlier mission's target (the
+            # UAV still flying it when this one was committed) is not this one's.
             said = [
                 (status.t, "status")
                 for status in self.statuses
-                if status.uav == uav and status.reached and committed <= status.t <= log.end
+                if status.uav == uav
+                and status.reached
+                and status.mission in (None, log.mission)
+                and committed <= status.t <= log.end
             ]
+            # The outcome the UAV published for its first target, where it was heard.
+            first = log.target_of(uav)
+            said += [(t, "outcome") for t, target in log.arrivals.get(uav, []) if target == first]
             said += [
                 (t, "phase")
                 for t, who, mission, phase in self.phases
@@ -409,9 +428,9 @@ class _Builder:
         track = self.tracks.get(uav)
         if track is None:
             return
-        start, stop = track.aircraft_time(committed), track.aircraft_time(reached)
-        if start is not None and stop is not None:
-            log.flown_s[uav] = stop - start
+        flown = track.flown_between(committed, reached)
+        if flown is not None:
+            log.flown_s[uav] = flown
 
     def _faults(self, log: MissionLog) -> None:
         team = set(log.team)

@@ -1,12 +1,14 @@
 """`fleet plot`: a mission as the thesis draws it (figures 4-1, 4-3), with matplotlib.
 
-One map panel per event (sent, committed, course change, reached, resumed, or the
-times asked for): every UAV's track so far in its own colour with its ID at its
-position, its course still to come faint, the mission's no-fly zones hatched red, the
-targets as red X with their index, and a dashed line from each committed UAV to its
-target. A last panel compares each
-UAV's predicted arrival (its ETA at commitment) with the time it flew. Drawn with
-the Agg backend on a `Figure` (no pyplot state), so no display is needed.
+One figure per mission (`--mission`, the last by default): one map panel per event
+(sent, committed, course change, reached, resumed, or the times asked for), in time
+order: every UAV's track in this mission so far (from its sending) in its own colour
+with its ID at its position, its course still to come in this mission faint, the
+mission's no-fly zones hatched red, the targets as red X with their index, and a
+dashed line from each committed UAV to its target. A last panel compares, for every
+target of each UAV's queue, the predicted arrival (from its commitment) with the time
+it flew. Drawn with the Agg backend on a `Figure` (no pyplot state), so no display is
+needed.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -21,7 +24,7 @@ from matplotlib.figure import Figure
 
 from fleet.errors import FleetError
 from fleet.geo.mercator import MercatorProjection
-from fleet.recording.mission_log import MissionLog, Timeline
+from fleet.recording.mission_log import MissionLog, Timeline, Track
 
 EVENT_NAMES = ("sent", "committed", "course change", "reached", "resumed")
 COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:purple", "tab:brown", "tab:cyan")
@@ -70,9 +73,10 @@ def choose_mission(timeline: Timeline, mission: int | None) -> MissionLog | None
 
 
 def panels(timeline: Timeline, log: MissionLog | None, at: list[str | float]) -> list[Panel]:
+    """The map panels, in time order."""
     events = log.events() if log is not None else {}
     if not at:
-        chosen = [Panel(name, t) for name, t in events.items()]
+        chosen = sorted((Panel(name, t) for name, t in events.items()), key=lambda p: p.at)
         return chosen or [Panel("end of recording", timeline.end)]
     found = []
     for item in at:
@@ -83,7 +87,7 @@ def panels(timeline: Timeline, log: MissionLog | None, at: list[str | float]) ->
         else:
             happened = ", ".join(events) or "none"
             raise PlotError(f"--at {item}: not in this mission (events seen: {happened})")
-    return found
+    return sorted(found, key=lambda p: p.at)
 
 
 def render(
@@ -107,7 +111,7 @@ def render(
     for ax, panel in zip(axes, chosen, strict=False):
         _map_panel(ax, timeline, log, panel, projection, limits)
     if log is not None:
-        _arrival_panel(axes[len(chosen)], log, sorted(timeline.tracks))
+        _arrival_panel(axes[len(chosen)], log, sorted(timeline.tracks), timeline.tracks)
     for ax in axes[count:]:
         ax.set_visible(False)
     title = "recording" if log is None else f"mission {log.mission}"
@@ -117,10 +121,22 @@ def render(
     return out
 
 
+def mission_window(track: Track, log: MissionLog | None) -> range:
+    """The indices of the track's points within the mission (from its sending to the next
+    mission's), or all of them with no mission."""
+    if log is None:
+        return range(len(track.times))
+    return range(track.until(log.sent - 1e-9), track.until(log.end))
+
+
+def _mission_points(track: Track, log: MissionLog | None) -> list[tuple[float, float]]:
+    return [(track.lat[i], track.lon[i]) for i in mission_window(track, log)]
+
+
 def _projection(timeline: Timeline, log: MissionLog | None) -> MercatorProjection:
     points = [(t.lat, t.lon) for t in log.targets] if log is not None else []
     for track in timeline.tracks.values():
-        points += list(zip(track.lat, track.lon, strict=True))
+        points += _mission_points(track, log)
     if not points:
         return MercatorProjection(0.0, 0.0)
     return MercatorProjection(
@@ -141,7 +157,7 @@ def _limits(
     places = [(t.lat, t.lon) for t in log.targets] if log is not None else []
     places += [p for zone in log.zones for p in zone.ring] if log is not None else []
     for track in timeline.tracks.values():
-        places += list(zip(track.lat, track.lon, strict=True))
+        places += _mission_points(track, log)
     for lat, lon in places:
         x, y = _km(projection, lat, lon)
         xs.append(x)
@@ -167,12 +183,12 @@ def _map_panel(
     order = sorted(timeline.tracks)
     for uav, track in sorted(timeline.tracks.items()):
         colour = _colour(uav, order)
-        points = [_km(projection, a, b) for a, b in zip(track.lat, track.lon, strict=True)]
+        window = mission_window(track, log)
+        points = [_km(projection, track.lat[i], track.lon[i]) for i in window]
         if log is not None:
             # The course still to come, faint, within this mission.
-            ahead = [p for p, t in zip(points, track.times, strict=True) if t <= log.end]
-            ax.plot(*_xy(ahead), color=colour, alpha=0.15, linewidth=1)
-        flown = points[: track.until(panel.at)]
+            ax.plot(*_xy(points), color=colour, alpha=0.15, linewidth=1)
+        flown = points[: max(0, track.until(panel.at) - window.start)]
         if not flown:
             continue
         ax.plot(*_xy(flown), color=colour, linewidth=1.8, label=f"UAV {uav}")
@@ -249,13 +265,13 @@ def _xy(points: list[tuple[float, float]]) -> tuple[list[float], list[float]]:
     return [p[0] for p in points], [p[1] for p in points]
 
 
-def _arrival_panel(ax: Axes, log: MissionLog, order: list[int]) -> None:
-    """Per assigned UAV, in its colour: predicted ETA (hatched) beside the time flown."""
-    assigned = [uav for uav in log.team if log.target_of(uav) is not None]
+def _arrival_panel(ax: Axes, log: MissionLog, order: list[int], tracks: dict[int, Track]) -> None:
+    """Per target of each UAV's queue, in its colour: the predicted arrival from its
+    commitment (hatched) beside the time it flew to get there (aircraft clock)."""
+    bars = arrival_bars(log, tracks)
     width = 0.38
-    for p, uav in enumerate(assigned):
+    for p, (uav, _, predicted, flown) in enumerate(bars):
         colour = _colour(uav, order)
-        predicted, flown = log.predicted_s(uav), log.flown_s.get(uav)
         for offset, value, hatch, alpha in (
             (-width / 2, predicted, "//", 0.35),
             (width / 2, flown, None, 0.9),
@@ -277,10 +293,44 @@ def _arrival_panel(ax: Axes, log: MissionLog, order: list[int]) -> None:
     # Legend entries in neutral grey: the colours are the UAVs'.
     ax.bar([0], [0], 0, color="grey", alpha=0.35, hatch="//", label="predicted (ETA)")
     ax.bar([0], [0], 0, color="grey", alpha=0.9, label="flown")
-    positions = list(range(len(assigned)))
-    ax.set_xticks(positions, [f"UAV {uav}\ntarget {log.target_of(uav)}" for uav in assigned])
+    positions = list(range(len(bars)))
+    ax.set_xticks(positions, [f"UAV {uav}\ntarget {target}" for uav, target, _, _ in bars])
     ax.set_ylabel("s from commitment to target (aircraft clock)")
     ax.margins(y=0.12)
     ax.set_title("arrival: predicted vs flown")
     ax.grid(True, axis="y", alpha=0.3)
     ax.legend(loc="best", fontsize="small")
+
+
+def arrival_bars(
+    log: MissionLog, tracks: dict[int, Track]
+) -> list[tuple[int, int, float | None, float | None]]:
+    """(UAV, target, predicted s, flown s) for every target of each UAV's queue, in queue
+    order, both counted from the UAV's commitment; None where unknown (a leg not flown)."""
+    bars: list[tuple[int, int, float | None, float | None]] = []
+    for uav in log.team:
+        planned = 0.0
+        flown_so_far: float | None = 0.0
+        for i, leg in enumerate(log.legs(uav, tracks) or _first_leg(log, uav)):
+            planned_leg, flown_leg = leg["predicted_s"], leg["flown_s"]
+            if i == 0:  # a plan without arrivals, no outcome heard: its ETA, its arrival
+                planned_leg = log.predicted_s(uav) if planned_leg is None else planned_leg
+                flown_leg = log.flown_s.get(uav) if flown_leg is None else flown_leg
+            planned = planned + planned_leg if planned_leg is not None else planned
+            flown_so_far = (
+                None if flown_so_far is None or flown_leg is None else flown_so_far + flown_leg
+            )
+            bars.append(
+                (uav, leg["target"], planned if planned_leg is not None else None, flown_so_far)
+            )
+    return bars
+
+
+def _first_leg(log: MissionLog, uav: int) -> list[dict[str, Any]]:
+    """A UAV's one target without a queue in its plan: its ETA and the time it flew."""
+    target = log.target_of(uav)
+    if target is None:
+        return []
+    return [
+        {"target": target, "predicted_s": log.predicted_s(uav), "flown_s": log.flown_s.get(uav)}
+    ]

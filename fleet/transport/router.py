@@ -42,7 +42,7 @@ from fleet.transport.cli import (
 )
 from fleet.transport.secure import SecureProfile
 from fleet.transport.zenoh_bus import ZenohBus
-from fleet.transport.zenoh_config import DEFAULT_ROUTER, make_config
+from fleet.transport.zenoh_config import DEFAULT_ROUTER, error_text, make_config
 
 log = logging.getLogger(__name__)
 
@@ -60,6 +60,17 @@ def _log_refused_links() -> None:
     if not _zenoh_log_on:
         zenoh.init_log_from_env_or(ZENOH_LOG_LEVEL)
         _zenoh_log_on = True
+
+
+def listen_problem(error: BaseException) -> str:
+    """What went wrong listening, in a line, and what to do about it."""
+    text = error_text(error)
+    if "Address already in use" in text:
+        return (
+            "the address is in use (another router or `fleet up` listens there): stop it, "
+            "or listen on another port"
+        )
+    return text
 
 
 class RouterError(FleetError, RuntimeError):
@@ -122,7 +133,7 @@ class Router:
         except zenoh.ZError as error:
             self.close()
             raise RouterError(
-                f"cannot start a Zenoh router on {', '.join(self.listen)}: {error}"
+                f"cannot start a Zenoh router on {', '.join(self.listen)}: {listen_problem(error)}"
             ) from error
         log.info("zenoh router %s listening on %s", self.zid, ", ".join(self.listen))
 

@@ -32,8 +32,10 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import zenoh
 
 from fleet.errors import CertError, FleetError, RosterError
+from fleet.mission.access import uav_identity
 from fleet.mission.delivery import Delivery
 from fleet.mission.key_space import space_of
+from fleet.mission.messages import StreamDigest
 from fleet.transport import bus_codec, bus_qos
 from fleet.transport.bus import (
     Bus,
@@ -58,7 +60,9 @@ from fleet.transport.zenoh_config import (
 )
 
 if TYPE_CHECKING:
+    from fleet.mission.key_space import KeySpace
     from fleet.transport.signing import BusSigning
+    from fleet.transport.stream_auth import StreamChecker, StreamSigner
 
 log = logging.getLogger(__name__)
 
@@ -217,6 +221,55 @@ class ZenohBus(Bus):
         #: The roster subscriptions, one per key prefix this bus has used (secure only).
         self._rosters: dict[str, zenoh.Subscriber[None]] = {}
         self._rosters_lock = threading.Lock()
+        #: The secure profile's stream authentication (fleet.transport.stream_auth): the
+        #: digests of what this identity streams, and the samples it hears held until
+        #: their author's digest vouches for them (a digest subscription per prefix).
+        self._stream_signer: StreamSigner | None = None
+        self._stream_checker: StreamChecker | None = None
+        self._digests: dict[str, zenoh.Subscriber[None]] = {}
+        #: The UAV whose stream a key is (None: not a stream); secure only, imported
+        #: with the signing stack.
+        self._stream_uav: Callable[[KeySpace, str], int | None] | None = None
+        if signing is not None:
+            from fleet.mission.signature import stream_uav
+            from fleet.transport.stream_auth import StreamChecker, StreamSigner
+
+            self._stream_signer = StreamSigner(self._put_digest)
+            self._stream_checker = StreamChecker()
+            self._stream_uav = stream_uav
+
+    def _put_digest(self, key: str, digest: StreamDigest) -> None:
+        self.put(key, bus_codec.encode(digest))
+
+    def _watch_digests(self, key_expr: str) -> None:
+        """Before the first subscription that may carry a UAV's streams under a prefix,
+        hear the UAVs' signed digests there (a bus that hears no stream pays nothing)."""
+        checker, space = self._stream_checker, space_of(key_expr)
+        if checker is None or space is None:
+            return
+        from fleet.mission.signature import STREAM_KEYS
+
+        wanted = zenoh.KeyExpr(key_expr)
+        if not any(wanted.intersects(zenoh.KeyExpr(space.key(spec))) for spec in STREAM_KEYS):
+            return
+        with self._rosters_lock:
+            if space.prefix in self._digests:
+                return
+
+            def on_digest(sample: zenoh.Sample) -> None:
+                received = self._received(sample, Delivery.PUT)
+                if received is None:
+                    return
+                try:
+                    digest = bus_codec.decode(received.payload, StreamDigest, received.key)
+                except bus_codec.BadMessage as error:
+                    log.warning("dropped a stream digest: %s", error)
+                    return
+                checker.vouch(uav_identity(digest.uav), digest)
+
+            self._digests[space.prefix] = self.session.declare_subscriber(
+                space.all_digests, direct(on_digest)
+            )
 
     def _watch_roster(self, key_expr: str) -> None:
         """In the secure profile, hear the roster on the prefix of `key_expr` (once per
@@ -276,6 +329,7 @@ class ZenohBus(Bus):
             if attachment is not None:
                 bus_qos.put(self.session, key, payload, attachment=attachment)
                 return
+            self._streamed(key, payload)
         publisher = self._publishers.get(key)
         if publisher is None:
             qos = bus_qos.qos_for(key)
@@ -285,16 +339,38 @@ class ZenohBus(Bus):
             publisher = self._publishers.setdefault(key, bus_qos.declare(self.session, key, qos))
         publisher.put(payload)
 
+    def _streamed(self, key: str, payload: bytes) -> None:
+        """A sample put on one of this identity's own streams: in its next digest."""
+        signer, space, stream_uav = self._stream_signer, space_of(key), self._stream_uav
+        if signer is None or space is None or stream_uav is None or self.signing is None:
+            return
+        uav = stream_uav(space, key)
+        if uav is None:
+            return
+        if uav_identity(uav) == self.signing.identity:
+            signer.streamed(space.digest(uav), uav, key, payload)
+
     def subscribe(
         self, key_expr: str, callback: SampleCallback, *, details: bool = False
     ) -> Declaration:
         convert = _sample if details else _plain
         self._watch_roster(key_expr)
+        self._watch_digests(key_expr)
+        checker, stream_uav = self._stream_checker, self._stream_uav
 
         def on_sample(sample: zenoh.Sample) -> None:
             received = self._received(sample, Delivery.PUT, convert)
-            if received is not None:
+            if received is None:
+                return
+            space = space_of(received.key) if stream_uav is not None else None
+            uav = stream_uav(space, received.key) if stream_uav and space else None
+            if checker is None or uav is None:
                 callback(received)
+                return
+            # A UAV's stream sample: believed once its signed digest lists it.
+            checker.hold(
+                uav_identity(uav), received.key, received.payload, lambda: callback(received)
+            )
 
         subscriber: Declaration = self.session.declare_subscriber(key_expr, direct(on_sample))
         return subscriber
@@ -368,13 +444,36 @@ class ZenohBus(Bus):
 
     def live_tokens(self, key_expr: str, timeout: float) -> list[str]:
         replies = self.session.liveliness().get(key_expr, timeout=timeout)
-        return [str(reply.ok.key_expr) for reply in replies if reply.ok is not None]
+        keys = [str(reply.ok.key_expr) for reply in replies if reply.ok is not None]
+        return [key for key in keys if self._known_token(key)]
+
+    def _known_token(self, key: str) -> bool:
+        """In the secure profile, a liveliness token only of a UAV the roster names and
+        has not revoked: a rogue router cannot make up an aircraft (a token carries no
+        signature, so one of a real UAV cannot be told from a replayed one)."""
+        signing, space = self.signing, space_of(key)
+        if signing is None or space is None:
+            return True
+        parsed = space.parse(key)
+        if parsed is None or parsed.uav is None or not parsed.uav.isdecimal():
+            return True
+        identity = uav_identity(int(parsed.uav))
+        roster = signing.roster
+        if identity in roster.keys and identity not in roster.revoked:
+            return True
+        from fleet.mission.signature import Refusal
+
+        bus_codec.DROPPED.add(Refusal.UNKNOWN_AUTHOR)
+        log.debug("ignored the liveliness token %s: %s is not a fleet identity", key, identity)
+        return False
 
     def subscribe_presence(self, key_expr: str, callback: PresenceCallback) -> Declaration:
         self._watch_roster(key_expr)
 
         def on_token(sample: zenoh.Sample) -> None:
-            callback(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
+            key = str(sample.key_expr)
+            if self._known_token(key):
+                callback(key, sample.kind == zenoh.SampleKind.PUT)
 
         subscriber: Declaration = self.session.liveliness().declare_subscriber(
             key_expr, direct(on_token), history=True
@@ -382,6 +481,9 @@ class ZenohBus(Bus):
         return subscriber
 
     def close(self) -> None:
+        if self._stream_signer is not None:
+            self._stream_signer.flush()  # what was streamed last is vouched for too
+            self._stream_signer.close()
         if not self.owns_session:
             for publisher in self._publishers.values():
                 publisher.undeclare()

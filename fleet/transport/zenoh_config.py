@@ -46,11 +46,18 @@ def default_connect() -> str:
     return os.environ.get(CONNECT_ENV, DEFAULT_ROUTER)
 
 
+#: Where in Zenoh's Rust source an error was made: nothing a user can act on.
+_RUST_LOCATION = re.compile(r"\s+at \S+\.rs:\d+\.?")
+
+
 def error_text(error: BaseException) -> str:
-    """A Zenoh error's first line, without the Rust source location Zenoh appends."""
+    """A Zenoh error's first line, without the Rust source locations Zenoh appends (one
+    per error it wraps: "... [127.0.0.1:7447: Address already in use (os error 98) at
+    /root/.cargo/.../tcp.rs:61.] at /root/.cargo/.../unicast.rs:338.")."""
     text = str(error).strip()
     first = text.splitlines()[0] if text else type(error).__name__
-    return first.split("  at ")[0].split(" at /")[0].strip()
+    first = _RUST_LOCATION.sub("", first)
+    return first.replace("[", "(").replace("]", ")").rstrip(". ").strip()
 
 
 def check_endpoint(endpoint: str) -> str:

@@ -11,9 +11,14 @@ the same topics:
   it as JSON; here it is the SDK's own LocationFix (protobuf), which carries a heading
   and a colour too.
 
-One more topic, live only: `{prefix}/map/targets`, the current mission as GeoJSON
-(`map_layers`), sent when the mission changes and every second, so a client that
-connects late sees it.
+Three more topics, live only:
+
+* `{prefix}/map/targets`, the current mission as GeoJSON (`map_layers`), sent when the
+  mission changes and every second, so a client that connects late sees it;
+* `{prefix}/scene`, the fleet in 3D as a `foxglove.SceneUpdate` (`scene`): aircraft,
+  targets, tours and no-fly zones, sent with the map and at most every `SCENE_EVERY_S`
+  as the aircraft move;
+* `{prefix}/log`, every UAV's status text as a `foxglove.Log`, for the Log panel.
 
 What it hears is what `fleet record` hears, by the same tap (fleet.recording.bus_tap):
 bus callbacks only queue, one worker decodes and logs to the channels. A payload that
@@ -30,7 +35,7 @@ from collections import Counter
 from typing import Any
 
 import foxglove
-from foxglove.channels import GeoJsonChannel, LocationFixChannel
+from foxglove.channels import GeoJsonChannel, LocationFixChannel, LogChannel, SceneUpdateChannel
 from foxglove.messages import Color, GeoJson, LocationFix, Timestamp
 
 from fleet.mission import key_registry as reg
@@ -41,7 +46,7 @@ from fleet.recording.bus_tap import DEFAULT_STATE_EVERY_S, BusTap, Heard
 from fleet.recording.channels import ChannelSpec
 from fleet.transport import bus_codec
 from fleet.transport.bus import Bus
-from ground.foxglove_live import map_layers
+from ground.foxglove_live import map_layers, scene
 from ground.foxglove_live.map_layers import Fix, MissionMap
 
 log = logging.getLogger(__name__)
@@ -50,6 +55,8 @@ __all__ = ["DEFAULT_STATE_EVERY_S", "FoxgloveBridge", "location_fix"]
 
 #: How often the mission's GeoJSON is sent again while nothing changes.
 MAP_EVERY_S = 1.0
+#: How often the 3D scene is sent at most as the aircraft move.
+SCENE_EVERY_S = 0.25
 #: Samples waiting beyond this are dropped (and counted), not queued.
 QUEUE_LIMIT = 10_000
 #: Channels at most: keys beyond it (a publisher making up keys) are dropped and counted.
@@ -89,6 +96,10 @@ class FoxgloveBridge:
         self._fixes: dict[int, tuple[LocationFixChannel, str]] = {}
         self._map_channel: GeoJsonChannel | None = None
         self._last_map = 0.0
+        self._scene_channel: SceneUpdateChannel | None = None
+        self._log_channel: LogChannel | None = None
+        self._scene = scene.Scene()
+        self._scene_sent = 0.0
         self._lock = threading.Lock()
         self.map = MissionMap()
         #: Messages logged, per channel pattern (the map's topic for the GeoJSON).
@@ -125,6 +136,9 @@ class FoxgloveBridge:
         found.update({fix.topic(): channels.LOCATION_FIX for fix, _ in self._fixes.values()})
         if self._map_channel is not None:
             found[self._map_channel.topic()] = GeoJson.get_schema().name
+        for extra in (self._scene_channel, self._log_channel):
+            if extra is not None:
+                found[extra.topic()] = extra.schema_name() or ""
         return found
 
     # ---- the tap's sink (its worker thread) ---------------------------------------------------
@@ -139,6 +153,8 @@ class FoxgloveBridge:
         parsed = self._space.parse(heard.key)
         if parsed is not None and parsed.spec is reg.TELEMETRY:
             self._publish_fix(heard, value)
+        elif parsed is not None and parsed.spec is reg.STATUS:
+            self._publish_log(heard, value)
         elif parsed is not None and parsed.spec in _MISSION_KINDS:
             self._follow_mission(heard, _MISSION_KINDS[parsed.spec])
 
@@ -185,6 +201,34 @@ class FoxgloveBridge:
         channel.log(location_fix(fix), log_time=heard.time_ns)
         self._count(pattern)
         self.map.on_fix(fix)
+        if time.monotonic() - self._scene_sent >= SCENE_EVERY_S:
+            self._send_scene()
+
+    def _publish_log(self, heard: Heard, status: object) -> None:
+        try:
+            uav = uav_id_of(heard.key)
+        except (ValueError, IndexError):
+            return
+        entry = scene.status_log(status, uav, heard.time_ns)
+        if entry is None:
+            return
+        if self._log_channel is None:
+            topic = scene.log_topic(self._space.prefix)
+            self._log_channel = LogChannel(topic, context=self._context)
+        self._log_channel.log(entry, log_time=heard.time_ns)
+        self._count(self._log_channel.topic())
+
+    def _send_scene(self) -> None:
+        now = time.time_ns()
+        update = self._scene.update(self.map, now)
+        self._scene_sent = time.monotonic()
+        if update is None:
+            return
+        if self._scene_channel is None:
+            topic = scene.scene_topic(self._space.prefix)
+            self._scene_channel = SceneUpdateChannel(topic, context=self._context)
+        self._scene_channel.log(update, log_time=now)
+        self._count(self._scene_channel.topic())
 
     def _follow_mission(self, heard: Heard, kind: type[Any]) -> None:
         try:
@@ -205,6 +249,7 @@ class FoxgloveBridge:
 
     def _send_map(self) -> None:
         self._last_map = time.monotonic()
+        self._send_scene()
         if self.map.targets is None:
             return
         if self._map_channel is None:

@@ -31,6 +31,7 @@ from fleet.transport.cli import (
 )
 from fleet.transport.command import BusOptions, Command, OptionsError, set_handler
 from ground.foxglove_live.bridge import DEFAULT_STATE_EVERY_S, FoxgloveBridge
+from ground.foxglove_live.client_log import quiet_client_resets
 from ground.foxglove_live.gate import DEFAULT_ORIGINS, Gate, Rules, upstream_identity
 from ground.gui.cli import host_port
 
@@ -138,6 +139,7 @@ def foxglove_options(args: argparse.Namespace) -> FoxgloveOptions:
 
 def run(bus: Bus, options: FoxgloveOptions, out: TextIO) -> int:
     host, port = options.serve
+    quiet_client_resets()  # a client leaving is not an error
     context = foxglove.Context()
     certificate, key = upstream_identity()
     try:

@@ -110,6 +110,8 @@ class MissionMap:
     aborted: set[int] = field(default_factory=set)
     team_aborted: bool = False
     positions: dict[int, tuple[float, float]] = field(default_factory=dict)
+    #: Each UAV's latest fix (altitude and heading too: the 3D scene draws them).
+    fixes: dict[int, Fix] = field(default_factory=dict)
 
     @property
     def mission(self) -> int | None:
@@ -161,6 +163,7 @@ class MissionMap:
 
     def on_fix(self, fix: Fix) -> None:
         self.positions[fix.uav] = (fix.latitude, fix.longitude)
+        self.fixes[fix.uav] = fix
 
     def target_of(self, uav: int) -> int | None:
         """The index of the target `uav` flies to, if it still does: the first of its

@@ -6,7 +6,10 @@ A command arrives as one JSON object on the WebSocket, tagged by `cmd`:
     {"cmd": "abort", "id": 2}                 (the mission the page follows, else the latest)
     {"cmd": "opm", "id": 3, "uav": 74, "enabled": false}
 
-Each gets one reply `{"type": "reply", "id", "ok", "message"}`. A malformed command is
+Each gets one reply `{"type": "reply", "id", "ok", "message", "mission"}` when done; a
+page's (a string id) is also acknowledged as soon as it is read (`{"type": "ack", "id"}`).
+The page's ids are unique to the page and the press, so a command it sends again after
+a reconnect is answered, not done twice (`ground.gui.ledger`). A malformed command is
 refused with the reason and nothing is sent. Sending reuses the mission manager's own
 code (`ground.mission_control`): the same mission ids, the same MissionTargets, the
 same follower, the same targets queryable as `ground-cli send-targets`. The calls here
@@ -42,12 +45,14 @@ log = logging.getLogger(__name__)
 
 PiccoloId = Annotated[int, msgspec.Meta(ge=MIN_PICCOLO_ID, le=MAX_PICCOLO_ID)]
 MissionId = Annotated[int, msgspec.Meta(ge=0, le=MAX_MISSION_ID)]
+#: A page's id: unique to the page and the press; an integer: a script's, never remembered.
+CommandId = int | Annotated[str, msgspec.Meta(min_length=1, max_length=64)]
 
 
 class SendCommand(msgspec.Struct, frozen=True, tag="send", tag_field="cmd"):
     """Send targets; `deadline_s` None: the one that follows the team (consensus_deadline)."""
 
-    id: int
+    id: CommandId
     team: tuple[PiccoloId, ...]
     targets: tuple[Target, ...]
     deadline_s: Annotated[float, msgspec.Meta(gt=0, le=MAX_DEADLINE_S)] | None = None
@@ -56,13 +61,13 @@ class SendCommand(msgspec.Struct, frozen=True, tag="send", tag_field="cmd"):
 
 
 class AbortCommand(msgspec.Struct, frozen=True, tag="abort", tag_field="cmd"):
-    id: int
+    id: CommandId
     mission: MissionId | None = None
     uav: PiccoloId | None = None  #: one UAV alone; None: the whole team
 
 
 class OpmRequest(msgspec.Struct, frozen=True, tag="opm", tag_field="cmd"):
-    id: int
+    id: CommandId
     uav: PiccoloId
     enabled: bool
     status_rate_hz: Annotated[float, msgspec.Meta(ge=0, le=100)] = 1.0
@@ -85,14 +90,20 @@ def decode_command(data: str | bytes) -> Command:
 
 @dataclass(frozen=True)
 class Reply:
-    id: int | None
+    id: int | str | None
     ok: bool
     message: str
     mission: int | None = None
     aborted: bool = False
 
     def to_json(self) -> dict[str, Any]:
-        return {"type": "reply", "id": self.id, "ok": self.ok, "message": self.message}
+        return {
+            "type": "reply",
+            "id": self.id,
+            "ok": self.ok,
+            "message": self.message,
+            "mission": self.mission,
+        }
 
 
 class MissionDesk:
@@ -175,6 +186,19 @@ class MissionDesk:
                 return False
         assert self._follower is not None
         self._follower.fetch(timeout_s)
+        self._on_change()
+        return True
+
+    def follow_later(self, message: MissionTargets, timeout_s: float) -> bool:
+        """Follow `message`'s mission, heard on the bus from another ground, if it is later
+        than the one followed (the page follows the latest mission)."""
+        with self._lock:
+            if self._targets is not None and self._targets.mission >= message.mission:
+                return False
+            self._follow(message, serve=False)
+            follower = self._follower
+        assert follower is not None
+        follower.fetch(timeout_s)
         self._on_change()
         return True
 

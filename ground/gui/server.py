@@ -6,7 +6,8 @@ One aiohttp application on one event loop:
   package: no CDN, no JavaScript library);
 * `GET /ws`: one WebSocket per page, pushed the fleet snapshot (`ground.gui.snapshot`)
   at most `rate_hz` times a second, and taking the operator's commands
-  (`ground.gui.commands`);
+  (`ground.gui.commands`): each acknowledged as it is read and answered when done, on a
+  task of its own, so the reader never waits on the fleet (`ground.gui.ledger`);
 * `GET /api/fleet`: the live UAVs in the same JSON as `ground-cli uavs --json`
   (`UavView.to_json`, from the page's live `FleetView`);
 * `GET /api/mission`: the followed mission as `ground-cli send-targets --json` reports it;
@@ -51,15 +52,23 @@ import msgspec
 from aiohttp import WSCloseCode, WSMsgType, web
 
 from fleet.mission.key_space import KeySpace
-from fleet.mission.messages import Target
+from fleet.mission.messages import MissionTargets, Target
 from fleet.transport import bus_codec
-from fleet.transport.bus import Bus
+from fleet.transport.bus import Bus, BusSample, decode_sample
 from ground import targets_formats
 from ground.alerts import StatusRecord
 from ground.fleet_view import FleetView
 from ground.gui import zones_api
 from ground.gui.access import Access
-from ground.gui.commands import CommandError, MissionDesk, Reply, decode_command, execute
+from ground.gui.commands import (
+    Command,
+    CommandError,
+    MissionDesk,
+    Reply,
+    decode_command,
+    execute,
+)
+from ground.gui.ledger import CommandLedger
 from ground.gui.snapshot import Coalescer, GuiModel
 
 log = logging.getLogger(__name__)
@@ -69,6 +78,10 @@ STATIC_DIR = Path(str(files("ground.gui") / "static"))
 STATE_PERIOD_S = 1.0
 #: Largest targets file accepted by Load (bytes): 100,000 targets.
 MAX_UPLOAD = 2_400_000
+#: The server pings each page this often and closes a socket with no pong within half
+#: of it: long, as a loaded box's browser answers late, and a page whose socket closed
+#: reconnects (and re-sends what was not answered) anyway.
+HEARTBEAT_S = 30.0
 TOKEN_COOKIE = "fleet_gui_token"
 SESSION_COOKIE = "fleet_gui_session"
 _targets_decoder = msgspec.json.Decoder(list[Target])
@@ -109,6 +122,9 @@ class GuiServer:
         self._view: FleetView | None = None
         self._desk: MissionDesk | None = None
         self._coalescer: Coalescer | None = None
+        self._ledger: CommandLedger | None = None
+        #: Answers being sent: held here so that no task is collected before it ran.
+        self._answers: set[asyncio.Task[None]] = set()
 
     # ---- set-up ------------------------------------------------------------------------
     def app(self) -> web.Application:
@@ -134,6 +150,7 @@ class GuiServer:
     async def _fleet_context(self, app: web.Application) -> AsyncIterator[None]:
         loop = asyncio.get_running_loop()
         coalescer = self._coalescer = Coalescer(self._push, self.config.rate_hz)
+        self._ledger = CommandLedger()
 
         def on_status(status: StatusRecord) -> None:  # a bus thread
             loop.call_soon_threadsafe(self._on_status, status)
@@ -148,6 +165,13 @@ class GuiServer:
             stack.callback(tokens.undeclare)
             self._desk = MissionDesk(self.bus, self.space, coalescer.mark_threadsafe)
             stack.callback(self._desk.close)
+
+            # A mission another ground sends is followed as soon as it is heard.
+            def on_mission(sample: BusSample) -> None:  # a bus thread
+                loop.call_soon_threadsafe(self._on_mission_targets, sample)
+
+            missions = self.bus.subscribe(self.space.all_mission_targets, on_mission)
+            stack.callback(missions.undeclare)
             tasks = [
                 asyncio.create_task(coalescer.run()),
                 asyncio.create_task(self._poll_states()),
@@ -158,6 +182,23 @@ class GuiServer:
                 for task in tasks:
                     task.cancel()
                 await asyncio.gather(*tasks, return_exceptions=True)
+
+    def _on_mission_targets(self, sample: BusSample) -> None:
+        message = decode_sample(sample, MissionTargets)
+        desk = self._desk
+        if message is None or desk is None:
+            return
+        followed = desk.mission
+        if followed is None or message.mission > followed:
+            task = asyncio.create_task(self._follow_later(desk, message))
+            self._answers.add(task)
+            task.add_done_callback(self._answers.discard)
+
+    async def _follow_later(self, desk: MissionDesk, message: MissionTargets) -> None:
+        try:
+            await asyncio.to_thread(desk.follow_later, message, self.config.query_timeout_s)
+        except Exception:
+            log.exception("following mission %d failed", message.mission)
 
     def _on_status(self, status: StatusRecord) -> None:
         self.model.add_status(status)
@@ -279,33 +320,58 @@ class GuiServer:
                 await ws.send_str(text)
 
     async def _websocket(self, request: web.Request) -> web.WebSocketResponse:
-        ws = web.WebSocketResponse(heartbeat=10.0)
+        ws = web.WebSocketResponse(heartbeat=HEARTBEAT_S)
         await ws.prepare(request)
         # The whole status history first, then the live pushes.
         await ws.send_json({**self._snapshot([]), "statuses": self.model.all_statuses()})
         self.sockets.add(ws)
         try:
+            # Never awaits a command: each is answered by a task of its own, so this loop
+            # keeps reading the page (and the pongs that keep its socket open).
             async for message in ws:
                 if message.type == WSMsgType.TEXT:
-                    reply = await self._command(message.data)
+                    self._take(ws, message.data)
                 elif message.type == WSMsgType.BINARY:
                     self.commands_refused += 1
                     reply = Reply(None, False, "a binary message: commands are JSON text")
-                else:
-                    continue
-                await ws.send_json(reply.to_json())
+                    self._answer(ws, None, _done(reply))
         finally:
             self.sockets.discard(ws)
         return ws
 
-    async def _command(self, data: str) -> Reply:
-        assert self._view is not None and self._desk is not None and self._coalescer
+    def _take(self, ws: web.WebSocketResponse, data: str) -> None:
+        """Acknowledge a command and have it carried out in its turn (or, sent again
+        after a reconnect, answered with its first execution's reply)."""
+        assert self._ledger is not None
         try:
             command = decode_command(data)
         except CommandError as error:
             self.commands_refused += 1
             log.warning("refused a command from the page: %s", error)
-            return Reply(None, False, str(error))
+            self._answer(ws, None, _done(Reply(None, False, str(error))))
+            return
+        outcome = self._ledger.submit(command.id, lambda: self._command(command))
+        self._answer(ws, command.id, outcome)
+
+    def _answer(
+        self, ws: web.WebSocketResponse, command_id: int | str | None, outcome: Awaitable[Reply]
+    ) -> None:
+        async def answer() -> None:
+            with contextlib.suppress(ConnectionError, RuntimeError):
+                # A page's command (a string id) is acknowledged as soon as it is read; a
+                # script's (an integer id) gets its reply alone, as it always did.
+                if isinstance(command_id, str):
+                    await ws.send_json({"type": "ack", "id": command_id})
+                reply = await asyncio.shield(outcome)
+                if not ws.closed:
+                    await ws.send_json(reply.to_json())
+
+        task = asyncio.create_task(answer())
+        self._answers.add(task)
+        task.add_done_callback(self._answers.discard)
+
+    async def _command(self, command: Command) -> Reply:
+        assert self._view is not None and self._desk is not None and self._coalescer
         try:
             reply = await asyncio.to_thread(
                 execute, self.bus, self._desk, command, set(self._view.live_ids())
@@ -317,6 +383,12 @@ class GuiServer:
             self.model.aborted.add(reply.mission)
         self._coalescer.mark()
         return reply
+
+
+def _done(reply: Reply) -> asyncio.Future[Reply]:
+    future: asyncio.Future[Reply] = asyncio.get_running_loop().create_future()
+    future.set_result(reply)
+    return future
 
 
 async def serve(bus: Bus, config: GuiConfig, on_ready: Callable[[str], None]) -> None:

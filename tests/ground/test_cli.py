@@ -25,12 +25,14 @@ from fleet.mission.messages import (
     MissionAbort,
     MissionTargets,
     OpmCommand,
+    RouterState,
     StatusText,
     Target,
     UavResult,
 )
 from fleet.mission.phase import Phase
 from fleet.mission.status_kind import StatusKind
+from fleet.transport.bus import Bus
 from fleet.transport.bus_factory import opened_bus
 from fleet.transport.zenoh_config import CONFIG_ENV, CONNECT_ENV
 from ground.fleet_commands import WatchOptions, run_watch
@@ -443,3 +445,40 @@ def test_outcome_json_fills_nulls_for_silent_uavs() -> None:
     assert out["unassigned"] == [0, 1]
     assert out["agreed"] is False
     assert out["missing_results"] == [2]
+
+
+# ---- routers (each secure router's refused links) -------------------------------------------
+class _Router:
+    """A router's state query, answered on the bus (as fleet/transport/router.py does)."""
+
+    def __init__(self, bus: Bus, state: RouterState) -> None:
+        self.state = state
+        self.queryable = bus.declare_queryable(SPACE.router_state(), self._answer)
+
+    def _answer(self) -> None:
+        while (query := self.queryable.try_recv()) is not None:
+            query.reply(SPACE.router_state(), self.state)
+            query.drop()
+
+
+def test_routers_lists_each_router_that_answers_once_by_zid(router: str) -> None:
+    with opened_bus(router) as bus:
+        assert run_cli("routers", endpoint=router).stdout == "no secure router answered\n"
+        # Both answer on one key (a mesh has several routers): each reply is kept.
+        answering = [
+            _Router(bus, RouterState("b2", {"no_certificate": 2})),
+            _Router(bus, RouterState("a1", {})),
+        ]
+        listed = run_cli("routers", endpoint=router)
+        assert listed.returncode == 0, listed.stderr
+        assert listed.stdout.splitlines() == [
+            "router a1: refused links: none",
+            "router b2: refused links: no_certificate=2",
+        ]
+        as_json = json.loads(run_cli("routers", "--json", endpoint=router).stdout)
+        for answer in answering:
+            answer.queryable.undeclare()
+    assert as_json == [
+        {"identity": None, "zid": "a1", "refused_links": {}},
+        {"identity": None, "zid": "b2", "refused_links": {"no_certificate": 2}},
+    ]

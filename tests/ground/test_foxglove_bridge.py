@@ -102,6 +102,9 @@ def test_the_fleet_goes_on_the_recorders_topics(live: Live) -> None:
         SPACE.mission_targets(5): "MissionTargets",
         SPACE.mission_assignment(5, 74): "AssignmentReport",
         "fleet/map/targets": "foxglove.GeoJSON",
+        # Live only: the fleet in 3D and the status texts for the Log panel.
+        "fleet/scene": "foxglove.SceneUpdate",
+        "fleet/log": "foxglove.Log",
     }
     # Every bus key on the recorder's channel: its topic, schema name and the JSON as put.
     for key in (SPACE.telemetry(74), SPACE.status(74), SPACE.mission_targets(5)):

@@ -180,6 +180,35 @@ def reached_on_the_map(client: Child) -> bool:
     return states.get(0) == states.get(1) == "reached"
 
 
+def scene_complete(client: Child) -> bool:
+    """Whether the latest SceneUpdate holds both UAVs (arrows), the mission's three
+    targets (spheres), and nothing but in the frame `fleet`, after deleting all."""
+    updates = [
+        e["message"] for e in events(client, "message") if e["schemaName"] == "foxglove.SceneUpdate"
+    ]
+    if not updates:
+        return False
+    latest = updates[-1]
+    found = {entity["id"]: entity for entity in latest["entities"]}
+    uavs = {f"uav/{uav}" for uav in TEAM}
+    targets = {f"target/1/{index}" for index in range(3)}
+    if not uavs | targets <= set(found):
+        return False
+    assert all(entity["frameId"] == "fleet" for entity in latest["entities"])
+    assert all(len(found[uav]["arrows"]) == 1 for uav in uavs)
+    assert all(len(found[target]["spheres"]) == 1 for target in targets)
+    assert latest["deletions"][0]["type"] == 1  # ALL: the scene is replaced whole
+    return True
+
+
+def check_logs(client: Child) -> None:
+    """The UAVs' status texts came as foxglove.Log, each named for its UAV."""
+    logs = [e["message"] for e in events(client, "message") if e["schemaName"] == "foxglove.Log"]
+    assert logs, "no status text on the Log topic"
+    assert {log["name"] for log in logs} <= {f"uav{uav}" for uav in TEAM}
+    assert all(log["message"] and log["level"] in (2, 3, 4) for log in logs)
+
+
 def test_a_foxglove_client_sees_the_fleet_as_the_bus_and_the_recorder_do(tmp_path: Path) -> None:
     port = free_port()
     endpoint = f"tcp/127.0.0.1:{port}"
@@ -202,9 +231,12 @@ def test_a_foxglove_client_sees_the_fleet_as_the_bus_and_the_recorder_do(tmp_pat
             children.append(fixes)
             check_fixes(fixes, observer)
 
-            # A mission: its targets, assignment and arrivals on the map.
+            # A mission: its targets, assignment and arrivals on the map, in 3D, and what
+            # the UAVs said on the Log panel's topic.
             the_map = node_client(url, "--topics", "/map/targets$", "--count", "0")
             children.append(the_map)
+            scene_and_log = node_client(url, "--topics", "^fleet/(scene|log)$", "--count", "0")
+            children.append(scene_and_log)
             targets = str(files("fleet") / "scenarios" / "head_on_targets.bin")
             sent = subprocess.run(
                 [sys.executable, "-m", "ground.cli", "--connect", endpoint, "send-targets",
@@ -216,10 +248,15 @@ def test_a_foxglove_client_sees_the_fleet_as_the_bus_and_the_recorder_do(tmp_pat
                 lambda: set(uav_phases(endpoint).values()) == {"reached"}, 150.0, "both reached"
             )
             wait_until(lambda: reached_on_the_map(the_map), 30.0, "the map to show both reached")
+            wait_until(lambda: scene_complete(scene_and_log), 30.0, "the 3D scene of the mission")
+            check_logs(scene_and_log)
             # Stopped together, so that both heard the same keys.
             stop_children([record, fox], 10.0)
             assert record.process.returncode == 0, "\n".join(record.history[-10:])
             assert fox.process.returncode == 0, "\n".join(fox.history[-10:])
+            # Its clients left (each node client exits without a closing handshake, as a
+            # closed tab does): news, not errors.
+            assert not [line for line in fox.history if " ERROR " in line], fox.history[-10:]
     finally:
         stop_children([*reversed(children), up], 10.0)
 
@@ -234,6 +271,8 @@ def test_a_foxglove_client_sees_the_fleet_as_the_bus_and_the_recorder_do(tmp_pat
     assert live == {
         **{t: name for t, name in recorded.items() if t in live},
         "fleet/map/targets": "foxglove.GeoJSON",
+        "fleet/scene": "foxglove.SceneUpdate",
+        "fleet/log": "foxglove.Log",
     }
     assert {f"fleet/uav/{uav}/location_fix" for uav in TEAM} <= set(live)
     assert {"fleet/mission/1/targets", "fleet/uav/74/state", "fleet/uav/112/status"} <= set(live)

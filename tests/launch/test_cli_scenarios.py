@@ -39,10 +39,13 @@ def test_fleet_demo_runs_the_thesis_multi_uav_scenario(tmp_path: Path) -> None:
     outcome = json.loads(done.stdout)
     assert outcome["agreed"] is True and outcome["success"] is True
     assert outcome["assignment"] == {"74": 0, "112": 1}
-    # Target 2 is queued behind a first target (issue 23): nobody's is unserved.
+    # Target 2 is queued behind a first target: nobody's is unserved.
     queued = sorted(t for queue in outcome["queues"].values() for t in queue)
     assert outcome["unassigned"] == [] and queued == [0, 1, 2]
     assert set(outcome["reached"]) == {"74", "112"} and all(outcome["reached"].values())
+    # Whole queues flown: every target reached, each by the UAV whose queue holds it.
+    holder = {t: int(uav) for uav, queue in outcome["queues"].items() for t in queue}
+    assert {int(t): a["uav"] for t, a in outcome["arrivals"].items()} == holder
     # It recorded the run and drew the mission from the recording.
     assert outcome["plot"] == str(tmp_path / "mission.png")
     assert (tmp_path / "mission.png").read_bytes()[:4] == b"\x89PNG"

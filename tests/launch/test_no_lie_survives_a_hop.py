@@ -15,6 +15,7 @@ import json
 import math
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -23,11 +24,21 @@ from typing import Any
 import pytest
 import zenoh
 
+from fleet.files.certs import IdentityFiles, tls_settings
 from fleet.geo.aircraft import AircraftLimits
-from fleet.mission.messages import RouterState, TargetOutcome, UavResult, UavState
+from fleet.launch.endpoints import free_port
+from fleet.mission.messages import (
+    RouterState,
+    StatusText,
+    TargetOutcome,
+    UavResult,
+    UavState,
+)
 from fleet.mission.phase import Phase
+from fleet.mission.status_kind import StatusKind
 from fleet.mission.target_checks import REACHED_RADIUS_M
 from fleet.mission.targets_file import decode_targets
+from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.zenoh_config import make_config
 from tests.support import signed
@@ -203,3 +214,55 @@ def test_a_revoked_identitys_open_session_is_refused_within_seconds(secure: Sign
 
         wait_until(refused, 30.0, "112 refusing the revoked UAV 300")
         assert time.monotonic() - since < 30.0
+
+
+# ---- a captured UAV router as the ground's router ---------------------------------------------
+def test_a_rogue_router_cannot_invent_an_aircraft_a_position_or_a_status(
+    secure: SignedFleet,
+) -> None:
+    """A router holding `router-74`'s key, meshed with the fleet's router, is the one the
+    ground connects to (a UAV router as a fallback). It puts UAV 112 at 10 N 10 E, an
+    "engine fire" status from 112, and a ghost UAV 299 (telemetry and a liveliness token).
+    `ground-cli watch` shows the real 74 and 112, where they are, and none of it."""
+    rogue_endpoint = f"tls/127.0.0.1:{free_port()}"
+    config = make_config("router", [secure.endpoint], [rogue_endpoint])
+    tls = tls_settings(IdentityFiles(secure.certs, "router-74"))
+    config.insert_json5("transport/link/tls", json.dumps(tls))
+    nowhere = Telemetry(1000, gps=GpsBlock(10.0, 10.0, 600.0, 0.0, 0.0, 0.0))
+    fire = StatusText("engine fire", StatusKind.ERROR)
+    with zenoh.open(config) as rogue:
+        token = rogue.liveliness().declare_token(SPACE.alive(299))
+        stop = threading.Event()
+
+        def inject() -> None:
+            while not stop.wait(0.1):
+                rogue.put(SPACE.telemetry(112), encode(nowhere), encoding=ENCODING)
+                rogue.put(SPACE.telemetry(299), encode(nowhere), encoding=ENCODING)
+                rogue.put(SPACE.status(112), encode(fire), encoding=ENCODING)
+
+        injector = threading.Thread(target=inject, daemon=True)
+        injector.start()
+        try:
+            shown = subprocess.run(
+                [sys.executable, "-m", "ground.cli", "--zenoh-config",
+                 str(secure.certs / "ground.json5"), "--connect", rogue_endpoint,
+                 "watch", "--duration", "6"],
+                capture_output=True, text=True, timeout=120, check=False,
+            )  # fmt: skip
+        finally:
+            stop.set()
+            injector.join(5.0)
+            token.undeclare()
+    assert shown.returncode == 0, shown.stderr[-3000:]
+    rows = {line.split()[0]: line.split() for line in shown.stdout.splitlines() if line.strip()}
+    assert "engine fire" not in shown.stdout, shown.stdout[-2000:]
+    assert "299" not in rows, shown.stdout[-2000:]
+    assert "112" in rows and "74" in rows, shown.stdout[-2000:]
+    # The real telemetry, vouched for by 112's signed digests, is shown; the forged is not.
+    shown_at = [
+        float(cells[1])
+        for cells in map(str.split, shown.stdout.splitlines())
+        if cells and cells[0] == "112" and cells[1] != "-"
+    ]
+    assert shown_at, shown.stdout[-2000:]
+    assert all(abs(lat - 35.7) < 0.5 for lat in shown_at), f"112 shown at {shown_at}"

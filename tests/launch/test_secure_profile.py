@@ -316,3 +316,29 @@ def test_the_grounds_abort_and_opm_commands_go_through(secure_fleet: SecureFleet
     for state in ("off", "on"):  # each waits for the UAV's status confirming it
         switched = secure_fleet.ground_cli("opm", "112", state)
         assert switched.returncode == 0, switched.stderr
+
+
+@pytest.mark.e2e
+def test_the_uavs_state_reaches_the_routers_session_without_zenoh_errors(
+    secure_fleet: SecureFleet,
+) -> None:
+    """Each UAV puts its state once a second; `fleet up`'s router hears it (its recorder
+    subscribes there). When `fleet up` undeclared the subscriptions it waited for the
+    fleet with on the router's session, Zenoh dropped each of these puts there with
+    "Received Data for unknown key_expr" (twice a second for a whole secure run): none
+    now, after a dozen states were put."""
+    puts: list[str] = []
+    lock = threading.Lock()
+
+    def on_state(sample: zenoh.Sample) -> None:
+        with lock:
+            puts.append(str(sample.key_expr))
+
+    with secure_fleet.session("ground") as session:
+        subscriber = session.declare_subscriber(SPACE.all_state, on_state)
+        try:
+            wait_until(lambda: len(puts) >= 12, 60.0, "a dozen state puts")
+        finally:
+            subscriber.undeclare()
+    errors = [line for line in secure_fleet.up.history if "unknown key_expr" in line]
+    assert not errors, errors[:3]

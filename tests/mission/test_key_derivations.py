@@ -93,8 +93,11 @@ POLICY_74 = [
     ("fleet-read", ("ground", "uav-74", "router-74"), ("ingress",), _READ, {"fleet/**"}),
     (
         "ground-command", ("ground",), ("ingress",), ("put",),
-        # The roster: a revocation put to the running fleet.
-        {"fleet/mission/*/abort", "fleet/mission/*/targets", "fleet/uav/*/opm", "fleet/roster"},
+        # The roster: a revocation put to the running fleet; a proposed plan.
+        {
+            "fleet/mission/*/abort", "fleet/mission/*/targets", "fleet/uav/*/opm",
+            "fleet/roster", "fleet/mission/*/proposal",
+        },
     ),
     ("ground-query", ("ground",), ("ingress",), ("query",), {"@/**", "fleet/**"}),
     (

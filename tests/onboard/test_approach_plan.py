@@ -14,6 +14,7 @@ from fleet.mission.messages import (
     UavResult,
 )
 from fleet.mission.status_kind import StatusKind
+from fleet.piccolo.telemetry import Telemetry
 from onboard.approach_plan import plan_status
 from onboard.core import (
     OnboardCore,
@@ -71,15 +72,23 @@ def test_the_planning_budget_grows_with_the_missions_deadline() -> None:
     assert [r.budget_s for r in planner.requests] == [2.0, 15.0]
 
 
-def test_the_plan_is_asked_in_the_smoothed_reported_wind() -> None:
+def windy_core(**sensor: float) -> tuple[OnboardCore, ScriptedPlanner, Telemetry, Telemetry]:
+    """A core, its planner, the sample telemetry, and that telemetry in a wind of 6 m/s
+    toward the east (wind_west = -6) and 2 toward the north (wind_south = -2), its air
+    data changed by `sensor`."""
     planner = ScriptedPlanner((80.0, 40.0, 60.0))
     core = OnboardCore(uav_id=112, outputs=Recorder(), planner=planner)
     telemetry = sample_telemetry()
     assert telemetry.gps is not None and telemetry.sensor is not None
-    # 6 m/s toward the east (wind_west = -6) and 2 toward the north (wind_south = -2).
     windy = msgspec.structs.replace(
-        telemetry, sensor=msgspec.structs.replace(telemetry.sensor, wind_south=-2.0, wind_west=-6.0)
+        telemetry,
+        sensor=msgspec.structs.replace(telemetry.sensor, wind_south=-2.0, wind_west=-6.0, **sensor),
     )
+    return core, planner, telemetry, windy
+
+
+def test_the_plan_is_asked_in_the_smoothed_reported_wind() -> None:
+    core, planner, telemetry, windy = windy_core()
     core.on_telemetry(windy, 0.0)
     core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 0.1)
     # A calm report 2 s later moves the estimate by 1 - exp(-2 / 20) of the way.
@@ -96,16 +105,7 @@ def test_the_plan_is_asked_in_the_smoothed_reported_wind() -> None:
 
 
 def test_without_air_data_the_airspeed_is_the_ground_velocity_less_the_wind() -> None:
-    planner = ScriptedPlanner((80.0, 40.0, 60.0))
-    core = OnboardCore(uav_id=112, outputs=Recorder(), planner=planner)
-    telemetry = sample_telemetry()
-    assert telemetry.gps is not None and telemetry.sensor is not None
-    no_pitot = msgspec.structs.replace(
-        telemetry,
-        sensor=msgspec.structs.replace(
-            telemetry.sensor, wind_south=-2.0, wind_west=-6.0, indicated_airspeed=0.0
-        ),
-    )
+    core, planner, _, no_pitot = windy_core(indicated_airspeed=0.0)
     core.on_telemetry(no_pitot, 0.0)
     core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 0.1)
     (request,) = planner.requests

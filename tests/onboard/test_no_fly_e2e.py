@@ -9,6 +9,7 @@ import json
 import math
 import subprocess
 import sys
+from collections.abc import Callable
 from importlib.resources import files
 from pathlib import Path
 
@@ -67,16 +68,32 @@ def sim_child(fleet: Fleet) -> Child:
     return next(c for c in fleet.children if c.name == "fleet sim")
 
 
+def fly_with(
+    fleet: Fleet,
+    ground: Ground,
+    tmp_path: Path,
+    where: tuple[tuple[int, int], ...],
+    name: str,
+    speedup: float = 10.0,
+    before_onboard: Callable[[], None] = lambda: None,
+) -> subprocess.CompletedProcess[str]:
+    """UAV 112 simulated with one zone at `where`, its onboard up and heard, the mission
+    sent with that zone: `ground-cli send-targets --wait`'s answer (it exited 0)."""
+    targets, zones = files_for(tmp_path, (zone(where, name),))
+    endpoints = fleet.sim("single_uav", speedup, 5.0, "--no-fly", str(zones))
+    before_onboard()
+    fleet.onboard(112, endpoints[112], ground.router)
+    wait_until(lambda: 112 in ground.seen.telemetry, 30.0, "telemetry from UAV 112")
+    done = send(ground, targets, zones)
+    assert done.returncode == 0, done.stderr
+    return done
+
+
 def test_a_target_behind_a_zone_is_reached_with_no_incursion(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    targets, zones = files_for(tmp_path, (zone(BETWEEN, "between"),))
-    endpoints = fleet.sim("single_uav", 10.0, 5.0, "--no-fly", str(zones))
-    fleet.onboard(112, endpoints[112], ground.router)
+    done = fly_with(fleet, ground, tmp_path, BETWEEN, "between")
     seen = ground.seen
-    wait_until(lambda: 112 in seen.telemetry, 30.0, "telemetry from UAV 112")
-    done = send(ground, targets, zones)
-    assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout)["agreed"] is True
     assert any("1 routed around no-fly zones" in s for s in seen.statuses(112))
     wait_until(
@@ -97,14 +114,12 @@ def test_a_target_behind_a_zone_is_reached_with_no_incursion(
 def test_an_aircraft_inside_a_zone_is_an_error_on_the_ground_and_in_the_simulator_log(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    targets, zones = files_for(tmp_path, (zone(AROUND_START, "start"),))
-    endpoints = fleet.sim("single_uav", 10.0, 5.0, "--no-fly", str(zones))
-    sim_child(fleet).wait_for_line(lambda s: "UAV 112 entered no-fly zone 0 (start)" in s, 30.0)
-    fleet.onboard(112, endpoints[112], ground.router)
+    def entered() -> None:
+        line = "UAV 112 entered no-fly zone 0 (start)"
+        sim_child(fleet).wait_for_line(lambda s: line in s, 30.0)
+
+    fly_with(fleet, ground, tmp_path, AROUND_START, "start", before_onboard=entered)
     seen = ground.seen
-    wait_until(lambda: 112 in seen.telemetry, 30.0, "telemetry from UAV 112")
-    done = send(ground, targets, zones)
-    assert done.returncode == 0, done.stderr
 
     def incursions() -> list[str]:
         return [
@@ -137,13 +152,8 @@ def local_fix(t: Telemetry) -> tuple[float, float]:
 def test_after_its_last_target_the_aircraft_loiters_with_no_fix_inside_a_zone(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    targets, zones = files_for(tmp_path, (zone(AFTER_TARGET, "after"),))
-    endpoints = fleet.sim("single_uav", 10.0, 5.0, "--no-fly", str(zones))
-    fleet.onboard(112, endpoints[112], ground.router)
+    fly_with(fleet, ground, tmp_path, AFTER_TARGET, "after")
     seen = ground.seen
-    wait_until(lambda: 112 in seen.telemetry, 30.0, "telemetry from UAV 112")
-    done = send(ground, targets, zones)
-    assert done.returncode == 0, done.stderr
     wait_until(
         lambda: any(o.phase == Phase.REACHED for o in seen.outcomes_of(112)),
         120.0,
@@ -175,14 +185,9 @@ def test_after_its_last_target_the_aircraft_loiters_with_no_fix_inside_a_zone(
 def test_an_aircraft_inside_a_zone_leaves_it_by_the_shortest_way_and_flies_its_target(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    targets, zones = files_for(tmp_path, (zone(AROUND_START, "start"),))
     # Slow, so that it is still deep inside the zone when the mission arrives.
-    endpoints = fleet.sim("single_uav", 2.0, 5.0, "--no-fly", str(zones))
-    fleet.onboard(112, endpoints[112], ground.router)
+    done = fly_with(fleet, ground, tmp_path, AROUND_START, "start", speedup=2.0)
     seen = ground.seen
-    wait_until(lambda: 112 in seen.telemetry, 30.0, "telemetry from UAV 112")
-    done = send(ground, targets, zones)
-    assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout)
     assert report["agreed"] is True
     assert {s["state"] for s in report["target_states"]} == {"assigned"}  # still offered

@@ -25,8 +25,8 @@ from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from fleet.piccolo.track import Track
 from fleet.recording import channels
-from fleet.recording.mission_log import build_timeline
-from fleet.recording.plot import PlotError, parse_at, render
+from fleet.recording.mission_log import Timeline, build_timeline
+from fleet.recording.plot import PlotError, arrival_bars, mission_window, panels, parse_at, render
 from fleet.recording.reader import RecordedMessage
 from fleet.recording.report import report_json, report_lines
 
@@ -237,20 +237,11 @@ def test_the_mission_s_zones_are_read_and_drawn_under_the_tracks(tmp_path: Path)
     assert build_timeline([bad]).undecodable == 1
 
 
-def test_a_tour_s_legs_predicted_and_flown(tmp_path: Path) -> None:
-    """UAV 1 queues targets 0 then 1 (issue 23): each leg's predicted time from the
-    plan's arrivals, its flown time on the aircraft's clock between reached outcomes."""
+def tour_of_two() -> Timeline:
+    """UAV 1 queues targets 0 then 1, planned to arrive at 45 s and 120 s, and reaches
+    them at 7 s and 12 s on its clock (each leg flown in 50 s of telemetry time)."""
     tour = AssignmentReport(
-        mission=5,
-        uav=1,
-        target=0,
-        pairs={1: 0},
-        unassigned=(),
-        team=(1,),
-        digest="d1",
-        eta_s=45.0,
-        queues={1: (0, 1)},
-        arrivals={1: (45.0, 120.0)},
+        5, 1, 0, {1: 0}, (), (1,), "d1", eta_s=45.0, queues={1: (0, 1)}, arrivals={1: (45.0, 120.0)}
     )
     messages = [
         *(telemetry(t, 1, 35.72, -120.80 + 0.004 * t, 100 + 10 * t) for t in range(0, 14)),
@@ -259,7 +250,13 @@ def test_a_tour_s_legs_predicted_and_flown(tmp_path: Path) -> None:
         message(7.0, "fleet/mission/5/outcome/1", TargetOutcome(5, 1, 0, Phase.REACHED)),
         message(12.0, "fleet/mission/5/outcome/1", TargetOutcome(5, 1, 1, Phase.REACHED)),
     ]
-    timeline = build_timeline(messages)
+    return build_timeline(messages)
+
+
+def test_a_tour_s_legs_predicted_and_flown(tmp_path: Path) -> None:
+    """UAV 1 queues targets 0 then 1 (issue 23): each leg's predicted time from the
+    plan's arrivals, its flown time on the aircraft's clock between reached outcomes."""
+    timeline = tour_of_two()
     (log,) = timeline.missions
     assert log.legs(1, timeline.tracks) == [
         {"target": 0, "predicted_s": 45.0, "flown_s": 50.0},
@@ -278,17 +275,7 @@ def test_a_tour_s_legs_predicted_and_flown(tmp_path: Path) -> None:
 def test_every_leg_off_by_more_than_10_percent_is_flagged() -> None:
     """Target 1's leg was predicted 75 s and flown in 50 s: +50 %, flagged in the text
     and the JSON; target 0's (45 s predicted, 50 s flown: -10 %) is not."""
-    tour = AssignmentReport(
-        5, 1, 0, {1: 0}, (), (1,), "d1", eta_s=45.0, queues={1: (0, 1)}, arrivals={1: (45.0, 120.0)}
-    )
-    messages = [
-        *(telemetry(t, 1, 35.72, -120.80 + 0.004 * t, 100 + 10 * t) for t in range(0, 14)),
-        message(1.0, "fleet/mission/5/targets", MissionTargets(5, (1,), TARGETS)),
-        message(2.0, "fleet/mission/5/assignment/1", tour),
-        message(7.0, "fleet/mission/5/outcome/1", TargetOutcome(5, 1, 0, Phase.REACHED)),
-        message(12.0, "fleet/mission/5/outcome/1", TargetOutcome(5, 1, 1, Phase.REACHED)),
-    ]
-    timeline = build_timeline(messages)
+    timeline = tour_of_two()
     legs = report_json(timeline)["missions"][0]["legs"]["1"]
     assert [(leg["off"], leg["error"]) for leg in legs] == [(False, -0.1), (True, 0.5)]
     lines = report_lines(timeline)
@@ -319,3 +306,88 @@ def test_a_tour_after_a_re_plan_has_the_dropped_uav_s_targets(tmp_path: Path) ->
     assert log.queue_of(1) == (0, 1)
     assert log.queue_of(2) == (1,)
     assert log.assignments[1].epoch == 0  # the commitment itself is unchanged
+
+
+def test_the_arrival_chart_has_every_queued_target(tmp_path: Path) -> None:
+    """A queue of two: both targets in the chart, predicted and flown from commitment."""
+    tour = AssignmentReport(
+        5, 1, 0, {1: 0}, (), (1,), "d1", eta_s=45.0,
+        queues={1: (0, 1)}, arrivals={1: (45.0, 120.0)},
+    )  # fmt: skip
+    messages = [
+        *(telemetry(t, 1, 35.72, -120.80 + 0.004 * t, 100 + 10 * t) for t in range(0, 14)),
+        message(1.0, "fleet/mission/5/targets", MissionTargets(5, (1,), TARGETS)),
+        message(2.0, "fleet/mission/5/assignment/1", tour),
+        message(7.0, "fleet/mission/5/outcome/1", TargetOutcome(5, 1, 0, Phase.REACHED)),
+        message(12.0, "fleet/mission/5/outcome/1", TargetOutcome(5, 1, 1, Phase.REACHED)),
+    ]
+    timeline = build_timeline(messages)
+    (log,) = timeline.missions
+    assert arrival_bars(log, timeline.tracks) == [(1, 0, 45.0, 50.0), (1, 1, 120.0, 100.0)]
+    # One target each, no queue in the plan: its ETA and the time flown.
+    (single,) = build_timeline(mission_messages()).missions
+    tracks = build_timeline(mission_messages()).tracks
+    assert arrival_bars(single, tracks) == [(1, 0, 45.0, pytest.approx(50.0)), (2, 1, 30.0, None)]
+
+
+def test_panels_come_in_time_order() -> None:
+    """UAV 1 reaches its target (5 s) before UAV 2 changes course (6 s)."""
+    messages = [
+        message(1.0, "fleet/mission/5/targets", MissionTargets(5, TEAM, TARGETS)),
+        message(2.0, "fleet/mission/5/assignment/1", report(1, 0, 45.0)),
+        message(2.5, "fleet/mission/5/assignment/2", report(2, 1, 30.0)),
+        message(3.0, "fleet/uav/1/track", Track(90)),
+        message(5.0, "fleet/uav/1/status", StatusText("arrived", StatusKind.REACHED, 5, 0)),
+        message(6.0, "fleet/uav/2/track", Track(90)),
+    ]
+    timeline = build_timeline(messages)
+    (log,) = timeline.missions
+    chosen = panels(timeline, log, [])
+    assert [p.title for p in chosen] == ["sent", "committed", "reached", "course change"]
+    asked = panels(timeline, log, [4.0, "sent"])
+    assert [p.title for p in asked] == ["sent", "t = 4 s"]
+
+
+def test_each_mission_s_panels_draw_its_own_tracks_only() -> None:
+    """Mission 6 is sent at 20 s: its panels hold the track from then on, not before."""
+    messages = [
+        *(telemetry(t, 1, 35.72, -120.80 + 0.004 * t, 100 + 10 * t) for t in range(0, 30)),
+        message(1.0, "fleet/mission/5/targets", MissionTargets(5, (1,), TARGETS)),
+        message(20.0, "fleet/mission/6/targets", MissionTargets(6, (1,), TARGETS)),
+    ]
+    timeline = build_timeline(messages)
+    first, second = timeline.missions
+    track = timeline.tracks[1]
+    assert [track.times[i] for i in mission_window(track, first)] == [
+        float(t) for t in range(1, 21)
+    ]
+    assert track.times[mission_window(track, second).start] == 20.0
+
+
+def test_an_earlier_mission_s_arrival_is_not_this_one_s() -> None:
+    """UAV 1, still flying mission 4, commits to mission 5 and then says it reached
+    mission 4's target: mission 5's target is not reached by that."""
+    said = StatusText("reached target 0", StatusKind.REACHED, 4, 0)
+    messages = [
+        *(telemetry(t, 1, 35.72, -120.80 + 0.004 * t, 100 + 10 * t) for t in range(0, 12)),
+        message(1.0, "fleet/mission/5/targets", MissionTargets(5, TEAM, TARGETS)),
+        message(2.0, "fleet/mission/5/assignment/1", report(1, 0, 45.0)),
+        message(2.2, "fleet/uav/1/status", said),
+    ]
+    (log,) = build_timeline(messages).missions
+    assert log.reached == {} and log.flown_s == {}
+
+
+def test_no_telemetry_between_commit_and_arrival_is_no_time_flown_not_zero() -> None:
+    """The recording lost UAV 1's telemetry from 1 s to 9 s: its flight is not 0 s."""
+    messages = [
+        telemetry(0.0, 1, 35.72, -120.80, 100.0),
+        message(1.0, "fleet/mission/5/targets", MissionTargets(5, (1,), TARGETS)),
+        message(2.0, "fleet/mission/5/assignment/1", report(1, 0, 45.0)),
+        message(8.0, "fleet/uav/1/status", StatusText("arrived", StatusKind.REACHED, 5, 0)),
+        telemetry(9.0, 1, 35.72, -120.76, 190.0),
+    ]
+    timeline = build_timeline(messages)
+    (log,) = timeline.missions
+    assert log.reached == {1: 8.0} and log.flown_s == {}
+    assert any("flown -" in line for line in report_lines(timeline))

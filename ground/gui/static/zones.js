@@ -1,25 +1,28 @@
 // No-fly zones on the Mission Manager's page: draw a polygon, load or save GeoJSON, send
 // them with the targets; the followed mission's zones and each UAV's planned route around
-// them on the map. Loaded before app.js, whose `state`, `toXY`, `el`, `$` it uses when
-// called. The server checks every zone (ground/gui/zones_api.py, ground/gui/commands.py).
-'use strict';
+// them on the map. The server checks every zone (ground/gui/zones_api.py,
+// ground/gui/commands.py).
+import { clientToMap, toLatLon, toXY } from './frame.js';
+import { colourOf, distance, el, html, notice } from './helpers.js';
+import { render } from './map.js';
+import { $, state, withToken } from './state.js';
 
-const zones = {
+export const zones = {
   draft: [],      // the operator's zones: {name, ring: [[lat, lon], ...]} (sent with the targets)
   drawing: null,  // the polygon being drawn: [[lat, lon], ...], or null
 };
 
 // The zones shown: the draft, else the followed mission's.
-function shownZones() {
+export function shownZones() {
   if (zones.draft.length) return zones.draft;
   return (state.mission && state.mission.zones) || [];
 }
 
-function ringPoints(ring) {
+export function ringPoints(ring) {
   return ring.map(([lat, lon]) => toXY(lat, lon).join(',')).join(' ');
 }
 
-function drawZones() {
+export function drawZones() {
   const layer = $('#layer-zones');
   layer.replaceChildren();
   const missionZones = (state.mission && state.mission.zones) || [];
@@ -37,7 +40,7 @@ function drawZones() {
 }
 
 // Each UAV's planned route: from the UAV through its route's turns to its target.
-function drawRoutes() {
+export function drawRoutes() {
   const layer = $('#layer-routes');
   layer.replaceChildren();
   const m = state.mission;
@@ -53,12 +56,12 @@ function drawRoutes() {
 }
 
 // Whether a UAV flies a route around zones to its target (its straight line is hidden).
-function routed(u) {
+export function routed(u) {
   return Boolean(u.route && u.route.length);
 }
 
 // Metres to go from the UAV (map point a) to its target (b): along its route, if it has one.
-function routeLength(u, a, b) {
+export function routeLength(u, a, b) {
   if (!routed(u)) return distance(a, b);
   const points = [a, ...u.route.map(([lat, lon]) => toXY(lat, lon)), b];
   let total = 0;
@@ -67,7 +70,7 @@ function routeLength(u, a, b) {
 }
 
 // A click on the map while drawing adds a vertex (true); else it is the targets' (false).
-function addZoneVertexAt(clientX, clientY) {
+export function addZoneVertexAt(clientX, clientY) {
   if (!zones.drawing || !state.origin) return false;
   const { lat, lon } = toLatLon(...clientToMap(clientX, clientY));
   zones.drawing.push([lat, lon]);
@@ -76,13 +79,13 @@ function addZoneVertexAt(clientX, clientY) {
   return true;
 }
 
-function drawZoneButton() {
+export function drawZoneButton() {
   const button = $('#draw-zone');
   button.textContent = zones.drawing ? `Finish zone (${zones.drawing.length} vertices)` : 'Draw zone';
   button.classList.toggle('primary', Boolean(zones.drawing));
 }
 
-function toggleDrawing() {
+export function toggleDrawing() {
   if (!zones.drawing) {
     zones.drawing = [];
     notice('click the map for each vertex of the zone, then Finish zone (Esc: cancel)', true);
@@ -99,7 +102,7 @@ function toggleDrawing() {
   render();
 }
 
-function drawZoneList() {
+export function drawZoneList() {
   const list = $('#zone-list');
   list.replaceChildren();
   zones.draft.forEach((zone, index) => {
@@ -110,7 +113,7 @@ function drawZoneList() {
   });
 }
 
-async function importZones(file) {
+export async function importZones(file) {
   const response = await fetch(withToken(`api/zones/import?name=${encodeURIComponent(file.name)}`), {
     method: 'POST', body: await file.arrayBuffer(),
   });
@@ -126,7 +129,7 @@ async function importZones(file) {
   render();
 }
 
-async function saveZones() {
+export async function saveZones() {
   const response = await fetch(withToken('api/zones/export'), {
     method: 'POST', body: JSON.stringify(shownZones()),
   });
@@ -140,11 +143,11 @@ async function saveZones() {
 }
 
 // The zones a Send carries: the operator's draft.
-function zonesToSend() {
+export function zonesToSend() {
   return zones.draft.map((z) => ({ name: z.name || '', ring: z.ring }));
 }
 
-function setUpZones() {
+export function setUpZones() {
   $('#draw-zone').addEventListener('click', toggleDrawing);
   $('#clear-zones').addEventListener('click', () => { zones.draft = []; zones.drawing = null; drawZoneButton(); drawZoneList(); render(); });
   $('#save-zones').addEventListener('click', saveZones);

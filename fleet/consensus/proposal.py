@@ -1,0 +1,123 @@
+"""Proposed plans, verified: any party may propose; every UAV re-scores and chooses.
+
+`plan_queues` is the deterministic baseline every UAV computes. A party with the CPU
+and a better solver (the ground, with PyVRP: ground/solver_plan.py) may publish a
+`PlanProposal` for a mission: queues solved from the same digested results. Every UAV
+checks it against what it holds and refuses it whole (`proposal_problem`) when
+
+* it is for another mission, another objective, or other results (its `digest` is not
+  the results digest this UAV decides on);
+* a queue is a UAV's that takes no part (not among the results used);
+* a target is in two places, or a target some UAV reaches is in none, or a target is
+  beyond the mission;
+* a UAV's queue starts with a target it has no approach time to, or flies a leg that no
+  route flies (an infinite time), or holds a target it has no approach time to;
+
+then scores every valid one with the same scorer as the baseline (`finish`: the
+arrivals every UAV reports) and adopts the best of the baseline and the proposals by
+(the objective's key, proposer's Piccolo ID), the baseline's ID counted as 0: a proposal
+only wins when it is strictly better. Every UAV holding the same results and the same
+proposals adopts the same plan; the adopted proposal's queues go into the plan's digest
+(`proposal_digest`), so a UAV that did not hear it reports another digest, visibly.
+
+Pure: no I/O.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+
+from fleet.consensus.assignment import usable
+from fleet.consensus.digest import sha256
+from fleet.consensus.queues import Legs, QueuePlan, Times, finish, leg_count, queue_arrivals
+from fleet.mission.messages import PlanProposal
+from fleet.mission.objective import Objective
+
+__all__ = ["choose", "plan_key", "proposal_digest", "proposal_problem"]
+
+#: The proposer ID the baseline is ranked by: below every Piccolo ID.
+BASELINE = 0
+
+
+def proposal_problem(
+    proposal: PlanProposal,
+    mission: int,
+    objective: Objective,
+    results_digest: str,
+    times: Times,
+    legs: Legs,
+) -> str | None:
+    """Why `proposal` cannot be this round's plan; None if it is a valid one."""
+    if proposal.mission != mission:
+        return f"for mission {proposal.mission}, not {mission}"
+    if proposal.objective is not objective:
+        return f"for {proposal.objective.value}, not {objective.value}"
+    if proposal.digest != results_digest:
+        return f"solved from other results ({proposal.digest}, not {results_digest})"
+    count = leg_count(legs)
+    seen: set[int] = set()
+    for uav, queue in proposal.queues.items():
+        if uav not in times:
+            return f"a queue for UAV {uav}, which takes no part"
+        row = times[uav]
+        for target in queue:
+            if not 0 <= target < count:
+                return f"target {target} of {count}"
+            if target in seen:
+                return f"target {target} twice"
+            seen.add(target)
+            if not usable(row[target]):
+                return f"UAV {uav} has no approach time to target {target}"
+        if queue and not all(math.isfinite(t) for t in queue_arrivals(times, legs, uav, queue)):
+            return f"UAV {uav}'s queue flies a leg no route flies"
+    missing = [
+        t for t in range(count) if t not in seen and any(usable(r[t]) for r in times.values())
+    ]
+    if missing:
+        return f"target {missing[0]} in no queue, although a UAV reaches it"
+    return None
+
+
+def plan_key(plan: QueuePlan, objective: Objective) -> tuple[float, float]:
+    """What the objective minimises: (last arrival, total) for min-max, else (total,
+    last arrival)."""
+    if objective is Objective.MIN_MAX:
+        return plan.makespan(), plan.total()
+    return plan.total(), plan.makespan()
+
+
+def choose(
+    baseline: QueuePlan,
+    proposals: Iterable[PlanProposal],
+    objective: Objective,
+    times: Times,
+    legs: Legs,
+) -> tuple[QueuePlan, PlanProposal | None]:
+    """The best of the baseline and the (valid) `proposals` by (key, proposer), and the
+    proposal adopted (None: the baseline)."""
+    best = (plan_key(baseline, objective), BASELINE)
+    chosen: tuple[QueuePlan, PlanProposal | None] = (baseline, None)
+    for proposal in sorted(proposals, key=lambda p: p.proposer):
+        queues = {uav: list(proposal.queues.get(uav, ())) for uav in times}
+        plan = finish(queues, times, legs)
+        rank = (plan_key(plan, objective), proposal.proposer)
+        if rank < best:
+            best, chosen = rank, (plan, proposal)
+    return chosen
+
+
+_PROPOSAL_VERSION = b"fleet.queues.proposal/v1\x00"
+
+
+def proposal_digest(plan_digest: str, proposal: PlanProposal) -> str:
+    """The digest of a plan adopted from `proposal`: the baseline's digest (results and
+    objective) hashed with the proposer and every queue, in increasing Piccolo ID."""
+    h = sha256(_PROPOSAL_VERSION)
+    h.update(plan_digest.encode("ascii", "replace") + b"\x00")
+    h.update(proposal.proposer.to_bytes(2, "little"))
+    for uav in sorted(proposal.queues):
+        queue: Sequence[int] = proposal.queues[uav]
+        h.update(uav.to_bytes(2, "little") + len(queue).to_bytes(2, "little"))
+        h.update(b"".join(t.to_bytes(2, "little") for t in queue))
+    return h.hexdigest()[:16]

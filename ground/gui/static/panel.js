@@ -1,0 +1,221 @@
+// The side panel: the UAV list, the draft targets' list, the mission table.
+import { command, confirmThen } from './commands.js';
+import { colourOf, fixed, formatSeconds, html, notice, phaseOf, targetStateOf, team } from './helpers.js';
+import { render, uavAttributes } from './map.js';
+import { $, state } from './state.js';
+import { updateFilter } from './statuses.js';
+import { removeTarget } from './targets.js';
+
+// ---- the side panel -------------------------------------------------------------------------
+// The lists are updated in place, row by row (keyed by Piccolo ID and target index), never
+// rebuilt: a row or button replaced between a press and its release loses the click, and
+// snapshots arrive several times a second. Their clicks are handled once, on the table
+// (onUavListClick, onTargetListClick), from the data attributes of what was pressed.
+export function keyedRow(body, key, attribute, make) {
+  let row = body.querySelector(`tr[${attribute}="${key}"]`);
+  if (!row) {
+    row = make();
+    row.setAttribute(attribute, key);
+  }
+  return row;
+}
+
+export function setText(node, text) {
+  const value = String(text);
+  if (node.textContent !== value) node.textContent = value;
+}
+
+export function setAttributes(node, attributes) {
+  for (const [key, value] of Object.entries(attributes)) {
+    if (node.getAttribute(key) !== String(value)) node.setAttribute(key, value);
+  }
+}
+
+// Rows in `order`, each placed only if it is not where it belongs already; the rest go.
+export function placeRows(body, rows) {
+  rows.forEach((row, position) => {
+    if (body.children[position] !== row) body.insertBefore(row, body.children[position] || null);
+  });
+  while (body.children.length > rows.length) body.lastElementChild.remove();
+}
+
+export function newUavRow() {
+  const row = html('tr');
+  const swatch = html('span', '', { class: 'swatch' });
+  const first = html('td');
+  first.appendChild(swatch);
+  row.appendChild(first);
+  for (const name of ['id', 'team', 'phase', 'target', 'alt', 'speed', 'link']) {
+    row.appendChild(html('td', '', { 'data-cell': name, ...(name === 'team' ? { class: 'team' } : {}) }));
+  }
+  const opm = html('td', '', { class: 'opm' });
+  opm.appendChild(html('button', '', {
+    type: 'button', 'data-opm': '', title: 'turn the onboard planning module on or off',
+  }));
+  opm.appendChild(html('button', 'abort', {
+    type: 'button', 'data-abort': '', title: 'abort this UAV alone; its teammates fly on',
+  }));
+  row.appendChild(opm);
+  return row;
+}
+
+export function abortable(m, u) {
+  const done = m && u.mission === m.mission && u.phase === 'aborted';
+  return Boolean(m && !m.aborted && !done && m.team.includes(u.id));
+}
+
+export function drawUavList() {
+  const body = $('#uav-list tbody');
+  const members = new Set(team());
+  const m = state.mission;
+  const rows = state.uavs.map((u) => {
+    const row = keyedRow(body, u.id, 'data-uav', newUavRow);
+    setAttributes(row, uavAttributes(u));
+    row.classList.toggle('in-team', members.has(u.id));
+    row.querySelector('.swatch').style.background = colourOf(u.id);
+    const cell = (name) => row.querySelector(`[data-cell="${name}"]`);
+    setText(cell('id'), u.id);
+    setText(cell('team'), members.has(u.id) ? '✓' : '');
+    setText(cell('phase'), phaseOf(u));
+    setText(cell('target'), u.target ?? '-');
+    setText(cell('alt'), fixed(u.alt, 0));
+    setText(cell('speed'), fixed(u.ground_speed, 1));
+    setText(cell('link'), u.link_lost ? 'LOST' : `${fixed(u.telemetry_age_s, 1)} s`);
+    const toggle = row.querySelector('[data-opm]');
+    setAttributes(toggle, { 'data-opm': u.id });
+    setText(toggle, u.enabled === false ? 'off → on' : 'on → off');
+    const stop = row.querySelector('[data-abort]');
+    setAttributes(stop, { 'data-abort': u.id });
+    // Hidden, not removed, so the layout under the pointer does not shift as missions come;
+    // a UAV already aborted in this mission has nothing left to abort.
+    stop.style.visibility = abortable(m, u) ? 'visible' : 'hidden';
+    return row;
+  });
+  placeRows(body, rows);
+  updateFilter();
+}
+
+export function onUavListClick(event) {
+  const row = event.target.closest('tr[data-uav]');
+  if (!row) return;
+  const id = Number(row.getAttribute('data-uav'));
+  const u = state.uavs.find((v) => v.id === id);
+  if (!u) return;
+  if (event.target.closest('[data-opm]')) {
+    const on = u.enabled === false;
+    command({ cmd: 'opm', uav: id, enabled: on }, `Planning module ${on ? 'on' : 'off'} on UAV ${id}`);
+    return;
+  }
+  if (event.target.closest('[data-abort]')) {
+    const m = state.mission;
+    if (!abortable(m, u)) return;
+    confirmThen(`Abort mission ${m.mission} for UAV ${id} alone?`,
+      `UAV ${id} leaves its target and resumes its course; the rest of the team flies on.`,
+      () => command({ cmd: 'abort', mission: m.mission, uav: id }, `Abort UAV ${id} (mission ${m.mission})`));
+    return;
+  }
+  if (state.excluded.has(id)) state.excluded.delete(id);
+  else state.excluded.add(id);
+  render();
+}
+
+// Latitude, longitude and altitude are edited in place, as numbers (Enter or leaving the
+// field applies it); the range of each is the targets file's (fleet.mission.targets_file).
+export const TARGET_FIELDS = {
+  lat: { min: -90, max: 90, step: 0.000001, digits: 6 },
+  lon: { min: -180, max: 180, step: 0.000001, digits: 6 },
+  alt: { min: -500, max: 10000, step: 1, digits: 0 },
+};
+
+export function newTargetRow() {
+  const row = html('tr');
+  row.appendChild(html('td', '', { 'data-cell': 'index' }));
+  for (const [name, range] of Object.entries(TARGET_FIELDS)) {
+    const cell = html('td', '', { 'data-cell': name });
+    cell.appendChild(html('input', '', {
+      type: 'number', 'data-field': name, min: range.min, max: range.max, step: range.step,
+      'aria-label': name,
+    }));
+    row.appendChild(cell);
+  }
+  row.appendChild(html('td', '', { class: 'state', 'data-cell': 'state' }));
+  const cell = html('td');
+  cell.appendChild(html('button', '✕', { type: 'button', title: 'delete this target', 'data-delete': '' }));
+  row.appendChild(cell);
+  return row;
+}
+
+export function drawTargetList() {
+  const body = $('#target-list tbody');
+  const rows = state.targets.map((t, index) => {
+    const s = targetStateOf(index);
+    const row = keyedRow(body, index, 'data-target-row', newTargetRow);
+    const cell = (name) => row.querySelector(`[data-cell="${name}"]`);
+    setText(cell('index'), index);
+    for (const [name, range] of Object.entries(TARGET_FIELDS)) {
+      const input = cell(name).querySelector('input');
+      // Never under the operator's fingers: a field being edited keeps what is typed.
+      if (document.activeElement !== input) input.value = t[name].toFixed(range.digits);
+    }
+    setText(cell('state'), s.uav !== null ? `${s.state} (${s.uav})` : s.state);
+    setAttributes(cell('state'), { 'data-state': s.state });
+    setAttributes(row.querySelector('[data-delete]'), { 'data-delete': index });
+    return row;
+  });
+  placeRows(body, rows);
+}
+
+export function onTargetEdit(event) {
+  const input = event.target.closest('input[data-field]');
+  const row = input && input.closest('tr[data-target-row]');
+  if (!row) return;
+  const index = Number(row.getAttribute('data-target-row'));
+  const name = input.getAttribute('data-field');
+  const range = TARGET_FIELDS[name];
+  const value = Number(input.value);
+  if (input.value === '' || !isFinite(value) || value < range.min || value > range.max) {
+    notice(`target ${index}: ${name} must be a number in [${range.min}, ${range.max}]`, false);
+    input.value = state.targets[index][name].toFixed(range.digits);
+    return;
+  }
+  state.targets[index] = { ...state.targets[index], [name]: value };
+  render();
+}
+
+export function onTargetListClick(event) {
+  const button = event.target.closest('[data-delete]');
+  if (button) removeTarget(Number(button.getAttribute('data-delete')));
+}
+
+export function drawMission() {
+  const box = $('#mission-progress');
+  const m = state.mission;
+  if (!m) {
+    box.textContent = 'no mission yet';
+    $('#mission-summary').textContent = 'no mission';
+    return;
+  }
+  box.replaceChildren();
+  const n = m.team.length;
+  const committed = n - m.missing_assignments.length;
+  let agreement = 'pending';
+  let agreementClass = '';
+  if (m.complete) {
+    agreement = m.agreed ? `agreed (digest ${String(m.digest).slice(0, 12)})` : `DISAGREE: ${m.disagreed.join(', ')}`;
+    agreementClass = m.agreed ? 'agreed' : 'disagreed';
+  }
+  const summary = `mission ${m.mission}${m.aborted ? ' (aborted)' : ''}: team ${m.team.join(', ')}; `
+    + `results ${m.results_received}/${n}; committed ${committed}/${n}`;
+  box.appendChild(html('div', summary, { id: 'mission-line' }));
+  box.appendChild(html('div', `agreement: ${agreement}`, { class: agreementClass, id: 'agreement' }));
+  const table = html('table');
+  table.appendChild(html('tr')).append(html('th', '#'), html('th', 'state'), html('th', 'UAV'), html('th', 'predicted'));
+  for (const t of m.target_states) {
+    const row = html('tr', '', { 'data-mission-target': t.index, 'data-state': t.state });
+    row.append(html('td', t.index), html('td', t.state), html('td', t.uav ?? '-'),
+      html('td', t.eta_s === null ? '-' : formatSeconds(t.eta_s)));
+    table.appendChild(row);
+  }
+  box.appendChild(table);
+  $('#mission-summary').textContent = summary;
+}

@@ -1,0 +1,131 @@
+"""Proposed plans verified: every UAV re-scores a proposal with the deterministic
+scorer, refuses an invalid one whole, adopts the best by (score, proposer), and every
+UAV holding the same results and proposals reports the same plan and digest."""
+
+from __future__ import annotations
+
+import random
+
+import msgspec
+import pytest
+
+from fleet.consensus.mission_round import MissionRound
+from fleet.consensus.proposal import plan_key
+from fleet.consensus.queues import finish
+from fleet.geo.mercator import MercatorProjection
+from fleet.mission.messages import MISSION_MANAGER, MissionTargets, PlanProposal, Target, UavResult
+from fleet.mission.objective import Objective
+
+PROJECTION = MercatorProjection(35.72, -120.76)
+#: The optimum of this instance (found by enumerating every plan): better than the
+#: baseline's local search, by the same scorer.
+BETTER = {3: (4, 0), 5: (2, 1, 5, 3)}
+
+
+def _round(own: int, proposals_s: float = 0.0) -> MissionRound:
+    rng = random.Random(1)
+    points = [(rng.uniform(-4000, 4000), rng.uniform(-4000, 4000)) for _ in range(6)]
+    targets = tuple(Target(*PROJECTION.to_latlon(x, y), 600.0) for x, y in points)
+    mission = MissionTargets(
+        mission=9,
+        team=(3, 5),
+        targets=targets,
+        objective=Objective.MIN_SUM,
+        deadline_s=30.0,
+        proposals_s=proposals_s,
+    )
+    mission_round = MissionRound(targets=mission, own_id=own, started=0.0)
+    results = []
+    for uav in (3, 5):
+        times = tuple(rng.uniform(60, 400) for _ in points)
+        results.append(
+            UavResult(
+                9, uav, times, airspeed=22.0, wind_east=8.0, wind_north=2.0, lat=35.72, lon=-120.76
+            )
+        )
+    for result in results if own == 3 else reversed(results):
+        assert mission_round.add_result(result)
+    return mission_round
+
+
+def _inputs(mission_round: MissionRound) -> str:
+    used = {uav: r.times for uav, r in mission_round.results.items()}
+    return mission_round.results_digest(used)
+
+
+def _proposal(mission_round: MissionRound, **changes: object) -> PlanProposal:
+    proposal = PlanProposal(
+        mission=9,
+        proposer=MISSION_MANAGER,
+        digest=_inputs(mission_round),
+        objective=Objective.MIN_SUM,
+        queues=BETTER,
+    )
+    return msgspec.structs.replace(proposal, **changes)
+
+
+def test_a_better_proposal_is_adopted_by_every_uav_with_one_digest() -> None:
+    baseline = _round(3).decide({3, 5})
+    reports = []
+    for own in (3, 5):
+        mission_round = _round(own)
+        assert mission_round.add_proposal(_proposal(mission_round))
+        reports.append(mission_round.decide({3, 5}))
+    first, second = reports
+    assert first.queues == second.queues == BETTER
+    assert first.digest == second.digest != baseline.digest
+    assert first.arrivals == second.arrivals
+    # The scorer says it is better: the sum of arrivals is lower than the baseline's.
+    assert sum(sum(a) for a in first.arrivals.values()) < sum(
+        sum(a) for a in baseline.arrivals.values()
+    )
+
+
+@pytest.mark.parametrize(
+    ("changes", "why"),
+    [
+        ({"queues": {3: (4, 0, 2), 5: (2, 1, 5, 3)}}, "target 2 twice"),
+        ({"queues": {3: (4, 0), 5: (2, 1, 5)}}, "target 3 in no queue"),
+        ({"queues": {3: (4, 0), 5: (2, 1, 5), 7: (3,)}}, "UAV 7, which takes no part"),
+        ({"queues": {3: (4, 0), 5: (2, 1, 5, 9)}}, "target 9 of 6"),
+        ({"digest": "0123456789abcdef"}, "other results"),
+        ({"objective": Objective.MIN_MAX}, "for min-max"),
+    ],
+)
+def test_an_invalid_proposal_changes_nothing(changes: dict[str, object], why: str) -> None:
+    baseline = _round(3).decide({3, 5})
+    mission_round = _round(3)
+    assert mission_round.add_proposal(_proposal(mission_round, **changes))
+    report = mission_round.decide({3, 5})
+    assert (report.queues, report.digest) == (baseline.queues, baseline.digest)
+    assert why in mission_round.refused_proposals[MISSION_MANAGER]
+
+
+def test_a_worse_proposal_is_not_adopted_and_a_late_one_is_refused() -> None:
+    baseline = _round(3).decide({3, 5})
+    mission_round = _round(3)
+    worse = {3: (0, 1, 2, 3, 4, 5), 5: ()}
+    assert mission_round.add_proposal(_proposal(mission_round, queues=worse))
+    report = mission_round.decide({3, 5})
+    assert (report.queues, report.digest) == (baseline.queues, baseline.digest)
+    assert not mission_round.add_proposal(_proposal(mission_round))  # after the commitment
+
+
+def test_the_decision_waits_for_a_proposal_within_its_window_only() -> None:
+    mission_round = _round(3, proposals_s=5.0)
+    assert not mission_round.ready(1.0, {3, 5})  # every result held, no proposal yet
+    assert mission_round.ready(5.0, {3, 5})  # the window closed: the baseline
+    waiting = _round(3, proposals_s=5.0)
+    waiting.add_proposal(_proposal(waiting))
+    assert waiting.ready(1.0, {3, 5})
+
+
+def test_the_proposal_here_is_better_by_the_scorer() -> None:
+    """The premise of the tests above."""
+    mission_round = _round(3)
+    used = {uav: r.times for uav, r in mission_round.results.items()}
+    legs = mission_round.air_legs(used)
+    baseline = mission_round.decide({3, 5})
+    better = finish({u: list(q) for u, q in BETTER.items()}, used, legs)
+    mine = finish({u: list(q) for u, q in baseline.queues.items()}, used, legs)
+    assert plan_key(better, Objective.MIN_SUM) < plan_key(mine, Objective.MIN_SUM)
