@@ -218,6 +218,11 @@ class MissionParticipation:
         mission_round = self.round
         if mission_round is None or result.mission > mission_round.mission:
             self._early_results = [*self._early_results, result][-MAX_EARLY_RESULTS:]
+            # A teammate works on a mission this UAV has not heard: its put may not
+            # reach this UAV at all (in a secure router mesh without the ground's router,
+            # a UAV's router relays only what its own UAV may write), but a catch-up's
+            # query does: ask for the live missions (at most every CATCH_UP_INTERVAL_S).
+            self.catch_up.request(now)
             return
         if result.uav == self.uav_id or not mission_round.add_result(result):
             return
@@ -252,11 +257,39 @@ class MissionParticipation:
             return
         if mission_round.committed is None:
             self._adopt(report, now)
-        elif mission_round.release(report.released):
+        elif mission_round.release(self._believed_released(mission_round, report)):
             self._replan(now)
         elif (followed := mission_round.follow(report)) is not None:
             self._apply(followed, now)
         self._settle()
+
+    def _believed_released(
+        self, mission_round: MissionRound, report: AssignmentReport
+    ) -> tuple[int, ...]:
+        """The UAVs a teammate's re-plan releases that this UAV believes gone: the
+        reporter itself, and those whose liveliness this UAV saw go. That another UAV
+        dropped out is the reporter's claim about it, a hint: this UAV asks for that UAV's
+        own outcome (failed, link lost), which releases it when it says so."""
+        believed = tuple(
+            uav for uav in report.released if uav == report.uav or uav not in self.team.alive
+        )
+        hinted = tuple(
+            sorted(
+                uav
+                for uav in set(report.released) - set(believed) - mission_round.released
+                if uav in mission_round.team and uav != self.uav_id
+            )
+        )
+        if hinted:
+            log.info(
+                "mission %d: UAV %d's re-plan releases %s, still alive here: asking for "
+                "their own outcomes",
+                report.mission,
+                report.uav,
+                ", ".join(map(str, hinted)),
+            )
+            self.outputs.fetch_outcomes(mission_round.mission, hinted)
+        return believed
 
     def _adopt(self, report: AssignmentReport, now: float) -> None:
         assert self.round is not None
