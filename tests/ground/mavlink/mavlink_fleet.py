@@ -16,6 +16,7 @@ from typing import Any
 from fleet.launch.endpoints import free_port
 from tests.ground.mavlink.stations import WAIT_S
 from tests.support.processes import Child, start, start_fleet_up, wait_fleet_up
+from tests.support.waiting import wait_until
 
 #: How long `fleet up` may take to say its fleet is up.
 START_S = 90.0
@@ -71,6 +72,20 @@ def running_fleet(uavs: int, tmp: Path) -> Iterator[FleetUp]:
     finally:
         up.process.send_signal(signal.SIGTERM)
         up.process.wait(30)
+
+
+@contextmanager
+def mavsdk_systems(port: int, uavs: int) -> Iterator[dict[int, Any]]:
+    """MAVSDK (its bundled library) as a ground station to the gateway's udpin `port`,
+    once it sees `uavs` systems: its systems by system id, until exit."""
+    from mavsdk.component_type import ComponentType
+    from mavsdk.mavsdk import Configuration, Mavsdk
+
+    config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
+    with Mavsdk(config) as sdk:
+        sdk.add_any_connection(f"udpout://127.0.0.1:{port}")
+        wait_until(lambda: len(sdk.get_systems()) >= uavs, WAIT_S, f"{uavs} systems")
+        yield {s.get_system_id(): s for s in sdk.get_systems()}
 
 
 def stop(child: Child) -> list[str]:

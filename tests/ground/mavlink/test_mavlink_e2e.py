@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from tests.ground.mavlink.mavlink_fleet import FleetUp, running_fleet, stop
+from tests.ground.mavlink.mavlink_fleet import FleetUp, mavsdk_systems, running_fleet, stop
 from tests.ground.mavlink.stations import free_udp_port, receiver
 from tests.support.ground_view import GroundView
 from tests.support.processes import client_session, start
@@ -106,8 +106,6 @@ def test_mavproxy_sees_every_uav_and_its_mission_is_assigned_across_the_team(
 def test_mavsdk_uploads_a_mission_sees_the_fleets_position_and_rtl_aborts(
     fleet_up: FleetUp,
 ) -> None:
-    from mavsdk.component_type import ComponentType
-    from mavsdk.mavsdk import Configuration, Mavsdk
     from mavsdk.plugins.action import Action
     from mavsdk.plugins.info import Info
     from mavsdk.plugins.mission_raw import MissionItem, MissionRaw, MissionRawError
@@ -119,11 +117,7 @@ def test_mavsdk_uploads_a_mission_sees_the_fleets_position_and_rtl_aborts(
     try:
         with client_session(fleet_up.port) as session:
             view = GroundView(session)
-            config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
-            with Mavsdk(config) as sdk:
-                sdk.add_any_connection(f"udpout://127.0.0.1:{port}")
-                wait_until(lambda: len(sdk.get_systems()) >= len(UAVS), WAIT_S, "3 systems")
-                systems = {s.get_system_id(): s for s in sdk.get_systems()}
+            with mavsdk_systems(port, len(UAVS)) as systems:
                 assert sorted(systems) == list(UAVS)
                 system = systems[piccolo]
                 assert system.has_autopilot()

@@ -22,7 +22,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from fleet.launch.endpoints import free_port
 from ground.mavlink.signing import passphrase_secret, timestamp_now
-from tests.ground.mavlink.mavlink_fleet import FleetUp, running_fleet, stop
+from tests.ground.mavlink.mavlink_fleet import FleetUp, mavsdk_systems, running_fleet, stop
 from tests.ground.mavlink.stations import free_udp_port, receiver
 from tests.support.processes import start
 from tests.support.waiting import wait_until
@@ -165,18 +165,13 @@ def test_qgroundcontrols_connect_sequence_is_answered(fleet_up: FleetUp) -> None
 
 
 def test_mavsdk_sees_health_a_home_and_a_flight_mode(fleet_up: FleetUp) -> None:
-    from mavsdk.component_type import ComponentType
-    from mavsdk.mavsdk import Configuration, Mavsdk
     from mavsdk.plugins.telemetry import FlightMode, Telemetry
 
     port = free_udp_port()
     gateway = fleet_up.gateway(f"udpin:127.0.0.1:{port}")
     try:
-        config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
-        with Mavsdk(config) as sdk:
-            sdk.add_any_connection(f"udpout://127.0.0.1:{port}")
-            wait_until(lambda: len(sdk.get_systems()) >= len(UAVS), WAIT_S, "both systems")
-            system = {s.get_system_id(): s for s in sdk.get_systems()}[UAVS[1]]
+        with mavsdk_systems(port, len(UAVS)) as systems:
+            system = systems[UAVS[1]]
             telemetry = Telemetry(system)
 
             def healthy() -> bool:
