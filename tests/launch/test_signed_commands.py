@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import json
 import signal
-import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -24,8 +23,7 @@ from importlib.resources import files
 import pytest
 import zenoh
 
-from fleet.files.certs import IdentityFiles, tls_settings, write_identities
-from fleet.files.signers import revoke
+from fleet.files.certs import IdentityFiles, tls_settings
 from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
@@ -41,8 +39,8 @@ from fleet.mission.phase import Phase
 from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.zenoh_config import make_config
 from tests.support import signed
-from tests.support.processes import Fleet, start
-from tests.support.secure_fleet import SignedFleet, mission_of, open_when_listening
+from tests.support.secure_fleet import SignedFleet, mission_of
+from tests.support.secure_fleet import signed_fleet as start_signed_fleet
 from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
@@ -59,41 +57,11 @@ TARGETS_FILE = str(files("fleet") / "scenarios" / "head_on_targets.bin")
 @pytest.fixture(scope="module")
 def signed_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SignedFleet]:
     certs = tmp_path_factory.mktemp("certs").resolve()
-    endpoint = f"tls/127.0.0.1:{free_port()}"
     names = ["router", "router-112", "ground", "uav-74", "uav-112", "uav-300"]
-    write_identities(certs, names, [endpoint])
-    revoke(certs, ["uav-300"])  # a lost aircraft
-    fleet = Fleet()
-    try:
-        fleet.children.append(
-            start(
-                "router",
-                [
-                    sys.executable,
-                    "-m",
-                    "fleet.transport.router",
-                    "--secure",
-                    str(certs),
-                    "--listen",
-                    endpoint,
-                    # UAV 112's own router, in whose ACL the ground's router relays.
-                    "--identity",
-                    "router-112",
-                ],
-            )
-        )
-        ground = open_when_listening(certs / "ground.json5", endpoint)
-        try:
-            for uav, where in fleet.sim("head_on", speedup=5.0).items():
-                config = str(certs / f"uav-{uav}.json5")
-                fleet.onboard(uav, where, endpoint, "--zenoh-config", config)
-            secure = SignedFleet(endpoint, certs, fleet, ground)
-            wait_until(lambda: secure.state(74) and secure.state(112), 60.0, "both onboards up")
-            yield secure
-        finally:
-            ground.close()
-    finally:
-        fleet.stop_all()
+    # UAV 112's own router, in whose ACL the ground's router relays; UAV 300 a lost aircraft.
+    router_argv = ("--identity", "router-112")
+    with start_signed_fleet(certs, names, *router_argv, revoked=["uav-300"]) as secure:
+        yield secure
 
 
 def serve_signed_by_74(

@@ -10,7 +10,7 @@ import json
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
@@ -18,6 +18,7 @@ from pathlib import Path
 import zenoh
 
 from fleet.files.certs import write_identities
+from fleet.files.signers import revoke
 from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import UavState
@@ -81,12 +82,19 @@ def open_when_listening(config_file: Path, endpoint: str) -> zenoh.Session:
 
 @contextlib.contextmanager
 def signed_fleet(
-    certs: Path, names: list[str], *router_argv: str, speedup: float = 5.0
+    certs: Path,
+    names: list[str],
+    *router_argv: str,
+    speedup: float = 5.0,
+    revoked: Sequence[str] = (),
 ) -> Iterator[SignedFleet]:
     """Identities `names` made in `certs` (with `router`, `ground`, `uav-74`, `uav-112`),
-    a secure router (`router_argv` added to its command line) and the fleet."""
+    those `revoked` withdrawn (`fleet certs revoke`), a secure router (`router_argv` added
+    to its command line) and the fleet."""
     endpoint = f"tls/127.0.0.1:{free_port()}"
     write_identities(certs, names, [endpoint])
+    if revoked:
+        revoke(certs, list(revoked))
     fleet = Fleet()
     try:
         argv = [sys.executable, "-m", "fleet.transport.router"]
