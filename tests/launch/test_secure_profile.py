@@ -13,7 +13,6 @@ from __future__ import annotations
 import json
 import signal
 import subprocess
-import sys
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -24,7 +23,6 @@ import pytest
 import zenoh
 
 from fleet.files.certs import write_identities
-from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace, mission_of
 from fleet.mission.messages import AssignmentReport, MissionAbort, MissionTargets, Target, UavResult
 from fleet.piccolo.track import Track
@@ -32,7 +30,8 @@ from fleet.piccolo.waypoint import Waypoint
 from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.zenoh_config import build_config, make_config
 from tests.support import secure_clients, signed
-from tests.support.processes import Child, start, wait_fleet_up
+from tests.support.processes import Child, wait_fleet_up
+from tests.support.secure_fleet import start_secure_up
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
@@ -61,13 +60,7 @@ class SecureFleet:
 @pytest.fixture(scope="module")
 def secure_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureFleet]:
     certs = tmp_path_factory.mktemp("certs")
-    endpoint = f"tls/127.0.0.1:{free_port()}"
-    write_identities(certs, ["router", "ground", "uav-74", "uav-112"], [endpoint])
-    up = start(
-        "fleet up --secure",
-        [sys.executable, "-m", "programs.fleet_cli", "up", "head_on", "--secure", str(certs),
-         "--listen", endpoint, "--speedup", "5", "--log-dir", str(certs / "logs")],
-    )  # fmt: skip
+    up, endpoint = start_secure_up(certs)
     try:
         wait_fleet_up(up, 90.0)
         yield SecureFleet(endpoint, certs.resolve(), up)

@@ -25,7 +25,7 @@ from fleet.mission.messages import UavState
 from fleet.transport.bus_codec import decode
 from fleet.transport.zenoh_config import build_config
 from tests.support import secure_clients
-from tests.support.processes import Fleet, start
+from tests.support.processes import Child, Fleet, start, start_fleet_up
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
@@ -78,6 +78,19 @@ def open_when_listening(config_file: Path, endpoint: str) -> zenoh.Session:
             if time.monotonic() > deadline:
                 raise
             time.sleep(0.2)  # the router is starting: poll, bounded
+
+
+def start_secure_up(certs: Path, *extra: str) -> tuple[Child, str]:
+    """`fleet up head_on --secure` at five times real time, logging under `certs`, with
+    the identities of a router, the ground and UAVs 74 and 112 made in `certs` for a free
+    tls/ endpoint, and `extra` arguments: its process and that endpoint."""
+    endpoint = f"tls/127.0.0.1:{free_port()}"
+    write_identities(certs, ["router", "ground", "uav-74", "uav-112"], [endpoint])
+    up = start_fleet_up(
+        "head_on", "--secure", str(certs), "--listen", endpoint, "--speedup", "5",
+        "--log-dir", str(certs / "logs"), *extra,
+    )  # fmt: skip
+    return up, endpoint
 
 
 @contextlib.contextmanager

@@ -15,10 +15,9 @@ from pathlib import Path
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from fleet.files.certs import write_identities
-from fleet.launch.endpoints import free_port
 from tests.ground.mavlink.stations import free_udp_port, receiver
 from tests.support.processes import Child, start, wait_fleet_up
+from tests.support.secure_fleet import start_secure_up
 
 pytestmark = pytest.mark.e2e
 
@@ -44,14 +43,7 @@ class SecureFleet:
 @pytest.fixture(scope="module")
 def secure_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureFleet]:
     certs = tmp_path_factory.mktemp("certs")
-    endpoint = f"tls/127.0.0.1:{free_port()}"
-    write_identities(certs, ["router", "ground", "uav-74", "uav-112"], [endpoint])
-    up = start(
-        "fleet up --secure",
-        [sys.executable, "-m", "programs.fleet_cli", "up", "head_on", "--secure", str(certs),
-         "--listen", endpoint, "--speedup", "5", "--log-dir", str(certs / "logs"),
-         "--no-record"],
-    )  # fmt: skip
+    up, endpoint = start_secure_up(certs, "--no-record")
     try:
         wait_fleet_up(up, WAIT_S)
         yield SecureFleet(endpoint, certs.resolve())
