@@ -197,6 +197,19 @@ def captured_router(secure: SignedFleet) -> zenoh.Session:
     return zenoh.open(config)
 
 
+def opm_off_then_on(secure: SignedFleet, recorder: Recorder) -> tuple[bytes, bytes]:
+    """The ground's genuine "OPM off", then "OPM on", to UAV 112: the "off" and its
+    signature as the captured router (`recorder`) saw them."""
+    wait_until(lambda: secure.state(112) is not None, 10.0)
+    for setting in ("off", "on"):
+        switched = secure.ground_cli("opm", "112", setting)
+        assert switched.returncode == 0, switched.stderr
+    off = encode(OpmCommand(enabled=False))
+    off_signature = recorder.find(SPACE.opm(112), off)
+    assert off_signature, "the captured router saw the ground's signed OPM off"
+    return off, off_signature
+
+
 def test_a_captured_router_cannot_replay_or_forge_the_grounds_commands(
     signed_fleet: SignedFleet,
 ) -> None:
@@ -205,13 +218,7 @@ def test_a_captured_router_cannot_replay_or_forge_the_grounds_commands(
     secure = signed_fleet
     with captured_router(secure) as rogue:
         recorder = Recorder(rogue)
-        wait_until(lambda: secure.state(112) is not None, 10.0)
-        for setting in ("off", "on"):
-            switched = secure.ground_cli("opm", "112", setting)
-            assert switched.returncode == 0, switched.stderr
-        off = encode(OpmCommand(enabled=False))
-        off_signature = recorder.find(SPACE.opm(112), off)
-        assert off_signature, "the captured router saw the ground's signed OPM off"
+        off, off_signature = opm_off_then_on(secure, recorder)
         first = secure.send_targets()
         aborted = secure.ground_cli("abort", "--mission", str(first))
         assert aborted.returncode == 0, aborted.stderr
@@ -316,13 +323,7 @@ def test_a_restarted_onboard_refuses_the_grounds_command_from_before_its_restart
     secure = signed_fleet
     with captured_router(secure) as rogue:
         recorder = Recorder(rogue)
-        wait_until(lambda: secure.state(112) is not None, 10.0)
-        for setting in ("off", "on"):
-            switched = secure.ground_cli("opm", "112", setting)
-            assert switched.returncode == 0, switched.stderr
-        off = encode(OpmCommand(enabled=False))
-        off_signature = recorder.find(SPACE.opm(112), off)
-        assert off_signature, "the captured router saw the ground's signed OPM off"
+        off, off_signature = opm_off_then_on(secure, recorder)
         old = secure.fleet.onboard_child(112)
         old.kill()
         secure.fleet.restart(old)
