@@ -50,6 +50,17 @@ class FleetUp:
         child.wait_for_line(lambda line: "fleet mavlink: serving on" in line, WAIT_S)
         return child
 
+    def mavproxy(self, port: int, state: str = "mavproxy") -> Child:
+        """MAVProxy, headless (driven through its standard input), listening on UDP `port`
+        for the gateway; its state in tmp/`state`."""
+        return start(
+            "mavproxy",
+            [sys.executable, "-m", "MAVProxy.mavproxy", f"--master=udpin:127.0.0.1:{port}",
+             f"--state-basedir={self.tmp / state}"],
+            env={"HOME": str(self.tmp)},
+            stdin=True,
+        )  # fmt: skip
+
 
 @contextmanager
 def running_fleet(uavs: int, tmp: Path) -> Iterator[FleetUp]:

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import math
 import socket
-import sys
 from collections.abc import Iterator
 from typing import Any
 
@@ -18,7 +17,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from tests.ground.mavlink.mavlink_fleet import FleetUp, mavsdk_systems, running_fleet, stop
 from tests.ground.mavlink.stations import free_udp_port, receiver
 from tests.support.ground_view import GroundView
-from tests.support.processes import client_session, start
+from tests.support.processes import client_session
 from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
@@ -59,13 +58,7 @@ def test_mavproxy_sees_every_uav_and_its_mission_is_assigned_across_the_team(
     gateway = fleet_up.gateway(f"udpout:127.0.0.1:{port}", "--mission-team", "live")
     mission_file = fleet_up.tmp / "three.txt"
     mission_file.write_text(WPL)
-    proxy = start(
-        "mavproxy",
-        [sys.executable, "-m", "MAVProxy.mavproxy", f"--master=udpin:127.0.0.1:{port}",
-         f"--state-basedir={fleet_up.tmp / 'mavproxy'}"],
-        env={"HOME": str(fleet_up.tmp)},
-        stdin=True,
-    )  # fmt: skip
+    proxy = fleet_up.mavproxy(port)
     try:
         detected: set[int] = set()
 

@@ -13,7 +13,6 @@ obeyed, a second station taking over or joining an upload.
 from __future__ import annotations
 
 import socket
-import sys
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -24,7 +23,6 @@ from fleet.launch.endpoints import free_port
 from ground.mavlink.signing import passphrase_secret, timestamp_now
 from tests.ground.mavlink.mavlink_fleet import FleetUp, mavsdk_systems, running_fleet, stop
 from tests.ground.mavlink.stations import free_udp_port, receiver
-from tests.support.processes import start
 from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
@@ -197,13 +195,7 @@ def test_mavsdk_sees_health_a_home_and_a_flight_mode(fleet_up: FleetUp) -> None:
 def test_mavproxy_reports_no_fence_breach(fleet_up: FleetUp) -> None:
     port = free_udp_port()
     gateway = fleet_up.gateway(f"udpout:127.0.0.1:{port}")
-    proxy = start(
-        "mavproxy",
-        [sys.executable, "-m", "MAVProxy.mavproxy", f"--master=udpin:127.0.0.1:{port}",
-         f"--state-basedir={fleet_up.tmp / 'mavproxy'}"],
-        env={"HOME": str(fleet_up.tmp)},
-        stdin=True,
-    )  # fmt: skip
+    proxy = fleet_up.mavproxy(port)
     try:
         # It loads the parameters once it has heard a vehicle's heartbeat, and each
         # heartbeat comes with a SYS_STATUS, which its fence module reads: by then it has.
@@ -334,13 +326,7 @@ def test_mavproxy_commands_once_it_signs_with_its_passphrase(fleet_up: FleetUp) 
     keys.chmod(0o600)
     port = free_udp_port()
     gateway = fleet_up.gateway(f"udpout:127.0.0.1:{port}", "--signing-key", str(keys))
-    proxy = start(
-        "mavproxy",
-        [sys.executable, "-m", "MAVProxy.mavproxy", f"--master=udpin:127.0.0.1:{port}",
-         f"--state-basedir={fleet_up.tmp / 'mavproxy-signed'}"],
-        env={"HOME": str(fleet_up.tmp)},
-        stdin=True,
-    )  # fmt: skip
+    proxy = fleet_up.mavproxy(port, "mavproxy-signed")
     try:
         proxy.wait_for_line(lambda line: line.startswith("Detected vehicle"), WAIT_S)
         assert proxy.process.stdin is not None
