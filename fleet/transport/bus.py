@@ -250,3 +250,44 @@ class Bus(ABC):
 
     def publish(self, key: str, message: msgspec.Struct) -> None:
         self.put(key, bus_codec.encode(message))
+
+
+class DelegatingBus(Bus):
+    """A bus that hands every call but `put` and `close` to the bus `under` it: the base
+    of a wrapper that changes what it puts or when it opens."""
+
+    @property
+    @abstractmethod
+    def under(self) -> Bus:
+        """The bus the calls go to."""
+
+    def subscribe(
+        self, key_expr: str, callback: SampleCallback, *, details: bool = False
+    ) -> Declaration:
+        return self.under.subscribe(key_expr, callback, details=details)
+
+    def get(
+        self, selector: str, callback: SampleCallback, timeout: float, payload: bytes = b""
+    ) -> None:
+        self.under.get(selector, callback, timeout, payload)
+
+    def query(
+        self, selector: str, timeout: float, payload: bytes = b"", *, every_reply: bool = False
+    ) -> list[BusReply]:
+        return self.under.query(selector, timeout, payload, every_reply=every_reply)
+
+    def declare_queryable(self, key_expr: str, notify: QueryNotify | None = None) -> Queryable:
+        return self.under.declare_queryable(key_expr, notify)
+
+    def declare_token(self, key: str) -> Declaration:
+        return self.under.declare_token(key)
+
+    def live_tokens(self, key_expr: str, timeout: float) -> list[str]:
+        return self.under.live_tokens(key_expr, timeout)
+
+    def subscribe_presence(self, key_expr: str, callback: PresenceCallback) -> Declaration:
+        return self.under.subscribe_presence(key_expr, callback)
+
+    @property
+    def signed(self) -> bool:
+        return self.under.signed

@@ -25,13 +25,8 @@ from typing import TYPE_CHECKING
 
 from fleet.transport.bus import (
     Bus,
-    BusReply,
-    Declaration,
-    PresenceCallback,
-    Queryable,
-    QueryNotify,
+    DelegatingBus,
     RingSubscription,
-    SampleCallback,
 )
 
 if TYPE_CHECKING:
@@ -118,7 +113,7 @@ def opened_bus(
         bus.close()
 
 
-class OnFirstUse(Bus):
+class OnFirstUse(DelegatingBus):
     """The bus `opener` opens, opened when a command first uses it, closed with it.
 
     A program's root hands this to its command: a command first does what needs no
@@ -144,39 +139,12 @@ class OnFirstUse(Bus):
     def put(self, key: str, payload: bytes) -> None:
         self.opened.put(key, payload)
 
-    def subscribe(
-        self, key_expr: str, callback: SampleCallback, *, details: bool = False
-    ) -> Declaration:
-        return self.opened.subscribe(key_expr, callback, details=details)
+    @property
+    def under(self) -> Bus:
+        return self.opened
 
     def subscribe_ring(self, key_expr: str, limit: int) -> RingSubscription:
         return self.opened.subscribe_ring(key_expr, limit)
-
-    def get(
-        self, selector: str, callback: SampleCallback, timeout: float, payload: bytes = b""
-    ) -> None:
-        self.opened.get(selector, callback, timeout, payload)
-
-    def query(
-        self, selector: str, timeout: float, payload: bytes = b"", *, every_reply: bool = False
-    ) -> list[BusReply]:
-        return self.opened.query(selector, timeout, payload, every_reply=every_reply)
-
-    def declare_queryable(self, key_expr: str, notify: QueryNotify | None = None) -> Queryable:
-        return self.opened.declare_queryable(key_expr, notify)
-
-    def declare_token(self, key: str) -> Declaration:
-        return self.opened.declare_token(key)
-
-    def live_tokens(self, key_expr: str, timeout: float) -> list[str]:
-        return self.opened.live_tokens(key_expr, timeout)
-
-    def subscribe_presence(self, key_expr: str, callback: PresenceCallback) -> Declaration:
-        return self.opened.subscribe_presence(key_expr, callback)
-
-    @property
-    def signed(self) -> bool:
-        return self.opened.signed
 
     def close(self) -> None:
         with self._lock:

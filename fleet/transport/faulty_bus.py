@@ -18,12 +18,7 @@ import zenoh
 
 from fleet.transport.bus import (
     Bus,
-    BusReply,
-    Declaration,
-    PresenceCallback,
-    Queryable,
-    QueryNotify,
-    SampleCallback,
+    DelegatingBus,
 )
 
 log = logging.getLogger(__name__)
@@ -43,7 +38,7 @@ class FaultRule:
         return bool(zenoh.KeyExpr(self.key_expr).intersects(zenoh.KeyExpr(key)))
 
 
-class FaultyBus(Bus):
+class FaultyBus(DelegatingBus):
     """`inner` with `rules` applied to its puts; `dropped` and `delayed` count, per key,
     what they did. Owns `inner`: closing this closes it."""
 
@@ -86,36 +81,9 @@ class FaultyBus(Bus):
             self._timers = {t for t in self._timers if t is not threading.current_thread()}
         self.inner.put(key, payload)
 
-    def subscribe(
-        self, key_expr: str, callback: SampleCallback, *, details: bool = False
-    ) -> Declaration:
-        return self.inner.subscribe(key_expr, callback, details=details)
-
-    def get(
-        self, selector: str, callback: SampleCallback, timeout: float, payload: bytes = b""
-    ) -> None:
-        self.inner.get(selector, callback, timeout, payload)
-
-    def query(
-        self, selector: str, timeout: float, payload: bytes = b"", *, every_reply: bool = False
-    ) -> list[BusReply]:
-        return self.inner.query(selector, timeout, payload, every_reply=every_reply)
-
-    def declare_queryable(self, key_expr: str, notify: QueryNotify | None = None) -> Queryable:
-        return self.inner.declare_queryable(key_expr, notify)
-
-    def live_tokens(self, key_expr: str, timeout: float) -> list[str]:
-        return self.inner.live_tokens(key_expr, timeout)
-
-    def declare_token(self, key: str) -> Declaration:
-        return self.inner.declare_token(key)
-
-    def subscribe_presence(self, key_expr: str, callback: PresenceCallback) -> Declaration:
-        return self.inner.subscribe_presence(key_expr, callback)
-
     @property
-    def signed(self) -> bool:
-        return self.inner.signed
+    def under(self) -> Bus:
+        return self.inner
 
     def close(self) -> None:
         """Puts still held back are lost, as they would be by a process that stopped."""
