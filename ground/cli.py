@@ -185,12 +185,17 @@ def _add_opm(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> N
     set_handler(opm, fleet_commands.OPM)
 
 
+def _add_mission_id(parser: argparse.ArgumentParser) -> None:
+    """`--mission M`: which mission a command is about."""
+    parser.add_argument(
+        "--mission", type=_mission_id, metavar="M", help="mission id (default: the latest seen)"
+    )
+
+
 def _add_abort(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """`abort`: end a mission."""
     abort = commands.add_parser("abort", help="abort the current mission (team or one UAV)")
-    abort.add_argument(
-        "--mission", type=_mission_id, metavar="M", help="mission id (default: the latest seen)"
-    )
+    _add_mission_id(abort)
     abort.add_argument(
         "--uav",
         type=piccolo_id,
@@ -205,9 +210,7 @@ def _add_mission(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     status = commands.add_parser(
         "mission", help="a mission's targets: reached (by whom), assigned or unserved"
     )
-    status.add_argument(
-        "--mission", type=_mission_id, metavar="M", help="mission id (default: the latest seen)"
-    )
+    _add_mission_id(status)
     status.add_argument(
         "--until-reached",
         type=positive_float,
