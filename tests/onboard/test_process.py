@@ -24,7 +24,6 @@ from fleet.mission.messages import (
     LinkHealth,
     MissionAbort,
     MissionTargets,
-    OpmCommand,
     StatusText,
     Target,
     TargetOutcome,
@@ -143,26 +142,8 @@ def test_bad_command_and_bad_messages_are_refused_and_the_module_keeps_serving(r
     assert state.enabled and state.mission is None
 
 
-@pytest.mark.e2e
-def test_module_off_refuses_to_write_and_says_so(rig: Rig) -> None:
-    rig.ground.put(SPACE.opm(UAV), encode(OpmCommand(False, 2.0)), encoding=ENCODING)
-    wait_until(
-        lambda: any("module off" in s for s in rig.seen.statuses(UAV)), 10.0, "the off status"
-    )
-    reply = get_one(rig.ground, SPACE.command(UAV, "track"), encode(Track(1)))
-    assert reply.ok is not None
-    result = msgspec.json.decode(reply.ok.payload.to_bytes(), type=CommandResult)
-    assert not result.ok and "off" in result.detail
-
-
-@pytest.mark.e2e
-def test_malformed_targets_give_a_status_error_naming_the_problem(rig: Rig) -> None:
-    bad = MissionTargets(mission=5, team=(UAV,), targets=(Target(35.7, 200.0, 600.0),))
-    rig.ground.put(SPACE.mission_targets(5), encode(bad), encoding=ENCODING)
-    wait_until(
-        lambda: any("longitude 200.0" in s for s in rig.seen.statuses(UAV)), 10.0, "the error"
-    )
-    assert UAV not in rig.seen.assignments
+# The module switched off, and malformed targets: in memory,
+# tests/onboard/test_process_in_memory.py.
 
 
 @pytest.mark.e2e
