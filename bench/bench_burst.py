@@ -12,7 +12,7 @@ new mission of N targets, the UAV's own result already published):
 * commit: then one tick commits (the plan, the digest, the report published, i.e.
   encoded, the waypoint handed to the autopilot link): what each UAV spends between the
   last result and its commitment, the consensus window's share per UAV (times N over
-  the cores, issue 28). Its parts, each this thread's CPU in the function the code calls
+  the cores). Its parts, each this thread's CPU in the function the code calls
   (`Meter`; nested, so they do not add up): `MissionRound.decide` and, within it, the
   target-to-target legs (`leg_times`, 0 where the mission's arrival computed them), the
   queues (`plan_queues`), the digests; `publish` (every message the tick encodes and

@@ -1,4 +1,4 @@
-"""An idle onboard's CPU and wake-ups per thread, two fleets side by side (issue 14).
+"""An idle onboard's CPU and wake-ups per thread, two fleets side by side.
 
 Run: .venv/bin/python -m bench.bench_onboard_idle [--uavs 5] [--baseline main]
 [--window 30] [--repeat 2] [--port 7611]

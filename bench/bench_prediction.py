@@ -7,7 +7,7 @@ then fly it from the same state, arriving within 10 m.
 
 1. Still air: bearings every 15 degrees, 1-3 km, at the shipped scenarios' 22 m/s and
    at 28 m/s.
-2. Wind (issue 24): 22 m/s airspeed, winds of 0, 5, 10 and 15 m/s blowing east, the
+2. Wind: 22 m/s airspeed, winds of 0, 5, 10 and 15 m/s blowing east, the
    aircraft heading north, targets at bearings every 15 degrees and 1, 3 and 5 km (72
    cases a wind). Predictors: the published time (the model in the wind, or its
    fallback where the model gives none, as `onboard.planner.planner_worker` does), the

@@ -1,4 +1,4 @@
-"""Task queues (issue 23): how good each objective's plan is, and what the rule costs.
+"""Task queues: how good each objective's plan is, and what the rule costs.
 
 Run:  .venv/bin/python -m bench.bench_queues [--seed S] [--cbba DIR]
 

@@ -1,4 +1,4 @@
-"""What `fleet record` costs under a fleet's telemetry, before and after (issue 28).
+"""What `fleet record` costs under a fleet's telemetry, before and after.
 
 An embedded router in this process; a client of it putting N UAVs' telemetry at 20 Hz
 (the onboards' message, each on its UAV's key, at telemetry QoS); and a `fleet record`

@@ -1,4 +1,4 @@
-"""Signed commands (issue 26): what signing and checking cost per message, and at N=50.
+"""Signed commands: what signing and checking cost per message, and at N=50.
 
 For each message kind that is signed, at the size it has in a 50-UAV mission, the time
 to sign it (`BusSigning.attachment`: the envelope) and to check it (`BusSigning.check`:

@@ -1,4 +1,4 @@
-"""Signed commands at N=50 on the bus (issue 26): one mission round's exchange, signed
+"""Signed commands at N=50 on the bus: one mission round's exchange, signed
 against unsigned, measured in the same run.
 
 A router on loopback and N+1 real Zenoh sessions (a ground and N UAVs, each a `ZenohBus`

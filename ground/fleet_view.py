@@ -63,7 +63,7 @@ class UavView:
     last_status: str | None = None
     #: The turns of its route to its target around no-fly zones, (lat, lon) each.
     route: tuple[tuple[float, float], ...] = ()
-    #: How many targets its queue holds (issue 23), None before a commitment.
+    #: How many targets its queue holds, None before a commitment.
     queue: int | None = None
     #: The targets of its mission it reported reaching itself, in index order.
     reached: tuple[int, ...] = ()

@@ -27,7 +27,7 @@ def summary_lines(outcome: MissionOutcome) -> list[str]:
             eta = "" if report.eta_s is None else f" ETA {report.eta_s:.0f} s"
             choice = f"target {report.target}{eta}"
             queue = report.queues.get(uav, ())
-            if len(queue) > 1:  # issue 23: the rest of its queue, in order
+            if len(queue) > 1:  # the rest of its queue, in order
                 choice += f", then {', '.join(map(str, queue[1:]))}"
         if uav in outcome.lost:
             choice = "LOST (liveliness gone) " + choice

@@ -69,6 +69,21 @@ class MissionDecision:
     def _decide(self, mission_round: MissionRound, now: float) -> AssignmentReport:
         missing = mission_round.missing(self.team.alive)
         report = mission_round.decide(self.team.alive)
+        for proposer, why in sorted(mission_round.refused_proposals.items()):
+            log.warning(
+                "mission %d: the plan proposed by %d refused: %s",
+                mission_round.mission,
+                proposer,
+                why,
+            )
+        if mission_round.proposals:
+            log.info(
+                "mission %d: decided with %d proposal(s): digest %s, queues %s",
+                mission_round.mission,
+                len(mission_round.proposals),
+                report.digest,
+                dict(report.queues),
+            )
         if missing:
             self.say(
                 StatusKind.DEADLINE_PASSED,

@@ -218,6 +218,11 @@ class MissionParticipation:
         mission_round = self.round
         if mission_round is None or result.mission > mission_round.mission:
             self._early_results = [*self._early_results, result][-MAX_EARLY_RESULTS:]
+            # A teammate works on a mission this UAV has not heard: its put may not
+            # reach this UAV at all (in a secure router mesh without the ground's router,
+            # a UAV's router relays only what its own UAV may write), but a catch-up's
+            # query does: ask for the live missions (at most every CATCH_UP_INTERVAL_S).
+            self.catch_up.request(now)
             return
         if result.uav == self.uav_id or not mission_round.add_result(result):
             return

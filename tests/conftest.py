@@ -27,6 +27,9 @@ from fleet.transport.bus_codec import ENCODING, encode
 from tests.support.ground_view import GroundView
 from tests.support.processes import Fleet, client_session, router_session
 
+# A run always ends, and fails on a crashed worker or a process left running.
+pytest_plugins = ["tests.support.run_guard"]
+
 # No test fails on an absolute time: Hypothesis's per-example deadline (200 ms) failed
 # property tests on a loaded machine (load average 40) that pass in milliseconds alone.
 settings.register_profile("fleet", deadline=None)

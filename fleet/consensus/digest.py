@@ -1,7 +1,7 @@
 """SHA-256 from CPython's built-in module, without `hashlib`.
 
 `hashlib` loads OpenSSL's libcrypto (`_hashlib`): about 3.5 MB resident in every onboard
-process that only ever hashes a few kilobytes per mission (issue 14: fifty onboards on
+process that only ever hashes a few kilobytes per mission (fifty onboards on
 one box). CPython's own SHA-256 (`_sha256` up to 3.11, `_sha2` from 3.12) gives the
 same digests; `hashlib` is the fallback where neither is built.
 """

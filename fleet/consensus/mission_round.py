@@ -175,7 +175,7 @@ class MissionRound:
     def prepare(self) -> list[list[float]]:
         """The legs' geometry and the still-air table, computed now (while the approach
         times are planned), not when every UAV decides at once on the last result: the
-        consensus window (issue 28)."""
+        consensus window."""
         _ = self.geometry
         return self.legs
 
@@ -288,10 +288,22 @@ class MissionRound:
         return not self.missing(alive) and not self.awaiting_proposal(now)
 
     def awaiting_proposal(self, now: float) -> bool:
-        """The mission expects a proposed plan (`proposals_s`), none came yet, and its
-        window is still open: the decision waits for it (fleet.consensus.proposal)."""
+        """The mission expects a proposed plan (`proposals_s`), no valid one came yet,
+        and its window is still open: the decision waits for it (an invalid proposal
+        does not close the window; fleet.consensus.proposal)."""
         window = self.targets.proposals_s
-        return window > 0.0 and not self.proposals and now < self.started + window
+        if window <= 0.0 or now >= self.started + window:
+            return False
+        if not self.proposals:
+            return True
+        used = {uav: result.times for uav, result in self.results.items()}
+        legs = self.air_legs(used)
+        inputs = self.results_digest(used)
+        objective = self.targets.objective
+        return all(
+            proposal_problem(p, self.mission, objective, inputs, used, legs) is not None
+            for p in self.proposals.values()
+        )
 
     def add_proposal(self, proposal: PlanProposal) -> bool:
         """Keep a proposed plan for this round's decision; False if it is another

@@ -1,4 +1,4 @@
-"""The plan for a mission's objective: `plan_queues`, what every UAV runs (issue 23).
+"""The plan for a mission's objective: `plan_queues`, what every UAV runs.
 
 * No more targets than UAVs: an assignment problem, one target each, solved exactly.
   `min-sum` by the Hungarian method (`hungarian`) on the approach times: the most

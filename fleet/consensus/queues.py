@@ -1,4 +1,4 @@
-"""Task queues: every reachable target in exactly one UAV's ordered queue (issue 23).
+"""Task queues: every reachable target in exactly one UAV's ordered queue.
 
 Every UAV runs `plan_queues` on the same digested input (its teammates' approach times,
 the mission's targets and objective) and reaches the same queues without a

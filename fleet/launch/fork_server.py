@@ -2,7 +2,7 @@
 
 Why: fifty onboard processes each imported the same ~250 modules (Zenoh, msgspec, the
 planner, HiGHS's compiled core) into memory of their own: ~18 MB private each, 0.92 GB
-of PSS at N = 50 (issue 28). A fork server imports them once; each onboard is then
+of PSS at N = 50. A fork server imports them once; each onboard is then
 forked from it, and the imported pages stay shared, copy-on-write, until a child writes
 them. The server calls `gc.freeze()` before it forks, so the collector never walks (and
 so writes) the imported objects in a child; what a child still dirties is the objects

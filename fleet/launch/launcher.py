@@ -11,7 +11,7 @@ What runs (one machine, the star of docs/architecture.md):
   server that imported the onboard program once (`fleet.launch.fork_client`);
 * unless told not to, a recorder (`fleet.recording`), started first, so the whole run
   is recorded into `record` (an MCAP file): in this process on the router's own session
-  (one process and one hop fewer for every sample: issue 28), or, in a router-per-UAV
+  (one process and one hop fewer for every sample), or, in a router-per-UAV
   mesh, one `fleet record` process, a client that can fall back to any router.
 
 Children are started with `sys.executable -m ...` (no dependence on console scripts

@@ -37,7 +37,7 @@ PiccoloId = Annotated[int, Meta(ge=0x0001, le=0xFFF0)]
 #: A target's index in its mission.
 TargetIndex = Annotated[int, Meta(ge=0, le=MAX_TARGETS - 1)]
 Team = Annotated[tuple[PiccoloId, ...], Meta(max_length=MAX_TEAM)]
-#: One UAV's ordered targets (issue 23).
+#: One UAV's ordered targets.
 Queue = Annotated[tuple[TargetIndex, ...], Meta(max_length=MAX_TARGETS)]
 Arrivals = Annotated[tuple[float, ...], Meta(max_length=MAX_TARGETS)]
 
@@ -263,7 +263,7 @@ class TargetOutcome(msgspec.Struct, frozen=True):
     reason: str | None = None
     #: Every target of the mission this UAV knows reached, and by which UAV (its own
     #: outcomes and its teammates'), so that the latest outcome of any UAV tells a ground
-    #: that joins late what a lost UAV had reached (issue 23).
+    #: that joins late what a lost UAV had reached.
     reached: Annotated[dict[TargetIndex, PiccoloId], Meta(max_length=MAX_TARGETS)] = {}
 
 

@@ -1,4 +1,4 @@
-"""What a mission's plan optimises (issue 23): the ground chooses, every UAV applies it.
+"""What a mission's plan optimises: the ground chooses, every UAV applies it.
 
 Pure: no I/O.
 """

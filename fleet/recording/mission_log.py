@@ -113,7 +113,7 @@ class MissionLog:
     faults: list[tuple[float, str]] = field(default_factory=list)
     #: The mission's no-fly zones.
     zones: tuple[NoFlyZone, ...] = ()
-    #: Each UAV's reached outcomes as heard: (t, target), in order (issue 23: a queue).
+    #: Each UAV's reached outcomes as heard: (t, target), in order (a queue).
     arrivals: dict[int, list[tuple[float, int]]] = field(default_factory=dict)
     #: The latest re-plan heard (the highest epoch): the survivors' queues, a dropped
     #: UAV's targets appended to them.

@@ -244,7 +244,7 @@ def _targets(
 def _draw_tours(
     ax: Axes, log: MissionLog, projection: MercatorProjection, order: list[int]
 ) -> None:
-    """Each UAV's queue of more than one target (issue 23): a dotted line through it."""
+    """Each UAV's queue of more than one target: a dotted line through it."""
     for uav in log.team:
         queue = log.queue_of(uav)
         if len(queue) < 2:

@@ -8,7 +8,7 @@ link loop waits on the port's file descriptor, then reads what is there (thesis 
 
 A `socket://` port is read with one `os.read` on its non-blocking socket: pyserial's
 own read with timeout 0 makes a `select` first, on a port the loop's `select` has just
-found readable (issue 14: a syscall and a few Python calls fewer per telemetry packet in
+found readable (a syscall and a few Python calls fewer per telemetry packet in
 an idle onboard of a simulated fleet). A serial device goes through pyserial: a tty set
 up as pyserial does (VMIN = VTIME = 0) reads b'' both when it has nothing and when it
 was unplugged, which only pyserial's `select` first tells apart.

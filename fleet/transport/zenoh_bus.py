@@ -322,7 +322,7 @@ class ZenohBus(Bus):
 
         Telemetry goes through a publisher declared on its first put: a put on a declared
         publisher costs about half the CPU of a session put (the key is resolved once, not
-        at each of the 20 puts a second), which counts in an idle onboard (issue 14).
+        at each of the 20 puts a second), which counts in an idle onboard.
         """
         if self.signing is not None:
             attachment = self.signing.attachment(key, payload, Delivery.PUT)

@@ -7,7 +7,7 @@ router-mode session opens in milliseconds rather than 500 ms.
 Shared memory is off too (`SHARED_MEMORY_OFF`). Zenoh's default turns it on lazily: the
 first message over 3 KB a process sends (a 50-target mission, a UAV's state with its
 mission) makes it create a 16 MiB pool and map its peers' pools, which put 20-35 MB
-resident in every such process (issue 14: fifty onboards on one box). Fleet messages are
+resident in every such process (fifty onboards on one box). Fleet messages are
 small, and the aircraft of a real fleet share no memory.
 
 A deployment that needs more (TLS, access control, shared memory, timeouts) gives a full

@@ -264,7 +264,7 @@ def assignment_lines(view: MissionMap) -> list[Feature]:
 
 
 def tour_lines(view: MissionMap) -> list[Feature]:
-    """Each UAV's tour (issue 23): a line through the rest of its queue,
+    """Each UAV's tour: a line through the rest of its queue,
     from its current target on, in the UAV's colour; none for a queue of one."""
     if view.targets is None:
         return []

@@ -4,7 +4,7 @@ Why not through Pyomo
 ---------------------
 The model was written in Pyomo (`onboard.planner.approach_pyomo.build_point_mass`) and handed to
 HiGHS through Pyomo's persistent interface. Pyomo and numpy, which highspy's Python
-layer imports, hold ~37 MB resident in every onboard process (issue 14: fifty onboards
+layer imports, hold ~37 MB resident in every onboard process (fifty onboards
 on one box) and nothing of them is used after the model is translated: the LP scan only
 changes variable bounds and runs HiGHS. So `point_mass_lp` states the same LP as arrays,
 row for row, column for column, in the order Pyomo's translation gives them, and `HighsLp`

@@ -129,3 +129,11 @@ def test_the_proposal_here_is_better_by_the_scorer() -> None:
     better = finish({u: list(q) for u, q in BETTER.items()}, used, legs)
     mine = finish({u: list(q) for u, q in baseline.queues.items()}, used, legs)
     assert plan_key(better, Objective.MIN_SUM) < plan_key(mine, Objective.MIN_SUM)
+
+
+def test_an_invalid_proposal_does_not_close_the_window() -> None:
+    mission_round = _round(3, proposals_s=5.0)
+    mission_round.add_proposal(_proposal(mission_round, proposer=1, queues={3: (0, 0)}))
+    assert not mission_round.ready(1.0, {3, 5})
+    mission_round.add_proposal(_proposal(mission_round))
+    assert mission_round.ready(1.0, {3, 5})

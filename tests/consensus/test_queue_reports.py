@@ -1,4 +1,4 @@
-"""A round's plan on the wire (issue 23): queues in the report, a digest per objective,
+"""A round's plan on the wire: queues in the report, a digest per objective,
 and a teammate's report with impossible queues refused whole."""
 
 from __future__ import annotations

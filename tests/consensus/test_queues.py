@@ -1,4 +1,4 @@
-"""Task queues (issue 23): every reachable target in exactly one queue, the same plan
+"""Task queues: every reachable target in exactly one queue, the same plan
 whatever the input's order, the exact assignments where they are cheap."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Re-planning after the commitment: a function of epoch 0 and the released set; every
-survivor may take orphans, at the ends of the queues (issue 23)."""
+survivor may take orphans, at the ends of the queues."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""What the command lines accept and say (issue 25, case 10): the targets files the page
+"""What the command lines accept and say: the targets files the page
 loads (CSV, GeoJSON) are read by `ground-cli` too; `ground-cli gui --listen` takes a
 `tcp/` endpoint; `fleet up --gui SCENARIO` is the scenario, not the page's address;
 `fleet replay` has one prefix flag."""

@@ -55,7 +55,7 @@ def test_the_live_view_follows_tokens_and_status_messages() -> None:
 
 
 def test_a_uav_along_its_queue_shows_the_target_it_flies_to_and_those_it_reached() -> None:
-    """Issue 23: UAV 74 queues targets 0 then 2 and has reached 0; its row shows target 2
+    """UAV 74 queues targets 0 then 2 and has reached 0; its row shows target 2
     (not its queue's first) and 0 among those it reached; a UAV that does not say its
     current target shows its queue's first, as before."""
     from fleet.mission.messages import AssignmentReport, MissionProgress, UavState

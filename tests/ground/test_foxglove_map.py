@@ -200,7 +200,7 @@ def test_another_layer_is_one_more_function() -> None:
 
 
 def test_a_queue_is_a_tour_and_its_reached_targets_stay_reached() -> None:
-    """Issue 23: UAV 74 queues targets 0 then 2. Its tour is drawn through the rest of
+    """UAV 74 queues targets 0 then 2. Its tour is drawn through the rest of
     its queue; once it reached 0 (its latest outcome names 0, then 2's outcome lists
     both), 0 stays reached, by 74, and its line goes to 2."""
     view = mission_map(3)

@@ -130,7 +130,7 @@ def test_a_target_no_uav_has_a_route_to_is_unserved_with_that_reason() -> None:
 
 
 def test_queued_targets_have_a_holder_a_place_and_a_predicted_arrival() -> None:
-    """Issue 23: one UAV queues targets 0 then 2, its teammate 1; target 2 reached by the
+    """One UAV queues targets 0 then 2, its teammate 1; target 2 reached by the
     teammate (a re-plan) is reached whoever's queue it was in; the summary tells queues."""
     queues = {101: (0, 2), 102: (1,)}
     arrivals = {101: (40.0, 130.0), 102: (55.0,)}

@@ -1,4 +1,4 @@
-"""Task queues end to end (issue 23): real simulator, onboards, router and `ground-cli`.
+"""Task queues end to end: real simulator, onboards, router and `ground-cli`.
 
 Three UAVs and eight targets: every target reached, and `mission --until-reached` says
 so; the same with a holder SIGKILLed after its first target, mid-queue, its queue going

@@ -1,4 +1,4 @@
-"""Identities with one role each, attacked end to end (issue 26, cases 2, 3 and 6): real
+"""Identities with one role each, attacked end to end: real
 routers (`python -m fleet.transport.router --secure`) on tls/ loopback endpoints, real
 Zenoh clients with the fleet's identities.
 

@@ -288,7 +288,7 @@ def test_the_issues_attacks_are_refused_and_the_mission_completes_unchanged(
     assert outcome["digest"] != "rogue"
     # The attacker pushed everyone to target 2: the UAVs split targets 0 and 1 between
     # them (which gets which depends on where they are by now), from their real results,
-    # and target 2 is queued behind one of them (issue 23).
+    # and target 2 is queued behind one of them.
     assert sorted(outcome["assignment"].values()) == [0, 1] and outcome["unassigned"] == []
     assert all(None not in times for times in outcome["results"].values())
     listed = secure_fleet.ground_cli("uavs", "--json")

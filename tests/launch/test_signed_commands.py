@@ -1,4 +1,4 @@
-"""Signed commands end to end (issue 26): a secure fleet of real processes (the router
+"""Signed commands end to end: a secure fleet of real processes (the router
 with mutual TLS and access control, the simulator, onboards 74 and 112, `ground-cli`),
 attacked by a captured aircraft (UAV 74's certificate and signing key), a captured
 router (the ground's router identity, joined as a router to the fleet's router, which
@@ -120,7 +120,7 @@ def onboard_said(secure: SignedFleet, uav: int, text: str) -> bool:
 def test_a_forged_mission_and_abort_served_to_a_teammate_catching_up_are_refused(
     signed_fleet: SignedFleet,
 ) -> None:
-    """Issue 26 case 1: UAV 74's key serves a mission naming 112, and an abort of the live
+    """UAV 74's key serves a mission naming 112, and an abort of the live
     mission, to 112 catching up after a freeze. Signed with 74's own key: the best a
     captured aircraft can do."""
     secure = signed_fleet
@@ -160,7 +160,7 @@ def test_a_forged_mission_and_abort_served_to_a_teammate_catching_up_are_refused
 def test_forged_mission_ids_in_replies_and_state_do_not_stop_the_ground(
     signed_fleet: SignedFleet,
 ) -> None:
-    """Issue 26 case 1: UAV 74 answers `fleet/mission/**` with mission 2^32-1 (the ground's
+    """UAV 74 answers `fleet/mission/**` with mission 2^32-1 (the ground's
     mission it made up, and its own result, which it may sign) and its own state with
     that id. The ground takes mission ids only from the ground's signed targets and
     aborts, the only keys it asks."""

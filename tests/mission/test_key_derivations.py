@@ -131,7 +131,7 @@ POLICY_74 = [
             "fleet/mission/*/result/*", "fleet/mission/*/targets", "fleet/uav/*/state",
         },
     ),
-    # Added with the routers' state (issue 26): UAV 74's router answers for itself.
+    # Added with the routers' state: UAV 74's router answers for itself.
     (
         "routers-serve", ("router-74",), ("ingress",), ("declare_queryable", "reply"),
         {"fleet/router/state"},

@@ -84,6 +84,20 @@ def test_a_mission_heard_live_asks_nobody_and_one_from_a_catch_up_asks_the_team(
     assert out.assignment_fetches == [9]
 
 
+def test_a_teammates_result_for_a_mission_not_heard_asks_for_the_live_missions() -> None:
+    # The mission's put never reached this UAV (a router that may not relay it), but a
+    # teammate's result for it did: a catch-up's query brings the mission.
+    core, out = make_core(74)
+    core.on_targets(MissionTargets(mission=8, team=(74, 112), targets=TARGETS), 0.0)
+    fetched = out.mission_fetches
+    core.on_result(UavResult(8, 112, (50.0, 10.0, 50.0)), 0.1)
+    assert out.mission_fetches == fetched  # the current mission's: nothing to ask
+    core.on_result(UavResult(9, 112, (50.0, 10.0, 50.0)), 10.0)
+    assert out.mission_fetches == fetched + 1
+    core.on_targets(MissionTargets(mission=9, team=(74, 112), targets=TARGETS), 10.2, replayed=True)
+    assert out.assignment_fetches[-1] == 9  # learnt late: the team may have decided
+
+
 def test_a_catch_up_during_a_round_asks_for_its_assignments_committed_or_not() -> None:
     # A UAV frozen while the mission was sent hears it live, late: its catch-ups after
     # the freeze must still bring what the team decided meanwhile.

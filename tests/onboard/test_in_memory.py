@@ -156,7 +156,7 @@ def test_one_uav_mission_round_in_memory(world: World) -> None:
     fastest = min(range(len(times)), key=lambda i: times[i] or math.inf)
     report = seen.assignments[UAV]
     assert report.target == fastest == 1  # the scenario's target ahead, 15 degrees right
-    # One UAV, three targets: it queues all three, the fastest first (issue 23).
+    # One UAV, three targets: it queues all three, the fastest first.
     assert report.team == (UAV,) and report.unassigned == ()
     assert report.queues[UAV][0] == 1 and sorted(report.queues[UAV]) == [0, 1, 2]
     # The aircraft itself was told: the simulated autopilot now tracks the target waypoint.

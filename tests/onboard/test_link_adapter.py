@@ -122,7 +122,7 @@ class CountingLink(SerialLink):
 
 def test_only_the_readable_port_is_read_and_every_packet_arrives_in_order() -> None:
     """Over sockets (as from the simulator) the loop reads only the ports its select
-    found readable (issue 14): packets on the program port all arrive, in order, and the
+    found readable: packets on the program port all arrive, in order, and the
     idle payload port is not read for each of them."""
     servers = [socket.create_server(("127.0.0.1", 0)) for _ in range(2)]
     program, payload = (

@@ -311,7 +311,7 @@ def test_a_thinner_commitment_is_not_adopted() -> None:
     assert own.digest != "thin"  # the disagreement is visible to the ground
 
 
-# ---- review of issue 10: hostile reports, finished candidates, writes after arrival --
+# ---- review of hostile reports, finished candidates, writes after arrival --
 def test_an_assignment_naming_a_target_beyond_the_mission_is_refused_never_indexed() -> None:
     core, out = uav_200_given_two_targets(mission=3)
     bad = AssignmentReport(3, 74, 0, {74: 0, 200: 7}, (), (74, 112, 200), "x")

@@ -48,7 +48,7 @@ def assert_agreed(reports: dict[int, AssignmentReport], team: set[int], n_target
     assert {uav: r.queues for uav, r in reports.items()} == {uav: first.queues for uav in reports}
     targets = list(first.pairs.values())
     assert len(targets) == len(set(targets)) == min(len(team), n_targets)
-    # Every target in exactly one queue, or unserved (issue 23).
+    # Every target in exactly one queue, or unserved.
     queued = [t for queue in first.queues.values() for t in queue]
     assert sorted([*queued, *first.unassigned]) == list(range(n_targets))
 
@@ -118,7 +118,7 @@ def test_head_on_two_uavs_take_distinct_targets_reach_them_and_resume(
         assert seen.closest_approach(uav, target.lat, target.lon) <= 75.0
         tracks = seen.tracks[uav]
         assert tracks[tracks.index(TARGET_WAYPOINT) + 1] == original[uav]
-    # Target 2, unserved for good with one target each, is queued behind one (issue 23).
+    # Target 2, unserved for good with one target each, is queued behind one.
     (holder,) = (uav for uav, queue in seen.assignments[74].queues.items() if 2 in queue)
     wait_until(
         lambda: any(o.target == 2 and o.phase == "reached" for o in seen.outcomes_of(holder)),

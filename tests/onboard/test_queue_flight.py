@@ -1,4 +1,4 @@
-"""Flying a queue (issue 23): on to the next target when one is reached, and a holder
+"""Flying a queue: on to the next target when one is reached, and a holder
 lost mid-queue hands the rest of its queue to the survivors; driven through the core."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The payload pipe in the secure profile (issue 26, case 5): a mission injected on the
+"""The payload pipe in the secure profile (case 5): a mission injected on the
 simulator's payload ground port (a radio-only ground station, the thesis's path) is
 refused and counted by an onboard on the secure profile, which flies nothing for it; the
 same injection is obeyed in the open profile (tests/onboard/test_process.py).

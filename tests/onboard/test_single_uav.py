@@ -41,7 +41,7 @@ def test_single_uav_flies_its_queue_fastest_first_reaches_each_and_resumes(
     assert all(t is not None for t in times)
     fastest = min(range(len(times)), key=lambda i: times[i] or math.inf)
     assert report.target == fastest == 1  # the scenario's target ahead, 15 deg right
-    # One UAV and three targets: all three in its queue (issue 23), the fastest first.
+    # One UAV and three targets: all three in its queue, the fastest first.
     queue = report.queues[112]
     assert report.team == (112,) and report.unassigned == ()
     assert queue[0] == fastest and sorted(queue) == [0, 1, 2]

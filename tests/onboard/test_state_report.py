@@ -30,7 +30,7 @@ def test_status_messages_carry_their_kind_mission_and_target() -> None:
         (StatusKind.TARGET_CHOSEN, 1, 1),
         (StatusKind.FLYING_TO_TARGET, 1, 1),
         (StatusKind.REACHED, 1, 1),
-        (StatusKind.TARGET_CHOSEN, 1, 0),  # the next of its queue (issue 23)
+        (StatusKind.TARGET_CHOSEN, 1, 0),  # the next of its queue
     ]
 
 

@@ -66,7 +66,7 @@ def test_single_uav_flies_to_the_fastest_target_then_resumes() -> None:
     assert out.autopilot[-1] == Track(TARGET_WAYPOINT)
     core.on_track(Track(TARGET_WAYPOINT), 2.0)
     assert core.state(2.0).phase == Phase.FLYING
-    assert report.queues == {112: (1, 0, 2)}  # one UAV queues all three (issue 23)
+    assert report.queues == {112: (1, 0, 2)}  # one UAV queues all three
     core.on_telemetry(telemetry_at(TARGETS[1].lat + 0.0005, TARGETS[1].lon), 59.0)  # ~56 m
     assert any("reached target 1" in s for s in out.statuses())
     # On to the next of its queue: the target waypoint rewritten there, still leading back.

@@ -254,7 +254,7 @@ def tour_of_two() -> Timeline:
 
 
 def test_a_tour_s_legs_predicted_and_flown(tmp_path: Path) -> None:
-    """UAV 1 queues targets 0 then 1 (issue 23): each leg's predicted time from the
+    """UAV 1 queues targets 0 then 1: each leg's predicted time from the
     plan's arrivals, its flown time on the aircraft's clock between reached outcomes."""
     timeline = tour_of_two()
     (log,) = timeline.missions

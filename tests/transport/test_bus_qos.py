@@ -54,7 +54,7 @@ def test_a_key_space_given_decides() -> None:
 
 
 def test_telemetry_goes_through_one_declared_publisher_with_its_qos() -> None:
-    """ZenohBus puts telemetry on a publisher declared once (issue 14: half the CPU of a
+    """ZenohBus puts telemetry on a publisher declared once (half the CPU of a
     session put); what arrives is every sample, with telemetry's priority and encoding."""
     port = free_port()
     received: queue.SimpleQueue[zenoh.Sample] = queue.SimpleQueue()

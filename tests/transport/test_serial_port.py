@@ -83,7 +83,7 @@ def test_a_dropped_socket_is_counted_and_reopened(listener: tuple[socket.socket,
 def test_a_socket_is_read_from_its_descriptor_every_byte_in_order(
     listener: tuple[socket.socket, int],
 ) -> None:
-    """A socket:// port is read with one os.read on its descriptor (issue 14): every
+    """A socket:// port is read with one os.read on its descriptor: every
     byte arrives in order, and a read with nothing waiting is b'' without a drop."""
     server, port = listener
     link = SerialLink("program", f"socket://127.0.0.1:{port}")

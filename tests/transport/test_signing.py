@@ -127,7 +127,7 @@ def test_the_grounds_mission_is_heard_and_an_unsigned_one_is_refused(
 def test_a_uav_relays_the_grounds_mission_and_cannot_serve_its_own(
     buses: dict[str, ZenohBus],
 ) -> None:
-    """Issue 26 case 1 on the bus: a teammate catching up believes the ground's mission
+    """On the bus: a teammate catching up believes the ground's mission
     whoever relays it, and no mission a UAV made up."""
     heard = Heard()
     subscription = buses["uav-74"].subscribe(SPACE.all_mission_targets, heard)

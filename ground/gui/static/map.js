@@ -99,7 +99,7 @@ export function drawAssignments(scale) {
   const m = state.mission;
   if (!m || !m.target_states) return;
   const byId = new Map(state.uavs.map((u) => [u.id, u]));
-  // Each UAV's tour: its targets still to fly, in queue order (issue 23).
+  // Each UAV's tour: its targets still to fly, in queue order.
   const tours = new Map();
   for (const t of m.target_states) {
     if (t.uav === null || t.state !== 'assigned') continue;

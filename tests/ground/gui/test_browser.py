@@ -333,7 +333,7 @@ def test_the_thesis_scenario_from_the_page(
             # The drafts sent are the mission's targets now: drawn as the mission's, apart.
             assert not target_marks(elements)
             states = {i: m["state"] for i, m in mission_marks(elements).items()}
-            assert "unserved" not in states.values()  # the third is queued (issue 23)
+            assert "unserved" not in states.values()  # the third is queued
             # The queued target is drawn as its holder's tour, its predicted arrival beside it.
             later = set(range(3)) - set(assigned.values())
             elements = wait_for(

@@ -187,7 +187,13 @@ def test_mavsdk_uploads_a_mission_sees_the_fleets_position_and_rtl_aborts(
                 assert sorted(systems) == list(UAVS)
                 system = systems[piccolo]
                 assert system.has_autopilot()
-                assert Info(system).get_identification().legacy_uid == piccolo
+                # MAVSDK asks for AUTOPILOT_VERSION once it sees the system, and again
+                # until answered: on a loaded box the answer may not be in yet.
+                info = Info(system)
+                wait_until(
+                    lambda: _identification(info) is not None, WAIT_S, "MAVSDK's identification"
+                )
+                assert info.get_identification().legacy_uid == piccolo
 
                 telemetry = Telemetry(system)
                 wait_until(
@@ -235,6 +241,18 @@ def test_mavsdk_uploads_a_mission_sees_the_fleets_position_and_rtl_aborts(
     finally:
         lines = stop(gateway)
     assert any(f"RTL: mission {found['mission']}: UAV {piccolo} aborted" in x for x in lines)
+
+
+def _identification(info: Any) -> Any | None:
+    """MAVSDK's identification of a system; None while it has not received it yet."""
+    from mavsdk.plugins.info import InfoError, InfoResult
+
+    try:
+        return info.get_identification()
+    except InfoError as error:
+        if error.result is InfoResult.INFORMATION_NOT_RECEIVED_YET:
+            return None
+        raise
 
 
 def _matches_published(position: Any, view: GroundView, piccolo: int) -> bool:

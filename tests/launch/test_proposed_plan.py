@@ -1,0 +1,143 @@
+"""A proposed plan, end to end: `fleet up windy` (router, simulator, three onboards),
+twenty targets, min-max, `ground-cli send-targets --propose` solving the queues with
+PyVRP once the results are in, and a rogue client putting an invalid proposal (a target
+twice, other results, from a lower ID) throughout. Every UAV commits one plan with one
+digest: the ground's proposal where the deterministic scorer finds it strictly better
+than the baseline (here it is: PyVRP's bisection beats the baseline's min-max on this
+instance, about 8 % when measured), else the baseline, both recomputed here from the
+recorded results; the invalid one refused by each UAV (its log says why)."""
+
+from __future__ import annotations
+
+import json
+import random
+import signal
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import msgspec
+import pytest
+
+from fleet.consensus.mission_round import MissionRound
+from fleet.consensus.objectives import plan_digest
+from fleet.consensus.proposal import plan_key, proposal_digest
+from fleet.consensus.queues import finish
+from fleet.launch.endpoints import free_port
+from fleet.mission.key_space import DEFAULT_SPACE
+from fleet.mission.messages import MissionTargets, PlanProposal, UavResult
+from fleet.mission.objective import Objective
+from fleet.recording.reader import read_recording
+from fleet.transport.zenoh_bus import client_bus
+from tests.support.processes import start
+
+pytest.importorskip("pyvrp", reason="PyVRP is not installed: pip install '.[solver]'")
+pytestmark = pytest.mark.e2e
+
+MISSION = 41
+#: Twenty targets, local metres east/north of the windy scenario's origin, seeded.
+_RNG = random.Random(35)
+POINTS = [(_RNG.uniform(-6000, 6000), _RNG.uniform(-9000, 12000)) for _ in range(20)]
+
+
+def _targets_csv(path: Path) -> Path:
+    from fleet.geo.mercator import MercatorProjection
+
+    projection = MercatorProjection(35.72, -120.76)
+    rows = ["lat,lon,alt"]
+    for x, y in POINTS:
+        lat, lon = projection.to_latlon(x, y)
+        rows.append(f"{lat:.7f},{lon:.7f},600")
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def _rogue(endpoint: str, stop: threading.Event) -> None:
+    """Put an invalid proposal for the mission every 0.2 s until `stop`."""
+    bad = PlanProposal(
+        mission=MISSION,
+        proposer=1,
+        digest="0" * 16,
+        objective=Objective.MIN_MAX,
+        queues={201: (0, 0, *range(1, 8)), 202: tuple(range(8, 14)), 203: tuple(range(14, 20))},
+    )
+    with client_bus(endpoint) as bus:
+        while not stop.wait(0.2):
+            bus.publish(DEFAULT_SPACE.mission_proposal(MISSION), bad)
+
+
+def test_a_proposed_plan_is_verified_and_one_plan_adopted_by_every_uav(tmp_path: Path) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    up = start(
+        "fleet up",
+        [sys.executable, "-m", "programs.fleet_cli", "up", "windy", "--listen", endpoint,
+         "--speedup", "3", "--log-dir", str(tmp_path)],
+    )  # fmt: skip
+    stop = threading.Event()
+    rogue = threading.Thread(target=_rogue, args=(endpoint, stop), daemon=True)
+    try:
+        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+        rogue.start()
+        sent = subprocess.run(
+            [sys.executable, "-m", "ground.cli", "--connect", endpoint, "send-targets",
+             str(_targets_csv(tmp_path / "nine.csv")), "--objective", "min-max", "--propose",
+             "--mission", str(MISSION), "--wait", "--json", "--timeout", "90"],
+            capture_output=True, text=True, timeout=240, check=False,
+        )  # fmt: skip
+        assert sent.returncode == 0, sent.stderr[-3000:]
+        outcome = json.loads(sent.stdout)
+        assert outcome["agreed"] is True, sent.stderr[-3000:]
+        assert "plan proposed" in sent.stderr, sent.stderr[-3000:]
+    finally:
+        stop.set()
+        up.process.send_signal(signal.SIGTERM)
+        assert up.process.wait(60) == 0
+    recording = read_recording(tmp_path / "fleet.mcap")
+    results: dict[int, UavResult] = {}
+    reports = {}
+    proposal = targets = None
+    for message in recording.messages:
+        if f"mission/{MISSION}/result/" in message.topic:
+            result = msgspec.json.decode(message.data, type=UavResult)
+            results[result.uav] = result
+        elif message.topic.endswith(f"mission/{MISSION}/targets"):
+            targets = msgspec.json.decode(message.data, type=MissionTargets)
+        elif message.topic.endswith(f"mission/{MISSION}/proposal"):
+            heard = msgspec.json.decode(message.data, type=PlanProposal)
+            if heard.proposer != 1:
+                proposal = heard
+        elif f"mission/{MISSION}/assignment/" in message.topic:
+            reports[message.topic] = message.value()
+    assert targets is not None and proposal is not None and len(reports) == 3
+    # One plan, one digest, on every UAV.
+    assert len({(r["digest"], json.dumps(r["queues"])) for r in reports.values()}) == 1
+    committed = next(iter(reports.values()))
+    # What each UAV computed: the baseline from the recorded results, then the choice.
+    mission_round = MissionRound(
+        targets=msgspec.structs.replace(targets, proposals_s=0.0), own_id=201, started=0.0
+    )
+    for result in results.values():
+        assert mission_round.add_result(result)
+    used = {uav: r.times for uav, r in mission_round.results.items()}
+    legs = mission_round.air_legs(used)
+    baseline = mission_round.decide(set(used))
+    base_key = plan_key(
+        finish({u: list(q) for u, q in baseline.queues.items()}, used, legs), Objective.MIN_MAX
+    )
+    proposed_key = plan_key(
+        finish({u: list(q) for u, q in proposal.queues.items()}, used, legs), Objective.MIN_MAX
+    )
+    if proposed_key < base_key:
+        inputs = mission_round.results_digest(used)
+        expected = proposal_digest(plan_digest(inputs, Objective.MIN_MAX), proposal)
+        assert committed["digest"] == expected
+        assert {int(u): tuple(q) for u, q in committed["queues"].items()} == {
+            u: q for u, q in proposal.queues.items() if q
+        }
+    else:
+        assert committed["digest"] == baseline.digest
+    # The rogue's proposal was refused by every UAV.
+    for uav in (201, 202, 203):
+        log = (tmp_path / f"onboard-{uav}.log").read_text()
+        assert "the plan proposed by 1 refused" in log, uav
