@@ -257,11 +257,39 @@ class MissionParticipation:
             return
         if mission_round.committed is None:
             self._adopt(report, now)
-        elif mission_round.release(report.released):
+        elif mission_round.release(self._believed_released(mission_round, report)):
             self._replan(now)
         elif (followed := mission_round.follow(report)) is not None:
             self._apply(followed, now)
         self._settle()
+
+    def _believed_released(
+        self, mission_round: MissionRound, report: AssignmentReport
+    ) -> tuple[int, ...]:
+        """The UAVs a teammate's re-plan releases that this UAV believes gone: the
+        reporter itself, and those whose liveliness this UAV saw go. That another UAV
+        dropped out is the reporter's claim about it, a hint: this UAV asks for that UAV's
+        own outcome (failed, link lost), which releases it when it says so."""
+        believed = tuple(
+            uav for uav in report.released if uav == report.uav or uav not in self.team.alive
+        )
+        hinted = tuple(
+            sorted(
+                uav
+                for uav in set(report.released) - set(believed) - mission_round.released
+                if uav in mission_round.team and uav != self.uav_id
+            )
+        )
+        if hinted:
+            log.info(
+                "mission %d: UAV %d's re-plan releases %s, still alive here: asking for "
+                "their own outcomes",
+                report.mission,
+                report.uav,
+                ", ".join(map(str, hinted)),
+            )
+            self.outputs.fetch_outcomes(mission_round.mission, hinted)
+        return believed
 
     def _adopt(self, report: AssignmentReport, now: float) -> None:
         assert self.round is not None

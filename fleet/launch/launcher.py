@@ -39,7 +39,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
-from typing import IO, Self
+from typing import IO, Any, Self
 
 import zenoh
 
@@ -62,6 +62,7 @@ from fleet.mission.key_space import DEFAULT_SPACE, KeySpace, uav_id_of
 from fleet.piccolo.telemetry import Telemetry
 from fleet.recording.recorder import READY_LINE, Recorder
 from fleet.recording.writer import McapSink
+from fleet.transport import bus_codec
 from fleet.transport.bus import Bus, BusSample, Declaration, decode_sample
 from fleet.transport.bus_factory import open_bus
 from fleet.transport.cli import CRASH_DUMP_ENV, PREFIX_ENV
@@ -541,10 +542,20 @@ class Fleet:
         """
         bus = self._observer()
         watch = self._watch = _ReadyWatch(bus)
-        watch.declarations = [
-            bus.subscribe_presence(self.spec.key_space.all_alive, watch.on_token),
-            bus.subscribe(self.spec.key_space.all_telemetry, watch.on_telemetry),
-        ]
+        watch.declarations = [bus.subscribe_presence(self.spec.key_space.all_alive, watch.on_token)]
+        if self.router is not None:
+            # Kept for the fleet's life: the telemetry waits in a ring Zenoh keeps, read by
+            # `_wait_ready`, so no Python runs on the router's threads per sample after.
+            ring = self.router.session.declare_subscriber(
+                self.spec.key_space.all_telemetry,
+                zenoh.handlers.RingChannel(4 * len(self.uav_ids) + 16),
+            )
+            watch.ring = ring
+            watch.declarations.append(ring)
+        else:
+            watch.declarations.append(
+                bus.subscribe(self.spec.key_space.all_telemetry, watch.on_telemetry)
+            )
 
     def _watch_end(self) -> None:
         watch, self._watch = self._watch, None
@@ -564,6 +575,7 @@ class Fleet:
         reported, next_report = (-1, -1), 0.0
         while not expected <= watch.alive & watch.flowing:
             watch.changed.wait(0.2)
+            watch.drain()
             watch.changed.clear()
             alive, flowing = set(watch.alive), set(watch.flowing)
             counts = (len(expected & alive), len(expected & alive & flowing))
@@ -631,6 +643,23 @@ class _ReadyWatch:
     flowing: set[int] = field(default_factory=set)
     changed: threading.Event = field(default_factory=threading.Event)
     declarations: list[Declaration] = field(default_factory=list)
+    ring: zenoh.Subscriber[Any] | None = None
+
+    def drain(self) -> None:
+        """The telemetry the ring holds (on the router's session), seen now."""
+        ring = self.ring
+        while ring is not None and (sample := ring.try_recv()) is not None:
+            uav = _uav_of(str(sample.key_expr))
+            if uav is None or uav in self.flowing:
+                continue
+            try:
+                telemetry = bus_codec.decode(
+                    sample.payload.to_bytes(), Telemetry, str(sample.key_expr)
+                )
+            except bus_codec.BadMessage:
+                continue
+            if telemetry.gps is not None:
+                self.flowing.add(uav)
 
     def on_token(self, key: str, present: bool) -> None:
         uav = _uav_of(key)

@@ -21,6 +21,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import pytest
 import zenoh
 
@@ -266,3 +267,37 @@ def test_a_rogue_router_cannot_invent_an_aircraft_a_position_or_a_status(
     ]
     assert shown_at, shown.stdout[-2000:]
     assert all(abs(lat - 35.7) < 0.5 for lat in shown_at), f"112 shown at {shown_at}"
+
+
+def test_a_captured_uavs_re_plan_cannot_release_its_teammate(secure: SignedFleet) -> None:
+    """UAV 74's own, correctly signed re-plan (epoch + 1) says 112 dropped out. That is a
+    claim about 112, which flies on: 112 does not release itself on 74's word."""
+    mission = secure.send_targets()
+
+    def committed() -> bool:
+        state = secure.state(112)
+        return bool(state and state.mission and state.mission.assignment)
+
+    wait_until(committed, 60.0, "112 committed")
+    state = secure.state(112)
+    assert state is not None and state.mission is not None
+    report = state.mission.assignment
+    assert report is not None
+    forged = msgspec.structs.replace(
+        report, uav=74, target=report.pairs.get(74), epoch=report.epoch + 1, released=(112,)
+    )
+    key, lie = SPACE.mission_replan(mission, 74), encode(forged)
+    with secure.session("uav-74") as attacker:
+        before = secure.refused(112, "unsigned")
+
+        def lied() -> bool:
+            by_74 = signed.attachment(secure.certs, "uav-74", key, lie)
+            attacker.put(key, lie, encoding=ENCODING, attachment=by_74)
+            attacker.put(key, lie, encoding=ENCODING)  # after it: counted once it is handled
+            return secure.refused(112, "unsigned") > before
+
+        wait_until(lied, 30.0, "112 handling 74's re-plan")
+    after = secure.state(112)
+    assert after is not None and after.mission is not None
+    held = after.mission.assignment
+    assert held is not None and 112 not in held.released, f"112 released on 74's word: {held}"

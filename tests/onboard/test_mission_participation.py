@@ -285,6 +285,9 @@ def test_an_orphan_handed_to_a_uav_without_autopilot_link_is_released_again() ->
 
 
 def test_a_teammates_later_epoch_is_merged_and_re_planned_identically() -> None:
+    """A teammate's re-plan releasing a UAV this one still sees alive (a captured UAV
+    could release an honest teammate and have its targets flown by others) is believed
+    once the released UAV's own outcome says it dropped out."""
     core, out = make_core(200, (30.0, 35.0))
     commit_three_uav_team(core)
     theirs = AssignmentReport(
@@ -292,6 +295,12 @@ def test_a_teammates_later_epoch_is_merged_and_re_planned_identically() -> None:
     )
     core.on_telemetry(sample_telemetry(), 5.0)
     core.on_assignment(theirs, 5.0)
+    # That 112 dropped out is 74's word about 112, still alive here: a hint. 200 asks
+    # for 112's own outcome, and re-plans (identically) once 112's own word says so.
+    assert out.outcome_fetches == [(3, (112,))]
+    assert out.on(SPACE.mission_assignment(3, 200))[-1].epoch == 0  # type: ignore[attr-defined]
+    core.on_outcome(TargetOutcome(3, 112, 1, Phase.FAILED, "waypoint not echoed"), 5.5)
+    core.on_assignment(theirs, 6.0)
     report = out.on(SPACE.mission_assignment(3, 200))[-1]
     assert isinstance(report, AssignmentReport)
     assert (report.epoch, report.released, report.target) == (1, (112,), 1)
