@@ -150,4 +150,9 @@ def encode_targets(targets: Iterable[Target], *, source: str = "<targets>") -> b
         _refuse_empty(source)
     if len(chunks) > MAX_TARGETS:
         _refuse_too_many(len(chunks), source)
-    return b"".join(chunks)
+    data = b"".join(chunks)
+    # Targets whose every byte is printable (rare: one in about 10^10 single-target
+    # files) would be read back as a text file; refuse them here rather than write a
+    # file the decoder refuses.
+    _refuse_text(data, source)
+    return data

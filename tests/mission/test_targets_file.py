@@ -37,12 +37,29 @@ def test_layout_is_three_little_endian_doubles_no_header() -> None:
 
 @given(targets_lists)
 def test_round_trip_bytes(targets: list[Target]) -> None:
-    data = encode_targets(targets)
+    try:
+        data = encode_targets(targets)
+    except TargetsFileError:
+        # Refused only where the bytes would read as text: the decoder refuses them too.
+        packed = b"".join(struct.pack("<ddd", t.lat, t.lon, t.alt) for t in targets)
+        with pytest.raises(TargetsFileError, match="text file"):
+            decode_targets(packed, "mem")
+        return
     assert len(data) == TARGET_SIZE * len(targets)
     decoded = decode_targets(data, "mem")
     # Bit-exact, including -0.0: compare the packed bits, not float equality.
     assert encode_targets(decoded) == data
     assert decoded == targets
+
+
+def test_targets_whose_bytes_all_print_are_refused_both_ways() -> None:
+    # Every byte printable: the decoder takes it for a text file, so the encoder refuses it.
+    printable = b"AAAAAA@@" * 3  # lat = lon = 32.5, alt = 32.5 m
+    target = Target(*struct.unpack("<ddd", printable))
+    with pytest.raises(TargetsFileError, match="text file"):
+        decode_targets(printable, "mem")
+    with pytest.raises(TargetsFileError, match="text file"):
+        encode_targets([target])
 
 
 def test_boundary_values_are_accepted() -> None:
