@@ -4,10 +4,9 @@ its commands, the payload-port ground path, bad input, and the link dropping.
 
 from __future__ import annotations
 
-import math
 import socket
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from types import SimpleNamespace
 
@@ -20,11 +19,9 @@ from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     MISSION_MANAGER,
     AssignmentReport,
-    CommandResult,
     LinkHealth,
     MissionAbort,
     MissionTargets,
-    OpmCommand,
     StatusText,
     Target,
     TargetOutcome,
@@ -33,9 +30,6 @@ from fleet.mission.messages import (
 )
 from fleet.payload.link import PiccoloLink, PlanningEvent
 from fleet.payload.protocol import encode_message
-from fleet.piccolo.track import Track
-from fleet.piccolo.waypoint import Waypoint
-from fleet.transport.bus_codec import ENCODING, encode
 from onboard.process import _Outputs
 from tests.support.ground_view import GroundView
 from tests.support.processes import Child, Fleet, client_session, router_session
@@ -73,16 +67,6 @@ def rig() -> Iterator[Rig]:
         fleet.stop_all()
 
 
-def poll_until(predicate: Callable[[], bool], timeout: float) -> bool:
-    """True as soon as `predicate` holds, False if it did not within `timeout`."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.05)
-    return predicate()
-
-
 def get_one(session: zenoh.Session, key: str, payload: bytes | None = None) -> zenoh.Reply:
     replies = list(session.get(key, payload=payload, timeout=5.0))
     assert len(replies) == 1, f"{key}: {len(replies)} replies"
@@ -103,66 +87,9 @@ def test_state_query_answers_with_telemetry_and_link_health(rig: Rig) -> None:
     assert state.tracked_waypoint == rig.seen.latest_track(UAV)
 
 
-@pytest.mark.e2e
-def test_commands_are_confirmed_by_the_autopilot_echo(rig: Rig) -> None:
-    waypoint = Waypoint(index=42, next_index=0, lat=35.73, lon=-120.77, alt=650.0)
-    reply = get_one(rig.ground, SPACE.command(UAV, "waypoint"), encode(waypoint))
-    assert reply.ok is not None
-    result = msgspec.json.decode(reply.ok.payload.to_bytes(), type=CommandResult)
-    assert result.ok and result.attempts >= 1
-    reply = get_one(rig.ground, SPACE.command(UAV, "track"), encode(Track(42)))
-    assert reply.ok is not None
-    assert msgspec.json.decode(reply.ok.payload.to_bytes(), type=CommandResult).ok
-    wait_until(lambda: rig.seen.latest_track(UAV) == 42, 10.0, "tracking waypoint 42")
-
-
-@pytest.mark.e2e
-def test_bad_command_and_bad_messages_are_refused_and_the_module_keeps_serving(rig: Rig) -> None:
-    reply = get_one(rig.ground, SPACE.command(UAV, "track"), b'{"waypoint": "north"}')
-    assert reply.err is not None and b"not a valid Track" in reply.err.payload.to_bytes()
-    bad = {
-        "OpmCommand": (SPACE.opm(UAV), b"\xff not json"),
-        "MissionTargets": (SPACE.mission_targets(77), b'{"mission": 77}'),
-    }
-    for kind, (key, payload) in bad.items():
-
-        def dropped(kind: str = kind) -> bool:
-            return any("dropped" in line and kind in line for line in rig.onboard.history)
-
-        # Put again until the drop is logged: a put races the subscription's routing
-        # on a loaded machine, and each repeat is as bad as the first.
-        for _ in range(10):
-            rig.ground.put(key, payload, encoding=ENCODING)
-            if poll_until(dropped, 2.0):
-                break
-        assert dropped(), f"the bad {kind} was never reported dropped"
-    assert rig.onboard.process.poll() is None
-    answer = get_one(rig.ground, SPACE.state(UAV)).ok
-    assert answer is not None
-    state = msgspec.json.decode(answer.payload.to_bytes(), type=UavState)
-    assert state.enabled and state.mission is None
-
-
-@pytest.mark.e2e
-def test_module_off_refuses_to_write_and_says_so(rig: Rig) -> None:
-    rig.ground.put(SPACE.opm(UAV), encode(OpmCommand(False, 2.0)), encoding=ENCODING)
-    wait_until(
-        lambda: any("module off" in s for s in rig.seen.statuses(UAV)), 10.0, "the off status"
-    )
-    reply = get_one(rig.ground, SPACE.command(UAV, "track"), encode(Track(1)))
-    assert reply.ok is not None
-    result = msgspec.json.decode(reply.ok.payload.to_bytes(), type=CommandResult)
-    assert not result.ok and "off" in result.detail
-
-
-@pytest.mark.e2e
-def test_malformed_targets_give_a_status_error_naming_the_problem(rig: Rig) -> None:
-    bad = MissionTargets(mission=5, team=(UAV,), targets=(Target(35.7, 200.0, 600.0),))
-    rig.ground.put(SPACE.mission_targets(5), encode(bad), encoding=ENCODING)
-    wait_until(
-        lambda: any("longitude 200.0" in s for s in rig.seen.statuses(UAV)), 10.0, "the error"
-    )
-    assert UAV not in rig.seen.assignments
+# Commands confirmed by the autopilot's echo, bad commands and messages refused, the
+# module switched off, malformed targets, the model built at the cruise speed: in
+# memory, tests/onboard/test_process_in_memory.py.
 
 
 @pytest.mark.e2e
@@ -224,20 +151,6 @@ def test_link_drop_is_reported_and_the_adapter_reconnects(rig: Rig) -> None:
         wait_until(lambda: len(rig.seen.telemetry[UAV]) > count + 5, 10.0, "telemetry again")
     finally:
         subscriber.undeclare()
-
-
-@pytest.mark.e2e
-def test_state_says_when_the_model_is_built_at_the_cruise_speed(rig: Rig) -> None:
-    def state() -> UavState:
-        answer = get_one(rig.ground, SPACE.state(UAV)).ok
-        assert answer is not None
-        return msgspec.json.decode(answer.payload.to_bytes(), type=UavState)
-
-    wait_until(lambda: state().model_speed is not None, 60.0, "the model built")
-    built = state()
-    assert built.telemetry is not None and built.telemetry.gps is not None
-    cruise = math.hypot(built.telemetry.gps.vel_east, built.telemetry.gps.vel_north)
-    assert built.model_speed == pytest.approx(cruise, abs=1.0)
 
 
 @pytest.mark.e2e

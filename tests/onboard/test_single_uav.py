@@ -7,12 +7,9 @@ from __future__ import annotations
 import math
 from importlib.resources import files
 
-import msgspec
-import zenoh
-
 from fleet.files.targets_io import read_targets
 from fleet.mission.key_space import KeySpace
-from fleet.mission.messages import MissionTargets, UavState
+from fleet.mission.messages import MissionTargets
 from onboard.core import TARGET_WAYPOINT
 from tests.conftest import Ground
 from tests.support.processes import Fleet
@@ -68,22 +65,5 @@ def test_single_uav_flies_its_queue_fastest_first_reaches_each_and_resumes(
     assert onboard.stop() == 0
 
 
-def test_status_is_sent_on_change_and_the_periodic_report_is_the_state(
-    fleet: Fleet, ground: Ground
-) -> None:
-    endpoints = fleet.sim("single_uav", speedup=10.0, telemetry_hz=5.0)
-    fleet.onboard(112, endpoints[112], ground.router)
-    seen = ground.seen
-    wait_until(lambda: 112 in seen.telemetry, 30.0, "telemetry from UAV 112")
-    states: list[UavState] = []
-    statuses_before = len(seen.statuses(112))
-
-    def on_state(sample: zenoh.Sample) -> None:
-        states.append(msgspec.json.decode(sample.payload.to_bytes(), type=UavState))
-
-    with ground.session.declare_subscriber(SPACE.state(112), on_state):
-        # Three periodic reports (1 s apart at the default rate) of an idle UAV...
-        wait_until(lambda: len(states) >= 3, 30.0, "three periodic state reports")
-    assert all(state.uav == 112 and state.telemetry is not None for state in states)
-    # ...and, nothing having happened, not one status message in between.
-    assert seen.statuses(112)[statuses_before:] == []
+# Status on change, the periodic report the state: in memory,
+# tests/onboard/test_process_in_memory.py.

@@ -1,4 +1,5 @@
-"""What the ground sees on Zenoh during an end-to-end test, decoded by key."""
+"""What the ground sees on the bus during a test, decoded by key: on a Zenoh session (the
+end-to-end tests) or on any `Bus` (the in-memory fleet, `GroundView.on_bus`)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from fleet.mission.key_space import KeySpace, uav_id_of
 from fleet.mission.messages import AssignmentReport, StatusText, TargetOutcome, UavResult
 from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
+from fleet.transport.bus import Bus, BusSample, Declaration
 
 SPACE = KeySpace()
 
@@ -21,7 +23,7 @@ SPACE = KeySpace()
 class GroundView:
     """Everything the ground sees under fleet/**, decoded by key."""
 
-    def __init__(self, session: zenoh.Session) -> None:
+    def __init__(self, session: zenoh.Session | None = None) -> None:
         self.lock = threading.Lock()
         self.telemetry: dict[int, list[Telemetry]] = {}
         self.tracks: dict[int, list[int]] = {}
@@ -36,11 +38,24 @@ class GroundView:
         self.status: dict[int, list[str]] = {}
         #: Every status message each UAV sent, whole (its kind, severity, mission).
         self.status_messages: dict[int, list[StatusText]] = {}
-        self.subscriber = session.declare_subscriber(SPACE.everything, self.on_sample)
+        self.subscriber: Declaration | None = None
+        if session is not None:
+            self.subscriber = session.declare_subscriber(SPACE.everything, self.on_sample)
+
+    @classmethod
+    def on_bus(cls, bus: Bus) -> GroundView:
+        """What a ground on `bus` sees (the in-memory fleet's, say)."""
+        view = cls()
+        view.subscriber = bus.subscribe(SPACE.everything, view.on_bus_sample)
+        return view
 
     def on_sample(self, sample: zenoh.Sample) -> None:
-        key = str(sample.key_expr)
-        data = sample.payload.to_bytes()
+        self.take(str(sample.key_expr), sample.payload.to_bytes())
+
+    def on_bus_sample(self, sample: BusSample) -> None:
+        self.take(sample.key, sample.payload)
+
+    def take(self, key: str, data: bytes) -> None:
         with self.lock:
             if key.endswith("/telemetry"):
                 uav = uav_id_of(key)
@@ -91,4 +106,5 @@ class GroundView:
             return list(self.status.get(uav, []))
 
     def close(self) -> None:
-        self.subscriber.undeclare()
+        if self.subscriber is not None:
+            self.subscriber.undeclare()

@@ -13,7 +13,7 @@ from __future__ import annotations
 import itertools
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,6 +26,7 @@ from fleet.sim.linked import LinkedAutopilot
 from fleet.sim.scenario import resolve_scenario
 from fleet.transport.bus import Bus
 from fleet.transport.bus_factory import MEMORY_SCHEME, forget_memory_network, memory_network
+from fleet.transport.faulty_bus import FaultRule, FaultyBus
 from fleet.transport.memory import MemoryNetwork, memory_link_pair
 from onboard.planner.approach_highs import load_highs_core
 from onboard.process import OnboardProcess, OnboardSettings
@@ -108,9 +109,13 @@ def memory_fleet(
     zones: tuple[NoFlyZone, ...] = (),
     ready: bool = True,
     status_rate_hz: float = 1.0,
+    faults: Mapping[int, tuple[FaultRule, ...]] | None = None,
 ) -> Iterator[MemoryFleet]:
     """Every UAV of `scenario`, each an onboard process and a simulated autopilot; with
-    `ready`, returned once every UAV is live with a GPS fix. Stopped on exit."""
+    `ready`, returned once every UAV is live with a GPS fix. Stopped on exit.
+
+    `faults`: a UAV's onboard puts through the fault-injecting bus with these rules."""
+    faults = faults or {}
     # Loaded once before the onboards start: each would load it on its planner thread,
     # and a second thread can see the first's half-initialised module.
     load_highs_core()
@@ -133,8 +138,11 @@ def memory_fleet(
             payload_url="memory",
             status_rate_hz=status_rate_hz,
         )
+        bus: Bus = network.bus()
+        if uav.piccolo_id in faults:
+            bus = FaultyBus(bus, *faults[uav.piccolo_id])
         processes[uav.piccolo_id] = OnboardProcess(
-            onboard, links=(program_onboard, payload_onboard), bus=network.bus()
+            onboard, links=(program_onboard, payload_onboard), bus=bus
         )
     fleet = MemoryFleet(name, network, aircraft, processes)
     stop = threading.Event()
