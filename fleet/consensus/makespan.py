@@ -32,6 +32,9 @@ from fleet.consensus.queues import Legs, Queues, Rows, Times, legs_of, reference
 
 #: Moves at most, per target (a search of T targets makes at most this many x T).
 MOVES_PER_TARGET = 4
+#: Moves tried (each a queue or two timed) at most in a search: 50 x 200 stays within
+#: about a hundred milliseconds with each UAV's own legs.
+MOVES_TRIED = 5_000
 #: A move must lower the key by more than this (relative): no move for rounding alone.
 EPSILON = 1e-9
 
@@ -42,7 +45,7 @@ def shorten_longest(queues: Queues, times: Times, legs: Legs) -> Queues:
     search = _Longest({uav: list(q) for uav, q in queues.items()}, times, legs)
     count = sum(len(q) for q in queues.values())
     for _ in range(MOVES_PER_TARGET * max(count, 1)):
-        if not search.one_move():
+        if search.tried >= MOVES_TRIED or not search.one_move():
             break
     return search.queues
 
@@ -54,6 +57,7 @@ class _Longest:
         self.rows = {uav: [time_or_inf(t) for t in times[uav]] for uav in self.uavs}
         self.legs: dict[int, Rows] = {uav: legs_of(legs, uav) for uav in self.uavs}
         self.ends = {uav: self._end_total(uav, q) for uav, q in queues.items()}
+        self.tried = 0
 
     def _end_total(self, uav: int, queue: Sequence[int]) -> tuple[float, float]:
         """(last arrival, total of arrivals) of `uav` flying `queue`; inf if unflyable."""
@@ -79,6 +83,9 @@ class _Longest:
         bar = (key[0] - EPSILON * max(1.0, key[0]), key[1] - EPSILON * max(1.0, key[1]))
         tie = key[0] + EPSILON * max(1.0, key[0])
         for change in self._moves(worst):
+            self.tried += 1
+            if self.tried > MOVES_TRIED:
+                return False
             ends = dict(self.ends)
             for uav, queue in change.items():
                 ends[uav] = self._end_total(uav, queue)

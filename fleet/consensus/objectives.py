@@ -42,6 +42,10 @@ from fleet.mission.objective import Objective
 #: Instances up to this many (UAV, target) pairs get the min-max second start: beyond,
 #: it would double the rule's time (50 x 200: over 100 ms).
 SECOND_START_UP_TO = 2_000
+#: Instances up to this many pairs get the min-max bisection by ruin and recreate
+#: (fleet.consensus.makespan): beyond, with each UAV's own legs, the rows it asks for
+#: cost about a second a decision at 50 x 200.
+RUIN_UP_TO = 5_000
 
 __all__ = ["bottleneck_assign", "hungarian", "min_sum_assign", "plan_digest", "plan_queues"]
 
@@ -62,13 +66,18 @@ def plan_queues(
         if objective is Objective.GREEDY:
             return finish(queues, times, legs)
         best = improve(queues, times, legs, objective)
+        ruin = len(uavs) * count <= RUIN_UP_TO
         if objective is Objective.MIN_MAX:
-            best = shorten_longest(ruin_and_recreate(best, times, legs), times, legs)
+            if ruin:
+                best = ruin_and_recreate(best, times, legs)
+            best = shorten_longest(best, times, legs)
         if objective is Objective.MIN_MAX and len(uavs) * count <= SECOND_START_UP_TO:
             # The relocations alone stall on the last arrival; a second start, from the
             # min-sum plan, often ends lower. The better of the two by (last, total).
             other = improve(improve(queues, times, legs, Objective.MIN_SUM), times, legs, objective)
-            other = shorten_longest(ruin_and_recreate(other, times, legs), times, legs)
+            other = shorten_longest(
+                ruin_and_recreate(other, times, legs) if ruin else other, times, legs
+            )
             best = min(best, other, key=lambda q: _last_total(q, times, legs))
         return finish(best, times, legs)
     pairs = min_sum_assign(times, count) if objective is Objective.MIN_SUM else None
