@@ -26,6 +26,7 @@ import pytest
 from fleet.files.certs import write_identities
 from fleet.launch.endpoints import free_port
 from fleet.launch.topology import fallbacks, ring_links
+from tests.support.ground_cli import ground_cli
 from tests.support.processes import Child, start, wait_fleet_up
 
 pytestmark = pytest.mark.e2e
@@ -42,15 +43,7 @@ class Mesh:
     identity: list[str]  #: the ground's --zenoh-config, in the secure profile
 
     def ground_cli(self, *argv: str, via: list[str]) -> subprocess.CompletedProcess[str]:
-        connect = [arg for endpoint in via for arg in ("--connect", endpoint)]
-        return ground_cli(*self.identity, *connect, *argv)
-
-
-def ground_cli(*argv: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "ground.cli", *argv],
-        capture_output=True, text=True, timeout=TIMEOUT_S, check=False,
-    )  # fmt: skip
+        return ground_cli(*self.identity, *argv, connect=via, timeout=TIMEOUT_S)
 
 
 def pids(log_dir: Path) -> dict[str, int]:

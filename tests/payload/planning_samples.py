@@ -13,6 +13,7 @@ from fleet.mission.messages import (
 from fleet.payload.bodies import (
     PlanningMessage,
     UnknownPlanningMessage,
+    status_kind_of_text,
 )
 from fleet.payload.framing import (
     PAYLOAD_UAV,
@@ -102,7 +103,9 @@ unknowns = st.builds(
     body=st.binary(max_size=700),
 )
 # Short enough (<= 60 code points, <= 240 bytes) to travel as one status packet.
-short_status = st.builds(StatusText, text=st.text(max_size=60))
+# The link carries the text alone and its edge gives it a kind from its prefix
+# ("error...", "warning..."): a round trip keeps that kind, not any other.
+short_status = st.text(max_size=60).map(lambda text: StatusText(text, status_kind_of_text(text)))
 messages: st.SearchStrategy[PlanningMessage] = st.one_of(
     opm_commands, short_status, mission_targets, uav_results, aborts, unknowns
 )

@@ -4,12 +4,12 @@ given identity: a raw Zenoh session, or `ground-cli` as the ground."""
 from __future__ import annotations
 
 import subprocess
-import sys
 from pathlib import Path
 
 import zenoh
 
 from fleet.transport.zenoh_config import build_config
+from tests.support import ground_cli as support_cli
 
 GROUND_CLI_TIMEOUT_S = 120
 
@@ -22,8 +22,7 @@ def session(certs: Path, endpoint: str, identity: str) -> zenoh.Session:
 
 def ground_cli(certs: Path, endpoint: str, *argv: str) -> subprocess.CompletedProcess[str]:
     """`ground-cli ARGV` as the ground, waited for (bounded)."""
-    return subprocess.run(
-        [sys.executable, "-m", "ground.cli", "--zenoh-config",
-         str(certs / "ground.json5"), "--connect", endpoint, *argv],
-        capture_output=True, text=True, timeout=GROUND_CLI_TIMEOUT_S, check=False,
+    return support_cli.ground_cli(
+        "--zenoh-config", str(certs / "ground.json5"), *argv,
+        connect=endpoint, timeout=GROUND_CLI_TIMEOUT_S,
     )  # fmt: skip
