@@ -44,8 +44,7 @@ import argparse, signal, threading, zenoh
 from fleet.transport.cli import add_key_prefix_argument
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from fleet.transport import bus_codec
-from fleet.transport.bus import Bus, BusSample, Queryable
-from fleet.transport.bus_factory import MEMORY_SCHEME, forget_memory_network, open_bus
+from fleet.transport.zenoh_config import make_config
 parser = argparse.ArgumentParser()
 parser.add_argument("--id", type=int, required=True)
 parser.add_argument("--connect", required=True)
