@@ -1,7 +1,7 @@
 """One UAV's mission round with every edge in memory: the real onboard process logic and
 the real simulated autopilot in one test process, joined by in-memory links and an
 in-memory bus (no sockets, no Zenoh session). The end-to-end tests with real processes
-and real Zenoh are test_single_uav.py and test_multi_uav.py.
+and real Zenoh are test_process.py and test_multi_uav.py.
 """
 
 from __future__ import annotations

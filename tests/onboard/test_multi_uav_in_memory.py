@@ -1,9 +1,9 @@
 """Several UAVs agreeing on missions, in the test's process: the real onboard process
 logic and simulated autopilots on the in-process bus (tests/support/memory_world.py),
 the test as the ground station. The claims are the consensus's (agreement, a result
-lost on the bus, a mission superseded 50 ms later) and need no process; what does (a
-UAV killed, frozen or started late, flying over serial links to the targets) is
-tests/onboard/test_multi_uav.py and tests/onboard/test_quick_succession.py."""
+lost on the bus, a mission superseded 50 ms later or in flight, the targets reached) and
+need no process; what does (a UAV killed, frozen or started late) is
+tests/onboard/test_multi_uav.py."""
 
 from __future__ import annotations
 
@@ -19,17 +19,28 @@ from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.mercator import distance_m
 from fleet.launch.ring import ring_scenario
 from fleet.mission.key_space import KeySpace
-from fleet.mission.messages import MissionTargets
+from fleet.mission.messages import MissionTargets, Target
+from fleet.sim.scenario import shipped_scenario
 from fleet.transport.bus import Bus
 from fleet.transport.faulty_bus import FaultRule
+from onboard.core import TARGET_WAYPOINT
 from tests.onboard.test_multi_uav import assert_agreed
-from tests.onboard.test_quick_succession import GAP_S, far_targets
 from tests.support.ground_view import GroundView
 from tests.support.memory_world import MemoryFleet, memory_fleet
 from tests.support.targets import ring_targets
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
+#: Simulated seconds per wall second for the flights to the targets.
+FLIGHT_SPEEDUP = 60.0
+#: Two missions this far apart: the second supersedes the first on every UAV.
+GAP_S = 0.05
+
+
+def far_targets(count: int) -> tuple[Target, ...]:
+    """Targets 8-9 km out: a time computed for a ring target (0.5-2.5 km) is far shorter."""
+    near = ring_targets(count, seed=3)
+    return tuple(Target(t.lat + 0.075, t.lon, t.alt) for t in near)
 
 
 @contextmanager
@@ -136,3 +147,75 @@ def test_a_second_mission_50_ms_later_supersedes_the_first_everywhere(
                 # (0.7: the aircraft flies on, sped up, for a moment before it plans.)
                 floor = distance_m((start.lat, start.lon), (target.lat, target.lon)) / top_speed
                 assert time_s >= 0.7 * floor, f"UAV {uav}: {time_s:.0f} s < {floor:.0f} s"
+
+
+def test_head_on_two_uavs_take_distinct_targets_reach_them_and_resume() -> None:
+    scenario = shipped_scenario("head_on")
+    targets = tuple(scenario.targets())
+    # Heard from its start, as the ground hears an onboard process start: its first
+    # tracked waypoint is what it resumes.
+    with memory_fleet("head_on", speedup=FLIGHT_SPEEDUP, ready=False) as fleet:
+        ground = fleet.bus()
+        seen = GroundView.on_bus(ground)
+        try:
+            wait_until(
+                lambda: all(seen.latest_track(u) is not None for u in (74, 112)), 30.0, "tracks"
+            )
+            original = {uav: seen.latest_track(uav) for uav in (74, 112)}
+            send(ground, MissionTargets(mission=1, team=(74, 112), targets=targets))
+            wait_until(lambda: len(seen.assignments) == 2, 30.0, "both assignments")
+            assert_agreed(dict(seen.assignments), {74, 112}, len(targets))
+            pairs = seen.assignments[74].pairs
+            assert pairs == {74: 0, 112: 1}  # the contested target goes to the faster UAV
+
+            def back_on_course(uav: int) -> bool:
+                tracks = seen.tracks.get(uav, [])
+                if TARGET_WAYPOINT not in tracks:
+                    return False
+                after = tracks[tracks.index(TARGET_WAYPOINT) :]
+                return any(t != TARGET_WAYPOINT for t in after)
+
+            wait_until(lambda: back_on_course(74) and back_on_course(112), 90.0, "both resumed")
+            for uav in (74, 112):
+                target = targets[pairs[uav]]
+                assert seen.closest_approach(uav, target.lat, target.lon) <= 75.0
+                tracks = seen.tracks[uav]
+                assert tracks[tracks.index(TARGET_WAYPOINT) + 1] == original[uav]
+            # Target 2, unserved for good with one target each, is queued behind one.
+            (holder,) = (uav for uav, queue in seen.assignments[74].queues.items() if 2 in queue)
+            wait_until(
+                lambda: any(
+                    o.target == 2 and o.phase == "reached" for o in seen.outcomes_of(holder)
+                ),
+                120.0,
+                f"UAV {holder} reaching target 2",
+            )
+            assert seen.closest_approach(holder, targets[2].lat, targets[2].lon) <= 75.0
+        finally:
+            seen.close()
+
+
+def test_a_new_mission_in_flight_replaces_the_old_target_without_a_false_arrival(
+    tmp_path: Path,
+) -> None:
+    with ring(tmp_path, 1) as (fleet, ground, seen):
+        (uav,) = fleet.ids
+        first = MissionTargets(mission=1, team=(uav,), targets=far_targets(1))
+        send(ground, first)
+        wait_until(
+            lambda: any("mission 1: flying to target 0" in s for s in seen.statuses(uav)),
+            30.0,
+            "flying mission 1's target",
+        )
+        # The fault: a new mission arrives while the aircraft flies to the old target.
+        second = MissionTargets(mission=2, team=(uav,), targets=ring_targets(1, seed=21))
+        send(ground, second)
+        wait_until(
+            lambda: any("mission 2: flying to target 0" in s for s in seen.statuses(uav)),
+            30.0,
+            "flying mission 2's target",
+        )
+        statuses = seen.statuses(uav)
+        assert not any(s.startswith("reached") for s in statuses), statuses  # 8 km short of it
+        assert not any("could not resume" in s for s in statuses), statuses
+        assert seen.assignments[uav].mission == 2

@@ -1,8 +1,8 @@
 """One onboard process's answers on the bus, in the test's process: the real onboard
 process logic and a simulated autopilot on the in-process bus
 (tests/support/memory_world.py), the test as the ground station. What needs a process
-or a real link (Zenoh's encodings, the serial link dropped, the payload port, its log)
-is tests/onboard/test_process.py and tests/onboard/test_single_uav.py."""
+or a real link (the serial link dropped, the payload port) is
+tests/onboard/test_process.py."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ from fleet.piccolo.waypoint import Waypoint
 from fleet.transport.bus import Bus, BusSample, decode_sample
 from fleet.transport.bus_codec import encode
 from tests.support.ground_view import GroundView
-from tests.support.memory_world import memory_fleet
+from tests.support.memory_world import SPEEDUP, memory_fleet
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
@@ -31,10 +31,10 @@ UAV = 112
 
 
 @contextmanager
-def single_uav() -> Iterator[tuple[Bus, GroundView]]:
+def single_uav(speedup: float = SPEEDUP) -> Iterator[tuple[Bus, GroundView]]:
     """UAV 112 of `single_uav` in memory, a ground's bus and what it sees, once the ground
     sees its telemetry."""
-    with memory_fleet("single_uav") as fleet:
+    with memory_fleet("single_uav", speedup=speedup) as fleet:
         ground = fleet.bus()
         seen = GroundView.on_bus(ground)
         try:
@@ -53,6 +53,37 @@ def command(ground: Bus, name: str, payload: bytes) -> CommandResult:
 def state(ground: Bus) -> UavState:
     ((_, answer),) = ground.query_messages(SPACE.state(UAV), UavState, 5.0)
     return answer
+
+
+def test_state_query_answers_with_telemetry_and_link_health() -> None:
+    # Fast, so that the first waypoint change (what sets the tracked one) comes soon.
+    with single_uav(speedup=60.0) as (ground, seen):
+        wait_until(lambda: seen.latest_track(UAV) is not None, 30.0, "telemetry and track")
+        (reply,) = ground.query(SPACE.state(UAV), 5.0)
+        assert reply.ok and reply.encoding.startswith("application/json")
+        answer = state(ground)
+        assert answer.uav == UAV and answer.enabled
+        assert answer.telemetry is not None and answer.telemetry.gps is not None
+        assert abs(answer.telemetry.gps.lat - 35.72) < 0.05
+        assert answer.link is not None and answer.link.program_up and answer.link.packets > 0
+        assert answer.tracked_waypoint == seen.latest_track(UAV)
+
+
+def test_telemetry_reaches_the_bus_at_the_rate_asked_for() -> None:
+    """20 Hz from the autopilot, --telemetry-hz 2 on the bus: about one sample in ten."""
+    with memory_fleet("single_uav", speedup=1.0, telemetry_hz=20.0, relay_hz=2.0) as fleet:
+        seen = GroundView.on_bus(fleet.bus())
+        try:
+            wait_until(lambda: len(seen.telemetry.get(UAV, [])) >= 6, 30.0, "6 samples")
+            with seen.lock:
+                samples = [t.system_time_ms for t in seen.telemetry[UAV]]
+        finally:
+            seen.close()
+    # Relayed at most every 500 ms of the module's clock. A busy machine can bunch the
+    # packets (two relayed samples closer in autopilot time), but over the whole span
+    # no more than one every 500 ms gets through, where 20 Hz would be ten.
+    span_ms = samples[-1] - samples[0]
+    assert len(samples) <= span_ms / 500 + 2, f"{len(samples)} samples in {span_ms} ms"
 
 
 def test_commands_are_confirmed_by_the_autopilot_echo() -> None:

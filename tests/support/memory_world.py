@@ -109,11 +109,15 @@ def memory_fleet(
     zones: tuple[NoFlyZone, ...] = (),
     ready: bool = True,
     status_rate_hz: float = 1.0,
+    telemetry_hz: float = 5.0,
+    relay_hz: float | None = None,
     faults: Mapping[int, tuple[FaultRule, ...]] | None = None,
 ) -> Iterator[MemoryFleet]:
     """Every UAV of `scenario`, each an onboard process and a simulated autopilot; with
     `ready`, returned once every UAV is live with a GPS fix. Stopped on exit.
 
+    `telemetry_hz`: how often each autopilot sends telemetry (simulated time);
+    `relay_hz`: how often each onboard relays it on the bus (`--telemetry-hz`).
     `faults`: a UAV's onboard puts through the fault-injecting bus with these rules."""
     faults = faults or {}
     # Loaded once before the onboards start: each would load it on its planner thread,
@@ -123,7 +127,10 @@ def memory_fleet(
     name = f"fleet-{next(_names)}"
     network = memory_network(name)
     settings = AutopilotSettings(
-        telemetry_hz=5.0, limits=loaded.limits, wind=loaded.wind, zones=zones or loaded.zones
+        telemetry_hz=telemetry_hz,
+        limits=loaded.limits,
+        wind=loaded.wind,
+        zones=zones or loaded.zones,
     )
     aircraft: dict[int, LinkedAutopilot] = {}
     processes: dict[int, OnboardProcess] = {}
@@ -137,6 +144,7 @@ def memory_fleet(
             program_url="memory",
             payload_url="memory",
             status_rate_hz=status_rate_hz,
+            telemetry_hz=relay_hz,
         )
         bus: Bus = network.bus()
         if uav.piccolo_id in faults:
