@@ -12,13 +12,9 @@ import sys
 import time
 from pathlib import Path
 
-import msgspec
-
 from fleet.files.targets_io import write_targets
 from fleet.mission.key_space import KeySpace
-from fleet.mission.messages import CommandResult, MissionTargets, Target
-from fleet.piccolo.track import Track
-from fleet.transport.bus_codec import encode
+from fleet.mission.messages import MissionTargets, Target
 from onboard.core import TARGET_WAYPOINT
 from tests.conftest import Ground
 from tests.onboard.test_multi_uav import start_ring
@@ -163,27 +159,7 @@ def test_a_commitment_thinner_than_what_the_teammates_hold_is_not_adopted(
     assert status == 1, err
 
 
-def test_an_operator_retasking_a_uav_in_flight_is_preempted_not_reached_and_abortable(
-    fleet: Fleet, ground: Ground, tmp_path: Path
-) -> None:
-    (uav,) = start_ring(fleet, ground, tmp_path, 1, speedup=2.0, telemetry_hz=5.0)
-    seen = ground.seen
-    path = targets_file(tmp_path, ring_targets(1, seed=4))
-    assert finish(ground_cli(ground.router, "send-targets", str(path)), 60)[0] == 0
-    wait_until(lambda: any("flying to target 0" in s for s in seen.statuses(uav)), 60.0, "flying")
-    # The fault: an operator re-tasks the aircraft to waypoint 1 while it flies.
-    (reply,) = ground.session.get(SPACE.command(uav, "track"), payload=encode(Track(1)), timeout=10)
-    assert reply.ok is not None
-    answer = msgspec.json.decode(reply.ok.payload.to_bytes(), type=CommandResult)
-    assert answer.ok, answer
-    status, out, err = finish(ground_cli(ground.router, "uavs", "--json"), 30)
-    (row,) = json.loads(out)
-    assert row["phase"] == "preempted", row
-    assert "track to waypoint 1" in row["reason"]
-    wait_until(lambda: seen.latest_track(uav) == 1, 30.0, "the aircraft on waypoint 1")
-    assert not any(s.startswith("reached") for s in seen.statuses(uav))
-    status, out, err = finish(ground_cli(ground.router, "abort"), 30)
-    assert status == 0, out + err  # the abort is obeyed and confirmed in that state too
+# An operator re-tasking a UAV in flight: in memory, tests/ground/test_truth_in_memory.py.
 
 
 def test_an_abort_while_the_team_waits_for_a_frozen_teammate_is_final(
