@@ -548,10 +548,25 @@ def command_states(driver: Any) -> list[dict[str, str]]:
     return states
 
 
+CONFIRM_OPEN = "return !document.querySelector('#confirm').hidden;"
+
+
 def press_and_drop(driver: Any, selector: str) -> None:
     """Press `selector`, confirm, and drop the page's socket at once, as a loaded box
-    does: the command is on its way or done, its reply lost with the socket."""
-    press(driver, selector)
+    does: the command is on its way or done, its reply lost with the socket.
+
+    A press on a loaded box can land while the page re-lays itself out under the pointer
+    (a render between the pointer's move and its press): then no confirmation opens, and
+    the operator presses again. So does this, a bounded number of times."""
+    for _ in range(3):
+        press(driver, selector)
+        try:
+            wait_until(lambda: driver.execute_script(CONFIRM_OPEN), 15.0, "the confirmation")
+            break
+        except AssertionError:
+            continue
+    else:
+        raise AssertionError(f"three presses of {selector} opened no confirmation")
     driver.execute_script(
         "document.querySelector('#confirm-ok').click(); window.fleetPage.dropConnection();"
     )
