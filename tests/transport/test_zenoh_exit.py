@@ -68,7 +68,7 @@ def test_a_router_and_a_bus_never_closed_are_closed_by_the_exit_closers(
     monkeypatch.setattr(zenoh_exit, "AT_EXIT", closers)
     router = Router([free_endpoint()])
     router.open()
-    bus = connect(router.listen[0])
+    bus = connect(router.endpoints[0])
     assert len(closers) == 2
     closers.close_all()
     assert bus.session.is_closed()
