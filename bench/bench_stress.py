@@ -88,6 +88,16 @@ def crashes_in(log_dir: Path, output: str) -> list[str]:
     return found
 
 
+def code_env() -> dict[str, str]:
+    """The environment of a process started in a cycle's folder (where its core dump
+    lands) that runs this checkout's code, not an installed copy."""
+    here = str(Path(__file__).resolve().parents[1])
+    return {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(filter(None, [here, os.environ.get("PYTHONPATH")])),
+    }
+
+
 def keep(log_dir: Path, keep_dir: Path | None) -> None:
     """The logs (and core dumps) of a cycle that went wrong, kept for a post-mortem."""
     if keep_dir is not None:
@@ -107,7 +117,7 @@ def cycle(result: ModeResult, args: argparse.Namespace, kill: bool, work: Path) 
     with open(out_path, "w") as out:
         up = subprocess.Popen(
             argv, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
-            start_new_session=True, cwd=log_dir,
+            start_new_session=True, cwd=log_dir, env=code_env(),
         )  # fmt: skip
     deadline = time.monotonic() + READY_S
     while "stops the fleet" not in out_path.read_text() and up.poll() is None:
@@ -207,11 +217,10 @@ def fake_run(result: ModeResult, args: argparse.Namespace, work: Path) -> None:
         argv.append("--leave-open")
     if args.no_exit_close:
         argv.append("--no-exit-close")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [os.getcwd(), *sys.path]))}
     with open(log_dir / "fakes.log", "w") as out:
         run = subprocess.run(
             argv, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
-            cwd=log_dir, env=env, timeout=READY_S + 60 * args.fake_cycles, check=False,
+            cwd=log_dir, env=code_env(), timeout=READY_S + 60 * args.fake_cycles, check=False,
         )  # fmt: skip
     crashed = [f"died of signal {-run.returncode}"] if run.returncode < 0 else []
     crashed += crashes_in(log_dir, "")
