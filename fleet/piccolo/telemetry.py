@@ -116,10 +116,6 @@ class Telemetry(msgspec.Struct, frozen=True, tag="telemetry"):
     tail: bytes = b""
 
 
-def _angle(raw: int) -> float:
-    return math.degrees(raw * 1e-4)
-
-
 def _angle_raw(degrees: float) -> int:
     return round(math.radians(degrees) * 1e4)
 
@@ -165,7 +161,7 @@ def _decode(data: bytes) -> Telemetry:
         offset += _AGL.size
         agl = agl_cm / 100
     count = flags & ACTUATOR_COUNT_MASK
-    actuators = struct.unpack_from(f">{count}H", data, offset)
+    actuators = struct.unpack_from(f">{count}H", data, offset) if count else ()
     offset += 2 * count
     if flags & FLAG_FUEL:
         (fuel,) = _FUEL.unpack_from(data, offset)
@@ -177,7 +173,7 @@ def _decode(data: bytes) -> Telemetry:
         raw=raw,
         magnetometer=magnetometer,
         agl=agl,
-        actuators=tuple(actuators),
+        actuators=actuators,
         fuel=fuel,
         limit_flags=limit_flags,
         tail=bytes(data[offset:]),
@@ -207,10 +203,11 @@ def _decode_sensor(data: bytes, offset: int) -> SensorBlock:
     roll, pitch, yaw, baro, ws, ww, rpm_l, rpm_r, density, oat, ias, static = _SENSOR.unpack_from(
         data, offset
     )
+    degrees = math.degrees  # a local: every telemetry packet decodes six angles
     return SensorBlock(
-        roll=_angle(roll),
-        pitch=_angle(pitch),
-        yaw=_angle(yaw),
+        roll=degrees(roll * 1e-4),
+        pitch=degrees(pitch * 1e-4),
+        yaw=degrees(yaw * 1e-4),
         indicated_airspeed=(ias - IAS_OFFSET) / 100,
         wind_south=ws / 100,
         wind_west=ww / 100,
@@ -225,10 +222,11 @@ def _decode_sensor(data: bytes, offset: int) -> SensorBlock:
 
 def _decode_raw(data: bytes, offset: int) -> RawBlock:
     p, q, r, ax, ay, az = _RAW.unpack_from(data, offset)
+    degrees = math.degrees
     return RawBlock(
-        p=_angle(p),
-        q=_angle(q),
-        r=_angle(r),
+        p=degrees(p * 1e-4),
+        q=degrees(q * 1e-4),
+        r=degrees(r * 1e-4),
         accel_x=ax * ACCEL_PER_COUNT,
         accel_y=ay * ACCEL_PER_COUNT,
         accel_z=az * ACCEL_PER_COUNT,
