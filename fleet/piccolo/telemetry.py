@@ -265,7 +265,8 @@ def _encode(message: Telemetry) -> bytes:
     if message.agl is not None:
         flags |= FLAG_AGL
         parts.append(_AGL.pack(round(message.agl * 100)))
-    parts.append(struct.pack(f">{len(message.actuators)}H", *message.actuators))
+    if message.actuators:
+        parts.append(struct.pack(f">{len(message.actuators)}H", *message.actuators))
     if message.fuel is not None:
         flags |= FLAG_FUEL
         parts.append(_FUEL.pack(message.fuel))
@@ -292,9 +293,10 @@ def _encode_gps(gps: GpsBlock) -> bytes:
 
 
 def _encode_sensor(sensor: SensorBlock) -> bytes:
+    radians = math.radians  # `_angle_raw` inline: the simulator encodes 20 a second per UAV
     return _SENSOR.pack(
-        _angle_raw(sensor.roll),
-        _angle_raw(sensor.pitch),
+        round(radians(sensor.roll) * 1e4),
+        round(radians(sensor.pitch) * 1e4),
         _heading_raw(sensor.yaw),
         sensor.baro_altitude_raw,
         round(sensor.wind_south * 100),
@@ -309,10 +311,11 @@ def _encode_sensor(sensor: SensorBlock) -> bytes:
 
 
 def _encode_raw(raw: RawBlock) -> bytes:
+    radians = math.radians
     return _RAW.pack(
-        _angle_raw(raw.p),
-        _angle_raw(raw.q),
-        _angle_raw(raw.r),
+        round(radians(raw.p) * 1e4),
+        round(radians(raw.q) * 1e4),
+        round(radians(raw.r) * 1e4),
         round(raw.accel_x / ACCEL_PER_COUNT),
         round(raw.accel_y / ACCEL_PER_COUNT),
         round(raw.accel_z / ACCEL_PER_COUNT),
