@@ -15,7 +15,7 @@ from fleet.transport import zenoh_exit
 from fleet.transport.router import Router
 from fleet.transport.zenoh_bus import ZenohBus, connect
 from fleet.transport.zenoh_exit import ExitClosers
-from tests.support.processes import free_endpoint
+from tests.support.processes import ANY_PORT
 
 
 class Owner:
@@ -66,7 +66,7 @@ def test_a_router_and_a_bus_never_closed_are_closed_by_the_exit_closers(
 ) -> None:
     closers = ExitClosers()
     monkeypatch.setattr(zenoh_exit, "AT_EXIT", closers)
-    router = Router([free_endpoint()])
+    router = Router([ANY_PORT])
     router.open()
     bus = connect(router.endpoints[0])
     assert len(closers) == 2
@@ -83,7 +83,7 @@ def test_a_bus_on_someone_elses_session_leaves_it_to_its_owner(
 ) -> None:
     closers = ExitClosers()
     monkeypatch.setattr(zenoh_exit, "AT_EXIT", closers)
-    with Router([free_endpoint()]) as router:
+    with Router([ANY_PORT]) as router:
         ZenohBus(router.session, owns_session=False)
         assert len(closers) == 1  # the router's own registration only
 
@@ -96,7 +96,7 @@ from fleet.transport.router import Router
 from fleet.transport.zenoh_bus import connect
 router = Router([sys.argv[1]])
 router.open()
-bus = connect(sys.argv[1])
+bus = connect(router.endpoints[0])
 bus.subscribe("k/**", lambda sample: None)
 bus.put("k/x", b"x")
 """
@@ -105,7 +105,7 @@ bus.put("k/x", b"x")
 @pytest.mark.e2e
 def test_a_process_that_exits_with_its_sessions_open_closes_them_first() -> None:
     done = subprocess.run(
-        [sys.executable, "-c", CHILD, free_endpoint()],
+        [sys.executable, "-c", CHILD, ANY_PORT],
         capture_output=True,
         text=True,
         timeout=120,
