@@ -41,7 +41,7 @@ from fleet.mission.status_kind import StatusKind
 from fleet.transport.bus_codec import DROPPED, DropReason
 from onboard.approach_plan import ApproachPlan
 from onboard.catch_up import CatchUp
-from onboard.link_watch import LinkWatch
+from onboard.link_watch import LINK_LOST_S, LinkWatch
 from onboard.mission_decision import MissionDecision
 from onboard.mission_phase import MissionPhase
 from onboard.own_result import OwnResult
@@ -86,6 +86,8 @@ class MissionParticipation:
     #: The missions aborted, the newest only: a stream of aborts cannot grow it forever.
     _aborted: RecentIds = field(default_factory=RecentIds)
     _abort: MissionAbort | None = None  #: the abort this UAV obeyed last (relayed by query)
+    #: A target committed before the first telemetry since the start: written once heard.
+    _write_awaited: bool = False
 
     def __post_init__(self) -> None:
         self.catch_up = CatchUp(self.outputs, lambda: self.round.mission if self.round else None)
@@ -547,10 +549,23 @@ class MissionParticipation:
         self.life.observe(Observation.ASSIGNED_TARGET)
         if not self.flight.enabled:
             return
+        if self.link.awaiting_first(now):
+            # Just started (a restart handed its own target again before its first
+            # telemetry): written once the autopilot is heard, which routes it from there.
+            self._write_awaited = True
+            return
         if self.link.lost(now) and report.epoch > 0:
             self._failed("handed an orphaned target while its autopilot link is lost", now)
             return
         self.flight.write_target(report.mission, now)
+
+    def write_awaited(self, now: float) -> None:
+        """The first telemetry since the start: write the target held meanwhile."""
+        if not self._write_awaited:
+            return
+        self._write_awaited = False
+        if self.life.phase == Phase.COMMITTED and self.round is not None:
+            self.flight.write_target(self.round.mission, now)
 
     def _refuse_orphan(self, report: AssignmentReport, target_index: int, now: float) -> None:
         """A re-plan handed an orphan to a UAV whose part is over (the operator took it
@@ -570,6 +585,12 @@ class MissionParticipation:
 
     def check_target(self, now: float) -> None:
         """Give up a target the autopilot cannot be made to fly: it is re-planned."""
+        if self._write_awaited and not self.link.awaiting_first(now):
+            self._write_awaited = False
+            if self.life.phase == Phase.COMMITTED:
+                why = f"handed a target and no telemetry within {LINK_LOST_S:g} s of the start"
+                self._failed(why, now, Phase.LINK_LOST)
+            return
         failure = self.flight.failure(now)
         if failure is not None:
             why, cause = failure

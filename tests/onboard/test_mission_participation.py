@@ -28,6 +28,7 @@ from tests.onboard.core_harness import (
     TARGETS,
     TWO_TARGETS,
     Recorder,
+    ScriptedPlanner,
     commit_four_uav_team,
     commit_three_uav_team,
     fly_target_1,
@@ -460,3 +461,39 @@ def test_a_uav_counted_out_by_a_teammate_while_alive_stays_in() -> None:
     report = out.on(SPACE.mission_assignment(3, 200))[-1]
     assert isinstance(report, AssignmentReport)
     assert (report.epoch, report.released, report.target) == (1, (112,), 1)
+
+
+def restarted_200_handed_target_1() -> tuple[OnboardCore, Recorder]:
+    """UAV 200's onboard just started (a restart, no telemetry yet) and catches up with
+    an epoch that counted it back in with its own target 1."""
+    out = Recorder()
+    core = OnboardCore(uav_id=200, outputs=out, planner=ScriptedPlanner((30.0, 35.0)))
+    core.start(0.0)
+    for uav in (74, 112):
+        core.on_alive(uav, True, 0.0)
+    core.on_targets(MissionTargets(mission=3, team=(74, 112, 200), targets=TWO_TARGETS), 0.1)
+    theirs = AssignmentReport(
+        3, 74, 0, {74: 0, 200: 1}, (), (74, 112, 200), "x", epoch=2,
+        left={200: 1}, back={200: 1},
+    )  # fmt: skip
+    core.on_assignment(theirs, 0.2)
+    return core, out
+
+
+def test_a_restarted_uav_handed_its_target_before_its_first_telemetry_flies_it_once_heard() -> None:
+    core, out = restarted_200_handed_target_1()
+    assert core.state(0.3).phase == Phase.COMMITTED
+    assert out.autopilot == []  # nothing written blind
+    core.tick(0.3)
+    assert out.on(SPACE.mission_outcome(3, 200)) == []  # not a lost link: not heard yet
+    core.on_telemetry(sample_telemetry(), 0.5)
+    assert out.autopilot != []  # the target, written once the autopilot is heard
+    assert core.state(0.6).phase == Phase.COMMITTED
+
+
+def test_a_restarted_uav_that_never_hears_its_autopilot_drops_its_target_as_link_lost() -> None:
+    core, out = restarted_200_handed_target_1()
+    core.tick(LINK_LOST_S + 0.5)
+    (outcome,) = out.on(SPACE.mission_outcome(3, 200))
+    assert isinstance(outcome, TargetOutcome) and outcome.phase == Phase.LINK_LOST
+    assert core.state(LINK_LOST_S + 0.5).phase != Phase.COMMITTED
