@@ -172,7 +172,14 @@ def test_record_refuses_a_path_it_cannot_write_and_a_bad_expression(tmp_path: Pa
     assert unwritable.returncode == 1
     assert "fleet record: cannot write" in unwritable.stderr and "x.mcap" in unwritable.stderr
     assert bad_expr.returncode == 2, bad_expr.stderr
-    assert "cannot subscribe to fleet//x" in bad_expr.stderr
+    # One line, what is wrong and how to write one; refused before any file is made.
+    assert bad_expr.stderr.splitlines() == [
+        "fleet record: error: 'fleet//x' is not a key expression (empty chunks are "
+        "forbidden, as well as leading and trailing slashes): write chunks separated by "
+        "single `/`, with `*` for any one chunk and `**` for any number of them "
+        "(e.g. fleet/** or fleet/uav/*/telemetry)"
+    ]
+    assert not (tmp_path / "y.mcap").exists()
 
 
 def test_a_full_disk_stops_the_recorder_with_the_reason(tmp_path: Path) -> None:
