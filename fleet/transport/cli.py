@@ -229,8 +229,13 @@ def enable_crash_dumps() -> None:
 
 def setup_logging(verbose: int, *, base: int = logging.INFO, name: str = "") -> None:
     """Log to stderr at `base`, one level lower per `-v` (DEBUG at most); crashes dump
-    their tracebacks there too (`enable_crash_dumps`)."""
+    their tracebacks there too (`enable_crash_dumps`). With $RUST_LOG set, Zenoh's own
+    log is on as it says, written by Zenoh to standard output."""
     enable_crash_dumps()
+    if os.environ.get("RUST_LOG"):
+        import zenoh
+
+        zenoh.try_init_log_from_env()
     level = max(logging.DEBUG, base - 10 * verbose)
     tag = f"{name} " if name else ""
     logging.basicConfig(
