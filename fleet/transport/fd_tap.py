@@ -3,15 +3,16 @@
 Zenoh's Rust runtime writes its log (tracing's default writer: standard output, file
 descriptor 1) out of Python's reach. `FdTap` puts a pipe in the descriptor's place: a
 daemon thread reads the pipe, passes every byte on to the real file unchanged (first, so
-nothing is held back or lost) and hands each complete line to `on_line`. `on_line` runs
+nothing is held back or lost; but see `keep` below) and hands each complete line to
+`on_line`. `on_line` runs
 on that thread: it must not block, nor write to the tapped descriptor (the pipe it would
 write to is the one the thread drains). Child processes started meanwhile inherit the
 pipe: their lines pass through too.
 
 With a `keep` gate, a line may be withheld: a line that starts as one of Zenoh's log
 lines does (an escape code or a digit: its coloured time stamp) is held until it ends,
-then passed on only if `keep` says so; any other line still passes on byte by byte as
-it comes, so a program's own output is never held back.
+then passed on only if `keep` says so (a program's own line that starts with a digit
+only waits for its end); any other line still passes on byte by byte as it comes.
 """
 
 from __future__ import annotations
