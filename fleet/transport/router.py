@@ -46,6 +46,8 @@ from fleet.transport.cli import (
     setup_logging,
     stop_on_signals,
 )
+from fleet.transport.link_refusal import LinkRefusal
+from fleet.transport.live_revocation import RevocationGuard
 from fleet.transport.secure import SecureProfile
 from fleet.transport.zenoh_bus import ZenohBus
 from fleet.transport.zenoh_config import DEFAULT_ROUTER, error_text, make_config
@@ -154,6 +156,7 @@ class Router:
         self.secure = secure
         self._session: zenoh.Session | None = None
         self._watch: refusal_watch.RefusalWatch | None = None
+        self._guard: RevocationGuard | None = None
         #: What it listens on, each port 0 replaced by the port bound (once open).
         self.endpoints: list[str] = list(listen)
 
@@ -191,6 +194,7 @@ class Router:
             self.endpoints = bound_endpoints(self._session, self.listen)
             if self.secure is not None:
                 self._serve_state(self.secure.key_space.router_state())
+                self._guard_revocations(self.secure)
         except zenoh.ZError as error:
             self.close()
             raise RouterError(
@@ -219,7 +223,33 @@ class Router:
 
         self.session.declare_queryable(key, answer)
 
+    def _guard_revocations(self, secure: SecureProfile) -> None:
+        """Close the links of identities revoked while this router runs (its access
+        control, built now, leaves out those revoked before)."""
+        watch = self._watch
+
+        def count() -> None:
+            if watch is not None:
+                watch.links.count(LinkRefusal.REVOKED)
+
+        self._guard = RevocationGuard(
+            self.session,
+            secure.key_space.roster(),
+            secure.identity(secure.router_name).ca,
+            secure.revoked,
+            on_cut=count,
+        )
+        self._guard.start()
+
+    @property
+    def revocations(self) -> RevocationGuard | None:
+        """What this router does about revocations heard while it runs (secure only)."""
+        return self._guard
+
     def close(self) -> None:
+        guard, self._guard = self._guard, None
+        if guard is not None:
+            guard.stop()
         session, self._session = self._session, None
         if session is not None:
             session.close()
