@@ -13,21 +13,20 @@ import signal
 import subprocess
 import sys
 import threading
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 import zenoh
 
-from fleet.launch.endpoints import client_endpoint, host_port, parse_sim_line
+from fleet.launch.endpoints import client_endpoint, free_port, host_port, parse_sim_line
 from fleet.launch.launcher import Fleet, FleetSpec, LaunchError
 from fleet.launch.ring import ring_scenario
 from fleet.mission.key_space import KeySpace
 from fleet.transport.router import Router, RouterError, parse_listening
 from fleet.transport.zenoh_config import make_config
 from tests.support.fake_onboard import FAKE_ONBOARD
-from tests.support.processes import free_endpoint
+from tests.support.processes import ANY_PORT, start_router
 
 SPACE = KeySpace()
 
@@ -50,7 +49,7 @@ def kill_if_alive(pid: int) -> None:
 @pytest.fixture
 def router() -> Iterator[str]:
     """Where a router listens: on a port the OS picked (port 0)."""
-    with Router(["tcp/127.0.0.1:0"]) as running:
+    with Router([ANY_PORT]) as running:
         yield running.endpoints[0]
 
 
@@ -141,30 +140,14 @@ def test_a_router_process_on_port_0_prints_where_it_listens() -> None:
 
 @pytest.mark.e2e
 def test_router_process_stops_on_sigterm() -> None:
-    endpoint = free_endpoint()
-    process = subprocess.Popen(
-        [sys.executable, "-m", "fleet.transport.router", "--listen", endpoint],
-        cwd=REPO,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-    )
+    router, endpoint = start_router("--listen", ANY_PORT)
     try:
-        deadline = time.monotonic() + 15
-        while True:
-            try:
-                with zenoh.open(make_config("client", [endpoint])):
-                    break
-            except zenoh.ZError:
-                assert time.monotonic() < deadline, "the router never listened"
-                time.sleep(0.1)
-        process.send_signal(signal.SIGTERM)
-        assert process.wait(timeout=10) == 0
+        with zenoh.open(make_config("client", [endpoint])):
+            pass
+        router.process.send_signal(signal.SIGTERM)
+        assert router.process.wait(timeout=10) == 0
     finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait()
-        assert process.stderr is not None
-        process.stderr.close()
+        router.kill()
 
 
 # ---- the launcher ---------------------------------------------------------------------------
@@ -208,7 +191,7 @@ def make_fleet(tmp_path: Path) -> Iterator[Callable[..., Fleet]]:
     ) -> Fleet:
         spec = FleetSpec(
             scenario=scenario,
-            listen="tcp/127.0.0.1:0",
+            listen=ANY_PORT,
             speedup=speedup,
             log_dir=tmp_path,
             start_timeout_s=start_timeout_s,
@@ -358,7 +341,8 @@ def test_fleet_up_refuses_an_unknown_scenario_before_starting_anything(
 ) -> None:
     from programs.fleet_cli import main
 
-    endpoint = free_endpoint()
+    # Guessed free, not port 0: the claim is that nothing listens on the port it was told.
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
     status = main(["up", "no_such_scenario", "--listen", endpoint, "--log-dir", str(tmp_path)])
     assert status == 2
     assert "no_such_scenario" in capsys.readouterr().err

@@ -20,9 +20,14 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from fleet.launch.endpoints import free_port
 from ground.mavlink.signing import passphrase_secret, timestamp_now
-from tests.ground.mavlink.mavlink_fleet import FleetUp, mavsdk_systems, running_fleet, stop
+from tests.ground.mavlink.mavlink_fleet import (
+    FleetUp,
+    mavsdk_systems,
+    running_fleet,
+    served_port,
+    stop,
+)
 from tests.ground.mavlink.stations import free_udp_port, receiver
 from tests.support.waiting import wait_until
 
@@ -241,8 +246,8 @@ def test_one_byte_is_never_answered_and_strangers_cannot_lock_stations_out(
 
 
 def test_idle_tcp_connections_cannot_lock_stations_out(fleet_up: FleetUp) -> None:
-    port = free_port()
-    gateway = fleet_up.gateway(f"tcpin:127.0.0.1:{port}")
+    gateway = fleet_up.gateway("tcpin:127.0.0.1:0")
+    port = served_port(gateway)
     idle = [socket.create_connection(("127.0.0.1", port), timeout=10) for _ in range(8)]
     try:
         with socket.create_connection(("127.0.0.1", port), timeout=10) as honest:
