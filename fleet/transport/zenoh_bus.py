@@ -36,7 +36,7 @@ from fleet.mission.access import uav_identity
 from fleet.mission.delivery import Delivery
 from fleet.mission.key_space import space_of
 from fleet.mission.messages import StreamDigest
-from fleet.transport import bus_codec, bus_qos
+from fleet.transport import bus_codec, bus_qos, zenoh_exit
 from fleet.transport.bus import (
     Bus,
     BusQuery,
@@ -214,6 +214,8 @@ class ZenohBus(Bus):
         self.session = session
         #: False: the session is someone else's (an embedded router's), left open by `close`.
         self.owns_session = owns_session
+        if owns_session:
+            zenoh_exit.close_at_exit(self._close_session)
         #: The secure profile's signed commands (None: nothing signed or checked).
         self.signing = signing
         #: Declared publishers of the keys put at a steady rate (telemetry), by key.
@@ -490,7 +492,12 @@ class ZenohBus(Bus):
             self._publishers.clear()
             return
         self._publishers.clear()  # closing the session undeclares them
-        self.session.close()
+        self._close_session()
+
+    def _close_session(self) -> None:
+        # Also at exit (fleet.transport.zenoh_exit), if the bus was never closed.
+        if not self.session.is_closed():
+            self.session.close()
 
 
 def session_of(bus: Bus) -> zenoh.Session:
