@@ -35,7 +35,7 @@ from fleet.errors import CertError, FleetError
 from fleet.mission.access import ROUTER
 from fleet.mission.messages import RouterState
 from fleet.mission.signature import sign
-from fleet.transport import refusal_watch
+from fleet.transport import refusal_watch, zenoh_exit
 from fleet.transport.bus import Bus
 from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.cli import (
@@ -190,6 +190,7 @@ class Router:
                 _log_refused_links()
                 self._watch = refusal_watch.acquire()
             self._session = zenoh.open(config)
+            zenoh_exit.close_at_exit(self.close)  # if never closed (fleet.transport.zenoh_exit)
             self.endpoints = bound_endpoints(self._session, self.listen)
             if self.secure is not None:
                 self._serve_state(self.secure.key_space.router_state())
@@ -229,7 +230,7 @@ class Router:
 
         def count() -> None:
             if watch is not None:
-                watch.links.count(LinkRefusal.REVOKED)
+                watch.count(LinkRefusal.REVOKED)
 
         self._guard = RevocationGuard(
             self.session,
