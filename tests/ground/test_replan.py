@@ -339,8 +339,10 @@ def test_an_onboard_restarted_after_10_s_rejoins_at_the_next_epoch_and_flies(
     assert plan.back == {victim: 1} and plan.left == {victim: 1}
     assert plan.queues.get(victim) == (orphan,)  # its own queue again
     assert seen.assignments[idle].target is None  # the orphan handed back
-    status, out, err = finish(
-        ground_cli(ground.router, "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json"),
+    status, out, err = finish_ground_cli(
+        start_ground_cli(
+            "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json", connect=ground.router
+        ),
         REACH_TIMEOUT_S + 60,
     )
     report = json.loads(out)
