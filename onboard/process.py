@@ -203,7 +203,7 @@ class OnboardProcess:
         self.link.start()
         log.info("onboard module %d up", self.settings.uav_id)
         # Catch up with a mission in progress (late join or restart).
-        self.core.catch_up(time.monotonic())
+        self.core.start(time.monotonic())
         next_health = 0.0
         try:
             while not self.stop_requested.is_set():

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -202,7 +203,7 @@ def test_a_holder_whose_autopilot_link_is_cut_is_released_and_its_teammate_reach
     assert seen.closest_approach(idle, targets[0].lat, targets[0].lon) <= 75.0
 
 
-def test_a_holder_restarted_after_the_re_plan_adopts_the_latest_epoch_and_leaves_the_target(
+def test_a_holder_restarted_after_the_re_plan_follows_its_teammates_and_rejoins(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
     holders, idle, victim = commit_ring_of_three(fleet, ground, tmp_path)
@@ -216,19 +217,19 @@ def test_a_holder_restarted_after_the_re_plan_adopts_the_latest_epoch_and_leaves
     assert replanned.target == holders[victim]
 
     fleet.restart(child)  # the same aircraft, restarted
-    wait_until(lambda: seen.assignments[victim].epoch == 1, 30.0, "the restarted UAV at epoch 1")
-    mine = seen.assignments[victim]
-    assert (mine.digest, mine.pairs, mine.target) == (replanned.digest, replanned.pairs, None)
-    # Its autopilot was left flying the target its teammate holds now: it leaves it.
+    # Back alive, it is counted back in (fleet.consensus.membership): it follows the
+    # epoch its teammates publish with it in the plan, its own target again.
     wait_until(
-        lambda: seen.latest_track(victim) not in (None, TARGET_WAYPOINT),
-        30.0,
-        "the restarted UAV off the target route",
+        lambda: (
+            seen.assignments[victim].epoch >= 2
+            and seen.assignments[victim].digest == seen.assignments[idle].digest
+            and victim not in seen.assignments[victim].released
+        ),
+        60.0,
+        "the restarted UAV back in the plan",
     )
-    assert any("no longer holds" in s for s in seen.statuses(victim)), seen.tracks[victim]
-    # Turned back on its way, not by arriving: it never came within reach of that target.
-    orphan = ring_targets(2, seed=7)[holders[victim]]
-    assert seen.closest_approach(victim, orphan.lat, orphan.lon) > 75.0
+    mine = seen.assignments[victim]
+    assert mine.target == holders[victim] and mine.back == {victim: 1}
 
 
 #: Three UAVs on the ring (101 at (0, 1500) flying west, 102 and 103 120 and 240 degrees
@@ -284,3 +285,53 @@ def test_a_finished_uav_killed_then_a_holder_killed_every_orphan_is_flown_by_a_l
     assert states[2]["state"] == "reached", err
     assert status == 0, err
     assert seen.closest_approach(survivor, targets[1].lat, targets[1].lon) <= 75.0
+
+
+#: How long the killed onboard stays down before it is started again (wall seconds):
+#: well past the liveliness grace, so that its teammates released it.
+RESTART_AFTER_S = 10.0
+
+
+def test_an_onboard_restarted_after_10_s_rejoins_at_the_next_epoch_and_flies(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    holders, idle, victim = commit_ring_of_three(fleet, ground, tmp_path)
+    seen = ground.seen
+    orphan = holders[victim]
+    wait_until(lambda: seen.latest_track(victim) == TARGET_WAYPOINT, 30.0, "the victim flying")
+    child = fleet.onboard_child(victim)
+    child.process.kill()
+    child.process.wait(10)
+    killed = time.monotonic()
+    wait_until(lambda: seen.assignments[idle].epoch == 1, 30.0, "the re-plan without it")
+    assert seen.assignments[idle].target == orphan
+    wait_until(lambda: time.monotonic() - killed >= RESTART_AFTER_S, 30.0, "10 s down")
+    fleet.restart(child)  # the same aircraft's onboard, back after 10 s
+
+    def rejoined() -> bool:
+        mine = seen.assignments.get(victim)
+        theirs = seen.assignments[idle]
+        return (
+            theirs.epoch >= 2
+            and victim not in theirs.released
+            and mine is not None
+            and mine.epoch == theirs.epoch
+            and mine.digest == theirs.digest
+        )
+
+    wait_until(rejoined, 60.0, "the restarted UAV back in the plan at epoch 2")
+    plan = seen.assignments[victim]
+    assert plan.back == {victim: 1} and plan.left == {victim: 1}
+    assert plan.queues.get(victim) == (orphan,)  # its own queue again
+    assert seen.assignments[idle].target is None  # the orphan handed back
+    status, out, err = finish(
+        ground_cli(ground.router, "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json"),
+        REACH_TIMEOUT_S + 60,
+    )
+    report = json.loads(out)
+    states = {s["index"]: s for s in report["target_states"]}
+    assert (states[orphan]["state"], states[orphan]["uav"]) == ("reached", victim), err
+    assert {s["state"] for s in report["target_states"]} == {"reached"}, err
+    assert status == 0, err
+    target = ring_targets(2, seed=7)[orphan]
+    assert seen.closest_approach(victim, target.lat, target.lon) <= 75.0
