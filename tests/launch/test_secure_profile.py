@@ -61,9 +61,9 @@ class SecureFleet:
 @pytest.fixture(scope="module")
 def secure_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureFleet]:
     certs = tmp_path_factory.mktemp("certs")
-    up, endpoint = start_secure_up(certs)
+    up = start_secure_up(certs)
     try:
-        wait_fleet_up(up, 90.0)
+        endpoint = wait_fleet_up(up, 90.0).connect
         yield SecureFleet(endpoint, certs.resolve(), up)
     finally:
         up.process.send_signal(signal.SIGTERM)
