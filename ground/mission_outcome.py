@@ -93,6 +93,8 @@ class MissionOutcome:
     superseded_by: int | None = None
     #: The mission's no-fly zones.
     zones: tuple[NoFlyZone, ...] = ()
+    #: Targets taken off the mission in flight: never flown from then on.
+    removed: frozenset[int] = frozenset()
 
     @property
     def declined(self) -> list[int]:
@@ -222,6 +224,8 @@ class MissionOutcome:
     ) -> dict[str, Any]:
         if index in reached:
             return {"index": index, "state": "reached", "uav": reached[index]}
+        if index in self.removed:
+            return {"index": index, "state": "removed", "uav": None}
         if self.superseded_by is not None:
             why = f"mission {self.superseded_by} superseded this one"
             return {"index": index, "state": "unserved", "uav": None, "reason": why}

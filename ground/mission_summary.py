@@ -75,7 +75,7 @@ def unreached_lines(outcome: MissionOutcome) -> list[str]:
     lines = []
     for target in outcome.target_states():
         state = target["state"]
-        if state == "reached":
+        if state in ("reached", "removed"):
             continue
         index, uav = target["index"], target["uav"]
         if state == "assigned":
