@@ -254,7 +254,7 @@ class MissionParticipation:
             return
         if report.mission != mission_round.mission or report.mission in self._aborted:
             return
-        problem = assignment_problem(report, mission_round.current)
+        problem = assignment_problem(report, mission_round.latest)
         if problem is not None:
             log.warning(
                 "mission %d: UAV %d's assignment refused: %s",
@@ -485,7 +485,7 @@ class MissionParticipation:
             return
         if mission_round.base is None:
             return
-        if mission_round.released & set(mission_round.base.team):
+        if mission_round.behind or mission_round.released & set(mission_round.base.team):
             self._replan(now)
 
     def _on_change(self, targets: MissionTargets, now: float) -> None:
@@ -515,6 +515,10 @@ class MissionParticipation:
             f"added, {removed} removed in all; re-planning"
         )
         self.say(StatusKind.MISSION_CHANGED, text, now, mission=targets.mission)
+        if mission_round.base is None:
+            # It follows its teammates' epochs: their plan of this revision may have come
+            # before the revision itself, refused then for its new target indexes.
+            self.outputs.fetch_assignments(targets.mission)
         self._replan(now)
         self._settle()
 

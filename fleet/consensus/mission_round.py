@@ -202,11 +202,25 @@ class MissionRound:
         if self.committed is None:
             self.pending_change = new
             return None
+        self._take(new)
+        return None
+
+    @property
+    def latest(self) -> MissionTargets:
+        """The latest revision heard: a teammate's plan may be of it already."""
+        return self.pending_change or self.current
+
+    def _take(self, new: MissionTargets) -> None:
         self.pending_change = None
         self.change = new
         for cached in ("legs", "geometry"):  # now over the added targets too
             self.__dict__.pop(cached, None)
-        return None
+
+    @property
+    def behind(self) -> bool:
+        """The plan followed is of an earlier revision than the one taken."""
+        committed = self.committed
+        return committed is not None and committed.revision < self.current.revision
 
     def removed(self, target: int) -> bool:
         return target in self.current.removed
@@ -525,6 +539,8 @@ class MissionRound:
             return None
         if self.thinner(report, alive, now):
             return None
+        if self.pending_change is not None:  # committed from now: its targets too
+            self._take(self.pending_change)
         self.committed = self._own_copy(report)
         # A re-plan needs this UAV's own epoch-0 times if epoch 0 used them; a restarted
         # UAV lost them (nobody else answers for them), so it follows its teammates'

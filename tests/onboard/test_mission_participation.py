@@ -535,3 +535,22 @@ def test_a_change_heard_before_the_commitment_is_taken_once_committed() -> None:
     reports = out.on(SPACE.mission_assignment(3, 200))
     assert [r.revision for r in reports] == [0, 1]  # type: ignore[attr-defined]
     assert all(0 not in q for q in reports[-1].queues.values())  # type: ignore[attr-defined]
+
+
+def test_a_restarted_uav_catching_up_on_a_changed_mission_flies_an_added_target() -> None:
+    core, out = make_core(200, (30.0, 35.0))
+    for uav in (74, 112):
+        core.on_alive(uav, True, 0.0)
+    held = MissionTargets(mission=3, team=(74, 112, 200), targets=TWO_TARGETS)
+    changed = next_revision(held, added=(Target(42.3605, -71.0905, 100.0),))
+    core.on_targets(changed, 0.1, replayed=True)  # learnt from a teammate, revision 1
+    theirs = AssignmentReport(
+        3, 74, 0, {74: 0, 112: 1, 200: 2}, (), (74, 112, 200), "x", epoch=1, revision=1,
+        queues={74: (0,), 112: (1,), 200: (2,)},
+    )  # fmt: skip
+    core.on_assignment(theirs, 0.2)
+    report = out.on(SPACE.mission_assignment(3, 200))[-1]
+    assert isinstance(report, AssignmentReport)
+    assert (report.revision, report.target) == (1, 2)
+    assert core.state(0.3).phase == Phase.COMMITTED
+    assert out.autopilot  # the added target's waypoint written
