@@ -23,7 +23,6 @@ from pathlib import Path
 import msgspec
 import zenoh
 
-from fleet.launch.endpoints import free_port
 from fleet.launch.ring import ring_scenario
 from fleet.mission.key_space import KeySpace, uav_id_of
 from fleet.mission.messages import AssignmentReport, MissionTargets, UavResult
@@ -71,12 +70,11 @@ class Arrivals:
 
 
 def measure(size: int, missions: int, workdir: Path) -> list[tuple[float, float, bool]]:
-    port = free_port()
-    router = f"tcp/127.0.0.1:{port}"
     fleet = Fleet()
     rows = []
     try:
-        with router_session(port), client_session(port) as ground:
+        with router_session() as running, client_session(running.endpoints[0]) as ground:
+            router = running.endpoints[0]
             arrivals = Arrivals(ground)
             scenario = workdir / f"ring{size}.toml"
             scenario.write_text(ring_scenario(size))

@@ -25,7 +25,7 @@ import aiohttp
 from fleet.transport.router import Router
 from tests.support.fake_onboard import FakeOnboard
 from tests.support.gui_page import websocket_url
-from tests.support.processes import free_endpoint
+from tests.support.processes import ANY_PORT
 
 FRAMES = 10
 
@@ -122,8 +122,8 @@ def measure_gui(router: str) -> str:
 
 def main() -> None:
     for n in map(int, sys.argv[1:]):
-        endpoint = free_endpoint()
-        with Router([endpoint]):
+        with Router([ANY_PORT]) as router:
+            endpoint = router.endpoints[0]
             fakes = []
             try:
                 for i in range(n):

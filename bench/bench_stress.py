@@ -1,6 +1,7 @@
 """Start and stop `fleet up` in a loop, and count what goes wrong.
 
     python -m bench.bench_stress [--cycles 20] [--uavs 4] [--fly 5] [--kill-every 3]
+                                 [--fake-runs 0] [--fake-cycles 10] [--keep DIR] [--cores]
 
 For each mode (onboards forked from the fork server, and `--no-fork-server`), `--cycles`
 times: start `fleet up --uavs N --speedup 10` on a free port, wait until it is ready,
@@ -13,12 +14,23 @@ with SIGKILL. Counted:
   later (orphans; they are then killed), and how long the tree took to go;
 * after each SIGTERM, the recording's telemetry samples per UAV: the smallest UAV's
   count over the median UAV's.
+
+`--fake-runs N` also runs `bench.stress_fakes` N times, each a process of
+`--fake-cycles` cycles of the ground tests' fake onboards on an embedded router (with
+`--leave-open`, each run also exits with sessions open, which the project closes at
+exit unless `--no-exit-close`), and counts the runs that died
+of a signal or left faulthandler's dump. `--keep DIR` keeps the logs of every cycle or
+run that crashed or failed to start there; with `--cores` a crash also leaves its core
+dump there (`ulimit -c`, the kernel's core pattern `core` in the crashed process's
+working directory), for `gdb`.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import resource
+import shutil
 import signal
 import statistics
 import subprocess
@@ -72,7 +84,24 @@ def crashes_in(log_dir: Path, output: str) -> list[str]:
     for log in sorted(log_dir.glob("*.log")):
         if CRASH_MARK in log.read_text(errors="replace"):
             found.append(f"{log.name}: {CRASH_MARK}")
+    found += [f"core dump {core.name}" for core in sorted(log_dir.glob("core*"))]
     return found
+
+
+def code_env() -> dict[str, str]:
+    """The environment of a process started in a cycle's folder (where its core dump
+    lands) that runs this checkout's code, not an installed copy."""
+    here = str(Path(__file__).resolve().parents[1])
+    return {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(filter(None, [here, os.environ.get("PYTHONPATH")])),
+    }
+
+
+def keep(log_dir: Path, keep_dir: Path | None) -> None:
+    """The logs (and core dumps) of a cycle that went wrong, kept for a post-mortem."""
+    if keep_dir is not None:
+        shutil.copytree(log_dir, keep_dir / log_dir.name, dirs_exist_ok=True)
 
 
 def cycle(result: ModeResult, args: argparse.Namespace, kill: bool, work: Path) -> None:
@@ -88,7 +117,7 @@ def cycle(result: ModeResult, args: argparse.Namespace, kill: bool, work: Path) 
     with open(out_path, "w") as out:
         up = subprocess.Popen(
             argv, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
-            start_new_session=True,
+            start_new_session=True, cwd=log_dir, env=code_env(),
         )  # fmt: skip
     deadline = time.monotonic() + READY_S
     while "stops the fleet" not in out_path.read_text() and up.poll() is None:
@@ -101,6 +130,7 @@ def cycle(result: ModeResult, args: argparse.Namespace, kill: bool, work: Path) 
         up.wait()
         result.start_failures.append(f"cycle {result.cycles}: status {up.returncode}")
         result.crashes += [f"cycle {result.cycles}: {c}" for c in crashes_in(log_dir, output)]
+        keep(log_dir, args.keep)
         return
     result.ready += 1
     time.sleep(args.fly)
@@ -119,6 +149,10 @@ def cycle(result: ModeResult, args: argparse.Namespace, kill: bool, work: Path) 
                 os.kill(pid, signal.SIGKILL)
         else:
             result.gone_s.append(time.monotonic() - killed)
+        crashed = crashes_in(log_dir, out_path.read_text(errors="replace"))
+        result.crashes += [f"cycle {result.cycles}: {c}" for c in crashed]
+        if crashed or left:
+            keep(log_dir, args.keep)
         return
     up.send_signal(signal.SIGTERM)
     try:
@@ -127,9 +161,11 @@ def cycle(result: ModeResult, args: argparse.Namespace, kill: bool, work: Path) 
         up.kill()
         status = up.wait()
     output = out_path.read_text(errors="replace")
-    if status < 0:
-        result.crashes.append(f"cycle {result.cycles}: fleet up died of signal {-status}")
-    result.crashes += [f"cycle {result.cycles}: {c}" for c in crashes_in(log_dir, output)]
+    crashed = [f"fleet up died of signal {-status}"] if status < 0 else []
+    crashed += crashes_in(log_dir, output)
+    result.crashes += [f"cycle {result.cycles}: {c}" for c in crashed]
+    if crashed:
+        keep(log_dir, args.keep)
     counts = telemetry_counts(log_dir / "fleet.mcap")
     samples = [counts[uav] for uav in range(101, 101 + args.uavs)]
     median = statistics.median(samples)
@@ -144,19 +180,63 @@ def main() -> None:
     parser.add_argument("--fly", type=float, default=5.0, help="seconds flown once ready")
     parser.add_argument("--kill-every", type=int, default=3, help="SIGKILL every Nth cycle")
     parser.add_argument("--modes", default="fork-server,no-fork-server")
+    parser.add_argument("--fake-runs", type=int, default=0, help="bench.stress_fakes runs")
+    parser.add_argument("--fake-cycles", type=int, default=10, help="cycles per fake run")
+    parser.add_argument("--leave-open", action="store_true", help="fake runs exit open")
+    parser.add_argument(
+        "--no-exit-close", action="store_true", help="fake runs do not close sessions at exit"
+    )
+    parser.add_argument("--keep", type=Path, help="keep the logs of what crashed here")
+    parser.add_argument("--cores", action="store_true", help="let crashes dump core")
     args = parser.parse_args()
+    if args.keep is not None:
+        args.keep.mkdir(parents=True, exist_ok=True)
+    if args.cores:
+        hard = resource.getrlimit(resource.RLIMIT_CORE)[1]
+        resource.setrlimit(resource.RLIMIT_CORE, (hard, hard))
     with tempfile.TemporaryDirectory(prefix="bench-stress-") as folder:
-        for mode in args.modes.split(","):
+        if args.fake_runs > 0:
+            fake_result = ModeResult("fake onboards")
+            for _ in range(args.fake_runs):
+                fake_run(fake_result, args, Path(folder))
+            report(fake_result)
+        for mode in filter(None, args.modes.split(",")):
             result = ModeResult(mode)
             for n in range(1, args.cycles + 1):
                 cycle(result, args, args.kill_every > 0 and n % args.kill_every == 0, Path(folder))
             report(result)
 
 
+def fake_run(result: ModeResult, args: argparse.Namespace, work: Path) -> None:
+    """One process of `bench.stress_fakes`: a crash is a signal or faulthandler's dump."""
+    result.cycles += 1
+    log_dir = work / f"fakes-{result.cycles}"
+    log_dir.mkdir()
+    argv = [sys.executable, "-m", "bench.stress_fakes", "--cycles", str(args.fake_cycles)]
+    if args.leave_open:
+        argv.append("--leave-open")
+    if args.no_exit_close:
+        argv.append("--no-exit-close")
+    with open(log_dir / "fakes.log", "w") as out:
+        run = subprocess.run(
+            argv, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
+            cwd=log_dir, env=code_env(), timeout=READY_S + 60 * args.fake_cycles, check=False,
+        )  # fmt: skip
+    crashed = [f"died of signal {-run.returncode}"] if run.returncode < 0 else []
+    crashed += crashes_in(log_dir, "")
+    if run.returncode == 0:
+        result.ready += 1
+    elif not crashed:
+        result.start_failures.append(f"run {result.cycles}: status {run.returncode}")
+    result.crashes += [f"run {result.cycles}: {c}" for c in crashed]
+    if crashed or run.returncode != 0:
+        keep(log_dir, args.keep)
+
+
 def report(result: ModeResult) -> None:
     gone = f"max {max(result.gone_s):.2f} s" if result.gone_s else "-"
     ratios = sorted(result.ratios)
-    print(f"{result.mode}: {result.cycles} cycles, {result.ready} ready")
+    print(f"{result.mode}: {result.cycles} cycles, {result.ready} ready or ended cleanly")
     print(f"  start failures: {len(result.start_failures)} {result.start_failures}")
     print(f"  crashes: {len(result.crashes)} {result.crashes}")
     print(f"  SIGKILLs of fleet up: {result.kills}, orphans 10 s later: {result.orphans}, "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 import threading
@@ -12,7 +13,7 @@ from fleet.mission.messages import StatusText
 from fleet.mission.status_kind import StatusKind
 from fleet.transport.bus import Bus, BusSample, decode_sample
 from fleet.transport.cli import ExitCode
-from fleet.transport.command import BusOptions, Command, options_from
+from fleet.transport.command import BusOptions, Command, fields_from, key_expr_option, options_from
 from ground import keyspace
 from ground.fleet_view import fleet_snapshot, format_table
 from ground.mission_control import send_opm
@@ -109,6 +110,11 @@ class KeysOptions(BusOptions):
     json: bool = False
 
 
+def keys_options(args: argparse.Namespace) -> KeysOptions:
+    """`keys`' options; a usage error if EXPR is not a key expression."""
+    return fields_from(KeysOptions, args, expr=key_expr_option(args.expr))
+
+
 def run_keys(bus: Bus, options: KeysOptions, out: TextIO) -> int:
     values = keyspace.collect(
         bus,
@@ -128,4 +134,4 @@ def run_keys(bus: Bus, options: KeysOptions, out: TextIO) -> int:
 UAVS = Command(options_from(UavsOptions), run_uavs)
 WATCH = Command(options_from(WatchOptions), run_watch)
 OPM = Command(options_from(OpmOptions), run_opm)
-KEYS = Command(options_from(KeysOptions), run_keys)
+KEYS = Command(keys_options, run_keys)

@@ -1,5 +1,5 @@
 """Fixtures of the end-to-end tests: the processes a test starts, and the ground it
-plays (a router on a free loopback port, a client session, and what it sees).
+plays (a router on a loopback port the OS picks, a client session, and what it sees).
 
 And the test tiers. A test that starts a process (a router, a simulator, an onboard,
 ground-cli, chromium) is marked `e2e`: by hand (`pytestmark = pytest.mark.e2e` on a
@@ -20,7 +20,6 @@ import pytest
 import zenoh
 from hypothesis import settings
 
-from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets
 from fleet.transport.bus_codec import ENCODING, encode
@@ -104,10 +103,9 @@ def fleet() -> Iterator[Fleet]:
 
 @pytest.fixture
 def ground() -> Iterator[Ground]:
-    port = free_port()
-    with router_session(port), client_session(port) as session:
+    with router_session() as router, client_session(router.endpoints[0]) as session:
         seen = GroundView(session)
         try:
-            yield Ground(f"tcp/127.0.0.1:{port}", session, seen)
+            yield Ground(router.endpoints[0], session, seen)
         finally:
             seen.close()

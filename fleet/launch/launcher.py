@@ -2,7 +2,8 @@
 
 What runs (one machine, the star of docs/architecture.md):
 
-* the Zenoh router, embedded in this process (`fleet.transport.router`), listening on `listen`;
+* the Zenoh router, embedded in this process (`fleet.transport.router`), listening on `listen`
+  (on port 0: a port the OS picks, which `Fleet.listening` then says);
 * one `fleet sim SCENARIO` process simulating every aircraft of the scenario on free
   ports (one process rather than one per UAV: the simulator serves many aircraft from
   one selector loop, and one process is half the memory of N);
@@ -47,7 +48,6 @@ from fleet.errors import CertError, FleetError
 from fleet.launch.children import STOP_GRACE_S, Child, ChildProcess, stop_children
 from fleet.launch.endpoints import (
     SimEndpoints,
-    accepts,
     client_endpoint,
     free_port,
     host_port,
@@ -65,7 +65,7 @@ from fleet.transport import bus_codec
 from fleet.transport.bus import Bus, BusSample, Declaration, decode_sample
 from fleet.transport.bus_factory import open_bus
 from fleet.transport.cli import CRASH_DUMP_ENV, PREFIX_ENV
-from fleet.transport.router import Router
+from fleet.transport.router import Router, parse_listening
 from fleet.transport.secure import SecureProfile
 from fleet.transport.zenoh_bus import BusConnectError, ZenohBus
 from fleet.transport.zenoh_config import CONNECT_ENV, DEFAULT_ROUTER, build_config, make_config
@@ -135,6 +135,9 @@ class Fleet:
     recorded_telemetry: dict[int, int] = field(default_factory=dict)
     #: The routers of a router-per-uav mesh: UAV id -> the endpoint clients connect to.
     uav_routers: dict[int, str] = field(default_factory=dict)
+    #: The ground's router's endpoint with the port it bound (`spec.listen` may ask for
+    #: port 0), once it listens.
+    listening: str | None = None
     #: What forks the onboards, while the fleet runs (`FleetSpec.fork_onboards`).
     fork_server: ForkServer | None = None
     #: Opens the bus a start is watched through when no router runs in this process (a
@@ -155,8 +158,9 @@ class Fleet:
 
     @property
     def connect(self) -> str:
-        """The endpoint a ground client on this machine connects to."""
-        return client_endpoint(self.spec.listen)
+        """The endpoint a ground client on this machine connects to (once the router
+        listens, on the port it bound)."""
+        return client_endpoint(self.listening or self.spec.listen)
 
     @property
     def fallback_connect(self) -> list[str]:
@@ -187,6 +191,7 @@ class Fleet:
             if self.spec.topology is Topology.STAR:
                 self.router = Router([self.spec.listen], secure=self.secure)
                 self.router.open()
+                self.listening = self.router.endpoints[0]
         except Exception as error:
             raise LaunchError(str(error)) from error
         # It imports while the simulator starts.
@@ -197,7 +202,7 @@ class Fleet:
             self._start_recorder(deadline)
         else:
             # Its own process, so it can die (or be killed) without the launcher.
-            self._start_router("router-ground", self.spec.listen, [], deadline)
+            self.listening = self._start_router("router-ground", self.spec.listen, [], deadline)
         self._start_sim(deadline)
         self._refuse_held_uavs()
         self._report(f"simulator up with {len(self.endpoints)} aircraft; starting their onboards")
@@ -216,9 +221,10 @@ class Fleet:
         self._wait_ready(deadline)
 
     def _refuse_held_port(self) -> None:
-        """LaunchError naming the processes that listen on the router's port."""
+        """LaunchError naming the processes that listen on the router's port (none can on
+        port 0: the OS gives a free one)."""
         port = host_port(self.connect)[1]
-        holders = port_holders(port)
+        holders = port_holders(port) if port != 0 else []
         if holders:
             raise LaunchError(
                 f"port {port} of {self.spec.listen} is held by "
@@ -238,7 +244,9 @@ class Fleet:
 
     def _start_router(
         self, name: str, listen: str, connect: list[str], deadline: float, identity: str = ROUTER
-    ) -> None:
+    ) -> str:
+        """Start a router process listening on `listen`; the endpoint it printed once it
+        listens (on the port it bound, when `listen` asks for port 0)."""
         argv = [self.spec.python, "-m", "fleet.transport.router", "--listen", listen]
         for endpoint in connect:
             argv += ["--connect", endpoint]
@@ -249,17 +257,27 @@ class Fleet:
             except CertError as error:
                 raise LaunchError(f"{name} has no identity: {error}") from None
             argv += ["--secure", str(self.secure.directory), "--identity", identity]
+        log_path = self.log_dir / f"{name}.log"
+        # The log is appended to (a --log-dir used again): only what this one prints.
+        start = log_path.stat().st_size if log_path.exists() else 0
         child = self._spawn(name, argv)
         child.essential = False
-        host, port = host_port(client_endpoint(listen))
-        while not accepts(host, port):
+        while (bound := _first_in_log(log_path, start, parse_listening)) is None:
             self._check_running(deadline, f"{name} to listen on {listen}")
             time.sleep(0.05)
+        # Restarted (`--restart`), it listens where its clients already dial, not on a
+        # new free port.
+        argv[argv.index("--listen") + 1] = bound
+        child.argv = tuple(argv)
+        return bound
 
     def _start_uav_routers(self, deadline: float) -> None:
         proto = self.spec.listen.partition("/")[0]
         host = host_port(self.connect)[0]
         for uav in self.uav_ids:
+            # Guessed, not port 0: each router dials its ring neighbour, which must have an
+            # endpoint before it starts (the ring is a cycle: one of them starts last), and
+            # a restarted router must come back where its clients dial it.
             self.uav_routers[uav] = f"{proto}/{host}:{free_port(host)}"
         for uav, neighbours in ring_links(self.uav_ids).items():
             connect = [self.connect, *(self.uav_routers[n] for n in neighbours)]
@@ -465,16 +483,23 @@ class Fleet:
         # A UAV lost is one the team re-plans around, as with a container per UAV.
         child.essential = False
 
-    def start_gui(self, listen: str) -> Child:
-        """Serve the Mission Manager's page (`ground-cli gui`) on `listen` (HOST:PORT).
+    def start_gui(self, listen: str) -> tuple[Child, str]:
+        """Serve the Mission Manager's page (`ground-cli gui`) on `listen` (HOST:PORT; port
+        0: a free one); the child and the page's URL it printed once it serves.
 
         A child process like the others (stopped with them, in the pids file): fleet/
         never imports the ground; it runs it.
         """
         argv = [self.spec.python, "-m", "ground.cli", *self._ground_zenoh_args()]
+        log_path = self.log_dir / "gui.log"
+        start = log_path.stat().st_size if log_path.exists() else 0
         child = self._spawn("gui", [*argv, "gui", "--listen", listen])
         self._write_pids()
-        return child
+        deadline = time.monotonic() + self.spec.start_timeout_s
+        while (url := _first_in_log(log_path, start, _serving_url)) is None:
+            self._check_running(deadline, f"the page to be served on {listen}")
+            time.sleep(0.05)
+        return child, url
 
     def restart(self, child: Child) -> Child:
         """Start `child` again with its own command; it takes the dead one's place."""
@@ -680,6 +705,32 @@ class _ReadyWatch:
                 declaration.undeclare()
         self.declarations.clear()
         self.bus.close()  # the router's session stays open (Router.bus)
+
+
+#: How `ground-cli gui` says where it serves the page: `gui: serving on URL [...]`.
+GUI_SERVING = "gui: serving on "
+
+
+def _serving_url(line: str) -> str | None:
+    """The URL of a `gui: serving on URL` line; None for any other line."""
+    rest = line.removeprefix(GUI_SERVING)
+    return rest.split()[0] if rest != line and rest.strip() else None
+
+
+def _first_in_log(log_path: Path, start: int, parse: Callable[[str], str | None]) -> str | None:
+    """The first of a child's log lines after byte `start` that `parse` reads (what it
+    read), or None yet (a child prints where it listens there once it does)."""
+    try:
+        with open(log_path, "rb") as log_file:
+            log_file.seek(start)
+            text = log_file.read().decode(errors="replace")
+    except OSError:
+        return None
+    for line in text.split("\n")[:-1]:  # whole lines only: the last may be half written
+        found = parse(line.strip())
+        if found is not None:
+            return found
+    return None
 
 
 def _uav_of(key: str) -> int | None:

@@ -51,11 +51,12 @@ DEFAULT_GUI_LISTEN = "127.0.0.1:8321"
 
 
 def start_gui(fleet: Fleet, listen: str | None) -> str | None:
-    """Start the page's server if asked; the line that says where it is."""
+    """Start the page's server if asked and wait until it serves; the line that says
+    where it is (the port it bound: `--gui 127.0.0.1:0` takes a free one)."""
     if listen is None:
         return None
-    child = fleet.start_gui(listen)
-    return f"Mission Manager page: http://{listen}/ (log {child.log_path})"
+    child, url = fleet.start_gui(listen)
+    return f"Mission Manager page: {url} (log {child.log_path})"
 
 
 def common_arguments(parser: argparse.ArgumentParser, speedup: float) -> None:
@@ -79,7 +80,7 @@ def common_arguments(parser: argparse.ArgumentParser, speedup: float) -> None:
         const=DEFAULT_GUI_LISTEN,
         metavar="HOST:PORT",
         help=f"also serve the Mission Manager's page (`ground-cli gui`), on {DEFAULT_GUI_LISTEN} "
-        "unless given",
+        "unless given (port 0: a free port, which the banner says)",
     )
     parser.add_argument(
         "--start-timeout",
@@ -149,7 +150,8 @@ def add_up_parser(
         "--listen",
         default=DEFAULT_ROUTER,
         metavar="ENDPOINT",
-        help="the router's endpoint (default %(default)s)",
+        help="the router's endpoint (default %(default)s; port 0: a free port, which the "
+        "banner says)",
     )
     parser.add_argument(
         "--secure",
@@ -341,7 +343,8 @@ def _print_banner(fleet: Fleet, targets_path: Path | None, gui_line: str | None)
         routers = ", ".join(f"{uav} {where}" for uav, where in fleet.uav_routers.items())
         connect.append(f"  (UAV routers: {routers}; any works as a fallback --connect)")
     lines = [
-        f"fleet up: {len(fleet.uav_ids)} UAV(s) alive ({ids}); router on {fleet.spec.listen}",
+        f"fleet up: {len(fleet.uav_ids)} UAV(s) alive ({ids}); router on "
+        f"{fleet.listening or fleet.spec.listen}",
         "Connect from another terminal:",
         *connect,
         *prefix,

@@ -236,16 +236,24 @@ class Freshness:
     clock) is refused: it was meant for an earlier run of this process, or is a replay.
     A command reaches a process only while it is subscribed, so a genuine one is never
     older than it (clocks agreeing: GPS or NTP time).
+
+    The marks are kept per `receiver` (a subscription, a queryable): one message reaches
+    every subscription of a process whose key expression it matches (a recorder's
+    `{prefix}/**` and the bus's own digest subscription both hear a UAV's digest), and
+    each must believe it once. With one mark per process, whichever subscription Zenoh
+    called first used the message up and the other refused it as replayed.
     """
 
     def __init__(self, window_ns: int = DEFAULT_WINDOW_NS, floor_ns: int = 0) -> None:
         self.window_ns = window_ns
         self.floor_ns = floor_ns
-        self._marks: OrderedDict[tuple[str, str], int] = OrderedDict()
+        self._marks: OrderedDict[tuple[int, str, str], int] = OrderedDict()
         self._missions: OrderedDict[str, int] = OrderedDict()
 
-    def check(self, key: str, envelope: Envelope, how: Delivery, now_ns: int) -> Refusal | None:
-        """None (and the message remembered) if fresh, else why not."""
+    def check(
+        self, key: str, envelope: Envelope, how: Delivery, now_ns: int, receiver: int = 0
+    ) -> Refusal | None:
+        """None (and the message remembered for `receiver`) if fresh, else why not."""
         stamp = envelope.stamp_ns
         if stamp > now_ns + self.window_ns:
             return Refusal.STALE  # from the future: a skewed clock, or a forgery kept for later
@@ -266,7 +274,7 @@ class Freshness:
             return Refusal.STALE
         if stamp < self.floor_ns and parsed is not None and parsed.spec.role is Role.COMMAND:
             return Refusal.REPLAYED  # signed before this process started
-        mark = (envelope.author, key)
+        mark = (receiver, envelope.author, key)
         last = self._marks.get(mark)
         if last is not None and stamp <= last:
             return Refusal.REPLAYED

@@ -47,6 +47,8 @@ from fleet.transport.cli import (
 from fleet.transport.command import (
     Command,
     LocalCommand,
+    fields_from,
+    key_expr_option,
     options_from,
     run_parsed,
     set_handler,
@@ -192,6 +194,11 @@ class RecordOptions:
     rotate_every: float | None = None
     #: Do not record: finish `out`, left unfinished by a killed recorder.
     recover: bool = False
+
+
+def record_options(args: argparse.Namespace) -> RecordOptions:
+    """`record`'s options; a usage error if KEYEXPR is not a key expression."""
+    return fields_from(RecordOptions, args, expr=key_expr_option(args.expr))
 
 
 def run_record(bus: Bus, args: RecordOptions, out: TextIO) -> int:
@@ -352,7 +359,7 @@ def run_report(args: ReportOptions, out: TextIO) -> int:
     return ExitCode.OK
 
 
-RECORD = Command(options_from(RecordOptions), run_record)
+RECORD = Command(record_options, run_record)
 REPLAY = Command(options_from(ReplayOptions), run_replay)
 PLOT = LocalCommand(options_from(PlotOptions), run_plot)
 REPORT = LocalCommand(options_from(ReportOptions), run_report)

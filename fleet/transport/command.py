@@ -84,6 +84,19 @@ def fields_from(kind: type[Opts], args: argparse.Namespace, **given: Any) -> Opt
     return kind(**(flags | given))
 
 
+def key_expr_option(text: str | None) -> str | None:
+    """The key expression a flag or argument gave (None: none given), in canonical form;
+    a one-line usage error (OptionsError) if it is not one."""
+    from fleet.transport.key_expr import KeyExprError, checked_key_expr
+
+    if text is None:
+        return None
+    try:
+        return checked_key_expr(text)
+    except KeyExprError as error:
+        raise OptionsError(f"error: {error}") from None
+
+
 def options_from(kind: type[Opts]) -> Callable[[argparse.Namespace], Opts]:
     """A builder of the dataclass `kind` from the parsed flags of its fields' names."""
 

@@ -33,6 +33,9 @@ class LinkRefusal(Enum):
     PEER_REFUSED = "peer_refused"  #: the client refused the router's certificate
     TLS_OTHER = "tls_other"  #: another TLS warning (a handshake cut short, ...)
     NO_RIGHTS = "no_rights"  #: a link was opened, but its identity is granted nothing
+    #: a link of an identity revoked while the router ran, closed by the router
+    #: (`fleet.transport.live_revocation`; counted there, not read from Zenoh's log)
+    REVOKED = "revoked"
 
 
 #: (text in the message, kind), the first match wins; all under the TLS target.

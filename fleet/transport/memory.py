@@ -93,6 +93,13 @@ def _intersects(a: str, b: str) -> bool:
     return bool(zenoh.KeyExpr(a).intersects(zenoh.KeyExpr(b)))
 
 
+def _checked(key_expr: str) -> str:
+    """`key_expr`, or zenoh.ZError if it is none: refused where a Zenoh session refuses
+    it (when declared or asked), not at the first put it would have matched."""
+    zenoh.KeyExpr(key_expr)
+    return key_expr
+
+
 @dataclass
 class _Subscription:
     key_expr: str
@@ -207,7 +214,7 @@ class MemoryBus(Bus):
         self, key_expr: str, callback: SampleCallback, *, details: bool = False
     ) -> Declaration:
         # In memory every sample carries its details anyway.
-        entry = _Subscription(key_expr, callback, self)
+        entry = _Subscription(_checked(key_expr), callback, self)
         with self.network.lock:
             self.network.subscriptions.append(entry)
         return _Undeclare(lambda: self._remove(self.network.subscriptions, entry))
@@ -244,7 +251,7 @@ class MemoryBus(Bus):
         return found + errors
 
     def _ask(self, selector: str, payload: bytes, callback: SampleCallback) -> list[MemoryQuery]:
-        key = selector.partition("?")[0]  # selector parameters are not used by the fleet
+        key = _checked(selector.partition("?")[0])  # selector parameters: unused by the fleet
         with self.network.lock:
             targets = [q for q in self.network.queryables if _intersects(q.key_expr, key)]
         queries = [MemoryQuery(key, payload, callback) for _ in targets]
@@ -253,7 +260,7 @@ class MemoryBus(Bus):
         return queries
 
     def declare_queryable(self, key_expr: str, notify: QueryNotify | None = None) -> Queryable:
-        queryable = MemoryQueryable(self.network, key_expr, self, notify)
+        queryable = MemoryQueryable(self.network, _checked(key_expr), self, notify)
         with self.network.lock:
             self.network.queryables.append(queryable)
         return queryable
@@ -266,11 +273,12 @@ class MemoryBus(Bus):
         return _Undeclare(lambda: self._drop_token(token))
 
     def live_tokens(self, key_expr: str, timeout: float) -> list[str]:
+        _checked(key_expr)
         with self.network.lock:
             return [k for k, _ in self.network.tokens.values() if _intersects(key_expr, k)]
 
     def subscribe_presence(self, key_expr: str, callback: PresenceCallback) -> Declaration:
-        entry = _Presence(key_expr, callback, self)
+        entry = _Presence(_checked(key_expr), callback, self)
         with self.network.lock:
             self.network.presence.append(entry)
             present = [k for k, _ in self.network.tokens.values() if _intersects(key_expr, k)]

@@ -9,12 +9,19 @@ With a `SecureProfile` (`--secure DIR`) it listens with mutual TLS and enforces 
 fleet's access policy (docs/security.md), counts the links it refused and answers
 `{prefix}/router/state` with the counts (`ground-cli routers`).
 
-`python -m fleet.transport.router --listen tcp/127.0.0.1:7447` runs one until SIGTERM or Ctrl-C.
+A listen endpoint on port 0 (`tcp/127.0.0.1:0`) takes a port the OS picks, free when it
+is bound, so no one races for it: `Router.endpoints` says which (read back from the
+router's admin space, `@/ZID/router`, whose `locators` are what it listens on).
+
+`python -m fleet.transport.router --listen tcp/127.0.0.1:7447` runs one until SIGTERM or
+Ctrl-C; once it listens, it prints `router listening on ENDPOINT` (one line per endpoint,
+the port it bound).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import sys
 import threading
@@ -28,7 +35,7 @@ from fleet.errors import CertError, FleetError
 from fleet.mission.access import ROUTER
 from fleet.mission.messages import RouterState
 from fleet.mission.signature import sign
-from fleet.transport import refusal_watch
+from fleet.transport import refusal_watch, zenoh_exit
 from fleet.transport.bus import Bus
 from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.cli import (
@@ -39,11 +46,64 @@ from fleet.transport.cli import (
     setup_logging,
     stop_on_signals,
 )
+from fleet.transport.link_refusal import LinkRefusal
+from fleet.transport.live_revocation import RevocationGuard
 from fleet.transport.secure import SecureProfile
 from fleet.transport.zenoh_bus import ZenohBus
 from fleet.transport.zenoh_config import DEFAULT_ROUTER, error_text, make_config
 
 log = logging.getLogger(__name__)
+
+#: What `python -m fleet.transport.router` prints before each endpoint it listens on.
+LISTENING = "router listening on "
+#: How long the router's own admin space may take to say what it listens on, seconds.
+_ADMIN_TIMEOUT_S = 5.0
+
+
+def parse_listening(line: str) -> str | None:
+    """The endpoint of a `router listening on ENDPOINT` line; None for any other line."""
+    line = line.strip()
+    return line.removeprefix(LISTENING) if line.startswith(LISTENING) else None
+
+
+def _split(endpoint: str) -> tuple[str, str, str, str]:
+    """`tcp/127.0.0.1:7447#iface=lo` -> ("tcp", "127.0.0.1", "7447", "#iface=lo")."""
+    proto, _, rest = endpoint.partition("/")
+    address, hash_, options = rest.partition("#")
+    host, _, port = address.rpartition(":")
+    return proto, host, port, hash_ + options
+
+
+def bound_endpoints(session: zenoh.Session, listen: list[str]) -> list[str]:
+    """`listen` with each port 0 replaced by the port `session` (a router's, with its admin
+    space on) bound there: read from its admin space, the only place Zenoh says it.
+
+    An endpoint on a wildcard address (`0.0.0.0`) is listed once per interface, all on
+    the port it bound: any of them tells the port. Raises RouterError if the admin space
+    does not answer or lists no locator for an endpoint asked on port 0.
+    """
+    if all(_split(endpoint)[2] != "0" for endpoint in listen):
+        return list(listen)
+    locators: list[str] = []
+    for reply in session.get(f"@/{session.zid()}/router", timeout=_ADMIN_TIMEOUT_S):
+        if reply.ok is not None:
+            with_locators = json.loads(reply.ok.payload.to_bytes())
+            locators += [str(locator) for locator in with_locators.get("locators", [])]
+    bound = []
+    for endpoint in listen:
+        proto, host, port, options = _split(endpoint)
+        if port != "0":
+            bound.append(endpoint)
+            continue
+        same = [_split(locator) for locator in locators if locator.startswith(f"{proto}/")]
+        exact = [where for where in same if where[1] == host] or same
+        if not exact:
+            raise RouterError(
+                f"the router listens on {endpoint} but its admin space lists no {proto} "
+                f"locator (it lists {', '.join(locators) or 'none'})"
+            )
+        bound.append(f"{proto}/{host}:{exact[0][2]}{options}")
+    return bound
 
 
 #: Zenoh's own log: its warnings name each link it refused (no certificate, an unknown
@@ -95,6 +155,9 @@ class Router:
         self.secure = secure
         self._session: zenoh.Session | None = None
         self._watch: refusal_watch.RefusalWatch | None = None
+        self._guard: RevocationGuard | None = None
+        #: What it listens on, each port 0 replaced by the port bound (once open).
+        self.endpoints: list[str] = list(listen)
 
     @property
     def refused_links(self) -> dict[str, int]:
@@ -127,14 +190,20 @@ class Router:
                 _log_refused_links()
                 self._watch = refusal_watch.acquire()
             self._session = zenoh.open(config)
+            zenoh_exit.close_at_exit(self.close)  # if never closed (fleet.transport.zenoh_exit)
+            self.endpoints = bound_endpoints(self._session, self.listen)
             if self.secure is not None:
                 self._serve_state(self.secure.key_space.router_state())
+                self._guard_revocations(self.secure)
         except zenoh.ZError as error:
             self.close()
             raise RouterError(
                 f"cannot start a Zenoh router on {', '.join(self.listen)}: {listen_problem(error)}"
             ) from error
-        log.info("zenoh router %s listening on %s", self.zid, ", ".join(self.listen))
+        except RouterError:
+            self.close()
+            raise
+        log.info("zenoh router %s listening on %s", self.zid, ", ".join(self.endpoints))
 
     def _serve_state(self, key: str) -> None:
         """Answer `key` (`ground-cli routers`) with this router's refused links, signed by
@@ -154,7 +223,33 @@ class Router:
 
         self.session.declare_queryable(key, answer)
 
+    def _guard_revocations(self, secure: SecureProfile) -> None:
+        """Close the links of identities revoked while this router runs (its access
+        control, built now, leaves out those revoked before)."""
+        watch = self._watch
+
+        def count() -> None:
+            if watch is not None:
+                watch.links.count(LinkRefusal.REVOKED)
+
+        self._guard = RevocationGuard(
+            self.session,
+            secure.key_space.roster(),
+            secure.identity(secure.router_name).ca,
+            secure.revoked,
+            on_cut=count,
+        )
+        self._guard.start()
+
+    @property
+    def revocations(self) -> RevocationGuard | None:
+        """What this router does about revocations heard while it runs (secure only)."""
+        return self._guard
+
     def close(self) -> None:
+        guard, self._guard = self._guard, None
+        if guard is not None:
+            guard.stop()
         session, self._session = self._session, None
         if session is not None:
             session.close()
@@ -181,7 +276,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--listen",
         action="append",
         metavar="ENDPOINT",
-        help=f"endpoint to listen on (repeatable; default {DEFAULT_ROUTER})",
+        help=f"endpoint to listen on (repeatable; default {DEFAULT_ROUTER}; port 0: a free "
+        "port, printed once bound)",
     )
     parser.add_argument(
         "--connect", action="append", metavar="ENDPOINT", help="another router to mesh with"
@@ -216,6 +312,8 @@ def main(argv: list[str] | None = None) -> int:
         )
         router = Router(args.listen or [DEFAULT_ROUTER], args.connect, secure)
         with stop_on_signals(stop.set), router:
+            for endpoint in router.endpoints:
+                print(f"{LISTENING}{endpoint}", flush=True)
             # A bounded wait in a loop, so the signal handler runs promptly.
             while not stop.wait(0.5):
                 pass

@@ -226,16 +226,20 @@ class BusSigning:
         return new
 
     # ---- incoming ---------------------------------------------------------------------
-    def check(self, key: str, payload: bytes, attachment: bytes, how: Delivery) -> bool:
-        """Whether a message that arrived on `key` may be believed (refusals counted)."""
-        return self._checked(key, payload, attachment, how)[0]
+    def check(
+        self, key: str, payload: bytes, attachment: bytes, how: Delivery, receiver: int = 0
+    ) -> bool:
+        """Whether a message that arrived on `key` at `receiver` (a subscription, a
+        queryable: each believes a message once, `Freshness`) may be believed (refusals
+        counted)."""
+        return self._checked(key, payload, attachment, how, receiver)[0]
 
     def check_reply(self, key: str, payload: bytes, attachment: bytes) -> tuple[bool, str | None]:
         """Whether a reply may be believed, and who signed it (None: a key not signed)."""
         return self._checked(key, payload, attachment, Delivery.REPLY)
 
     def _checked(
-        self, key: str, payload: bytes, attachment: bytes, how: Delivery
+        self, key: str, payload: bytes, attachment: bytes, how: Delivery, receiver: int = 0
     ) -> tuple[bool, str | None]:
         space = space_of(key)
         if space is None:
@@ -245,7 +249,7 @@ class BusSigning:
             return True, None  # a key that is not signed
         if refusal is None and envelope is not None:
             with self._lock:
-                refusal = self._freshness.check(key, envelope, how, self._clock())
+                refusal = self._freshness.check(key, envelope, how, self._clock(), receiver)
         if refusal is None:
             if envelope is not None and envelope.author != self.identity:
                 self._remember(key, payload, attachment)

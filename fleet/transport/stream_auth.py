@@ -10,7 +10,9 @@ puts the list of those hashes, signed like any other message, on its `digest` ke
 receiver (`StreamChecker`) holds each stream sample until a digest of its author lists it
 (a sample arriving after its digest finds the hash waiting), then delivers it; a sample
 no digest vouches for within HOLD_S is dropped and counted (`unverified`). Each hash is
-used once and forgotten after HOLD_S: a sample replayed later is never believed.
+used once per receiver (a subscription: one sample reaches every subscription of a bus
+it matches, and each is owed it once) and forgotten after HOLD_S: a sample replayed
+later is never believed.
 
 The price: a stream sample reaches the ground up to DIGEST_EVERY_S (plus transit) late.
 """
@@ -105,6 +107,23 @@ class _Held:
     hashed: str
     deliver: Callable[[], None]
     since: float
+    receiver: int
+
+
+@dataclass
+class _Credit:
+    """A hash a digest listed: when, how many times (two samples may be the same bytes),
+    and how many of those each receiver has used."""
+
+    since: float
+    times: int
+    used: Counter[int]
+
+    def take(self, receiver: int) -> bool:
+        if self.used[receiver] >= self.times:
+            return False
+        self.used[receiver] += 1
+        return True
 
 
 class StreamChecker:
@@ -115,29 +134,29 @@ class StreamChecker:
         self._hold_s = hold_s
         self._lock = threading.Lock()
         self._held: deque[_Held] = deque()
-        #: (author, hash) -> when a digest listed it and how many times (two samples may
-        #: be the same bytes), for samples still to come.
-        self._vouched: OrderedDict[tuple[str, str], tuple[float, int]] = OrderedDict()
+        #: (author, hash) -> what a digest listed, for samples still to come.
+        self._vouched: OrderedDict[tuple[str, str], _Credit] = OrderedDict()
         self.unverified = 0
 
-    def hold(self, author: str, key: str, payload: bytes, deliver: Callable[[], None]) -> None:
-        """A sample on `author`'s stream `key`: `deliver` is called once a digest of
-        `author` lists it (at once if one already did), never if none does in time."""
+    def hold(
+        self,
+        author: str,
+        key: str,
+        payload: bytes,
+        deliver: Callable[[], None],
+        receiver: int = 0,
+    ) -> None:
+        """A sample on `author`'s stream `key` heard by `receiver`: `deliver` is called
+        once a digest of `author` lists it (at once if one already did), never if none
+        does in time."""
         hashed = sample_hash(key, payload)
         now = self._clock()
         with self._lock:
             self._expire(now)
             credit = self._vouched.get((author, hashed))
-            if credit is not None:
-                ready = True
-                since, times = credit
-                if times > 1:
-                    self._vouched[(author, hashed)] = (since, times - 1)
-                else:
-                    del self._vouched[(author, hashed)]
-            else:
-                ready = False
-                self._held.append(_Held(author, hashed, deliver, now))
+            ready = credit is not None and credit.take(receiver)
+            if not ready:
+                self._held.append(_Held(author, hashed, deliver, now, receiver))
                 while len(self._held) > MAX_HELD:
                     self._drop(self._held.popleft())
         if ready:
@@ -146,22 +165,25 @@ class StreamChecker:
     def vouch(self, author: str, digest: StreamDigest) -> None:
         """`author`'s signed digest: deliver the samples it lists (in arrival order), and
         keep the rest of its hashes for samples still on their way."""
-        listed = Counter(digest.hashes)
         now = self._clock()
         ready: list[Callable[[], None]] = []
         with self._lock:
             self._expire(now)
+            credits: dict[str, _Credit] = {}
+            for hashed, times in Counter(digest.hashes).items():
+                credit = self._vouched.pop((author, hashed), None)
+                if credit is None:
+                    credit = _Credit(now, 0, Counter())
+                credit.since, credit.times = now, credit.times + times
+                credits[hashed] = self._vouched[(author, hashed)] = credit
             kept: deque[_Held] = deque()
             for held in self._held:
-                if held.author == author and listed[held.hashed] > 0:
-                    listed[held.hashed] -= 1
+                credit = credits.get(held.hashed) if held.author == author else None
+                if credit is not None and credit.take(held.receiver):
                     ready.append(held.deliver)
                 else:
                     kept.append(held)
             self._held = kept
-            for hashed, times in listed.items():
-                if times > 0:
-                    self._vouched[(author, hashed)] = (now, times)
             while len(self._vouched) > MAX_HELD:
                 self._vouched.popitem(last=False)
         for deliver in ready:
@@ -170,7 +192,7 @@ class StreamChecker:
     def _expire(self, now: float) -> None:
         while self._held and now - self._held[0].since > self._hold_s:
             self._drop(self._held.popleft())
-        while self._vouched and now - next(iter(self._vouched.values()))[0] > self._hold_s:
+        while self._vouched and now - next(iter(self._vouched.values())).since > self._hold_s:
             self._vouched.popitem(last=False)
 
     def _drop(self, held: _Held) -> None:

@@ -22,9 +22,11 @@ arrives (a sample, a reply, a command query) is checked before any callback sees
 
 from __future__ import annotations
 
+import itertools
 import json
 import logging
 import threading
+from collections import deque
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -36,7 +38,7 @@ from fleet.mission.access import uav_identity
 from fleet.mission.delivery import Delivery
 from fleet.mission.key_space import space_of
 from fleet.mission.messages import StreamDigest
-from fleet.transport import bus_codec, bus_qos
+from fleet.transport import bus_codec, bus_qos, zenoh_exit
 from fleet.transport.bus import (
     Bus,
     BusQuery,
@@ -155,16 +157,18 @@ class ZenohQueryable(Queryable):
         key_expr: str,
         notify: QueryNotify | None,
         signing: BusSigning | None = None,
+        receiver: int = 0,
     ) -> None:
         super().__init__(notify)
         self._signing = signing
+        self._receiver = receiver
         self._queryable = session.declare_queryable(key_expr, direct(self._on_query))
 
     def _on_query(self, query: zenoh.Query) -> None:
         wrapped = ZenohQuery(query, self._signing)
         signing = self._signing
         if signing is not None and not signing.check(
-            wrapped.key, wrapped.payload, _attachment(query), Delivery.QUERY
+            wrapped.key, wrapped.payload, _attachment(query), Delivery.QUERY, self._receiver
         ):
             wrapped.reply_err("refused: not a command its signer may give (signed commands)")
             wrapped.drop()
@@ -177,25 +181,34 @@ class ZenohQueryable(Queryable):
 
 class _ZenohRing:
     """Zenoh's own ring channel: the samples wait in Zenoh, converted (and their
-    signatures checked) only when taken."""
+    signatures checked) only when taken. In the secure profile a UAV's stream sample is
+    believed as `subscribe` believes it, once its author's signed digest lists it: taken
+    from the ring, it waits with the bus's `StreamChecker`, and comes out of `try_recv`
+    once vouched for (`_believed`, at most `limit` of them, as in the ring)."""
 
     def __init__(self, bus: ZenohBus, key_expr: str, limit: int) -> None:
         self._bus = bus
+        self._receiver = bus.new_receiver()
+        self._believed: deque[BusSample] = deque(maxlen=limit)
+        bus._watch_roster(key_expr)
+        bus._watch_digests(key_expr)
         self._subscriber = bus.session.declare_subscriber(
             key_expr, zenoh.handlers.RingChannel(limit)
         )
 
     def try_recv(self) -> BusSample | None:
         while True:
+            if self._believed:
+                return self._believed.popleft()
             try:
                 sample = self._subscriber.try_recv()
             except zenoh.ZError:  # the session closed under the subscriber
                 return None
             if sample is None:
                 return None
-            received = self._bus._received(sample, Delivery.PUT)
+            received = self._bus._received(sample, Delivery.PUT, receiver=self._receiver)
             if received is not None:
-                return received
+                self._bus._believe(received, self._believed.append, self._receiver)
 
     def undeclare(self) -> None:
         self._subscriber.undeclare()
@@ -214,6 +227,8 @@ class ZenohBus(Bus):
         self.session = session
         #: False: the session is someone else's (an embedded router's), left open by `close`.
         self.owns_session = owns_session
+        if owns_session:
+            zenoh_exit.close_at_exit(self._close_session)
         #: The secure profile's signed commands (None: nothing signed or checked).
         self.signing = signing
         #: Declared publishers of the keys put at a steady rate (telemetry), by key.
@@ -221,6 +236,8 @@ class ZenohBus(Bus):
         #: The roster subscriptions, one per key prefix this bus has used (secure only).
         self._rosters: dict[str, zenoh.Subscriber[None]] = {}
         self._rosters_lock = threading.Lock()
+        #: Each subscription's and queryable's replay marks (`BusSigning.check`).
+        self._receivers = itertools.count(1)
         #: The secure profile's stream authentication (fleet.transport.stream_auth): the
         #: digests of what this identity streams, and the samples it hears held until
         #: their author's digest vouches for them (a digest subscription per prefix).
@@ -256,8 +273,10 @@ class ZenohBus(Bus):
             if space.prefix in self._digests:
                 return
 
+            receiver = self.new_receiver()
+
             def on_digest(sample: zenoh.Sample) -> None:
-                received = self._received(sample, Delivery.PUT)
+                received = self._received(sample, Delivery.PUT, receiver=receiver)
                 if received is None:
                     return
                 try:
@@ -283,8 +302,10 @@ class ZenohBus(Bus):
             if space.prefix in self._rosters:
                 return
 
+            receiver = self.new_receiver()
+
             def on_roster(sample: zenoh.Sample) -> None:
-                received = self._received(sample, Delivery.PUT)
+                received = self._received(sample, Delivery.PUT, receiver=receiver)
                 if received is not None:
                     signing.apply_roster(received.key, received.payload)
 
@@ -302,18 +323,27 @@ class ZenohBus(Bus):
     def signed(self) -> bool:
         return self.signing is not None
 
-    def _check(self, key: str, payload: bytes, attachment: bytes, how: Delivery) -> bool:
-        return self.signing is None or self.signing.check(key, payload, attachment, how)
+    def new_receiver(self) -> int:
+        """A new subscription's (or queryable's) own replay marks: each believes every
+        signed message once, whichever other subscription of this bus heard it first."""
+        return next(self._receivers)
+
+    def _check(
+        self, key: str, payload: bytes, attachment: bytes, how: Delivery, receiver: int = 0
+    ) -> bool:
+        return self.signing is None or self.signing.check(key, payload, attachment, how, receiver)
 
     def _received(
         self,
         sample: zenoh.Sample,
         how: Delivery,
         convert: Callable[[zenoh.Sample], BusSample] = _sample,
+        receiver: int = 0,
     ) -> BusSample | None:
-        """The sample (by `convert`), or None if its signature is refused."""
+        """The sample (by `convert`), or None if its signature is refused at `receiver`."""
         bus_sample = convert(sample)
-        if not self._check(bus_sample.key, bus_sample.payload, _attachment(sample), how):
+        attachment = _attachment(sample)
+        if not self._check(bus_sample.key, bus_sample.payload, attachment, how, receiver):
             return None
         return bus_sample
 
@@ -356,24 +386,29 @@ class ZenohBus(Bus):
         convert = _sample if details else _plain
         self._watch_roster(key_expr)
         self._watch_digests(key_expr)
-        checker, stream_uav = self._stream_checker, self._stream_uav
+        receiver = self.new_receiver()
 
         def on_sample(sample: zenoh.Sample) -> None:
-            received = self._received(sample, Delivery.PUT, convert)
-            if received is None:
-                return
-            space = space_of(received.key) if stream_uav is not None else None
-            uav = stream_uav(space, received.key) if stream_uav and space else None
-            if checker is None or uav is None:
-                callback(received)
-                return
-            # A UAV's stream sample: believed once its signed digest lists it.
-            checker.hold(
-                uav_identity(uav), received.key, received.payload, lambda: callback(received)
-            )
+            received = self._received(sample, Delivery.PUT, convert, receiver)
+            if received is not None:
+                self._believe(received, callback, receiver)
 
         subscriber: Declaration = self.session.declare_subscriber(key_expr, direct(on_sample))
         return subscriber
+
+    def _believe(
+        self, received: BusSample, deliver: Callable[[BusSample], None], receiver: int
+    ) -> None:
+        """`deliver` a sample whose signature (if any) passed at `receiver`: at once, or,
+        a UAV's stream sample in the secure profile, once its signed digest lists it."""
+        checker, stream_uav = self._stream_checker, self._stream_uav
+        space = space_of(received.key) if stream_uav is not None else None
+        uav = stream_uav(space, received.key) if stream_uav and space else None
+        if checker is None or uav is None:
+            deliver(received)
+            return
+        author = uav_identity(uav)
+        checker.hold(author, received.key, received.payload, lambda: deliver(received), receiver)
 
     def subscribe_ring(self, key_expr: str, limit: int) -> RingSubscription:
         return _ZenohRing(self, key_expr, limit)
@@ -436,7 +471,7 @@ class ZenohBus(Bus):
 
     def declare_queryable(self, key_expr: str, notify: QueryNotify | None = None) -> Queryable:
         self._watch_roster(key_expr)
-        return ZenohQueryable(self.session, key_expr, notify, self.signing)
+        return ZenohQueryable(self.session, key_expr, notify, self.signing, self.new_receiver())
 
     def declare_token(self, key: str) -> Declaration:
         token: Declaration = self.session.liveliness().declare_token(key)
@@ -490,7 +525,12 @@ class ZenohBus(Bus):
             self._publishers.clear()
             return
         self._publishers.clear()  # closing the session undeclares them
-        self.session.close()
+        self._close_session()
+
+    def _close_session(self) -> None:
+        # Also at exit (fleet.transport.zenoh_exit), if the bus was never closed.
+        if not self.session.is_closed():
+            self.session.close()
 
 
 def session_of(bus: Bus) -> zenoh.Session:

@@ -198,7 +198,7 @@ def _serve(
             else "unsigned"
         )
         print(
-            f"{PROG}: serving on {args.out} (local port {endpoint.local_port}, {signed}), "
+            f"{PROG}: serving on {endpoint.url} (local port {endpoint.local_port}, {signed}), "
             f"missions to {'every live UAV' if team is TeamChoice.LIVE else 'the UAV alone'}",
             file=out,
             flush=True,

@@ -4,8 +4,10 @@ RTL aborts the UAV's part of its mission (as `ground-cli abort --uav`): as
 MAV_CMD_NAV_RETURN_TO_LAUNCH, or a MAV_CMD_DO_SET_MODE or SET_MODE to the RTL custom
 mode (the fleet's, ArduPlane's 11, or PX4's AUTO/RTL as MAVSDK sends it). Asking for
 AUTOPILOT_VERSION (MAV_CMD_REQUEST_MESSAGE or the older REQUEST_AUTOPILOT_CAPABILITIES),
-or HOME_POSITION (MAV_CMD_GET_HOME_POSITION), is answered with it. Anything else is
-MAV_RESULT_UNSUPPORTED: a ground station always hears back.
+or HOME_POSITION (MAV_CMD_GET_HOME_POSITION), is answered with it, as is
+MAV_CMD_REQUEST_MESSAGE for any message in `REQUESTABLE` (BATTERY_STATUS with every
+figure "not measured"). Anything else is MAV_RESULT_UNSUPPORTED: a ground station always
+hears back.
 """
 
 from __future__ import annotations
@@ -42,6 +44,8 @@ REQUESTABLE = frozenset(
         mavlink2.MAVLINK_MSG_ID_GPS_RAW_INT,
         mavlink2.MAVLINK_MSG_ID_HOME_POSITION,
         mavlink2.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
+        mavlink2.MAVLINK_MSG_ID_GPS_STATUS,
+        mavlink2.MAVLINK_MSG_ID_BATTERY_STATUS,
     }
 )
 

@@ -208,6 +208,16 @@ class Endpoint:
         port: int = self._sock.getsockname()[1]
         return port
 
+    @property
+    def url(self) -> str:
+        """Where it is: a station's address for udpout, else the address it listens on,
+        with the port it bound (`tcpin:127.0.0.1:0` asks for any free one)."""
+        if self.kind == "udpout":
+            host, port = self.address
+        else:
+            host, port = self.address[0], self.local_port
+        return f"{self.kind}:{host}:{port}"
+
     def close(self) -> None:
         for client in list(self._tcp):
             client.close()

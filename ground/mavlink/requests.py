@@ -315,8 +315,14 @@ class Requests:
             self._abort(sysid, piccolo, partner, command)
             return
         if decision.action is Action.SEND_MESSAGE:
+            built = self._requested(sysid, piccolo, decision.message_id)
+            if built is None:
+                # What it needs is not known yet (no telemetry, no home): ask again later.
+                result = mavlink2.MAV_RESULT_TEMPORARILY_REJECTED
+                self._command_ack(sysid, partner, command, result)
+                return
             self._command_ack(sysid, partner, command, mavlink2.MAV_RESULT_ACCEPTED)
-            self._send_requested(sysid, piccolo, decision.message_id)
+            self._reply(sysid, built)
             return
         log.info(
             "system %d: command %d unsupported (param1 %g)",
@@ -326,35 +332,42 @@ class Requests:
         )
         self._command_ack(sysid, partner, command, mavlink2.MAV_RESULT_UNSUPPORTED)
 
-    def _send_requested(self, sysid: int, piccolo: int, message_id: int) -> None:
+    def _requested(
+        self, sysid: int, piccolo: int, message_id: int
+    ) -> mavlink2.MAVLink_message | None:
+        """The message asked for, as the UAV is now; None while what it says is unknown."""
         if message_id == mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
-            self._reply(sysid, vehicle.autopilot_version(piccolo))
-            return
+            return vehicle.autopilot_version(piccolo)
+        if message_id == mavlink2.MAVLINK_MSG_ID_BATTERY_STATUS:
+            return vehicle.battery_status()
         found = self.gateway.vehicle(sysid)
         if found is None:
-            return
+            return None
         view, telemetry = found[1], self.gateway.view.telemetry(piccolo)
         boot = self.gateway.boot_ms()
-        built: mavlink2.MAVLink_message | None = None
         home = self.gateway.home_of(piccolo)
         if message_id == mavlink2.MAVLINK_MSG_ID_HEARTBEAT:
-            built = vehicle.heartbeat(view, telemetry)
-        elif message_id == mavlink2.MAVLINK_MSG_ID_SYS_STATUS:
-            built = vehicle.sys_status(view, telemetry, self.gateway.drops.total())
-        elif message_id == mavlink2.MAVLINK_MSG_ID_EXTENDED_SYS_STATE:
-            built = vehicle.extended_sys_state(telemetry)
-        elif message_id == mavlink2.MAVLINK_MSG_ID_HOME_POSITION and home is not None:
-            built = vehicle.home_position(*home)
-        elif telemetry is not None and message_id == mavlink2.MAVLINK_MSG_ID_GPS_RAW_INT:
+            return vehicle.heartbeat(view, telemetry)
+        if message_id == mavlink2.MAVLINK_MSG_ID_SYS_STATUS:
+            return vehicle.sys_status(view, telemetry, self.gateway.drops.total())
+        if message_id == mavlink2.MAVLINK_MSG_ID_EXTENDED_SYS_STATE:
+            return vehicle.extended_sys_state(telemetry)
+        if message_id == mavlink2.MAVLINK_MSG_ID_HOME_POSITION:
+            return vehicle.home_position(*home) if home is not None else None
+        if telemetry is None:
+            return None
+        built: mavlink2.MAVLink_message | None = None
+        if message_id == mavlink2.MAVLINK_MSG_ID_GPS_RAW_INT:
             built = vehicle.gps_raw(telemetry, boot)
-        elif telemetry is not None and message_id == mavlink2.MAVLINK_MSG_ID_GLOBAL_POSITION_INT:
+        elif message_id == mavlink2.MAVLINK_MSG_ID_GPS_STATUS:
+            built = vehicle.gps_status(telemetry)
+        elif message_id == mavlink2.MAVLINK_MSG_ID_GLOBAL_POSITION_INT:
             built = vehicle.global_position(telemetry, boot)
-        elif telemetry is not None and message_id == mavlink2.MAVLINK_MSG_ID_ATTITUDE:
+        elif message_id == mavlink2.MAVLINK_MSG_ID_ATTITUDE:
             built = vehicle.attitude(telemetry, boot)
-        elif telemetry is not None and message_id == mavlink2.MAVLINK_MSG_ID_VFR_HUD:
+        elif message_id == mavlink2.MAVLINK_MSG_ID_VFR_HUD:
             built = vehicle.vfr_hud(view, telemetry)
-        if built is not None:
-            self._reply(sysid, built)
+        return built
 
     def _command_ack(self, sysid: int, partner: tuple[int, int], command: int, result: int) -> None:
         self._reply(sysid, _command_ack(partner, command, result))

@@ -15,7 +15,7 @@ from enum import IntEnum
 from pymavlink.dialects.v20 import common as mavlink2
 
 from fleet.mission.phase import Phase, Severity
-from fleet.piccolo.telemetry import GPS_3D_FIX, Telemetry
+from fleet.piccolo.telemetry import GPS_3D_FIX, GpsBlock, Telemetry
 from ground.fleet_view import UavView
 
 #: The length of STATUSTEXT's text field; longer texts go in chunks (MAVLink 2 `id`).
@@ -276,8 +276,59 @@ def gps_raw(telemetry: Telemetry, boot_ms: int) -> mavlink2.MAVLink_gps_raw_int_
         65535,
         _clamped(speed * 100, 0, 65534),
         _clamped(course * 100, 0, 35999) if speed > 0.5 else 65535,
-        _clamped(max(gps.sats_visible, gps.sats_tracked), 0, 254),
+        satellites(gps),
         _mm(gps.alt),  # the Piccolo's altitude is above the ellipsoid
+    )
+
+
+def satellites(gps: GpsBlock) -> int:
+    """The satellites the receiver sees, as GPS_RAW_INT and GPS_STATUS say it (255 is
+    GPS_RAW_INT's "unknown", never said)."""
+    return _clamped(max(gps.sats_visible, gps.sats_tracked), 0, 254)
+
+
+#: GPS_STATUS holds up to 20 satellites one by one.
+_GPS_STATUS_SLOTS = 20
+
+
+def gps_status(telemetry: Telemetry) -> mavlink2.MAVLink_gps_status_message | None:
+    """GPS_STATUS: the receiver's count of satellites, the one GPS_RAW_INT carries; None
+    without a GPS block. The Piccolo's GPS block names no satellite, so the per-satellite
+    arrays are empty (0 in every slot: no satellite), not made up."""
+    if telemetry.gps is None:
+        return None
+    empty = [0] * _GPS_STATUS_SLOTS
+    return mavlink2.MAVLink_gps_status_message(
+        satellites(telemetry.gps), empty, empty, empty, empty, empty
+    )
+
+
+#: MAVLink's "not measured" in BATTERY_STATUS's fields.
+_UNKNOWN_TEMPERATURE = 2**15 - 1  # INT16_MAX
+_NO_CELL = 2**16 - 1  # UINT16_MAX: a cell (or the whole battery's voltage) not measured
+_NOT_MEASURED = -1  # current, consumption, energy, remaining: "does not measure/estimate"
+
+
+def battery_status() -> mavlink2.MAVLink_battery_status_message:
+    """BATTERY_STATUS with every figure "not measured", as the MAVLink spec marks each:
+    neither the Piccolo's telemetry nor the simulated aircraft has a battery reading, so
+    a station shows the battery as unknown rather than a voltage or charge nobody read
+    (SYS_STATUS's battery fields say the same, and its battery sensor bit is not set)."""
+    return mavlink2.MAVLink_battery_status_message(
+        0,
+        mavlink2.MAV_BATTERY_FUNCTION_UNKNOWN,
+        mavlink2.MAV_BATTERY_TYPE_UNKNOWN,
+        _UNKNOWN_TEMPERATURE,
+        [_NO_CELL] * 10,
+        _NOT_MEASURED,
+        _NOT_MEASURED,
+        _NOT_MEASURED,
+        _NOT_MEASURED,
+        0,  # time remaining: 0 is "not provided"
+        mavlink2.MAV_BATTERY_CHARGE_STATE_UNDEFINED,
+        [0] * 4,  # cells 11-14: 0 is "not supported"
+        mavlink2.MAV_BATTERY_MODE_UNKNOWN,
+        0,
     )
 
 

@@ -14,14 +14,13 @@ from fleet.transport.router import Router
 from fleet.transport.zenoh_bus import ZenohBus
 from fleet.transport.zenoh_config import make_config
 from tests.support.fake_onboard import FakeOnboard, fake_pair, memory_bus
-from tests.support.processes import free_endpoint
+from tests.support.processes import ANY_PORT
 
 
 @pytest.fixture(scope="module")
 def router() -> Iterator[str]:
-    endpoint = free_endpoint()
-    with Router([endpoint]):
-        yield endpoint
+    with Router([ANY_PORT]) as running:
+        yield running.endpoints[0]
 
 
 @pytest.fixture(scope="module")

@@ -38,7 +38,7 @@ from ground.fleet_commands import WatchOptions, run_watch
 from ground.mission_outcome import MissionOutcome, check_agreement
 from tests.support.fake_onboard import FakeOnboard, approach_time
 from tests.support.ground_cli import ground_cli_here
-from tests.support.processes import free_endpoint
+from tests.support.processes import refused_endpoint
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
@@ -361,19 +361,19 @@ class _Frames(io.StringIO):
 
 # ---- without a router ---------------------------------------------------------------------
 def test_no_router_is_a_clear_error_not_a_hang() -> None:
-    endpoint = free_endpoint()
-    for command in (["uavs"], ["keys"], ["abort", "--mission", "1"]):
-        done = run_cli(*command, endpoint=endpoint)
-        assert done.returncode == 2
-        assert f"no Zenoh router answers at {endpoint}" in done.stderr
-        assert "Traceback" not in done.stderr
+    with refused_endpoint() as endpoint:
+        for command in (["uavs"], ["keys"], ["abort", "--mission", "1"]):
+            done = run_cli(*command, endpoint=endpoint)
+            assert done.returncode == 2
+            assert f"no Zenoh router answers at {endpoint}" in done.stderr
+            assert "Traceback" not in done.stderr
 
 
 def test_connect_comes_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
-    endpoint = free_endpoint()
-    monkeypatch.delenv(CONFIG_ENV, raising=False)
-    monkeypatch.setenv(CONNECT_ENV, endpoint)
-    done = run_cli("uavs", endpoint=None)
+    with refused_endpoint() as endpoint:
+        monkeypatch.delenv(CONFIG_ENV, raising=False)
+        monkeypatch.setenv(CONNECT_ENV, endpoint)
+        done = run_cli("uavs", endpoint=None)
     assert done.returncode == 2
     assert endpoint in done.stderr
 

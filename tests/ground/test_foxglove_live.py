@@ -29,11 +29,11 @@ from mcap.reader import make_reader
 
 from fleet.files.certs import write_identities
 from fleet.launch.children import stop_children
-from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace, uav_id_of
 from fleet.recording.recorder import READY_LINE as RECORD_READY
 from ground.foxglove_live.command import READY_LINE as FOXGLOVE_READY
-from tests.support.processes import Child, client_session, start, wait_fleet_up
+from tests.support.ground_cli import ground_cli
+from tests.support.processes import ANY_PORT, Child, client_session, start, wait_fleet_up
 from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
@@ -60,19 +60,20 @@ def node_client(url: str, *args: str) -> Child:
     return start("foxglove client", ["node", str(JS / "foxglove_client.mjs"), url, *args])
 
 
-def fleet_up(tmp_path: Path, endpoint: str, *extra: str) -> Child:
-    """`fleet up head_on` listening on `endpoint`, once its UAVs are up."""
+def fleet_up(tmp_path: Path, listen: str, *extra: str) -> tuple[Child, str]:
+    """`fleet up head_on` listening on `listen`, once its UAVs are up: its process and
+    the endpoint it said it listens on."""
     up = start(
         "fleet up",
-        [*FLEET, "up", "head_on", "--listen", endpoint, "--no-record",
+        [*FLEET, "up", "head_on", "--listen", listen, "--no-record",
          "--log-dir", str(tmp_path / "run"), *extra],
     )  # fmt: skip
     try:
-        wait_fleet_up(up, 90.0)
+        endpoint = wait_fleet_up(up, 90.0).connect
     except AssertionError:
         stop_children([up], 10.0)
         raise
-    return up
+    return up, endpoint
 
 
 def serve(endpoint: str, *extra: str) -> tuple[Child, str]:
@@ -96,13 +97,8 @@ def events(child: Child, kind: str) -> list[dict[str, Any]]:
 
 
 def uav_phases(endpoint: str) -> dict[int, str]:
-    done = subprocess.run(
-        [sys.executable, "-m", "ground.cli", "--connect", endpoint, "uavs", "--json"],
-        capture_output=True,
-        text=True,
-        timeout=TIMEOUT_S,
-        check=True,
-    )
+    done = ground_cli("uavs", "--json", connect=endpoint, timeout=TIMEOUT_S)
+    assert done.returncode == 0, done.stderr
     return {view["id"]: view["phase"] for view in json.loads(done.stdout)}
 
 
@@ -210,12 +206,10 @@ def check_logs(client: Child) -> None:
 
 
 def test_a_foxglove_client_sees_the_fleet_as_the_bus_and_the_recorder_do(tmp_path: Path) -> None:
-    port = free_port()
-    endpoint = f"tcp/127.0.0.1:{port}"
-    up = fleet_up(tmp_path, endpoint, "--speedup", "10")
+    up, endpoint = fleet_up(tmp_path, ANY_PORT, "--speedup", "10")
     children: list[Child] = []
     try:
-        with client_session(port) as session:
+        with client_session(endpoint) as session:
             observer = BusObserver(session)
             record = start("fleet record", [*FLEET, "record", str(tmp_path / "rec.mcap"),
                                             "--connect", endpoint])  # fmt: skip
@@ -238,11 +232,9 @@ def test_a_foxglove_client_sees_the_fleet_as_the_bus_and_the_recorder_do(tmp_pat
             scene_and_log = node_client(url, "--topics", "^fleet/(scene|log)$", "--count", "0")
             children.append(scene_and_log)
             targets = str(files("fleet") / "scenarios" / "head_on_targets.bin")
-            sent = subprocess.run(
-                [sys.executable, "-m", "ground.cli", "--connect", endpoint, "send-targets",
-                 targets, "--wait"],
-                capture_output=True, text=True, timeout=TIMEOUT_S, check=False,
-            )  # fmt: skip
+            sent = ground_cli(
+                "send-targets", targets, "--wait", connect=endpoint, timeout=TIMEOUT_S
+            )
             assert sent.returncode == 0, sent.stdout + sent.stderr
             wait_until(
                 lambda: set(uav_phases(endpoint).values()) == {"reached"}, 150.0, "both reached"
@@ -278,19 +270,11 @@ def test_a_foxglove_client_sees_the_fleet_as_the_bus_and_the_recorder_do(tmp_pat
     assert {"fleet/mission/1/targets", "fleet/uav/74/state", "fleet/uav/112/status"} <= set(live)
 
 
-@pytest.mark.xfail(
-    reason=(
-        "known defect, intermittent: in the secure profile the bridge's subscription holds "
-        "each telemetry sample until its UAV's signed stream digest lists it, and in some "
-        "runs none is ever released (no location_fix topic is advertised); not yet diagnosed"
-    ),
-    strict=False,
-)
 def test_in_the_secure_profile_it_holds_the_grounds_identity(tmp_path: Path) -> None:
     certs = tmp_path / "certs"
-    endpoint = f"tls/127.0.0.1:{free_port()}"
-    write_identities(certs, ["router", "ground", "uav-74", "uav-112"], [endpoint])
-    up = fleet_up(tmp_path, endpoint, "--secure", str(certs), "--speedup", "5")
+    listen = "tls/127.0.0.1:0"  # the certificates name the host; the port is any free one
+    write_identities(certs, ["router", "ground", "uav-74", "uav-112"], [listen])
+    up, endpoint = fleet_up(tmp_path, listen, "--secure", str(certs), "--speedup", "5")
     children: list[Child] = []
     try:
         fox, url = serve(endpoint, "--zenoh-config", str(certs / "ground.json5"))

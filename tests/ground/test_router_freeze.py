@@ -8,7 +8,6 @@ that it can be frozen), simulator, onboards and the ground's Zenoh session."""
 from __future__ import annotations
 
 import signal
-import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -16,14 +15,13 @@ from pathlib import Path
 import msgspec
 import pytest
 
-from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import AssignmentReport, MissionTargets, TargetOutcome
 from fleet.mission.phase import Phase
 from tests.conftest import Ground
 from tests.onboard.test_multi_uav import ring_sim, start_onboard, wait_for_telemetry
 from tests.support.ground_view import GroundView
-from tests.support.processes import Child, Fleet, client_session, start
+from tests.support.processes import ANY_PORT, Child, Fleet, client_session, start_router
 from tests.support.targets import ring_targets
 from tests.support.waiting import wait_until
 
@@ -39,12 +37,9 @@ REACH_TIMEOUT_S = 150.0
 @pytest.fixture
 def frozen_ground() -> Iterator[tuple[Ground, Child]]:
     """A router process of its own, and the ground's session to it."""
-    port = free_port()
-    endpoint = f"tcp/127.0.0.1:{port}"
-    router = start("router", [sys.executable, "-m", "fleet.transport.router", "--listen", endpoint])
+    router, endpoint = start_router("--listen", ANY_PORT)
     try:
-        router.wait_for_line(lambda line: "listening" in line, 30.0)
-        with client_session(port) as session:
+        with client_session(endpoint) as session:
             seen = GroundView(session)
             try:
                 yield Ground(endpoint, session, seen), router

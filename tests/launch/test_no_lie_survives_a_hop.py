@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import subprocess
 import sys
 import threading
@@ -32,7 +33,6 @@ from fleet.mission.messages import (
     RouterState,
     StatusText,
     TargetOutcome,
-    UavResult,
     UavState,
 )
 from fleet.mission.phase import Phase
@@ -187,34 +187,96 @@ def test_a_uav_routers_key_cannot_answer_for_another_router(secure: SignedFleet)
 
 
 # ---- revocation reaches running processes -----------------------------------------------------
-def test_a_revoked_identitys_open_session_is_refused_within_seconds(secure: SignedFleet) -> None:
-    """UAV 300's session is open and its signed messages believed; `fleet certs revoke`
-    on the running fleet puts the CA-signed roster, and 112 refuses what 300 signs from
-    then on, with no restart (the router cannot drop the session: its messages are
-    refused by every receiver instead)."""
-    mission = secure.send_targets()
-    key = SPACE.mission_result(mission, 300)
-    result = encode(UavResult(mission, 300, (1.0, 1.0, 1.0)))
-    with secure.session("uav-300") as lost:
-        before = secure.refused(112, "revoked")
-        lost.put(key, result, encoding=ENCODING,
-                 attachment=signed.attachment(secure.certs, "uav-300", key, result))  # fmt: skip
-        revoked = subprocess.run(
-            [sys.executable, "-m", "programs.fleet_cli", "certs", "revoke", str(secure.certs),
-             "uav-300", "--connect", secure.endpoint],
-            capture_output=True, text=True, timeout=120, check=False,
-        )  # fmt: skip
-        assert revoked.returncode == 0, revoked.stderr[-3000:]
-        assert f"put on {SPACE.roster()}" in revoked.stdout, revoked.stdout
-        since = time.monotonic()
+class Heard:
+    """Samples a raw session heard on a key, with when (thread-safe: Zenoh calls in)."""
 
-        def refused() -> bool:
-            by_300 = signed.attachment(secure.certs, "uav-300", key, result)
-            lost.put(key, result, encoding=ENCODING, attachment=by_300)
-            return secure.refused(112, "revoked") > before
+    def __init__(self, session: zenoh.Session, key: str) -> None:
+        self._lock = threading.Lock()
+        self.samples: list[tuple[float, bytes]] = []
+        self._subscriber = session.declare_subscriber(key, self._on_sample)
 
-        wait_until(refused, 30.0, "112 refusing the revoked UAV 300")
-        assert time.monotonic() - since < 30.0
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        with self._lock:
+            self.samples.append((time.monotonic(), sample.payload.to_bytes()))
+
+    def since(self, moment: float) -> list[bytes]:
+        with self._lock:
+            return [payload for at, payload in self.samples if at > moment]
+
+    def close(self) -> None:
+        self._subscriber.undeclare()
+
+
+def test_a_revoked_identitys_open_session_is_closed_by_the_router_within_seconds(
+    secure: SignedFleet,
+) -> None:
+    """UAV 300's session is open and what it puts reaches the ground. `fleet certs
+    revoke` on the running fleet: the router closes that session within seconds, with no
+    restart; 300 dials again at once and the router closes the new link before routing a
+    byte of it (what 300 puts meanwhile never reaches the ground), while 74 and 112 fly
+    on and keep reporting, and `ground-cli routers` counts the links it closed."""
+    key = SPACE.telemetry(300)
+    heard = Heard(secure.ground, key)
+    honest = {uav: Heard(secure.ground, SPACE.telemetry(uav)) for uav in (74, 112)}
+    #: 300's transport opening (PUT) and closing (DELETE), with how many puts it had made.
+    events: list[tuple[zenoh.SampleKind, int]] = []
+    sent = 0
+    try:
+        with secure.session("uav-300") as lost:
+            lost.info.declare_transport_events_listener(
+                lambda event: events.append((event.kind, sent)), history=True
+            )
+
+            def put() -> None:
+                nonlocal sent
+                sent += 1
+                lost.put(key, str(sent).encode())
+
+            def reached() -> bool:
+                put()
+                return bool(heard.since(0.0))
+
+            wait_until(reached, 30.0, "what the open session puts reaching the ground")
+            revoked = subprocess.run(
+                [sys.executable, "-m", "programs.fleet_cli", "certs", "revoke",
+                 str(secure.certs), "uav-300", "--connect", secure.endpoint],
+                capture_output=True, text=True, timeout=120, check=False,
+            )  # fmt: skip
+            assert revoked.returncode == 0, revoked.stderr[-3000:]
+            assert f"put on {SPACE.roster()}" in revoked.stdout, revoked.stdout
+            since = time.monotonic()
+
+            def closes() -> list[int]:
+                return [n for kind, n in events if kind == zenoh.SampleKind.DELETE]
+
+            def closed(times: int) -> bool:
+                put()  # on the open link while there is one
+                return len(closes()) >= times
+
+            wait_until(lambda: closed(1), 30.0, "the router closing 300's session")
+            # 300 dials again (a transport opens on its side, and it puts on it) and the
+            # router closes that link too: its reconnection is refused.
+            wait_until(lambda: closed(2), 60.0, "the router closing 300's reconnection")
+        first_close, second_close = closes()[:2]
+        reopened = [n for kind, n in events if kind == zenoh.SampleKind.PUT and n >= first_close]
+        assert reopened and second_close > reopened[0], f"no put on the reconnection: {events}"
+        # Everything 300 put is past the ground by now: fresh telemetry of both honest
+        # UAVs, put after 300's last, arrived through the same router.
+        last_put = time.monotonic()
+        for uav, samples in honest.items():
+            wait_until(lambda s=samples: s.since(last_put), 30.0, f"{uav}'s telemetry after")
+        late = [n for n in map(int, heard.since(0.0)) if n > first_close]
+        assert not late, f"300's puts after its session was closed reached the ground: {late}"
+        for uav, samples in honest.items():
+            assert samples.since(since), f"{uav} stopped reporting after the revocation"
+        routers = secure.ground_cli("routers")
+        assert routers.returncode == 0, routers.stderr[-3000:]
+        counted = re.search(r"revoked=(\d+)", routers.stdout)
+        assert counted and int(counted[1]) >= 2, routers.stdout
+    finally:
+        heard.close()
+        for samples in honest.values():
+            samples.close()
 
 
 # ---- a captured UAV router as the ground's router ---------------------------------------------

@@ -12,10 +12,16 @@ from pathlib import Path
 import pytest
 
 from fleet.files.targets_io import write_targets
-from fleet.launch.endpoints import free_port
 from fleet.transport.cli import ExitCode
 from tests.support.ground_view import GroundView
-from tests.support.processes import Child, client_session, start, start_fleet_up, wait_fleet_up
+from tests.support.processes import (
+    ANY_PORT,
+    Child,
+    client_session,
+    start,
+    start_fleet_up,
+    wait_fleet_up,
+)
 from tests.support.targets import ring_targets
 from tests.support.waiting import wait_until
 
@@ -24,12 +30,13 @@ pytestmark = pytest.mark.e2e
 CLI_TIMEOUT_S = 60.0
 
 
-def fleet_up(tmp_path: Path, port: int, *extra: str) -> Child:
+def fleet_up(tmp_path: Path, *extra: str) -> tuple[Child, str]:
+    """`fleet up --uavs 3`, up: its process and the endpoint its banner names."""
     up = start_fleet_up(
         "--uavs",
         "3",
         "--listen",
-        f"tcp/127.0.0.1:{port}",
+        ANY_PORT,
         "--speedup",
         "3",
         "--no-record",
@@ -38,14 +45,14 @@ def fleet_up(tmp_path: Path, port: int, *extra: str) -> Child:
         *extra,
     )
     try:
-        wait_fleet_up(up, 90.0)
+        endpoint = wait_fleet_up(up, 90.0).connect
         # Each progress line said once (it used to be printed and logged both).
         said = sum("simulator up with 3 aircraft" in line for line in up.history)
         assert said == 1, up.history
     except BaseException:
         stop(up)  # a start that failed its checks leaves no fleet behind
         raise
-    return up
+    return up, endpoint
 
 
 def onboard_pids(tmp_path: Path) -> dict[int, int]:
@@ -64,10 +71,9 @@ def stop(up: Child) -> None:
 
 
 def test_a_dead_onboard_is_reported_and_the_team_re_plans_its_target(tmp_path: Path) -> None:
-    port = free_port()
-    up = fleet_up(tmp_path, port)
+    up, endpoint = fleet_up(tmp_path)
     try:
-        with client_session(port) as session:
+        with client_session(endpoint) as session:
             seen = GroundView(session)
             try:
                 team = sorted(onboard_pids(tmp_path))
@@ -75,7 +81,7 @@ def test_a_dead_onboard_is_reported_and_the_team_re_plans_its_target(tmp_path: P
                 write_targets(path, ring_targets(2, seed=7))
                 send = start(
                     "send-targets",
-                    [sys.executable, "-m", "ground.cli", "--connect", f"tcp/127.0.0.1:{port}",
+                    [sys.executable, "-m", "ground.cli", "--connect", endpoint,
                      "send-targets", str(path), "--wait", "--timeout", "60"],
                 )  # fmt: skip
                 assert send.process.wait(CLI_TIMEOUT_S) == 0, send.history
@@ -109,8 +115,7 @@ def test_a_dead_onboard_is_reported_and_the_team_re_plans_its_target(tmp_path: P
 
 
 def test_restart_brings_a_dead_onboard_back(tmp_path: Path) -> None:
-    port = free_port()
-    up = fleet_up(tmp_path, port, "--restart")
+    up, endpoint = fleet_up(tmp_path, "--restart")
     try:
         victim = min(onboard_pids(tmp_path))
         before = onboard_pids(tmp_path)[victim]
@@ -118,7 +123,7 @@ def test_restart_brings_a_dead_onboard_back(tmp_path: Path) -> None:
         told = up.wait_for_line(lambda line: f"onboard-{victim} exited" in line, 30.0)
         assert "restarting it in 1 s" in told
         wait_until(lambda: onboard_pids(tmp_path).get(victim, before) != before, 30.0, "a new pid")
-        with client_session(port) as session:
+        with client_session(endpoint) as session:
             seen = GroundView(session)
             try:
                 wait_until(lambda: victim in seen.telemetry, 60.0, "the restarted UAV's telemetry")
@@ -132,9 +137,7 @@ def test_restart_brings_a_dead_onboard_back(tmp_path: Path) -> None:
 def test_a_recording_that_fails_is_said_and_fails_the_run(tmp_path: Path) -> None:
     # The disk is full from the first write: the recording is the device that refuses.
     (tmp_path / "fleet.mcap").symlink_to("/dev/full")
-    up = start_fleet_up(
-        "--uavs", "1", "--listen", f"tcp/127.0.0.1:{free_port()}", "--log-dir", str(tmp_path)
-    )
+    up = start_fleet_up("--uavs", "1", "--listen", ANY_PORT, "--log-dir", str(tmp_path))
     try:
         wait_fleet_up(up, 90.0)
     finally:

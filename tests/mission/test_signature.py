@@ -135,6 +135,18 @@ def test_a_live_message_must_be_fresh_and_new_on_its_key() -> None:
     assert fresh.check(SPACE.opm(74), envelope_at(NOW - 2 * S), Delivery.PUT, NOW) is None
 
 
+def test_each_receiver_believes_a_message_once() -> None:
+    """One message reaches every subscription of a process it matches (a recorder's
+    `fleet/**` and the bus's own digest subscription): each believes it, once."""
+    fresh = Freshness(window_ns=30 * S)
+    digest = SPACE.digest(112)
+    message = envelope_at(NOW - S, "uav-112")
+    assert fresh.check(digest, message, Delivery.PUT, NOW, receiver=1) is None
+    assert fresh.check(digest, message, Delivery.PUT, NOW, receiver=2) is None
+    assert fresh.check(digest, message, Delivery.PUT, NOW, receiver=1) is Refusal.REPLAYED
+    assert fresh.check(digest, message, Delivery.PUT, NOW, receiver=2) is Refusal.REPLAYED
+
+
 def test_a_command_signed_before_the_process_started_is_a_replay_after_a_restart() -> None:
     """The marks are in memory: a process started at NOW refuses the ground's "OPM off"
     signed 14 s before (a replay across its restart), and takes the ones signed since.

@@ -14,7 +14,7 @@ import msgspec
 import pytest
 import zenoh
 
-from fleet.launch.endpoints import SimEndpoints, free_port
+from fleet.launch.endpoints import SimEndpoints
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     MISSION_MANAGER,
@@ -52,10 +52,9 @@ class Rig:
 @pytest.fixture
 def rig() -> Iterator[Rig]:
     fleet = Fleet()
-    port = free_port()
-    router = f"tcp/127.0.0.1:{port}"
     try:
-        with router_session(port), client_session(port) as ground:
+        with router_session() as running, client_session(running.endpoints[0]) as ground:
+            router = running.endpoints[0]
             seen = GroundView(ground)
             endpoints = fleet.sim("single_uav", 5.0, 5.0)
             onboard = fleet.onboard(UAV, endpoints[UAV], router, "--payload-ground")

@@ -22,14 +22,22 @@ import pytest
 import zenoh
 from mcap.reader import make_reader
 
-from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.recording import channels
 from fleet.recording.reader import read_recording
 from fleet.recording.recorder import DEFAULT_FIX_EVERY_S
 from fleet.recording.thinning import DEFAULT_TELEMETRY_EVERY_S
 from fleet.transport.cli import PREFIX_ENV
-from tests.support.processes import Child, client_session, start, wait_fleet_up
+from tests.support.ground_cli import ground_cli
+from tests.support.processes import (
+    ANY_PORT,
+    Child,
+    client_session,
+    start,
+    start_fleet_up,
+    start_router,
+    wait_fleet_up,
+)
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
@@ -58,11 +66,13 @@ def run(*argv: str, prefix: str | None = None) -> subprocess.CompletedProcess[st
 def uavs(endpoint: str, prefix: str) -> list[dict[str, object]]:
     """`ground-cli uavs --json` under `prefix`: the flag for a replay, else the environment."""
     if prefix == "replay":
-        done = run(
-            "-m", "ground.cli", "--key-prefix", prefix, "--connect", endpoint, "uavs", "--json"
+        done = ground_cli(
+            "--key-prefix", prefix, "uavs", "--json", connect=endpoint, timeout=TIMEOUT_S
         )
     else:
-        done = run("-m", "ground.cli", "--connect", endpoint, "uavs", "--json", prefix=prefix)
+        done = ground_cli(
+            "uavs", "--json", connect=endpoint, env={PREFIX_ENV: prefix}, timeout=TIMEOUT_S
+        )
     assert done.returncode == 0, done.stderr
     listed: list[dict[str, object]] = json.loads(done.stdout)
     return listed
@@ -123,16 +133,12 @@ def wait_reached(endpoint: str) -> None:
 
 
 def test_record_a_mission_kill_a_recorder_replay_and_plot(tmp_path: Path) -> None:
-    port = free_port()
-    endpoint = f"tcp/127.0.0.1:{port}"
-    up = start(
-        "fleet up",
-        [sys.executable, *FLEET, "up", "head_on", "--listen", endpoint, "--speedup", "10",
-         "--log-dir", str(tmp_path / "run")],
-    )  # fmt: skip
+    up = start_fleet_up(
+        "head_on", "--listen", ANY_PORT, "--speedup", "10", "--log-dir", str(tmp_path / "run")
+    )
     second: Child | None = None
     try:
-        wait_fleet_up(up, 90.0)
+        endpoint = wait_fleet_up(up, 90.0).connect
         assert any("recording to" in line for line in up.history)
         second = start(
             "fleet record",
@@ -141,7 +147,7 @@ def test_record_a_mission_kill_a_recorder_replay_and_plot(tmp_path: Path) -> Non
         )  # fmt: skip
         second.wait_for_line(lambda line: line.startswith("fleet record: recording"), 30.0)
         targets = str(files("fleet") / "scenarios" / "head_on_targets.bin")
-        sent = run("-m", "ground.cli", "--connect", endpoint, "send-targets", targets, "--wait")
+        sent = ground_cli("send-targets", targets, "--wait", connect=endpoint, timeout=TIMEOUT_S)
         assert sent.returncode == 0, sent.stdout + sent.stderr
         wait_reached(endpoint)
         second.process.send_signal(signal.SIGKILL)
@@ -177,9 +183,7 @@ def test_record_a_mission_kill_a_recorder_replay_and_plot(tmp_path: Path) -> Non
 
 def _replay_and_see_it(recorded: Path, tmp_path: Path) -> None:
     """Replay at 10x on a router of its own; the ground sees the UAVs under `replay`."""
-    port = free_port()
-    endpoint = f"tcp/127.0.0.1:{port}"
-    router = start("router", [sys.executable, "-m", "fleet.transport.router", "--listen", endpoint])
+    router, endpoint = start_router("--listen", ANY_PORT)
     replay: Child | None = None
     heard: Counter[str] = Counter()
     lock = threading.Lock()
@@ -189,8 +193,7 @@ def _replay_and_see_it(recorded: Path, tmp_path: Path) -> None:
             heard[str(sample.key_expr)] += 1
 
     try:
-        router.wait_for_line(lambda line: "listening" in line, 30.0)
-        with client_session(port) as session, session.declare_subscriber("**", on_sample):
+        with client_session(endpoint) as session, session.declare_subscriber("**", on_sample):
             replay = start(
                 "fleet replay",
                 [sys.executable, *FLEET, "replay", str(recorded), "--rate", "10",

@@ -12,7 +12,6 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import StatusText
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
@@ -24,7 +23,7 @@ from fleet.recording.writer import McapSink
 from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.zenoh_bus import ZenohBus
 from tests.support.ground_cli import fleet_here
-from tests.support.processes import client_session, router_session
+from tests.support.processes import client_session, refused_endpoint, router_session
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
@@ -40,8 +39,11 @@ def wait_recorded(recorder: Recorder, pattern: str, count: int, what: str) -> No
 
 
 def test_records_puts_and_tokens_and_drops_what_is_not_json(tmp_path: Path) -> None:
-    port = free_port()
-    with router_session(port), client_session(port) as fleet, client_session(port) as ground:
+    with (
+        router_session() as router,
+        client_session(router.endpoints[0]) as fleet,
+        client_session(router.endpoints[0]) as ground,
+    ):
         recorder = Recorder(ZenohBus(ground), McapSink(tmp_path / "r.mcap"), state_every_s=0)
         recorder.start()
         try:
@@ -83,10 +85,9 @@ def test_in_the_router_samples_wait_in_zenoh_and_map_fixes_come_once_a_second(
     """`fleet up`'s recorder: on the router's own session, Zenoh queues the samples (no
     Python on the routing threads); telemetry at 20 Hz gives one map fix a second (every
     telemetry recorded here: `telemetry_every_s=0`)."""
-    port = free_port()
-    with router_session(port) as router, client_session(port) as fleet:
+    with router_session() as router, client_session(router.endpoints[0]) as fleet:
         recorder = Recorder(
-            ZenohBus(router),
+            ZenohBus(router.session),
             McapSink(tmp_path / "r.mcap"),
             state_every_s=0,
             in_router=True,
@@ -131,17 +132,17 @@ def _fleet(*argv: str) -> subprocess.CompletedProcess[str]:
 
 
 def test_record_without_a_router_says_so(tmp_path: Path) -> None:
-    done = _fleet("record", str(tmp_path / "x.mcap"), "--connect", f"tcp/127.0.0.1:{free_port()}")
+    with refused_endpoint() as nowhere:
+        done = _fleet("record", str(tmp_path / "x.mcap"), "--connect", nowhere)
     assert done.returncode == 2
     assert "no Zenoh router answers" in done.stderr
     assert not (tmp_path / "x.mcap").exists()
 
 
 def test_record_for_a_duration_then_recover_a_killed_copy(tmp_path: Path) -> None:
-    port = free_port()
     out = tmp_path / "d.mcap"
-    with router_session(port):
-        done = _fleet("record", str(out), "--duration", "0.5", "--connect", f"tcp/127.0.0.1:{port}")
+    with router_session() as router:
+        done = _fleet("record", str(out), "--duration", "0.5", "--connect", router.endpoints[0])
     assert done.returncode == 0, done.stderr
     assert "fleet record: 0 messages" in done.stdout
     assert read_recording(out).messages == []  # nothing heard: a valid, empty recording
@@ -163,22 +164,27 @@ def test_record_for_a_duration_then_recover_a_killed_copy(tmp_path: Path) -> Non
 
 
 def test_record_refuses_a_path_it_cannot_write_and_a_bad_expression(tmp_path: Path) -> None:
-    port = free_port()
     (tmp_path / "file").write_text("")
-    with router_session(port):
-        connect = ("--connect", f"tcp/127.0.0.1:{port}")
+    with router_session() as router:
+        connect = ("--connect", router.endpoints[0])
         unwritable = _fleet("record", str(tmp_path / "file" / "x.mcap"), *connect)
         bad_expr = _fleet("record", str(tmp_path / "y.mcap"), "fleet//x", *connect)
     assert unwritable.returncode == 1
     assert "fleet record: cannot write" in unwritable.stderr and "x.mcap" in unwritable.stderr
     assert bad_expr.returncode == 2, bad_expr.stderr
-    assert "cannot subscribe to fleet//x" in bad_expr.stderr
+    # One line, what is wrong and how to write one; refused before any file is made.
+    assert bad_expr.stderr.splitlines() == [
+        "fleet record: error: 'fleet//x' is not a key expression (empty chunks are "
+        "forbidden, as well as leading and trailing slashes): write chunks separated by "
+        "single `/`, with `*` for any one chunk and `**` for any number of them "
+        "(e.g. fleet/** or fleet/uav/*/telemetry)"
+    ]
+    assert not (tmp_path / "y.mcap").exists()
 
 
 def test_a_full_disk_stops_the_recorder_with_the_reason(tmp_path: Path) -> None:
-    port = free_port()
-    with router_session(port):
-        done = _fleet("record", "/dev/full", "--connect", f"tcp/127.0.0.1:{port}")
+    with router_session() as router:
+        done = _fleet("record", "/dev/full", "--connect", router.endpoints[0])
     assert done.returncode == 1
     assert "cannot write /dev/full: No space left on device" in done.stderr
 
@@ -201,8 +207,11 @@ def test_ever_new_unknown_keys_do_not_grow_the_recording_without_bound(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setattr("fleet.recording.recorder.MAX_UNKNOWN_KEYS", 3)
-    port = free_port()
-    with router_session(port), client_session(port) as fleet, client_session(port) as ground:
+    with (
+        router_session() as router,
+        client_session(router.endpoints[0]) as fleet,
+        client_session(router.endpoints[0]) as ground,
+    ):
         recorder = Recorder(ZenohBus(ground), McapSink(tmp_path / "r.mcap"), state_every_s=0)
         recorder.start()
         try:

@@ -1,7 +1,9 @@
 """Running `ground-cli` (and `fleet`) from a test: in the test's process (the program's
 root, `ground.cli.main`, on any bus, the in-process one included: `--connect
 memory:NAME`) or as a user runs it (`python -m ground.cli` in a process of its own, for
-the end-to-end tests)."""
+the end-to-end tests: run to its end, `ground_cli`, or started in the background and
+finished later, `start_ground_cli` and `finish_ground_cli`; after a `prefix` command, such
+as `ip netns exec NAME`, where it must run elsewhere)."""
 
 from __future__ import annotations
 
@@ -71,25 +73,66 @@ def fleet_here(*argv: str) -> subprocess.CompletedProcess[str]:
     return run_here(main, list(argv), "fleet")
 
 
+def _command(
+    argv: Sequence[str], connect: str | Sequence[str] | None, prefix: Sequence[str]
+) -> list[str]:
+    return [*prefix, sys.executable, "-m", "ground.cli", *_connect(connect), *argv]
+
+
+def _environment(env: Mapping[str, str] | None) -> dict[str, str]:
+    """This one's without $FLEET_ZENOH_CONNECT and $FLEET_ZENOH_CONFIG (a test names its
+    router), plus `env`."""
+    environment = {k: v for k, v in os.environ.items() if k not in (CONNECT_ENV, CONFIG_ENV)}
+    environment.update(env or {})
+    return environment
+
+
 def ground_cli(
     *argv: str,
     connect: str | Sequence[str] | None = None,
     env: Mapping[str, str] | None = None,
     timeout: float = CLI_TIMEOUT_S,
+    prefix: Sequence[str] = (),
 ) -> subprocess.CompletedProcess[str]:
-    """`python -m ground.cli [--connect C] ARGV` in a process of its own, run to its end.
-
-    Its environment is this one's without $FLEET_ZENOH_CONNECT and $FLEET_ZENOH_CONFIG
-    (a test names its router), plus `env`.
-    """
-    environment = {k: v for k, v in os.environ.items() if k not in (CONNECT_ENV, CONFIG_ENV)}
-    environment.update(env or {})
+    """`[PREFIX] python -m ground.cli [--connect C] ARGV` in a process of its own, run to
+    its end; its environment is `_environment(env)`."""
     return subprocess.run(
-        [sys.executable, "-m", "ground.cli", *_connect(connect), *argv],
+        _command(argv, connect, prefix),
         cwd=REPO,
-        env=environment,
+        env=_environment(env),
         capture_output=True,
         text=True,
         timeout=timeout,
         check=False,
     )
+
+
+def start_ground_cli(
+    *argv: str,
+    connect: str | Sequence[str] | None = None,
+    env: Mapping[str, str] | None = None,
+    prefix: Sequence[str] = (),
+) -> subprocess.Popen[str]:
+    """`ground_cli`'s command started in the background, in a session of its own: the
+    test reads its stdout and stderr (pipes) as it goes, and `finish_ground_cli` ends it."""
+    return subprocess.Popen(
+        _command(argv, connect, prefix),
+        cwd=REPO,
+        env=_environment(env),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+
+
+def finish_ground_cli(process: subprocess.Popen[str], timeout: float) -> tuple[int, str, str]:
+    """A started `ground-cli`'s exit status, stdout and stderr once it ends (killed if it
+    has not within `timeout`, which then raises subprocess.TimeoutExpired)."""
+    try:
+        out, err = process.communicate(timeout=timeout)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+    return process.returncode, out, err

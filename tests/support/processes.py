@@ -8,6 +8,12 @@ Unlike the launcher's children, whose output goes to log files, a test's child's
 lines are read as they come, so a test can wait for one. Like the launcher's children,
 each ends with the process that started it (`fleet.lifeline`: a test worker that
 crashes leaves none behind) and dumps its traceback if it crashes.
+
+Ports are never guessed: whatever listens is asked for port 0 (`ANY_PORT`) and the port
+the OS gave is taken from what the program printed (`fleet up`'s banner, `fleet sim`'s
+`uav ...` lines, `router listening on ...`) or, in this process, from the router itself
+(`Router.endpoints`). A port found free and then handed to a program may be taken by
+another test's process meanwhile.
 """
 
 from __future__ import annotations
@@ -15,6 +21,8 @@ from __future__ import annotations
 import contextlib
 import os
 import queue
+import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -27,14 +35,15 @@ import zenoh
 
 from fleet import lifeline
 from fleet.launch.children import stop_children
-from fleet.launch.endpoints import SimEndpoints, free_port, parse_sim_line
+from fleet.launch.endpoints import SimEndpoints, parse_sim_line
 from fleet.transport.cli import CRASH_DUMP_ENV
-from fleet.transport.zenoh_config import make_config
+from fleet.transport.router import Router, parse_listening
+from fleet.transport.zenoh_config import CONNECT_ENV, make_config
 
-
-def free_endpoint() -> str:
-    """A Zenoh endpoint on a free loopback port."""
-    return f"tcp/127.0.0.1:{free_port()}"
+#: A Zenoh endpoint on loopback on the port the OS picks when it is bound.
+ANY_PORT = "tcp/127.0.0.1:0"
+#: `ground-cli gui --listen`'s and `fleet up --gui`'s: a loopback page on any free port.
+ANY_PAGE = "127.0.0.1:0"
 
 
 @dataclass
@@ -105,6 +114,38 @@ def start(
 
 #: What `fleet up` prints last once every UAV is up (the end of its banner).
 FLEET_UP_READY = "stops the fleet"
+_EXPORT_CONNECT = f"  export {CONNECT_ENV}="
+_UAV_ROUTERS = "  (UAV routers: "
+_PAGE = "Mission Manager page: "
+
+
+@dataclass(frozen=True)
+class FleetUpBanner:
+    """Where `fleet up` said to connect, once up: the ports it bound."""
+
+    #: The ground's router, as `export FLEET_ZENOH_CONNECT=...` says.
+    connect: str
+    #: A router-per-UAV mesh's routers: UAV id -> endpoint.
+    uav_routers: dict[int, str]
+    #: The Mission Manager page's URL (`--gui`), or None.
+    page: str | None
+
+
+def read_banner(lines: list[str]) -> FleetUpBanner:
+    """The endpoints in `fleet up`'s banner (its output up to its ready line)."""
+    connect, routers, page = None, {}, None
+    for line in lines:
+        if line.startswith(_EXPORT_CONNECT):
+            connect = line.removeprefix(_EXPORT_CONNECT).strip()
+        elif line.startswith(_UAV_ROUTERS):
+            listed = line.removeprefix(_UAV_ROUTERS).split(";", 1)[0]
+            for entry in listed.split(", "):
+                uav, where = entry.split()
+                routers[int(uav)] = where
+        elif line.startswith(_PAGE):
+            page = line.removeprefix(_PAGE).split()[0]
+    assert connect is not None, "fleet up printed no endpoint:\n" + "\n".join(lines[-30:])
+    return FleetUpBanner(connect, routers, page)
 
 
 def start_fleet_up(*argv: str, env: dict[str, str] | None = None) -> Child:
@@ -112,9 +153,51 @@ def start_fleet_up(*argv: str, env: dict[str, str] | None = None) -> Child:
     return start("fleet up", [sys.executable, "-m", "programs.fleet_cli", "up", *argv], env)
 
 
-def wait_fleet_up(up: Child, timeout: float) -> str:
-    """The line of `fleet up` that says every UAV is up, once printed."""
-    return up.wait_for_line(lambda line: FLEET_UP_READY in line, timeout)
+def wait_fleet_up(up: Child, timeout: float) -> FleetUpBanner:
+    """Once `fleet up` says every UAV is up: where its banner says to connect."""
+    up.wait_for_line(lambda line: FLEET_UP_READY in line, timeout)
+    return read_banner(up.history)
+
+
+def stop_fleet_up(up: Child, grace: float = 30.0) -> int:
+    """SIGTERM, as Ctrl-C stops `fleet up`; its exit status (SIGKILL, and TimeoutExpired,
+    if it has not ended within `grace` s)."""
+    if up.process.poll() is None:
+        up.process.send_signal(signal.SIGTERM)
+    try:
+        return up.process.wait(grace)
+    except subprocess.TimeoutExpired:
+        up.kill()
+        raise
+
+
+@dataclass
+class RunningFleet:
+    """A `fleet up` process (`fleet_up`), up, and where it said to connect."""
+
+    child: Child
+    banner: FleetUpBanner
+
+    @property
+    def connect(self) -> str:
+        return self.banner.connect
+
+    def stop(self, grace: float = 30.0) -> int:
+        return stop_fleet_up(self.child, grace)
+
+
+@contextlib.contextmanager
+def fleet_up(
+    *argv: str, env: dict[str, str] | None = None, timeout: float = 120.0
+) -> Iterator[RunningFleet]:
+    """`fleet up ARGV` (on a router port it picks, `ANY_PORT`, unless ARGV says
+    --listen), once every UAV is up; stopped on exit if it still runs."""
+    listen = [] if "--listen" in argv else ["--listen", ANY_PORT]
+    up = start_fleet_up(*argv, *listen, env=env)
+    try:
+        yield RunningFleet(up, wait_fleet_up(up, timeout))
+    finally:
+        stop_fleet_up(up)
 
 
 class Fleet:
@@ -174,9 +257,17 @@ class Fleet:
 
 
 @contextlib.contextmanager
-def router_session(port: int) -> Iterator[zenoh.Session]:
-    """An embedded router on 127.0.0.1:port, open for the duration of a test."""
-    session = zenoh.open(make_config("router", listen=[f"tcp/127.0.0.1:{port}"]))
+def router_session(listen: str = ANY_PORT) -> Iterator[Router]:
+    """An embedded router on `listen` (by default a loopback port the OS picks), open for
+    the duration of a test: its session is `.session`, where it listens `.endpoints[0]`."""
+    with Router([listen]) as router:
+        yield router
+
+
+@contextlib.contextmanager
+def client_session(endpoint: str) -> Iterator[zenoh.Session]:
+    """A client session of the router at `endpoint`."""
+    session = zenoh.open(make_config("client", connect=[endpoint]))
     try:
         yield session
     finally:
@@ -184,12 +275,27 @@ def router_session(port: int) -> Iterator[zenoh.Session]:
 
 
 @contextlib.contextmanager
-def client_session(port: int) -> Iterator[zenoh.Session]:
-    session = zenoh.open(make_config("client", connect=[f"tcp/127.0.0.1:{port}"]))
+def refused_endpoint() -> Iterator[str]:
+    """A loopback endpoint where every connection is refused: its port is bound by this
+    process but not listened on, so no other process can take it meanwhile (a port
+    merely found free could be by the time the test dials it)."""
+    with socket.socket() as held:
+        held.bind(("127.0.0.1", 0))
+        yield f"tcp/127.0.0.1:{held.getsockname()[1]}"
+
+
+def start_router(*argv: str, timeout: float = 30.0) -> tuple[Child, str]:
+    """`python -m fleet.transport.router ARGV` (`--listen ANY_PORT`, say), once it
+    listens: the child and the endpoint it printed first (`router listening on ...`)."""
+    child = start("router", [sys.executable, "-m", "fleet.transport.router", *argv])
     try:
-        yield session
-    finally:
-        session.close()
+        line = child.wait_for_line(lambda text: parse_listening(text) is not None, timeout)
+    except BaseException:
+        child.stop()
+        raise
+    endpoint = parse_listening(line)
+    assert endpoint is not None
+    return child, endpoint
 
 
 # ---- the process tree ------------------------------------------------------------------

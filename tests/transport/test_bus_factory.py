@@ -14,7 +14,7 @@ from fleet.transport.cli import ExitCode, add_zenoh_arguments
 from fleet.transport.command import Command, LocalCommand, OptionsError, run_parsed, set_handler
 from fleet.transport.faulty_bus import FaultRule, FaultyBus
 from fleet.transport.memory import MemoryBus
-from tests.support.processes import free_endpoint
+from tests.support.processes import refused_endpoint
 
 
 def test_memory_buses_of_one_name_see_each_other_and_of_another_do_not() -> None:
@@ -114,8 +114,8 @@ def test_no_router_is_said_when_the_command_first_uses_the_bus(
         steps.append("after")
         return ExitCode.OK
 
-    endpoint = free_endpoint()
-    status = run_parsed(_parse(Command(_word, run), "--connect", endpoint, "w"), "prog")
+    with refused_endpoint() as endpoint:
+        status = run_parsed(_parse(Command(_word, run), "--connect", endpoint, "w"), "prog")
     assert status == ExitCode.USAGE and steps == ["before the bus"]
     assert f"prog: error: no Zenoh router answers at {endpoint}" in capsys.readouterr().err
     # A local command never dials.

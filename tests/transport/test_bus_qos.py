@@ -6,7 +6,6 @@ import queue
 
 import zenoh
 
-from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.transport import bus_qos
 from fleet.transport.bus_codec import ENCODING
@@ -56,11 +55,10 @@ def test_a_key_space_given_decides() -> None:
 def test_telemetry_goes_through_one_declared_publisher_with_its_qos() -> None:
     """ZenohBus puts telemetry on a publisher declared once (half the CPU of a
     session put); what arrives is every sample, with telemetry's priority and encoding."""
-    port = free_port()
     received: queue.SimpleQueue[zenoh.Sample] = queue.SimpleQueue()
-    with router_session(port), client_session(port) as listener:
+    with router_session() as router, client_session(router.endpoints[0]) as listener:
         subscriber = listener.declare_subscriber(f"{SPACE.prefix}/uav/*/*", received.put)
-        bus = ZenohBus(zenoh.open(make_config("client", [f"tcp/127.0.0.1:{port}"])))
+        bus = ZenohBus(zenoh.open(make_config("client", router.endpoints)))
         try:
             wait_until_matched(bus, SPACE.telemetry(74))
             for n in range(3):

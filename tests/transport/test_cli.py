@@ -17,7 +17,6 @@ from typing import TextIO
 import pytest
 import zenoh
 
-from fleet.launch.endpoints import free_port
 from fleet.mission.key_registry import DEFAULT_PREFIX
 from fleet.mission.key_space import KeySpace
 from fleet.transport.cli import (
@@ -64,9 +63,8 @@ def write_config(path: Path, connect: str) -> Path:
 
 @pytest.fixture
 def router() -> Iterator[tuple[zenoh.Session, str]]:
-    port = free_port()
-    with router_session(port) as session:
-        yield session, f"tcp/127.0.0.1:{port}"
+    with router_session() as running:
+        yield running.session, running.endpoints[0]
 
 
 def env_without_zenoh() -> dict[str, str]:

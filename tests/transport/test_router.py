@@ -8,25 +8,25 @@ module is not (the lead's end-to-end tests run the real one).
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
 import threading
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 import zenoh
 
-from fleet.launch.endpoints import client_endpoint, parse_sim_line
+from fleet.launch.endpoints import client_endpoint, free_port, host_port, parse_sim_line
 from fleet.launch.launcher import Fleet, FleetSpec, LaunchError
 from fleet.launch.ring import ring_scenario
 from fleet.mission.key_space import KeySpace
-from fleet.transport.router import Router, RouterError
+from fleet.transport.router import Router, RouterError, parse_listening
 from fleet.transport.zenoh_config import make_config
 from tests.support.fake_onboard import FAKE_ONBOARD
-from tests.support.processes import free_endpoint
+from tests.support.processes import ANY_PORT, start_router
 
 SPACE = KeySpace()
 
@@ -48,9 +48,9 @@ def kill_if_alive(pid: int) -> None:
 
 @pytest.fixture
 def router() -> Iterator[str]:
-    endpoint = free_endpoint()
-    with Router([endpoint]):
-        yield endpoint
+    """Where a router listens: on a port the OS picked (port 0)."""
+    with Router([ANY_PORT]) as running:
+        yield running.endpoints[0]
 
 
 # ---- the router ---------------------------------------------------------------------------
@@ -81,37 +81,73 @@ def test_router_on_a_taken_port_is_a_clear_error(router: str) -> None:
         pass
 
 
+def test_a_router_on_port_0_says_the_ports_it_bound_and_is_reached_there() -> None:
+    with Router(["tcp/127.0.0.1:0", "tcp/[::1]:0"]) as router:
+        v4, v6 = router.endpoints
+        assert v4.startswith("tcp/127.0.0.1:") and v6.startswith("tcp/[::1]:")
+        assert host_port(v4)[1] != 0 and host_port(v6)[1] != 0
+        for endpoint in router.endpoints:
+            with zenoh.open(make_config("client", [endpoint])) as client:
+                assert str(router.session.zid()) in map(str, client.info.routers_zid())
+
+
+def test_a_router_on_a_wildcard_port_0_is_reached_on_loopback() -> None:
+    with Router(["tcp/0.0.0.0:0"]) as router:
+        (endpoint,) = router.endpoints
+        assert endpoint.startswith("tcp/0.0.0.0:") and host_port(endpoint)[1] != 0
+        with zenoh.open(make_config("client", [client_endpoint(endpoint)])) as client:
+            assert str(router.session.zid()) in map(str, client.info.routers_zid())
+
+
+def test_parse_listening_reads_only_its_own_line() -> None:
+    assert parse_listening("router listening on tcp/127.0.0.1:7447\n") == "tcp/127.0.0.1:7447"
+    assert parse_listening("2026 INFO zenoh router abc listening on tcp/1.2.3.4:1") is None
+
+
 def test_router_needs_an_endpoint() -> None:
     with pytest.raises(ValueError, match="a router needs at least one listen endpoint"):
         Router([])
 
 
 @pytest.mark.e2e
-def test_router_process_stops_on_sigterm() -> None:
-    endpoint = free_endpoint()
+def test_a_router_process_on_port_0_prints_where_it_listens() -> None:
     process = subprocess.Popen(
-        [sys.executable, "-m", "fleet.transport.router", "--listen", endpoint],
+        [sys.executable, "-m", "fleet.transport.router", "--listen", "tcp/127.0.0.1:0"],
         cwd=REPO,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
     )
     try:
-        deadline = time.monotonic() + 15
-        while True:
-            try:
-                with zenoh.open(make_config("client", [endpoint])):
-                    break
-            except zenoh.ZError:
-                assert time.monotonic() < deadline, "the router never listened"
-                time.sleep(0.1)
+        assert process.stdout is not None
+        endpoint = None
+        while endpoint is None:
+            line = process.stdout.readline()
+            assert line, "the router ended without saying where it listens"
+            endpoint = parse_listening(line)
+        assert host_port(endpoint)[1] != 0
+        with zenoh.open(make_config("client", [endpoint])) as client:
+            assert len(list(client.info.routers_zid())) == 1
         process.send_signal(signal.SIGTERM)
         assert process.wait(timeout=10) == 0
     finally:
         if process.poll() is None:
             process.kill()
             process.wait()
-        assert process.stderr is not None
-        process.stderr.close()
+        if process.stdout is not None:
+            process.stdout.close()
+
+
+@pytest.mark.e2e
+def test_router_process_stops_on_sigterm() -> None:
+    router, endpoint = start_router("--listen", ANY_PORT)
+    try:
+        with zenoh.open(make_config("client", [endpoint])):
+            pass
+        router.process.send_signal(signal.SIGTERM)
+        assert router.process.wait(timeout=10) == 0
+    finally:
+        router.kill()
 
 
 # ---- the launcher ---------------------------------------------------------------------------
@@ -155,7 +191,7 @@ def make_fleet(tmp_path: Path) -> Iterator[Callable[..., Fleet]]:
     ) -> Fleet:
         spec = FleetSpec(
             scenario=scenario,
-            listen=free_endpoint(),
+            listen=ANY_PORT,
             speedup=speedup,
             log_dir=tmp_path,
             start_timeout_s=start_timeout_s,
@@ -233,7 +269,7 @@ def test_fleet_reports_an_onboard_that_dies_at_start(make_fleet: Callable[..., F
 
 @pytest.mark.e2e
 def test_fleet_up_command_stops_every_child_on_sigterm(tmp_path: Path) -> None:
-    endpoint = free_endpoint()
+    endpoint = "tcp/127.0.0.1:0"  # a port the OS picks; the banner says which
     errors = (tmp_path / "up.stderr").open("w")
     process = subprocess.Popen(
         [
@@ -274,7 +310,12 @@ def test_fleet_up_command_stops_every_child_on_sigterm(tmp_path: Path) -> None:
         # The fork server, the simulator and two onboards (fleet up records itself).
         assert len(pids) == 4
         text = "".join(lines)
-        assert f"export FLEET_ZENOH_CONNECT={endpoint}" in text
+        # The advice names the port bound, where the router is reached.
+        advice = re.search(r"export FLEET_ZENOH_CONNECT=(tcp/127\.0\.0\.1:(\d+))\n", text)
+        assert advice is not None and int(advice[2]) != 0, text
+        assert f"router on {advice[1]}\n" in text
+        with zenoh.open(make_config("client", [advice[1]])) as client:
+            assert len(list(client.info.routers_zid())) == 1
         assert "101, 102" in text
         # Progress while starting: the simulator first, then the UAVs coming up.
         assert "fleet up: simulator up with 2 aircraft" in text
@@ -300,7 +341,8 @@ def test_fleet_up_refuses_an_unknown_scenario_before_starting_anything(
 ) -> None:
     from programs.fleet_cli import main
 
-    endpoint = free_endpoint()
+    # Guessed free, not port 0: the claim is that nothing listens on the port it was told.
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
     status = main(["up", "no_such_scenario", "--listen", endpoint, "--log-dir", str(tmp_path)])
     assert status == 2
     assert "no_such_scenario" in capsys.readouterr().err

@@ -4,6 +4,7 @@ author's digest lists it, never otherwise, and once only."""
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 
 from fleet.mission.messages import StreamDigest
 from fleet.transport.stream_auth import StreamChecker, StreamSigner, sample_hash
@@ -39,6 +40,29 @@ def test_a_sample_is_believed_once_its_authors_digest_lists_it() -> None:
     clock.now = 10.0
     checker.vouch("uav-112", StreamDigest(112, [sample_hash(KEY, b"b")]))
     assert delivered == [b"a", b"c"] and checker.unverified == 2
+
+
+def test_each_receiver_is_owed_the_sample_once() -> None:
+    """One sample reaches every subscription of a bus it matches: a digest's hash lets
+    each of them have it once, held before the digest or heard after it."""
+    checker = StreamChecker(Clock(), hold_s=3.0)
+    delivered: list[tuple[int, bytes]] = []
+    checker.hold("uav-112", KEY, b"a", lambda: delivered.append((1, b"a")), receiver=1)
+    checker.hold("uav-112", KEY, b"a", lambda: delivered.append((2, b"a")), receiver=2)
+    checker.vouch("uav-112", StreamDigest(112, [sample_hash(KEY, b"a"), sample_hash(KEY, b"b")]))
+    assert delivered == [(1, b"a"), (2, b"a")]
+
+    def deliver(receiver: int) -> Callable[[], None]:
+        return lambda: delivered.append((receiver, b"b"))
+
+    for receiver in (1, 2, 2):
+        checker.hold("uav-112", KEY, b"b", deliver(receiver), receiver)
+    assert delivered[2:] == [(1, b"b"), (2, b"b")]  # receiver 2's second copy: a replay
+    # The same bytes streamed again, listed by a later digest: owed once more to each.
+    checker.vouch("uav-112", StreamDigest(112, [sample_hash(KEY, b"b")]))
+    assert delivered[4:] == [(2, b"b")]
+    checker.hold("uav-112", KEY, b"b", lambda: delivered.append((1, b"b")), receiver=1)
+    assert delivered[5:] == [(1, b"b")]
 
 
 def test_the_signer_puts_one_digest_of_what_was_streamed() -> None:

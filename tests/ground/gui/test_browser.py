@@ -15,7 +15,6 @@ import contextlib
 import math
 import os
 import re
-import signal
 import subprocess
 import sys
 import threading
@@ -32,12 +31,20 @@ import zenoh
 
 from fleet.files.targets_io import read_targets, write_targets
 from fleet.geo.mercator import MercatorProjection
-from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionAbort, MissionTargets, Target
 from ground.gui.server import MAX_UPLOAD
+from tests.support.ground_cli import ground_cli
 from tests.support.ground_view import GroundView
-from tests.support.processes import Child, client_session, start_fleet_up, wait_fleet_up
+from tests.support.processes import (
+    ANY_PAGE,
+    ANY_PORT,
+    Child,
+    client_session,
+    start_fleet_up,
+    stop_fleet_up,
+    wait_fleet_up,
+)
 from tests.support.waiting import wait_until
 
 webdriver = pytest.importorskip("selenium.webdriver")
@@ -83,26 +90,24 @@ return [...document.querySelectorAll(
 @pytest.fixture
 def fleet_with_gui(tmp_path: Path) -> Iterator[tuple[str, str]]:
     """`fleet up head_on --gui`: (the page's URL, the router's endpoint)."""
-    router = f"tcp/127.0.0.1:{free_port()}"
-    page = f"127.0.0.1:{free_port()}"
     up = start_fleet_up(
         "head_on",
         "--listen",
-        router,
+        ANY_PORT,
         "--speedup",
         "10",
         "--gui",
-        page,
+        ANY_PAGE,
         "--log-dir",
         str(tmp_path / "logs"),
     )
     try:
-        wait_fleet_up(up, 120.0)
-        _wait_serving(f"http://{page}/", up)
-        yield f"http://{page}/", router
+        banner = wait_fleet_up(up, 120.0)
+        assert banner.page is not None, "\n".join(up.history[-30:])
+        _wait_serving(banner.page, up)
+        yield banner.page, banner.connect
     finally:
-        up.process.send_signal(signal.SIGTERM)
-        assert up.process.wait(30) == 0, "\n".join(up.history[-30:])
+        assert stop_fleet_up(up) == 0, "\n".join(up.history[-30:])
 
 
 def _wait_serving(url: str, up: Child) -> None:
@@ -261,9 +266,8 @@ def test_the_thesis_scenario_from_the_page(
     fleet_with_gui: tuple[str, str], browser: Any, tmp_path: Path
 ) -> None:
     url, router = fleet_with_gui
-    port = int(router.rsplit(":", 1)[1])
     thesis_targets = read_targets(str(files("fleet") / "scenarios" / "head_on_targets.bin"))
-    with client_session(port) as session:
+    with client_session(router) as session:
         seen = GroundView(session)
         sent = TargetsSeen(session)
         try:
@@ -462,10 +466,7 @@ def test_every_press_takes_effect_the_first_time_while_telemetry_flows(
     # A mission sent from elsewhere while the page holds drafts is drawn beside them.
     other = tmp_path / "other.bin"
     write_targets(other, [Target(35.74, -120.80, 600.0)])
-    sent = subprocess.run(
-        [sys.executable, "-m", "ground.cli", "--connect", router, "send-targets", str(other)],
-        capture_output=True, text=True, timeout=60, check=False,
-    )  # fmt: skip
+    sent = ground_cli("send-targets", str(other), connect=router, timeout=60)
     assert sent.returncode == 0, sent.stderr
     wait_until(
         lambda: (
@@ -597,9 +598,8 @@ def test_under_cpu_stress_send_and_abort_take_effect_once_though_the_socket_drop
     per-UAV Abort one abort (the page re-sent each after reconnecting: the ground
     answered the repeat without doing it again), and only that UAV stopped."""
     url, router = fleet_with_gui
-    port = int(router.rsplit(":", 1)[1])
     targets_file = files("fleet") / "scenarios" / "head_on_targets.bin"
-    with client_session(port) as session, busy_cores(2):
+    with client_session(router) as session, busy_cores(2):
         seen = CommandsSeen(session)
         try:
             browser.get(url)

@@ -62,8 +62,7 @@ def test_zones_loaded_and_drawn_are_sent_drawn_and_flown_around(
     tmp_path: Path,
 ) -> None:
     url, router = fleet_with_gui
-    port = int(router.rsplit(":", 1)[1])
-    with client_session(port) as session:
+    with client_session(router) as session:
         sent = TargetsSeen(session)
         try:
             browser.get(url)

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import signal
-import subprocess
 import sys
 import time
 from collections.abc import Iterator
@@ -13,27 +12,26 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from fleet.launch.endpoints import free_port
 from tests.ground.mavlink.stations import WAIT_S
-from tests.support.processes import Child, start, start_fleet_up, wait_fleet_up
+from tests.support.ground_cli import ground_cli
+from tests.support.processes import ANY_PORT, Child, start, start_fleet_up, wait_fleet_up
 from tests.support.waiting import wait_until
 
+#: What the gateway prints once it serves, before its URL.
+SERVING = "fleet mavlink: serving on "
 #: How long `fleet up` may take to say its fleet is up.
 START_S = 90.0
 
 
 class FleetUp:
-    def __init__(self, port: int, up: Child, tmp: Path) -> None:
-        self.port = port
-        self.endpoint = f"tcp/127.0.0.1:{port}"
+    def __init__(self, endpoint: str, up: Child, tmp: Path) -> None:
+        #: Where `fleet up` said its router listens.
+        self.endpoint = endpoint
         self.up = up
         self.tmp = tmp
 
     def ground_cli(self, *argv: str) -> Any:
-        done = subprocess.run(
-            [sys.executable, "-m", "ground.cli", "--connect", self.endpoint, *argv],
-            capture_output=True, text=True, timeout=WAIT_S, check=False,
-        )  # fmt: skip
+        done = ground_cli(*argv, connect=self.endpoint, timeout=WAIT_S)
         assert done.returncode in (0, 1), done.stderr
         return json.loads(done.stdout) if done.stdout.strip() else None
 
@@ -47,7 +45,7 @@ class FleetUp:
             [sys.executable, "-m", "programs.fleet_cli", "mavlink", "--connect", self.endpoint,
              "--out", out, *extra],
         )  # fmt: skip
-        child.wait_for_line(lambda line: "fleet mavlink: serving on" in line, WAIT_S)
+        child.wait_for_line(lambda line: line.startswith(SERVING), WAIT_S)
         return child
 
     def mavproxy(self, port: int, state: str = "mavproxy") -> Child:
@@ -62,24 +60,29 @@ class FleetUp:
         )  # fmt: skip
 
 
+def served_port(gateway: Child) -> int:
+    """The port a gateway said it serves on (`fleet mavlink: serving on KIND:HOST:PORT`):
+    the one it bound, for a `udpin:`/`tcpin:` URL on port 0."""
+    line = next(line for line in gateway.history if line.startswith(SERVING))
+    return int(line.removeprefix(SERVING).split()[0].rsplit(":", 1)[1])
+
+
 @contextmanager
 def running_fleet(uavs: int, tmp: Path) -> Iterator[FleetUp]:
     """`fleet up --uavs N` at five times real time, logging under `tmp`, until exit."""
-    port = free_port()
     up = start_fleet_up(
         "--uavs",
         str(uavs),
         "--speedup",
         "5",
         "--listen",
-        f"tcp/127.0.0.1:{port}",
+        ANY_PORT,
         "--log-dir",
         str(tmp / "logs"),
         "--no-record",
     )
     try:
-        wait_fleet_up(up, START_S)
-        yield FleetUp(port, up, tmp)
+        yield FleetUp(wait_fleet_up(up, START_S).connect, up, tmp)
     finally:
         up.process.send_signal(signal.SIGTERM)
         up.process.wait(30)

@@ -130,6 +130,21 @@ def test_a_flood_beyond_a_peers_share_is_dropped_and_counted(
     assert PEER_BURST <= len(got) < sent
 
 
+def test_a_listening_endpoint_on_port_0_says_the_port_it_bound() -> None:
+    for kind in ("udpin", "tcpin"):
+        endpoint = Endpoint(f"{kind}:127.0.0.1:0", InputDrops())
+        try:
+            assert endpoint.local_port != 0
+            assert endpoint.url == f"{kind}:127.0.0.1:{endpoint.local_port}"
+        finally:
+            endpoint.close()
+    out = Endpoint("udpout:127.0.0.1:14550", InputDrops())
+    try:
+        assert out.url == "udpout:127.0.0.1:14550"  # where it sends, not its own port
+    finally:
+        out.close()
+
+
 def test_tcpin_decodes_a_frame_split_across_reads() -> None:
     endpoint = Endpoint("tcpin:127.0.0.1:0", InputDrops())
     try:

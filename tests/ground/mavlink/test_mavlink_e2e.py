@@ -108,7 +108,7 @@ def test_mavsdk_uploads_a_mission_sees_the_fleets_position_and_rtl_aborts(
     gateway = fleet_up.gateway(f"udpin:127.0.0.1:{port}")
     piccolo = 103
     try:
-        with client_session(fleet_up.port) as session:
+        with client_session(fleet_up.endpoint) as session:
             view = GroundView(session)
             with mavsdk_systems(port, len(UAVS)) as systems:
                 assert sorted(systems) == list(UAVS)

@@ -4,10 +4,11 @@ its own process, and pymavlink, MAVSDK or MAVProxy on the other side.
 
 QGroundControl's connect sequence is replayed with pymavlink (HEARTBEAT as a GCS,
 AUTOPILOT_VERSION by MAV_CMD_REQUEST_MESSAGE, every parameter, TIMESYNC, HOME_POSITION,
-the mission, fence and rally downloads). The attacks are the ones the gateway obeyed
-before: a byte answered with the fleet's streams (reflection), one-byte datagrams or
-idle TCP connections locking honest stations out, unsigned or wrongly signed commands
-obeyed, a second station taking over or joining an upload.
+GPS_STATUS and BATTERY_STATUS asked for, the mission, fence and rally downloads). The
+attacks are the ones the gateway obeyed before: a byte answered with the fleet's
+streams (reflection), one-byte datagrams or idle TCP connections locking honest stations
+out, unsigned or wrongly signed commands obeyed, a second station taking over or
+joining an upload.
 """
 
 from __future__ import annotations
@@ -19,9 +20,14 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from fleet.launch.endpoints import free_port
 from ground.mavlink.signing import passphrase_secret, timestamp_now
-from tests.ground.mavlink.mavlink_fleet import FleetUp, mavsdk_systems, running_fleet, stop
+from tests.ground.mavlink.mavlink_fleet import (
+    FleetUp,
+    mavsdk_systems,
+    running_fleet,
+    served_port,
+    stop,
+)
 from tests.ground.mavlink.stations import free_udp_port, receiver
 from tests.support.waiting import wait_until
 
@@ -151,6 +157,16 @@ def test_qgroundcontrols_connect_sequence_is_answered(fleet_up: FleetUp) -> None
         assert state.landed_state == mavlink2.MAV_LANDED_STATE_IN_AIR
         gps = qgc.expect("GPS_RAW_INT", uav)
         assert gps.satellites_visible == 12 and gps.fix_type == mavlink2.GPS_FIX_TYPE_3D_FIX
+        # GPS_STATUS and the battery, asked for: the same satellites; a battery unknown
+        # (no reading exists), never a made-up voltage or charge.
+        qgc.send(request_message(uav, mavlink2.MAVLINK_MSG_ID_GPS_STATUS))
+        assert qgc.expect("COMMAND_ACK", uav).result == mavlink2.MAV_RESULT_ACCEPTED
+        assert qgc.expect("GPS_STATUS", uav).satellites_visible == 12
+        qgc.send(request_message(uav, mavlink2.MAVLINK_MSG_ID_BATTERY_STATUS))
+        assert qgc.expect("COMMAND_ACK", uav).result == mavlink2.MAV_RESULT_ACCEPTED
+        battery = qgc.expect("BATTERY_STATUS", uav)
+        assert battery.battery_remaining == -1 and battery.current_battery == -1
+        assert list(battery.voltages) == [2**16 - 1] * 10
         status = qgc.expect("SYS_STATUS", uav)
         ok = mavlink2.MAV_SYS_STATUS_SENSOR_GPS | mavlink2.MAV_SYS_STATUS_SENSOR_3D_GYRO
         assert status.onboard_control_sensors_health & ok == ok
@@ -230,8 +246,8 @@ def test_one_byte_is_never_answered_and_strangers_cannot_lock_stations_out(
 
 
 def test_idle_tcp_connections_cannot_lock_stations_out(fleet_up: FleetUp) -> None:
-    port = free_port()
-    gateway = fleet_up.gateway(f"tcpin:127.0.0.1:{port}")
+    gateway = fleet_up.gateway("tcpin:127.0.0.1:0")
+    port = served_port(gateway)
     idle = [socket.create_connection(("127.0.0.1", port), timeout=10) for _ in range(8)]
     try:
         with socket.create_connection(("127.0.0.1", port), timeout=10) as honest:

@@ -17,6 +17,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, Target
+from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from fleet.transport.memory import MemoryNetwork
 from ground.fleet_view import UavView
 from ground.mavlink.endpoint import Address, Drop, Endpoint, Incoming, InputDrops
@@ -249,6 +250,38 @@ def test_autopilot_version_on_request(harness: Harness) -> None:
     assert version.capabilities & mavlink2.MAV_PROTOCOL_CAPABILITY_MISSION_INT
 
 
+def request_message(message_id: int) -> mavlink2.MAVLink_command_long_message:
+    return mavlink2.MAVLink_command_long_message(
+        74, 1, mavlink2.MAV_CMD_REQUEST_MESSAGE, 0, message_id, 0, 0, 0, 0, 0, 0
+    )
+
+
+def test_gps_status_and_battery_on_request(
+    harness: Harness, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Before any telemetry: the GPS is not known yet, said so; the battery never is.
+    harness.handle(request_message(mavlink2.MAVLINK_MSG_ID_GPS_STATUS))
+    (ack,) = harness.take("COMMAND_ACK")
+    assert ack.result == mavlink2.MAV_RESULT_TEMPORARILY_REJECTED
+    assert harness.take("GPS_STATUS") == []
+    harness.handle(request_message(mavlink2.MAVLINK_MSG_ID_BATTERY_STATUS))
+    (ack,) = harness.take("COMMAND_ACK")
+    assert ack.result == mavlink2.MAV_RESULT_ACCEPTED
+    (battery,) = harness.take("BATTERY_STATUS")
+    assert battery.battery_remaining == -1 and battery.voltages[0] == 2**16 - 1
+    # With telemetry: its satellites.
+    fix = Telemetry(system_time_ms=0, gps=GpsBlock(35.7, -120.8, 600.0, 0, 0, 0, 1.0, 11, 10))
+    monkeypatch.setattr(harness.gateway.view, "telemetry", lambda uav: fix)
+    harness.handle(request_message(mavlink2.MAVLINK_MSG_ID_GPS_STATUS))
+    (ack,) = harness.take("COMMAND_ACK")
+    assert (ack.command, ack.result) == (
+        mavlink2.MAV_CMD_REQUEST_MESSAGE,
+        mavlink2.MAV_RESULT_ACCEPTED,
+    )
+    (gps,) = harness.take("GPS_STATUS")
+    assert gps.satellites_visible == 11 and gps.get_srcSystem() == 74
+
+
 def test_a_message_for_a_system_not_shown_is_counted(harness: Harness) -> None:
     harness.handle(mavlink2.MAVLink_mission_count_message(75, 1, 3, 0))
     harness.handle(mavlink2.MAVLink_mission_request_list_message(0, 0, 0))  # broadcast
@@ -314,8 +347,6 @@ def test_setting_the_current_item_is_answered_with_the_one_the_fleet_chose(
 def test_a_hostile_telemetry_value_does_not_stop_the_streams(
     harness: Harness, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from fleet.piccolo.telemetry import GpsBlock, Telemetry
-
     hostile = Telemetry(system_time_ms=0, gps=GpsBlock(35.7, -120.8, 1e300, 0, 0, 0))
     monkeypatch.setattr(harness.gateway.view, "telemetry", lambda uav: hostile)
     harness.views = [UavView(id=74, phase="idle")]

@@ -133,7 +133,9 @@ def test_messages_pack_as_mavlink_2() -> None:
         (mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL, (33, 1e5, 0), Action.UNSUPPORTED),
         (mavlink2.MAV_CMD_REQUEST_MESSAGE, (148, 0, 0), Action.SEND_MESSAGE),
         (mavlink2.MAV_CMD_REQUEST_MESSAGE, (242, 0, 0), Action.SEND_MESSAGE),  # home
-        (mavlink2.MAV_CMD_REQUEST_MESSAGE, (147, 0, 0), Action.UNSUPPORTED),  # battery
+        (mavlink2.MAV_CMD_REQUEST_MESSAGE, (147, 0, 0), Action.SEND_MESSAGE),  # battery
+        (mavlink2.MAV_CMD_REQUEST_MESSAGE, (25, 0, 0), Action.SEND_MESSAGE),  # GPS_STATUS
+        (mavlink2.MAV_CMD_REQUEST_MESSAGE, (241, 0, 0), Action.UNSUPPORTED),  # VIBRATION
         (mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, (1, 0, 0), Action.SEND_MESSAGE),
     ],
 )
@@ -215,6 +217,49 @@ def test_gps_raw_carries_the_satellites_and_the_fix() -> None:
     assert raw is not None
     assert (raw.satellites_visible, raw.fix_type) == (9, mavlink2.GPS_FIX_TYPE_3D_FIX)
     assert (raw.lat, raw.vel, raw.eph) == (357000000, 500, 120)
+
+
+def test_gps_status_carries_gps_raws_satellite_count_and_names_none() -> None:
+    telemetry = Telemetry(
+        system_time_ms=0, gps=GpsBlock(35.7, -120.8, 600.0, 3.0, 4.0, 0.0, 1.2, 9, 8)
+    )
+    status = vehicle.gps_status(telemetry)
+    raw = vehicle.gps_raw(telemetry, 0)
+    assert status is not None and raw is not None
+    assert status.satellites_visible == raw.satellites_visible == 9
+    for per_satellite in ("prn", "used", "elevation", "azimuth", "snr"):
+        assert list(getattr(status, f"satellite_{per_satellite}")) == [0] * 20
+    assert vehicle.gps_status(Telemetry(system_time_ms=0)) is None  # no GPS block
+    packed = status.pack(mavlink2.MAVLink(None, 74, 1))
+    (decoded,) = mavlink2.MAVLink(None).parse_buffer(bytes(packed)) or []
+    assert decoded.satellites_visible == 9
+
+
+def test_the_battery_is_every_field_mavlink_marks_not_measured() -> None:
+    packed = vehicle.battery_status().pack(mavlink2.MAVLink(None, 74, 1))
+    (battery,) = mavlink2.MAVLink(None).parse_buffer(bytes(packed)) or []
+    assert list(battery.voltages) == [2**16 - 1] * 10  # UINT16_MAX: not measured
+    assert (battery.current_battery, battery.current_consumed, battery.energy_consumed) == (
+        -1,
+        -1,
+        -1,
+    )
+    assert battery.battery_remaining == -1  # "autopilot does not estimate"
+    assert battery.temperature == 2**15 - 1  # INT16_MAX: unknown
+    assert (battery.time_remaining, battery.charge_state, battery.fault_bitmask) == (
+        0,
+        mavlink2.MAV_BATTERY_CHARGE_STATE_UNDEFINED,
+        0,
+    )
+    assert list(battery.voltages_ext) == [0] * 4  # "not supported"
+    # SYS_STATUS says the same: no battery sensor, its figures unknown.
+    status = vehicle.sys_status(LIVE, TELEMETRY, 0)
+    assert not status.onboard_control_sensors_present & mavlink2.MAV_SYS_STATUS_SENSOR_BATTERY
+    assert (status.voltage_battery, status.current_battery, status.battery_remaining) == (
+        2**16 - 1,
+        -1,
+        -1,
+    )
 
 
 def test_modes_are_in_px4s_encoding_and_mavproxys_rtl_still_aborts() -> None:

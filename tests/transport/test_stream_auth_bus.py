@@ -1,0 +1,153 @@
+"""A UAV's streams vouched for by its signed digests, on real Zenoh sessions (a router on
+loopback, in this process): every subscription of a bus believes what the UAV streamed,
+whichever of them Zenoh calls first, and what the UAV did not stream is never delivered,
+by a callback or through a ring."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from fleet.files.certs import write_identities
+from fleet.files.signers import load_roster, load_signing_key, signing_key_path
+from fleet.launch.endpoints import free_port
+from fleet.mission.key_space import KeySpace
+from fleet.transport.bus import BusSample, RingSubscription
+from fleet.transport.router import Router
+from fleet.transport.signing import BusSigning
+from fleet.transport.zenoh_bus import ZenohBus, client_bus
+from fleet.transport.zenoh_config import make_config
+from tests.support.waiting import wait_until
+
+SPACE = KeySpace()
+TIMEOUT_S = 10.0
+
+
+@pytest.fixture(scope="module")
+def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    where = tmp_path_factory.mktemp("certs")
+    write_identities(where, ["router", "ground", "uav-74", "uav-112"], [])
+    return where
+
+
+@pytest.fixture(scope="module")
+def endpoint() -> Iterator[str]:
+    where = f"tcp/127.0.0.1:{free_port()}"
+    with Router([where]):
+        yield where
+
+
+def secure_bus(certs: Path, endpoint: str, identity: str) -> ZenohBus:
+    """A bus signing as `identity`, with the secure profile's stream checks (a bus opened
+    with the secure config has them; here without TLS, which is the router's business)."""
+    key = load_signing_key(signing_key_path(certs, identity))
+    session = zenoh.open(make_config("client", [endpoint]))
+    return ZenohBus(session, BusSigning(identity, key, load_roster(certs)))
+
+
+@pytest.fixture
+def buses(certs: Path, endpoint: str) -> Iterator[dict[str, ZenohBus]]:
+    made = {name: secure_bus(certs, endpoint, name) for name in ("ground", "uav-112")}
+    yield made
+    for bus in made.values():
+        bus.close()
+
+
+class Heard:
+    def __init__(self) -> None:
+        self.payloads: list[bytes] = []
+        self._lock = threading.Lock()
+
+    def __call__(self, sample: BusSample) -> None:
+        with self._lock:
+            self.payloads.append(sample.payload)
+
+    def __contains__(self, payload: bytes) -> bool:
+        with self._lock:
+            return payload in self.payloads
+
+
+def taken(ring: RingSubscription, into: Heard) -> Heard:
+    while (sample := ring.try_recv()) is not None:
+        into(sample)
+    return into
+
+
+def test_every_subscription_believes_what_the_uav_streamed(
+    buses: dict[str, ZenohBus],
+) -> None:
+    """A recorder's `fleet/**` and a telemetry subscription on one bus both hear the
+    UAV's digest (and the bus's own digest subscription too): each believes it once, so
+    each gets the telemetry; the digest heard by one never makes the other refuse it as
+    replayed (which left a Foxglove bridge without any telemetry, in some runs)."""
+    ground, uav = buses["ground"], buses["uav-112"]
+    everything, telemetry, digests, digests_again = Heard(), Heard(), Heard(), Heard()
+    declared = [
+        ground.subscribe(SPACE.everything, everything, details=True),
+        ground.subscribe(SPACE.all_telemetry, telemetry),
+        ground.subscribe(SPACE.all_digests, digests),
+        ground.subscribe(SPACE.all_digests, digests_again),
+    ]
+    try:
+        sent = 0
+
+        def streamed_and_heard() -> bool:
+            nonlocal sent
+            sent += 1
+            uav.put(SPACE.telemetry(112), b'{"n":%d}' % sent)
+            return bool(telemetry.payloads)
+
+        # Until the subscriptions have reached the router, a put may go unheard.
+        wait_until(streamed_and_heard, TIMEOUT_S, "the first telemetry believed")
+        last = b'{"n":%d}' % sent
+        wait_until(lambda: last in telemetry and last in everything, TIMEOUT_S, "the last")
+        wait_until(lambda: digests.payloads and digests_again.payloads, TIMEOUT_S, "digests")
+    finally:
+        for declaration in declared:
+            declaration.undeclare()
+
+
+def test_a_ring_delivers_what_the_uav_streamed_and_never_a_forgery(
+    buses: dict[str, ZenohBus], endpoint: str
+) -> None:
+    """The ring (the recorder in a router's process) believes a stream sample as a
+    subscription does: once the UAV's signed digest lists it. A sample put on the UAV's
+    telemetry key by anyone else (a rogue router or client, which signs no digest of that
+    UAV's) is never taken from it, nor from a subscription."""
+    ground, uav = buses["ground"], buses["uav-112"]
+    ring = ground.subscribe_ring(SPACE.everything, 1000)
+    subscribed = Heard()
+    subscription = ground.subscribe(SPACE.all_telemetry, subscribed)
+    heard = Heard()
+    try:
+        sent = 0
+
+        def streamed_and_taken() -> bool:
+            nonlocal sent
+            sent += 1
+            uav.put(SPACE.telemetry(112), b'{"genuine":%d}' % sent)
+            return bool(taken(ring, heard).payloads)
+
+        wait_until(streamed_and_taken, TIMEOUT_S, "the first telemetry taken from the ring")
+        with client_bus(endpoint) as rogue:  # no digest of UAV 112's vouches for these
+            for n in range(5):
+                rogue.put(SPACE.telemetry(112), b'{"forged":%d}' % n)
+        uav.put(SPACE.telemetry(112), b'{"genuine":"last"}')
+        wait_until(
+            lambda: b'{"genuine":"last"}' in taken(ring, heard), TIMEOUT_S, "the last genuine"
+        )
+        wait_until(lambda: b'{"genuine":"last"}' in subscribed, TIMEOUT_S, "it subscribed")
+        forged = [p for p in heard.payloads + subscribed.payloads if b"forged" in p]
+        assert forged == []
+        # What the ring gave is what the UAV streamed, and its digests (a signed key).
+        telemetry = {p for p in heard.payloads if b"genuine" in p}
+        assert telemetry <= {b'{"genuine":%d}' % n for n in range(1, sent + 1)} | {
+            b'{"genuine":"last"}'
+        }
+    finally:
+        subscription.undeclare()
+        ring.undeclare()
