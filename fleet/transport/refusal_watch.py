@@ -15,7 +15,7 @@ import logging
 import threading
 
 from fleet.transport.fd_tap import STDOUT, FdTap
-from fleet.transport.link_refusal import RefusedLinks, classify
+from fleet.transport.link_refusal import LinkRefusal, RefusedLinks, classify
 
 log = logging.getLogger(__name__)
 
@@ -49,6 +49,12 @@ class RefusalWatch:
         if self._reporter is not None:
             self._reporter.join(5.0)
         self._tap.stop()
+
+    def count(self, kind: LinkRefusal) -> None:
+        """Count a refusal this process made itself (not read from Zenoh's log), reported
+        with the others."""
+        self.links.count(kind)
+        self._changed.set()
 
     def _on_line(self, line: str) -> None:
         # On the tap's thread: count only; the reporter writes.

@@ -230,7 +230,7 @@ class Router:
 
         def count() -> None:
             if watch is not None:
-                watch.links.count(LinkRefusal.REVOKED)
+                watch.count(LinkRefusal.REVOKED)
 
         self._guard = RevocationGuard(
             self.session,
