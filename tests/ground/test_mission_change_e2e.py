@@ -14,8 +14,9 @@ import pytest
 
 from tests.conftest import Ground
 from tests.ground.test_replan import REACH_TIMEOUT_S, SPEEDUP
-from tests.ground.test_truth import finish, ground_cli, targets_file
+from tests.ground.test_truth import targets_file
 from tests.onboard.test_multi_uav import start_ring
+from tests.support.ground_cli import finish_ground_cli, start_ground_cli
 from tests.support.processes import Fleet
 from tests.support.targets import ring_targets
 from tests.support.waiting import wait_until
@@ -33,8 +34,10 @@ def test_two_targets_added_and_one_removed_in_flight_are_flown_exactly_as_change
     team = start_ring(fleet, ground, tmp_path, 3, SPEEDUP, telemetry_hz=5.0)
     seen = ground.seen
     path = targets_file(tmp_path, FIRST)
-    send = ground_cli(ground.router, "send-targets", str(path), "--team", ",".join(map(str, team)))
-    assert finish(send, 60)[0] == 0
+    send = start_ground_cli(
+        "send-targets", str(path), "--team", ",".join(map(str, team)), connect=ground.router
+    )
+    assert finish_ground_cli(send, 60)[0] == 0
     wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "every commitment")
     plan = seen.assignments[team[0]]
     mission = plan.mission
@@ -46,27 +49,27 @@ def test_two_targets_added_and_one_removed_in_flight_are_flown_exactly_as_change
 
     extra = tmp_path / "later"
     extra.mkdir()
-    add = ground_cli(
-        ground.router, "add-targets", str(targets_file(extra, LATER)),
-        "--mission", str(mission), "--json",
+    add = start_ground_cli(
+        "add-targets", str(targets_file(extra, LATER)), "--mission", str(mission), "--json",
+        connect=ground.router,
     )  # fmt: skip
-    status, out, err = finish(add, 60)
+    status, out, err = finish_ground_cli(add, 60)
     assert status == 0, err
     added = json.loads(out)
     assert added["added"] == [4, 5] and sorted(added["acknowledged"]) == sorted(team), added
-    remove = ground_cli(
-        ground.router, "remove-targets", str(gone), "--mission", str(mission), "--json"
+    remove = start_ground_cli(
+        "remove-targets", str(gone), "--mission", str(mission), "--json", connect=ground.router
     )
-    status, out, err = finish(remove, 60)
+    status, out, err = finish_ground_cli(remove, 60)
     assert status == 0, err
     assert json.loads(out)["removed"] == [gone]
     wait_until(lambda: all(seen.assignments[uav].revision == 2 for uav in team), 30.0, "revision 2")
     assert all(gone not in q for q in seen.assignments[team[0]].queues.values())
 
-    status, out, err = finish(
-        ground_cli(
-            ground.router, "mission", "--mission", str(mission),
-            "--until-reached", str(REACH_TIMEOUT_S), "--json",
+    status, out, err = finish_ground_cli(
+        start_ground_cli(
+            "mission", "--mission", str(mission), "--until-reached", str(REACH_TIMEOUT_S),
+            "--json", connect=ground.router,
         ),
         REACH_TIMEOUT_S + 60,
     )  # fmt: skip
