@@ -38,6 +38,7 @@ def test_a_taken_port_is_said_before_connecting(capsys: pytest.CaptureFixture[st
     err = capsys.readouterr().err
     assert f"fleet foxglove: cannot listen on 127.0.0.1:{port}" in err
     assert "Address already in use" in err
+    assert err.splitlines()[-1].endswith("stop it, or give another port with --serve")
 
 
 def test_no_router_is_said(capsys: pytest.CaptureFixture[str]) -> None:
