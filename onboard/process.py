@@ -4,7 +4,9 @@ Threads: the link loop (onboard.link_adapter), the planner worker
 (onboard.planner.planner_worker), Zenoh's own callback threads, and this main loop, which alone
 touches the module's state: every other thread hands it events through one queue,
 except telemetry, which the link loop publishes itself and leaves in a one-message slot
-that the main loop reads on its next turn (`_from_link`).
+that the main loop reads on its next turn (`_from_link`), unless an echo from the
+autopilot waits in the queue: telemetry then queues behind it, so that the module sees
+the aircraft's positions and its track changes in the order the autopilot sent them.
 The main loop sleeps on that queue until an event comes (a query or a planner result
 too) or its next timer is due (the module's timers, command retries and status and
 result fetches, need no finer than `TICK_PERIOD`), so an idle module does not wake
@@ -62,8 +64,17 @@ log = logging.getLogger(__name__)
 #: Refused input, logged at most every few seconds (a flood cannot fill the log).
 _refusals = RefusalLog(log)
 
+
+@dataclass(frozen=True)
+class _QueuedTelemetry:
+    """Telemetry that came after an autopilot echo still queued: handled after it."""
+
+    telemetry: Telemetry
+    at: float
+
+
 #: What the link and bus threads hand the main loop.
-Event = LinkEvent | BusEvent | PresenceEvent
+Event = LinkEvent | BusEvent | PresenceEvent | _QueuedTelemetry
 
 LINK_HEALTH_PERIOD = 1.0
 #: The main loop runs the module's timers at least this often (events run them too).
@@ -177,6 +188,9 @@ class OnboardProcess:
             SerialLink("payload", settings.payload_url, settings.baud),
         )
         self._latest_telemetry: tuple[Telemetry, float] | None = None
+        #: Autopilot echoes (tracks, waypoints) queued and not handled yet: while any
+        #: is, telemetry queues behind it instead of waiting in the slot (`_from_link`).
+        self._echoes_queued = 0
         self._telemetry_lock = threading.Lock()
         self._telemetry_published_at = -math.inf
         self._telemetry_key = self.space.telemetry(settings.uav_id)
@@ -248,14 +262,29 @@ class OnboardProcess:
         """The link thread's hand-off. Telemetry, the bulk of the traffic, goes on the
         bus from the link thread itself and waits in one slot for the main loop's next
         turn (at most TICK_PERIOD away): it neither wakes the main loop nor queues up.
-        Everything else is queued as an event."""
+        Everything else is queued as an event.
+
+        The order of positions and echoes is kept: an echo is queued behind the
+        telemetry waiting in the slot, and telemetry that comes while an echo is queued
+        queues behind it. Otherwise a main loop running late would judge a track change
+        (the autopilot moving on from the target waypoint) against a position sent after
+        it, the aircraft already well past the target, and miss the arrival."""
         if isinstance(event, AutopilotEvent) and isinstance(event.message, Telemetry):
             now = time.monotonic()
             self.link.note_telemetry(now)
             self._publish_telemetry(event.message, now)
             with self._telemetry_lock:
-                self._latest_telemetry = (event.message, now)
+                if self._echoes_queued:
+                    self.events.put(_QueuedTelemetry(event.message, now))
+                else:
+                    self._latest_telemetry = (event.message, now)
             return
+        if isinstance(event, AutopilotEvent):
+            with self._telemetry_lock:
+                before, self._latest_telemetry = self._latest_telemetry, None
+                if before is not None:
+                    self.events.put(_QueuedTelemetry(*before))
+                self._echoes_queued += 1
         self.events.put(event)
 
     def _publish_telemetry(self, telemetry: Telemetry, now: float) -> None:
@@ -269,18 +298,30 @@ class OnboardProcess:
         """Hand the module the latest telemetry, if any arrived since the last turn."""
         with self._telemetry_lock:
             latest, self._latest_telemetry = self._latest_telemetry, None
-        if latest is None:
-            return
-        telemetry, at = latest
+        if latest is not None:
+            self._apply_telemetry(*latest)
+
+    def _apply_telemetry(self, telemetry: Telemetry, at: float) -> None:
         self.core.on_telemetry(telemetry, at)
         speed = self.core.link.airspeed()  # the one the plans use, this telemetry taken in
         if speed is not None:
             self.planner.prepare(speed)
 
     def _on_event(self, event: Event | None, now: float) -> None:
-        # The aircraft's latest position first: a track change is judged against it.
+        if isinstance(event, _QueuedTelemetry):
+            self._apply_telemetry(event.telemetry, event.at)
+            return
+        # The aircraft's latest position first: a track change is judged against it. (Of
+        # the positions the autopilot sent before the change: while an echo is queued,
+        # the slot stays empty; `_from_link`.)
         self._take_telemetry()
-        if isinstance(event, PresenceEvent):
+        if isinstance(event, AutopilotEvent):
+            try:
+                self._on_link(event, now)
+            finally:
+                with self._telemetry_lock:
+                    self._echoes_queued -= 1
+        elif isinstance(event, PresenceEvent):
             self.core.on_alive(event.uav, event.alive, now)
         elif isinstance(event, BusEvent):
             self._on_message(event.message, now, via_payload=False, replayed=event.replayed)

@@ -33,6 +33,10 @@ from tests.support.waiting import wait_until
 SPACE = KeySpace()
 #: Simulated seconds per wall second for the flights to the targets.
 FLIGHT_SPEEDUP = 60.0
+#: ...and while the UAVs plan them: the wall clock's pace, as in flight. Sped up, a
+#: planner that gets the CPU late on a loaded machine would plan from a position a
+#: minute of flight stale and could take the other UAV's target.
+PLANNING_SPEEDUP = 1.0
 #: Two missions this far apart: the second supersedes the first on every UAV.
 GAP_S = 0.05
 
@@ -154,7 +158,7 @@ def test_head_on_two_uavs_take_distinct_targets_reach_them_and_resume() -> None:
     targets = tuple(scenario.targets())
     # Heard from its start, as the ground hears an onboard process start: its first
     # tracked waypoint is what it resumes.
-    with memory_fleet("head_on", speedup=FLIGHT_SPEEDUP, ready=False) as fleet:
+    with memory_fleet("head_on", speedup=PLANNING_SPEEDUP, ready=False) as fleet:
         ground = fleet.bus()
         seen = GroundView.on_bus(ground)
         try:
@@ -162,11 +166,13 @@ def test_head_on_two_uavs_take_distinct_targets_reach_them_and_resume() -> None:
                 lambda: all(seen.latest_track(u) is not None for u in (74, 112)), 30.0, "tracks"
             )
             original = {uav: seen.latest_track(uav) for uav in (74, 112)}
+            fleet.wait_ready()  # a position to plan from
             send(ground, MissionTargets(mission=1, team=(74, 112), targets=targets))
             wait_until(lambda: len(seen.assignments) == 2, 30.0, "both assignments")
             assert_agreed(dict(seen.assignments), {74, 112}, len(targets))
             pairs = seen.assignments[74].pairs
             assert pairs == {74: 0, 112: 1}  # the contested target goes to the faster UAV
+            fleet.clock.set_speedup(FLIGHT_SPEEDUP)
 
             def back_on_course(uav: int) -> bool:
                 tracks = seen.tracks.get(uav, [])

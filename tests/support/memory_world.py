@@ -5,7 +5,9 @@ Zenoh session, no process).
 The ground's commands run against it as they run against a live fleet: `run(bus,
 options, out)` on a bus of the fleet's network (`MemoryFleet.bus`), or a program's
 root with `--connect memory:NAME` (`MemoryFleet.spec`). Simulated time runs `speedup`
-times faster than the wall clock, from one thread for every aircraft.
+times faster than the wall clock, from one thread for every aircraft; a test may change
+the speedup mid-run (`MemoryFleet.clock`), e.g. plan at the wall clock's pace, then fly
+the plan fast.
 """
 
 from __future__ import annotations
@@ -41,6 +43,27 @@ READY_S = 60.0
 _names = itertools.count(1)
 
 
+class SimClock:
+    """Simulated time, `speedup` times the wall clock's pace; the speedup may change
+    while it runs (the simulated time flown so far is kept)."""
+
+    def __init__(self, speedup: float) -> None:
+        self._lock = threading.Lock()
+        self._speedup = speedup
+        self._wall = time.monotonic()
+        self._ms = 0.0  #: simulated ms at `_wall`
+
+    def now_ms(self) -> int:
+        with self._lock:
+            return int(self._ms + (time.monotonic() - self._wall) * self._speedup * 1000.0)
+
+    def set_speedup(self, speedup: float) -> None:
+        with self._lock:
+            wall = time.monotonic()
+            self._ms += (wall - self._wall) * self._speedup * 1000.0
+            self._wall, self._speedup = wall, speedup
+
+
 @dataclass
 class MemoryFleet:
     """A running fleet in memory (`memory_fleet`)."""
@@ -49,6 +72,8 @@ class MemoryFleet:
     network: MemoryNetwork
     aircraft: dict[int, LinkedAutopilot]
     processes: dict[int, OnboardProcess]
+    #: The aircraft's simulated time (its speedup can be changed mid-run).
+    clock: SimClock
     #: Buses handed out by `bus`, closed when the fleet stops.
     _buses: list[Bus] = field(default_factory=list)
 
@@ -85,10 +110,9 @@ class MemoryFleet:
         wait_until(ready, timeout_s, "every UAV live with a GPS fix")
 
 
-def _fly(aircraft: list[LinkedAutopilot], speedup: float, stop: threading.Event) -> None:
-    start = time.monotonic()
+def _fly(aircraft: list[LinkedAutopilot], clock: SimClock, stop: threading.Event) -> None:
     while not stop.wait(0.002):
-        now_ms = int((time.monotonic() - start) * speedup * 1000)
+        now_ms = clock.now_ms()
         for one in aircraft:
             one.pump(now_ms)
 
@@ -152,10 +176,10 @@ def memory_fleet(
         processes[uav.piccolo_id] = OnboardProcess(
             onboard, links=(program_onboard, payload_onboard), bus=bus
         )
-    fleet = MemoryFleet(name, network, aircraft, processes)
+    fleet = MemoryFleet(name, network, aircraft, processes, SimClock(speedup))
     stop = threading.Event()
     threads = [
-        threading.Thread(target=_fly, args=(list(aircraft.values()), speedup, stop), name="sim")
+        threading.Thread(target=_fly, args=(list(aircraft.values()), fleet.clock, stop), name="sim")
     ]
     threads += [
         threading.Thread(target=process.run, name=f"onboard-{uav}")
