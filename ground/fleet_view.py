@@ -13,7 +13,7 @@ Two ways to learn it:
 
 A liveliness token carries no signature: any router on the way, or any client the
 router lets declare it, can make one up for a Piccolo ID of the roster. So in the secure
-profile (`Bus.signed`) both list a UAV only once it has spoken for itself: its state
+profile (`Bus.signed`) both show a UAV only once it has spoken for itself: its state
 answered, signed by its own key, or its streams heard (each sample is delivered only
 once the UAV's signed digest lists it, `fleet.transport.stream_auth`). A token alone
 shows no aircraft.
@@ -198,12 +198,10 @@ def _vouched(bus: Bus, ids: list[int], states: dict[int, UavState]) -> list[int]
 
 
 def live_uav_ids(bus: Bus, space: KeySpace, timeout_s: float) -> list[int]:
-    """The Piccolo IDs whose liveliness token is declared; in the secure profile, of those
-    only the UAVs whose state, signed by their own key, answers too."""
-    ids = _token_ids(bus, space, timeout_s)
-    if not bus.signed or not ids:
-        return ids
-    return _vouched(bus, ids, query_states(bus, space, timeout_s))
+    """The Piccolo IDs whose liveliness token is declared, vouched for or not: the team
+    `send-targets` picks includes a UAV frozen past its state query's timeout (it
+    fetches the mission when it resumes)."""
+    return _token_ids(bus, space, timeout_s)
 
 
 def query_states(bus: Bus, space: KeySpace, timeout_s: float) -> dict[int, UavState]:
