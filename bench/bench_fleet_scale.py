@@ -470,11 +470,18 @@ def measure(config: Config, n: int, args: argparse.Namespace, workdir: Path) -> 
 def baseline_tree(
     revision: str, workdir: Path, paths: tuple[str, ...] = ("fleet", "onboard")
 ) -> Path:
-    """`paths` of this repository at `revision`, extracted (no checkout is touched)."""
+    """`paths` of this repository at `revision`, extracted (no checkout is touched); a
+    path the revision does not have is left out (a package added or moved since)."""
     target = workdir / "baseline"
     target.mkdir()
+    listed = subprocess.run(
+        ["git", "-C", str(REPO), "ls-tree", "--name-only", revision, *paths],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout.split()
     archive = subprocess.run(
-        ["git", "-C", str(REPO), "archive", revision, *paths],
+        ["git", "-C", str(REPO), "archive", revision, *listed],
         check=True,
         capture_output=True,
     ).stdout

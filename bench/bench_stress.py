@@ -238,7 +238,9 @@ def report(result: ModeResult) -> None:
     ratios = sorted(result.ratios)
     print(f"{result.mode}: {result.cycles} cycles, {result.ready} ready or ended cleanly")
     print(f"  start failures: {len(result.start_failures)} {result.start_failures}")
-    print(f"  crashes: {len(result.crashes)} {result.crashes}")
+    # A crash may leave several marks (a signal, a dump, a core file): cycles count once.
+    crashed = len({mark.split(":")[0] for mark in result.crashes})
+    print(f"  cycles with a crash: {crashed}; what was seen: {result.crashes}")
     print(f"  SIGKILLs of fleet up: {result.kills}, orphans 10 s later: {result.orphans}, "
           f"tree gone after {gone}")  # fmt: skip
     if ratios:

@@ -101,6 +101,14 @@ def process_tree(root: int) -> dict[int, str]:
     return found
 
 
+def fleet_module(tree: Path) -> str:
+    """The `fleet` command's module in `tree`: programs/ now, ground/ in revisions
+    before the commands moved above the applications."""
+    if (tree / "programs" / "fleet_cli.py").exists():
+        return "programs.fleet_cli"
+    return "ground.fleet_cli"
+
+
 @dataclass
 class TreeRow:
     n: int
@@ -122,7 +130,7 @@ class FleetUp:
         self.ready = threading.Event()
         self.lines: list[str] = []
         env = {**os.environ, "PYTHONPATH": str(tree)}
-        argv = [sys.executable, "-m", "programs.fleet_cli", "up", "--uavs", str(n)]
+        argv = [sys.executable, "-m", fleet_module(tree), "up", "--uavs", str(n)]
         argv += ["--listen", f"tcp/127.0.0.1:{port}", "--log-dir", str(log_dir)]
         argv += ["--start-timeout", f"{timeout_s:g}"]
         # Started in the log folder: `python -m` puts the working directory first on the
@@ -306,7 +314,9 @@ def run(args: argparse.Namespace) -> None:
         work.mkdir(parents=True, exist_ok=True)
         trees = {"after": REPO}
         if "before" in args.configs:
-            trees["before"] = baseline_tree(args.baseline, work, ("fleet", "onboard", "ground"))
+            trees["before"] = baseline_tree(
+                args.baseline, work, ("fleet", "onboard", "ground", "programs")
+            )
         print(HEADER, flush=True)
         for n in args.sizes:
             for repeat in range(args.repeat):

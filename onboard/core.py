@@ -156,6 +156,7 @@ class OnboardCore:
     # ---- link events -------------------------------------------------------------------------
     def on_telemetry(self, telemetry: Telemetry, now: float) -> None:
         self.link.on_telemetry(telemetry, now)
+        self.mission.write_awaited(now)
         self.mission.on_flight(self.flight.on_telemetry(now), now)
         self.zone_watch.check(self.link.gps, self.flight.zones, self.mission.current(), now)
 
@@ -208,6 +209,12 @@ class OnboardCore:
 
     def on_alive(self, uav: int, alive: bool, now: float) -> None:
         self.mission.on_alive(uav, alive, now)
+
+    def start(self, now: float) -> None:
+        """The module started: its autopilot link is awaited from now, and it catches up
+        with a mission in progress (a late join or a restart)."""
+        self.link.started_at = now
+        self.catch_up(now)
 
     def catch_up(self, now: float, *, force: bool = False) -> None:
         self.mission.catch_up.request(now, force=force)

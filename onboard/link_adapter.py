@@ -1,6 +1,6 @@
 """The Piccolo-serial adapter's link loop: both ports serviced as bytes arrive, in a thread.
 
-The loop sleeps in `select` on both ports and on a wake-up pipe, so an idle link costs
+The loop sleeps in `epoll` on both ports and on a wake-up pipe, so an idle link costs
 nothing: it wakes when a port has bytes, when something is queued to send, when a
 dropped port's reconnection is due, or to stop (a port with no file descriptor, like an
 in-memory one, is polled every `poll_interval` instead). It only moves bytes: it reads
@@ -79,6 +79,13 @@ class LinkAdapter:
         self._wake_read, self._wake_write = os.pipe()
         os.set_blocking(self._wake_read, False)
         os.set_blocking(self._wake_write, False)
+        # epoll, not select: the descriptors are registered once (again only when a port
+        # reconnects), not handed to the kernel and hooked onto each one's wait queue at
+        # every wake-up, 20 a second with telemetry.
+        self._poller = select.epoll()
+        self._poller.register(self._wake_read, select.EPOLLIN)
+        self._watched: list[int] = []
+        self._unwatchable: list[int] = []
 
     def start(self) -> None:
         self._thread.start()
@@ -91,6 +98,7 @@ class LinkAdapter:
         self.program.close()
         self.payload.close()
         if not self._thread.is_alive() and self._wake_read >= 0:
+            self._poller.close()
             os.close(self._wake_read)
             os.close(self._wake_write)
             self._wake_read = self._wake_write = -1  # never close a reused number twice
@@ -142,26 +150,52 @@ class LinkAdapter:
     def _wait(self, now: float) -> set[int] | None:
         """Sleep until a port is readable, work is queued, a reconnection is due, or stop.
 
-        The descriptors found readable; None when every port must be read (a select
+        The descriptors found readable; None when every port must be read (a wait
         that failed: the next read says why)."""
         timeout = IDLE_WAKE
-        waiting_on = [self._wake_read]
+        watched = []
         for endpoint in (self.program, self.payload):
             fd = endpoint.fileno()
             if fd is not None:
-                waiting_on.append(fd)
+                watched.append(fd)
             elif endpoint.up:
                 timeout = min(timeout, self.poll_interval)
             else:
                 timeout = min(timeout, max(self.poll_interval, endpoint.retry_in(now)))
         try:
-            readable, _, _ = select.select(waiting_on, [], [], timeout)
+            if watched != self._watched:
+                self._watch(watched)
+            if self._unwatchable:  # read at every turn, as a port without a descriptor
+                timeout = min(timeout, self.poll_interval)
+            ready = self._poller.poll(timeout)
         except (OSError, ValueError):  # a port closed under us: the next service says why
+            self._watched = []  # registered again, from scratch, at the next wait
             return None
+        readable = {fd for fd, _ in ready}
+        readable.update(self._unwatchable)
         if self._wake_read in readable:
             with contextlib.suppress(BlockingIOError, OSError):
                 os.read(self._wake_read, 4096)
-        return set(readable)
+        return readable
+
+    def _watch(self, fds: list[int]) -> None:
+        """Register the ports' descriptors `fds` with the poller instead of the last ones.
+
+        A descriptor closed (a port dropped) has left the poller with its file; its
+        number may be in use again by the reopened port, registered anew."""
+        for fd in self._watched:
+            with contextlib.suppress(OSError, ValueError):
+                self._poller.unregister(fd)
+        self._watched = []
+        self._unwatchable = []
+        for fd in fds:
+            try:
+                self._poller.register(fd, select.EPOLLIN)
+            except FileExistsError:
+                self._poller.modify(fd, select.EPOLLIN)
+            except PermissionError:  # a regular file: epoll cannot wait on it
+                self._unwatchable.append(fd)
+            self._watched.append(fd)
 
     def _service(self, now: float, readable: set[int] | None = None) -> None:
         """Read the ports with bytes waiting (`readable`; None: all), then send what is
@@ -174,6 +208,8 @@ class LinkAdapter:
             was_up = endpoint.up
             if not endpoint.ensure_open(now):
                 continue
+            if not was_up:
+                self._watched = []  # (re)opened: its descriptor is registered anew
             if readable is not None and was_up:
                 fd = endpoint.fileno()
                 if fd is not None and fd not in readable:

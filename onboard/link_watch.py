@@ -28,6 +28,8 @@ class LinkWatch:
     #: How many times telemetry that was flowing stopped: what happened meanwhile
     #: (an arrival, say) was not seen by telemetry.
     outages: int = 0
+    #: When the module started (None: not said; no telemetry yet then counts as lost).
+    started_at: float | None = None
     _said_lost: bool = False
     wind: WindEstimate = field(default_factory=WindEstimate)
 
@@ -57,6 +59,15 @@ class LinkWatch:
     def lost(self, now: float) -> bool:
         """True while no telemetry has arrived for LINK_LOST_S (or none ever did)."""
         return self.telemetry_at is None or now - self.telemetry_at > LINK_LOST_S
+
+    def awaiting_first(self, now: float) -> bool:
+        """True while a module that just started has had no telemetry yet, for less than
+        LINK_LOST_S: its link is not known lost, only not heard yet."""
+        return (
+            self.telemetry_at is None
+            and self.started_at is not None
+            and now - self.started_at <= LINK_LOST_S
+        )
 
     def check(self, now: float) -> None:
         """Say so once when telemetry that was flowing stops."""

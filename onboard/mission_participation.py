@@ -41,7 +41,7 @@ from fleet.mission.status_kind import StatusKind
 from fleet.transport.bus_codec import DROPPED, DropReason
 from onboard.approach_plan import ApproachPlan
 from onboard.catch_up import CatchUp
-from onboard.link_watch import LinkWatch
+from onboard.link_watch import LINK_LOST_S, LinkWatch
 from onboard.mission_decision import MissionDecision
 from onboard.mission_phase import MissionPhase
 from onboard.own_result import OwnResult
@@ -86,6 +86,8 @@ class MissionParticipation:
     #: The missions aborted, the newest only: a stream of aborts cannot grow it forever.
     _aborted: RecentIds = field(default_factory=RecentIds)
     _abort: MissionAbort | None = None  #: the abort this UAV obeyed last (relayed by query)
+    #: A target committed before the first telemetry since the start: written once heard.
+    _write_awaited: bool = False
 
     def __post_init__(self) -> None:
         self.catch_up = CatchUp(self.outputs, lambda: self.round.mission if self.round else None)
@@ -257,29 +259,30 @@ class MissionParticipation:
             return
         if mission_round.committed is None:
             self._adopt(report, now)
-        elif mission_round.release(self._believed_released(mission_round, report)):
+        elif self._merge_membership(mission_round, report):
             self._replan(now)
         elif (followed := mission_round.follow(report)) is not None:
             self._apply(followed, now)
         self._settle()
 
-    def _believed_released(
-        self, mission_round: MissionRound, report: AssignmentReport
-    ) -> tuple[int, ...]:
-        """The UAVs a teammate's re-plan releases that this UAV believes gone: the
-        reporter itself, and those whose liveliness this UAV saw go. That another UAV
-        dropped out is the reporter's claim about it, a hint: this UAV asks for that UAV's
-        own outcome (failed, link lost), which releases it when it says so."""
-        believed = tuple(
-            uav for uav in report.released if uav == report.uav or uav not in self.team.alive
-        )
-        hinted = tuple(
+    def _merge_membership(self, mission_round: MissionRound, report: AssignmentReport) -> bool:
+        """Take a teammate's membership counts (fleet.consensus.membership); True if the
+        re-plan input changed.
+
+        That another UAV dropped out is the reporter's claim about it: believed for the
+        reporter itself and for UAVs whose liveliness this UAV saw go. The counts of a UAV
+        it counts out that is alive here and did not drop out by its own word (this UAV
+        itself included) are left out, a hint: this UAV asks for that UAV's own outcome
+        (failed, link lost), which releases it when it says so. The reporter counts it
+        back once it sees it alive again, and the counts meet."""
+        disputed = tuple(
             sorted(
                 uav
-                for uav in set(report.released) - set(believed) - mission_round.released
-                if uav in mission_round.team and uav != self.uav_id
+                for uav in mission_round.counted_out(report) - mission_round.released
+                if uav != report.uav and uav in self.team.alive and not self._dropped(uav)
             )
         )
+        hinted = tuple(uav for uav in disputed if uav != self.uav_id)
         if hinted:
             log.info(
                 "mission %d: UAV %d's re-plan releases %s, still alive here: asking for "
@@ -289,7 +292,20 @@ class MissionParticipation:
                 ", ".join(map(str, hinted)),
             )
             self.outputs.fetch_outcomes(mission_round.mission, hinted)
-        return believed
+        return mission_round.merge(report, disputed)
+
+    def _dropped(self, uav: int) -> bool:
+        """`uav` left the mission by its own word: its own outcome says it failed or lost
+        its link (this UAV: its part ended short)."""
+        mission_round = self.round
+        assert mission_round is not None
+        if uav == self.uav_id:
+            outcome = mission_round.outcome
+            if outcome is not None and outcome.phase != Phase.REACHED:
+                return True
+            return self.life.phase in (Phase.FAILED, Phase.PREEMPTED, Phase.ABORTED)
+        heard = mission_round.outcomes.get(uav)
+        return heard is not None and heard.phase in (Phase.FAILED, Phase.LINK_LOST)
 
     def _adopt(self, report: AssignmentReport, now: float) -> None:
         assert self.round is not None
@@ -390,8 +406,29 @@ class MissionParticipation:
         if alive:
             if self.team.came(uav):
                 self.catch_up.request(now)
+                self._rejoin(uav, now)
         elif self.team.went(uav, now, committed=self.decided()):
             self.release_gone(now)  # at once when there is no grace
+
+    def _rejoin(self, uav: int, now: float) -> None:
+        """A teammate released as lost is alive again (a partition healed, a router or
+        the teammate itself restarted): it takes part again from the next epoch."""
+        mission_round = self.round
+        if mission_round is None or mission_round.committed is None:
+            return
+        if mission_round.mission in self._aborted or uav not in mission_round.released:
+            return
+        if self._dropped(uav):
+            return  # it said it failed or lost its link: alive is not able
+        if mission_round.rejoin((uav,)):
+            self.say(
+                StatusKind.REPLANNED,
+                f"mission {mission_round.mission}: UAV {uav} is back; re-planning with it",
+                now,
+                mission=mission_round.mission,
+            )
+            self._replan(now)
+        self._settle()
 
     def release_gone(self, now: float) -> None:
         """Release the committed teammates whose liveliness stayed gone past the grace."""
@@ -512,10 +549,23 @@ class MissionParticipation:
         self.life.observe(Observation.ASSIGNED_TARGET)
         if not self.flight.enabled:
             return
+        if self.link.awaiting_first(now):
+            # Just started (a restart handed its own target again before its first
+            # telemetry): written once the autopilot is heard, which routes it from there.
+            self._write_awaited = True
+            return
         if self.link.lost(now) and report.epoch > 0:
             self._failed("handed an orphaned target while its autopilot link is lost", now)
             return
         self.flight.write_target(report.mission, now)
+
+    def write_awaited(self, now: float) -> None:
+        """The first telemetry since the start: write the target held meanwhile."""
+        if not self._write_awaited:
+            return
+        self._write_awaited = False
+        if self.life.phase == Phase.COMMITTED and self.round is not None:
+            self.flight.write_target(self.round.mission, now)
 
     def _refuse_orphan(self, report: AssignmentReport, target_index: int, now: float) -> None:
         """A re-plan handed an orphan to a UAV whose part is over (the operator took it
@@ -535,6 +585,12 @@ class MissionParticipation:
 
     def check_target(self, now: float) -> None:
         """Give up a target the autopilot cannot be made to fly: it is re-planned."""
+        if self._write_awaited and not self.link.awaiting_first(now):
+            self._write_awaited = False
+            if self.life.phase == Phase.COMMITTED:
+                why = f"handed a target and no telemetry within {LINK_LOST_S:g} s of the start"
+                self._failed(why, now, Phase.LINK_LOST)
+            return
         failure = self.flight.failure(now)
         if failure is not None:
             why, cause = failure

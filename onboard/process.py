@@ -179,6 +179,7 @@ class OnboardProcess:
         self._latest_telemetry: tuple[Telemetry, float] | None = None
         self._telemetry_lock = threading.Lock()
         self._telemetry_published_at = -math.inf
+        self._telemetry_key = self.space.telemetry(settings.uav_id)
         self.link = LinkAdapter(
             settings.uav_id,
             program,
@@ -203,7 +204,7 @@ class OnboardProcess:
         self.link.start()
         log.info("onboard module %d up", self.settings.uav_id)
         # Catch up with a mission in progress (late join or restart).
-        self.core.catch_up(time.monotonic())
+        self.core.start(time.monotonic())
         next_health = 0.0
         try:
             while not self.stop_requested.is_set():
@@ -262,7 +263,7 @@ class OnboardProcess:
         if hz and now - self._telemetry_published_at < 1.0 / hz:
             return  # the bus gets telemetry at its own rate, not the autopilot's
         self._telemetry_published_at = now
-        self.node.publish(self.space.telemetry(self.settings.uav_id), telemetry)
+        self.node.publish(self._telemetry_key, telemetry)
 
     def _take_telemetry(self) -> None:
         """Hand the module the latest telemetry, if any arrived since the last turn."""

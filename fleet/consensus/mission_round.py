@@ -34,6 +34,7 @@ import msgspec
 
 from fleet.consensus.assignment import air_bytes, results_digest
 from fleet.consensus.legs import Air, AirLegs, LegGeometry, leg_times
+from fleet.consensus.membership import Membership, membership_digest, report_counts
 from fleet.consensus.objectives import plan_digest, plan_queues
 from fleet.consensus.proposal import choose, proposal_digest, proposal_problem
 from fleet.consensus.queues import UNREACHABLE
@@ -96,6 +97,10 @@ class Settled:
     #: taken (`MissionRound.follow`). None with epoch 0: later epochs are re-planned
     #: from the released set alone.
     following: int | None
+    #: The membership counts (fleet.consensus.membership): a report whose counts are no
+    #: larger changes nothing.
+    left: tuple[tuple[int, int], ...] = ()
+    back: tuple[tuple[int, int], ...] = ()
 
     def covers(self, header: AssignmentHeader) -> bool:
         """True if the report `header` heads changes nothing for this UAV."""
@@ -107,6 +112,10 @@ class Settled:
             return False  # it may be adopted
         if self.following is not None and header.epoch > self.following:
             return False
+        if header.left or header.back:
+            left, back = report_counts(header.released, header.left, header.back)
+            view = Membership(self.team, dict(self.left), dict(self.back))
+            return view.covers(left, back)
         released = header.released
         return not released or all(uav in self.done or uav not in self.team for uav in released)
 
@@ -134,8 +143,9 @@ class MissionRound:
     #: re-plan without knowing epoch 0, or epoch 0 without the own result it was
     #: computed from (a restart): it then follows its teammates' epochs.
     base: AssignmentReport | None = None
-    #: Team UAVs that dropped out of the mission after the commitment (only grows).
-    released: set[int] = field(default_factory=set)
+    #: Who is out of the mission after the commitment, as counts that only grow: a UAV
+    #: that comes back is in again (fleet.consensus.membership).
+    membership: Membership = field(init=False, repr=False, compare=False)
     #: Team UAVs that reached every target of their queue. Released like any other when
     #: they go (liveliness), so that a later epoch never hands them an orphan.
     reached: set[int] = field(default_factory=set)
@@ -159,6 +169,12 @@ class MissionRound:
 
     def __post_init__(self) -> None:
         self.team = team_set(self.targets.team)
+        self.membership = Membership(self.team)
+
+    @property
+    def released(self) -> set[int]:
+        """Team UAVs out of the mission now (dropped out, and not back since)."""
+        return set(self.membership.out())
 
     @functools.cached_property
     def legs(self) -> list[list[float]]:
@@ -247,6 +263,8 @@ class MissionRound:
             aborted=aborted,
             team=self.team,
             done=frozenset(self.released),
+            left=tuple(sorted(self.membership.left.items())),
+            back=tuple(sorted(self.membership.back.items())),
             following=committed.epoch if committed is not None and self.base is None else None,
         )
 
@@ -408,6 +426,8 @@ class MissionRound:
         digest: str,
         epoch: int = 0,
         released: tuple[int, ...] = (),
+        left: dict[int, int] | None = None,
+        back: dict[int, int] | None = None,
     ) -> AssignmentReport:
         """This UAV's report of a plan; its ETA is its first target's arrival."""
         own = arrivals.get(self.own_id, ())
@@ -426,6 +446,8 @@ class MissionRound:
             arrivals=dict(sorted(arrivals.items())),
             objective=self.targets.objective,
             unserved=dict(sorted(unserved.items())),
+            left=left or {},
+            back=back or {},
         )
 
     def thinner(self, report: AssignmentReport, alive: set[int], now: float) -> set[int]:
@@ -466,7 +488,7 @@ class MissionRound:
         # epochs instead of waiting for them forever.
         if report.epoch == 0 and (self.own_id in self.results or self.own_id not in report.team):
             self.base = self.committed
-        self.released |= set(report.released)
+        self.membership.merge(*report_counts(report.released, report.left, report.back))
         return self.committed
 
     def follow(self, report: AssignmentReport) -> AssignmentReport | None:
@@ -475,7 +497,7 @@ class MissionRound:
             return None
         if report.epoch <= self.committed.epoch:
             return None
-        self.released |= set(report.released)
+        self.membership.merge(*report_counts(report.released, report.left, report.back))
         self.committed = self._own_copy(report)
         return self.committed
 
@@ -495,11 +517,33 @@ class MissionRound:
         """Mark team UAVs as out of the mission; True if that changes the re-plan input."""
         # A UAV done with its queue is released too when it goes: it holds nothing a
         # later epoch may hand it, and every teammate releases it alike (liveliness).
-        new = {uav for uav in uavs if uav in self.team} - self.released
-        self.released |= new
+        new = self.membership.leave(uavs)
         if self.base is None:
             return False
         return bool(new & set(self.base.team))
+
+    def rejoin(self, uavs: Iterable[int]) -> bool:
+        """Team UAVs out of the mission came back (alive again): in again from the next
+        epoch. True if that changes the re-plan input."""
+        back = self.membership.come_back(uavs)
+        if self.base is None:
+            return False
+        return bool(back & set(self.base.team))
+
+    def counted_out(self, report: AssignmentReport) -> set[int]:
+        """The team UAVs a teammate's report counts out of the mission."""
+        left, back = report_counts(report.released, report.left, report.back)
+        return {uav for uav, n in left.items() if n > back.get(uav, 0) and uav in self.team}
+
+    def merge(self, report: AssignmentReport, disputed: Iterable[int] = ()) -> bool:
+        """Take a teammate's membership counts (the larger of each), but none about the
+        `disputed` UAVs; True if that changes the re-plan input."""
+        left, back = report_counts(report.released, report.left, report.back)
+        for uav in disputed:
+            left.pop(uav, None)
+            back.pop(uav, None)
+        changed = self.membership.merge(left, back)
+        return changed and self.base is not None
 
     def replan_missing(self) -> tuple[int, ...]:
         """Candidates whose results a re-plan needs and this UAV lacks."""
@@ -514,6 +558,11 @@ class MissionRound:
             return None
         plan = replan(self.base, self._times(), self.released, self.air_legs(self.base.team))
         heads = plan.pairs
+        membership = self.membership
+        epoch, digest = plan.epoch, plan.digest
+        if membership.back:  # somebody came back: the counts, not the set, name the epoch
+            epoch = membership.epoch
+            digest = membership_digest(self.base.digest, membership.left, membership.back)
         self.committed = self._report(
             target=heads.get(self.own_id),
             pairs=heads,
@@ -521,9 +570,13 @@ class MissionRound:
             arrivals={uav: a for uav, a in plan.plan.arrivals.items() if a},
             unserved=plan.unserved,
             team=self.base.team,
-            digest=plan.digest,
-            epoch=plan.epoch,
+            digest=digest,
+            epoch=epoch,
             released=plan.released,
+            # Counts only once somebody came back: until then each is 1, and `released`
+            # says the same (fleet.consensus.membership.report_counts).
+            left=dict(sorted(membership.left.items())) if membership.back else {},
+            back=dict(sorted(membership.back.items())),
         )
         self._update_reached()
         return self.committed

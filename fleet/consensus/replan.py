@@ -6,8 +6,9 @@ mission (its liveliness token went away, it could not fly its target, its autopi
 link was lost) leaves its queue orphaned: the target it was flying and every one after
 it. Every UAV still in the mission runs the same rule, with no coordinator:
 
-* the **released** set is every team UAV known to have dropped out; it only grows, and
-  UAVs merge the sets their teammates publish, so they converge on the same set;
+* the **released** set is every team UAV out of the mission now, kept as counts that
+  only grow (`fleet.consensus.membership`: a UAV that comes back is in again), which
+  UAVs merge from their teammates' reports, so they converge on the same set;
 * the plan of epoch ``len(released)`` is a function of the epoch-0 plan, the epoch-0
   results and the released set alone: the queues of released UAVs are *orphaned*; every
   survivor keeps its own epoch-0 queue, and the orphans are appended, one at a time, to

@@ -37,6 +37,10 @@ PiccoloId = Annotated[int, Meta(ge=0x0001, le=0xFFF0)]
 #: A target's index in its mission.
 TargetIndex = Annotated[int, Meta(ge=0, le=MAX_TARGETS - 1)]
 Team = Annotated[tuple[PiccoloId, ...], Meta(max_length=MAX_TEAM)]
+#: How many times one UAV left a mission, or came back (fleet.consensus.membership).
+MembershipCount = Annotated[int, Meta(ge=0, le=0xFFFF)]
+#: An epoch is the sum of every team UAV's two counts.
+MAX_EPOCH = 2 * MAX_TEAM * 0xFFFF
 #: One UAV's ordered targets.
 Queue = Annotated[tuple[TargetIndex, ...], Meta(max_length=MAX_TARGETS)]
 Arrivals = Annotated[tuple[float, ...], Meta(max_length=MAX_TARGETS)]
@@ -199,9 +203,10 @@ class AssignmentReport(msgspec.Struct, frozen=True):
     team: Team  #: the UAVs whose results were used
     digest: str
     eta_s: float | None = None
-    #: 0 for the consensus; after a re-plan (fleet.consensus.replan), the number of team
-    #: UAVs released from the mission, listed in `released`.
-    epoch: Annotated[int, Meta(ge=0, le=MAX_TEAM)] = 0
+    #: 0 for the consensus; after a re-plan (fleet.consensus.replan), the sum of the
+    #: membership counts (`left`, `back`): the number of team UAVs released, listed in
+    #: `released`, while none came back.
+    epoch: Annotated[int, Meta(ge=0, le=MAX_EPOCH)] = 0
     released: Team = ()
     #: Each UAV's ordered queue of targets (fleet.consensus.queues), keyed by Piccolo ID;
     #: `pairs` holds each queue's first. Empty from a UAV that does not say.
@@ -212,6 +217,10 @@ class AssignmentReport(msgspec.Struct, frozen=True):
     objective: Objective = Objective.GREEDY
     #: Why each target in `unassigned` is served by none.
     unserved: Annotated[dict[TargetIndex, str], Meta(max_length=MAX_TARGETS)] = {}
+    #: How many times each UAV was counted out of the mission, and back in
+    #: (fleet.consensus.membership); empty while nobody came back.
+    left: Annotated[dict[PiccoloId, MembershipCount], Meta(max_length=MAX_TEAM)] = {}
+    back: Annotated[dict[PiccoloId, MembershipCount], Meta(max_length=MAX_TEAM)] = {}
 
 
 class PlanProposal(msgspec.Struct, frozen=True):
@@ -243,8 +252,10 @@ class AssignmentHeader(msgspec.Struct, frozen=True):
 
     mission: MissionId
     uav: PiccoloId
-    epoch: Annotated[int, Meta(ge=0, le=MAX_TEAM)] = 0
+    epoch: Annotated[int, Meta(ge=0, le=MAX_EPOCH)] = 0
     released: Team = ()
+    left: Annotated[dict[PiccoloId, MembershipCount], Meta(max_length=MAX_TEAM)] = {}
+    back: Annotated[dict[PiccoloId, MembershipCount], Meta(max_length=MAX_TEAM)] = {}
 
 
 class TargetOutcome(msgspec.Struct, frozen=True):

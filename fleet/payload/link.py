@@ -92,10 +92,8 @@ class PiccoloLink:
                 packet.acknowledge,
             )
             if packet.stream == STREAM_AUTOPILOT:
-                events.extend(
-                    AutopilotEvent(header, decode_autopilot_message(autopilot))
-                    for autopilot in self.autopilot_decoder.feed(packet.data)
-                )
+                for autopilot in self.autopilot_decoder.feed(packet.data):
+                    events.append(AutopilotEvent(header, decode_autopilot_message(autopilot)))
             elif packet.stream == STREAM_PAYLOAD:
                 events.extend(
                     PlanningEvent(header, envelope)

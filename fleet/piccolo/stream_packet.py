@@ -62,12 +62,7 @@ def _xor(data: bytes | bytearray) -> int:
     return checksum
 
 
-def encode_stream_packet(packet: StreamPacket) -> bytes:
-    """Encode one stream packet; its data must fit in 255 bytes."""
-    if len(packet.data) > MAX_DATA:
-        raise StreamPacketError(
-            f"stream packet data is {len(packet.data)} bytes; at most {MAX_DATA} fit"
-        )
+def _refuse_fields(packet: StreamPacket) -> None:
     for name in ("destination", "source", "sequence", "acknowledge"):
         value = getattr(packet, name)
         if not 0 <= value <= 0xFFFF:
@@ -76,6 +71,23 @@ def encode_stream_packet(packet: StreamPacket) -> bytes:
         value = getattr(packet, name)
         if not 0 <= value <= 0xFF:
             raise StreamPacketError(f"{name} {value} does not fit in 8 bits")
+
+
+def encode_stream_packet(packet: StreamPacket) -> bytes:
+    """Encode one stream packet; its data must fit in 255 bytes."""
+    if len(packet.data) > MAX_DATA:
+        raise StreamPacketError(
+            f"stream packet data is {len(packet.data)} bytes; at most {MAX_DATA} fit"
+        )
+    if not (
+        0 <= packet.destination <= 0xFFFF
+        and 0 <= packet.source <= 0xFFFF
+        and 0 <= packet.sequence <= 0xFFFF
+        and 0 <= packet.acknowledge <= 0xFFFF
+        and 0 <= packet.stream <= 0xFF
+        and 0 <= packet.flags <= 0xFF
+    ):
+        _refuse_fields(packet)  # which field, said by name (the simulator's hot path)
     head = _HEADER.pack(
         SYNC,
         packet.destination,

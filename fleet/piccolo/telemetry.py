@@ -116,10 +116,6 @@ class Telemetry(msgspec.Struct, frozen=True, tag="telemetry"):
     tail: bytes = b""
 
 
-def _angle(raw: int) -> float:
-    return math.degrees(raw * 1e-4)
-
-
 def _angle_raw(degrees: float) -> int:
     return round(math.radians(degrees) * 1e4)
 
@@ -165,7 +161,7 @@ def _decode(data: bytes) -> Telemetry:
         offset += _AGL.size
         agl = agl_cm / 100
     count = flags & ACTUATOR_COUNT_MASK
-    actuators = struct.unpack_from(f">{count}H", data, offset)
+    actuators = struct.unpack_from(f">{count}H", data, offset) if count else ()
     offset += 2 * count
     if flags & FLAG_FUEL:
         (fuel,) = _FUEL.unpack_from(data, offset)
@@ -177,7 +173,7 @@ def _decode(data: bytes) -> Telemetry:
         raw=raw,
         magnetometer=magnetometer,
         agl=agl,
-        actuators=tuple(actuators),
+        actuators=actuators,
         fuel=fuel,
         limit_flags=limit_flags,
         tail=bytes(data[offset:]),
@@ -207,10 +203,11 @@ def _decode_sensor(data: bytes, offset: int) -> SensorBlock:
     roll, pitch, yaw, baro, ws, ww, rpm_l, rpm_r, density, oat, ias, static = _SENSOR.unpack_from(
         data, offset
     )
+    degrees = math.degrees  # a local: every telemetry packet decodes six angles
     return SensorBlock(
-        roll=_angle(roll),
-        pitch=_angle(pitch),
-        yaw=_angle(yaw),
+        roll=degrees(roll * 1e-4),
+        pitch=degrees(pitch * 1e-4),
+        yaw=degrees(yaw * 1e-4),
         indicated_airspeed=(ias - IAS_OFFSET) / 100,
         wind_south=ws / 100,
         wind_west=ww / 100,
@@ -225,10 +222,11 @@ def _decode_sensor(data: bytes, offset: int) -> SensorBlock:
 
 def _decode_raw(data: bytes, offset: int) -> RawBlock:
     p, q, r, ax, ay, az = _RAW.unpack_from(data, offset)
+    degrees = math.degrees
     return RawBlock(
-        p=_angle(p),
-        q=_angle(q),
-        r=_angle(r),
+        p=degrees(p * 1e-4),
+        q=degrees(q * 1e-4),
+        r=degrees(r * 1e-4),
         accel_x=ax * ACCEL_PER_COUNT,
         accel_y=ay * ACCEL_PER_COUNT,
         accel_z=az * ACCEL_PER_COUNT,
@@ -267,7 +265,8 @@ def _encode(message: Telemetry) -> bytes:
     if message.agl is not None:
         flags |= FLAG_AGL
         parts.append(_AGL.pack(round(message.agl * 100)))
-    parts.append(struct.pack(f">{len(message.actuators)}H", *message.actuators))
+    if message.actuators:
+        parts.append(struct.pack(f">{len(message.actuators)}H", *message.actuators))
     if message.fuel is not None:
         flags |= FLAG_FUEL
         parts.append(_FUEL.pack(message.fuel))
@@ -294,9 +293,10 @@ def _encode_gps(gps: GpsBlock) -> bytes:
 
 
 def _encode_sensor(sensor: SensorBlock) -> bytes:
+    radians = math.radians  # `_angle_raw` inline: the simulator encodes 20 a second per UAV
     return _SENSOR.pack(
-        _angle_raw(sensor.roll),
-        _angle_raw(sensor.pitch),
+        round(radians(sensor.roll) * 1e4),
+        round(radians(sensor.pitch) * 1e4),
         _heading_raw(sensor.yaw),
         sensor.baro_altitude_raw,
         round(sensor.wind_south * 100),
@@ -311,10 +311,11 @@ def _encode_sensor(sensor: SensorBlock) -> bytes:
 
 
 def _encode_raw(raw: RawBlock) -> bytes:
+    radians = math.radians
     return _RAW.pack(
-        _angle_raw(raw.p),
-        _angle_raw(raw.q),
-        _angle_raw(raw.r),
+        round(radians(raw.p) * 1e4),
+        round(radians(raw.q) * 1e4),
+        round(radians(raw.r) * 1e4),
         round(raw.accel_x / ACCEL_PER_COUNT),
         round(raw.accel_y / ACCEL_PER_COUNT),
         round(raw.accel_z / ACCEL_PER_COUNT),

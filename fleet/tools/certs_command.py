@@ -95,7 +95,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     revoke = actions.add_parser(
         "revoke",
         help="withdraw identities (a lost aircraft): the new roster is put to the running "
-        "fleet (as DIR/ground.json5), whose processes refuse their messages at once",
+        "fleet (as DIR/ground.json5), whose processes refuse their messages at once and "
+        "whose routers close their sessions",
     )
     revoke.add_argument("directory", type=Path, metavar="DIR")
     revoke.add_argument("names", nargs="+", metavar="NAME", help="identities, e.g. uav-74")

@@ -159,10 +159,10 @@ class Queryable(ABC):
 
     def try_recv(self) -> BusQuery | None:
         """The next waiting query, or None."""
-        try:
-            return self._waiting.popleft()
-        except IndexError:
-            return None
+        # Polled several times each turn of an onboard's loop, nearly always empty: a
+        # length test, not a raised IndexError. Only the owner's loop pops.
+        waiting = self._waiting
+        return waiting.popleft() if waiting else None
 
     @abstractmethod
     def undeclare(self) -> None: ...

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -15,8 +16,9 @@ from fleet.mission.messages import Target
 from fleet.mission.phase import Phase
 from onboard.core import LINK_LOST_S, TARGET_WAYPOINT
 from tests.conftest import Ground
-from tests.ground.test_truth import finish, ground_cli, targets_file
+from tests.ground.test_truth import targets_file
 from tests.onboard.test_multi_uav import start_ring, wait_for_telemetry
+from tests.support.ground_cli import finish_ground_cli, start_ground_cli
 from tests.support.processes import Fleet
 from tests.support.targets import ring_targets
 from tests.support.tcp_proxy import cuttable_proxy
@@ -35,8 +37,10 @@ def commit_ring(
     team = start_ring(fleet, ground, tmp_path, count, SPEEDUP, telemetry_hz=5.0)
     seen = ground.seen
     path = targets_file(tmp_path, ring_targets(n_targets, seed=7))
-    send = ground_cli(ground.router, "send-targets", str(path), "--team", ",".join(map(str, team)))
-    assert finish(send, 60)[0] == 0
+    send = start_ground_cli(
+        "send-targets", str(path), "--team", ",".join(map(str, team)), connect=ground.router
+    )
+    assert finish_ground_cli(send, 60)[0] == 0
     wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "every commitment")
     pairs = seen.assignments[team[0]].pairs
     return team, {int(uav): target for uav, target in pairs.items()}
@@ -74,8 +78,10 @@ def test_the_idle_uav_flies_and_reaches_the_target_of_a_holder_killed_after_comm
     assert [r.epoch for r in seen.replans[idle]] == [1]
     assert seen.replans[survivor][0].digest == replanned.digest
 
-    status, out, err = finish(
-        ground_cli(ground.router, "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json"),
+    status, out, err = finish_ground_cli(
+        start_ground_cli(
+            "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json", connect=ground.router
+        ),
         REACH_TIMEOUT_S + 60,
     )
     report = json.loads(out)
@@ -113,8 +119,10 @@ def test_two_holders_killed_at_once_their_targets_go_to_the_two_idle_uavs(
     assert sorted(first.pairs.values()) == sorted(holders.values())  # both orphans flown
     assert {int(uav) for uav in first.pairs} == set(idle)  # one each
 
-    status, out, err = finish(
-        ground_cli(ground.router, "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json"),
+    status, out, err = finish_ground_cli(
+        start_ground_cli(
+            "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json", connect=ground.router
+        ),
         REACH_TIMEOUT_S + 60,
     )
     report = json.loads(out)
@@ -159,10 +167,14 @@ def test_a_holder_whose_autopilot_link_is_cut_is_released_and_its_teammate_reach
         wait_for_telemetry(ground, team)
         targets = ring_targets(1, seed=7)
         path = targets_file(tmp_path, targets)
-        send = ground_cli(
-            ground.router, "send-targets", str(path), "--team", ",".join(map(str, team))
+        send = start_ground_cli(
+            "send-targets",
+            str(path),
+            "--team",
+            ",".join(map(str, team)),
+            connect=ground.router,
         )
-        assert finish(send, 60)[0] == 0
+        assert finish_ground_cli(send, 60)[0] == 0
         wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "both commitments")
         (holder,) = (int(uav) for uav in seen.assignments[team[0]].pairs)
         (idle,) = set(team) - {holder}
@@ -202,7 +214,7 @@ def test_a_holder_whose_autopilot_link_is_cut_is_released_and_its_teammate_reach
     assert seen.closest_approach(idle, targets[0].lat, targets[0].lon) <= 75.0
 
 
-def test_a_holder_restarted_after_the_re_plan_adopts_the_latest_epoch_and_leaves_the_target(
+def test_a_holder_restarted_after_the_re_plan_follows_its_teammates_and_rejoins(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
     holders, idle, victim = commit_ring_of_three(fleet, ground, tmp_path)
@@ -216,19 +228,19 @@ def test_a_holder_restarted_after_the_re_plan_adopts_the_latest_epoch_and_leaves
     assert replanned.target == holders[victim]
 
     fleet.restart(child)  # the same aircraft, restarted
-    wait_until(lambda: seen.assignments[victim].epoch == 1, 30.0, "the restarted UAV at epoch 1")
-    mine = seen.assignments[victim]
-    assert (mine.digest, mine.pairs, mine.target) == (replanned.digest, replanned.pairs, None)
-    # Its autopilot was left flying the target its teammate holds now: it leaves it.
+    # Back alive, it is counted back in (fleet.consensus.membership): it follows the
+    # epoch its teammates publish with it in the plan, its own target again.
     wait_until(
-        lambda: seen.latest_track(victim) not in (None, TARGET_WAYPOINT),
-        30.0,
-        "the restarted UAV off the target route",
+        lambda: (
+            seen.assignments[victim].epoch >= 2
+            and seen.assignments[victim].digest == seen.assignments[idle].digest
+            and victim not in seen.assignments[victim].released
+        ),
+        60.0,
+        "the restarted UAV back in the plan",
     )
-    assert any("no longer holds" in s for s in seen.statuses(victim)), seen.tracks[victim]
-    # Turned back on its way, not by arriving: it never came within reach of that target.
-    orphan = ring_targets(2, seed=7)[holders[victim]]
-    assert seen.closest_approach(victim, orphan.lat, orphan.lon) > 75.0
+    mine = seen.assignments[victim]
+    assert mine.target == holders[victim] and mine.back == {victim: 1}
 
 
 #: Three UAVs on the ring (101 at (0, 1500) flying west, 102 and 103 120 and 240 degrees
@@ -248,8 +260,10 @@ def test_a_finished_uav_killed_then_a_holder_killed_every_orphan_is_flown_by_a_l
     plane = MercatorProjection(*GENERATED_CENTRE)
     targets = tuple(Target(*plane.to_latlon(x, y), 600.0) for x, y in FINISHER_TARGETS)
     path = targets_file(tmp_path, targets)
-    send = ground_cli(ground.router, "send-targets", str(path), "--team", ",".join(map(str, team)))
-    assert finish(send, 60)[0] == 0
+    send = start_ground_cli(
+        "send-targets", str(path), "--team", ",".join(map(str, team)), connect=ground.router
+    )
+    assert finish_ground_cli(send, 60)[0] == 0
     wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "every commitment")
     holders = {int(uav): target for uav, target in seen.assignments[team[0]].pairs.items()}
     assert holders == {101: 0, 102: 2, 103: 1}, holders
@@ -273,8 +287,10 @@ def test_a_finished_uav_killed_then_a_holder_killed_every_orphan_is_flown_by_a_l
     assert finisher not in replanned.queues  # the dead UAV holds nothing
     assert 1 in replanned.queues[survivor]  # the live UAV flies the orphan
 
-    status, out, err = finish(
-        ground_cli(ground.router, "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json"),
+    status, out, err = finish_ground_cli(
+        start_ground_cli(
+            "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json", connect=ground.router
+        ),
         REACH_TIMEOUT_S + 60,
     )
     report = json.loads(out)
@@ -284,3 +300,55 @@ def test_a_finished_uav_killed_then_a_holder_killed_every_orphan_is_flown_by_a_l
     assert states[2]["state"] == "reached", err
     assert status == 0, err
     assert seen.closest_approach(survivor, targets[1].lat, targets[1].lon) <= 75.0
+
+
+#: How long the killed onboard stays down before it is started again (wall seconds):
+#: well past the liveliness grace, so that its teammates released it.
+RESTART_AFTER_S = 10.0
+
+
+def test_an_onboard_restarted_after_10_s_rejoins_at_the_next_epoch_and_flies(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> None:
+    holders, idle, victim = commit_ring_of_three(fleet, ground, tmp_path)
+    seen = ground.seen
+    orphan = holders[victim]
+    wait_until(lambda: seen.latest_track(victim) == TARGET_WAYPOINT, 30.0, "the victim flying")
+    child = fleet.onboard_child(victim)
+    child.process.kill()
+    child.process.wait(10)
+    killed = time.monotonic()
+    wait_until(lambda: seen.assignments[idle].epoch == 1, 30.0, "the re-plan without it")
+    assert seen.assignments[idle].target == orphan
+    wait_until(lambda: time.monotonic() - killed >= RESTART_AFTER_S, 30.0, "10 s down")
+    fleet.restart(child)  # the same aircraft's onboard, back after 10 s
+
+    def rejoined() -> bool:
+        mine = seen.assignments.get(victim)
+        theirs = seen.assignments[idle]
+        return (
+            theirs.epoch >= 2
+            and victim not in theirs.released
+            and mine is not None
+            and mine.epoch == theirs.epoch
+            and mine.digest == theirs.digest
+        )
+
+    wait_until(rejoined, 60.0, "the restarted UAV back in the plan at epoch 2")
+    plan = seen.assignments[victim]
+    assert plan.back == {victim: 1} and plan.left == {victim: 1}
+    assert plan.queues.get(victim) == (orphan,)  # its own queue again
+    assert seen.assignments[idle].target is None  # the orphan handed back
+    status, out, err = finish_ground_cli(
+        start_ground_cli(
+            "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json", connect=ground.router
+        ),
+        REACH_TIMEOUT_S + 60,
+    )
+    report = json.loads(out)
+    states = {s["index"]: s for s in report["target_states"]}
+    assert (states[orphan]["state"], states[orphan]["uav"]) == ("reached", victim), err
+    assert {s["state"] for s in report["target_states"]} == {"reached"}, err
+    assert status == 0, err
+    target = ring_targets(2, seed=7)[orphan]
+    assert seen.closest_approach(victim, target.lat, target.lon) <= 75.0

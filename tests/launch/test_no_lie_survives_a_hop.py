@@ -28,7 +28,6 @@ import zenoh
 
 from fleet.files.certs import IdentityFiles, tls_settings
 from fleet.geo.aircraft import AircraftLimits
-from fleet.launch.endpoints import free_port
 from fleet.mission.messages import (
     RouterState,
     StatusText,
@@ -41,8 +40,10 @@ from fleet.mission.target_checks import REACHED_RADIUS_M
 from fleet.mission.targets_file import decode_targets
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from fleet.transport.bus_codec import ENCODING, encode
+from fleet.transport.router import bound_endpoints
 from fleet.transport.zenoh_config import make_config
 from tests.support import signed
+from tests.support.ground_cli import ground_cli
 from tests.support.secure_fleet import SPACE, TARGETS_FILE, SignedFleet, signed_fleet
 from tests.support.waiting import wait_until
 
@@ -290,13 +291,13 @@ def test_a_rogue_router_cannot_invent_an_aircraft_a_position_or_a_status(
     299 is in the roster, so the token is of a fleet identity, but the rogue has no
     key of 299's). `ground-cli watch` shows the real 74 and 112, where they are, and none
     of it; `ground-cli uavs` lists 74 and 112 only."""
-    rogue_endpoint = f"tls/127.0.0.1:{free_port()}"
-    config = make_config("router", [secure.endpoint], [rogue_endpoint])
+    config = make_config("router", [secure.endpoint], ["tls/127.0.0.1:0"])
     tls = tls_settings(IdentityFiles(secure.certs, "router-74"))
     config.insert_json5("transport/link/tls", json.dumps(tls))
     nowhere = Telemetry(1000, gps=GpsBlock(10.0, 10.0, 600.0, 0.0, 0.0, 0.0))
     fire = StatusText("engine fire", StatusKind.ERROR)
     with zenoh.open(config) as rogue:
+        (rogue_endpoint,) = bound_endpoints(rogue, ["tls/127.0.0.1:0"])
         token = rogue.liveliness().declare_token(SPACE.alive(299))
         stop = threading.Event()
 
@@ -309,17 +310,13 @@ def test_a_rogue_router_cannot_invent_an_aircraft_a_position_or_a_status(
         injector = threading.Thread(target=inject, daemon=True)
         injector.start()
         try:
-            shown = subprocess.run(
-                [sys.executable, "-m", "ground.cli", "--zenoh-config",
-                 str(secure.certs / "ground.json5"), "--connect", rogue_endpoint,
-                 "watch", "--duration", "6"],
-                capture_output=True, text=True, timeout=120, check=False,
+            shown = ground_cli(
+                "--zenoh-config", str(secure.certs / "ground.json5"), "watch", "--duration", "6",
+                connect=rogue_endpoint, timeout=120,
             )  # fmt: skip
-            listed = subprocess.run(
-                [sys.executable, "-m", "ground.cli", "--zenoh-config",
-                 str(secure.certs / "ground.json5"), "--connect", rogue_endpoint,
-                 "uavs", "--json"],
-                capture_output=True, text=True, timeout=120, check=False,
+            listed = ground_cli(
+                "--zenoh-config", str(secure.certs / "ground.json5"), "uavs", "--json",
+                connect=rogue_endpoint, timeout=120,
             )  # fmt: skip
         finally:
             stop.set()

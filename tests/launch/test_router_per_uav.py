@@ -22,12 +22,16 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import zenoh
 
 from fleet.files.certs import write_identities
-from fleet.launch.endpoints import free_port
 from fleet.launch.topology import fallbacks, ring_links
+from fleet.mission.key_space import KeySpace
+from fleet.transport.zenoh_config import build_config
 from tests.support.ground_cli import ground_cli
 from tests.support.processes import Child, start, wait_fleet_up
+from tests.support.telemetry_times import TelemetryTimes
+from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
 
@@ -54,25 +58,24 @@ def pids(log_dir: Path) -> dict[str, int]:
 @pytest.fixture(params=["open", "secure"])
 def mesh(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Mesh]:
     proto = "tls" if request.param == "secure" else "tcp"
-    ground = f"{proto}/127.0.0.1:{free_port()}"
+    listen = f"{proto}/127.0.0.1:0"  # the banner says which port
     secure: list[str] = []
     identity: list[str] = []
     if request.param == "secure":
         names = ["router", "ground", "uav-74", "uav-112", "router-74", "router-112"]
-        write_identities(tmp_path / "certs", names, [ground])
+        write_identities(tmp_path / "certs", names, [listen])
         secure = ["--secure", str(tmp_path / "certs")]
         identity = ["--zenoh-config", str(tmp_path / "certs" / "ground.json5")]
     up = start(
         "fleet up --topology router-per-uav",
         [sys.executable, "-m", "programs.fleet_cli", "up", "head_on", "--topology",
-         "router-per-uav", "--listen", ground, "--speedup", "5", "--log-dir", str(tmp_path),
+         "router-per-uav", "--listen", listen, "--speedup", "5", "--log-dir", str(tmp_path),
          *secure],
     )  # fmt: skip
     try:
-        line = up.wait_for_line(lambda line: "UAV routers:" in line, 90.0)
-        uav_routers = re.findall(rf"{proto}/127\.0\.0\.1:\d+", line)
-        wait_fleet_up(up, 10.0)
-        yield Mesh(up, ground, uav_routers, identity)
+        banner = wait_fleet_up(up, 90.0)
+        assert banner.connect.startswith(f"{proto}/127.0.0.1:"), banner
+        yield Mesh(up, banner.connect, list(banner.uav_routers.values()), identity)
     finally:
         up.process.send_signal(signal.SIGTERM)
         assert up.process.wait(30) == 0, "\n".join(up.history[-30:])
@@ -112,6 +115,46 @@ def test_the_uavs_agree_and_fly_without_the_ground_router(mesh: Mesh, tmp_path: 
     assert again.returncode == 0, again.stderr
     outcome = json.loads(again.stdout)
     assert outcome["mission"] == mission + 1 and outcome["agreed"] is True
+
+
+@pytest.mark.parametrize("mesh", ["secure"], indirect=True)
+def test_a_revoked_uav_is_cut_off_by_every_router_of_the_mesh(mesh: Mesh, tmp_path: Path) -> None:
+    """`fleet certs revoke` through the ground's router: UAV 74's own router closes its
+    onboard's session and its reconnections, the other routers hear the revocation too;
+    UAV 112 flies on and keeps reporting."""
+    certs = tmp_path / "certs"
+    config = build_config(config_file=str(certs / "ground.json5"), connect=[mesh.ground])
+    with zenoh.open(config) as ground:
+        telemetry = TelemetryTimes(ground, KeySpace())
+        wait_until(lambda: telemetry.since(74, 0.0) and telemetry.since(112, 0.0), 60.0,
+                   "both UAVs' telemetry")  # fmt: skip
+        revoked = subprocess.run(
+            [sys.executable, "-m", "programs.fleet_cli", "certs", "revoke", str(certs),
+             "uav-74", "--connect", mesh.ground],
+            capture_output=True, text=True, timeout=TIMEOUT_S, check=False,
+        )  # fmt: skip
+        assert revoked.returncode == 0, revoked.stderr[-3000:]
+        since = time.monotonic()
+        wait_until(lambda: telemetry.stopped(74, 112, since, 20), 60.0,
+                   "74's telemetry to stop while 112's flows")  # fmt: skip
+        stopped_at = telemetry.last(74)
+
+        def closed_by_74s_router() -> int:
+            shown = mesh.ground_cli("routers", via=[mesh.ground])
+            counted = re.search(r"router router-74 \(\w+\): refused links: .*revoked=(\d+)",
+                                shown.stdout)  # fmt: skip
+            return int(counted[1]) if counted else 0
+
+        # 74's onboard dials its own router again (first of its fallbacks), which holds
+        # that link, then closes it: the session and a reconnection, at least.
+        wait_until(lambda: closed_by_74s_router() >= 2, 60.0, "router-74 refusing 74 again")
+        for router in ("router-ground", "router-112"):  # they heard it too, should 74 fall back
+            log = (tmp_path / f"{router}.log").read_text()
+            assert "revoked from now on (a roster heard on fleet/roster): uav-74" in log, router
+        mark = time.monotonic()
+        wait_until(lambda: telemetry.since(112, mark) >= 20, 30.0, "112's telemetry")
+        assert telemetry.last(74) == stopped_at, "74's telemetry came back"
+        telemetry.undeclare()
 
 
 def test_the_mesh_is_sparse() -> None:

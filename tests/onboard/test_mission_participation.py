@@ -28,6 +28,7 @@ from tests.onboard.core_harness import (
     TARGETS,
     TWO_TARGETS,
     Recorder,
+    ScriptedPlanner,
     commit_four_uav_team,
     commit_three_uav_team,
     fly_target_1,
@@ -417,3 +418,82 @@ def test_the_legs_are_computed_when_the_mission_arrives_not_at_the_decision() ->
     core, _ = uav_200_given_two_targets(5)
     assert core.round is not None
     assert "legs" in vars(core.round)  # functools.cached_property: already computed
+
+
+def test_a_teammate_lost_then_back_rejoins_at_the_next_epoch_and_takes_its_queue_again() -> None:
+    core, out = make_core(200, (30.0, 35.0))
+    commit_three_uav_team(core)
+    core.on_telemetry(sample_telemetry(), 1.0)
+    core.on_alive(112, False, 1.0)
+    core.tick(1.0 + LIVELINESS_GRACE_S)  # gone past the grace: released
+    report = out.on(SPACE.mission_assignment(3, 200))[-1]
+    assert isinstance(report, AssignmentReport)
+    assert (report.epoch, report.released, report.target) == (1, (112,), 1)
+    core.on_telemetry(sample_telemetry(), 4.0)
+    core.on_alive(112, True, 4.0)  # back (a router restart, a healed partition)
+    report = out.on(SPACE.mission_assignment(3, 200))[-1]
+    assert isinstance(report, AssignmentReport)
+    assert (report.epoch, report.released, report.target) == (2, (), None)
+    assert report.left == {112: 1} and report.back == {112: 1}
+    assert report.queues[112] == (1,)  # its own queue again
+    assert core.state(4.0).phase != Phase.COMMITTED
+
+
+def test_a_uav_counted_out_by_a_teammate_while_alive_stays_in() -> None:
+    """That this UAV is out is a teammate's claim about it (a partition, or a captured
+    UAV): left out of the merge; the teammate counts it back once it sees it again."""
+    core, out = make_core(200, (30.0, 35.0))
+    commit_three_uav_team(core)
+    core.on_telemetry(sample_telemetry(), 1.0)
+    # 74 lost sight of 200 and 112 (a partition) and re-planned alone.
+    theirs = AssignmentReport(
+        3, 74, 0, {74: 0}, (), (74, 112, 200), "x", epoch=2, released=(112, 200)
+    )
+    core.on_assignment(theirs, 2.0)
+    report = out.on(SPACE.mission_assignment(3, 200))[-1]
+    assert isinstance(report, AssignmentReport)
+    # Both are alive here: nothing merged; 112's own outcome is asked for.
+    assert (report.epoch, report.released) == (0, ())
+    assert out.outcome_fetches == [(3, (112,))]
+    core.on_alive(112, False, 2.5)
+    core.tick(2.5 + LIVELINESS_GRACE_S)  # now gone here too: 74's count of it is believed
+    core.on_assignment(theirs, 5.0)
+    report = out.on(SPACE.mission_assignment(3, 200))[-1]
+    assert isinstance(report, AssignmentReport)
+    assert (report.epoch, report.released, report.target) == (1, (112,), 1)
+
+
+def restarted_200_handed_target_1() -> tuple[OnboardCore, Recorder]:
+    """UAV 200's onboard just started (a restart, no telemetry yet) and catches up with
+    an epoch that counted it back in with its own target 1."""
+    out = Recorder()
+    core = OnboardCore(uav_id=200, outputs=out, planner=ScriptedPlanner((30.0, 35.0)))
+    core.start(0.0)
+    for uav in (74, 112):
+        core.on_alive(uav, True, 0.0)
+    core.on_targets(MissionTargets(mission=3, team=(74, 112, 200), targets=TWO_TARGETS), 0.1)
+    theirs = AssignmentReport(
+        3, 74, 0, {74: 0, 200: 1}, (), (74, 112, 200), "x", epoch=2,
+        left={200: 1}, back={200: 1},
+    )  # fmt: skip
+    core.on_assignment(theirs, 0.2)
+    return core, out
+
+
+def test_a_restarted_uav_handed_its_target_before_its_first_telemetry_flies_it_once_heard() -> None:
+    core, out = restarted_200_handed_target_1()
+    assert core.state(0.3).phase == Phase.COMMITTED
+    assert out.autopilot == []  # nothing written blind
+    core.tick(0.3)
+    assert out.on(SPACE.mission_outcome(3, 200)) == []  # not a lost link: not heard yet
+    core.on_telemetry(sample_telemetry(), 0.5)
+    assert out.autopilot != []  # the target, written once the autopilot is heard
+    assert core.state(0.6).phase == Phase.COMMITTED
+
+
+def test_a_restarted_uav_that_never_hears_its_autopilot_drops_its_target_as_link_lost() -> None:
+    core, out = restarted_200_handed_target_1()
+    core.tick(LINK_LOST_S + 0.5)
+    (outcome,) = out.on(SPACE.mission_outcome(3, 200))
+    assert isinstance(outcome, TargetOutcome) and outcome.phase == Phase.LINK_LOST
+    assert core.state(LINK_LOST_S + 0.5).phase != Phase.COMMITTED

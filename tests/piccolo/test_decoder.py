@@ -87,3 +87,22 @@ def test_every_byte_is_delivered_skipped_or_held(
     for start in range(0, len(data), chunk):
         delivered += sum(3 + len(b) for b in decoder.feed(data[start : start + chunk]))
     assert delivered + decoder.drops["skipped_bytes"] + decoder.buffered == len(data)
+
+
+@given(st.binary(max_size=12), st.lists(st.binary(max_size=8), min_size=1, max_size=4))
+def test_a_read_that_is_one_whole_frame_decodes_as_the_hunt_does(
+    before: bytes, bodies: list[bytes]
+) -> None:
+    """A chunk that makes the held bytes exactly one frame (what a live link reads) is
+    taken without the hunt: the same items, drops, count and held bytes as a decoder
+    fed the same bytes one at a time, whatever it held before."""
+    whole, byte_by_byte = LengthPrefixed(), LengthPrefixed()
+    for decoder in (whole, byte_by_byte):
+        decoder.feed(before)
+    for body in bodies:
+        items = whole.feed(frame(body))
+        expected = [i for b in frame(body) for i in byte_by_byte.feed(bytes((b,)))]
+        assert items == expected
+        assert whole.drops == byte_by_byte.drops
+        assert whole.packets == byte_by_byte.packets
+        assert whole.buffered == byte_by_byte.buffered

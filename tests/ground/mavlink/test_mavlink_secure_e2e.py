@@ -43,9 +43,9 @@ class SecureFleet:
 @pytest.fixture(scope="module")
 def secure_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureFleet]:
     certs = tmp_path_factory.mktemp("certs")
-    up, endpoint = start_secure_up(certs, "--no-record")
+    up = start_secure_up(certs, "--no-record")
     try:
-        wait_fleet_up(up, WAIT_S)
+        endpoint = wait_fleet_up(up, WAIT_S).connect
         yield SecureFleet(endpoint, certs.resolve())
     finally:
         up.process.send_signal(signal.SIGTERM)

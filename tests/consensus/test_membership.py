@@ -1,0 +1,64 @@
+"""Membership counts (fleet.consensus.membership): out and back again, merged in any
+order to the same view; the two sides of a partition converge."""
+
+from __future__ import annotations
+
+import itertools
+
+from hypothesis import given
+from hypothesis import strategies as st
+
+from fleet.consensus.membership import Membership, membership_digest, report_counts
+
+TEAM = frozenset({101, 102, 103, 104})
+
+
+def test_out_and_back_again() -> None:
+    view = Membership(TEAM)
+    assert view.leave([102]) == {102} and view.out() == {102} and view.epoch == 1
+    assert view.leave([102]) == set()  # already out: counted once
+    assert view.come_back([102]) == {102} and view.out() == frozenset() and view.epoch == 2
+    assert view.leave([102]) == {102} and view.left[102] == 2 and view.epoch == 3
+    assert view.leave([999]) == set()  # not of the team
+
+
+def test_two_sides_of_a_partition_converge_once_they_hear_each_other() -> None:
+    a, b = Membership(TEAM), Membership(TEAM)
+    a.leave([103, 104])  # the side {101, 102} lost sight of {103, 104}
+    b.leave([101, 102])  # and the other way round
+    # Healed: each merges the other's counts, and sees the other side come back.
+    a.merge(b.left, b.back)
+    b.merge(a.left, a.back)
+    a.come_back(TEAM)
+    b.come_back(TEAM)
+    assert a.out() == b.out() == frozenset()
+    assert (a.left, a.back) == (b.left, b.back) and a.epoch == b.epoch == 8
+    assert membership_digest("d", a.left, a.back) == membership_digest("d", b.left, b.back)
+
+
+def test_a_report_without_counts_counts_its_released_uavs_out_once() -> None:
+    assert report_counts((102,), {}, {}) == ({102: 1}, {})
+    assert report_counts((102,), {102: 3}, {101: 1}) == ({102: 3}, {101: 1})
+
+
+EVENTS = st.lists(
+    st.tuples(st.sampled_from(["leave", "back"]), st.sampled_from(sorted(TEAM))), max_size=12
+)
+
+
+@given(st.lists(EVENTS, min_size=2, max_size=4))
+def test_merging_in_any_order_gives_the_same_counts(histories: list[list[tuple[str, int]]]) -> None:
+    views = []
+    for history in histories:
+        view = Membership(TEAM)
+        for what, uav in history:
+            (view.leave if what == "leave" else view.come_back)([uav])
+        views.append(view)
+    results = set()
+    for order in itertools.permutations(views):
+        merged = Membership(TEAM)
+        for view in order:
+            merged.merge(view.left, view.back)
+        assert all(merged.covers(v.left, v.back) for v in views)
+        results.add((tuple(sorted(merged.left.items())), tuple(sorted(merged.back.items()))))
+    assert len(results) == 1
