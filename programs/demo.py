@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import socket
 import sys
 import threading
 import time
@@ -111,11 +110,8 @@ class DemoOptions(LaunchOptions):
 
 
 # ---- fleet demo -----------------------------------------------------------------------------
-def free_tcp_endpoint(host: str = "127.0.0.1") -> str:
-    """A tcp endpoint on a port free right now (the OS picks it)."""
-    with socket.socket() as s:
-        s.bind((host, 0))
-        return f"tcp/{host}:{s.getsockname()[1]}"
+#: The router's endpoint unless told: a port the OS picks as the router binds it.
+ANY_PORT = "tcp/127.0.0.1:0"
 
 
 @dataclass(frozen=True)
@@ -142,7 +138,7 @@ def _run_demo(args: DemoOptions, stop: threading.Event, out: TextIO) -> int:
         return fail("fleet demo", f"scenario {args.scenario} has no targets file")
     spec = FleetSpec(
         scenario=args.scenario,
-        listen=args.listen or free_tcp_endpoint(),
+        listen=args.listen or ANY_PORT,
         speedup=args.speedup,
         log_dir=args.log_dir,
         start_timeout_s=args.start_timeout,
@@ -158,7 +154,8 @@ def _run_demo(args: DemoOptions, stop: threading.Event, out: TextIO) -> int:
         say(f"demo: recording to {spec.record}")
     try:
         with fleet:
-            say(f"demo: UAVs {', '.join(map(str, fleet.uav_ids))} alive; router {spec.listen}")
+            ids = ", ".join(map(str, fleet.uav_ids))
+            say(f"demo: UAVs {ids} alive; router {fleet.listening or spec.listen}")
             gui_line = start_gui(fleet, args.gui)
             if gui_line is not None:
                 say(f"demo: {gui_line}")

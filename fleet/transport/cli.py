@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import faulthandler
 import logging
 import math
@@ -229,8 +230,11 @@ def enable_crash_dumps() -> None:
 
 def setup_logging(verbose: int, *, base: int = logging.INFO, name: str = "") -> None:
     """Log to stderr at `base`, one level lower per `-v` (DEBUG at most); crashes dump
-    their tracebacks there too (`enable_crash_dumps`)."""
+    their tracebacks there too (`enable_crash_dumps`). With $RUST_LOG set, Zenoh's own
+    log is on as it says, written by Zenoh to standard output."""
     enable_crash_dumps()
+    if os.environ.get("RUST_LOG"):
+        zenoh.try_init_log_from_env()
     level = max(logging.DEBUG, base - 10 * verbose)
     tag = f"{name} " if name else ""
     logging.basicConfig(
@@ -264,6 +268,21 @@ def stop_on_signals(on_stop: Callable[[], None]) -> Iterator[None]:
             signal.signal(sig, handler)
 
 
+def in_use_advice(error: OSError, flag: str | None = None) -> str:
+    """For a port in use, what to do (to follow the error's text); "" for another error."""
+    if error.errno != errno.EADDRINUSE:
+        return ""
+    elsewhere = f"give another port with {flag}" if flag else "listen on another port"
+    return f" (another program listens there): stop it, or {elsewhere}"
+
+
+def cannot_listen(where: str, error: OSError, flag: str | None = None) -> str:
+    """Why listening on `where` failed, in a line, and for a port in use what to do: stop
+    the program that listens there, or listen elsewhere (with `flag`)."""
+    why = os.strerror(error.errno) if error.errno else str(error)
+    return f"cannot listen on {where}: {why}{in_use_advice(error, flag)}"
+
+
 def fail(prog: str, message: str, code: ExitCode = ExitCode.USAGE) -> ExitCode:
     """Print `prog: message` on stderr and return `code`, for `return fail(...)`."""
     print(f"{prog}: {message}", file=sys.stderr)
@@ -281,8 +300,10 @@ __all__ = [
     "add_zenoh_arguments",
     "bounded_int",
     "bus_spec",
+    "cannot_listen",
     "enable_crash_dumps",
     "fail",
+    "in_use_advice",
     "non_negative_float",
     "piccolo_id",
     "piccolo_ids",

@@ -4,9 +4,11 @@ Zenoh logs each TLS link it refuses (fleet/transport/router.py turns that log on
 watch taps the output Zenoh logs to (`FdTap`), counts the refusals by kind (`classify`,
 `RefusedLinks`) and logs the totals, `refused links so far: no_certificate=2
 unknown_ca=1`, at most once every `REPORT_EVERY_S` however fast refusals come, and once
-more when it stops. One watch per process (its output is one per process): `acquire` starts
-it with the first secure router, `release` stops it with the last. The totals go to
-the process's log (stderr), not through the tap.
+more when it stops. Zenoh's lines themselves are not passed on as written but logged
+through Python's logging, each refusal at DEBUG (`fleet.transport.zenoh_log`). One
+watch per process (its output is one per process): `acquire` starts it with the first
+secure router, `release` stops it with the last. The totals go to the process's log
+(stderr), not through the tap.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import threading
 
 from fleet.transport.fd_tap import STDOUT, FdTap
 from fleet.transport.link_refusal import LinkRefusal, RefusedLinks, classify
+from fleet.transport.zenoh_log import ZenohLog
 
 log = logging.getLogger(__name__)
 
@@ -29,7 +32,8 @@ class RefusalWatch:
         self.report_every_s = report_every_s
         self._changed = threading.Event()
         self._stop = threading.Event()
-        self._tap = FdTap(self._on_line, fd)
+        # Zenoh's lines go to the log, cut to what an operator can act on (`ZenohLog`).
+        self._tap = FdTap(self._on_line, fd, keep=ZenohLog().keep)
         self._reporter: threading.Thread | None = None
 
     def start(self) -> None:

@@ -108,7 +108,8 @@ def bound_endpoints(session: zenoh.Session, listen: list[str]) -> list[str]:
 
 #: Zenoh's own log: its warnings name each link it refused (no certificate, an unknown
 #: CA, an expired certificate), which Python never sees otherwise, and its access control
-#: says (at info) when an identity is granted nothing. RUST_LOG overrides it.
+#: says (at info) when an identity is granted nothing. RUST_LOG overrides it. Its lines
+#: reach the process's log cut to what an operator can act on (`zenoh_log`).
 ZENOH_LOG_LEVEL = "warn,zenoh::net::routing::interceptor::access_control=info"
 _zenoh_log_on = False
 

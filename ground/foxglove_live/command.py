@@ -24,6 +24,7 @@ from fleet.transport.bus_factory import unwrap
 from fleet.transport.cli import (
     ExitCode,
     add_zenoh_arguments,
+    cannot_listen,
     fail,
     non_negative_float,
     positive_float,
@@ -155,8 +156,7 @@ def run(bus: Bus, options: FoxgloveOptions, out: TextIO) -> int:
         gate.start()
     except OSError as error:
         server.stop()
-        why = os.strerror(error.errno) if error.errno else str(error)
-        return fail(PROG, f"cannot listen on {host}:{port}: {why}", ExitCode.FAILED)
+        return fail(PROG, cannot_listen(f"{host}:{port}", error, "--serve"), ExitCode.FAILED)
     try:
         # Connected once the port is ours: a taken port is said without a router.
         return _serve(options, unwrap(bus), context, gate, out)

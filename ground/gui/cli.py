@@ -24,7 +24,7 @@ from typing import TextIO
 from fleet.errors import FleetError
 from fleet.files.owned_files import read_private
 from fleet.transport.bus import Bus
-from fleet.transport.cli import ExitCode, bounded_int, positive_float
+from fleet.transport.cli import ExitCode, bounded_int, cannot_listen, positive_float
 from fleet.transport.command import BusOptions, Command, OptionsError, add_command
 from ground.host_check import is_loopback
 
@@ -218,7 +218,8 @@ def run_gui(bus: Bus, options: GuiOptions, out: TextIO) -> int:
     except asyncio.CancelledError:
         pass
     except OSError as error:
-        print(f"ground-cli gui: error: cannot listen: {error}", file=sys.stderr)
+        where = f"{options.host}:{options.port}"
+        print(f"ground-cli gui: error: {cannot_listen(where, error, '--listen')}", file=sys.stderr)
         return ExitCode.FAILED
     print("gui: stopped", file=out)
     return ExitCode.OK

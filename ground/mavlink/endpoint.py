@@ -33,6 +33,7 @@ from enum import StrEnum
 from pymavlink.dialects.v20 import common as mavlink2
 
 from fleet.errors import FleetError
+from fleet.transport.cli import in_use_advice
 from ground.mavlink.signing import StationKey, Verdict, Verifier
 
 log = logging.getLogger(__name__)
@@ -195,7 +196,9 @@ class Endpoint:
                 else:
                     self._sock.connect(self.address)
         except OSError as error:
-            raise EndpointError(f"{url}: {error.strerror or error}") from None
+            raise EndpointError(
+                f"{url}: {error.strerror or error}{in_use_advice(error, '--out')}"
+            ) from None
         self._sock.setblocking(False)
         self._selector.register(self._sock, selectors.EVENT_READ)
         if self.kind == "udpout":

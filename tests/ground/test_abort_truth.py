@@ -18,8 +18,9 @@ import pytest
 
 from onboard.core import TARGET_WAYPOINT
 from tests.conftest import Ground
-from tests.ground.test_truth import finish, ground_cli, targets_file
+from tests.ground.test_truth import targets_file
 from tests.onboard.test_multi_uav import start_ring
+from tests.support.ground_cli import finish_ground_cli, start_ground_cli
 from tests.support.processes import Fleet, start
 from tests.support.targets import ring_targets
 from tests.support.waiting import wait_until
@@ -31,12 +32,16 @@ SPEEDUP = 1.0
 
 
 def mission_report(ground: Ground) -> tuple[int, dict[str, Any], str]:
-    status, out, err = finish(ground_cli(ground.router, "mission", "--json"), 30)
+    status, out, err = finish_ground_cli(
+        start_ground_cli("mission", "--json", connect=ground.router), 30
+    )
     return status, json.loads(out), err
 
 
 def phases(ground: Ground) -> dict[int, str]:
-    status, out, _ = finish(ground_cli(ground.router, "uavs", "--json"), 30)
+    status, out, _ = finish_ground_cli(
+        start_ground_cli("uavs", "--json", connect=ground.router), 30
+    )
     return {row["id"]: row["phase"] for row in json.loads(out)} if status == 0 else {}
 
 
@@ -54,7 +59,10 @@ def test_an_aborted_uav_s_target_and_an_aborted_mission_are_reported_aborted(
     fleet.children.append(recorder)
     recorder.wait_for_line(lambda line: line.startswith("fleet record: recording"), 30.0)
     path = targets_file(tmp_path, ring_targets(2, seed=5))
-    assert finish(ground_cli(ground.router, "send-targets", str(path)), 60)[0] == 0
+    assert (
+        finish_ground_cli(start_ground_cli("send-targets", str(path), connect=ground.router), 60)[0]
+        == 0
+    )
     wait_until(
         lambda: all(any("flying to target" in s for s in seen.statuses(u)) for u in team),
         60.0,
@@ -66,7 +74,12 @@ def test_an_aborted_uav_s_target_and_an_aborted_mission_are_reported_aborted(
     alone, other = team
 
     # The fault, first: one UAV aborted alone; its teammate flies on.
-    assert finish(ground_cli(ground.router, "abort", "--uav", str(alone)), 30)[0] == 0
+    assert (
+        finish_ground_cli(
+            start_ground_cli("abort", "--uav", str(alone), connect=ground.router), 30
+        )[0]
+        == 0
+    )
     wait_until(lambda: phases(ground).get(alone) == "aborted", 30.0, f"UAV {alone} aborted")
     status, report, err = mission_report(ground)
     states = {s["index"]: s for s in report["target_states"]}
@@ -80,7 +93,7 @@ def test_an_aborted_uav_s_target_and_an_aborted_mission_are_reported_aborted(
     assert status == 1, err
 
     # Then the whole mission.
-    assert finish(ground_cli(ground.router, "abort"), 30)[0] == 0
+    assert finish_ground_cli(start_ground_cli("abort", connect=ground.router), 30)[0] == 0
     wait_until(lambda: set(phases(ground).values()) == {"aborted"}, 30.0, "every UAV aborted")
     status, report, err = mission_report(ground)
     assert [(s["state"], s["uav"]) for s in report["target_states"]] == [
@@ -98,15 +111,17 @@ def test_an_aborted_uav_s_target_and_an_aborted_mission_are_reported_aborted(
 
     # The recording of it says the same (before: 'flown ... s (track)' for each).
     assert recorder.stop() == 0, "\n".join(recorder.history[-10:])
-    status, out, err = finish(fleet_cli("report", str(recording), "--json"), 60)
+    status, out, err = finish_ground_cli(fleet_cli("report", str(recording), "--json"), 60)
     assert status == 0, err
     (mission,) = json.loads(out)["missions"]
     assert mission["reached"] == {str(u): False for u in team}, mission
     assert mission["flown_s"] == {str(u): None for u in team}
     assert {how["how"] for how in mission["ended"].values()} == {"aborted"}
-    status, out, err = finish(fleet_cli("report", str(recording)), 60)
+    status, out, err = finish_ground_cli(fleet_cli("report", str(recording)), 60)
     assert status == 0 and "flown" not in out and "ABORTED at" in out, out + err
-    status, _, err = finish(fleet_cli("plot", str(recording), "--out", str(tmp_path / "a.png")), 60)
+    status, _, err = finish_ground_cli(
+        fleet_cli("plot", str(recording), "--out", str(tmp_path / "a.png")), 60
+    )
     assert status == 0, err
 
 

@@ -6,7 +6,9 @@ loads (CSV, GeoJSON) are read by `ground-cli` too; `ground-cli gui --listen` tak
 from __future__ import annotations
 
 import argparse
+import errno
 import json
+import socket
 from pathlib import Path
 
 import pytest
@@ -14,12 +16,13 @@ import pytest
 from fleet.launch.up_command import DEFAULT_GUI_LISTEN, add_up_parser, up_options
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import Target
-from fleet.transport.cli import PREFIX_ENV
+from fleet.transport.cli import PREFIX_ENV, cannot_listen
 from fleet.transport.command import OptionsError
 from ground import targets_formats
 from ground.cli import main
 from ground.gui.cli import host_port
 from programs.fleet_cli import build_parser
+from tests.support.ground_cli import ground_cli_here
 
 TARGETS = [Target(35.73, -120.75, 600.0), Target(35.70, -120.79, 610.0)]
 
@@ -90,3 +93,26 @@ def test_a_hostile_geojson_file_is_refused_by_name_not_a_traceback(
     path.write_bytes(b"[" * 100_000 + b"]" * 100_000)
     assert main(["targets", "show", str(path)]) == 1
     assert capsys.readouterr().err == f"error: {path}: nested too deeply to be GeoJSON\n"
+
+
+def test_the_page_on_a_port_in_use_is_one_line_saying_what_to_do() -> None:
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        done = ground_cli_here("gui", "--listen", f"127.0.0.1:{port}", connect="memory:in-use")
+    assert done.returncode == 1 and done.stdout == ""
+    assert done.stderr.splitlines() == [
+        f"ground-cli gui: error: cannot listen on 127.0.0.1:{port}: Address already in use "
+        "(another program listens there): stop it, or give another port with --listen"
+    ]
+
+
+def test_cannot_listen_advises_only_for_a_port_in_use() -> None:
+    in_use = OSError(errno.EADDRINUSE, "error while binding: address already in use")
+    assert cannot_listen("h:1", in_use) == (
+        "cannot listen on h:1: Address already in use (another program listens there): "
+        "stop it, or listen on another port"
+    )
+    denied = OSError(errno.EACCES, "Permission denied")
+    assert cannot_listen("h:80", denied, "--serve") == "cannot listen on h:80: Permission denied"

@@ -6,9 +6,9 @@ import socket
 
 import pytest
 
-from fleet.launch.endpoints import free_port
 from fleet.transport.cli import ExitCode
 from programs.fleet_cli import main
+from tests.support.processes import refused_endpoint
 
 
 def test_serving_beyond_loopback_needs_allow_remote(capsys: pytest.CaptureFixture[str]) -> None:
@@ -38,10 +38,11 @@ def test_a_taken_port_is_said_before_connecting(capsys: pytest.CaptureFixture[st
     err = capsys.readouterr().err
     assert f"fleet foxglove: cannot listen on 127.0.0.1:{port}" in err
     assert "Address already in use" in err
+    assert err.splitlines()[-1].endswith("stop it, or give another port with --serve")
 
 
 def test_no_router_is_said(capsys: pytest.CaptureFixture[str]) -> None:
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    status = main(["foxglove", "--serve", "127.0.0.1:0", "--connect", endpoint])
+    with refused_endpoint() as endpoint:
+        status = main(["foxglove", "--serve", "127.0.0.1:0", "--connect", endpoint])
     assert status == ExitCode.USAGE
     assert f"no Zenoh router answers at {endpoint}" in capsys.readouterr().err

@@ -14,9 +14,10 @@ import pytest
 from fleet.mission.messages import AssignmentReport
 from fleet.mission.phase import Phase
 from tests.conftest import Ground
-from tests.ground.test_truth import finish, ground_cli, targets_file
+from tests.ground.test_truth import targets_file
 from tests.onboard.test_multi_uav import start_ring
 from tests.support.agreement import assert_one_plan
+from tests.support.ground_cli import finish_ground_cli, start_ground_cli
 from tests.support.processes import Fleet
 from tests.support.targets import ring_targets
 from tests.support.waiting import wait_until
@@ -36,9 +37,8 @@ def _send(
     ground: Ground, tmp_path: Path, team: list[int], *extra: str
 ) -> dict[int, AssignmentReport]:
     path = targets_file(tmp_path, TARGETS)
-    status, out, err = finish(
-        ground_cli(
-            ground.router,
+    status, out, err = finish_ground_cli(
+        start_ground_cli(
             "send-targets",
             str(path),
             "--team",
@@ -46,6 +46,7 @@ def _send(
             "--wait",
             "--json",
             *extra,
+            connect=ground.router,
         ),
         120,
     )
@@ -60,8 +61,10 @@ def _send(
 
 
 def _until_reached(ground: Ground) -> dict[str, object]:
-    status, out, err = finish(
-        ground_cli(ground.router, "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json"),
+    status, out, err = finish_ground_cli(
+        start_ground_cli(
+            "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json", connect=ground.router
+        ),
         REACH_TIMEOUT_S + 60,
     )
     report: dict[str, object] = json.loads(out)

@@ -16,8 +16,9 @@ from fleet.mission.messages import Target
 from fleet.mission.phase import Phase
 from onboard.core import LINK_LOST_S, TARGET_WAYPOINT
 from tests.conftest import Ground
-from tests.ground.test_truth import finish, ground_cli, targets_file
+from tests.ground.test_truth import targets_file
 from tests.onboard.test_multi_uav import start_ring, wait_for_telemetry
+from tests.support.ground_cli import finish_ground_cli, start_ground_cli
 from tests.support.processes import Fleet
 from tests.support.targets import ring_targets
 from tests.support.tcp_proxy import cuttable_proxy
@@ -36,8 +37,10 @@ def commit_ring(
     team = start_ring(fleet, ground, tmp_path, count, SPEEDUP, telemetry_hz=5.0)
     seen = ground.seen
     path = targets_file(tmp_path, ring_targets(n_targets, seed=7))
-    send = ground_cli(ground.router, "send-targets", str(path), "--team", ",".join(map(str, team)))
-    assert finish(send, 60)[0] == 0
+    send = start_ground_cli(
+        "send-targets", str(path), "--team", ",".join(map(str, team)), connect=ground.router
+    )
+    assert finish_ground_cli(send, 60)[0] == 0
     wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "every commitment")
     pairs = seen.assignments[team[0]].pairs
     return team, {int(uav): target for uav, target in pairs.items()}
@@ -75,8 +78,10 @@ def test_the_idle_uav_flies_and_reaches_the_target_of_a_holder_killed_after_comm
     assert [r.epoch for r in seen.replans[idle]] == [1]
     assert seen.replans[survivor][0].digest == replanned.digest
 
-    status, out, err = finish(
-        ground_cli(ground.router, "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json"),
+    status, out, err = finish_ground_cli(
+        start_ground_cli(
+            "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json", connect=ground.router
+        ),
         REACH_TIMEOUT_S + 60,
     )
     report = json.loads(out)
@@ -114,8 +119,10 @@ def test_two_holders_killed_at_once_their_targets_go_to_the_two_idle_uavs(
     assert sorted(first.pairs.values()) == sorted(holders.values())  # both orphans flown
     assert {int(uav) for uav in first.pairs} == set(idle)  # one each
 
-    status, out, err = finish(
-        ground_cli(ground.router, "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json"),
+    status, out, err = finish_ground_cli(
+        start_ground_cli(
+            "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json", connect=ground.router
+        ),
         REACH_TIMEOUT_S + 60,
     )
     report = json.loads(out)
@@ -160,10 +167,14 @@ def test_a_holder_whose_autopilot_link_is_cut_is_released_and_its_teammate_reach
         wait_for_telemetry(ground, team)
         targets = ring_targets(1, seed=7)
         path = targets_file(tmp_path, targets)
-        send = ground_cli(
-            ground.router, "send-targets", str(path), "--team", ",".join(map(str, team))
+        send = start_ground_cli(
+            "send-targets",
+            str(path),
+            "--team",
+            ",".join(map(str, team)),
+            connect=ground.router,
         )
-        assert finish(send, 60)[0] == 0
+        assert finish_ground_cli(send, 60)[0] == 0
         wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "both commitments")
         (holder,) = (int(uav) for uav in seen.assignments[team[0]].pairs)
         (idle,) = set(team) - {holder}
@@ -249,8 +260,10 @@ def test_a_finished_uav_killed_then_a_holder_killed_every_orphan_is_flown_by_a_l
     plane = MercatorProjection(*GENERATED_CENTRE)
     targets = tuple(Target(*plane.to_latlon(x, y), 600.0) for x, y in FINISHER_TARGETS)
     path = targets_file(tmp_path, targets)
-    send = ground_cli(ground.router, "send-targets", str(path), "--team", ",".join(map(str, team)))
-    assert finish(send, 60)[0] == 0
+    send = start_ground_cli(
+        "send-targets", str(path), "--team", ",".join(map(str, team)), connect=ground.router
+    )
+    assert finish_ground_cli(send, 60)[0] == 0
     wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "every commitment")
     holders = {int(uav): target for uav, target in seen.assignments[team[0]].pairs.items()}
     assert holders == {101: 0, 102: 2, 103: 1}, holders
@@ -274,8 +287,10 @@ def test_a_finished_uav_killed_then_a_holder_killed_every_orphan_is_flown_by_a_l
     assert finisher not in replanned.queues  # the dead UAV holds nothing
     assert 1 in replanned.queues[survivor]  # the live UAV flies the orphan
 
-    status, out, err = finish(
-        ground_cli(ground.router, "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json"),
+    status, out, err = finish_ground_cli(
+        start_ground_cli(
+            "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json", connect=ground.router
+        ),
         REACH_TIMEOUT_S + 60,
     )
     report = json.loads(out)
@@ -324,8 +339,10 @@ def test_an_onboard_restarted_after_10_s_rejoins_at_the_next_epoch_and_flies(
     assert plan.back == {victim: 1} and plan.left == {victim: 1}
     assert plan.queues.get(victim) == (orphan,)  # its own queue again
     assert seen.assignments[idle].target is None  # the orphan handed back
-    status, out, err = finish(
-        ground_cli(ground.router, "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json"),
+    status, out, err = finish_ground_cli(
+        start_ground_cli(
+            "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json", connect=ground.router
+        ),
         REACH_TIMEOUT_S + 60,
     )
     report = json.loads(out)

@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import json
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -18,6 +16,7 @@ from fleet.mission.messages import MissionTargets, Target
 from onboard.core import TARGET_WAYPOINT
 from tests.conftest import Ground
 from tests.onboard.test_multi_uav import start_ring
+from tests.support.ground_cli import finish_ground_cli, start_ground_cli
 from tests.support.processes import Fleet
 from tests.support.targets import ring_targets
 from tests.support.waiting import wait_until
@@ -30,26 +29,6 @@ DEADLINE_S = 30.0
 WAIT_TIMEOUT_S = 90.0
 #: The abort test's consensus deadline: the abort surely arrives before it runs out.
 ABORT_DEADLINE_S = 15.0
-
-
-def ground_cli(router: str, *args: str) -> subprocess.Popen[str]:
-    return subprocess.Popen(
-        [sys.executable, "-m", "ground.cli", "--connect", router, *args],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
-
-
-def finish(process: subprocess.Popen[str], timeout: float) -> tuple[int, str, str]:
-    try:
-        out, err = process.communicate(timeout=timeout)
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.communicate()
-    return process.returncode, out, err
 
 
 def targets_file(tmp_path: Path, targets: tuple[Target, ...]) -> Path:
@@ -67,17 +46,17 @@ def test_a_uav_killed_before_its_result_is_reported_lost_without_waiting_for_it(
     child.process.send_signal(signal.SIGSTOP)  # it will never publish a result
     path = targets_file(tmp_path, ring_targets(2, seed=7))
     started = time.monotonic()
-    send = ground_cli(
-        ground.router, "send-targets", str(path), "--wait", "--json",
+    send = start_ground_cli(
+        "send-targets", str(path), "--wait", "--json",
         "--team", ",".join(map(str, team)),
-        "--deadline", str(DEADLINE_S), "--timeout", str(WAIT_TIMEOUT_S),
+        "--deadline", str(DEADLINE_S), "--timeout", str(WAIT_TIMEOUT_S), connect=ground.router,
     )  # fmt: skip
     assert send.stderr is not None
     sent = send.stderr.readline()
     assert "sent to" in sent, sent
     child.process.kill()  # liveliness goes with the TCP connection
     child.process.wait(10)
-    status, out, err = finish(send, WAIT_TIMEOUT_S + 30)
+    status, out, err = finish_ground_cli(send, WAIT_TIMEOUT_S + 30)
     elapsed = time.monotonic() - started
     report = json.loads(out)
     assert report["lost"] == [victim], err
@@ -99,22 +78,26 @@ def test_a_dead_autopilot_link_is_link_lost_and_the_mission_is_not_reported_agre
     sim.process.wait(10)
 
     def all_link_lost() -> bool:
-        status, out, _ = finish(ground_cli(ground.router, "uavs", "--json"), 30)
+        status, out, _ = finish_ground_cli(
+            start_ground_cli("uavs", "--json", connect=ground.router), 30
+        )
         rows = json.loads(out) if status == 0 else []
         return len(rows) == 2 and all(r["phase"] == "link_lost" for r in rows)
 
     wait_until(all_link_lost, 30.0, "both UAVs to report link_lost")
-    status, out, _ = finish(ground_cli(ground.router, "uavs", "--json"), 30)
+    status, out, _ = finish_ground_cli(
+        start_ground_cli("uavs", "--json", connect=ground.router), 30
+    )
     for row in json.loads(out):
         assert row["link_age_s"] is not None and row["link_age_s"] > 3.0
         assert "no telemetry" in row["reason"]
 
     path = targets_file(tmp_path, ring_targets(2, seed=3))
-    send = ground_cli(
-        ground.router, "send-targets", str(path), "--wait", "--json",
-        "--deadline", "5", "--timeout", "60",
+    send = start_ground_cli(
+        "send-targets", str(path), "--wait", "--json",
+        "--deadline", "5", "--timeout", "60", connect=ground.router,
     )  # fmt: skip
-    status, out, err = finish(send, 90)
+    status, out, err = finish_ground_cli(send, 90)
     report = json.loads(out)
     assert sorted(report["declined"]) == team
     assert report["taking_part"] == []
@@ -132,10 +115,11 @@ def test_a_commitment_thinner_than_what_the_teammates_hold_is_not_adopted(
     path = targets_file(tmp_path, ring_targets(100, seed=12))  # a long solve
     # --force: two of these 100 random targets lie 69 m apart, inside the acceptance
     # radius, which send-targets refuses otherwise; what is tested is the consensus.
-    send = ground_cli(
-        ground.router, "send-targets", str(path), "--wait", "--json", "--force",
+    send = start_ground_cli(
+        "send-targets", str(path), "--wait", "--json", "--force",
         "--team", ",".join(map(str, team)), "--deadline", "3", "--timeout", "90",
         "--force",  # 100 random targets: a few pairs fall within the acceptance radius
+        connect=ground.router,
     )  # fmt: skip
     stopped = [c for c in fleet.children if c.name in {f"onboard {uav}" for uav in slow}]
 
@@ -151,7 +135,7 @@ def test_a_commitment_thinner_than_what_the_teammates_hold_is_not_adopted(
         for child in stopped:
             child.process.send_signal(signal.SIGCONT)
     assert seen.assignments[first].team == (first,)  # a one-UAV assignment
-    status, out, err = finish(send, 120)
+    status, out, err = finish_ground_cli(send, 120)
     report = json.loads(out)
     for uav in slow:  # neither took it as its own: each committed on what it held
         assert seen.assignments[uav].team != (first,), f"UAV {uav} adopted a thin commitment"
@@ -181,14 +165,16 @@ def test_an_abort_while_the_team_waits_for_a_frozen_teammate_is_final(
         ground.send(mission)
         wait_until(lambda: set(awake) <= set(seen.results), 30.0, "the awake UAVs' results")
         # Before Zenoh's lease lets the team drop the frozen UAV and commit without it.
-        abort = ground_cli(ground.router, "--query-timeout", "0.3", "abort")
-        status, out, err = finish(abort, 30)
+        abort = start_ground_cli("--query-timeout", "0.3", "abort", connect=ground.router)
+        status, out, err = finish_ground_cli(abort, 30)
         assert status == 1 and f"{sleeper} (no answer)" in err, out + err  # unconfirmed
     finally:
         frozen.process.send_signal(signal.SIGCONT)
 
     def all_aborted() -> bool:
-        status, out, _ = finish(ground_cli(ground.router, "uavs", "--json"), 30)
+        status, out, _ = finish_ground_cli(
+            start_ground_cli("uavs", "--json", connect=ground.router), 30
+        )
         rows = json.loads(out) if status == 0 else []
         return len(rows) == 3 and all(r["phase"] == "aborted" for r in rows)
 
@@ -229,8 +215,8 @@ def test_an_abort_queued_while_a_uav_holding_its_result_is_frozen_is_final(
         other.process.send_signal(signal.SIGCONT)
     try:
         wait_until(lambda: teammate in seen.results, 30.0, f"UAV {teammate}'s result")
-        abort = ground_cli(ground.router, "--query-timeout", "0.3", "abort")
-        status, out, err = finish(abort, 30)
+        abort = start_ground_cli("--query-timeout", "0.3", "abort", connect=ground.router)
+        status, out, err = finish_ground_cli(abort, 30)
         assert status == 1 and f"{sleeper} (no answer)" in err, out + err  # unconfirmed
         assert time.monotonic() - frozen_at < 8.0, "frozen past Zenoh's lease"
     finally:
@@ -242,7 +228,9 @@ def test_an_abort_queued_while_a_uav_holding_its_result_is_frozen_is_final(
     # Its statuses and assignments go out in the order it acted: a commitment made
     # before it handled the abort would be seen before this.
     wait_until(aborted, 30.0, f"UAV {sleeper} handling the abort")
-    status, out, err = finish(ground_cli(ground.router, "uavs", "--json"), 30)
+    status, out, err = finish_ground_cli(
+        start_ground_cli("uavs", "--json", connect=ground.router), 30
+    )
     rows = {row["id"]: row for row in json.loads(out)}
     assert rows[sleeper]["phase"] == "aborted", rows[sleeper]
     assert rows[sleeper]["tracked_waypoint"] != TARGET_WAYPOINT, rows[sleeper]

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from fleet.launch.endpoints import free_port
-from tests.support.processes import start_fleet_up, wait_fleet_up
+from tests.support.ground_cli import ground_cli
+from tests.support.processes import ANY_PORT, start_fleet_up, wait_fleet_up
 
 pytestmark = pytest.mark.e2e
 
@@ -29,9 +29,8 @@ def run(*argv: str) -> subprocess.CompletedProcess[str]:
 
 
 def test_fleet_demo_runs_the_thesis_multi_uav_scenario(tmp_path: Path) -> None:
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
     done = run(
-        "-m", "programs.fleet_cli", "demo", "--json", "--listen", endpoint,
+        "-m", "programs.fleet_cli", "demo", "--json", "--listen", ANY_PORT,
         "--log-dir", str(tmp_path),
         "--timeout", "100",
     )  # fmt: skip
@@ -56,14 +55,16 @@ def test_fleet_demo_runs_the_thesis_multi_uav_scenario(tmp_path: Path) -> None:
 
 
 def test_fleet_up_then_ground_cli_single_uav(tmp_path: Path) -> None:
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
     up = start_fleet_up(
-        "single_uav", "--listen", endpoint, "--speedup", "5", "--log-dir", str(tmp_path)
+        "single_uav", "--listen", ANY_PORT, "--speedup", "5", "--log-dir", str(tmp_path)
     )
     try:
-        wait_fleet_up(up, 90.0)
-        ground = ("-m", "ground.cli", "--connect", endpoint)
-        listed = run(*ground, "uavs", "--json")
+        endpoint = wait_fleet_up(up, 90.0).connect
+
+        def ground(*argv: str) -> subprocess.CompletedProcess[str]:
+            return ground_cli(*argv, connect=endpoint, timeout=TIMEOUT_S)
+
+        listed = ground("uavs", "--json")
         assert listed.returncode == 0, listed.stderr
         (uav,) = json.loads(listed.stdout)
         # Ready means link up and telemetry flowing: the first listing has a position.
@@ -72,7 +73,7 @@ def test_fleet_up_then_ground_cli_single_uav(tmp_path: Path) -> None:
         assert uav["lon"] is not None and abs(uav["lon"] + 120.76) < 0.05, uav
 
         targets = str(files("fleet") / "scenarios" / "single_uav_targets.bin")
-        sent = run(*ground, "send-targets", targets, "--wait", "--json", "--timeout", "60")
+        sent = ground("send-targets", targets, "--wait", "--json", "--timeout", "60")
         assert sent.returncode == 0, sent.stderr
         outcome = json.loads(sent.stdout)
         assert outcome["team"] == [112]
@@ -81,7 +82,7 @@ def test_fleet_up_then_ground_cli_single_uav(tmp_path: Path) -> None:
         assert outcome["unassigned"] == [] and outcome["agreed"] is True
         assert all(isinstance(t, float) for t in outcome["results"]["112"])
 
-        keys = run(*ground, "keys", "fleet/mission/**", "--json", "--window", "0.5")
+        keys = ground("keys", "fleet/mission/**", "--json", "--window", "0.5")
         assert keys.returncode == 0, keys.stderr
         found = {item["key"]: item["value"] for item in json.loads(keys.stdout)}
         mission = outcome["mission"]
@@ -90,7 +91,7 @@ def test_fleet_up_then_ground_cli_single_uav(tmp_path: Path) -> None:
 
         bad = tmp_path / "bad.bin"
         bad.write_bytes(b"\x00" * 25)
-        refused = run(*ground, "send-targets", str(bad))
+        refused = ground("send-targets", str(bad))
         assert refused.returncode != 0 and str(bad) in refused.stderr
     finally:
         up.process.send_signal(signal.SIGTERM)

@@ -11,9 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from fleet.launch.endpoints import free_port
 from fleet.recording.reader import RecordingError, read_recording
-from tests.support.processes import start_fleet_up, wait_fleet_up
+from tests.support.processes import ANY_PORT, start_fleet_up, wait_fleet_up
 from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
@@ -47,7 +46,7 @@ def test_a_recording_of_four_uavs_has_every_uavs_telemetry(tmp_path: Path) -> No
         "--speedup",
         "10",
         "--listen",
-        f"tcp/127.0.0.1:{free_port()}",
+        ANY_PORT,
         "--log-dir",
         str(tmp_path),
     )

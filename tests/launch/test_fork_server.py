@@ -13,10 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from fleet.launch.endpoints import free_port
 from fleet.launch.fork_client import UNKNOWN_STATUS, ForkServer, ForkServerError
 from fleet.launch.fork_server import parse_request
-from tests.support.processes import start_fleet_up, wait_fleet_up
+from tests.support.processes import ANY_PORT, start_fleet_up, wait_fleet_up
 from tests.support.waiting import wait_until
 
 CHILD = "tests.support.fork_child"
@@ -179,7 +178,7 @@ def test_fleet_up_forks_its_onboards_unless_told_not_to(tmp_path: Path, forked: 
         "2",
         "--no-record",
         "--listen",
-        f"tcp/127.0.0.1:{free_port()}",
+        ANY_PORT,
         "--log-dir",
         str(tmp_path),
         *flags,

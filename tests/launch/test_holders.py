@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from fleet.launch.endpoints import free_port
+from fleet.launch.endpoints import free_port, host_port
 from fleet.launch.holders import uav_holders
 from tests.support.processes import start, wait_fleet_up
 
@@ -19,6 +19,7 @@ START_S = 120.0
 
 
 def fleet_up(port: int, log_dir: Path, *flags: str) -> list[str]:
+    """`fleet up --uavs 2` on loopback port `port` (0: a port the OS picks)."""
     return [
         sys.executable, "-m", "programs.fleet_cli", "up", "--uavs", "2", "--no-record",
         "--listen", f"tcp/127.0.0.1:{port}", "--log-dir", str(log_dir), *flags,
@@ -26,10 +27,9 @@ def fleet_up(port: int, log_dir: Path, *flags: str) -> list[str]:
 
 
 def test_a_second_fleet_up_on_a_held_port_says_who_holds_it(tmp_path: Path) -> None:
-    port = free_port()
-    first = start("first fleet up", fleet_up(port, tmp_path / "first"))
+    first = start("first fleet up", fleet_up(0, tmp_path / "first"))
     try:
-        wait_fleet_up(first, START_S)
+        port = host_port(wait_fleet_up(first, START_S).connect)[1]
         second = start("second fleet up", fleet_up(port, tmp_path / "second"))
         assert second.process.wait(START_S) == 1
         said = "\n".join(second.history)
@@ -44,6 +44,8 @@ def test_a_second_fleet_up_on_a_held_port_says_who_holds_it(tmp_path: Path) -> N
 def test_fleet_up_refuses_uavs_an_onboard_of_another_fleet_would_join_with(
     tmp_path: Path,
 ) -> None:
+    # Guessed free, not port 0: the stand-in below names the fleet's port before the
+    # fleet starts, as a left-over onboard of a dead fleet would.
     port = free_port()
     # A stand-in for an onboard left running by a dead fleet: its command line is one's.
     left = start(

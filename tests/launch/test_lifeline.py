@@ -13,8 +13,15 @@ from pathlib import Path
 import pytest
 
 from fleet import lifeline
-from fleet.launch.endpoints import free_port
-from tests.support.processes import descendants, running, start, start_fleet_up, wait_fleet_up
+from tests.support.processes import (
+    ANY_PAGE,
+    ANY_PORT,
+    descendants,
+    running,
+    start,
+    start_fleet_up,
+    wait_fleet_up,
+)
 from tests.support.waiting import wait_until
 
 #: Generous for a loaded machine: the kernel kills them at once, but a start takes long.
@@ -79,10 +86,8 @@ def test_a_bound_child_ends_when_its_parent_is_killed() -> None:
     "flags", [[], ["--no-fork-server"], ["--gui"]], ids=["fork-server", "no-fork-server", "gui"]
 )
 def test_fleet_up_killed_with_sigkill_leaves_no_process(tmp_path: Path, flags: list[str]) -> None:
-    gui = ["--gui", f"127.0.0.1:{free_port()}"] if flags == ["--gui"] else flags
-    up = start_fleet_up(
-        "--uavs", "2", "--listen", f"tcp/127.0.0.1:{free_port()}", "--log-dir", str(tmp_path), *gui
-    )
+    gui = ["--gui", ANY_PAGE] if flags == ["--gui"] else flags
+    up = start_fleet_up("--uavs", "2", "--listen", ANY_PORT, "--log-dir", str(tmp_path), *gui)
     tree: dict[int, str] = {}
     try:
         wait_fleet_up(up, START_S)

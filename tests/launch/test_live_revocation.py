@@ -30,9 +30,9 @@ AFTER = 20
 
 def test_a_revoked_uavs_onboard_is_cut_off_and_its_teammate_flies_on(tmp_path: Path) -> None:
     certs = tmp_path.resolve()
-    up, endpoint = start_secure_up(certs)
+    up = start_secure_up(certs)
     try:
-        wait_fleet_up(up, 90.0)
+        endpoint = wait_fleet_up(up, 90.0).connect
         with secure_clients.session(certs, endpoint, "ground") as ground:
             telemetry = TelemetryTimes(ground, SPACE)
             wait_until(lambda: telemetry.since(74, 0.0) and telemetry.since(112, 0.0), 60.0,

@@ -24,6 +24,7 @@ import pytest
 
 from fleet.files.targets_io import write_targets
 from fleet.launch.ring import ring_scenario
+from tests.support.ground_cli import ground_cli
 from tests.support.processes import Child, start
 from tests.support.targets import ring_targets
 
@@ -124,20 +125,21 @@ def start_uav(net: Network, uav: int, scenario: Path, children: list[Child]) -> 
         "--payload", "socket://127.0.0.1:5860", "--connect", router)))  # fmt: skip
 
 
-def ground_cli(net: Network, *argv: str) -> list[str]:
-    return net.run(net.ground, sys.executable, "-m", "ground.cli",
-                   "--connect", f"tcp/127.0.0.1:{ROUTER_PORT}", *argv)  # fmt: skip
+def ground(net: Network, *argv: str, timeout: float) -> subprocess.CompletedProcess[str]:
+    """`ground-cli ARGV` in the ground's namespace, against its router."""
+    return ground_cli(
+        *argv, connect=f"tcp/127.0.0.1:{ROUTER_PORT}", timeout=timeout, prefix=net.run(net.ground)
+    )
 
 
 def run_mission(net: Network, targets: Path, *argv: str) -> subprocess.CompletedProcess[str]:
-    command = ground_cli(net, "send-targets", str(targets), "--wait", "--json",
-                         "--deadline", f"{DEADLINE_S:g}", "--timeout", "40", *argv)  # fmt: skip
-    return subprocess.run(command, capture_output=True, text=True, timeout=90, check=False)
+    return ground(net, "send-targets", str(targets), "--wait", "--json",
+                  "--deadline", f"{DEADLINE_S:g}", "--timeout", "40", *argv,
+                  timeout=90)  # fmt: skip
 
 
 def live_uavs(net: Network) -> dict[int, dict[str, object]]:
-    done = subprocess.run(ground_cli(net, "uavs", "--json"), capture_output=True, text=True,
-                          timeout=60, check=False)  # fmt: skip
+    done = ground(net, "uavs", "--json", timeout=60)
     assert done.returncode == 0, done.stderr
     return {row["id"]: row for row in json.loads(done.stdout)}
 

@@ -28,7 +28,6 @@ import zenoh
 
 from fleet.files.certs import IdentityFiles, tls_settings
 from fleet.geo.aircraft import AircraftLimits
-from fleet.launch.endpoints import free_port
 from fleet.mission.messages import (
     RouterState,
     StatusText,
@@ -41,14 +40,17 @@ from fleet.mission.target_checks import REACHED_RADIUS_M
 from fleet.mission.targets_file import decode_targets
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from fleet.transport.bus_codec import ENCODING, encode
+from fleet.transport.router import bound_endpoints
 from fleet.transport.zenoh_config import make_config
 from tests.support import signed
+from tests.support.ground_cli import ground_cli
 from tests.support.secure_fleet import SPACE, TARGETS_FILE, SignedFleet, signed_fleet
 from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
 
-IDENTITIES = ["router", "router-74", "ground", "uav-74", "uav-112", "uav-300"]
+#: uav-299 is in the roster, never flown: its key is the fleet's, its token anyone's.
+IDENTITIES = ["router", "router-74", "ground", "uav-74", "uav-112", "uav-299", "uav-300"]
 #: Slow enough that 112 is minutes from its target when it is lied about.
 SPEEDUP = 2.0
 MAX_AIRSPEED_M_S = AircraftLimits().max_airspeed
@@ -285,15 +287,17 @@ def test_a_rogue_router_cannot_invent_an_aircraft_a_position_or_a_status(
 ) -> None:
     """A router holding `router-74`'s key, meshed with the fleet's router, is the one the
     ground connects to (a UAV router as a fallback). It puts UAV 112 at 10 N 10 E, an
-    "engine fire" status from 112, and a ghost UAV 299 (telemetry and a liveliness token).
-    `ground-cli watch` shows the real 74 and 112, where they are, and none of it."""
-    rogue_endpoint = f"tls/127.0.0.1:{free_port()}"
-    config = make_config("router", [secure.endpoint], [rogue_endpoint])
+    "engine fire" status from 112, and a ghost UAV 299 (telemetry and a liveliness token;
+    299 is in the roster, so the token is of a fleet identity, but the rogue has no
+    key of 299's). `ground-cli watch` shows the real 74 and 112, where they are, and none
+    of it; `ground-cli uavs` lists 74 and 112 only."""
+    config = make_config("router", [secure.endpoint], ["tls/127.0.0.1:0"])
     tls = tls_settings(IdentityFiles(secure.certs, "router-74"))
     config.insert_json5("transport/link/tls", json.dumps(tls))
     nowhere = Telemetry(1000, gps=GpsBlock(10.0, 10.0, 600.0, 0.0, 0.0, 0.0))
     fire = StatusText("engine fire", StatusKind.ERROR)
     with zenoh.open(config) as rogue:
+        (rogue_endpoint,) = bound_endpoints(rogue, ["tls/127.0.0.1:0"])
         token = rogue.liveliness().declare_token(SPACE.alive(299))
         stop = threading.Event()
 
@@ -306,17 +310,21 @@ def test_a_rogue_router_cannot_invent_an_aircraft_a_position_or_a_status(
         injector = threading.Thread(target=inject, daemon=True)
         injector.start()
         try:
-            shown = subprocess.run(
-                [sys.executable, "-m", "ground.cli", "--zenoh-config",
-                 str(secure.certs / "ground.json5"), "--connect", rogue_endpoint,
-                 "watch", "--duration", "6"],
-                capture_output=True, text=True, timeout=120, check=False,
+            shown = ground_cli(
+                "--zenoh-config", str(secure.certs / "ground.json5"), "watch", "--duration", "6",
+                connect=rogue_endpoint, timeout=120,
+            )  # fmt: skip
+            listed = ground_cli(
+                "--zenoh-config", str(secure.certs / "ground.json5"), "uavs", "--json",
+                connect=rogue_endpoint, timeout=120,
             )  # fmt: skip
         finally:
             stop.set()
             injector.join(5.0)
             token.undeclare()
     assert shown.returncode == 0, shown.stderr[-3000:]
+    assert listed.returncode == 0, listed.stderr[-3000:]
+    assert sorted(view["id"] for view in json.loads(listed.stdout)) == [74, 112], listed.stdout
     rows = {line.split()[0]: line.split() for line in shown.stdout.splitlines() if line.strip()}
     assert "engine fire" not in shown.stdout, shown.stdout[-2000:]
     assert "299" not in rows, shown.stdout[-2000:]

@@ -12,8 +12,6 @@ from __future__ import annotations
 import json
 import random
 import signal
-import subprocess
-import sys
 import threading
 from pathlib import Path
 
@@ -24,13 +22,13 @@ from fleet.consensus.mission_round import MissionRound
 from fleet.consensus.objectives import plan_digest
 from fleet.consensus.proposal import plan_key, proposal_digest
 from fleet.consensus.queues import finish
-from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import DEFAULT_SPACE
 from fleet.mission.messages import MissionTargets, PlanProposal, UavResult
 from fleet.mission.objective import Objective
 from fleet.recording.reader import read_recording
 from fleet.transport.zenoh_bus import client_bus
-from tests.support.processes import start
+from tests.support.ground_cli import ground_cli
+from tests.support.processes import ANY_PORT, start_fleet_up, wait_fleet_up
 
 pytest.importorskip("pyvrp", reason="PyVRP is not installed: pip install '.[solver]'")
 pytestmark = pytest.mark.e2e
@@ -68,22 +66,16 @@ def _rogue(endpoint: str, stop: threading.Event) -> None:
 
 
 def test_a_proposed_plan_is_verified_and_one_plan_adopted_by_every_uav(tmp_path: Path) -> None:
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    up = start(
-        "fleet up",
-        [sys.executable, "-m", "programs.fleet_cli", "up", "windy", "--listen", endpoint,
-         "--speedup", "3", "--log-dir", str(tmp_path)],
-    )  # fmt: skip
+    up = start_fleet_up("windy", "--listen", ANY_PORT, "--speedup", "3", "--log-dir", str(tmp_path))
     stop = threading.Event()
-    rogue = threading.Thread(target=_rogue, args=(endpoint, stop), daemon=True)
     try:
-        up.wait_for_line(lambda line: "stops the fleet" in line, 90.0)
+        endpoint = wait_fleet_up(up, 90.0).connect
+        rogue = threading.Thread(target=_rogue, args=(endpoint, stop), daemon=True)
         rogue.start()
-        sent = subprocess.run(
-            [sys.executable, "-m", "ground.cli", "--connect", endpoint, "send-targets",
-             str(_targets_csv(tmp_path / "nine.csv")), "--objective", "min-max", "--propose",
-             "--mission", str(MISSION), "--wait", "--json", "--timeout", "90"],
-            capture_output=True, text=True, timeout=240, check=False,
+        sent = ground_cli(
+            "send-targets", str(_targets_csv(tmp_path / "nine.csv")), "--objective", "min-max",
+            "--propose", "--mission", str(MISSION), "--wait", "--json", "--timeout", "90",
+            connect=endpoint, timeout=240,
         )  # fmt: skip
         assert sent.returncode == 0, sent.stderr[-3000:]
         outcome = json.loads(sent.stdout)

@@ -25,7 +25,6 @@ import pytest
 import zenoh
 
 from fleet.files.certs import write_identities
-from fleet.launch.endpoints import free_port
 from fleet.launch.topology import fallbacks, ring_links
 from fleet.mission.key_space import KeySpace
 from fleet.transport.zenoh_config import build_config
@@ -59,25 +58,24 @@ def pids(log_dir: Path) -> dict[str, int]:
 @pytest.fixture(params=["open", "secure"])
 def mesh(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Mesh]:
     proto = "tls" if request.param == "secure" else "tcp"
-    ground = f"{proto}/127.0.0.1:{free_port()}"
+    listen = f"{proto}/127.0.0.1:0"  # the banner says which port
     secure: list[str] = []
     identity: list[str] = []
     if request.param == "secure":
         names = ["router", "ground", "uav-74", "uav-112", "router-74", "router-112"]
-        write_identities(tmp_path / "certs", names, [ground])
+        write_identities(tmp_path / "certs", names, [listen])
         secure = ["--secure", str(tmp_path / "certs")]
         identity = ["--zenoh-config", str(tmp_path / "certs" / "ground.json5")]
     up = start(
         "fleet up --topology router-per-uav",
         [sys.executable, "-m", "programs.fleet_cli", "up", "head_on", "--topology",
-         "router-per-uav", "--listen", ground, "--speedup", "5", "--log-dir", str(tmp_path),
+         "router-per-uav", "--listen", listen, "--speedup", "5", "--log-dir", str(tmp_path),
          *secure],
     )  # fmt: skip
     try:
-        line = up.wait_for_line(lambda line: "UAV routers:" in line, 90.0)
-        uav_routers = re.findall(rf"{proto}/127\.0\.0\.1:\d+", line)
-        wait_fleet_up(up, 10.0)
-        yield Mesh(up, ground, uav_routers, identity)
+        banner = wait_fleet_up(up, 90.0)
+        assert banner.connect.startswith(f"{proto}/127.0.0.1:"), banner
+        yield Mesh(up, banner.connect, list(banner.uav_routers.values()), identity)
     finally:
         up.process.send_signal(signal.SIGTERM)
         assert up.process.wait(30) == 0, "\n".join(up.history[-30:])

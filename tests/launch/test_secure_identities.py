@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import datetime
 import json
-import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -25,13 +24,12 @@ import zenoh
 
 from fleet.files.certs import write_identities
 from fleet.files.signers import revoke
-from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, Target
 from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.zenoh_config import build_config, make_config
 from tests.support import secure_clients
-from tests.support.processes import Child, start
+from tests.support.processes import Child, start_router
 from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
@@ -63,17 +61,11 @@ def certs(tmp_path_factory: pytest.TempPathFactory) -> Certs:
 def router(
     certs: Certs, identity: str, host: str = "127.0.0.1", connect: tuple[str, ...] = ()
 ) -> tuple[Child, str]:
-    endpoint = f"tls/{host}:{free_port(host)}"
-    child = start(
-        f"router as {identity}",
-        [
-            sys.executable, "-m", "fleet.transport.router", "--secure", str(certs.directory),
-            "--identity", identity, "--listen", endpoint,
-            *(argument for peer in connect for argument in ("--connect", peer)),
-        ],
+    return start_router(
+        "--secure", str(certs.directory), "--identity", identity, "--listen", f"tls/{host}:0",
+        *(argument for peer in connect for argument in ("--connect", peer)),
+        name=f"router as {identity}",
     )  # fmt: skip
-    child.wait_for_line(lambda line: "listening" in line, 30.0)
-    return child, endpoint
 
 
 @pytest.fixture(scope="module")

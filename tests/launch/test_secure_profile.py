@@ -29,6 +29,7 @@ from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from fleet.transport.bus_codec import ENCODING, encode
 from fleet.transport.zenoh_config import build_config, make_config
+from fleet.transport.zenoh_log import parse
 from tests.support import secure_clients, signed
 from tests.support.processes import Child, wait_fleet_up
 from tests.support.secure_fleet import start_secure_up
@@ -60,9 +61,9 @@ class SecureFleet:
 @pytest.fixture(scope="module")
 def secure_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureFleet]:
     certs = tmp_path_factory.mktemp("certs")
-    up, endpoint = start_secure_up(certs)
+    up = start_secure_up(certs)
     try:
-        wait_fleet_up(up, 90.0)
+        endpoint = wait_fleet_up(up, 90.0).connect
         yield SecureFleet(endpoint, certs.resolve(), up)
     finally:
         up.process.send_signal(signal.SIGTERM)
@@ -127,6 +128,20 @@ def test_a_client_without_a_certificate_cannot_connect(secure_fleet: SecureFleet
     with pytest.raises(zenoh.ZError, match="Unable to connect"):
         zenoh.open(no_certificate(secure_fleet))
     secure_fleet.wait_for_refused("no_certificate")
+
+
+@pytest.mark.e2e
+def test_fleet_up_prints_the_refusals_counted_and_none_of_zenohs_own_lines(
+    secure_fleet: SecureFleet,
+) -> None:
+    """Zenoh writes a warning line per refused link, in its own format, on `fleet up`'s
+    standard output; an operator gets the totals instead (`refused links so far`), and
+    no line of Zenoh's at the default verbosity (each is logged at DEBUG: `-v`)."""
+    with pytest.raises(zenoh.ZError, match="Unable to connect"):
+        zenoh.open(no_certificate(secure_fleet))
+    secure_fleet.wait_for_refused("no_certificate")
+    zenohs = [line for line in secure_fleet.up.history[:] if parse(line) is not None]
+    assert not zenohs, zenohs[:3]
 
 
 def test_a_plain_tcp_client_cannot_connect(secure_fleet: SecureFleet) -> None:

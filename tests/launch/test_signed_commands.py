@@ -24,7 +24,6 @@ import pytest
 import zenoh
 
 from fleet.files.certs import IdentityFiles, tls_settings
-from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     MissionAbort,
@@ -191,7 +190,8 @@ class Recorder:
 def captured_router(secure: SignedFleet) -> zenoh.Session:
     """A router presenting the ground's router identity (as the fleet's routers do:
     `SecureProfile`'s TLS settings), meshed with UAV 112's router."""
-    config = make_config("router", [secure.endpoint], [f"tls/127.0.0.1:{free_port()}"])
+    # Its own listen port is any free one: nothing dials it.
+    config = make_config("router", [secure.endpoint], ["tls/127.0.0.1:0"])
     tls = tls_settings(IdentityFiles(secure.certs, "router"))
     config.insert_json5("transport/link/tls", json.dumps(tls))
     return zenoh.open(config)

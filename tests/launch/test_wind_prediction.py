@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import math
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -25,9 +24,9 @@ from fleet.geo.aircraft import turn_radius
 from fleet.geo.dubins import dubins_time_in_wind, dubins_time_to_point
 from fleet.geo.mercator import MercatorProjection
 from fleet.geo.wind import Wind
-from fleet.launch.endpoints import free_port
 from fleet.sim.scenario import shipped_scenario, shipped_scenario_path
-from tests.support.processes import start_fleet_up, wait_fleet_up
+from tests.support.ground_cli import ground_cli
+from tests.support.processes import fleet_up
 
 pytestmark = pytest.mark.e2e
 
@@ -60,24 +59,20 @@ def test_still_air_times_would_fail_this_test() -> None:
 
 
 def test_three_uavs_arrive_when_they_said_in_a_10_ms_wind(tmp_path: Path) -> None:
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    up = start_fleet_up("windy", "--listen", endpoint, "--speedup", "3", "--log-dir", str(tmp_path))
-    try:
-        wait_fleet_up(up, 90.0)
-        ground = ("-m", "ground.cli", "--connect", endpoint)
+    with fleet_up("windy", "--speedup", "3", "--log-dir", str(tmp_path), timeout=90.0) as up:
         targets = shipped_scenario_path("windy").with_name("windy_targets.bin")
-        sent = run(*ground, "send-targets", str(targets), "--wait", "--json",
-                   "--timeout", "60")  # fmt: skip
+        sent = ground_cli("send-targets", str(targets), "--wait", "--json", "--timeout", "60",
+                          connect=up.connect, timeout=TIMEOUT_S)  # fmt: skip
         assert sent.returncode == 0, sent.stderr[-3000:]
         outcome = json.loads(sent.stdout)
         assert outcome["agreed"] is True
         assert outcome["assignment"] == {"201": 0, "202": 1, "203": 2}
         # The longest flight (upwind, ~260 s simulated) is ~90 s at speedup 3.
-        reached = run(*ground, "mission", "--until-reached", "240", "--json", timeout=300.0)
+        reached = ground_cli(
+            "mission", "--until-reached", "240", "--json", connect=up.connect, timeout=300.0
+        )
         assert reached.returncode == 0, reached.stdout[-3000:] + reached.stderr[-3000:]
-    finally:
-        up.process.send_signal(signal.SIGTERM)
-        assert up.process.wait(60) == 0
+        assert up.stop(60) == 0
     report = run("-m", "programs.fleet_cli", "report", str(tmp_path / "fleet.mcap"), "--json")
     assert report.returncode == 0, report.stderr[-3000:]
     (mission,) = json.loads(report.stdout)["missions"]

@@ -284,10 +284,10 @@ def refused_endpoint() -> Iterator[str]:
         yield f"tcp/127.0.0.1:{held.getsockname()[1]}"
 
 
-def start_router(*argv: str, timeout: float = 30.0) -> tuple[Child, str]:
+def start_router(*argv: str, name: str = "router", timeout: float = 30.0) -> tuple[Child, str]:
     """`python -m fleet.transport.router ARGV` (`--listen ANY_PORT`, say), once it
     listens: the child and the endpoint it printed first (`router listening on ...`)."""
-    child = start("router", [sys.executable, "-m", "fleet.transport.router", *argv])
+    child = start(name, [sys.executable, "-m", "fleet.transport.router", *argv])
     try:
         line = child.wait_for_line(lambda text: parse_listening(text) is not None, timeout)
     except BaseException:

@@ -8,7 +8,6 @@ from __future__ import annotations
 import contextlib
 import json
 import subprocess
-import sys
 import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -19,13 +18,12 @@ import zenoh
 
 from fleet.files.certs import write_identities
 from fleet.files.signers import revoke
-from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import UavState
 from fleet.transport.bus_codec import decode
 from fleet.transport.zenoh_config import build_config
 from tests.support import secure_clients
-from tests.support.processes import Child, Fleet, start, start_fleet_up
+from tests.support.processes import Child, Fleet, start_fleet_up, start_router
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
@@ -80,17 +78,21 @@ def open_when_listening(config_file: Path, endpoint: str) -> zenoh.Session:
             time.sleep(0.2)  # the router is starting: poll, bounded
 
 
-def start_secure_up(certs: Path, *extra: str) -> tuple[Child, str]:
+#: The secure profile's router on loopback, on a port the OS picks (the certificates name
+#: the host alone; every client is given the port bound).
+ANY_TLS_PORT = "tls/127.0.0.1:0"
+
+
+def start_secure_up(certs: Path, *extra: str) -> Child:
     """`fleet up head_on --secure` at five times real time, logging under `certs`, with
-    the identities of a router, the ground and UAVs 74 and 112 made in `certs` for a free
-    tls/ endpoint, and `extra` arguments: its process and that endpoint."""
-    endpoint = f"tls/127.0.0.1:{free_port()}"
-    write_identities(certs, ["router", "ground", "uav-74", "uav-112"], [endpoint])
-    up = start_fleet_up(
-        "head_on", "--secure", str(certs), "--listen", endpoint, "--speedup", "5",
+    the identities of a router, the ground and UAVs 74 and 112 made in `certs` for a
+    loopback tls/ endpoint on a free port, and `extra` arguments (its banner says which
+    port: `wait_fleet_up`)."""
+    write_identities(certs, ["router", "ground", "uav-74", "uav-112"], [ANY_TLS_PORT])
+    return start_fleet_up(
+        "head_on", "--secure", str(certs), "--listen", ANY_TLS_PORT, "--speedup", "5",
         "--log-dir", str(certs / "logs"), *extra,
     )  # fmt: skip
-    return up, endpoint
 
 
 @contextlib.contextmanager
@@ -104,15 +106,15 @@ def signed_fleet(
     """Identities `names` made in `certs` (with `router`, `ground`, `uav-74`, `uav-112`),
     those `revoked` withdrawn (`fleet certs revoke`), a secure router (`router_argv` added
     to its command line) and the fleet."""
-    endpoint = f"tls/127.0.0.1:{free_port()}"
-    write_identities(certs, names, [endpoint])
+    write_identities(certs, names, [ANY_TLS_PORT])
     if revoked:
         revoke(certs, list(revoked))
     fleet = Fleet()
     try:
-        argv = [sys.executable, "-m", "fleet.transport.router"]
-        argv += ["--secure", str(certs), "--listen", endpoint, *router_argv]
-        fleet.children.append(start("router", argv))
+        router, endpoint = start_router(
+            "--secure", str(certs), "--listen", ANY_TLS_PORT, *router_argv
+        )
+        fleet.children.append(router)
         ground = open_when_listening(certs / "ground.json5", endpoint)
         try:
             for uav, where in fleet.sim("head_on", speedup=speedup).items():

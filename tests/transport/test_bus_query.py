@@ -8,13 +8,13 @@ from collections.abc import Iterator
 
 import pytest
 
-from fleet.launch.endpoints import free_port
 from fleet.mission.messages import StatusText
 from fleet.transport import bus_codec
 from fleet.transport.bus import Bus, BusReply, BusSample
 from fleet.transport.memory import MemoryNetwork
 from fleet.transport.router import Router
 from fleet.transport.zenoh_bus import BusConnectError, client_bus, connect
+from tests.support.processes import ANY_PORT, refused_endpoint
 from tests.support.waiting import wait_until
 
 TIMEOUT_S = 2.0
@@ -22,9 +22,8 @@ TIMEOUT_S = 2.0
 
 @pytest.fixture(scope="module")
 def endpoint() -> Iterator[str]:
-    where = f"tcp/127.0.0.1:{free_port()}"
-    with Router([where]):
-        yield where
+    with Router([ANY_PORT]) as router:
+        yield router.endpoints[0]
 
 
 @pytest.fixture(params=["memory", "zenoh"])
@@ -165,8 +164,10 @@ def test_a_memory_query_nobody_answers_waits_at_most_its_timeout() -> None:
 
 
 def test_connecting_where_no_router_answers_fails_fast_and_says_so() -> None:
-    where = f"tcp/127.0.0.1:{free_port()}"
-    with pytest.raises(BusConnectError, match=f"no Zenoh router answers at {where}"):
+    with (
+        refused_endpoint() as where,
+        pytest.raises(BusConnectError, match=f"no Zenoh router answers at {where}"),
+    ):
         connect(where, open_timeout_s=0.5)
     with pytest.raises(BusConnectError):
         connect("not an endpoint")

@@ -17,7 +17,6 @@ import zenoh
 
 from fleet.files.certs import write_identities
 from fleet.files.signers import revoke, roster_document
-from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.transport import live_revocation
 from fleet.transport.link_cut import Address, address_of, cut
@@ -122,10 +121,10 @@ def secure_router(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> Iterator[tuple[Router, Path, str]]:
     monkeypatch.setattr(live_revocation, "HOLD_S", 0.5)  # a reconnection held this long
-    endpoint = f"tls/127.0.0.1:{free_port()}"
-    write_identities(tmp_path, ["router", "ground", "uav-74", "uav-112"], [endpoint])
-    with Router([endpoint], secure=SecureProfile.load(tmp_path)) as router:
-        yield router, tmp_path, endpoint
+    listen = "tls/127.0.0.1:0"  # the certificates name the host; the port is any free one
+    write_identities(tmp_path, ["router", "ground", "uav-74", "uav-112"], [listen])
+    with Router([listen], secure=SecureProfile.load(tmp_path)) as router:
+        yield router, tmp_path, router.endpoints[0]
 
 
 def test_a_revoked_identitys_link_is_closed_and_its_reconnections_never_routed(

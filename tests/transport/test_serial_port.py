@@ -11,7 +11,6 @@ from collections.abc import Iterator
 
 import pytest
 
-from fleet.launch.endpoints import free_port
 from fleet.transport.serial_port import Backoff, SerialLink
 from tests.support.waiting import wait_until
 
@@ -36,9 +35,9 @@ def test_a_bad_url_is_down_and_retried_only_after_the_backoff() -> None:
 
 @pytest.fixture
 def listener() -> Iterator[tuple[socket.socket, int]]:
-    port = free_port()
     server = socket.socket()
-    server.bind(("127.0.0.1", port))
+    server.bind(("127.0.0.1", 0))  # the port the OS gives, held from now on
+    port = server.getsockname()[1]
     server.listen()
     server.settimeout(10.0)
     try:

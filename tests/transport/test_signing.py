@@ -21,7 +21,6 @@ from fleet.files.signers import (
     roster_document,
     signing_key_path,
 )
-from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionAbort, MissionTargets, Target
 from fleet.mission.signature import Delivery
@@ -32,6 +31,7 @@ from fleet.transport.router import Router
 from fleet.transport.signing import RELAY_CACHE, BusSigning
 from fleet.transport.zenoh_bus import ZenohBus, client_bus, connect
 from fleet.transport.zenoh_config import build_config
+from tests.support.processes import ANY_PORT
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
@@ -48,9 +48,8 @@ def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def endpoint() -> Iterator[str]:
-    where = f"tcp/127.0.0.1:{free_port()}"
-    with Router([where]):
-        yield where
+    with Router([ANY_PORT]) as router:
+        yield router.endpoints[0]
 
 
 def signed_bus(certs: Path, endpoint: str, identity: str) -> ZenohBus:

@@ -14,13 +14,13 @@ import zenoh
 
 from fleet.files.certs import write_identities
 from fleet.files.signers import load_roster, load_signing_key, signing_key_path
-from fleet.launch.endpoints import free_port
 from fleet.mission.key_space import KeySpace
 from fleet.transport.bus import BusSample, RingSubscription
 from fleet.transport.router import Router
 from fleet.transport.signing import BusSigning
 from fleet.transport.zenoh_bus import ZenohBus, client_bus
 from fleet.transport.zenoh_config import make_config
+from tests.support.processes import ANY_PORT
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
@@ -36,9 +36,8 @@ def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def endpoint() -> Iterator[str]:
-    where = f"tcp/127.0.0.1:{free_port()}"
-    with Router([where]):
-        yield where
+    with Router([ANY_PORT]) as router:
+        yield router.endpoints[0]
 
 
 def secure_bus(certs: Path, endpoint: str, identity: str) -> ZenohBus:

@@ -8,9 +8,9 @@ import threading
 import pytest
 import zenoh
 
-from fleet.launch.endpoints import free_port
 from fleet.transport.router import Router
 from fleet.transport.zenoh_config import MODES, make_config
+from tests.support.processes import ANY_PORT
 
 
 @pytest.mark.parametrize("mode", MODES)
@@ -22,7 +22,6 @@ def test_shared_memory_is_off_in_every_mode(mode: str) -> None:
 
 def test_a_message_over_the_shared_memory_threshold_still_arrives() -> None:
     """Zenoh sends messages over 3 KB through shared memory when it is on; off, by TCP."""
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
     payload = bytes(range(256)) * 40  # 10 KB
     arrived = threading.Event()
     received: list[bytes] = []
@@ -31,9 +30,9 @@ def test_a_message_over_the_shared_memory_threshold_still_arrives() -> None:
         received.append(sample.payload.to_bytes())
         arrived.set()
 
-    with Router([endpoint]) as router:
+    with Router([ANY_PORT]) as router:
         subscriber = router.session.declare_subscriber("test/big", on_sample)
-        session = zenoh.open(make_config("client", [endpoint]))
+        session = zenoh.open(make_config("client", router.endpoints))
         try:
             while not arrived.is_set():  # re-put until the subscription has reached us
                 session.put("test/big", payload)

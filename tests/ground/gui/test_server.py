@@ -17,14 +17,13 @@ from typing import Any
 import aiohttp
 import pytest
 
-from fleet.launch.endpoints import free_port
 from fleet.mission.messages import Target
 from fleet.mission.targets_file import encode_targets
 from fleet.transport.bus_factory import opened_bus
 from tests.ground.test_cli import run_cli
 from tests.support.fake_onboard import FakeOnboard, fake_pair
 from tests.support.gui_page import serving, websocket_url
-from tests.support.processes import Child, start
+from tests.support.processes import ANY_PAGE, Child, start
 from tests.support.waiting import wait_until
 
 TARGETS = [Target(42.36, -71.09, 120.0), Target(42.365, -71.1, 110.0)]
@@ -32,15 +31,16 @@ TOKEN = "s3cret-token"
 
 
 def start_gui(router: str, *extra: str, env: dict[str, str] | None = None) -> tuple[Child, str]:
-    port = free_port()
+    """`ground-cli gui` on a free port: its process and the page's URL it printed
+    (without the trailing slash)."""
     child = start(
         "ground-cli gui",
         [sys.executable, "-m", "ground.cli", "--connect", router, "gui",
-         "--listen", f"127.0.0.1:{port}", *extra],
+         "--listen", ANY_PAGE, *extra],
         env=env,
     )  # fmt: skip
-    child.wait_for_line(lambda line: line.startswith("gui: serving on"), 30.0)
-    return child, f"http://127.0.0.1:{port}"
+    serving = child.wait_for_line(lambda line: line.startswith("gui: serving on"), 30.0)
+    return child, serving.removeprefix("gui: serving on ").split()[0].rstrip("/")
 
 
 @pytest.fixture(scope="module")

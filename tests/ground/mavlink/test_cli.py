@@ -34,7 +34,12 @@ def test_a_port_in_use_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> N
         taken.bind(("127.0.0.1", 0))
         port = taken.getsockname()[1]
         assert main(["mavlink", "--out", f"udpin:127.0.0.1:{port}"]) == 2
-    assert "in use" in capsys.readouterr().err
+    said = capsys.readouterr().err
+    assert "in use" in said
+    assert said.splitlines() == [
+        f"fleet mavlink: error: udpin:127.0.0.1:{port}: Address already in use (another "
+        "program listens there): stop it, or give another port with --out"
+    ]
 
 
 def test_the_identity_it_holds_is_said() -> None:
