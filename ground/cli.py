@@ -29,7 +29,14 @@ from fleet.transport.cli import (
     setup_logging,
 )
 from fleet.transport.command import run_parsed, set_handler
-from ground import fleet_commands, mission_commands, routers_command, send_command, targets_command
+from ground import (
+    fleet_commands,
+    mission_change_command,
+    mission_commands,
+    routers_command,
+    send_command,
+    targets_command,
+)
 from ground.gui import cli as gui_cli
 from ground.mission_ids import MAX_MISSION_ID
 
@@ -58,6 +65,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_opm(commands)
     _add_abort(commands)
     _add_mission(commands)
+    _add_mission_changes(commands)
     _add_targets(commands)
     _add_keys(commands)
     _add_routers(commands)
@@ -219,6 +227,38 @@ def _add_mission(commands: argparse._SubParsersAction[argparse.ArgumentParser]) 
     )
     status.add_argument("--json", action="store_true", help="print it as one JSON object")
     set_handler(status, mission_commands.MISSION)
+
+
+def _add_change_flags(parser: argparse.ArgumentParser) -> None:
+    _add_mission_id(parser)
+    parser.add_argument(
+        "--timeout",
+        type=positive_float,
+        default=mission_change_command.ACK_WAIT_S,
+        metavar="S",
+        help="wait up to S seconds for every live team UAV to acknowledge it (default %(default)g)",
+    )
+    parser.add_argument("--json", action="store_true", help="print the outcome as one JSON object")
+
+
+def _add_mission_changes(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`add-targets`, `remove-targets`: the mission changed in flight."""
+    add = commands.add_parser(
+        "add-targets",
+        help="add targets to a mission in flight (the team re-plans what is left)",
+    )
+    add.add_argument("file", metavar="FILE", help="a targets file (see `targets show`)")
+    _add_change_flags(add)
+    set_handler(add, mission_change_command.ADD_TARGETS)
+    remove = commands.add_parser(
+        "remove-targets",
+        help="remove targets from a mission in flight: never flown from then on",
+    )
+    remove.add_argument(
+        "indexes", nargs="+", type=bounded_int(0, 0xFFFF, "target index"), metavar="INDEX"
+    )
+    _add_change_flags(remove)
+    set_handler(remove, mission_change_command.REMOVE_TARGETS)
 
 
 def _add_targets(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

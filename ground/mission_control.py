@@ -67,11 +67,18 @@ def send_opm(
 
 # ---- a mission's status, after the fact --------------------------------------------------
 def mission_targets_of(bus: Bus, space: KeySpace, mission: int, timeout_s: float) -> MissionTargets:
-    """The mission's targets and team, as the UAVs (or a ground still sending) serve them."""
-    for _, targets in bus.query_messages(space.mission_targets(mission), MissionTargets, timeout_s):
-        if targets.mission == mission:
-            return targets
-    raise MissionError(f"mission {mission}: no UAV or ground answers for it")
+    """The mission's targets and team, as the UAVs (or a ground still sending) serve them:
+    its latest revision served (a mission changed in flight)."""
+    served = [
+        targets
+        for _, targets in bus.query_messages(
+            space.mission_targets(mission), MissionTargets, timeout_s
+        )
+        if targets.mission == mission
+    ]
+    if not served:
+        raise MissionError(f"mission {mission}: no UAV or ground answers for it")
+    return max(served, key=lambda targets: targets.revision)
 
 
 def mission_status(
@@ -85,11 +92,16 @@ def mission_status(
     assignment, outcomes; with `until_reached_s`, first wait that long at most for every
     target to be reached. MissionError if nothing answers for the mission."""
     targets = mission_targets_of(bus, space, mission, timeout_s)
-    outcome = MissionOutcome(mission=mission, team=targets.team, targets=targets.targets)
+    outcome = MissionOutcome(
+        mission=mission,
+        team=targets.team,
+        targets=targets.targets,
+        removed=frozenset(targets.removed),
+    )
     with MissionFollower(bus, space, mission) as follower:
         follower.fetch(timeout_s)
         if until_reached_s is not None:
-            everything = set(range(len(targets.targets)))
+            everything = set(range(len(targets.targets))) - outcome.removed
 
             def all_reached() -> bool:
                 return reached_by(follower.outcomes.values()).keys() >= everything

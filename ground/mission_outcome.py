@@ -26,7 +26,7 @@ from typing import Any
 
 import msgspec
 
-from fleet.mission.claims import reached_by
+from fleet.mission.claims import flown_by, reached_by
 from fleet.mission.messages import (
     AssignmentReport,
     NoFlyZone,
@@ -93,6 +93,8 @@ class MissionOutcome:
     superseded_by: int | None = None
     #: The mission's no-fly zones.
     zones: tuple[NoFlyZone, ...] = ()
+    #: Targets taken off the mission in flight: never flown from then on.
+    removed: frozenset[int] = frozenset()
 
     @property
     def declined(self) -> list[int]:
@@ -113,6 +115,44 @@ class MissionOutcome:
     def epoch(self) -> int:
         """The latest re-plan epoch any UAV committed (0: the consensus itself)."""
         return max((report.epoch for report in self.assignments.values()), default=0)
+
+    @property
+    def revision(self) -> int:
+        """The latest revision of the mission any UAV planned (changed in flight)."""
+        return max((report.revision for report in self.assignments.values()), default=0)
+
+    def flown_twice(self) -> dict[int, list[int]]:
+        """Target -> the UAVs that each reached it, by their own outcomes, for every target
+        reached by more than one."""
+        return {t: uavs for t, uavs in flown_by(self.outcomes.values()).items() if len(uavs) > 1}
+
+    def membership(self) -> list[dict[str, Any]]:
+        """Who left the mission after its commitment and who came back, at the latest
+        epoch (fleet.consensus.membership): each such UAV's counts, whether it is out now,
+        and why it left where its own outcome says (failed, link lost), else its
+        liveliness went."""
+        report = self.latest()
+        if report is None:
+            return []
+        left = dict(report.left) or {uav: 1 for uav in report.released}
+        back = dict(report.back)
+        rows = []
+        for uav in sorted(left.keys() | back.keys()):
+            outcome = self.outcomes.get(uav)
+            dropped = outcome is not None and outcome.phase in (Phase.FAILED, Phase.LINK_LOST)
+            why = (
+                (outcome.reason or str(outcome.phase)) if dropped and outcome else "liveliness lost"
+            )
+            rows.append(
+                {
+                    "uav": uav,
+                    "left": left.get(uav, 0),
+                    "back": back.get(uav, 0),
+                    "out": left.get(uav, 0) > back.get(uav, 0),
+                    "why": why,
+                }
+            )
+        return rows
 
     def reached_by(self) -> dict[int, int]:
         """Target index -> the UAV whose telemetry put it inside the acceptance radius, as
@@ -222,6 +262,8 @@ class MissionOutcome:
     ) -> dict[str, Any]:
         if index in reached:
             return {"index": index, "state": "reached", "uav": reached[index]}
+        if index in self.removed:
+            return {"index": index, "state": "removed", "uav": None}
         if self.superseded_by is not None:
             why = f"mission {self.superseded_by} superseded this one"
             return {"index": index, "state": "unserved", "uav": None, "reason": why}
@@ -319,6 +361,10 @@ class MissionOutcome:
             "reasons": {str(uav): reason for uav, reason in sorted(self.reasons.items())},
             "target_states": self.target_states(),
             "epoch": self.epoch,
+            "revision": self.revision,
+            "removed": sorted(self.removed),
+            "membership": self.membership(),
+            "flown_twice": {str(t): uavs for t, uavs in self.flown_twice().items()},
             "outcomes": {
                 str(uav): msgspec.to_builtins(outcome)
                 for uav, outcome in sorted(self.outcomes.items())

@@ -38,12 +38,23 @@ def summary_lines(outcome: MissionOutcome) -> list[str]:
         state = f"; phase {phase}" + (f" ({reason})" if reason else "") if phase else ""
         lines.append(f"  UAV {uav}: {choice}; {times}{state}")
     if outcome.epoch:
-        lines.append(f"  re-planned: epoch {outcome.epoch}")
+        revision = f" (mission revision {outcome.revision})" if outcome.revision else ""
+        lines.append(f"  re-planned: epoch {outcome.epoch}{revision}")
+    for row in outcome.membership():
+        now = "out" if row["out"] else "back in"
+        lines.append(
+            f"  UAV {row['uav']}: left {row['left']}x ({row['why']}), came back "
+            f"{row['back']}x: {now}"
+        )
+    for index, uavs in outcome.flown_twice().items():
+        lines.append(f"  target {index}: FLOWN TWICE, by UAVs {', '.join(map(str, uavs))}")
     for target in outcome.target_states():
         if target["state"] == "unserved":
             lines.append(f"  target {target['index']}: unserved: {target['reason']}")
         elif target["state"] == "reached":
             lines.append(f"  target {target['index']}: reached by UAV {target['uav']}")
+        elif target["state"] == "removed":
+            lines.append(f"  target {target['index']}: removed in flight")
         elif target["state"] != "assigned":
             lines.append(
                 f"  target {target['index']}: {target['state']} (UAV {target['uav']}): "
@@ -75,7 +86,7 @@ def unreached_lines(outcome: MissionOutcome) -> list[str]:
     lines = []
     for target in outcome.target_states():
         state = target["state"]
-        if state == "reached":
+        if state in ("reached", "removed"):
             continue
         index, uav = target["index"], target["uav"]
         if state == "assigned":

@@ -257,7 +257,7 @@ class OnboardCore:
             progress = MissionProgress(
                 mission=self.round.mission,
                 phase=self.life.phase,
-                targets=len(self.round.targets.targets),
+                targets=len(self.round.current.targets),
                 result=self.round.results.get(self.uav_id),
                 assignment=self.round.committed,
                 route=self.flight.route,
@@ -275,7 +275,7 @@ class OnboardCore:
 
     # ---- what teammates ask for --------------------------------------------------------------
     def mission_targets(self) -> MissionTargets | None:
-        return self.round.targets if self.round else None
+        return self.round.current if self.round else None
 
     def own_result(self, mission: int) -> UavResult | None:
         if self.round is None or self.round.mission != mission:

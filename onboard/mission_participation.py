@@ -16,6 +16,7 @@ from typing import Protocol
 
 import msgspec
 
+from fleet.consensus.mission_change import first_revision
 from fleet.consensus.mission_round import (
     MissionRound,
     Settled,
@@ -132,6 +133,8 @@ class MissionParticipation:
             return
         current = self.round.mission if self.round else None
         if current is not None and targets.mission <= current:
+            if targets.mission == current and targets.revision > 0:
+                self._on_change(targets, now)
             return  # a repeat of the current mission, or a stale one
         if targets.mission in self._aborted:
             # Its abort came first (this UAV was away when the mission was sent): the
@@ -151,7 +154,9 @@ class MissionParticipation:
         # Heard just after this module was suspended, a mission may have been sent
         # while it was: its teammates may have decided on it already.
         late = replayed or self.catch_up.resumed(now)
-        mission_round = self._start_round(targets, now, late=late)
+        mission_round = self._start_round(first_revision(targets), now, late=late)
+        if targets.revision > 0:
+            mission_round.amend(targets)  # changed in flight already: taken once committed
         if late:
             # Learnt from a catch-up (a late join, a restart) or after a freeze: the
             # team may have decided on it already, and this UAV adopts that. A mission
@@ -249,7 +254,7 @@ class MissionParticipation:
             return
         if report.mission != mission_round.mission or report.mission in self._aborted:
             return
-        problem = assignment_problem(report, mission_round.targets)
+        problem = assignment_problem(report, mission_round.latest)
         if problem is not None:
             log.warning(
                 "mission %d: UAV %d's assignment refused: %s",
@@ -469,12 +474,53 @@ class MissionParticipation:
 
     # ---- the assignment ----------------------------------------------------------------------
     def _replan_if_released(self, now: float) -> None:
-        """Teammates released before this UAV committed: re-plan at once."""
+        """Teammates released, or the mission changed, before this UAV committed: re-plan
+        at once."""
         mission_round = self.round
-        if mission_round is None or mission_round.base is None:
+        if mission_round is None:
             return
-        if mission_round.released & set(mission_round.base.team):
+        pending = mission_round.pending_change
+        if pending is not None and mission_round.committed is not None:
+            self._on_change(pending, now)
+            return
+        if mission_round.base is None:
+            return
+        if mission_round.behind or mission_round.released & set(mission_round.base.team):
             self._replan(now)
+
+    def _on_change(self, targets: MissionTargets, now: float) -> None:
+        """A later revision of the current mission (targets added or removed in flight,
+        fleet.consensus.mission_change): a new epoch, re-planned at once."""
+        mission_round = self.round
+        assert mission_round is not None
+        if targets.mission in self._aborted:
+            return
+        if targets.revision <= mission_round.current.revision:
+            return  # a repeat (relayed, or the ground putting it again)
+        held = len(mission_round.current.targets)
+        problem = targets_problem(targets) or mission_round.amend(targets)
+        if problem is not None:
+            DROPPED.add(DropReason.INVALID)
+            text = (
+                f"error: mission {targets.mission} revision {targets.revision} refused: {problem}"
+            )
+            self.say(StatusKind.MISSION_REFUSED, text, now, mission=targets.mission)
+            return
+        if mission_round.committed is None:
+            return  # taken once committed (`_replan_if_released`)
+        added = len(targets.targets) - held
+        removed = len(targets.removed)
+        text = (
+            f"mission {targets.mission}: revision {targets.revision}: {added} target(s) "
+            f"added, {removed} removed in all; re-planning"
+        )
+        self.say(StatusKind.MISSION_CHANGED, text, now, mission=targets.mission)
+        if mission_round.base is None:
+            # It follows its teammates' epochs: their plan of this revision may have come
+            # before the revision itself, refused then for its new target indexes.
+            self.outputs.fetch_assignments(targets.mission)
+        self._replan(now)
+        self._settle()
 
     def _replan(self, now: float) -> None:
         """Re-assign the targets of released UAVs, or fetch the results that needs."""
@@ -535,7 +581,7 @@ class MissionParticipation:
         if advance(self.life.phase, Observation.ASSIGNED_TARGET) != Phase.COMMITTED:
             self._refuse_orphan(report, target_index, now)
             return
-        where = self.round.targets.targets[target_index]
+        where = self.round.current.targets[target_index]
         self.flight.commit(report.mission, target_index, where, now)
         eta_s = predicted_arrival(report, self.uav_id, target_index)
         eta = f"{eta_s:.0f} s" if eta_s is not None else "unknown"

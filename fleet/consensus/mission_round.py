@@ -35,10 +35,17 @@ import msgspec
 from fleet.consensus.assignment import air_bytes, results_digest
 from fleet.consensus.legs import Air, AirLegs, LegGeometry, leg_times
 from fleet.consensus.membership import Membership, membership_digest, report_counts
+from fleet.consensus.mission_change import (
+    added_targets,
+    change_digest,
+    change_problem,
+    estimated_times,
+    planned_count,
+)
 from fleet.consensus.objectives import plan_digest, plan_queues
 from fleet.consensus.proposal import choose, proposal_digest, proposal_problem
 from fleet.consensus.queues import UNREACHABLE
-from fleet.consensus.replan import missing_times, replan
+from fleet.consensus.replan import candidates, missing_times, replan
 from fleet.consensus.report_checks import (
     assignment_problem,
     predicted_arrival,
@@ -101,6 +108,8 @@ class Settled:
     #: larger changes nothing.
     left: tuple[tuple[int, int], ...] = ()
     back: tuple[tuple[int, int], ...] = ()
+    #: The mission's revision this UAV holds: a report of a later one may change it.
+    revision: int = 0
 
     def covers(self, header: AssignmentHeader) -> bool:
         """True if the report `header` heads changes nothing for this UAV."""
@@ -111,6 +120,8 @@ class Settled:
         if not self.committed:
             return False  # it may be adopted
         if self.following is not None and header.epoch > self.following:
+            return False
+        if header.revision > self.revision:
             return False
         if header.left or header.back:
             left, back = report_counts(header.released, header.left, header.back)
@@ -166,10 +177,53 @@ class MissionRound:
     proposals: dict[int, PlanProposal] = field(default_factory=dict)
     #: Why each proposal refused at the decision was refused (proposer -> why).
     refused_proposals: dict[int, str] = field(default_factory=dict)
+    #: The mission's latest revision this UAV took after its commitment (changed in
+    #: flight: fleet.consensus.mission_change); None: as first sent (`targets`).
+    change: MissionTargets | None = None
+    #: A later revision heard before the commitment: taken once committed.
+    pending_change: MissionTargets | None = None
 
     def __post_init__(self) -> None:
         self.team = team_set(self.targets.team)
         self.membership = Membership(self.team)
+
+    @property
+    def current(self) -> MissionTargets:
+        """The mission as it stands now: its latest revision taken, else as first sent."""
+        return self.change if self.change is not None else self.targets
+
+    def amend(self, new: MissionTargets) -> str | None:
+        """Take a later revision of the mission (after the commitment; before it, kept
+        for then); why not, if it is not one."""
+        held = self.current if self.committed is not None else self.pending_change
+        problem = change_problem(held or self.current, new)
+        if problem is not None:
+            return problem
+        if self.committed is None:
+            self.pending_change = new
+            return None
+        self._take(new)
+        return None
+
+    @property
+    def latest(self) -> MissionTargets:
+        """The latest revision heard: a teammate's plan may be of it already."""
+        return self.pending_change or self.current
+
+    def _take(self, new: MissionTargets) -> None:
+        self.pending_change = None
+        self.change = new
+        for cached in ("legs", "geometry"):  # now over the added targets too
+            self.__dict__.pop(cached, None)
+
+    @property
+    def behind(self) -> bool:
+        """The plan followed is of an earlier revision than the one taken."""
+        committed = self.committed
+        return committed is not None and committed.revision < self.current.revision
+
+    def removed(self, target: int) -> bool:
+        return target in self.current.removed
 
     @property
     def released(self) -> set[int]:
@@ -180,13 +234,13 @@ class MissionRound:
     def legs(self) -> list[list[float]]:
         """Target-to-target times in still air, from the mission alone: one table for
         every UAV, what a target's neighbours are found by (fleet.consensus.legs)."""
-        return leg_times(self.targets.targets, zones=self.targets.zones)
+        return leg_times(self.current.targets, zones=self.targets.zones)
 
     @functools.cached_property
     def geometry(self) -> LegGeometry:
         """Every leg's length and direction (and route round the zones), from the mission
         alone: each UAV's legs are timed from it in its own air."""
-        return LegGeometry.of(self.targets.targets, self.targets.zones)
+        return LegGeometry.of(self.current.targets, self.targets.zones)
 
     def prepare(self) -> list[list[float]]:
         """The legs' geometry and the still-air table, computed now (while the approach
@@ -220,7 +274,7 @@ class MissionRound:
     def next_target(self, uav: int) -> int | None:
         """The first target of `uav`'s queue no UAV has reported reaching (None: done)."""
         for target in self.queue_of(uav):
-            if target not in self.reached_targets:
+            if target not in self.reached_targets and not self.removed(target):
                 return target
         return None
 
@@ -232,7 +286,7 @@ class MissionRound:
 
     def heard_reached(self, reached: dict[int, int]) -> None:
         """A teammate's outcome listed these targets reached (target -> by whom)."""
-        count = len(self.targets.targets)
+        count = len(self.current.targets)
         for target, uav in reached.items():
             if target < count and uav in self.team:
                 self.reached_targets.setdefault(target, uav)
@@ -266,13 +320,14 @@ class MissionRound:
             left=tuple(sorted(self.membership.left.items())),
             back=tuple(sorted(self.membership.back.items())),
             following=committed.epoch if committed is not None and self.base is None else None,
+            revision=self.current.revision,
         )
 
     def add_result(self, result: UavResult) -> bool:
         """Keep a teammate's (or our own) result; False if it is not for this round."""
         if result.mission != self.mission or result.uav not in self.team:
             return False
-        if len(result.times) != len(self.targets.targets):
+        if len(result.times) != planned_count(self.targets):
             return False
         if self.committed is not None and result.uav in self.results:
             # Re-plans use the epoch-0 results: a restarted teammate's new times would
@@ -428,6 +483,7 @@ class MissionRound:
         released: tuple[int, ...] = (),
         left: dict[int, int] | None = None,
         back: dict[int, int] | None = None,
+        revision: int = 0,
     ) -> AssignmentReport:
         """This UAV's report of a plan; its ETA is its first target's arrival."""
         own = arrivals.get(self.own_id, ())
@@ -448,6 +504,7 @@ class MissionRound:
             unserved=dict(sorted(unserved.items())),
             left=left or {},
             back=back or {},
+            revision=revision,
         )
 
     def thinner(self, report: AssignmentReport, alive: set[int], now: float) -> set[int]:
@@ -482,6 +539,8 @@ class MissionRound:
             return None
         if self.thinner(report, alive, now):
             return None
+        if self.pending_change is not None:  # committed from now: its targets too
+            self._take(self.pending_change)
         self.committed = self._own_copy(report)
         # A re-plan needs this UAV's own epoch-0 times if epoch 0 used them; a restarted
         # UAV lost them (nobody else answers for them), so it follows its teammates'
@@ -549,20 +608,34 @@ class MissionRound:
         """Candidates whose results a re-plan needs and this UAV lacks."""
         if self.base is None:
             return ()
-        return missing_times(self.base, self._times(), self.released)
+        times = self._times()
+        if self.change is not None:  # added or removed targets move every queue
+            return tuple(u for u in candidates(self.base, self.released) if u not in times)
+        return missing_times(self.base, times, self.released)
 
     def replan(self) -> AssignmentReport | None:
         """Commit the assignment for the current released set; None without epoch 0 or
         while a candidate's results are missing (`replan_missing`)."""
         if self.base is None or self.replan_missing():
             return None
-        plan = replan(self.base, self._times(), self.released, self.air_legs(self.base.team))
+        current = self.current
+        plan = replan(
+            self.base,
+            self._times(),
+            self.released,
+            self.air_legs(self.base.team),
+            removed=current.removed,
+            added=added_targets(current),
+        )
         heads = plan.pairs
         membership = self.membership
         epoch, digest = plan.epoch, plan.digest
         if membership.back:  # somebody came back: the counts, not the set, name the epoch
             epoch = membership.epoch
             digest = membership_digest(self.base.digest, membership.left, membership.back)
+        # Each revision of the mission is one epoch more (fleet.consensus.mission_change).
+        epoch += current.revision
+        digest = change_digest(digest, current)
         self.committed = self._report(
             target=heads.get(self.own_id),
             pairs=heads,
@@ -577,9 +650,18 @@ class MissionRound:
             # says the same (fleet.consensus.membership.report_counts).
             left=dict(sorted(membership.left.items())) if membership.back else {},
             back=dict(sorted(membership.back.items())),
+            revision=current.revision,
         )
         self._update_reached()
         return self.committed
 
     def _times(self) -> dict[int, tuple[float | None, ...]]:
-        return {uav: result.times for uav, result in self.results.items()}
+        """The epoch-0 times, and each UAV's estimate to every target added in flight."""
+        current = self.current
+        extra = range(planned_count(current), len(current.targets))
+        if not extra:
+            return {uav: result.times for uav, result in self.results.items()}
+        return {
+            uav: result.times + estimated_times(result, current.targets, extra)
+            for uav, result in self.results.items()
+        }

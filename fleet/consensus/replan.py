@@ -100,17 +100,28 @@ def replan(
     times: Mapping[int, Sequence[float | None]],
     released: Iterable[int],
     legs: Legs,
+    *,
+    removed: Iterable[int] = (),
+    added: Iterable[int] = (),
 ) -> Replan:
-    """The plan once `released` dropped out, from the epoch-0 `base`, `times` and `legs`.
+    """The plan once `released` dropped out, from the epoch-0 `base`, `times` and `legs`;
+    with the mission changed in flight (fleet.consensus.mission_change), `removed`
+    targets leave every queue and the `added` ones are handed out like orphans.
 
-    `times[uav]` is a survivor's epoch-0 approach time to every target of the mission;
-    raises KeyError naming a survivor whose times are missing (fetch them first).
+    `times[uav]` is a survivor's epoch-0 approach time to every target of the mission
+    (and its estimate to each added one); raises KeyError naming a survivor whose times
+    are missing (fetch them first).
     """
     gone = tuple(sorted(set(released) & set(base.team)))
-    orphans = orphaned_targets(base, gone)
+    off = set(removed)
+    orphans = tuple(
+        sorted({t for t in orphaned_targets(base, gone) if t not in off} | (set(added) - off))
+    )
     pool = candidates(base, gone)
-    queues: Queues = {uav: list(q) for uav, q in base_queues(base).items() if uav in pool}
-    if orphans:
+    queues: Queues = {
+        uav: [t for t in q if t not in off] for uav, q in base_queues(base).items() if uav in pool
+    }
+    if orphans or off:
         # KeyError for a survivor whose times are missing: the caller fetches them.
         rows = {uav: times[uav] for uav in pool}
         append_earliest(queues, plan_clocks(queues, rows, legs), orphans, rows, legs)
@@ -122,7 +133,9 @@ def replan(
             unassigned=base.unassigned,
         )
     unserved = {
-        t: base.unserved.get(t, "no UAV had an approach time to it") for t in base.unassigned
+        t: base.unserved.get(t, "no UAV had an approach time to it")
+        for t in base.unassigned
+        if t not in off
     }
     queued = {t for q in queues.values() for t in q}
     unserved.update({t: NO_SURVIVOR for t in orphans if t not in queued})

@@ -44,6 +44,16 @@ def reached_by(outcomes: Iterable[TargetOutcome]) -> dict[int, int]:
     return reached
 
 
+def flown_by(outcomes: Iterable[TargetOutcome]) -> dict[int, list[int]]:
+    """Target -> every UAV whose own outcome says it reached it (ascending): two or more
+    flew it (a partition, a finished UAV's outcome that spread late)."""
+    flown: dict[int, set[int]] = {}
+    for outcome in outcomes:
+        for target, uav in own_claims(outcome).items():
+            flown.setdefault(target, set()).add(uav)
+    return {target: sorted(uavs) for target, uavs in sorted(flown.items())}
+
+
 def unconfirmed(outcomes: Iterable[TargetOutcome]) -> set[int]:
     """The UAVs named in a hint that their own outcomes (as held) do not back: whose own
     outcome to fetch."""

@@ -39,8 +39,8 @@ TargetIndex = Annotated[int, Meta(ge=0, le=MAX_TARGETS - 1)]
 Team = Annotated[tuple[PiccoloId, ...], Meta(max_length=MAX_TEAM)]
 #: How many times one UAV left a mission, or came back (fleet.consensus.membership).
 MembershipCount = Annotated[int, Meta(ge=0, le=0xFFFF)]
-#: An epoch is the sum of every team UAV's two counts.
-MAX_EPOCH = 2 * MAX_TEAM * 0xFFFF
+#: An epoch is the sum of every team UAV's two counts and the mission's revision.
+MAX_EPOCH = 2 * MAX_TEAM * 0xFFFF + 0xFFFF
 #: One UAV's ordered targets.
 Queue = Annotated[tuple[TargetIndex, ...], Meta(max_length=MAX_TARGETS)]
 Arrivals = Annotated[tuple[float, ...], Meta(max_length=MAX_TARGETS)]
@@ -129,6 +129,15 @@ class MissionTargets(msgspec.Struct, frozen=True):
     zones: Annotated[tuple[NoFlyZone, ...], Meta(max_length=MAX_ZONES)] = ()
     objective: Objective = Objective.GREEDY
     proposals_s: Annotated[float, Meta(ge=0.0, le=3600.0)] = 0.0
+    #: The mission changed in flight (fleet.consensus.mission_change): 0 as first sent;
+    #: each change puts the whole mission again, one revision higher, its added targets
+    #: after the others (an index never changes) and `removed` holding every target
+    #: taken off, never flown from then on.
+    revision: Annotated[int, Meta(ge=0, le=0xFFFF)] = 0
+    removed: Annotated[tuple[TargetIndex, ...], Meta(max_length=MAX_TARGETS)] = ()
+    #: How many of `targets` the mission had as first sent (what the UAVs' results time);
+    #: None: all of them.
+    planned: Annotated[int, Meta(ge=1, le=MAX_TARGETS)] | None = None
 
 
 class UavResult(msgspec.Struct, frozen=True):
@@ -221,6 +230,8 @@ class AssignmentReport(msgspec.Struct, frozen=True):
     #: (fleet.consensus.membership); empty while nobody came back.
     left: Annotated[dict[PiccoloId, MembershipCount], Meta(max_length=MAX_TEAM)] = {}
     back: Annotated[dict[PiccoloId, MembershipCount], Meta(max_length=MAX_TEAM)] = {}
+    #: The mission's revision this plan is of (MissionTargets.revision).
+    revision: Annotated[int, Meta(ge=0, le=0xFFFF)] = 0
 
 
 class PlanProposal(msgspec.Struct, frozen=True):
@@ -256,6 +267,8 @@ class AssignmentHeader(msgspec.Struct, frozen=True):
     released: Team = ()
     left: Annotated[dict[PiccoloId, MembershipCount], Meta(max_length=MAX_TEAM)] = {}
     back: Annotated[dict[PiccoloId, MembershipCount], Meta(max_length=MAX_TEAM)] = {}
+    #: The mission's revision this plan is of (MissionTargets.revision).
+    revision: Annotated[int, Meta(ge=0, le=0xFFFF)] = 0
 
 
 class TargetOutcome(msgspec.Struct, frozen=True):

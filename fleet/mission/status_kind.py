@@ -42,6 +42,7 @@ class StatusKind(StrEnum):
     TEAMMATE_DROPPED = "teammate_dropped"
     TEAMMATE_LOST = "teammate_lost"
     REPLANNED = "replanned"
+    MISSION_CHANGED = "mission_changed"  #: targets added or removed in flight
     ORPHAN_REFUSED = "orphan_refused"  #: handed a target after its part was over
     CANNOT_FLY = "cannot_fly"
     ABORTED = "aborted"

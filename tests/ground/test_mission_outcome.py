@@ -153,3 +153,33 @@ def test_queued_targets_have_a_holder_a_place_and_a_predicted_arrival() -> None:
     assert outcome.reached_by() == {1: 102}
     outcome.outcomes[101] = TargetOutcome(6, 101, 0, Phase.REACHED, reached={0: 101})
     assert outcome.reached_by() == {0: 101, 1: 102}
+
+
+def test_mission_shows_who_left_and_came_back_and_every_target_flown_twice() -> None:
+    team = (101, 102, 103)
+
+    def report(uav: int) -> AssignmentReport:
+        return AssignmentReport(
+            1, uav, None, {101: 0, 102: 1, 103: 2}, (), team, "d", epoch=4,
+            released=(102,), left={102: 2, 103: 1}, back={102: 1, 103: 1}, revision=1,
+        )  # fmt: skip
+
+    outcome = MissionOutcome(mission=1, team=team, targets=TARGETS)
+    outcome.assignments = {uav: report(uav) for uav in team}
+    outcome.outcomes = {
+        101: TargetOutcome(1, 101, 0, Phase.REACHED, reached={0: 101, 1: 103}),
+        102: TargetOutcome(1, 102, 1, Phase.LINK_LOST, "no telemetry for 60 s"),
+        103: TargetOutcome(1, 103, 0, Phase.REACHED, reached={1: 103}),  # 0 again, by 103
+    }
+    assert outcome.flown_twice() == {0: [101, 103]}
+    rows = {row["uav"]: row for row in outcome.membership()}
+    assert rows[102] == {
+        "uav": 102, "left": 2, "back": 1, "out": True, "why": "no telemetry for 60 s"
+    }  # fmt: skip
+    assert rows[103]["out"] is False and rows[103]["why"] == "liveliness lost"
+    report_json = outcome.to_json()
+    assert report_json["flown_twice"] == {"0": [101, 103]} and report_json["revision"] == 1
+    lines = summary_lines(outcome)
+    assert "  target 0: FLOWN TWICE, by UAVs 101, 103" in lines
+    assert any("UAV 102: left 2x (no telemetry for 60 s), came back 1x: out" in s for s in lines)
+    assert "  re-planned: epoch 4 (mission revision 1)" in lines

@@ -4,6 +4,9 @@ Outputs and a scripted planner (tests.onboard.core_harness)."""
 
 from __future__ import annotations
 
+import msgspec
+
+from fleet.consensus.mission_change import next_revision
 from fleet.consensus.mission_round import ASK_GRACE_S
 from fleet.consensus.targets_digest import targets_digest
 from fleet.mission.key_space import KeySpace
@@ -497,3 +500,57 @@ def test_a_restarted_uav_that_never_hears_its_autopilot_drops_its_target_as_link
     (outcome,) = out.on(SPACE.mission_outcome(3, 200))
     assert isinstance(outcome, TargetOutcome) and outcome.phase == Phase.LINK_LOST
     assert core.state(LINK_LOST_S + 0.5).phase != Phase.COMMITTED
+
+
+def test_targets_added_and_removed_in_flight_are_re_planned_at_once_as_a_new_epoch() -> None:
+    core, out = make_core(200, (30.0, 35.0))
+    commit_three_uav_team(core)  # 74 -> 0, 112 -> 1, 200 idle
+    held = MissionTargets(mission=3, team=(74, 112, 200), targets=TWO_TARGETS)
+    near_200 = Target(42.3605, -71.0905, 100.0)
+    changed = next_revision(held, added=(near_200,), removed=(1,))
+    core.on_telemetry(sample_telemetry(), 1.0)
+    core.on_targets(changed, 1.0)
+    report = out.on(SPACE.mission_assignment(3, 200))[-1]
+    assert isinstance(report, AssignmentReport)
+    assert (report.epoch, report.revision, report.released) == (1, 1, ())
+    assert all(1 not in queue for queue in report.queues.values())  # removed: never flown
+    # Only 200 said where it planned from: the added target is its own.
+    assert (report.target, report.queues[200]) == (2, (2,))
+    assert core.state(1.0).phase == Phase.COMMITTED
+    assert any("revision 1" in s for s in out.statuses())
+    core.on_targets(changed, 2.0)  # relayed again: a repeat changes nothing
+    assert len(out.on(SPACE.mission_assignment(3, 200))) == 2
+    rewritten = msgspec.structs.replace(changed, revision=2, targets=(near_200, *TWO_TARGETS))
+    core.on_targets(rewritten, 3.0)
+    assert any("indexes never change" in s for s in out.statuses())
+
+
+def test_a_change_heard_before_the_commitment_is_taken_once_committed() -> None:
+    core, out = uav_200_given_two_targets(mission=3)
+    held = MissionTargets(mission=3, team=(74, 112, 200), targets=TWO_TARGETS)
+    core.on_targets(next_revision(held, removed=(0,)), 0.05)
+    core.on_result(UavResult(3, 74, (10.0, 50.0)), 0.1)
+    core.on_result(UavResult(3, 112, (40.0, 20.0)), 0.1)
+    core.tick(0.2)
+    reports = out.on(SPACE.mission_assignment(3, 200))
+    assert [r.revision for r in reports] == [0, 1]  # type: ignore[attr-defined]
+    assert all(0 not in q for q in reports[-1].queues.values())  # type: ignore[attr-defined]
+
+
+def test_a_restarted_uav_catching_up_on_a_changed_mission_flies_an_added_target() -> None:
+    core, out = make_core(200, (30.0, 35.0))
+    for uav in (74, 112):
+        core.on_alive(uav, True, 0.0)
+    held = MissionTargets(mission=3, team=(74, 112, 200), targets=TWO_TARGETS)
+    changed = next_revision(held, added=(Target(42.3605, -71.0905, 100.0),))
+    core.on_targets(changed, 0.1, replayed=True)  # learnt from a teammate, revision 1
+    theirs = AssignmentReport(
+        3, 74, 0, {74: 0, 112: 1, 200: 2}, (), (74, 112, 200), "x", epoch=1, revision=1,
+        queues={74: (0,), 112: (1,), 200: (2,)},
+    )  # fmt: skip
+    core.on_assignment(theirs, 0.2)
+    report = out.on(SPACE.mission_assignment(3, 200))[-1]
+    assert isinstance(report, AssignmentReport)
+    assert (report.revision, report.target) == (1, 2)
+    assert core.state(0.3).phase == Phase.COMMITTED
+    assert out.autopilot  # the added target's waypoint written
