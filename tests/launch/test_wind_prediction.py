@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import math
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -27,7 +26,7 @@ from fleet.geo.mercator import MercatorProjection
 from fleet.geo.wind import Wind
 from fleet.sim.scenario import shipped_scenario, shipped_scenario_path
 from tests.support.ground_cli import ground_cli
-from tests.support.processes import ANY_PORT, start_fleet_up, wait_fleet_up
+from tests.support.processes import fleet_up
 
 pytestmark = pytest.mark.e2e
 
@@ -60,24 +59,20 @@ def test_still_air_times_would_fail_this_test() -> None:
 
 
 def test_three_uavs_arrive_when_they_said_in_a_10_ms_wind(tmp_path: Path) -> None:
-    up = start_fleet_up("windy", "--listen", ANY_PORT, "--speedup", "3", "--log-dir", str(tmp_path))
-    try:
-        endpoint = wait_fleet_up(up, 90.0).connect
+    with fleet_up("windy", "--speedup", "3", "--log-dir", str(tmp_path), timeout=90.0) as up:
         targets = shipped_scenario_path("windy").with_name("windy_targets.bin")
         sent = ground_cli("send-targets", str(targets), "--wait", "--json", "--timeout", "60",
-                          connect=endpoint, timeout=TIMEOUT_S)  # fmt: skip
+                          connect=up.connect, timeout=TIMEOUT_S)  # fmt: skip
         assert sent.returncode == 0, sent.stderr[-3000:]
         outcome = json.loads(sent.stdout)
         assert outcome["agreed"] is True
         assert outcome["assignment"] == {"201": 0, "202": 1, "203": 2}
         # The longest flight (upwind, ~260 s simulated) is ~90 s at speedup 3.
         reached = ground_cli(
-            "mission", "--until-reached", "240", "--json", connect=endpoint, timeout=300.0
+            "mission", "--until-reached", "240", "--json", connect=up.connect, timeout=300.0
         )
         assert reached.returncode == 0, reached.stdout[-3000:] + reached.stderr[-3000:]
-    finally:
-        up.process.send_signal(signal.SIGTERM)
-        assert up.process.wait(60) == 0
+        assert up.stop(60) == 0
     report = run("-m", "programs.fleet_cli", "report", str(tmp_path / "fleet.mcap"), "--json")
     assert report.returncode == 0, report.stderr[-3000:]
     (mission,) = json.loads(report.stdout)["missions"]

@@ -15,6 +15,10 @@ WAIT_S = 60.0
 
 
 def free_udp_port() -> int:
+    """A UDP port free right now (someone may take it after). Only for a station that
+    listens, MAVProxy (`--master=udpin:`), which the gateway must be told before it
+    starts, and which never says which port it bound; a gateway that listens is given
+    port 0 and says its own (`served_port`)."""
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
         probe.bind(("127.0.0.1", 0))
         port: int = probe.getsockname()[1]

@@ -14,7 +14,13 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from tests.ground.mavlink.mavlink_fleet import FleetUp, mavsdk_systems, running_fleet, stop
+from tests.ground.mavlink.mavlink_fleet import (
+    FleetUp,
+    mavsdk_systems,
+    running_fleet,
+    served_port,
+    stop,
+)
 from tests.ground.mavlink.stations import free_udp_port, receiver
 from tests.support.ground_view import GroundView
 from tests.support.processes import client_session
@@ -104,8 +110,8 @@ def test_mavsdk_uploads_a_mission_sees_the_fleets_position_and_rtl_aborts(
     from mavsdk.plugins.mission_raw import MissionItem, MissionRaw, MissionRawError
     from mavsdk.plugins.telemetry import Telemetry
 
-    port = free_udp_port()
-    gateway = fleet_up.gateway(f"udpin:127.0.0.1:{port}")
+    gateway = fleet_up.gateway("udpin:127.0.0.1:0")
+    port = served_port(gateway)
     piccolo = 103
     try:
         with client_session(fleet_up.endpoint) as session:
@@ -201,8 +207,8 @@ def _matches_published(position: Any, view: GroundView, piccolo: int) -> bool:
 def test_a_fuzzed_stream_is_dropped_and_counted_and_the_gateway_serves_on(
     fleet_up: FleetUp,
 ) -> None:
-    port = free_udp_port()
-    gateway = fleet_up.gateway(f"udpin:127.0.0.1:{port}")
+    gateway = fleet_up.gateway("udpin:127.0.0.1:0")
+    port = served_port(gateway)
     station = mavlink2.MAVLink(None, 250, 190)
     parser = mavlink2.MAVLink(None)
     try:
@@ -261,8 +267,8 @@ def test_mission_current_and_item_reached_follow_what_the_uav_reports(
     """A one-item mission a little ahead of UAV 101, uploaded by a pymavlink station:
     MISSION_CURRENT names it while the UAV flies, MISSION_ITEM_REACHED comes once, after
     the UAV itself reported the target reached."""
-    port = free_udp_port()
-    gateway = fleet_up.gateway(f"udpin:127.0.0.1:{port}")
+    gateway = fleet_up.gateway("udpin:127.0.0.1:0")
+    port = served_port(gateway)
     station = mavlink2.MAVLink(None, 250, 190)
     try:
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:

@@ -15,7 +15,8 @@ from pathlib import Path
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from tests.ground.mavlink.stations import free_udp_port, receiver
+from tests.ground.mavlink.mavlink_fleet import SERVING, served_port
+from tests.ground.mavlink.stations import receiver
 from tests.support.processes import Child, start, wait_fleet_up
 from tests.support.secure_fleet import start_secure_up
 
@@ -30,12 +31,13 @@ class SecureFleet:
     endpoint: str
     certs: Path
 
-    def gateway(self, identity: str, port: int) -> Child:
+    def gateway(self, identity: str) -> Child:
+        """A gateway holding `identity`, listening for stations on a free UDP port."""
         child = start(
             "fleet mavlink",
             [sys.executable, "-m", "programs.fleet_cli", "mavlink",
              "--zenoh-config", str(self.certs / f"{identity}.json5"),
-             "--connect", self.endpoint, "--out", f"udpin:127.0.0.1:{port}"],
+             "--connect", self.endpoint, "--out", "udpin:127.0.0.1:0"],
         )  # fmt: skip
         return child
 
@@ -55,11 +57,11 @@ def secure_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureFle
 def upload_one(identity: str, fleet: SecureFleet) -> tuple[list[str], int]:
     """Start a gateway holding `identity`, upload one waypoint to UAV 74 once every
     UAV is shown; its output and the MISSION_ACK's type."""
-    port = free_udp_port()
-    gateway = fleet.gateway(identity, port)
+    gateway = fleet.gateway(identity)
     station = mavlink2.MAVLink(None, 250, 190)
     try:
-        gateway.wait_for_line(lambda line: "fleet mavlink: serving on" in line, WAIT_S)
+        gateway.wait_for_line(lambda line: line.startswith(SERVING), WAIT_S)
+        port = served_port(gateway)
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
             sock.connect(("127.0.0.1", port))
             sock.settimeout(0.2)

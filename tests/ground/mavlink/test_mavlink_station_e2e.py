@@ -103,8 +103,8 @@ def request_message(sysid: int, message_id: int) -> mavlink2.MAVLink_command_lon
 
 # ---- QGroundControl's connect sequence ---------------------------------------------------------
 def test_qgroundcontrols_connect_sequence_is_answered(fleet_up: FleetUp) -> None:
-    port = free_udp_port()
-    gateway = fleet_up.gateway(f"udpin:127.0.0.1:{port}")
+    gateway = fleet_up.gateway("udpin:127.0.0.1:0")
+    port = served_port(gateway)
     qgc = Station(port)
     uav = UAVS[0]
     try:
@@ -181,8 +181,8 @@ def test_qgroundcontrols_connect_sequence_is_answered(fleet_up: FleetUp) -> None
 def test_mavsdk_sees_health_a_home_and_a_flight_mode(fleet_up: FleetUp) -> None:
     from mavsdk.plugins.telemetry import FlightMode, Telemetry
 
-    port = free_udp_port()
-    gateway = fleet_up.gateway(f"udpin:127.0.0.1:{port}")
+    gateway = fleet_up.gateway("udpin:127.0.0.1:0")
+    port = served_port(gateway)
     try:
         with mavsdk_systems(port, len(UAVS)) as systems:
             system = systems[UAVS[1]]
@@ -226,8 +226,8 @@ def test_mavproxy_reports_no_fence_breach(fleet_up: FleetUp) -> None:
 def test_one_byte_is_never_answered_and_strangers_cannot_lock_stations_out(
     fleet_up: FleetUp,
 ) -> None:
-    port = free_udp_port()
-    gateway = fleet_up.gateway(f"udpin:127.0.0.1:{port}")
+    gateway = fleet_up.gateway("udpin:127.0.0.1:0")
+    port = served_port(gateway)
     strangers = [Station(port) for _ in range(8)]
     honest = Station(port)
     try:
@@ -267,8 +267,8 @@ def test_only_signed_stations_command_and_upload(fleet_up: FleetUp) -> None:
     keys = fleet_up.tmp / "stations.keys"
     keys.write_text(f"operator {PASSPHRASE}\n")
     keys.chmod(0o600)
-    port = free_udp_port()
-    gateway = fleet_up.gateway(f"udpin:127.0.0.1:{port}", "--signing-key", str(keys))
+    gateway = fleet_up.gateway("udpin:127.0.0.1:0", "--signing-key", str(keys))
+    port = served_port(gateway)
     operator = Station(port, passphrase_secret(PASSPHRASE))
     unsigned = Station(port, component=191)
     forger = Station(port, passphrase_secret("a guess"), component=192)
@@ -297,8 +297,8 @@ def test_only_signed_stations_command_and_upload(fleet_up: FleetUp) -> None:
 
 
 def test_a_second_station_cannot_take_over_or_join_an_upload(fleet_up: FleetUp) -> None:
-    port = free_udp_port()
-    gateway = fleet_up.gateway(f"udpin:127.0.0.1:{port}")
+    gateway = fleet_up.gateway("udpin:127.0.0.1:0")
+    port = served_port(gateway)
     operator, rival = Station(port), Station(port)
     uav = UAVS[0]
     targets = [(35.70, -120.78), (35.69, -120.76)]
