@@ -20,8 +20,12 @@ then fly it from the same state, arriving within 10 m.
    arrival, same instances, same run.
 4. Speed: the model's solve time for 50 targets in calm air and in a 10 m/s wind,
    interleaved in the same run (the ratio is the figure; the machine is shared).
+5. JSBSim (`--part jsbsim`, needs `pip install '.[jsbsim]'`): the wind cases of 2 flown
+   on JSBSim's J3Cub behind the same guidance (`fleet sim --dynamics jsbsim`): the
+   published time and the kinematic simulator's flight, each against the JSBSim flight;
+   and JSBSim's cost, simulated seconds per CPU second of one aircraft.
 
-Run: .venv/bin/python -m bench.bench_prediction [--part still|wind|assignment|speed]
+Run: .venv/bin/python -m bench.bench_prediction [--part still|wind|assignment|speed|jsbsim]
 """
 
 from __future__ import annotations
@@ -287,6 +291,124 @@ def assignment(instances: int, seed: int) -> None:
         )
 
 
+def fly_on_jsbsim(target: tuple[float, float], wind: SimWind) -> tuple[float, float]:
+    """(arrival s, CPU s) of the guidance flying JSBSim's J3Cub from the origin, heading
+    north at AIRSPEED, to within ARRIVAL_RADIUS_M of `target` in a steady `wind`."""
+    from fleet.geo.mercator import MercatorProjection
+    from fleet.sim.jsbsim_model import JSBSimModel
+
+    limits = AircraftLimits()
+    settings = GuidanceSettings(acceptance_radius=ARRIVAL_RADIUS_M)
+    start = AircraftState(x=0.0, y=0.0, alt=600.0, heading=0.0, airspeed=AIRSPEED)
+    started = time.process_time()
+    model = JSBSimModel(start, limits, MercatorProjection(35.72, -120.765), wind)
+    for count in range(round(3600.0 / STEP_S)):
+        state = model.state
+        if math.hypot(target[0] - state.x, target[1] - state.y) <= ARRIVAL_RADIUS_M:
+            return count * STEP_S, time.process_time() - started
+        command = command_toward(state, target, 600.0, AIRSPEED, limits, wind, settings)
+        model.step(command, wind, STEP_S)
+    raise RuntimeError(f"{target} not reached on JSBSim in an hour")
+
+
+def on_jsbsim() -> None:
+    """The wind cases flown on JSBSim: the prediction and the kinematic simulator
+    against it."""
+    limits = AircraftLimits(max_airspeed=AIRSPEED)
+    model = ApproachTimeModel(limits)
+    print(
+        f"{'wind':>5} {'against the JSBSim flight':<32} {'median err':>10} {'p90 err':>8} "
+        f"{'worst err':>9} {'bias':>7}"
+    )
+    simulated = cpu = 0.0
+    for speed in WINDS:
+        wind = Wind(east=speed, north=0.0)
+        sim_wind = SimWind(north=0.0, east=speed)
+        velocity = (speed, AIRSPEED)
+        rows: dict[str, list[float]] = {
+            "model in the wind (published)": [],
+            "kinematic simulator": [],
+        }
+        for bearing, distance in wind_cases():
+            target = polar(bearing, distance)
+            flown, seconds = fly_on_jsbsim(target, sim_wind)
+            simulated += flown
+            cpu += seconds
+            state = AircraftState(x=0.0, y=0.0, alt=600.0, heading=0.0, airspeed=AIRSPEED)
+            kinematic = fly_to_point(
+                state, target, wind=sim_wind, acceptance_radius=ARRIVAL_RADIUS_M, max_time=3600.0
+            )
+            (predicted,), _, _ = published(model, limits, velocity, [target], wind)
+            rows["model in the wind (published)"].append((predicted - flown) / flown)
+            rows["kinematic simulator"].append((kinematic - flown) / flown)
+        for name, errors in rows.items():
+            print(row(f"{speed:>5.0f} {name:<32}", errors))
+    print(
+        f"      ({len(WINDS) * len(wind_cases())} JSBSim flights, {simulated:.0f} simulated s "
+        f"in {cpu:.1f} CPU s: {simulated / cpu:.0f} simulated s per CPU s of one aircraft, "
+        f"its guidance and inner loops included)"
+    )
+    autopilot_cost()
+    airspeed_spread()
+
+
+def airspeed_spread(seconds: int = 300) -> None:
+    """The true airspeed the onboard reads from the air data (what it plans at), over
+    `seconds` of the windy scenario's first UAV (gusts 0.8 m/s), on either model."""
+    from fleet.sim.autopilot import AutopilotSettings, SimulatedAutopilot
+    from fleet.sim.flight_model import Dynamics
+
+    scenario = shipped_scenario("windy")
+    for dynamics in Dynamics:
+        settings = AutopilotSettings(wind=scenario.wind, limits=scenario.limits, dynamics=dynamics)
+        autopilot = SimulatedAutopilot(scenario.uavs[0], settings, scenario.weather)
+        autopilot.advance_to(10_000)  # past the start
+        readings: list[float] = []
+        for _ in range(seconds * 10):  # 10 Hz
+            autopilot.advance_to(autopilot.time_ms + 100)
+            sensor = autopilot.telemetry().sensor
+            reading = None if sensor is None else sensor.true_airspeed()
+            assert reading is not None
+            readings.append(reading)
+        print(
+            f"air data true airspeed, {dynamics.value:<9} in the windy scenario's gusts: "
+            f"mean {statistics.mean(readings):.2f} m/s, standard deviation "
+            f"{statistics.pstdev(readings):.2f}, {min(readings):.1f} to {max(readings):.1f}"
+        )
+
+
+def autopilot_cost(seconds: int = 120, repeats: int = 3) -> None:
+    """CPU per simulated second of a whole simulated autopilot (the windy scenario's
+    three, gusts and 20 Hz telemetry to an open program port), kinematic vs JSBSim,
+    interleaved in the same run: the ratio is the figure."""
+    from fleet.sim.autopilot import AutopilotSettings, SimulatedAutopilot
+    from fleet.sim.flight_model import Dynamics
+
+    scenario = shipped_scenario("windy")
+    costs: dict[Dynamics, list[float]] = {dynamics: [] for dynamics in Dynamics}
+    for _ in range(repeats):
+        for dynamics in Dynamics:
+            settings = AutopilotSettings(
+                wind=scenario.wind, limits=scenario.limits, dynamics=dynamics
+            )
+            autopilots = [
+                SimulatedAutopilot(uav, settings, scenario.weather) for uav in scenario.uavs
+            ]
+            for autopilot in autopilots:
+                autopilot.open_program()
+            started = time.process_time()
+            for autopilot in autopilots:
+                autopilot.advance_to(seconds * 1000)
+            costs[dynamics].append((time.process_time() - started) / (len(autopilots) * seconds))
+    kinematic = min(costs[Dynamics.KINEMATIC])
+    for dynamics, values in costs.items():
+        best = min(values)
+        print(
+            f"simulated autopilot, {dynamics.value:<9}: {1000 * best:.2f} ms CPU per simulated "
+            f"second ({1 / best:.0f} simulated s per CPU s), x{best / kinematic:.1f} the kinematic"
+        )
+
+
 def speed(repeats: int = 7) -> None:
     """Solve time of 50 targets, calm vs a 10 m/s wind, interleaved."""
     limits = AircraftLimits(max_airspeed=AIRSPEED)
@@ -321,7 +443,9 @@ def speed(repeats: int = 7) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--part", choices=("still", "wind", "assignment", "speed"), default=None)
+    parser.add_argument(
+        "--part", choices=("still", "wind", "assignment", "speed", "jsbsim"), default=None
+    )
     parser.add_argument("--instances", type=int, default=40)
     parser.add_argument("--seed", type=int, default=24)
     args = parser.parse_args()
@@ -334,6 +458,8 @@ def main() -> None:
         assignment(args.instances, args.seed)
     if args.part in (None, "speed"):
         speed()
+    if args.part == "jsbsim":
+        on_jsbsim()
 
 
 if __name__ == "__main__":

@@ -61,6 +61,7 @@ from fleet.mission.key_space import DEFAULT_SPACE, KeySpace, uav_id_of
 from fleet.piccolo.telemetry import Telemetry
 from fleet.recording.recorder import READY_LINE, Recorder
 from fleet.recording.writer import McapSink
+from fleet.sim.flight_model import Dynamics
 from fleet.transport import bus_codec
 from fleet.transport.bus import Bus, BusSample, Declaration, decode_sample
 from fleet.transport.bus_factory import open_bus
@@ -110,6 +111,8 @@ class FleetSpec:
     #: Fork the onboards from one process that imported them (fleet.launch.fork_server):
     #: their imported pages are shared. False: each is its own `python -m`.
     fork_onboards: bool = True
+    #: The simulated aircraft's flight model (`fleet sim --dynamics`).
+    dynamics: Dynamics = Dynamics.KINEMATIC
 
 
 @dataclass
@@ -421,6 +424,8 @@ class Fleet:
         ]
         if self.spec.telemetry_hz is not None:
             argv += ["--telemetry-hz", f"{self.spec.telemetry_hz:g}"]
+        if self.spec.dynamics is not Dynamics.KINEMATIC:
+            argv += ["--dynamics", self.spec.dynamics.value]
         sim = self._spawn("sim", argv, stdout=subprocess.PIPE)
         reader = threading.Thread(target=self._read_sim, args=(sim,), daemon=True)
         self._readers.append(reader)

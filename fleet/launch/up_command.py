@@ -28,6 +28,8 @@ from fleet.mission.access import GROUND
 from fleet.mission.key_registry import DEFAULT_PREFIX
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.recording.streams import Stall, short_streams
+from fleet.sim.command import add_dynamics_argument
+from fleet.sim.flight_model import Dynamics, FlightModelError, require
 from fleet.sim.scenario import ScenarioError, resolve_scenario
 from fleet.transport.cli import (
     PREFIX_ENV,
@@ -180,6 +182,7 @@ def add_up_parser(
         help="start a UAV's onboard module again when it dies (back-off 1 s, doubling to "
         "30 s); without it a dead module is reported and the rest of the fleet flies on",
     )
+    add_dynamics_argument(parser)
     common_arguments(parser, speedup=1.0)
     return parser
 
@@ -206,6 +209,8 @@ class UpOptions(LaunchOptions):
     insecure: bool = False
     topology: Topology = Topology.STAR
     restart: bool = False
+    #: The simulated aircraft's flight model (`fleet sim --dynamics`).
+    dynamics: Dynamics = Dynamics.KINEMATIC
 
 
 def up_options(args: argparse.Namespace) -> UpOptions:
@@ -249,6 +254,10 @@ def open_listener_problem(listen: str, insecure: bool) -> str | None:
 
 
 def _run_up(args: UpOptions, stop: threading.Event) -> int:
+    try:
+        require(args.dynamics)
+    except FlightModelError as error:
+        return fail("fleet up", str(error))
     spec = FleetSpec(
         scenario="",
         listen=args.listen,
@@ -259,6 +268,7 @@ def _run_up(args: UpOptions, stop: threading.Event) -> int:
         topology=args.topology,
         key_space=args.key_space,
         fork_onboards=args.fork_onboards,
+        dynamics=args.dynamics,
     )
     fleet = Fleet(spec, stop_requested=stop, progress=_print_progress)
     if args.uavs is not None:

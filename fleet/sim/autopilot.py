@@ -33,7 +33,7 @@ import math
 from collections import Counter
 from dataclasses import dataclass, field
 
-from fleet.geo.aircraft import GRAVITY, AircraftLimits
+from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.angles import wrap_pi
 from fleet.geo.mercator import MercatorProjection
 from fleet.mission.messages import NoFlyZone
@@ -45,7 +45,7 @@ from fleet.piccolo.telemetry import GpsBlock, RawBlock, SensorBlock, Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from fleet.sim.aircraft import CALM, AircraftState, Wind
-from fleet.sim.aircraft import step as aircraft_step
+from fleet.sim.flight_model import Dynamics, FlightModel, FlightModelError, make_flight_model
 from fleet.sim.flight_plan import FlightPlan, FlightPlanError, check_indices
 from fleet.sim.guidance import DEFAULT_ACCEPTANCE_RADIUS, GuidanceSettings, command_toward
 from fleet.sim.uav_spec import UavSpec
@@ -107,6 +107,8 @@ class AutopilotSettings:
     wind: Wind = CALM  #: steady, reported exactly, unless the autopilot is given weather
     #: No-fly zones whose incursions the simulator logs (fleet.sim.zone_log).
     zones: tuple[NoFlyZone, ...] = ()
+    #: The flight model the aircraft fly (fleet.sim.flight_model).
+    dynamics: Dynamics = Dynamics.KINEMATIC
 
     def __post_init__(self) -> None:
         if not 0.0 < self.telemetry_hz <= MAX_TELEMETRY_HZ:
@@ -134,20 +136,33 @@ class SimulatedAutopilot:
         weather: WeatherSpec | None = None,
     ) -> None:
         """`weather` (drift, gusts, the reported estimate's lag and error:
-        fleet.sim.weather) replaces the settings' steady wind."""
+        fleet.sim.weather) replaces the settings' steady wind. Raises
+        FlightModelError if the settings' dynamics cannot run here or cannot start this
+        aircraft, ValueError if it cannot fly at the aircraft's airspeed."""
         self.settings = AutopilotSettings() if settings is None else settings
         self.piccolo_id = uav.piccolo_id
         self.projection = MercatorProjection(uav.lat, uav.lon)
-        self.state = AircraftState(
+        self.airspeed_command = uav.airspeed
+        spec = weather or WeatherSpec(mean=self.settings.wind)
+        self.weather = Weather(spec, uav.piccolo_id)
+        start = AircraftState(
             x=0.0,
             y=0.0,
             alt=uav.alt,
             heading=math.radians(uav.heading),
             airspeed=uav.airspeed,
         )
-        self.airspeed_command = uav.airspeed
-        spec = weather or WeatherSpec(mean=self.settings.wind)
-        self.weather = Weather(spec, uav.piccolo_id)
+        #: What the aircraft is: the kinematic model or JSBSim (settings.dynamics).
+        try:
+            self.model: FlightModel = make_flight_model(
+                self.settings.dynamics,
+                start,
+                self.settings.limits,
+                self.projection,
+                self.weather.wind,
+            )
+        except (FlightModelError, ValueError) as error:
+            raise type(error)(f"uav {uav.piccolo_id}: {error}") from error
         self.guidance = GuidanceSettings(acceptance_radius=self.settings.acceptance_radius)
         self.zone_log = IncursionLog(self.piccolo_id, self.projection, self.settings.zones)
         self.plan = FlightPlan(uav.waypoints())
@@ -172,6 +187,11 @@ class SimulatedAutopilot:
         return x, y, waypoint.alt
 
     @property
+    def state(self) -> AircraftState:
+        """Where the aircraft is and how it flies (its flight model's)."""
+        return self.model.state
+
+    @property
     def target_xy(self) -> tuple[float, float]:
         """Local metres of the tracked waypoint."""
         return self._target[0], self._target[1]
@@ -194,9 +214,7 @@ class SimulatedAutopilot:
             wind,
             self.guidance,
         )
-        self.state = aircraft_step(
-            self.state, command, self.settings.limits, wind, STEP_MS / 1000.0
-        )
+        self.model.step(command, wind, STEP_MS / 1000.0)
         self.weather.advance(STEP_MS / 1000.0)
         self.time_ms += STEP_MS
         self.zone_log.check(self.state.x, self.state.y, self.time_ms)
@@ -252,21 +270,20 @@ class SimulatedAutopilot:
     def telemetry(self) -> Telemetry:
         """TELEMETRY_HI_RES of the current state at the current simulated time."""
         state = self.state
+        sensors = self.model.sensors(self.weather.wind)
         lat, lon = self.projection.to_latlon(state.x, state.y)
-        north, east = state.ground_velocity(self.weather.wind)
         reported = self.weather.estimate
         density, temperature, pressure = isa_atmosphere(state.alt)
         week, time_of_week = divmod(self.time_ms, _MS_PER_WEEK)
-        heading_rate = state.heading_rate
         return Telemetry(
             system_time_ms=self.time_ms & 0xFFFFFFFF,
             gps=GpsBlock(
                 lat=lat,
                 lon=lon,
                 alt=state.alt,
-                vel_north=north,
-                vel_east=east,
-                vel_down=-state.climb_rate,
+                vel_north=sensors.vel_north,
+                vel_east=sensors.vel_east,
+                vel_down=sensors.vel_down,
                 dop=1.0,
                 sats_visible=12,
                 sats_tracked=10,
@@ -274,10 +291,10 @@ class SimulatedAutopilot:
                 gps_time_of_week_ms=time_of_week,
             ),
             sensor=SensorBlock(
-                roll=math.degrees(state.bank),
-                pitch=math.degrees(state.pitch),
+                roll=math.degrees(sensors.roll),
+                pitch=math.degrees(sensors.pitch),
                 # The wire holds +-pi in an i16 of 1e-4 rad: 0-360 would not fit.
-                yaw=math.degrees(wrap_pi(state.heading)),
+                yaw=math.degrees(wrap_pi(sensors.yaw)),
                 indicated_airspeed=state.airspeed * math.sqrt(density),
                 wind_south=-reported.north,
                 wind_west=-reported.east,
@@ -286,13 +303,12 @@ class SimulatedAutopilot:
                 static_pressure=pressure,
             ),
             raw=RawBlock(
-                p=math.degrees(state.roll_rate),
-                q=math.degrees(heading_rate * math.sin(state.bank)),
-                r=math.degrees(heading_rate * math.cos(state.bank)),
-                accel_x=state.acceleration,
-                accel_y=0.0,
-                # Specific force of level coordinated flight: the load factor, body down.
-                accel_z=-GRAVITY / math.cos(state.bank),
+                p=math.degrees(sensors.p),
+                q=math.degrees(sensors.q),
+                r=math.degrees(sensors.r),
+                accel_x=sensors.accel_x,
+                accel_y=sensors.accel_y,
+                accel_z=sensors.accel_z,
             ),
         )
 

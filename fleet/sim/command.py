@@ -25,6 +25,7 @@ from fleet.sim.autopilot import (
     AutopilotSettings,
     SimulatedAutopilot,
 )
+from fleet.sim.flight_model import Dynamics, FlightModelError
 from fleet.sim.guidance import DEFAULT_ACCEPTANCE_RADIUS
 from fleet.sim.scenario import ScenarioError, resolve_scenario, shipped_scenario_names
 from fleet.sim.server import (
@@ -97,6 +98,20 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
         help="no-fly zones (GeoJSON) whose every incursion is logged as an error "
         "(default: the scenario's no_fly file, if any)",
     )
+    add_dynamics_argument(parser)
+
+
+def add_dynamics_argument(parser: argparse.ArgumentParser) -> None:
+    """`--dynamics`: the flight model the simulated aircraft fly."""
+    parser.add_argument(
+        "--dynamics",
+        type=Dynamics,
+        choices=list(Dynamics),
+        default=Dynamics.KINEMATIC,
+        help="the aircraft's flight model: kinematic, the project's point dynamics "
+        "(default), or jsbsim, JSBSim's J3Cub behind the same autopilot "
+        "(pip install 'uav-fleet[jsbsim]')",
+    )
 
 
 def _add_listen_arguments(parser: argparse.ArgumentParser) -> None:
@@ -163,6 +178,8 @@ class SimOptions:
     acceptance_radius: float = DEFAULT_ACCEPTANCE_RADIUS
     #: No-fly zones (GeoJSON) whose incursions are logged (None: the scenario's).
     no_fly: str | None = None
+    #: The aircraft's flight model (fleet.sim.flight_model).
+    dynamics: Dynamics = Dynamics.KINEMATIC
 
 
 def _build(args: SimOptions) -> list[SimulatedAutopilot]:
@@ -174,12 +191,15 @@ def _build(args: SimOptions) -> list[SimulatedAutopilot]:
         limits=scenario.limits,
         wind=scenario.wind,
         zones=read_zones(args.no_fly) if args.no_fly else scenario.zones,
+        dynamics=args.dynamics,
     )
     logger.info(
-        "scenario %s (%s): %d aircraft, wind north %.1f east %.1f m/s%s, %d no-fly zones",
+        "scenario %s (%s): %d aircraft (%s dynamics), wind north %.1f east %.1f m/s%s, "
+        "%d no-fly zones",
         scenario.name,
         scenario.source,
         len(uavs),
+        args.dynamics.value,
         scenario.wind.north,
         scenario.wind.east,
         "" if scenario.weather.steady else " drifting and gusting",
@@ -201,7 +221,7 @@ def run(args: SimOptions, out: TextIO) -> int:
             speedup=args.speedup,
             use_pty=args.pty,
         )
-    except (ScenarioError, ValueError) as error:
+    except (ScenarioError, FlightModelError, ValueError) as error:
         return fail("fleet sim", str(error))
     except OSError as error:
         return fail("fleet sim", f"cannot read {error.filename}: {error.strerror}")

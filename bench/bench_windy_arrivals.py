@@ -1,0 +1,102 @@
+"""Predicted against flown, the whole system: the shipped `windy` scenario end to end.
+
+`fleet up windy` (router, simulator, three onboards) in its 10 m/s westerly that
+drifts and gusts, with the reported estimate lagging and biased; the targets of
+`windy_targets.bin` sent with `ground-cli send-targets` (one upwind, one downwind, one
+across the wind, 3.2 km from each UAV), then `mission --until-reached`; `fleet report`
+on the run's recording gives each UAV's published ETA and the time it flew (on the
+aircraft's clock, from its commitment to its arrival). Error = (predicted - flown) /
+flown. With `--dynamics jsbsim` the aircraft fly on JSBSim's J3Cub (docs/simulator.md).
+
+    python -m bench.bench_windy_arrivals [--dynamics kinematic jsbsim] [--runs N]
+                                         [--after S] [--speedup K]
+
+`--after S` waits S wall seconds after the fleet is up before sending the targets (the
+UAVs fly their racetracks meanwhile, turning in the wind). Each run takes about
+300 / K wall seconds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from fleet.launch.endpoints import free_port
+from fleet.sim.scenario import shipped_scenario_path
+from tests.support.processes import start_fleet_up, wait_fleet_up
+
+#: Where each UAV's target lies from it, in the scenario's wind (docs/simulator.md).
+WHERE = {"201": "upwind", "202": "downwind", "203": "across"}
+
+
+def _run(*argv: str, timeout: float) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, *argv], capture_output=True, text=True, timeout=timeout, check=False
+    )
+
+
+def fly(dynamics: str, after_s: float, speedup: float) -> dict[str, tuple[float, float]]:
+    """One run: each UAV's (predicted s, flown s)."""
+    with tempfile.TemporaryDirectory(prefix="bench-windy-") as folder:
+        logs = Path(folder)
+        endpoint = f"tcp/127.0.0.1:{free_port()}"
+        up = start_fleet_up(
+            "windy", "--listen", endpoint, "--speedup", f"{speedup:g}", "--log-dir", folder,
+            "--dynamics", dynamics,
+        )  # fmt: skip
+        try:
+            wait_fleet_up(up, 120.0)
+            time.sleep(after_s)  # the point: targets sent a while after the start
+            ground = ("-m", "ground.cli", "--connect", endpoint)
+            targets = shipped_scenario_path("windy").with_name("windy_targets.bin")
+            sent = _run(*ground, "send-targets", str(targets), "--wait", "--json",
+                        "--timeout", "60", timeout=120.0)  # fmt: skip
+            if sent.returncode != 0:
+                raise RuntimeError(f"send-targets failed: {sent.stderr[-2000:]}")
+            until = 400.0 / speedup + 60.0
+            reached = _run(*ground, "mission", "--until-reached", f"{until:.0f}", "--json",
+                           timeout=until + 60.0)  # fmt: skip
+            if reached.returncode != 0:
+                raise RuntimeError(f"not every target reached: {reached.stdout[-2000:]}")
+        finally:
+            up.process.send_signal(signal.SIGTERM)
+            up.process.wait(60)
+        report = _run("-m", "programs.fleet_cli", "report", str(logs / "fleet.mcap"), "--json",
+                      timeout=120.0)  # fmt: skip
+        if report.returncode != 0:
+            raise RuntimeError(f"fleet report failed: {report.stderr[-2000:]}")
+    (mission,) = json.loads(report.stdout)["missions"]
+    return {
+        uav: (float(mission["predicted_s"][uav]), float(mission["flown_s"][uav])) for uav in WHERE
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--dynamics", nargs="+", choices=("kinematic", "jsbsim"), default=["kinematic", "jsbsim"]
+    )
+    parser.add_argument("--runs", type=int, default=1)
+    parser.add_argument("--after", type=float, default=0.0, metavar="S")
+    parser.add_argument("--speedup", type=float, default=3.0, metavar="K")
+    args = parser.parse_args()
+    print(f"{'dynamics':<10} {'run':>3} {'UAV':>4} {'target':<9} {'predicted s':>11} "
+          f"{'flown s':>8} {'error':>7}")  # fmt: skip
+    for dynamics in args.dynamics:
+        for run in range(args.runs):
+            for uav, (predicted, flown) in fly(dynamics, args.after, args.speedup).items():
+                print(
+                    f"{dynamics:<10} {run:>3} {uav:>4} {WHERE[uav]:<9} {predicted:>11.1f} "
+                    f"{flown:>8.1f} {100 * (predicted - flown) / flown:>+6.1f}%",
+                    flush=True,
+                )
+
+
+if __name__ == "__main__":
+    main()
