@@ -10,6 +10,13 @@ Two ways to learn it:
   (with history, so UAVs already up are reported too) plus telemetry, track, waypoint
   and status subscriptions, and state queries on demand to fill in what is not
   published (module on/off, mission phase).
+
+A liveliness token carries no signature: any router on the way, or any client the
+router lets declare it, can make one up for a Piccolo ID of the roster. So in the secure
+profile (`Bus.signed`) both show a UAV only once it has spoken for itself: its state
+answered, signed by its own key, or its streams heard (each sample is delivered only
+once the UAV's signed digest lists it, `fleet.transport.stream_auth`). A token alone
+shows no aircraft.
 """
 
 from __future__ import annotations
@@ -166,7 +173,7 @@ def queue_length(assignment: AssignmentReport | None, uav: int) -> int | None:
     return 0 if assignment.target is None else 1
 
 
-def live_uav_ids(bus: Bus, space: KeySpace, timeout_s: float) -> list[int]:
+def _token_ids(bus: Bus, space: KeySpace, timeout_s: float) -> list[int]:
     """The Piccolo IDs whose liveliness token `fleet/uav/{id}/alive` is declared."""
     ids: set[int] = set()
     for key in bus.live_tokens(space.all_alive, timeout_s):
@@ -177,6 +184,26 @@ def live_uav_ids(bus: Bus, space: KeySpace, timeout_s: float) -> list[int]:
     return sorted(ids)
 
 
+def _vouched(bus: Bus, ids: list[int], states: dict[int, UavState]) -> list[int]:
+    """`ids`, in the secure profile only those whose own signed state answered."""
+    if not bus.signed:
+        return ids
+    unvouched = [uav for uav in ids if uav not in states]
+    if unvouched:
+        log.info(
+            "not listed: UAV(s) %s: a liveliness token, but no state signed by the UAV",
+            ", ".join(map(str, unvouched)),
+        )
+    return [uav for uav in ids if uav in states]
+
+
+def live_uav_ids(bus: Bus, space: KeySpace, timeout_s: float) -> list[int]:
+    """The Piccolo IDs whose liveliness token is declared, vouched for or not: the team
+    `send-targets` picks includes a UAV frozen past its state query's timeout (it
+    fetches the mission when it resumes)."""
+    return _token_ids(bus, space, timeout_s)
+
+
 def query_states(bus: Bus, space: KeySpace, timeout_s: float) -> dict[int, UavState]:
     return {
         state.uav: state for _, state in bus.query_messages(space.all_state, UavState, timeout_s)
@@ -185,8 +212,9 @@ def query_states(bus: Bus, space: KeySpace, timeout_s: float) -> dict[int, UavSt
 
 def fleet_snapshot(bus: Bus, space: KeySpace, timeout_s: float) -> list[UavView]:
     """Every live UAV, with what its state query said (just its id if it did not answer)."""
-    ids = live_uav_ids(bus, space, timeout_s)
+    ids = _token_ids(bus, space, timeout_s)
     states = query_states(bus, space, timeout_s) if ids else {}
+    ids = _vouched(bus, ids, states)
     return [view_from_state(states[i]) if i in states else UavView(id=i) for i in ids]
 
 
@@ -198,6 +226,9 @@ class _Uav:
     waypoints: dict[int, Waypoint] = field(default_factory=dict)
     track_history: list[int] = field(default_factory=list)
     telemetry: Telemetry | None = None  #: the latest packet, whole (attitude, rates)
+    #: The UAV spoke for itself (its streams or its state): in the secure profile, a
+    #: token alone does not show it.
+    vouched: bool = False
 
 
 class FleetView(Declarations):
@@ -225,6 +256,8 @@ class FleetView(Declarations):
         self._uavs: dict[int, _Uav] = {}
         self._records: deque[StatusRecord] = deque(maxlen=STATUS_HISTORY)
         self._alerts = Alerts()
+        #: Whether a UAV must speak for itself to be shown (the secure profile).
+        self._signed = bus.signed
         super().__init__()
 
     def _declare(self, enter: Enter) -> None:
@@ -236,18 +269,24 @@ class FleetView(Declarations):
         enter(bus.subscribe(space.all_status, self._on_status_sample))
 
     # ---- callbacks (Zenoh threads) ------------------------------------------------
-    def _entry(self, uav_id: int) -> _Uav:
+    def _entry(self, uav_id: int, vouched: bool = True) -> _Uav:
+        """The UAV's entry; `vouched`: what is heard of it came from the UAV itself (a
+        stream sample, its state: signed in the secure profile), not from a token."""
         entry = self._uavs.get(uav_id)
         if entry is None:
             entry = self._uavs[uav_id] = _Uav(UavView(id=uav_id))
+        entry.vouched = entry.vouched or vouched
         return entry
+
+    def _shown(self, entry: _Uav, include_gone: bool = False) -> bool:
+        return (entry.alive or include_gone) and (entry.vouched or not self._signed)
 
     def _on_alive(self, key: str, alive: bool) -> None:
         uav_id = _uav_of(key, self._space)
         if uav_id is None:
             return
         with self._changed:
-            self._entry(uav_id).alive = alive
+            self._entry(uav_id, vouched=False).alive = alive
             self._changed.notify_all()
         log.info("UAV %d %s", uav_id, "joined" if alive else "left")
 
@@ -329,7 +368,7 @@ class FleetView(Declarations):
             views = []
             for uav_id in sorted(self._uavs):
                 entry = self._uavs[uav_id]
-                if not (entry.alive or include_gone):
+                if not self._shown(entry, include_gone):
                     continue
                 view = entry.view
                 if entry.telemetry_at is not None:
@@ -339,7 +378,7 @@ class FleetView(Declarations):
 
     def live_ids(self) -> list[int]:
         with self._lock:
-            return sorted(i for i, entry in self._uavs.items() if entry.alive)
+            return sorted(i for i, entry in self._uavs.items() if self._shown(entry))
 
     def waypoints(self, uav_id: int) -> dict[int, Waypoint]:
         with self._lock:

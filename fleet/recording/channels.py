@@ -26,6 +26,7 @@ from typing import Any
 from fleet.mission import key_registry, schemas
 from fleet.mission.key_registry import REGISTRY, Recording, Role
 from fleet.mission.key_space import KeySpace, uav_id_of
+from fleet.transport import bus_codec
 
 SCHEMA_ENCODING = "jsonschema"
 MESSAGE_ENCODING = "json"
@@ -141,7 +142,9 @@ def _message_patterns() -> tuple[tuple[str, str, str], ...]:
 
 @cache
 def _schema_bytes(name: str) -> bytes:
-    return schemas.render(name).encode()
+    # On the recorder's worker while other threads decode: compiled under the lock.
+    with bus_codec.TYPE_INFO_LOCK:
+        return schemas.render(name).encode()
 
 
 def channel_for(key: str) -> ChannelSpec:

@@ -82,10 +82,21 @@ def refuse(text: str, reason: DropReason) -> BadMessage:
     return BadMessage(text, reason)
 
 
+#: Held while msgspec compiles a type (a decoder, a JSON schema). msgspec 0.22 builds a
+#: Struct class's decoding info on first use and attaches it to the class before it is
+#: complete, while it runs Python to read the annotations; a second thread compiling
+#: the same types meanwhile takes the incomplete info and its decoder crashes (SIGSEGV
+#: in `json_decode_struct_map_inner`): `fleet up` died so at start-up, its main thread
+#: decoding the first telemetry while the recorder's worker made a channel's schema
+#: (`bench/msgspec_compile_race.py` reproduces it with msgspec alone).
+TYPE_INFO_LOCK = threading.RLock()
+
+
 @functools.cache
 def _decoder(kind: Any) -> msgspec.json.Decoder[Any]:
     """One decoder per message type, made on first use (msgspec compiles it once)."""
-    return msgspec.json.Decoder(kind)
+    with TYPE_INFO_LOCK:
+        return msgspec.json.Decoder(kind)
 
 
 def decode_json(payload: bytes, kind: type[T], key: str) -> T:

@@ -46,6 +46,8 @@ log = logging.getLogger(__name__)
 HOLD_S = 5.0
 #: Links held at once, at most; the next ones are cut at once.
 MAX_HELD = 8
+#: How long stop() waits for held links to be let go before the session closes anyway.
+RELEASE_WAIT_S = 10.0
 #: Reconnections refused are logged this many times, then every LOG_EVERY-th time.
 LOG_FIRST = 10
 LOG_EVERY = 100
@@ -75,6 +77,8 @@ class RevocationGuard:
         self.max_held = max_held
         self._on_cut = on_cut
         self._lock = threading.Lock()
+        #: Signalled when a held link is let go, so stop() can wait for the last one.
+        self._released = threading.Condition(self._lock)
         self._revoked: frozenset[str] = frozenset()
         self._held = 0
         self._refused = 0
@@ -112,8 +116,13 @@ class RevocationGuard:
         ]
 
     def stop(self) -> None:
-        """Stop listening; a link being held is cut now."""
+        """Stop listening; a link being held is cut now, and let go before this returns.
+
+        A held link keeps one of Zenoh's threads in `_on_link`: closing the session
+        while it is still there timed out on a loaded box, so wait (bounded) for it."""
         self._stop.set()
+        with self._released:
+            self._released.wait_for(lambda: self._held == 0, timeout=RELEASE_WAIT_S)
         declared, self._declared = self._declared, []
         for declaration in declared:
             with contextlib.suppress(zenoh.ZError):  # the session is closed already
@@ -171,8 +180,9 @@ class RevocationGuard:
             cut_now = self._cut(link)
         finally:
             if hold:
-                with self._lock:
+                with self._released:
                     self._held -= 1
+                    self._released.notify_all()
         if cut_now:
             with self._lock:
                 self._refused += 1

@@ -6,6 +6,7 @@ from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import StatusText
 from fleet.mission.phase import Severity
 from fleet.mission.status_kind import StatusKind
+from fleet.transport.bus import Bus, DelegatingBus
 from fleet.transport.memory import MemoryNetwork
 from ground.alerts import StatusRecord
 from ground.fleet_view import FleetView, fleet_snapshot, live_uav_ids, query_states
@@ -74,3 +75,47 @@ def test_a_uav_along_its_queue_shows_the_target_it_flies_to_and_those_it_reached
         74, True, 1.0, None, None, None, MissionProgress(7, Phase.FLYING, 3, None, report)
     )
     assert view_from_state(older).target == 0
+
+
+class Signed(DelegatingBus):
+    """The in-memory bus as the secure profile's: a token is no UAV's word, while what
+    reaches a subscription or answers a state query is (the Zenoh bus checks that)."""
+
+    def __init__(self, under: Bus) -> None:
+        self._under = under
+
+    @property
+    def under(self) -> Bus:
+        return self._under
+
+    def put(self, key: str, payload: bytes) -> None:
+        self._under.put(key, payload)
+
+    def close(self) -> None:
+        self._under.close()
+
+    @property
+    def signed(self) -> bool:
+        return True
+
+
+def test_in_the_secure_profile_a_token_alone_shows_no_uav() -> None:
+    """A ghost UAV 299's token (anyone on the way can declare one) is shown by neither
+    `ground-cli uavs` nor the live view until UAV 299 speaks for itself: its signed state
+    answers, or its stream (vouched for by its signed digest) is heard. In the open
+    profile the token is enough, as before."""
+    network = MemoryNetwork()
+    ghost = network.bus()
+    ghost.declare_token(SPACE.alive(299))
+    MemoryUav(network, 74)
+    ground = Signed(network.bus())
+    assert [v.id for v in fleet_snapshot(ground, SPACE, 0.1)] == [74]
+    assert [v.id for v in fleet_snapshot(network.bus(), SPACE, 0.1)] == [74, 299]
+    with FleetView(ground, SPACE) as view:
+        view.refresh_states(0.1)
+        assert view.live_ids() == [74]
+        assert [v.id for v in view.snapshot()] == [74]
+        ghost.publish(SPACE.status(299), StatusText("here after all", StatusKind.INFO))
+        assert view.live_ids() == [74, 299]
+    with FleetView(network.bus(), SPACE) as view:
+        assert view.live_ids() == [74, 299]

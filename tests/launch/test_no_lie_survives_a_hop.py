@@ -49,7 +49,8 @@ from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
 
-IDENTITIES = ["router", "router-74", "ground", "uav-74", "uav-112", "uav-300"]
+#: uav-299 is in the roster, never flown: its key is the fleet's, its token anyone's.
+IDENTITIES = ["router", "router-74", "ground", "uav-74", "uav-112", "uav-299", "uav-300"]
 #: Slow enough that 112 is minutes from its target when it is lied about.
 SPEEDUP = 2.0
 MAX_AIRSPEED_M_S = AircraftLimits().max_airspeed
@@ -286,8 +287,10 @@ def test_a_rogue_router_cannot_invent_an_aircraft_a_position_or_a_status(
 ) -> None:
     """A router holding `router-74`'s key, meshed with the fleet's router, is the one the
     ground connects to (a UAV router as a fallback). It puts UAV 112 at 10 N 10 E, an
-    "engine fire" status from 112, and a ghost UAV 299 (telemetry and a liveliness token).
-    `ground-cli watch` shows the real 74 and 112, where they are, and none of it."""
+    "engine fire" status from 112, and a ghost UAV 299 (telemetry and a liveliness token;
+    299 is in the roster, so the token is of a fleet identity, but the rogue has no
+    key of 299's). `ground-cli watch` shows the real 74 and 112, where they are, and none
+    of it; `ground-cli uavs` lists 74 and 112 only."""
     config = make_config("router", [secure.endpoint], ["tls/127.0.0.1:0"])
     tls = tls_settings(IdentityFiles(secure.certs, "router-74"))
     config.insert_json5("transport/link/tls", json.dumps(tls))
@@ -311,11 +314,17 @@ def test_a_rogue_router_cannot_invent_an_aircraft_a_position_or_a_status(
                 "--zenoh-config", str(secure.certs / "ground.json5"), "watch", "--duration", "6",
                 connect=rogue_endpoint, timeout=120,
             )  # fmt: skip
+            listed = ground_cli(
+                "--zenoh-config", str(secure.certs / "ground.json5"), "uavs", "--json",
+                connect=rogue_endpoint, timeout=120,
+            )  # fmt: skip
         finally:
             stop.set()
             injector.join(5.0)
             token.undeclare()
     assert shown.returncode == 0, shown.stderr[-3000:]
+    assert listed.returncode == 0, listed.stderr[-3000:]
+    assert sorted(view["id"] for view in json.loads(listed.stdout)) == [74, 112], listed.stdout
     rows = {line.split()[0]: line.split() for line in shown.stdout.splitlines() if line.strip()}
     assert "engine fire" not in shown.stdout, shown.stdout[-2000:]
     assert "299" not in rows, shown.stdout[-2000:]

@@ -19,6 +19,15 @@ targets_lists = st.lists(
     ),
     min_size=1,
     max_size=20,
+).filter(
+    # A list whose every byte is printable is refused as text by design (tested on its
+    # own in test_targets_file); Hypothesis finds such floats, so round trips skip them.
+    lambda targets: (
+        not all(
+            0x20 <= byte < 0x7F or byte in (0x09, 0x0A, 0x0D)
+            for byte in b"".join(struct.pack("<3d", t.lat, t.lon, t.alt) for t in targets)
+        )
+    )
 )
 
 BOSTON = Target(lat=42.3601, lon=-71.0942, alt=120.0)

@@ -154,3 +154,41 @@ def test_only_the_readable_port_is_read_and_every_packet_arrives_in_order() -> N
         adapter.stop()
         for server in servers:
             server.close()
+
+
+def test_a_socket_port_dropped_and_reopened_is_waited_on_again() -> None:
+    """The loop waits on the ports' descriptors registered once: a socket port whose peer
+    hung up is reopened (often on the same descriptor number), and what comes on the new
+    connection still wakes the loop and arrives."""
+    servers = [socket.create_server(("127.0.0.1", 0)) for _ in range(2)]
+    program, payload = (
+        SerialLink(name, f"socket://127.0.0.1:{server.getsockname()[1]}")
+        for name, server in zip(("program", "payload"), servers, strict=True)
+    )
+    events: queue.SimpleQueue[LinkEvent] = queue.SimpleQueue()
+    adapter = LinkAdapter(UAV, program, payload, sink=events.put)
+    adapter.start()
+    try:
+        autopilot = PiccoloLink(UAV)
+        payload_peer, _ = servers[1].accept()
+        with payload_peer:
+            first, _ = servers[0].accept()
+            with first:
+                sent = Telemetry(system_time_ms=1, gps=TELEMETRY.gps)
+                first.sendall(autopilot.encode_autopilot(sent, ONBOARD_ADDRESS))
+                event = events.get(timeout=5.0)
+                assert isinstance(event, AutopilotEvent) and event.message == sent
+            # The autopilot's end hangs up: the port drops, then reconnects. What comes
+            # before the port is open again is discarded by its opening (pyserial).
+            second, _ = servers[0].accept()
+            wait_until(lambda: program.up and program.reconnects >= 1, 5.0, "the port reopened")
+            with second:
+                for n in range(2, 5):
+                    sent = Telemetry(system_time_ms=n, gps=TELEMETRY.gps)
+                    second.sendall(autopilot.encode_autopilot(sent, ONBOARD_ADDRESS))
+                    event = events.get(timeout=5.0)
+                    assert isinstance(event, AutopilotEvent) and event.message == sent
+    finally:
+        adapter.stop()
+        for server in servers:
+            server.close()
