@@ -1,6 +1,8 @@
-"""Identities with one role each, attacked end to end: real
-routers (`python -m fleet.transport.router --secure`) on tls/ loopback endpoints, real
-Zenoh clients with the fleet's identities.
+"""Identities with one role each, attacked: real secure Zenoh routers on tls/ loopback
+endpoints, real Zenoh clients with the fleet's identities. A router runs in this process
+(`fleet.transport.router.Router`, what `python -m fleet.transport.router --secure` runs)
+where the test asks only what it routes and refuses; as a process (marked `e2e`) where
+the test reads what the router logs or `ground-cli` asks it.
 
 * a rogue router presenting a UAV's certificate (which may not serve) is refused by the
   ground, and so is a router certificate dialled at a host it does not name;
@@ -13,9 +15,11 @@ from __future__ import annotations
 
 import datetime
 import json
+import logging
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,12 +31,12 @@ from fleet.files.signers import revoke
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, Target
 from fleet.transport.bus_codec import ENCODING, encode
+from fleet.transport.router import Router
+from fleet.transport.secure import SecureProfile
 from fleet.transport.zenoh_config import build_config, make_config
 from tests.support import secure_clients
 from tests.support.processes import Child, start_router
 from tests.support.waiting import wait_until
-
-pytestmark = pytest.mark.e2e
 
 SPACE = KeySpace()
 NAMES = ["router", "ground", "uav-74", "uav-112", "router-74", "router-112"]
@@ -68,6 +72,22 @@ def router(
     )  # fmt: skip
 
 
+@contextmanager
+def router_here(certs: Certs, identity: str, host: str = "127.0.0.1") -> Iterator[str]:
+    """A secure router in this process presenting `identity`'s certificate: where it listens."""
+    secure = SecureProfile.load(certs.directory, router_name=identity)
+    with Router([f"tls/{host}:0"], secure=secure) as running:
+        yield running.endpoints[0]
+
+
+@pytest.fixture
+def fleet_router(certs: Certs) -> Iterator[str]:
+    """The fleet's router (identity `router`), in this process: one per test, so that
+    none holds this process's refusal watch when a test counting refusals opens its own."""
+    with router_here(certs, "router") as endpoint:
+        yield endpoint
+
+
 @pytest.fixture(scope="module")
 def fleet_router_child(certs: Certs) -> Iterator[tuple[Child, str]]:
     child, endpoint = router(certs, "router")
@@ -75,11 +95,6 @@ def fleet_router_child(certs: Certs) -> Iterator[tuple[Child, str]]:
         yield child, endpoint
     finally:
         child.stop()
-
-
-@pytest.fixture(scope="module")
-def fleet_router(fleet_router_child: tuple[Child, str]) -> str:
-    return fleet_router_child[1]
 
 
 class Heard:
@@ -111,23 +126,19 @@ def mission(mission_id: int) -> bytes:
 # ---- case 2: only a router's certificate may serve, for the hosts it names -----------------
 @pytest.mark.parametrize("identity", ["uav-74", "ground"])
 def test_a_rogue_router_with_a_client_certificate_is_refused(certs: Certs, identity: str) -> None:
-    rogue, endpoint = router(certs, identity)
-    try:
+    with router_here(certs, identity) as endpoint:
         for client in ("ground", "uav-112"):
             with pytest.raises(zenoh.ZError, match="Unable to connect"):
                 certs.session(client, endpoint)
-    finally:
-        rogue.stop()
 
 
 def test_a_router_certificate_for_another_host_is_refused(certs: Certs) -> None:
     # 127.0.0.2 reaches this host too, but no certificate names it.
-    rogue, endpoint = router(certs, "router", host="127.0.0.2")
-    try:
-        with pytest.raises(zenoh.ZError, match="Unable to connect"):
-            certs.session("ground", endpoint)
-    finally:
-        rogue.stop()
+    with (
+        router_here(certs, "router", host="127.0.0.2") as endpoint,
+        pytest.raises(zenoh.ZError, match="Unable to connect"),
+    ):
+        certs.session("ground", endpoint)
 
 
 def test_the_real_router_is_accepted(certs: Certs, fleet_router: str) -> None:
@@ -135,6 +146,7 @@ def test_the_real_router_is_accepted(certs: Certs, fleet_router: str) -> None:
         assert str(session.zid())
 
 
+@pytest.mark.e2e
 def test_a_refused_connection_is_in_the_routers_log(
     certs: Certs, fleet_router_child: tuple[Child, str]
 ) -> None:
@@ -170,47 +182,77 @@ def _refused_by(config: zenoh.Config) -> None:
         zenoh.open(config)
 
 
-def test_refused_connections_are_counted_by_kind(certs: Certs, tmp_path: Path) -> None:
+class RouterLog:
+    """What a router in this process logs (`caplog`): the same lines a router process
+    writes to its log."""
+
+    def __init__(self, caplog: pytest.LogCaptureFixture) -> None:
+        caplog.set_level(logging.INFO)
+        self.caplog = caplog
+
+    def wait_for(self, text: str) -> None:
+        def logged() -> bool:
+            return any(text in record.getMessage() for record in self.caplog.records[:])
+
+        wait_until(logged, 10.0, repr(text))
+
+
+def expect_totals_here(
+    certs: Certs, router_log: RouterLog, endpoint: str, stop: Callable[[], None], totals: str
+) -> None:
+    """`expect_totals` for a router in this process, stopped by `stop`."""
+    with certs.session("ground", endpoint):
+        pass
+    stop()
+    router_log.wait_for(f"refused links in all: {totals}")
+
+
+# A test counting refusals opens its router in its body: they are read from Zenoh's log
+# on this process's standard output (`fleet.transport.refusal_watch`), which pytest's
+# capture takes back between a fixture's setup and the test's call.
+def test_refused_connections_are_counted_by_kind(
+    certs: Certs, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    router_log = RouterLog(caplog)
     foreign = tmp_path / "foreign"
     write_identities(foreign, ["uav-74"], [])
-    child, endpoint = router(certs, "router")  # its own: the counts start at zero
-    try:
+    with ExitStack() as running:  # its own, alone in this process: the counts start at zero
+        endpoint = running.enter_context(router_here(certs, "router"))
         _refused_by(no_certificate(certs, endpoint))
-        child.wait_for_line(lambda line: "refused links so far: no_certificate=1" in line, 10.0)
+        router_log.wait_for("refused links so far: no_certificate=1")
         # A certificate of another CA, presented to a client that trusts the fleet's CA.
         other_ca = build_config(config_file=str(foreign / "uav-74.json5"), connect=[endpoint])
         trust_the_fleets_ca(certs, other_ca)
         _refused_by(other_ca)
-        child.wait_for_line(
-            lambda line: "refused links so far: no_certificate=1 unknown_ca=1" in line, 10.0
-        )
+        router_log.wait_for("refused links so far: no_certificate=1 unknown_ca=1")
         _refused_by(no_certificate(certs, endpoint))
         # A client of the other CA altogether refuses the router's certificate itself.
         _refused_by(build_config(config_file=str(foreign / "uav-74.json5"), connect=[endpoint]))
-        child.wait_for_line(
-            lambda line: (
-                "refused links so far: no_certificate=2 unknown_ca=1 peer_refused=1" in line
-            ),
-            10.0,
+        router_log.wait_for("refused links so far: no_certificate=2 unknown_ca=1 peer_refused=1")
+        expect_totals_here(
+            certs,
+            router_log,
+            endpoint,
+            running.close,
+            "no_certificate=2 unknown_ca=1 peer_refused=1",
         )
-        expect_totals(certs, child, endpoint, "no_certificate=2 unknown_ca=1 peer_refused=1")
-    finally:
-        child.stop()
 
 
-def test_a_revoked_identitys_session_is_counted(tmp_path: Path) -> None:
+def test_a_revoked_identitys_session_is_counted(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    router_log = RouterLog(caplog)
     write_identities(tmp_path, ["router", "ground", "uav-300"], [])
     revoke(tmp_path, ["uav-300"])
     certs = Certs(tmp_path.resolve())
-    child, endpoint = router(certs, "router")
-    try:
+    with ExitStack() as running:
+        endpoint = running.enter_context(router_here(certs, "router"))
         with certs.session("uav-300", endpoint):  # TLS lets it in; the ACL grants nothing
-            child.wait_for_line(lambda line: "refused links so far: no_rights=1" in line, 10.0)
-        expect_totals(certs, child, endpoint, "no_rights=1")
-    finally:
-        child.stop()
+            router_log.wait_for("refused links so far: no_rights=1")
+        expect_totals_here(certs, router_log, endpoint, running.close, "no_rights=1")
 
 
+@pytest.mark.e2e
 def test_ground_cli_routers_shows_each_router_of_a_mesh(certs: Certs) -> None:
     ground_router, endpoint = router(certs, "router")
     uav_router, uav_endpoint = router(certs, "router-74", connect=(endpoint,))
@@ -287,6 +329,7 @@ def test_a_uavs_router_identity_has_that_uavs_rights_only(certs: Certs, fleet_ro
 
 
 # ---- case 6: a session ends with its certificate --------------------------------------------
+@pytest.mark.e2e
 def test_a_session_ends_when_its_certificate_expires(tmp_path: Path) -> None:
     expiry = datetime.datetime.now(datetime.UTC) + SHORT_LIFE
     write_identities(

@@ -1,7 +1,10 @@
 """The secure profile end to end: `fleet up --secure` (real router, simulator and
 onboards on a tls/ endpoint with mTLS and access control), the ground as `ground-cli
 --zenoh-config`, and an attacker holding UAV 74's certificate (the strongest attacker
-short of stealing the ground's key) or none at all.
+short of stealing the ground's key) or none at all. What only the router decides (who
+may connect, what UAV 74's certificate may write) is asked of the same router run in
+this process (`fleet.transport.router.Router` with the fleet's secure profile, what
+`fleet up --secure` embeds), so that it needs no fleet of processes.
 
 Whether a denied message was dropped is observed, not waited for: the attacker sends
 it, then a marker on a key it may write; the ground sees the marker (messages of one
@@ -15,6 +18,7 @@ import signal
 import subprocess
 import threading
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
@@ -28,6 +32,8 @@ from fleet.mission.messages import AssignmentReport, MissionAbort, MissionTarget
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from fleet.transport.bus_codec import ENCODING, encode
+from fleet.transport.router import Router
+from fleet.transport.secure import SecureProfile
 from fleet.transport.zenoh_config import build_config, make_config
 from fleet.transport.zenoh_log import parse
 from tests.support import secure_clients, signed
@@ -70,6 +76,45 @@ def secure_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureFle
         assert up.process.wait(30) == 0
 
 
+@dataclass
+class SecureRouter:
+    """The fleet's secure router alone, in this process, with identities for its clients."""
+
+    router: Router
+    endpoint: str
+    certs: Path
+
+    def session(self, identity: str) -> zenoh.Session:
+        return secure_clients.session(self.certs, self.endpoint, identity)
+
+    def refused(self, kind: str) -> int:
+        """How many links it refused as `kind` so far (counted in this process)."""
+        return self.router.refused_links.get(kind, 0)
+
+    def wait_for_refused(self, kind: str, before: int) -> None:
+        """Until it counts one more link refused as `kind` than `before`."""
+        wait_until(lambda: self.refused(kind) > before, 10.0, f"a link refused as {kind}")
+
+
+@contextmanager
+def router_here(certs: Path) -> Iterator[SecureRouter]:
+    """The fleet's secure router in this process, with identities written to `certs`.
+
+    A test counting refusals opens it in its body: they are read from Zenoh's log on this
+    process's standard output (`fleet.transport.refusal_watch`), which pytest's capture
+    takes back between a fixture's setup and the test's call."""
+    listen = "tls/127.0.0.1:0"  # the certificates name the host; the port is any free one
+    write_identities(certs, ["router", "ground", "uav-74", "uav-112"], [listen])
+    with Router([listen], secure=SecureProfile.load(certs)) as router:
+        yield SecureRouter(router, router.endpoints[0], certs.resolve())
+
+
+@pytest.fixture
+def secure_router(tmp_path: Path) -> Iterator[SecureRouter]:
+    with router_here(tmp_path / "certs") as router:
+        yield router
+
+
 class Seen:
     """What a session subscribed to `fleet/**` received, by key."""
 
@@ -104,6 +149,22 @@ def uav74(secure_fleet: SecureFleet) -> Iterator[zenoh.Session]:
         yield session
 
 
+@pytest.fixture
+def ground_of_router(secure_router: SecureRouter) -> Iterator[tuple[zenoh.Session, Seen]]:
+    """The ground's session on the in-process router (not named `ground`: that name
+    marks a test e2e, tests/conftest.py)."""
+    with secure_router.session("ground") as session:
+        seen = Seen(session)
+        yield session, seen
+        seen.subscriber.undeclare()
+
+
+@pytest.fixture
+def uav74_of_router(secure_router: SecureRouter) -> Iterator[zenoh.Session]:
+    with secure_router.session("uav-74") as session:
+        yield session
+
+
 def put(session: zenoh.Session, key: str, message: object) -> None:
     session.put(key, encode(message), encoding=ENCODING)
 
@@ -114,20 +175,22 @@ def marker(session: zenoh.Session, seen: Seen, text: str) -> None:
     wait_until(lambda: seen.keys.get(SPACE.status(74)) == text.encode(), 10.0, text)
 
 
-def no_certificate(secure_fleet: SecureFleet) -> zenoh.Config:
+def no_certificate(secure: SecureFleet | SecureRouter) -> zenoh.Config:
     """A client that trusts the fleet's CA but has no certificate of its own."""
-    config = make_config("client", [secure_fleet.endpoint])
+    config = make_config("client", [secure.endpoint])
     config.insert_json5(
-        "transport/link/tls/root_ca_certificate", json.dumps(str(secure_fleet.certs / "ca.pem"))
+        "transport/link/tls/root_ca_certificate", json.dumps(str(secure.certs / "ca.pem"))
     )
     return config
 
 
 # ---- who can connect ----------------------------------------------------------------------
-def test_a_client_without_a_certificate_cannot_connect(secure_fleet: SecureFleet) -> None:
-    with pytest.raises(zenoh.ZError, match="Unable to connect"):
-        zenoh.open(no_certificate(secure_fleet))
-    secure_fleet.wait_for_refused("no_certificate")
+def test_a_client_without_a_certificate_cannot_connect(tmp_path: Path) -> None:
+    with router_here(tmp_path / "certs") as secure_router:
+        before = secure_router.refused("no_certificate")
+        with pytest.raises(zenoh.ZError, match="Unable to connect"):
+            zenoh.open(no_certificate(secure_router))
+        secure_router.wait_for_refused("no_certificate", before)
 
 
 @pytest.mark.e2e
@@ -144,25 +207,28 @@ def test_fleet_up_prints_the_refusals_counted_and_none_of_zenohs_own_lines(
     assert not zenohs, zenohs[:3]
 
 
-def test_a_plain_tcp_client_cannot_connect(secure_fleet: SecureFleet) -> None:
-    plain = secure_fleet.endpoint.replace("tls/", "tcp/")
-    with pytest.raises(zenoh.ZError, match="Unable to connect"):
-        zenoh.open(make_config("client", [plain]))
-    secure_fleet.wait_for_refused("tls_other")  # it does not speak TLS
+def test_a_plain_tcp_client_cannot_connect(tmp_path: Path) -> None:
+    with router_here(tmp_path / "certs") as secure_router:
+        before = secure_router.refused("tls_other")
+        plain = secure_router.endpoint.replace("tls/", "tcp/")
+        with pytest.raises(zenoh.ZError, match="Unable to connect"):
+            zenoh.open(make_config("client", [plain]))
+        secure_router.wait_for_refused("tls_other", before)  # it does not speak TLS
 
 
-def test_a_certificate_from_another_ca_cannot_connect(
-    secure_fleet: SecureFleet, tmp_path: Path
-) -> None:
-    # A rogue CA issues itself a certificate named "ground".
-    write_identities(tmp_path, ["ground"], [secure_fleet.endpoint])
-    rogue = build_config(config_file=str(tmp_path / "ground.json5"))
-    rogue.insert_json5(
-        "transport/link/tls/root_ca_certificate", json.dumps(str(secure_fleet.certs / "ca.pem"))
-    )
-    with pytest.raises(zenoh.ZError, match="Unable to connect"):
-        zenoh.open(rogue)
-    secure_fleet.wait_for_refused("unknown_ca")
+def test_a_certificate_from_another_ca_cannot_connect(tmp_path: Path) -> None:
+    with router_here(tmp_path / "certs") as secure_router:
+        before = secure_router.refused("unknown_ca")
+        # A rogue CA issues itself a certificate named "ground".
+        write_identities(tmp_path, ["ground"], [secure_router.endpoint])
+        rogue = build_config(config_file=str(tmp_path / "ground.json5"))
+        rogue.insert_json5(
+            "transport/link/tls/root_ca_certificate",
+            json.dumps(str(secure_router.certs / "ca.pem")),
+        )
+        with pytest.raises(zenoh.ZError, match="Unable to connect"):
+            zenoh.open(rogue)
+        secure_router.wait_for_refused("unknown_ca", before)
 
 
 def refused_links(secure_fleet: SecureFleet) -> dict[str, int]:
@@ -190,9 +256,10 @@ def test_ground_cli_routers_shows_the_refused_links_grow(secure_fleet: SecureFle
 
 # ---- what UAV 74's certificate may do -------------------------------------------------------
 def test_uav_74_cannot_write_for_uav_112_or_command(
-    ground: tuple[zenoh.Session, Seen], uav74: zenoh.Session
+    ground_of_router: tuple[zenoh.Session, Seen], uav74_of_router: zenoh.Session
 ) -> None:
-    _, seen = ground
+    _, seen = ground_of_router
+    uav74 = uav74_of_router
     forged = {
         SPACE.telemetry(112): b'{"forged": true}',
         SPACE.status(112): b"forged status",
