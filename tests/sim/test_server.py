@@ -49,6 +49,8 @@ from fleet.sim.server import Endpoints, SimServer
 
 #: The address the test clients send from (an operator interface, like the onboard module).
 CLIENT = 0xFFFE
+#: A waypoint index no shipped scenario's flight plan uses.
+UNUSED_WAYPOINT = 99
 #: How long a port test waits for something before failing (wall seconds).
 WAIT_S = 15.0
 
@@ -439,6 +441,20 @@ def test_garbage_on_the_port_leaves_the_aircraft_undisturbed(
         for chunk in corpus * 3:
             client.port.write(chunk)
             received.extend(client.telemetry(3))
+        # The telemetry read may be older than the last chunk: before stopping the
+        # server, see it has read everything written, by the echo of a waypoint written
+        # after it (never tracked: the flight is not changed).
+        lat, lon = autopilot.projection.to_latlon(0.0, 0.0)
+        barrier = Waypoint(
+            index=UNUSED_WAYPOINT, next_index=UNUSED_WAYPOINT, lat=lat, lon=lon, alt=600.0
+        )
+        client.send(barrier)
+        echo = decode_waypoint(encode_waypoint(barrier))
+        received.extend(
+            e.message
+            for e in client.read_until(lambda e: e.message == echo)
+            if isinstance(e.message, Telemetry)
+        )
     # After stop(): the server thread has ended, its counters are safe to read.
     assert_matches_model(received, autopilot_for(SINGLE))
     drops = autopilot.link_drops()
