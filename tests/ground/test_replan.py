@@ -9,6 +9,7 @@ import json
 import time
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 from fleet.geo.mercator import MercatorProjection
 from fleet.launch.ring import GENERATED_CENTRE, ring_scenario
@@ -27,6 +28,19 @@ from tests.support.waiting import wait_until
 #: Slow enough that the victim cannot reach its target before it is killed.
 SPEEDUP = 3.0
 REACH_TIMEOUT_S = 240.0
+
+
+def mission_until_reached(ground: Ground) -> tuple[int, dict[str, Any], dict[int, Any], str]:
+    """`ground-cli mission --until-reached --json`: its exit status, its report, each
+    target's state by index, and what it said on stderr."""
+    status, out, err = finish_ground_cli(
+        start_ground_cli(
+            "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json", connect=ground.router
+        ),
+        REACH_TIMEOUT_S + 60,
+    )
+    report = json.loads(out)
+    return status, report, {s["index"]: s for s in report["target_states"]}, err
 
 
 def commit_ring(
@@ -78,14 +92,7 @@ def test_the_idle_uav_flies_and_reaches_the_target_of_a_holder_killed_after_comm
     assert [r.epoch for r in seen.replans[idle]] == [1]
     assert seen.replans[survivor][0].digest == replanned.digest
 
-    status, out, err = finish_ground_cli(
-        start_ground_cli(
-            "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json", connect=ground.router
-        ),
-        REACH_TIMEOUT_S + 60,
-    )
-    report = json.loads(out)
-    states = {s["index"]: s for s in report["target_states"]}
+    status, report, states, err = mission_until_reached(ground)
     assert (states[orphan]["state"], states[orphan]["uav"]) == ("reached", idle), err
     assert states[holders[survivor]]["state"] == "reached"
     assert report["epoch"] == 1 and report["lost"] == [victim]
@@ -119,14 +126,7 @@ def test_two_holders_killed_at_once_their_targets_go_to_the_two_idle_uavs(
     assert sorted(first.pairs.values()) == sorted(holders.values())  # both orphans flown
     assert {int(uav) for uav in first.pairs} == set(idle)  # one each
 
-    status, out, err = finish_ground_cli(
-        start_ground_cli(
-            "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json", connect=ground.router
-        ),
-        REACH_TIMEOUT_S + 60,
-    )
-    report = json.loads(out)
-    states = {s["index"]: s for s in report["target_states"]}
+    status, report, states, err = mission_until_reached(ground)
     for uav in idle:
         target = first.pairs[uav]
         assert (states[target]["state"], states[target]["uav"]) == ("reached", uav), err
@@ -287,14 +287,7 @@ def test_a_finished_uav_killed_then_a_holder_killed_every_orphan_is_flown_by_a_l
     assert finisher not in replanned.queues  # the dead UAV holds nothing
     assert 1 in replanned.queues[survivor]  # the live UAV flies the orphan
 
-    status, out, err = finish_ground_cli(
-        start_ground_cli(
-            "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json", connect=ground.router
-        ),
-        REACH_TIMEOUT_S + 60,
-    )
-    report = json.loads(out)
-    states = {s["index"]: s for s in report["target_states"]}
+    status, _, states, err = mission_until_reached(ground)
     assert (states[1]["state"], states[1]["uav"]) == ("reached", survivor), err
     assert (states[0]["state"], states[0]["uav"]) == ("reached", finisher), err
     assert states[2]["state"] == "reached", err
@@ -339,14 +332,7 @@ def test_an_onboard_restarted_after_10_s_rejoins_at_the_next_epoch_and_flies(
     assert plan.back == {victim: 1} and plan.left == {victim: 1}
     assert plan.queues.get(victim) == (orphan,)  # its own queue again
     assert seen.assignments[idle].target is None  # the orphan handed back
-    status, out, err = finish_ground_cli(
-        start_ground_cli(
-            "mission", "--until-reached", str(REACH_TIMEOUT_S), "--json", connect=ground.router
-        ),
-        REACH_TIMEOUT_S + 60,
-    )
-    report = json.loads(out)
-    states = {s["index"]: s for s in report["target_states"]}
+    status, report, states, err = mission_until_reached(ground)
     assert (states[orphan]["state"], states[orphan]["uav"]) == ("reached", victim), err
     assert {s["state"] for s in report["target_states"]} == {"reached"}, err
     assert status == 0, err

@@ -135,34 +135,39 @@ class Seen:
             return self.keys[key]
 
 
-@pytest.fixture
-def ground(secure_fleet: SecureFleet) -> Iterator[tuple[zenoh.Session, Seen]]:
-    with secure_fleet.session("ground") as session:
+def ground_on(where: SecureFleet | SecureRouter) -> Iterator[tuple[zenoh.Session, Seen]]:
+    """The ground's session on a fleet's or an in-process router, and what it hears."""
+    with where.session("ground") as session:
         seen = Seen(session)
         yield session, seen
         seen.subscriber.undeclare()
+
+
+def uav74_on(where: SecureFleet | SecureRouter) -> Iterator[zenoh.Session]:
+    with where.session("uav-74") as session:
+        yield session
+
+
+@pytest.fixture
+def ground(secure_fleet: SecureFleet) -> Iterator[tuple[zenoh.Session, Seen]]:
+    yield from ground_on(secure_fleet)
 
 
 @pytest.fixture
 def uav74(secure_fleet: SecureFleet) -> Iterator[zenoh.Session]:
-    with secure_fleet.session("uav-74") as session:
-        yield session
+    yield from uav74_on(secure_fleet)
 
 
 @pytest.fixture
 def ground_of_router(secure_router: SecureRouter) -> Iterator[tuple[zenoh.Session, Seen]]:
-    """The ground's session on the in-process router (not named `ground`: that name
-    marks a test e2e, tests/conftest.py)."""
-    with secure_router.session("ground") as session:
-        seen = Seen(session)
-        yield session, seen
-        seen.subscriber.undeclare()
+    """The ground on the in-process router (not named `ground`: that name marks a test
+    e2e, tests/conftest.py)."""
+    yield from ground_on(secure_router)
 
 
 @pytest.fixture
 def uav74_of_router(secure_router: SecureRouter) -> Iterator[zenoh.Session]:
-    with secure_router.session("uav-74") as session:
-        yield session
+    yield from uav74_on(secure_router)
 
 
 def put(session: zenoh.Session, key: str, message: object) -> None:

@@ -7,6 +7,7 @@ import logging
 import queue
 import socket
 from collections.abc import Iterator
+from typing import TypeVar
 
 import pytest
 
@@ -120,15 +121,25 @@ class CountingLink(SerialLink):
         return super().read(now)
 
 
+L = TypeVar("L", bound=SerialLink)
+
+
+def socket_ports(link_type: type[L]) -> tuple[list[socket.socket], tuple[L, L]]:
+    """Two listening sockets (the simulator's side) and the program and payload links
+    that will dial them."""
+    servers = [socket.create_server(("127.0.0.1", 0)) for _ in range(2)]
+    program, payload = (
+        link_type(name, f"socket://127.0.0.1:{server.getsockname()[1]}")
+        for name, server in zip(("program", "payload"), servers, strict=True)
+    )
+    return servers, (program, payload)
+
+
 def test_only_the_readable_port_is_read_and_every_packet_arrives_in_order() -> None:
     """Over sockets (as from the simulator) the loop reads only the ports its select
     found readable: packets on the program port all arrive, in order, and the
     idle payload port is not read for each of them."""
-    servers = [socket.create_server(("127.0.0.1", 0)) for _ in range(2)]
-    program, payload = (
-        CountingLink(name, f"socket://127.0.0.1:{server.getsockname()[1]}")
-        for name, server in zip(("program", "payload"), servers, strict=True)
-    )
+    servers, (program, payload) = socket_ports(CountingLink)
     events: queue.SimpleQueue[LinkEvent] = queue.SimpleQueue()
     adapter = LinkAdapter(UAV, program, payload, sink=events.put)
     adapter.start()
@@ -160,11 +171,7 @@ def test_a_socket_port_dropped_and_reopened_is_waited_on_again() -> None:
     """The loop waits on the ports' descriptors registered once: a socket port whose peer
     hung up is reopened (often on the same descriptor number), and what comes on the new
     connection still wakes the loop and arrives."""
-    servers = [socket.create_server(("127.0.0.1", 0)) for _ in range(2)]
-    program, payload = (
-        SerialLink(name, f"socket://127.0.0.1:{server.getsockname()[1]}")
-        for name, server in zip(("program", "payload"), servers, strict=True)
-    )
+    servers, (program, payload) = socket_ports(SerialLink)
     events: queue.SimpleQueue[LinkEvent] = queue.SimpleQueue()
     adapter = LinkAdapter(UAV, program, payload, sink=events.put)
     adapter.start()

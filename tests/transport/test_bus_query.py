@@ -12,18 +12,11 @@ from fleet.mission.messages import StatusText
 from fleet.transport import bus_codec
 from fleet.transport.bus import Bus, BusReply, BusSample
 from fleet.transport.memory import MemoryNetwork
-from fleet.transport.router import Router
 from fleet.transport.zenoh_bus import BusConnectError, client_bus, connect
-from tests.support.processes import ANY_PORT, refused_endpoint
+from tests.support.processes import refused_endpoint
 from tests.support.waiting import wait_until
 
 TIMEOUT_S = 2.0
-
-
-@pytest.fixture(scope="module")
-def endpoint() -> Iterator[str]:
-    with Router([ANY_PORT]) as router:
-        yield router.endpoints[0]
 
 
 @pytest.fixture(params=["memory", "zenoh"])

@@ -27,29 +27,14 @@ from fleet.mission.signature import Delivery
 from fleet.transport import bus_codec
 from fleet.transport.bus import BusQuery, BusSample, Queryable
 from fleet.transport.bus_codec import encode
-from fleet.transport.router import Router
 from fleet.transport.signing import RELAY_CACHE, BusSigning
 from fleet.transport.zenoh_bus import ZenohBus, client_bus, connect
 from fleet.transport.zenoh_config import build_config
-from tests.support.processes import ANY_PORT
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
 TIMEOUT_S = 2.0
 TARGETS = MissionTargets(5, (74, 112), (Target(35.7, -120.7, 600.0),))
-
-
-@pytest.fixture(scope="module")
-def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    where = tmp_path_factory.mktemp("certs")
-    write_identities(where, ["router", "ground", "uav-74", "uav-112"], [])
-    return where
-
-
-@pytest.fixture(scope="module")
-def endpoint() -> Iterator[str]:
-    with Router([ANY_PORT]) as router:
-        yield router.endpoints[0]
 
 
 def signed_bus(certs: Path, endpoint: str, identity: str) -> ZenohBus:

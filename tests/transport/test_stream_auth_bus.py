@@ -12,32 +12,16 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from fleet.files.certs import write_identities
 from fleet.files.signers import load_roster, load_signing_key, signing_key_path
 from fleet.mission.key_space import KeySpace
 from fleet.transport.bus import BusSample, RingSubscription
-from fleet.transport.router import Router
 from fleet.transport.signing import BusSigning
 from fleet.transport.zenoh_bus import ZenohBus, client_bus
 from fleet.transport.zenoh_config import make_config
-from tests.support.processes import ANY_PORT
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
 TIMEOUT_S = 10.0
-
-
-@pytest.fixture(scope="module")
-def certs(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    where = tmp_path_factory.mktemp("certs")
-    write_identities(where, ["router", "ground", "uav-74", "uav-112"], [])
-    return where
-
-
-@pytest.fixture(scope="module")
-def endpoint() -> Iterator[str]:
-    with Router([ANY_PORT]) as router:
-        yield router.endpoints[0]
 
 
 def secure_bus(certs: Path, endpoint: str, identity: str) -> ZenohBus:
