@@ -3,10 +3,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import shutil
 import subprocess
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -38,38 +40,46 @@ def wait_recorded(recorder: Recorder, pattern: str, count: int, what: str) -> No
     wait_until(lambda: recorder.stats.recorded[pattern] == count, 10.0, what)
 
 
-def test_records_puts_and_tokens_and_drops_what_is_not_json(tmp_path: Path) -> None:
+@contextlib.contextmanager
+def recording_to(path: Path, first_key: str) -> Iterator[tuple[zenoh.Session, Recorder]]:
+    """A recorder on a ground session of a router of this process, writing `path`, and a
+    fleet session that can put once the router knows the recorder's subscription to
+    `first_key` (puts before that reach nobody on a busy machine)."""
     with (
         router_session() as router,
         client_session(router.endpoints[0]) as fleet,
         client_session(router.endpoints[0]) as ground,
     ):
-        recorder = Recorder(ZenohBus(ground), McapSink(tmp_path / "r.mcap"), state_every_s=0)
+        recorder = Recorder(ZenohBus(ground), McapSink(path), state_every_s=0)
         recorder.start()
         try:
-            # Puts before the router knows the subscription reach nobody (a busy machine).
-            publisher = fleet.declare_publisher(SPACE.status(7))
+            publisher = fleet.declare_publisher(first_key)
             wait_until(lambda: _matching(publisher), 10.0, "the subscription")
             publisher.undeclare()
-            token = fleet.liveliness().declare_token(SPACE.alive(7))
-            fleet.put(SPACE.status(7), encode(StatusText("hello")), encoding=ENCODING)
-            fleet.put(SPACE.status(7), b"\xff\x00 not json")
-            nested = b'{"a":' * 50_000 + b"1" + b"}" * 50_000
-            # Blocking: a large put may otherwise be dropped when the queue is full.
-            fleet.put(SPACE.status(7), nested, congestion_control=zenoh.CongestionControl.BLOCK)
-            wait_until(
-                lambda: (
-                    recorder.stats.dropped["not JSON"] == 1
-                    and recorder.stats.dropped["too_deep"] == 1
-                    and recorder.stats.recorded["fleet/uav/*/status"] == 1
-                ),
-                10.0,
-                "the recorder to hear both puts",
-            )
-            token.undeclare()
-            wait_recorded(recorder, "fleet/uav/*/alive", 2, "the token to come and go")
+            yield fleet, recorder
         finally:
             recorder.stop()
+
+
+def test_records_puts_and_tokens_and_drops_what_is_not_json(tmp_path: Path) -> None:
+    with recording_to(tmp_path / "r.mcap", SPACE.status(7)) as (fleet, recorder):
+        token = fleet.liveliness().declare_token(SPACE.alive(7))
+        fleet.put(SPACE.status(7), encode(StatusText("hello")), encoding=ENCODING)
+        fleet.put(SPACE.status(7), b"\xff\x00 not json")
+        nested = b'{"a":' * 50_000 + b"1" + b"}" * 50_000
+        # Blocking: a large put may otherwise be dropped when the queue is full.
+        fleet.put(SPACE.status(7), nested, congestion_control=zenoh.CongestionControl.BLOCK)
+        wait_until(
+            lambda: (
+                recorder.stats.dropped["not JSON"] == 1
+                and recorder.stats.dropped["too_deep"] == 1
+                and recorder.stats.recorded["fleet/uav/*/status"] == 1
+            ),
+            10.0,
+            "the recorder to hear both puts",
+        )
+        token.undeclare()
+        wait_recorded(recorder, "fleet/uav/*/alive", 2, "the token to come and go")
     recording = read_recording(tmp_path / "r.mcap")
     values = [(m.topic, m.value()) for m in recording.messages]
     hello = {"text": "hello", "kind": "info", "mission": None, "target": None, "severity": "info"}
@@ -207,26 +217,13 @@ def test_ever_new_unknown_keys_do_not_grow_the_recording_without_bound(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setattr("fleet.recording.recorder.MAX_UNKNOWN_KEYS", 3)
-    with (
-        router_session() as router,
-        client_session(router.endpoints[0]) as fleet,
-        client_session(router.endpoints[0]) as ground,
-    ):
-        recorder = Recorder(ZenohBus(ground), McapSink(tmp_path / "r.mcap"), state_every_s=0)
-        recorder.start()
-        try:
-            # Puts before the router knows the subscription reach nobody (a busy machine).
-            publisher = fleet.declare_publisher("fleet/uav/7/junk-0")
-            wait_until(lambda: _matching(publisher), 10.0, "the subscription")
-            publisher.undeclare()
-            for i in range(5):  # a UAV may write anything under its own tree
-                fleet.put(f"fleet/uav/7/junk-{i}", b"1", encoding=ENCODING)
-            wait_until(
-                lambda: recorder.stats.dropped["too many unknown keys"] == 2,
-                10.0,
-                "the keys beyond the limit counted",
-            )
-        finally:
-            recorder.stop()
+    with recording_to(tmp_path / "r.mcap", "fleet/uav/7/junk-0") as (fleet, recorder):
+        for i in range(5):  # a UAV may write anything under its own tree
+            fleet.put(f"fleet/uav/7/junk-{i}", b"1", encoding=ENCODING)
+        wait_until(
+            lambda: recorder.stats.dropped["too many unknown keys"] == 2,
+            10.0,
+            "the keys beyond the limit counted",
+        )
     topics = {m.topic for m in read_recording(tmp_path / "r.mcap").messages}
     assert len(topics) == 3 and all(t.startswith("fleet/uav/7/junk-") for t in topics)
