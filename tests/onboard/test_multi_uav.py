@@ -174,6 +174,13 @@ def test_a_uav_frozen_while_the_mission_was_sent_falls_in_line_when_it_resumes(
         for c in fleet.children:
             print("=====", c.name, *c.history[-60:], sep="\n")
         raise
+
+    # Its teammates may re-plan once more as it comes back (it is counted back in): the
+    # team falls in line when every UAV's latest commitment is the same plan.
+    def one_plan() -> bool:
+        return len({seen.assignments[u].digest for u in team}) == 1
+
+    wait_until(one_plan, 60.0, "one plan for the whole team")
     resumed = seen.assignments[team[-1]]
     reference = seen.assignments[team[0]]
     assert resumed.mission == 1
