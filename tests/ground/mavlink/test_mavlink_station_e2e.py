@@ -14,6 +14,7 @@ joining an upload.
 from __future__ import annotations
 
 import socket
+import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -148,9 +149,16 @@ def test_qgroundcontrols_connect_sequence_is_answered(fleet_up: FleetUp) -> None
             count = qgc.expect("MISSION_COUNT", uav, lambda m: m.mission_type == kind)  # noqa: B023
             assert count.count == 0
         # Home, the landed state, the GPS with its satellites, health.
-        qgc.send(mavlink2.MAVLink_command_long_message(
-            uav, 1, mavlink2.MAV_CMD_GET_HOME_POSITION, 0, 0, 0, 0, 0, 0, 0, 0))  # fmt: skip
-        assert qgc.expect("COMMAND_ACK", uav).result == mavlink2.MAV_RESULT_ACCEPTED
+        # Home not known yet (no telemetry heard) is TEMPORARILY_REJECTED: asked again, as
+        # QGroundControl does, until it is answered (bounded).
+        for _ in range(30):
+            qgc.send(mavlink2.MAVLink_command_long_message(
+                uav, 1, mavlink2.MAV_CMD_GET_HOME_POSITION, 0, 0, 0, 0, 0, 0, 0, 0))  # fmt: skip
+            result = qgc.expect("COMMAND_ACK", uav).result
+            if result != mavlink2.MAV_RESULT_TEMPORARILY_REJECTED:
+                break
+            time.sleep(0.5)
+        assert result == mavlink2.MAV_RESULT_ACCEPTED
         home = qgc.expect("HOME_POSITION", uav)
         assert home.latitude != 0 and home.altitude == 0
         state = qgc.expect("EXTENDED_SYS_STATE", uav)
