@@ -12,8 +12,8 @@ dimension whose cumul at a target is its arrival.
 * `min-sum`: every target's arrival as a soft upper bound of 0 at a cost of 10 a unit
   (the sum of arrivals) plus the travel as arc cost (the first solution needs one).
 
-First solution by the cheapest arc, then guided local search for `seconds`. Every plan
-is re-scored by the project's own scorer by the bench.
+First solution by parallel cheapest insertion, then guided local search for `seconds`
+(wall time). Every plan is re-scored by the project's own scorer by the bench.
 """
 
 from __future__ import annotations
