@@ -62,7 +62,7 @@ def endpoint() -> Iterator[str]:
 
 
 @pytest.fixture(scope="module")
-def fleet(certs: Path, endpoint: str) -> Iterator[MemoryFleet]:
+def uavs(certs: Path, endpoint: str) -> Iterator[MemoryFleet]:
     def bus_of(uav: int) -> Bus:
         return signed_bus(certs, endpoint, f"uav-{uav}")
 
@@ -80,7 +80,7 @@ def fleet(certs: Path, endpoint: str) -> Iterator[MemoryFleet]:
 
 
 @pytest.fixture
-def ground(certs: Path, endpoint: str) -> Iterator[ZenohBus]:
+def ground_bus(certs: Path, endpoint: str) -> Iterator[ZenohBus]:
     bus = signed_bus(certs, endpoint, "ground")
     yield bus
     bus.close()
@@ -97,7 +97,7 @@ def ghost(endpoint: str) -> Iterator[None]:
 
 
 @pytest.fixture
-def frozen(certs: Path, endpoint: str, fleet: MemoryFleet) -> Iterator[None]:
+def frozen(certs: Path, endpoint: str, uavs: MemoryFleet) -> Iterator[None]:
     """UAV 300 as a frozen onboard is: its token and its state queryable still declared,
     nothing answered; its last state, signed by its own key, put before it froze (and
     kept by its teammates)."""
@@ -109,7 +109,7 @@ def frozen(certs: Path, endpoint: str, fleet: MemoryFleet) -> Iterator[None]:
     def kept_by_the_team() -> bool:
         # Put until heard: the teammates' subscriptions may not have reached the router.
         bus.publish(SPACE.state(300), last)
-        return all(p.node.bus.latest(SPACE.state(300)) for p in fleet.processes.values())
+        return all(p.node.bus.latest(SPACE.state(300)) for p in uavs.processes.values())
 
     wait_until(kept_by_the_team, 10.0, "74 and 112 keeping 300's state")
     yield
@@ -119,25 +119,25 @@ def frozen(certs: Path, endpoint: str, fleet: MemoryFleet) -> Iterator[None]:
 
 
 def test_the_team_send_targets_picks_leaves_a_ghost_out(
-    fleet: MemoryFleet, ground: ZenohBus, ghost: None
+    uavs: MemoryFleet, ground_bus: ZenohBus, ghost: None
 ) -> None:
     """The live UAVs `send-targets` picks a team from: 74 and 112, whose signed states
     answer, never the ghost 299 (on the code before, its token was enough)."""
-    wait_until(lambda: ground.live_tokens(SPACE.alive(299), 1.0), 10.0, "299's token seen")
-    assert live_uav_ids(ground, SPACE, 1.0) == [74, 112]
+    wait_until(lambda: ground_bus.live_tokens(SPACE.alive(299), 1.0), 10.0, "299's token seen")
+    assert live_uav_ids(ground_bus, SPACE, 1.0) == [74, 112]
 
 
 def test_the_team_send_targets_picks_keeps_a_uav_frozen_a_moment_ago(
-    fleet: MemoryFleet, ground: ZenohBus, ghost: None, frozen: None
+    uavs: MemoryFleet, ground_bus: ZenohBus, ghost: None, frozen: None
 ) -> None:
     """300, frozen: its state query gets no answer, but its own signed state, relayed by
     a teammate that heard it put, keeps it in the team (it fetches the mission when it
     resumes); the ghost 299 stays out."""
-    assert live_uav_ids(ground, SPACE, 1.0) == [74, 112, 300]
+    assert live_uav_ids(ground_bus, SPACE, 1.0) == [74, 112, 300]
 
 
 def test_an_onboard_does_not_wait_for_a_ghost_teammate(
-    fleet: MemoryFleet, ground: ZenohBus, ghost: None
+    uavs: MemoryFleet, ground_bus: ZenohBus, ghost: None
 ) -> None:
     """A mission naming 74, 112 and the ghost 299: both onboards see 299's token, but 299
     never speaks for itself (no signed state answers, no result comes), so neither
@@ -145,16 +145,14 @@ def test_an_onboard_does_not_wait_for_a_ghost_teammate(
     On the code before, the token made 299 a live teammate whose result was awaited
     for the whole deadline."""
     wait_until(
-        lambda: all(
-            299 in process.core.mission.team.tokens for process in fleet.processes.values()
-        ),
+        lambda: all(299 in process.core.mission.team.tokens for process in uavs.processes.values()),
         10.0,
         "both onboards seeing 299's token",
     )
     mission = MissionTargets(41, (74, 112, 299), tuple(TARGETS), deadline_s=DEADLINE_S)
 
     def committed() -> dict[int, UavState]:
-        states = dict(ground.query_messages(SPACE.all_state, UavState, 1.0))
+        states = dict(ground_bus.query_messages(SPACE.all_state, UavState, 1.0))
         return {
             state.uav: state
             for state in states.values()
@@ -165,9 +163,9 @@ def test_an_onboard_does_not_wait_for_a_ghost_teammate(
 
     def sent_and_committed() -> bool:
         # Put again until both hold it (a repeat is ignored): a put may go unheard.
-        rounds = [p.core.round for p in fleet.processes.values()]
+        rounds = [p.core.round for p in uavs.processes.values()]
         if not all(r is not None and r.mission == mission.mission for r in rounds):
-            ground.publish(SPACE.mission_targets(mission.mission), mission)
+            ground_bus.publish(SPACE.mission_targets(mission.mission), mission)
         return set(committed()) == {74, 112}
 
     # Far within the deadline: a team waiting for 299 commits only at its end.
