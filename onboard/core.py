@@ -222,6 +222,8 @@ class OnboardCore:
         """The teammates whose token is present but does not count yet, for lack of a
         signed word of theirs (the secure profile): their state is asked for."""
         team = self.mission.team
+        if not team.vouch:
+            return []
         return sorted(uav for uav in team.tokens if team.waiting_for_word(uav))
 
     def start(self, now: float) -> None:
