@@ -264,6 +264,7 @@ class OnboardCore:
                 targets_digest=targets_digest(self.round.targets),
                 current_target=self.flight.target,
                 reached=dict(self.round.reached_targets),
+                leg_s=self.mission.leg_s(self.round.mission, self.flight.target),
             )
         return self.report.state(
             enabled=self.flight.enabled,
