@@ -275,9 +275,11 @@ def _team(bus: Bus, options: SendOptions) -> tuple[int, ...]:
     if not options.team:
         return tuple(live)
     absent = ", ".join(str(uav) for uav in options.team if uav not in live)
+    why = "no liveliness token, or none its UAV's own signed state vouches for"
     if absent and not options.force:
         print(
-            f"error: not live now: {absent} (no liveliness token); nothing sent (--force "
+            f"error: not live now: {absent} ({why if bus.signed else 'no liveliness token'}); "
+            "nothing sent (--force "
             "sends to them all the same: a UAV that comes up fetches the mission)",
             file=sys.stderr,
         )
