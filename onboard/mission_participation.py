@@ -414,10 +414,19 @@ class MissionParticipation:
     def on_alive(self, uav: int, alive: bool, now: float) -> None:
         if alive:
             if self.team.came(uav):
-                self.catch_up.request(now)
-                self._rejoin(uav, now)
+                self._counted(uav, now)
         elif self.team.went(uav, now, committed=self.decided()):
             self.release_gone(now)  # at once when there is no grace
+
+    def on_spoke(self, uav: int, now: float) -> None:
+        """A message signed by `uav` was heard (the secure profile): its token counts."""
+        if uav != self.uav_id and self.team.spoke(uav):
+            self._counted(uav, now)
+
+    def _counted(self, uav: int, now: float) -> None:
+        """A teammate counts as present again (or for the first time)."""
+        self.catch_up.request(now)
+        self._rejoin(uav, now)
 
     def _rejoin(self, uav: int, now: float) -> None:
         """A teammate released as lost is alive again (a partition healed, a router or

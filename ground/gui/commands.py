@@ -50,7 +50,7 @@ from fleet.mission.objective import Objective
 from fleet.mission.targets_file import TargetsFileError, encode_targets
 from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
 from fleet.transport.bus import Bus
-from ground.mission_change_command import ACK_WAIT_S, ChangeRefused, change_mission
+from ground.mission_change_command import ACK_WAIT_S, ChangePut, ChangeRefused, put_change
 from ground.mission_control import MissionError, publish_targets, send_abort, send_opm
 from ground.mission_follower import MissionFollower
 from ground.mission_ids import MAX_MISSION_ID, TargetsServer, claim_mission, current_mission_id
@@ -295,16 +295,8 @@ class MissionDesk:
         }
         if attempt is None or attempt.proposal is None:
             return data
-        seen = adoption(attempt.proposal, decisions)
-        data.update(
-            proposer=attempt.proposal.proposer,
-            verdict=str(seen.verdict),
-            adopted_digest=seen.adopted_digest,
-            baseline_digest=seen.baseline_digest,
-            adopted_by=list(seen.adopted_by),
-            baseline_by=list(seen.baseline_by),
-            other_by=list(seen.other_by),
-        )
+        data["proposer"] = attempt.proposal.proposer
+        data.update(adoption(attempt.proposal, decisions).to_json())
         return data
 
     @property
@@ -429,22 +421,31 @@ def _abort(bus: Bus, desk: MissionDesk, command: AbortCommand) -> Reply:
     )
 
 
-def _change(
-    bus: Bus, desk: MissionDesk, command: AddTargetsCommand | RemoveTargetsCommand
-) -> Reply:
-    """`add-targets` / `remove-targets` as the CLI makes them: ok only once every live
-    team UAV planned the new revision."""
+ChangeCommand = AddTargetsCommand | RemoveTargetsCommand
+
+
+def put_change_of(bus: Bus, desk: MissionDesk, command: ChangeCommand) -> Reply | ChangePut:
+    """`add-targets` / `remove-targets` as the CLI makes them, in the command's turn: the
+    change put (and shown at once), or the reply refusing it, nothing sent."""
     added = command.targets if isinstance(command, AddTargetsCommand) else ()
     removed = command.indexes if isinstance(command, RemoveTargetsCommand) else ()
     mission = command.mission if command.mission is not None else desk.mission
     try:
-        change = change_mission(
-            bus, desk.space, mission, added=added, removed=removed, timeout_s=command.wait_s
-        )
+        put = put_change(bus, desk.space, mission, added=added, removed=removed)
     except ChangeRefused as error:
         return Reply(command.id, False, str(error), mission)
-    # Shown at once, not only when the page hears the revision on the bus.
-    desk.revise(change.new)
+    # Shown at once, and served as it is now, not only once the page hears it.
+    desk.revise(put.new)
+    return put
+
+
+def change_reply(
+    command: ChangeCommand, put: ChangePut, stop: threading.Event | None = None
+) -> Reply:
+    """A change put, once every live team UAV planned its revision: ok; else failed,
+    naming who did not within the command's `wait_s`."""
+    with put:
+        change = put.wait(command.wait_s, stop)
     return Reply(command.id, change.acknowledged, change.summary(), change.new.mission)
 
 
@@ -453,7 +454,8 @@ def execute(bus: Bus, desk: MissionDesk, command: Command, live: set[int]) -> Re
     if isinstance(command, SendCommand):
         return _send(desk, command, live)
     if isinstance(command, AddTargetsCommand | RemoveTargetsCommand):
-        return _change(bus, desk, command)
+        put = put_change_of(bus, desk, command)
+        return put if isinstance(put, Reply) else change_reply(command, put)
     if isinstance(command, AbortCommand):
         return _abort(bus, desk, command)
     if command.uav not in live:
