@@ -258,8 +258,9 @@ class MissionDesk:
                     name=f"propose-{message.mission}",
                     daemon=True,
                 )
-                # Stopped and joined when the page follows another mission, or closes.
-                self._stack.callback(thread.join, 5.0)
+                # Stopped (not joined: the lock is held, and a solve may take seconds; its
+                # outcome then goes to a track no longer shown) when the page follows
+                # another mission, or closes.
                 self._stack.callback(track.stop.set)
                 thread.start()
         self._on_change()
@@ -271,6 +272,8 @@ class MissionDesk:
         try:
             attempt = propose_when_results(self._bus, self.space, message, follower, track.stop)
         except Exception as error:  # the page must go on; the reason is shown
+            if track.stop.is_set():
+                return  # the page moved on, or closed (its bus with it)
             log.exception("mission %d: proposing a plan failed", message.mission)
             attempt = ProposalAttempt(None, reason=f"failed: {error}")
         track.attempt = attempt
