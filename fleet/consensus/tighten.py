@@ -50,9 +50,12 @@ WEIGHT = 100.0
 NEAR = 10
 NEAR_UAVS = 5
 #: Bounds tried at most, and the first one's distance below the last arrival (relative;
-#: halved each time a bound is not reached).
+#: halved each time a bound is not met).
 STEPS = 10
 FIRST_GAP = 0.05
+#: A bound closer than this below the last arrival is not tried (relative): the search
+#: then ends, its rounds spent where they can gain something.
+MIN_GAP = 0.002
 #: Ruin-and-recreate rounds per bound, targets removed per round at most, and the
 #: threshold a round's plan is kept within (relative, falling to 0 over the rounds).
 ROUNDS = 60
@@ -188,7 +191,7 @@ class _Search:
         best, best_span = start, self.span()
         gap = FIRST_GAP
         for _ in range(STEPS):
-            if self.tried >= BUDGET:
+            if self.tried >= BUDGET or gap < MIN_GAP:
                 break
             self.bound = best_span * (1.0 - gap)
             self.restore(best)
