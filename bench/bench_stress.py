@@ -68,6 +68,9 @@ ORPHAN_S = 10.0
 CRASH_MARK = "Fatal Python error"
 #: Every UAV's telemetry at least this share of the median UAV's: within 5 %.
 WITHIN = 0.95
+#: A gap this long between two telemetry samples of a UAV in a recording (which keeps
+#: one every 0.2 s) is a sample not recorded.
+LOST_GAP_S = 0.4
 
 
 @dataclass
@@ -259,7 +262,17 @@ def main() -> None:
     )
     parser.add_argument("--keep", type=Path, help="keep the logs of what crashed here")
     parser.add_argument("--cores", action="store_true", help="let crashes dump core")
+    parser.add_argument(
+        "--recordings",
+        nargs="+",
+        type=Path,
+        metavar="MCAP",
+        help="start nothing: compare these recordings' UAVs (each file's UAVs, from 101)",
+    )
     args = parser.parse_args()
+    if args.recordings:
+        describe_recordings(args.recordings, args.uavs)
+        return
     if args.keep is not None:
         args.keep.mkdir(parents=True, exist_ok=True)
     if args.cores:
@@ -291,6 +304,35 @@ def main() -> None:
             print(f"stopped by signal {stopping[0]} after {n} rounds of {args.cycles}")
         for result in results:
             report(result)
+
+
+def describe_recordings(paths: list[Path], uavs: int) -> None:
+    """Each recording's telemetry per UAV, in the window every UAV is live, one a line:
+    what a recording kept by `--keep` shows."""
+    ids = list(range(101, 101 + uavs))
+    for path in paths:
+        times = telemetry_times(path)
+        telemetry = spread(times, ids)
+        if telemetry is None:
+            print(f"{path}: no telemetry")
+            continue
+        start = max(times[uav][0] for uav in ids)
+        end = min(times[uav][-1] for uav in ids)
+        per_uav = []
+        for uav in ids:
+            inside = [t for t in times[uav] if start <= t <= end]
+            gap = max((b - a for a, b in itertools.pairwise(inside)), default=0) / 1e9
+            per_uav.append(
+                f"{uav}: {len(inside)} (first {(inside[0] - start) / 1e9:.2f} s after the "
+                f"window's start, last {(end - inside[-1]) / 1e9:.2f} s before its end, "
+                f"longest gap {gap:.3f} s)"
+                if inside
+                else f"{uav}: 0"
+            )
+        print(
+            f"{path}: window {telemetry.window_s:.2f} s, smallest / median "
+            f"{telemetry.window:.3f} (whole recording {telemetry.whole:.3f}); " + "; ".join(per_uav)
+        )
 
 
 def progress(results: list[ModeResult], started: float) -> None:
@@ -364,7 +406,8 @@ def report_recordings(recordings: list[TelemetrySpread]) -> None:
         f"  the window: {windows[0]:.1f} to {windows[-1]:.1f} s (median "
         f"{statistics.median(windows):.1f}), the median UAV's samples in it {samples[0]} to "
         f"{samples[-1]}; longest gap in a UAV's telemetry in it: "
-        f"{max(r.gap_s for r in recordings):.2f} s"
+        f"{max(r.gap_s for r in recordings):.2f} s; recordings with a gap of {LOST_GAP_S} s or "
+        f"more (a sample not recorded): {sum(r.gap_s >= LOST_GAP_S for r in recordings)}"
     )
     short = [r for r in recordings if r.whole < WITHIN]
     if short:
