@@ -20,14 +20,18 @@ wait until it is ready, let it fly `--fly` seconds, then stop it: with SIGTERM, 
   whole recording a UAV started late or stopped early has fewer samples without any
   being lost; over the window, a lost sample counts. Also the longest gap between two
   samples of one UAV in the window (the recording keeps one every 0.2 s, so a gap of
-  0.4 s or more is a sample not recorded), and, for each recording below 5 % over the
-  whole, how late its smallest UAV started and how early it ended. With
-  `--measure-every N`, only every Nth SIGTERM cycle flies `--fly` s and is measured;
-  the others (SIGKILL cycles too) fly `--fly-other` s (crashes, start failures and
-  orphans are counted in all).
+  0.4 s or more is a sample not recorded, or none sent for that long), and, for each
+  recording below 5 % over the whole, how late its smallest UAV started and how early
+  it ended. With `--measure-every N`, only every Nth SIGTERM cycle flies `--fly` s and
+  is measured; the others (SIGKILL cycles too) fly `--fly-other` s (crashes, start
+  failures and orphans are counted in all).
 
-A recording keeps 5 telemetry samples a second per UAV, so a window under 4 s holds
-fewer than 20 and one sample is more than 5 %: `--fly` 5 or more lets 5 % be told apart.
+A recording keeps a UAV's first telemetry sample 0.2 s or more after the last one it
+kept: one every 0.205 s or so on an idle box; a sample that comes late (a process held
+up by load) stretches that interval. So a window of W seconds holds about W / 0.205
+samples, one more or fewer by where they fall against its edges, fewer where intervals
+stretched: two UAVs may differ by two samples with none lost, more than 5 % below about
+40 samples (`--fly` 10 or more).
 
 `--fake-runs N` also runs `bench.stress_fakes` N times, each a process of
 `--fake-cycles` cycles of the ground tests' fake onboards on an embedded router (with
@@ -69,7 +73,8 @@ CRASH_MARK = "Fatal Python error"
 #: Every UAV's telemetry at least this share of the median UAV's: within 5 %.
 WITHIN = 0.95
 #: A gap this long between two telemetry samples of a UAV in a recording (which keeps
-#: one every 0.2 s) is a sample not recorded.
+#: one every 0.2 s): a sample not recorded, or none sent for that long (the file cannot
+#: tell which).
 LOST_GAP_S = 0.4
 
 
@@ -407,7 +412,7 @@ def report_recordings(recordings: list[TelemetrySpread]) -> None:
         f"{statistics.median(windows):.1f}), the median UAV's samples in it {samples[0]} to "
         f"{samples[-1]}; longest gap in a UAV's telemetry in it: "
         f"{max(r.gap_s for r in recordings):.2f} s; recordings with a gap of {LOST_GAP_S} s or "
-        f"more (a sample not recorded): {sum(r.gap_s >= LOST_GAP_S for r in recordings)}"
+        f"more (a sample lost, or none sent): {sum(r.gap_s >= LOST_GAP_S for r in recordings)}"
     )
     short = [r for r in recordings if r.whole < WITHIN]
     if short:
