@@ -4,7 +4,8 @@ The ground reads the mission's latest revision as the UAVs serve it, puts the ne
 (fleet.consensus.mission_change: added targets after the others, an index never
 changes; removed targets never flown from then on), signed like every ground command,
 and waits until each live team UAV acknowledges it: an assignment of that revision,
-re-planned over what is left under the mission's objective.
+re-planned over what is left under the mission's objective. The page (`ground-cli gui`)
+makes the same change through the same `change_mission`.
 """
 
 from __future__ import annotations
@@ -12,11 +13,14 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import threading
+from contextlib import ExitStack
 from dataclasses import dataclass
 from typing import TextIO
 
 from fleet.consensus.mission_change import next_revision
 from fleet.consensus.report_checks import targets_problem
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import AssignmentReport, MissionTargets, Target
 from fleet.transport.bus import Bus
 from fleet.transport.cli import ExitCode
@@ -74,6 +78,156 @@ def run_remove_targets(bus: Bus, options: RemoveOptions, out: TextIO) -> int:
     return _change(bus, options, out, added=(), removed=options.indexes)
 
 
+class ChangeRefused(MissionError):
+    """A change that cannot be made (no such mission, a bad index or target); nothing
+    was sent. Its text says why."""
+
+
+@dataclass(frozen=True)
+class MissionChange:
+    """A change put on the bus, and who acknowledged it."""
+
+    new: MissionTargets  #: the revision put
+    added: list[int]  #: the indexes of the targets added
+    removed: list[int]  #: the indexes removed by this change
+    acked: list[int]  #: the live team UAVs that planned this revision
+    missing: list[int]  #: the live team UAVs that did not within the wait
+    reports: dict[int, AssignmentReport]  #: each UAV's latest plan heard
+    timeout_s: float
+
+    @property
+    def acknowledged(self) -> bool:
+        return not self.missing
+
+    def summary(self) -> str:
+        """One line: what changed, and who acknowledged it (or who did not)."""
+        what = []
+        if self.added:
+            what.append(f"{_targets(self.added)} added")
+        if self.removed:
+            what.append(f"{_targets(self.removed)} removed")
+        head = f"mission {self.new.mission} revision {self.new.revision}: {'; '.join(what)}"
+        if self.missing:
+            return (
+                f"{head}; not acknowledged by {', '.join(map(str, self.missing))} within "
+                f"{self.timeout_s:g} s"
+            )
+        return f"{head}; acknowledged by {', '.join(map(str, self.acked)) or 'no UAV'}"
+
+
+def _targets(indexes: list[int]) -> str:
+    return f"target{'s' if len(indexes) > 1 else ''} {', '.join(map(str, indexes))}"
+
+
+class ChangePut:
+    """A change put on the bus (`put_change`), its acknowledgements awaited by `wait`;
+    close it (or leave its `with`) to stop following them."""
+
+    def __init__(
+        self,
+        stack: ExitStack,
+        follower: MissionFollower,
+        held: MissionTargets,
+        new: MissionTargets,
+        removed: tuple[int, ...],
+        expected: list[int],
+    ) -> None:
+        self.new = new
+        self._stack = stack
+        self._follower = follower
+        self._held = held
+        self._removed = removed
+        self._expected = expected
+
+    def wait(self, timeout_s: float, stop: threading.Event | None = None) -> MissionChange:
+        """Wait up to `timeout_s` for every live team UAV to plan the revision (`stop`
+        set: no longer, within a second)."""
+        follower, new, expected = self._follower, self.new, self._expected
+        stopped = stop or threading.Event()
+
+        def acknowledged() -> bool:
+            if stopped.is_set():
+                return True
+            return all(_acks(follower.assignments.get(uav), new) for uav in expected)
+
+        follower.wait_until(acknowledged, timeout_s, fetch_every_s=1.0)
+        _, reports = follower.snapshot()
+        acked = [uav for uav in expected if _acks(reports.get(uav), new)]
+        return MissionChange(
+            new=new,
+            added=list(range(len(self._held.targets), len(new.targets))),
+            removed=list(self._removed),
+            acked=acked,
+            missing=[uav for uav in expected if uav not in acked],
+            reports=reports,
+            timeout_s=timeout_s,
+        )
+
+    def close(self) -> None:
+        self._stack.close()
+
+    def __enter__(self) -> ChangePut:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def put_change(
+    bus: Bus,
+    space: KeySpace,
+    mission: int | None,
+    *,
+    added: tuple[Target, ...],
+    removed: tuple[int, ...],
+    query_timeout_s: float = 1.0,
+) -> ChangePut:
+    """Put mission `mission`'s next revision (None: the latest mission seen), following
+    the team's plans from before the put. ChangeRefused, with the reason, when nothing
+    was sent. Blocking (Zenoh queries): the page runs it off its loop."""
+    if mission is None:
+        mission = current_mission_id(bus, space, query_timeout_s)
+    if mission is None:
+        raise ChangeRefused("no mission seen (give --mission); nothing sent")
+    try:
+        held = mission_targets_of(bus, space, mission, query_timeout_s)
+        new = next_revision(held, added, removed)
+    except (MissionError, ValueError) as error:
+        raise ChangeRefused(f"mission {mission}: {error}; nothing sent") from None
+    problem = targets_problem(new)
+    if problem is not None:
+        raise ChangeRefused(f"mission {mission}: {problem}; nothing sent")
+    live = set(live_uav_ids(bus, space, query_timeout_s))
+    expected = sorted(uav for uav in new.team if uav in live)
+    stack = ExitStack()
+    try:
+        follower = stack.enter_context(MissionFollower(bus, space, mission, team=new.team))
+        publish_targets(bus, space, new)
+    except BaseException:
+        stack.close()
+        raise
+    return ChangePut(stack, follower, held, new, removed, expected)
+
+
+def change_mission(
+    bus: Bus,
+    space: KeySpace,
+    mission: int | None,
+    *,
+    added: tuple[Target, ...],
+    removed: tuple[int, ...],
+    timeout_s: float = ACK_WAIT_S,
+    query_timeout_s: float = 1.0,
+) -> MissionChange:
+    """Put the change (`put_change`) and wait up to `timeout_s` for every live team UAV
+    to plan it."""
+    put = put_change(
+        bus, space, mission, added=added, removed=removed, query_timeout_s=query_timeout_s
+    )
+    with put:
+        return put.wait(timeout_s)
+
+
 def _change(
     bus: Bus,
     options: ChangeOptions,
@@ -82,42 +236,25 @@ def _change(
     added: tuple[Target, ...],
     removed: tuple[int, ...],
 ) -> int:
-    space, timeout = options.key_space, options.query_timeout
-    mission = options.mission
-    if mission is None:
-        mission = current_mission_id(bus, space, timeout)
-    if mission is None:
-        print("error: no mission seen (give --mission); nothing sent", file=sys.stderr)
-        return ExitCode.FAILED
     try:
-        held = mission_targets_of(bus, space, mission, timeout)
-        new = next_revision(held, added, removed)
-    except (MissionError, ValueError) as error:
-        print(f"error: mission {mission}: {error}; nothing sent", file=sys.stderr)
+        change = change_mission(
+            bus,
+            options.key_space,
+            options.mission,
+            added=added,
+            removed=removed,
+            timeout_s=options.timeout,
+            query_timeout_s=options.query_timeout,
+        )
+    except ChangeRefused as error:
+        print(f"error: {error}", file=sys.stderr)
         return ExitCode.FAILED
-    problem = targets_problem(new)
-    if problem is not None:
-        print(f"error: mission {mission}: {problem}; nothing sent", file=sys.stderr)
-        return ExitCode.FAILED
-    live = set(live_uav_ids(bus, space, timeout))
-    expected = sorted(uav for uav in new.team if uav in live)
-    with MissionFollower(bus, space, mission, team=new.team) as follower:
-        publish_targets(bus, space, new)
-
-        def acknowledged() -> bool:
-            return all(_acks(follower.assignments.get(uav), new) for uav in expected)
-
-        follower.wait_until(acknowledged, options.timeout, fetch_every_s=1.0)
-        _, reports = follower.snapshot()
-    acked = [uav for uav in expected if _acks(reports.get(uav), new)]
-    missing = [uav for uav in expected if uav not in acked]
-    first_added = len(held.targets)
-    added_indexes = list(range(first_added, len(new.targets)))
-    _say(out, options.json, new, added_indexes, list(removed), acked, missing, reports)
-    if missing:
+    _say(out, options.json, change)
+    if change.missing:
+        new = change.new
         print(
-            f"error: mission {mission} revision {new.revision}: not acknowledged by "
-            f"{', '.join(map(str, missing))} within {options.timeout:g} s",
+            f"error: mission {new.mission} revision {new.revision}: not acknowledged by "
+            f"{', '.join(map(str, change.missing))} within {options.timeout:g} s",
             file=sys.stderr,
         )
         return ExitCode.FAILED
@@ -128,28 +265,25 @@ def _acks(report: AssignmentReport | None, new: MissionTargets) -> bool:
     return report is not None and report.revision >= new.revision
 
 
-def _say(
-    out: TextIO,
-    as_json: bool,
-    new: MissionTargets,
-    added: list[int],
-    removed: list[int],
-    acked: list[int],
-    missing: list[int],
-    reports: dict[int, AssignmentReport],
-) -> None:
-    first = reports[acked[0]] if acked else None
-    queues = {str(u): list(q) for u, q in first.queues.items()} if first is not None else {}
+def queues_of(change: MissionChange) -> dict[str, list[int]]:
+    """The queues of the revision as the first UAV that acknowledged it planned them."""
+    first = change.reports[change.acked[0]] if change.acked else None
+    return {str(u): list(q) for u, q in first.queues.items()} if first is not None else {}
+
+
+def _say(out: TextIO, as_json: bool, change: MissionChange) -> None:
+    new = change.new
+    queues = queues_of(change)
     if as_json:
         print(
             json.dumps(
                 {
                     "mission": new.mission,
                     "revision": new.revision,
-                    "added": added,
-                    "removed": removed,
-                    "acknowledged": acked,
-                    "not_acknowledged": missing,
+                    "added": change.added,
+                    "removed": change.removed,
+                    "acknowledged": change.acked,
+                    "not_acknowledged": change.missing,
                     "queues": queues,
                 }
             ),
@@ -157,12 +291,12 @@ def _say(
         )
         return
     what = []
-    if added:
-        what.append(f"targets {', '.join(map(str, added))} added")
-    if removed:
-        what.append(f"targets {', '.join(map(str, removed))} removed")
+    if change.added:
+        what.append(f"targets {', '.join(map(str, change.added))} added")
+    if change.removed:
+        what.append(f"targets {', '.join(map(str, change.removed))} removed")
     print(f"mission {new.mission} revision {new.revision}: {'; '.join(what)}", file=out)
-    print(f"acknowledged by {', '.join(map(str, acked)) or 'no UAV'}", file=out)
+    print(f"acknowledged by {', '.join(map(str, change.acked)) or 'no UAV'}", file=out)
     for name, queue in queues.items():
         print(f"  UAV {name}: {', '.join(map(str, queue)) or 'no target'}", file=out)
 

@@ -93,6 +93,7 @@ def make_core(
     uav: int = 112,
     times: tuple[float, ...] = (80.0, 40.0, 60.0),
     liveliness_grace_s: float = 0.0,  # most tests: a lost teammate is released at once
+    vouch_teammates: bool = False,  # the secure profile: a token counts once its UAV spoke
 ) -> tuple[OnboardCore, Recorder]:
     recorder = Recorder()
     core = OnboardCore(
@@ -100,6 +101,7 @@ def make_core(
         outputs=recorder,
         planner=ScriptedPlanner(times),
         liveliness_grace_s=liveliness_grace_s,
+        vouch_teammates=vouch_teammates,
     )
     core.on_telemetry(sample_telemetry(), 0.0)
     core.on_track(Track(2), 0.0)

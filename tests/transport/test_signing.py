@@ -4,7 +4,9 @@ a `ZenohBus` with `BusSigning` signs, relays and refuses."""
 from __future__ import annotations
 
 import json
+import logging
 import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -15,21 +17,21 @@ import zenoh
 
 from fleet.files.certs import write_identities
 from fleet.files.signers import (
-    load_roster,
     load_signing_key,
     revoke,
     roster_document,
     signing_key_path,
 )
 from fleet.mission.key_space import KeySpace
-from fleet.mission.messages import MissionAbort, MissionTargets, Target
-from fleet.mission.signature import Delivery
+from fleet.mission.messages import MissionAbort, MissionTargets, Target, UavState
+from fleet.mission.signature import Delivery, sign
 from fleet.transport import bus_codec
 from fleet.transport.bus import BusQuery, BusSample, Queryable
 from fleet.transport.bus_codec import encode
 from fleet.transport.signing import RELAY_CACHE, BusSigning
 from fleet.transport.zenoh_bus import ZenohBus, client_bus, connect
 from fleet.transport.zenoh_config import build_config
+from tests.support.signed import bus_signing
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
@@ -38,9 +40,10 @@ TARGETS = MissionTargets(5, (74, 112), (Target(35.7, -120.7, 600.0),))
 
 
 def signed_bus(certs: Path, endpoint: str, identity: str) -> ZenohBus:
+    """A client of the router at `endpoint` that signs and checks commands as `identity`
+    (signing set after it opened: no stream checks)."""
     bus = connect(endpoint)
-    key = load_signing_key(signing_key_path(certs, identity))
-    bus.signing = BusSigning(identity, key, load_roster(certs))
+    bus.signing = bus_signing(certs, identity)
     return bus
 
 
@@ -189,18 +192,8 @@ def test_a_reply_passes_on_the_message_as_first_signed(certs: Path) -> None:
     """The ground serving its mission while it flies, and a UAV relaying it, both pass on
     the put's own envelope: its time is when the mission was sent, not when asked."""
     now = [1_000]
-    ground = BusSigning(
-        "ground",
-        load_signing_key(signing_key_path(certs, "ground")),
-        load_roster(certs),
-        clock=lambda: now[0],
-    )
-    uav = BusSigning(
-        "uav-74",
-        load_signing_key(signing_key_path(certs, "uav-74")),
-        load_roster(certs),
-        clock=lambda: now[0],
-    )
+    ground = bus_signing(certs, "ground", clock=lambda: now[0])
+    uav = bus_signing(certs, "uav-74", clock=lambda: now[0])
     key, payload = SPACE.mission_targets(9), encode(TARGETS)
     put = ground.attachment(key, payload, Delivery.PUT)
     assert put is not None and uav.check(key, payload, put, Delivery.PUT)
@@ -221,8 +214,7 @@ def test_a_relay_passes_on_the_envelope_of_the_very_mission_it_holds(certs: Path
     now = [1_000]
 
     def signing(identity: str) -> BusSigning:
-        key = load_signing_key(signing_key_path(certs, identity))
-        return BusSigning(identity, key, load_roster(certs), clock=lambda: now[0])
+        return bus_signing(certs, identity, clock=lambda: now[0])
 
     first_ground, second_ground, uav = signing("ground"), signing("ground"), signing("uav-74")
     key = SPACE.mission_targets(9)
@@ -248,6 +240,48 @@ def test_a_relay_passes_on_the_envelope_of_the_very_mission_it_holds(certs: Path
     assert uav.reply(key, held) == (held, held_put)
 
 
+def test_a_state_reply_signed_longer_ago_than_the_replay_window_is_refused_and_said(
+    buses: dict[str, ZenohBus], certs: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """UAV 112's genuine signed state, 31 s old (recorded, replayed as the answer to a
+    late-joining ground's state query) is refused as stale, counted, and logged with its
+    age; the same state signed now is believed. On the code before, the old one was
+    believed: a reply was not judged for its age."""
+    key = SPACE.state(112)
+    payload = encode(UavState(112, True, 1.0, None, None, None, None))
+    signing_key = load_signing_key(signing_key_path(certs, "uav-112"))
+    age_ns = [31 * 1_000_000_000]
+
+    def answer(query: zenoh.Query) -> None:
+        stamp = time.time_ns() - age_ns[0]
+        by_112 = sign(signing_key, "uav-112", key, payload, stamp)
+        query.reply(key, payload, encoding=bus_codec.ENCODING, attachment=by_112)
+
+    queryable = buses["uav-112"].session.declare_queryable(key, answer)
+    try:
+        fresh: list[Any] = []
+        before = refused("stale")
+
+        def asked_and_refused() -> bool:
+            # Ask until the router knows the queryable and the answer is refused.
+            fresh[:] = buses["ground"].query_messages(key, UavState, TIMEOUT_S)
+            return refused("stale") > before
+
+        with caplog.at_level(logging.WARNING, logger="fleet.transport.signing"):
+            wait_until(asked_and_refused, TIMEOUT_S * 5, "the old state refused")
+        assert fresh == []
+        assert any(
+            f"refused a reply on {key} signed by uav-112 31." in record.message
+            and "older than the 30 s replay window" in record.message
+            for record in caplog.records
+        ), caplog.text
+        age_ns[0] = 0
+        believed = buses["ground"].query_messages(key, UavState, TIMEOUT_S)
+    finally:
+        queryable.undeclare()
+    assert [(k, state.uav) for k, state in believed] == [(key, 112)]
+
+
 # ---- the roster, live ----------------------------------------------------------------------------
 def test_a_roster_put_by_the_ground_revokes_at_once_and_never_revives(
     tmp_path: Path, endpoint: str
@@ -259,11 +293,8 @@ def test_a_roster_put_by_the_ground_revokes_at_once_and_never_revives(
     older = roster_document(tmp_path)
 
     def bus(identity: str) -> ZenohBus:
-        made = signed_bus(tmp_path, endpoint, identity)
-        assert made.signing is not None
-        made.signing = BusSigning(
-            identity, made.signing._key, made.signing.roster, ca_pem=tmp_path / "ca.pem"
-        )
+        made = connect(endpoint)
+        made.signing = bus_signing(tmp_path, identity, ca_pem=tmp_path / "ca.pem")
         return made
 
     ground, uav = bus("ground"), bus("uav-112")
