@@ -88,7 +88,11 @@ class OnboardCore:
         link_release_s: float = LINK_RELEASE_S,
         liveliness_grace_s: float = LIVELINESS_GRACE_S,
         key_space: KeySpace = DEFAULT_SPACE,
+        fresh_replans: bool = True,
     ) -> None:
+        """`fresh_replans`: every re-plan is solved again from the survivors' fresh
+        times (fleet.consensus.resolve); off, it is the append rule's, committed at once
+        (what a re-plan commits when their times are missing)."""
         self.uav_id = uav_id
         self.planner = planner
         self.report = StateReport(uav_id, key_space, outputs, status_rate_hz)
@@ -117,6 +121,7 @@ class OnboardCore:
             self.link,
             self.flight,
             say,
+            fresh_replans=fresh_replans,
         )
 
     # ---- what the roles hold, read by the process and the tests ----------------------------
