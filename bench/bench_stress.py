@@ -1,26 +1,41 @@
 """Start and stop `fleet up` in a loop, and count what goes wrong.
 
     python -m bench.bench_stress [--cycles 20] [--uavs 4] [--fly 5] [--kill-every 3]
+                                 [--measure-every 1] [--fly-other S]
                                  [--fake-runs 0] [--fake-cycles 10] [--keep DIR] [--cores]
 
-For each mode (onboards forked from the fork server, and `--no-fork-server`), `--cycles`
-times: start `fleet up --uavs N --speedup 10` on a free port, wait until it is ready,
-let it fly `--fly` seconds, then stop it: with SIGTERM, or every `--kill-every`-th cycle
-with SIGKILL. Counted:
+For each mode (onboards forked from the fork server, and `--no-fork-server`; the modes
+take turns), `--cycles` times: start `fleet up --uavs N --speedup 10` on a free port,
+wait until it is ready, let it fly `--fly` seconds, then stop it: with SIGTERM, or every
+`--kill-every`-th cycle with SIGKILL. Counted:
 
 * starts that failed, and crashes: a process of the fleet that died of a signal or left
   a "Fatal Python error" (faulthandler's dump) in its log or output;
 * after each SIGKILL of the launcher, the processes of its tree still running 10 s
   later (orphans; they are then killed), and how long the tree took to go;
 * after each SIGTERM, the recording's telemetry samples per UAV: the smallest UAV's
-  count over the median UAV's.
+  count over the median UAV's, over the whole recording and over the window in which
+  every UAV is live (from the latest first telemetry of a UAV to the earliest last one):
+  the onboards start one after another and are stopped one after another, so over the
+  whole recording a UAV started late or stopped early has fewer samples without any
+  being lost; over the window, a lost sample counts. Also the longest gap between two
+  samples of one UAV in the window (the recording keeps one every 0.2 s, so a gap of
+  0.4 s or more is a sample not recorded), and, for each recording below 5 % over the
+  whole, how late its smallest UAV started and how early it ended. With
+  `--measure-every N`, only every Nth SIGTERM cycle flies `--fly` s and is measured;
+  the others (SIGKILL cycles too) fly `--fly-other` s (crashes, start failures and
+  orphans are counted in all).
+
+A recording keeps 5 telemetry samples a second per UAV, so a window under 4 s holds
+fewer than 20 and one sample is more than 5 %: `--fly` 5 or more lets 5 % be told apart.
 
 `--fake-runs N` also runs `bench.stress_fakes` N times, each a process of
 `--fake-cycles` cycles of the ground tests' fake onboards on an embedded router (with
 `--leave-open`, each run also exits with sessions open, which the project closes at
 exit unless `--no-exit-close`), and counts the runs that died
 of a signal or left faulthandler's dump. `--keep DIR` keeps the logs of every cycle or
-run that crashed or failed to start there; with `--cores` a crash also leaves its core
+run that crashed or failed to start there, and of every recording with a UAV more than
+5 % below the median in the window; with `--cores` a crash also leaves its core
 dump there (`ulimit -c`, the kernel's core pattern `core` in the crashed process's
 working directory), for `gdb`.
 """
@@ -28,6 +43,7 @@ working directory), for `gdb`.
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
 import resource
 import shutil
@@ -37,7 +53,6 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -51,6 +66,8 @@ STOP_S = 60.0
 #: later is an orphan.
 ORPHAN_S = 10.0
 CRASH_MARK = "Fatal Python error"
+#: Every UAV's telemetry at least this share of the median UAV's: within 5 %.
+WITHIN = 0.95
 
 
 @dataclass
@@ -61,22 +78,65 @@ class ModeResult:
     start_failures: list[str] = field(default_factory=list)
     crashes: list[str] = field(default_factory=list)
     kills: int = 0
+    stops: int = 0  #: cycles stopped with SIGTERM
     orphans: int = 0
     gone_s: list[float] = field(default_factory=list)
-    ratios: list[float] = field(default_factory=list)
+    recordings: list[TelemetrySpread] = field(default_factory=list)
 
 
-def telemetry_counts(path: Path) -> Counter[int]:
-    counts: Counter[int] = Counter()
+@dataclass(frozen=True)
+class TelemetrySpread:
+    """One recording's telemetry per UAV: whole, and in the window every UAV is live."""
+
+    whole: float  #: the smallest UAV's count over the median UAV's, whole recording
+    window: float  #: the same, counting only the samples in the window
+    window_s: float  #: the window's length
+    samples: int  #: the median UAV's samples in the window
+    gap_s: float  #: the longest gap between two samples of one UAV in the window
+    #: The UAV smallest over the whole: how much later than the earliest it started,
+    #: and how much earlier than the latest it ended, seconds.
+    late_s: float
+    early_s: float
+
+
+def telemetry_times(path: Path) -> dict[int, list[int]]:
+    """Each UAV's telemetry log times (ns), in order; {} if the file cannot be read."""
+    times: dict[int, list[int]] = {}
     try:
         recording = read_recording(path)
     except RecordingError:
-        return counts
-    for topic, count in recording.counts().items():
-        parts = topic.split("/")
+        return times
+    for message in recording.messages:
+        parts = message.topic.split("/")
         if len(parts) == 4 and parts[1] == "uav" and parts[3] == "telemetry":
-            counts[int(parts[2])] += count
-    return counts
+            times.setdefault(int(parts[2]), []).append(message.log_time_ns)
+    return times
+
+
+def spread(times: dict[int, list[int]], uavs: list[int]) -> TelemetrySpread | None:
+    """`uavs`' telemetry counts compared, whole and in their common window; None when
+    the median UAV has none (or a UAV has none: its ratios are then 0)."""
+    whole = {uav: len(times.get(uav, [])) for uav in uavs}
+    median = statistics.median(whole.values())
+    if median == 0:
+        return None
+    low = min(uavs, key=lambda uav: whole[uav])
+    if whole[low] == 0:
+        return TelemetrySpread(0.0, 0.0, 0.0, 0, 0.0, float("inf"), float("inf"))
+    start = max(times[uav][0] for uav in uavs)
+    end = min(times[uav][-1] for uav in uavs)
+    inside = {uav: [t for t in times[uav] if start <= t <= end] for uav in uavs}
+    window_median = statistics.median(len(ts) for ts in inside.values())
+    gaps = [b - a for ts in inside.values() for a, b in itertools.pairwise(ts)]
+    return TelemetrySpread(
+        whole=whole[low] / median,
+        window=min(len(ts) for ts in inside.values()) / window_median if window_median else 0.0,
+        window_s=max(0, end - start) / 1e9,
+        samples=int(window_median),
+        gap_s=max(gaps, default=0) / 1e9,
+        late_s=(times[low][0] - min(times[uav][0] for uav in uavs)) / 1e9,
+        early_s=(max(times[uav][-1] for uav in uavs) - times[low][-1]) / 1e9,
+    )
 
 
 def crashes_in(log_dir: Path, output: str) -> list[str]:
@@ -133,7 +193,8 @@ def cycle(result: ModeResult, args: argparse.Namespace, kill: bool, work: Path) 
         keep(log_dir, args.keep)
         return
     result.ready += 1
-    time.sleep(args.fly)
+    measured = not kill and result.stops % args.measure_every == 0
+    time.sleep(args.fly if measured or args.fly_other is None else args.fly_other)
     tree = descendants(up.pid)
     if kill:
         result.kills += 1
@@ -154,6 +215,7 @@ def cycle(result: ModeResult, args: argparse.Namespace, kill: bool, work: Path) 
         if crashed or left:
             keep(log_dir, args.keep)
         return
+    result.stops += 1
     up.send_signal(signal.SIGTERM)
     try:
         status = up.wait(STOP_S)
@@ -166,11 +228,14 @@ def cycle(result: ModeResult, args: argparse.Namespace, kill: bool, work: Path) 
     result.crashes += [f"cycle {result.cycles}: {c}" for c in crashed]
     if crashed:
         keep(log_dir, args.keep)
-    counts = telemetry_counts(log_dir / "fleet.mcap")
-    samples = [counts[uav] for uav in range(101, 101 + args.uavs)]
-    median = statistics.median(samples)
-    if median > 0:
-        result.ratios.append(min(samples) / median)
+    if not measured:
+        return
+    uavs = list(range(101, 101 + args.uavs))
+    telemetry = spread(telemetry_times(log_dir / "fleet.mcap"), uavs)
+    if telemetry is not None:
+        result.recordings.append(telemetry)
+        if telemetry.window < WITHIN:
+            keep(log_dir, args.keep)
 
 
 def main() -> None:
@@ -178,6 +243,12 @@ def main() -> None:
     parser.add_argument("--cycles", type=int, default=20, help="cycles per mode")
     parser.add_argument("--uavs", type=int, default=4)
     parser.add_argument("--fly", type=float, default=5.0, help="seconds flown once ready")
+    parser.add_argument(
+        "--measure-every", type=int, default=1, help="measure every Nth SIGTERM cycle's recording"
+    )
+    parser.add_argument(
+        "--fly-other", type=float, help="seconds flown by a cycle not measured (default --fly)"
+    )
     parser.add_argument("--kill-every", type=int, default=3, help="SIGKILL every Nth cycle")
     parser.add_argument("--modes", default="fork-server,no-fork-server")
     parser.add_argument("--fake-runs", type=int, default=0, help="bench.stress_fakes runs")
@@ -200,11 +271,39 @@ def main() -> None:
             for _ in range(args.fake_runs):
                 fake_run(fake_result, args, Path(folder))
             report(fake_result)
-        for mode in filter(None, args.modes.split(",")):
-            result = ModeResult(mode)
-            for n in range(1, args.cycles + 1):
-                cycle(result, args, args.kill_every > 0 and n % args.kill_every == 0, Path(folder))
+        # The modes take turns, cycle by cycle, so a run stopped early (SIGINT or SIGTERM:
+        # the cycle under way ends as usual first) has about as many of each.
+        stopping: list[int] = []
+        for stop_signal in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(stop_signal, lambda signum, _frame: stopping.append(signum))
+        results = [ModeResult(mode) for mode in filter(None, args.modes.split(","))]
+        started = time.monotonic()
+        for n in range(1, args.cycles + 1):
+            for result in results:
+                if stopping:
+                    break
+                kill = args.kill_every > 0 and n % args.kill_every == 0
+                cycle(result, args, kill, Path(folder))
+                # Nothing of a cycle is needed once counted (what went wrong is kept).
+                shutil.rmtree(Path(folder) / f"{result.mode}-{result.cycles}")
+            progress(results, started)
+        if stopping:
+            print(f"stopped by signal {stopping[0]} after {n} rounds of {args.cycles}")
+        for result in results:
             report(result)
+
+
+def progress(results: list[ModeResult], started: float) -> None:
+    """A line on stderr per round, to follow a long run."""
+    parts = [
+        f"{r.mode} {r.cycles} (crashes {len(r.crashes)}, start failures "
+        f"{len(r.start_failures)}, orphans {r.orphans}, recordings {len(r.recordings)}, "
+        f"below 5 % in the window {sum(t.window < WITHIN for t in r.recordings)})"
+        for r in results
+    ]
+    minutes = (time.monotonic() - started) / 60
+    print(f"{time.strftime('%H:%M:%S')} {minutes:.1f} min: " + "; ".join(parts), file=sys.stderr)
+    sys.stderr.flush()
 
 
 def fake_run(result: ModeResult, args: argparse.Namespace, work: Path) -> None:
@@ -235,22 +334,47 @@ def fake_run(result: ModeResult, args: argparse.Namespace, work: Path) -> None:
 
 def report(result: ModeResult) -> None:
     gone = f"max {max(result.gone_s):.2f} s" if result.gone_s else "-"
-    ratios = sorted(result.ratios)
     print(f"{result.mode}: {result.cycles} cycles, {result.ready} ready or ended cleanly")
     print(f"  start failures: {len(result.start_failures)} {result.start_failures}")
     # A crash may leave several marks (a signal, a dump, a core file): cycles count once.
     crashed = len({mark.split(":")[0] for mark in result.crashes})
     print(f"  cycles with a crash: {crashed}; what was seen: {result.crashes}")
-    print(f"  SIGKILLs of fleet up: {result.kills}, orphans 10 s later: {result.orphans}, "
-          f"tree gone after {gone}")  # fmt: skip
-    if ratios:
-        within = sum(ratio >= 0.95 for ratio in ratios)
-        print(
-            f"  recordings: {len(ratios)}; smallest UAV / median UAV telemetry: "
-            f"min {ratios[0]:.3f}, median {statistics.median(ratios):.3f}; "
-            f"{within} of {len(ratios)} with every UAV within 5 % of the median"
-        )
+    print(f"  SIGTERMs of fleet up: {result.stops}; SIGKILLs: {result.kills}, "
+          f"orphans 10 s later: {result.orphans}, tree gone after {gone}")  # fmt: skip
+    if result.recordings:
+        report_recordings(result.recordings)
     sys.stdout.flush()
+
+
+def report_recordings(recordings: list[TelemetrySpread]) -> None:
+    n = len(recordings)
+    for label, ratios in (
+        ("whole recording", sorted(r.whole for r in recordings)),
+        ("window every UAV is live", sorted(r.window for r in recordings)),
+    ):
+        within = sum(ratio >= WITHIN for ratio in ratios)
+        print(
+            f"  recordings: {n}; smallest UAV / median UAV telemetry over the {label}: "
+            f"min {ratios[0]:.3f}, median {statistics.median(ratios):.3f}; "
+            f"{within} of {n} with every UAV within 5 % of the median"
+        )
+    windows = sorted(r.window_s for r in recordings)
+    samples = sorted(r.samples for r in recordings)
+    print(
+        f"  the window: {windows[0]:.1f} to {windows[-1]:.1f} s (median "
+        f"{statistics.median(windows):.1f}), the median UAV's samples in it {samples[0]} to "
+        f"{samples[-1]}; longest gap in a UAV's telemetry in it: "
+        f"{max(r.gap_s for r in recordings):.2f} s"
+    )
+    short = [r for r in recordings if r.whole < WITHIN]
+    if short:
+        print(
+            f"  below 5 % over the whole recording: {len(short)}; their smallest UAV started "
+            f"{min(r.late_s for r in short):.2f} to {max(r.late_s for r in short):.2f} s after "
+            f"the first and ended {min(r.early_s for r in short):.2f} to "
+            f"{max(r.early_s for r in short):.2f} s before the last; of these "
+            f"{sum(r.window >= WITHIN for r in short)} within 5 % over the window"
+        )
 
 
 if __name__ == "__main__":

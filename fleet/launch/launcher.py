@@ -134,7 +134,8 @@ class Fleet:
     recorder: Recorder | None = None
     #: Why the in-process recording stopped before the fleet did (a full disk, ...).
     recording_failure: str | None = None
-    #: Telemetry samples the in-process recorder wrote per UAV, once the fleet stopped.
+    #: Telemetry samples the in-process recorder wrote per UAV, once the fleet stopped:
+    #: from the moment every UAV flew to the start of the stop (`StreamCounts.telemetry`).
     recorded_telemetry: dict[int, int] = field(default_factory=dict)
     #: The routers of a router-per-uav mesh: UAV id -> the endpoint clients connect to.
     uav_routers: dict[int, str] = field(default_factory=dict)
@@ -610,6 +611,8 @@ class Fleet:
                 reported, next_report = counts, time.monotonic() + PROGRESS_PERIOD_S
             self._check_running(deadline, _waiting_for(expected, alive, flowing))
         log.info("every UAV is alive with telemetry: %s", ", ".join(map(str, sorted(expected))))
+        if self.recorder is not None:
+            self.recorder.streams.open_window()
         if self.router is None:  # a client's: its end is harmless
             self._watch_end()
 
@@ -632,6 +635,8 @@ class Fleet:
         """Stop every child (onboards first), then the router. Idempotent."""
         onboards = [c for c in self.children if c.name.startswith("onboard-")]
         others = [c for c in self.children if c not in onboards]
+        if self.recorder is not None:
+            self.recorder.streams.close_window()
         stop_children(onboards)
         stop_children(others)
         self._watch_end()

@@ -53,6 +53,10 @@ class StreamCounts:
     _last: dict[tuple[int, str], float] = field(default_factory=dict)
     _first: dict[int, float] = field(default_factory=dict)
     _gone: set[int] = field(default_factory=set)
+    #: The counts when the window `telemetry` compares opened and closed (`open_window`,
+    #: `close_window`); None: from the first sample, to the last.
+    _opened: Counter[tuple[int, str]] | None = None
+    _closed: Counter[tuple[int, str]] | None = None
     _lock: threading.Lock = field(default_factory=threading.Lock)
 
     def heard(self, key: str, value: object) -> None:
@@ -76,10 +80,26 @@ class StreamCounts:
                 else:
                     self._gone.discard(uav)
 
-    def telemetry(self) -> dict[int, int]:
-        """Telemetry samples recorded per UAV (0 for a UAV heard only otherwise)."""
+    def open_window(self) -> None:
+        """From now on `telemetry` counts: every UAV flies (`fleet up` is ready). The
+        onboards start one after another, so before this a UAV started late has fewer
+        samples than its teammates without any being lost."""
         with self._lock:
-            return {uav: self.counts[uav, TELEMETRY] for uav in sorted(self._first)}
+            self._opened = Counter(self.counts)
+
+    def close_window(self) -> None:
+        """`telemetry` counts no further: the fleet is being stopped, and its onboards
+        end one after another."""
+        with self._lock:
+            self._closed = Counter(self.counts)
+
+    def telemetry(self) -> dict[int, int]:
+        """Telemetry samples recorded per UAV (0 for a UAV heard only otherwise), in the
+        window if one was opened (and up to its close, if closed)."""
+        with self._lock:
+            end = self.counts if self._closed is None else self._closed
+            start = Counter[tuple[int, str]]() if self._opened is None else self._opened
+            return {uav: end[uav, TELEMETRY] - start[uav, TELEMETRY] for uav in sorted(self._first)}
 
     def stalled(self, stall_s: float = STALL_S) -> list[Stall]:
         """The UAVs still alive whose telemetry has been silent `stall_s` while another

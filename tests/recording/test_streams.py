@@ -33,6 +33,32 @@ def test_samples_are_counted_per_uav_and_channel() -> None:
     assert counts.telemetry() == {7: 2, 8: 0}
 
 
+def test_telemetry_is_compared_over_the_window_every_uav_flies() -> None:
+    clock = Clock()
+    counts = StreamCounts("fleet", clock)
+    fly(counts, clock, 1.0, [1, 2])  # UAV 3's onboard started a second later
+    counts.open_window()
+    fly(counts, clock, 4.0, [1, 2, 3])
+    counts.close_window()
+    fly(counts, clock, 1.0, [3])  # and ended a second later
+    assert counts.telemetry() == {1: 20, 2: 20, 3: 20}
+    assert counts.counts[3, "telemetry"] == 25  # the totals stay as recorded
+
+
+def test_a_stream_that_stopped_in_the_window_is_short() -> None:
+    clock = Clock()
+    counts = StreamCounts("fleet", clock)
+    fly(counts, clock, 0.2, [1, 2, 3])
+    counts.open_window()
+    fly(counts, clock, 0.2, [1, 2, 3])
+    fly(counts, clock, 10.0, [2, 3])  # UAV 1's stopped
+    counts.close_window()
+    assert counts.telemetry() == {1: 1, 2: 51, 3: 51}
+    assert short_streams(counts.telemetry()) == [
+        "UAV 1's telemetry: 1 samples recorded, the median UAV's 51"
+    ]
+
+
 def test_a_uav_whose_telemetry_stops_while_the_others_flow_is_stalled() -> None:
     clock = Clock()
     counts = StreamCounts("fleet", clock)
