@@ -4,8 +4,11 @@ A mission's targets start a round (fleet.consensus.mission_round): this UAV comp
 its approach times and publishes them (onboard.own_result), hears its teammates', and
 decides (onboard.mission_decision) or adopts a teammate's decision; it then flies the
 target it is assigned (onboard.target_flight). A target that cannot be flown is `failed` and
-released, and the UAVs still in the mission re-plan it (fleet.consensus.replan); so is
-one of a teammate that dropped out or whose liveliness stayed gone.
+released, and the UAVs still in the mission re-plan it; so is one of a teammate that
+dropped out or whose liveliness stayed gone. A re-plan is solved again from every
+survivor's standing, its approach times from where it is now (fleet.consensus.resolve):
+this UAV gives its own and waits for its teammates' (the append plan of
+fleet.consensus.replan when one is overdue).
 """
 
 from __future__ import annotations
@@ -305,7 +308,9 @@ class MissionParticipation:
             self.own.stood.add(basis)
             return
         flying = self.flight.target if self.life.holds_target() else None
-        reached = tuple(sorted(mission_round.reached_targets))
+        # Its own word is believed of itself only: the targets it reached itself.
+        own = self.uav_id
+        reached = tuple(sorted(t for t, uav in mission_round.reached_targets.items() if uav == own))
         where = (gps, self.link.wind.value, self.link.airspeed())
         if not self.own.start_standing(mission_round, basis, where, flying, reached):
             log.warning("mission %d: the planner refused this UAV's standing", fallback.mission)

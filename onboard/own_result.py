@@ -115,7 +115,8 @@ class OwnResult:
         """Give a standing with no time at all: this UAV takes nothing in the re-plan."""
         self.stood.add(basis)
         count = len(mission_round.current.targets)
-        reached = tuple(sorted(mission_round.reached_targets))
+        own = self.uav_id
+        reached = tuple(sorted(t for t, uav in mission_round.reached_targets.items() if uav == own))
         self._publish_standing(mission_round, basis, (None,) * count, None, reached, None)
 
     def _publish_standing(

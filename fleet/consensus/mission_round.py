@@ -18,8 +18,9 @@ The thesis assumed lossless links and every UAV in range. Here:
 * every commitment carries the digest of the exact results it used, so the ground can
   confirm agreement or name who disagreed;
 * after the commitment, team UAVs that drop out are *released* and their targets
-  re-planned (`fleet.consensus.replan`): each re-plan is a new epoch of the same
-  mission, published under the same key.
+  re-planned: each re-plan is a new epoch of the same mission, published under the same
+  key, solved again from every survivor's standing (`fleet.consensus.resolve`) or,
+  when one is missing after STANDINGS_WAIT_S, the append plan (`fleet.consensus.replan`).
 
 Pure: no I/O, time comes in as `now`.
 """

@@ -5,8 +5,8 @@ orphans go to the ends of the survivors' queues, timed from where the aircraft w
 the mission started. This module is the other way, a new round over what is left: each
 UAV taking part in the epoch says where it stands now (`Standing`: its approach time from
 where it is now to every target of the mission, the target it is flying, the targets it
-knows reached), and the remaining targets (every target not removed and not reached by
-anybody's word in those standings) are solved again under the mission's objective
+reached itself), and the remaining targets (every target not removed and not reached by
+a taking-part UAV's own word) are solved again under the mission's objective
 (`resolve`), from those times. Every UAV that holds the same standings computes the same
 plan, whose digest (`resolve_digest`) hashes the epoch's basis (the fallback plan's
 digest) with every standing, so UAVs and the ground can check it.
@@ -69,7 +69,9 @@ class Standing:
     times: tuple[float | None, ...]
     #: The target it is flying now (kept first unless the objective gains), None if none.
     flying: int | None = None
-    #: The targets it knows reached (by anybody): none of them is planned again.
+    #: The targets it reached itself: none of them is planned again. (A UAV's word is
+    #: believed of itself only: a target another UAV reached is planned again, and
+    #: skipped by its holder on that UAV's own word.)
     reached: frozenset[int] = field(default_factory=frozenset)
 
 
@@ -85,7 +87,7 @@ class Resolved:
 def remaining_targets(
     count: int, removed: Iterable[int], standings: Mapping[int, Standing]
 ) -> tuple[int, ...]:
-    """The targets left to plan: not removed, not reached by any standing's word."""
+    """The targets left to plan: not removed, not reached by a standing's own word."""
     gone = set(removed)
     for standing in standings.values():
         gone |= standing.reached

@@ -171,7 +171,9 @@ class UavResult(msgspec.Struct, frozen=True):
     basis: Annotated[str, Meta(max_length=64)] | None = None
     #: With `basis`: the target this UAV is flying now, None if none.
     flying: TargetIndex | None = None
-    #: With `basis`: the targets this UAV knows reached (by anybody), ascending.
+    #: With `basis`: the targets this UAV reached itself, ascending (its word is believed
+    #: of itself only: a target it says another UAV reached is planned again, and
+    #: skipped by its holder if that UAV's own outcome says it reached it).
     reached: Annotated[tuple[TargetIndex, ...], Meta(max_length=MAX_TARGETS)] = ()
 
 
