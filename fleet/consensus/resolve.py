@@ -14,8 +14,9 @@ digest) with every standing, so UAVs and the ground can check it.
 A UAV keeps its current target first unless the objective gains by changing it: the plan
 with every current target kept first (`pinned`) is solved, and the plan solved from
 scratch (`free`) replaces it only when it serves more targets, or the same number with
-the objective's measure lower by more than `GAIN` (relative). The greedy objective has no
-measure to gain by: its UAVs keep their targets.
+the objective's measure lower by more than `GAIN` (relative): the total of arrivals for
+min-sum and for the greedy (which has no measure of its own), the last arrival for
+min-max.
 
 `solve_epoch` is the epoch's decision: the resolved plan when every survivor of the
 fallback plan gave a standing, else the fallback itself (the append rule of
@@ -234,7 +235,7 @@ def resolve(
     pinned = finish(_pinned_plan(rows, sub, _pins(rows, flying), objective), rows, sub)
     kept = True
     chosen = pinned
-    if objective is not Objective.GREEDY and any(v is not None for v in flying.values()):
+    if any(v is not None for v in flying.values()):
         free = plan_queues(rows, sub, objective)
         if _gains(_key(free, objective), _key(pinned, objective)):
             chosen, kept = free, False
