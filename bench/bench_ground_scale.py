@@ -25,7 +25,7 @@ import aiohttp
 from fleet.transport.router import Router
 from tests.support.fake_onboard import FakeOnboard
 from tests.support.gui_page import websocket_url
-from tests.support.processes import ANY_PORT
+from tests.support.processes import ANY_PORT, end_process
 
 FRAMES = 10
 
@@ -112,12 +112,7 @@ def measure_gui(router: str) -> str:
             f"gui --rate 5: {count} snapshots in 5 s ({rate:.1f}/s), largest {size / 1000:.0f} kB"
         )
     finally:
-        gui.send_signal(signal.SIGTERM)
-        try:
-            gui.wait(10)
-        except subprocess.TimeoutExpired:
-            gui.kill()
-            gui.wait()
+        end_process(gui, signal.SIGTERM, 10.0)
 
 
 def main() -> None:

@@ -52,6 +52,8 @@ from onboard.planner.planner_worker import MODEL_STATED_ERROR, fallback_time
 ARRIVAL_RADIUS_M = 10.0
 AIRSPEED = 22.0
 WINDS = (0.0, 5.0, 10.0, 15.0)
+#: Where every wind case starts: the origin, 600 m up, heading north at AIRSPEED.
+START = AircraftState(x=0.0, y=0.0, alt=600.0, heading=0.0, airspeed=AIRSPEED)
 
 
 def cases() -> list[tuple[float, float]]:
@@ -74,6 +76,19 @@ def row(label: str, errors: list[float]) -> str:
         f"{label} {100 * statistics.median(magnitudes):>9.1f}% "
         f"{100 * magnitudes[int(0.9 * len(magnitudes))]:>7.1f}% "
         f"{100 * magnitudes[-1]:>8.1f}% {100 * statistics.mean(errors):>+6.1f}%"
+    )
+
+
+def print_wind_rows(speed: float, rows: dict[str, list[float]]) -> None:
+    """One row a predictor for the wind `speed`: its errors against the flights."""
+    for name, errors in rows.items():
+        print(row(f"{speed:>5.0f} {name:<32}", errors))
+
+
+def fly_kinematic(target: tuple[float, float], wind: SimWind) -> float:
+    """Arrival s of the kinematic simulator flying from START to `target` in a steady `wind`."""
+    return fly_to_point(
+        START, target, wind=wind, acceptance_radius=ARRIVAL_RADIUS_M, max_time=3600.0
     )
 
 
@@ -150,14 +165,7 @@ def in_wind() -> None:
         solve_s = 0.0
         for bearing, distance in wind_cases():
             target = polar(bearing, distance)
-            state = AircraftState(x=0.0, y=0.0, alt=600.0, heading=0.0, airspeed=AIRSPEED)
-            flown = fly_to_point(
-                state,
-                target,
-                wind=SimWind(north=0.0, east=speed),
-                acceptance_radius=ARRIVAL_RADIUS_M,
-                max_time=3600.0,
-            )
+            flown = fly_kinematic(target, SimWind(north=0.0, east=speed))
             solving = time.perf_counter()
             (predicted,), fell, under = published(model, limits, velocity, [target], wind)
             solve_s += time.perf_counter() - solving
@@ -171,8 +179,7 @@ def in_wind() -> None:
             rows["still-air Dubins"].append((still - flown) / flown)
             if abs(error) > abs(worst[0]):
                 worst = (error, bearing, distance)
-        for name, errors in rows.items():
-            print(row(f"{speed:>5.0f} {name:<32}", errors))
+        print_wind_rows(speed, rows)
         print(
             f"      ({len(wind_cases())} cases in {time.perf_counter() - started:.1f} s; "
             f"model {1000 * solve_s / len(wind_cases()):.1f} ms a target, {fallbacks} beyond "
@@ -190,7 +197,7 @@ def fly_in_weather(target: tuple[float, float], weather: Weather) -> float:
     """`fly_to_point` in changing weather: the simulated autopilot's own loop."""
     limits = AircraftLimits()
     settings = GuidanceSettings(acceptance_radius=ARRIVAL_RADIUS_M)
-    state = AircraftState(x=0.0, y=0.0, alt=600.0, heading=0.0, airspeed=AIRSPEED)
+    state = START
     for count in range(round(3600.0 / STEP_S)):
         if math.hypot(target[0] - state.x, target[1] - state.y) <= ARRIVAL_RADIUS_M:
             return count * STEP_S
@@ -299,9 +306,8 @@ def fly_on_jsbsim(target: tuple[float, float], wind: SimWind) -> tuple[float, fl
 
     limits = AircraftLimits()
     settings = GuidanceSettings(acceptance_radius=ARRIVAL_RADIUS_M)
-    start = AircraftState(x=0.0, y=0.0, alt=600.0, heading=0.0, airspeed=AIRSPEED)
     started = time.process_time()
-    model = JSBSimModel(start, limits, MercatorProjection(35.72, -120.765), wind)
+    model = JSBSimModel(START, limits, MercatorProjection(35.72, -120.765), wind)
     for count in range(round(3600.0 / STEP_S)):
         state = model.state
         if math.hypot(target[0] - state.x, target[1] - state.y) <= ARRIVAL_RADIUS_M:
@@ -334,15 +340,11 @@ def on_jsbsim() -> None:
             flown, seconds = fly_on_jsbsim(target, sim_wind)
             simulated += flown
             cpu += seconds
-            state = AircraftState(x=0.0, y=0.0, alt=600.0, heading=0.0, airspeed=AIRSPEED)
-            kinematic = fly_to_point(
-                state, target, wind=sim_wind, acceptance_radius=ARRIVAL_RADIUS_M, max_time=3600.0
-            )
+            kinematic = fly_kinematic(target, sim_wind)
             (predicted,), _, _ = published(model, limits, velocity, [target], wind)
             rows["model in the wind (published)"].append((predicted - flown) / flown)
             rows["kinematic simulator"].append((kinematic - flown) / flown)
-        for name, errors in rows.items():
-            print(row(f"{speed:>5.0f} {name:<32}", errors))
+        print_wind_rows(speed, rows)
     print(
         f"      ({len(WINDS) * len(wind_cases())} JSBSim flights, {simulated:.0f} simulated s "
         f"in {cpu:.1f} CPU s: {simulated / cpu:.0f} simulated s per CPU s of one aircraft, "

@@ -35,6 +35,7 @@ from fleet.transport.bus_codec import encode
 from fleet.transport.bus_qos import TELEMETRY, declare
 from fleet.transport.router import Router
 from fleet.transport.zenoh_config import make_config
+from tests.support.processes import end_process
 
 HZ = 20.0
 READY = "fleet record: recording"
@@ -101,12 +102,7 @@ def measure(tree: Path, name: str, args: argparse.Namespace, work: Path) -> str:
             if publisher.is_alive():
                 publisher.join(timeout=10.0)
             time.sleep(1.0)  # the last samples reach the recorder
-            recorder.send_signal(signal.SIGINT)
-            try:
-                recorder.wait(timeout=30.0)
-            except subprocess.TimeoutExpired:
-                recorder.kill()
-                recorder.wait()
+            end_process(recorder, signal.SIGINT, 30.0)
     recording = read_recording(out)
     heard = sum(1 for m in recording.messages if m.topic.endswith("/telemetry"))
     fixes = sum(1 for m in recording.messages if m.topic.endswith("/location_fix"))

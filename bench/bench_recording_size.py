@@ -30,6 +30,7 @@ from mcap.writer import Writer
 
 from fleet.launch.endpoints import free_port
 from fleet.recording.reader import Recording, read_recording
+from tests.support.processes import end_process
 
 FLEET = (sys.executable, "-m", "programs.fleet_cli")
 READY_S = 120.0
@@ -45,16 +46,6 @@ def _wait_for_line(process: subprocess.Popen[str], text: str, timeout_s: float) 
         if text in line:
             return
     raise RuntimeError(f"no {text!r} within {timeout_s} s")
-
-
-def _stop(process: subprocess.Popen[str]) -> None:
-    if process.poll() is None:
-        process.send_signal(signal.SIGINT)
-        try:
-            process.wait(60)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
 
 
 def rewrite_unchunked(recording: Recording, out: Path) -> None:
@@ -114,7 +105,7 @@ def main() -> None:
             time.sleep(args.seconds)  # the flight being recorded: a duration, not a wait
         finally:
             for process in (*recorders, up):
-                _stop(process)
+                end_process(process, signal.SIGINT, 60.0)
         after = read_recording(directory / "after.mcap")
         full = read_recording(directory / "full.mcap")
         uavs = len({m.topic.split("/")[2] for m in full.messages if m.topic.endswith("/telemetry")})

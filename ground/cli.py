@@ -22,6 +22,7 @@ from fleet.transport.cli import (
     add_verbose_argument,
     add_zenoh_arguments,
     bounded_int,
+    enum_option,
     non_negative_float,
     piccolo_id,
     piccolo_ids,
@@ -143,12 +144,11 @@ def _add_send_targets(commands: argparse._SubParsersAction[argparse.ArgumentPars
         help="no-fly zones (GeoJSON Polygon/MultiPolygon) every route keeps out of; a "
         "target inside one is refused and nothing is sent (--force does not override it)",
     )
-    send.add_argument(
+    enum_option(
+        send,
         "--objective",
-        type=Objective,
-        choices=list(Objective),
-        default=Objective.GREEDY,
-        help="what the team's plan optimises: greedy (the thesis rule, extended to "
+        Objective.GREEDY,
+        "what the team's plan optimises: greedy (the thesis rule, extended to "
         "queues), min-sum (the total of arrival times), min-max (the time until the last "
         "target is reached); default %(default)s",
     )

@@ -4,7 +4,8 @@ The ground reads the mission's latest revision as the UAVs serve it, puts the ne
 (fleet.consensus.mission_change: added targets after the others, an index never
 changes; removed targets never flown from then on), signed like every ground command,
 and waits until each live team UAV acknowledges it: an assignment of that revision,
-re-planned over what is left under the mission's objective.
+re-planned over what is left under the mission's objective. The page (`ground-cli gui`)
+makes the same change through the same `change_mission`.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from typing import TextIO
 
 from fleet.consensus.mission_change import next_revision
 from fleet.consensus.report_checks import targets_problem
+from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import AssignmentReport, MissionTargets, Target
 from fleet.transport.bus import Bus
 from fleet.transport.cli import ExitCode
@@ -74,6 +76,90 @@ def run_remove_targets(bus: Bus, options: RemoveOptions, out: TextIO) -> int:
     return _change(bus, options, out, added=(), removed=options.indexes)
 
 
+class ChangeRefused(MissionError):
+    """A change that cannot be made (no such mission, a bad index or target); nothing
+    was sent. Its text says why."""
+
+
+@dataclass(frozen=True)
+class MissionChange:
+    """A change put on the bus, and who acknowledged it."""
+
+    new: MissionTargets  #: the revision put
+    added: list[int]  #: the indexes of the targets added
+    removed: list[int]  #: the indexes removed by this change
+    acked: list[int]  #: the live team UAVs that planned this revision
+    missing: list[int]  #: the live team UAVs that did not within the wait
+    reports: dict[int, AssignmentReport]  #: each UAV's latest plan heard
+    timeout_s: float
+
+    @property
+    def acknowledged(self) -> bool:
+        return not self.missing
+
+    def summary(self) -> str:
+        """One line: what changed, and who acknowledged it (or who did not)."""
+        what = []
+        if self.added:
+            what.append(f"targets {', '.join(map(str, self.added))} added")
+        if self.removed:
+            what.append(f"targets {', '.join(map(str, self.removed))} removed")
+        head = f"mission {self.new.mission} revision {self.new.revision}: {'; '.join(what)}"
+        if self.missing:
+            return (
+                f"{head}; not acknowledged by {', '.join(map(str, self.missing))} within "
+                f"{self.timeout_s:g} s"
+            )
+        return f"{head}; acknowledged by {', '.join(map(str, self.acked)) or 'no UAV'}"
+
+
+def change_mission(
+    bus: Bus,
+    space: KeySpace,
+    mission: int | None,
+    *,
+    added: tuple[Target, ...],
+    removed: tuple[int, ...],
+    timeout_s: float = ACK_WAIT_S,
+    query_timeout_s: float = 1.0,
+) -> MissionChange:
+    """Put mission `mission`'s next revision (None: the latest mission seen) and wait up
+    to `timeout_s` for every live team UAV to plan it. ChangeRefused, with the reason,
+    when nothing was sent. Blocking (Zenoh queries): the page runs it off its loop."""
+    if mission is None:
+        mission = current_mission_id(bus, space, query_timeout_s)
+    if mission is None:
+        raise ChangeRefused("no mission seen (give --mission); nothing sent")
+    try:
+        held = mission_targets_of(bus, space, mission, query_timeout_s)
+        new = next_revision(held, added, removed)
+    except (MissionError, ValueError) as error:
+        raise ChangeRefused(f"mission {mission}: {error}; nothing sent") from None
+    problem = targets_problem(new)
+    if problem is not None:
+        raise ChangeRefused(f"mission {mission}: {problem}; nothing sent")
+    live = set(live_uav_ids(bus, space, query_timeout_s))
+    expected = sorted(uav for uav in new.team if uav in live)
+    with MissionFollower(bus, space, mission, team=new.team) as follower:
+        publish_targets(bus, space, new)
+
+        def acknowledged() -> bool:
+            return all(_acks(follower.assignments.get(uav), new) for uav in expected)
+
+        follower.wait_until(acknowledged, timeout_s, fetch_every_s=1.0)
+        _, reports = follower.snapshot()
+    acked = [uav for uav in expected if _acks(reports.get(uav), new)]
+    return MissionChange(
+        new=new,
+        added=list(range(len(held.targets), len(new.targets))),
+        removed=list(removed),
+        acked=acked,
+        missing=[uav for uav in expected if uav not in acked],
+        reports=reports,
+        timeout_s=timeout_s,
+    )
+
+
 def _change(
     bus: Bus,
     options: ChangeOptions,
@@ -82,42 +168,25 @@ def _change(
     added: tuple[Target, ...],
     removed: tuple[int, ...],
 ) -> int:
-    space, timeout = options.key_space, options.query_timeout
-    mission = options.mission
-    if mission is None:
-        mission = current_mission_id(bus, space, timeout)
-    if mission is None:
-        print("error: no mission seen (give --mission); nothing sent", file=sys.stderr)
-        return ExitCode.FAILED
     try:
-        held = mission_targets_of(bus, space, mission, timeout)
-        new = next_revision(held, added, removed)
-    except (MissionError, ValueError) as error:
-        print(f"error: mission {mission}: {error}; nothing sent", file=sys.stderr)
+        change = change_mission(
+            bus,
+            options.key_space,
+            options.mission,
+            added=added,
+            removed=removed,
+            timeout_s=options.timeout,
+            query_timeout_s=options.query_timeout,
+        )
+    except ChangeRefused as error:
+        print(f"error: {error}", file=sys.stderr)
         return ExitCode.FAILED
-    problem = targets_problem(new)
-    if problem is not None:
-        print(f"error: mission {mission}: {problem}; nothing sent", file=sys.stderr)
-        return ExitCode.FAILED
-    live = set(live_uav_ids(bus, space, timeout))
-    expected = sorted(uav for uav in new.team if uav in live)
-    with MissionFollower(bus, space, mission, team=new.team) as follower:
-        publish_targets(bus, space, new)
-
-        def acknowledged() -> bool:
-            return all(_acks(follower.assignments.get(uav), new) for uav in expected)
-
-        follower.wait_until(acknowledged, options.timeout, fetch_every_s=1.0)
-        _, reports = follower.snapshot()
-    acked = [uav for uav in expected if _acks(reports.get(uav), new)]
-    missing = [uav for uav in expected if uav not in acked]
-    first_added = len(held.targets)
-    added_indexes = list(range(first_added, len(new.targets)))
-    _say(out, options.json, new, added_indexes, list(removed), acked, missing, reports)
-    if missing:
+    _say(out, options.json, change)
+    if change.missing:
+        new = change.new
         print(
-            f"error: mission {mission} revision {new.revision}: not acknowledged by "
-            f"{', '.join(map(str, missing))} within {options.timeout:g} s",
+            f"error: mission {new.mission} revision {new.revision}: not acknowledged by "
+            f"{', '.join(map(str, change.missing))} within {options.timeout:g} s",
             file=sys.stderr,
         )
         return ExitCode.FAILED
@@ -128,28 +197,25 @@ def _acks(report: AssignmentReport | None, new: MissionTargets) -> bool:
     return report is not None and report.revision >= new.revision
 
 
-def _say(
-    out: TextIO,
-    as_json: bool,
-    new: MissionTargets,
-    added: list[int],
-    removed: list[int],
-    acked: list[int],
-    missing: list[int],
-    reports: dict[int, AssignmentReport],
-) -> None:
-    first = reports[acked[0]] if acked else None
-    queues = {str(u): list(q) for u, q in first.queues.items()} if first is not None else {}
+def queues_of(change: MissionChange) -> dict[str, list[int]]:
+    """The queues of the revision as the first UAV that acknowledged it planned them."""
+    first = change.reports[change.acked[0]] if change.acked else None
+    return {str(u): list(q) for u, q in first.queues.items()} if first is not None else {}
+
+
+def _say(out: TextIO, as_json: bool, change: MissionChange) -> None:
+    new = change.new
+    queues = queues_of(change)
     if as_json:
         print(
             json.dumps(
                 {
                     "mission": new.mission,
                     "revision": new.revision,
-                    "added": added,
-                    "removed": removed,
-                    "acknowledged": acked,
-                    "not_acknowledged": missing,
+                    "added": change.added,
+                    "removed": change.removed,
+                    "acknowledged": change.acked,
+                    "not_acknowledged": change.missing,
                     "queues": queues,
                 }
             ),
@@ -157,12 +223,12 @@ def _say(
         )
         return
     what = []
-    if added:
-        what.append(f"targets {', '.join(map(str, added))} added")
-    if removed:
-        what.append(f"targets {', '.join(map(str, removed))} removed")
+    if change.added:
+        what.append(f"targets {', '.join(map(str, change.added))} added")
+    if change.removed:
+        what.append(f"targets {', '.join(map(str, change.removed))} removed")
     print(f"mission {new.mission} revision {new.revision}: {'; '.join(what)}", file=out)
-    print(f"acknowledged by {', '.join(map(str, acked)) or 'no UAV'}", file=out)
+    print(f"acknowledged by {', '.join(map(str, change.acked)) or 'no UAV'}", file=out)
     for name, queue in queues.items():
         print(f"  UAV {name}: {', '.join(map(str, queue)) or 'no target'}", file=out)
 

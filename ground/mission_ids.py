@@ -258,6 +258,14 @@ class TargetsServer(Declarations):
             finally:
                 query.drop()
 
+    def revise(self, targets: MissionTargets) -> None:
+        """Serve `targets`, a later revision of the same mission (changed in flight), from
+        now on: a UAV that joins late gets the mission as it is now."""
+        if targets.mission != self.targets.mission or targets.revision <= self.targets.revision:
+            return
+        self._payload = bus_codec.encode(targets)
+        self.targets = targets
+
     def _answer(self, query: BusQuery) -> None:
         # The concrete key, not the query's (possibly wildcard) one: otherwise Zenoh's
         # consolidation would merge this reply with another mission's.

@@ -7,21 +7,33 @@ computes from them (the legs in each UAV's air, the results digest:
 `fleet.consensus.mission_round.MissionRound`), solves the queues with PyVRP
 (`ground.solver_plan`) and publishes a `PlanProposal`, signed like every command of the
 ground. Every UAV verifies and scores it, and adopts it only if it is valid and better
-than the baseline (fleet.consensus.proposal).
+than the baseline (fleet.consensus.proposal). The page (`ground-cli gui`, "propose a
+plan") proposes through the same `propose_when_results`.
 """
 
 from __future__ import annotations
 
 import logging
+import threading
 import time
+from dataclasses import dataclass
 
 from fleet.consensus.mission_round import MissionRound
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MISSION_MANAGER, MissionTargets, PlanProposal, UavResult
+from fleet.mission.objective import Objective
 from fleet.transport.bus import Bus
-from ground.solver_plan import solve_queues
+from ground.mission_follower import MissionFollower
+from ground.solver_plan import SolverUnavailable, solve_queues
 
-__all__ = ["DEFAULT_WINDOW_S", "proposal_for", "propose"]
+__all__ = [
+    "DEFAULT_WINDOW_S",
+    "ProposalAttempt",
+    "proposal_for",
+    "proposal_window",
+    "propose",
+    "propose_when_results",
+]
 
 log = logging.getLogger(__name__)
 
@@ -57,3 +69,51 @@ def propose(
     bus.publish(space.mission_proposal(targets.mission), proposal)
     log.info("mission %d: plan proposed (%.2f s of CPU)", targets.mission, spent)
     return proposal, spent
+
+
+def proposal_window(objective: Objective, deadline_s: float) -> tuple[float, float]:
+    """(deadline_s, proposals_s) of a mission the ground proposes a plan for: the UAVs
+    wait `DEFAULT_WINDOW_S` for it, and decide at their deadline whatever they hold, so
+    the deadline comes after the window. ValueError for the greedy (no score to rank a
+    proposal by)."""
+    if objective is Objective.GREEDY:
+        raise ValueError("proposing a plan needs the objective min-sum or min-max")
+    return max(deadline_s, DEFAULT_WINDOW_S + 5.0), DEFAULT_WINDOW_S
+
+
+@dataclass(frozen=True)
+class ProposalAttempt:
+    """The ground's proposal put on the bus, or why none was."""
+
+    proposal: PlanProposal | None
+    cpu_s: float | None = None
+    reason: str | None = None  #: why no proposal was put
+
+
+def propose_when_results(
+    bus: Bus,
+    space: KeySpace,
+    message: MissionTargets,
+    follower: MissionFollower,
+    stop: threading.Event | None = None,
+) -> ProposalAttempt:
+    """Wait (within the mission's proposal window) for every team UAV's result, then
+    solve and publish the ground's proposal. Blocking; `stop` set ends the wait (within
+    a second) with no proposal."""
+    team = set(message.team)
+    stopped = stop or threading.Event()
+    heard = follower.wait_until(
+        lambda: stopped.is_set() or team <= follower.results.keys(),
+        message.proposals_s,
+        fetch_every_s=1.0,
+    )
+    if stopped.is_set():
+        return ProposalAttempt(None, reason="stopped")
+    results = follower.snapshot()[0]
+    if not heard or not results:
+        return ProposalAttempt(None, reason="results missing")
+    try:
+        proposal, spent = propose(bus, space, message, results)
+    except SolverUnavailable as error:
+        return ProposalAttempt(None, reason=str(error))
+    return ProposalAttempt(proposal, spent)

@@ -36,8 +36,7 @@ from ground.mission_follower import Listener, MissionFollower
 from ground.mission_ids import TargetsServer, claim_mission, contest_grace_s
 from ground.mission_outcome import MissionOutcome, check_agreement
 from ground.mission_summary import summary_lines
-from ground.propose import DEFAULT_WINDOW_S, propose
-from ground.solver_plan import SolverUnavailable
+from ground.propose import proposal_window, propose_when_results
 from ground.targets_command import read_or_say
 from ground.zones_command import zones_or_say
 
@@ -149,9 +148,7 @@ def run_send_targets(bus: Bus, options: SendOptions, out: TextIO) -> int:
         if options.objective is Objective.GREEDY:
             print("error: --propose needs --objective min-sum or min-max", file=sys.stderr)
             return ExitCode.FAILED
-        proposals_s = DEFAULT_WINDOW_S
-        # The UAVs decide at their deadline whatever they hold: after the window.
-        deadline_s = max(deadline_s, proposals_s + 5.0)
+        deadline_s, proposals_s = proposal_window(options.objective, deadline_s)
 
     def make(mission: int) -> MissionTargets:
         return MissionTargets(
@@ -236,24 +233,14 @@ def _propose(
 ) -> None:
     """Wait for the team's results (within the proposal window), then solve and publish
     the ground's proposal; said on `progress` either way."""
-    team = set(message.team)
-    heard = follower.wait_until(
-        lambda: team <= follower.snapshot()[0].keys(),
-        message.proposals_s,
-        fetch_every_s=1.0,
-    )
-    results = follower.snapshot()[0]
-    if not heard or not results:
-        print(f"mission {message.mission}: no plan proposed (results missing)", file=progress)
-        return
-    try:
-        proposal, spent = propose(bus, options.key_space, message, results)
-    except SolverUnavailable as error:
-        print(f"mission {message.mission}: no plan proposed: {error}", file=progress)
+    attempt = propose_when_results(bus, options.key_space, message, follower)
+    proposal = attempt.proposal
+    if proposal is None:
+        print(f"mission {message.mission}: no plan proposed: {attempt.reason}", file=progress)
         return
     queues = ", ".join(f"{uav}: {list(q)}" for uav, q in proposal.queues.items())
     print(
-        f"mission {message.mission}: plan proposed ({spent:.2f} s of CPU): {queues}",
+        f"mission {message.mission}: plan proposed ({attempt.cpu_s or 0.0:.2f} s of CPU): {queues}",
         file=progress,
         flush=True,
     )

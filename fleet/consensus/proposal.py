@@ -27,14 +27,25 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from enum import StrEnum
 
 from fleet.consensus.assignment import usable
 from fleet.consensus.digest import sha256
+from fleet.consensus.objectives import plan_digest
 from fleet.consensus.queues import Legs, QueuePlan, Times, finish, leg_count, queue_arrivals
-from fleet.mission.messages import PlanProposal
+from fleet.mission.messages import AssignmentReport, PlanProposal
 from fleet.mission.objective import Objective
 
-__all__ = ["choose", "plan_key", "proposal_digest", "proposal_problem"]
+__all__ = [
+    "Adoption",
+    "Verdict",
+    "adoption",
+    "choose",
+    "plan_key",
+    "proposal_digest",
+    "proposal_problem",
+]
 
 #: The proposer ID the baseline is ranked by: below every Piccolo ID.
 BASELINE = 0
@@ -121,3 +132,51 @@ def proposal_digest(plan_digest: str, proposal: PlanProposal) -> str:
         h.update(uav.to_bytes(2, "little") + len(queue).to_bytes(2, "little"))
         h.update(b"".join(t.to_bytes(2, "little") for t in queue))
     return h.hexdigest()[:16]
+
+
+class Verdict(StrEnum):
+    """What the team's decisions say of a proposal."""
+
+    WAITING = "waiting"  #: no decision heard yet
+    ADOPTED = "adopted"  #: every decision heard adopted it
+    BASELINE = "baseline"  #: every decision heard kept the baseline
+    MIXED = "mixed"  #: the decisions heard differ
+
+
+@dataclass(frozen=True)
+class Adoption:
+    """What the UAVs' decisions say of a proposal, from the digests they reported.
+
+    A UAV that adopted the proposal reports `adopted_digest`; one that kept the
+    baseline (the proposal invalid, not better, late, or not heard) reports
+    `baseline_digest`; one that decided from other results reports another."""
+
+    adopted_digest: str
+    baseline_digest: str
+    adopted_by: tuple[int, ...]
+    baseline_by: tuple[int, ...]
+    other_by: tuple[int, ...]
+
+    @property
+    def verdict(self) -> Verdict:
+        if not (self.adopted_by or self.baseline_by or self.other_by):
+            return Verdict.WAITING
+        if not (self.baseline_by or self.other_by):
+            return Verdict.ADOPTED
+        if not (self.adopted_by or self.other_by):
+            return Verdict.BASELINE
+        return Verdict.MIXED
+
+
+def adoption(proposal: PlanProposal, decisions: Iterable[AssignmentReport]) -> Adoption:
+    """Which of `decisions` (the UAVs' first plans of the mission: epoch 0, revision 0)
+    adopted `proposal`, kept the baseline, or decided on other results."""
+    baseline = plan_digest(proposal.digest, proposal.objective)
+    adopted = proposal_digest(baseline, proposal)
+    by: dict[str, list[int]] = {adopted: [], baseline: []}
+    other: list[int] = []
+    for report in sorted(decisions, key=lambda r: r.uav):
+        if report.mission != proposal.mission or report.epoch or report.revision:
+            continue
+        by.get(report.digest, other).append(report.uav)
+    return Adoption(adopted, baseline, tuple(by[adopted]), tuple(by[baseline]), tuple(other))

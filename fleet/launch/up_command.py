@@ -36,6 +36,7 @@ from fleet.transport.cli import (
     ExitCode,
     add_key_prefix_argument,
     bounded_int,
+    enum_option,
     fail,
     positive_float,
     stop_on_signals,
@@ -168,12 +169,11 @@ def add_up_parser(
         help="allow an open (not tls/) --listen endpoint beyond loopback: anyone who reaches "
         "it can command the fleet",
     )
-    parser.add_argument(
+    enum_option(
+        parser,
         "--topology",
-        type=Topology,
-        choices=list(Topology),
-        default=Topology.STAR,
-        help="star: one router (default); router-per-uav: a router per UAV on a ring, "
+        Topology.STAR,
+        "star: one router (default); router-per-uav: a router per UAV on a ring, "
         "each also linked to the ground's router (docs/security.md)",
     )
     parser.add_argument(

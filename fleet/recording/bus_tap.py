@@ -90,6 +90,12 @@ def state_period(every_s: float, uavs: int) -> float:
     return max(every_s, uavs / MAX_STATES_PER_S)
 
 
+def ended_line(done: str, dropped: Counter[str]) -> str:
+    """A tapping program's last line: `done`, then what its tap dropped, by reason."""
+    count = sum(dropped.values())
+    return done + (f"; {count} dropped: {dict(dropped)}" if count else "")
+
+
 def alive_payload(alive: bool) -> bytes:
     """What a liveliness token's coming or going is recorded and shown as."""
     return b'{"alive":true}' if alive else b'{"alive":false}'

@@ -19,6 +19,7 @@ from typing import Any, TextIO
 import zenoh
 
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
+from fleet.recording.bus_tap import ended_line
 from fleet.recording.mission_log import build_timeline
 from fleet.recording.reader import Recording, RecordingError, read_recording, recover
 from fleet.recording.recorder import (
@@ -240,13 +241,8 @@ def run_record(bus: Bus, args: RecordOptions, out: TextIO) -> int:
     if recorder.failure is not None:
         return fail("fleet record", f"{recorder.failure}; recording stopped", ExitCode.FAILED)
     files = ", ".join(map(str, recorder.sink.files))
-    dropped = sum(recorder.stats.dropped.values())
-    print(
-        f"fleet record: {recorder.sink.messages} messages in {files}"
-        + (f"; {dropped} dropped: {dict(recorder.stats.dropped)}" if dropped else ""),
-        file=out,
-        flush=True,
-    )
+    done = f"fleet record: {recorder.sink.messages} messages in {files}"
+    print(ended_line(done, recorder.stats.dropped), file=out, flush=True)
     return ExitCode.OK
 
 

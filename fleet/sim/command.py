@@ -38,6 +38,7 @@ from fleet.sim.server import (
 )
 from fleet.transport.cli import (
     ExitCode,
+    enum_option,
     fail,
     non_negative_float,
     positive_float,
@@ -103,12 +104,11 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
 
 def add_dynamics_argument(parser: argparse.ArgumentParser) -> None:
     """`--dynamics`: the flight model the simulated aircraft fly."""
-    parser.add_argument(
+    enum_option(
+        parser,
         "--dynamics",
-        type=Dynamics,
-        choices=list(Dynamics),
-        default=Dynamics.KINEMATIC,
-        help="the aircraft's flight model: kinematic, the project's point dynamics "
+        Dynamics.KINEMATIC,
+        "the aircraft's flight model: kinematic, the project's point dynamics "
         "(default), or jsbsim, JSBSim's J3Cub behind the same autopilot "
         "(pip install 'uav-fleet[jsbsim]')",
     )

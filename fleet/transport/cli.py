@@ -20,7 +20,7 @@ import sys
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from enum import IntEnum
+from enum import IntEnum, StrEnum
 from types import FrameType
 from typing import Any
 
@@ -93,6 +93,12 @@ def bounded_int(low: int, high: int | None = None, what: str = "value") -> Calla
         return value
 
     return parse
+
+
+def enum_option(parser: argparse.ArgumentParser, flag: str, default: StrEnum, help: str) -> None:
+    """`flag` taking one of `default`'s enum's values (as typed), `default` when absent."""
+    kind = type(default)
+    parser.add_argument(flag, type=kind, choices=list(kind), default=default, help=help)
 
 
 tcp_port = bounded_int(0, 65535, "TCP port")

@@ -19,6 +19,7 @@ from typing import TextIO
 
 import foxglove
 
+from fleet.recording.bus_tap import ended_line
 from fleet.transport.bus import Bus
 from fleet.transport.bus_factory import unwrap
 from fleet.transport.cli import (
@@ -187,13 +188,8 @@ def _serve(
             stop.wait(args.duration)
     finally:
         bridge.stop()
-    dropped = sum(bridge.dropped.values())
-    print(
-        f"{PROG}: {sum(bridge.published.values())} messages on {len(bridge.topics())} topics"
-        + (f"; {dropped} dropped: {dict(bridge.dropped)}" if dropped else ""),
-        file=out,
-        flush=True,
-    )
+    done = f"{PROG}: {sum(bridge.published.values())} messages on {len(bridge.topics())} topics"
+    print(ended_line(done, bridge.dropped), file=out, flush=True)
     return ExitCode.OK
 
 

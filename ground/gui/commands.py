@@ -5,6 +5,8 @@ A command arrives as one JSON object on the WebSocket, tagged by `cmd`:
     {"cmd": "send", "id": 1, "team": [74, 112], "targets": [{"lat":..,"lon":..,"alt":..}]}
     {"cmd": "abort", "id": 2}                 (the mission the page follows, else the latest)
     {"cmd": "opm", "id": 3, "uav": 74, "enabled": false}
+    {"cmd": "add-targets", "id": 4, "targets": [...]}   (to the followed mission, or `mission`)
+    {"cmd": "remove-targets", "id": 5, "indexes": [2]}
 
 Each gets one reply `{"type": "reply", "id", "ok", "message", "mission"}` when done; a
 page's (a string id) is also acknowledged as soon as it is read (`{"type": "ack", "id"}`).
@@ -12,7 +14,10 @@ The page's ids are unique to the page and the press, so a command it sends again
 a reconnect is answered, not done twice (`ground.gui.ledger`). A malformed command is
 refused with the reason and nothing is sent. Sending reuses the mission manager's own
 code (`ground.mission_control`): the same mission ids, the same MissionTargets, the
-same follower, the same targets queryable as `ground-cli send-targets`. The calls here
+same follower, the same targets queryable as `ground-cli send-targets`. Adding and
+removing targets in flight is `ground-cli add-targets`/`remove-targets`'s own
+`change_mission`: answered ok only once every live team UAV planned the new revision,
+else failed with who did not. The calls here
 block on Zenoh queries: the server runs them off the event loop (`asyncio.to_thread`).
 """
 
@@ -22,29 +27,41 @@ import logging
 import threading
 from collections.abc import Callable
 from contextlib import ExitStack
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from enum import StrEnum
 from typing import Annotated, Any
 
 import msgspec
 
 from fleet.consensus.deadline import MAX_DEADLINE_S, consensus_deadline
+from fleet.consensus.proposal import adoption
 from fleet.errors import CodecError
 from fleet.mission.key_space import KeySpace
-from fleet.mission.messages import MAX_ZONES, MissionTargets, NoFlyZone, Target
+from fleet.mission.messages import (
+    MAX_ZONES,
+    AssignmentReport,
+    MissionTargets,
+    NoFlyZone,
+    Target,
+    TargetIndex,
+)
 from fleet.mission.no_fly import mission_zone_problem
 from fleet.mission.objective import Objective
 from fleet.mission.targets_file import TargetsFileError, encode_targets
 from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
 from fleet.transport.bus import Bus
+from ground.mission_change_command import ACK_WAIT_S, ChangeRefused, change_mission
 from ground.mission_control import MissionError, publish_targets, send_abort, send_opm
 from ground.mission_follower import MissionFollower
 from ground.mission_ids import MAX_MISSION_ID, TargetsServer, claim_mission, current_mission_id
 from ground.mission_outcome import MissionOutcome
+from ground.propose import ProposalAttempt, proposal_window, propose_when_results
 
 log = logging.getLogger(__name__)
 
 PiccoloId = Annotated[int, msgspec.Meta(ge=MIN_PICCOLO_ID, le=MAX_PICCOLO_ID)]
 MissionId = Annotated[int, msgspec.Meta(ge=0, le=MAX_MISSION_ID)]
+AckWait = Annotated[float, msgspec.Meta(gt=0, le=120)]
 #: A page's id: unique to the page and the press; an integer: a script's, never remembered.
 CommandId = int | Annotated[str, msgspec.Meta(min_length=1, max_length=64)]
 
@@ -58,6 +75,8 @@ class SendCommand(msgspec.Struct, frozen=True, tag="send", tag_field="cmd"):
     deadline_s: Annotated[float, msgspec.Meta(gt=0, le=MAX_DEADLINE_S)] | None = None
     zones: Annotated[tuple[NoFlyZone, ...], msgspec.Meta(max_length=MAX_ZONES)] = ()
     objective: Objective = Objective.GREEDY
+    #: The ground proposes a plan solved by its routing solver (`send-targets --propose`).
+    propose: bool = False
 
 
 class AbortCommand(msgspec.Struct, frozen=True, tag="abort", tag_field="cmd"):
@@ -73,7 +92,25 @@ class OpmRequest(msgspec.Struct, frozen=True, tag="opm", tag_field="cmd"):
     status_rate_hz: Annotated[float, msgspec.Meta(ge=0, le=100)] = 1.0
 
 
-Command = SendCommand | AbortCommand | OpmRequest
+class AddTargetsCommand(msgspec.Struct, frozen=True, tag="add-targets", tag_field="cmd"):
+    """Add targets to a mission in flight (None: the mission the page follows)."""
+
+    id: CommandId
+    targets: Annotated[tuple[Target, ...], msgspec.Meta(min_length=1)]
+    mission: MissionId | None = None
+    wait_s: AckWait = ACK_WAIT_S  #: how long every live team UAV has to acknowledge it
+
+
+class RemoveTargetsCommand(msgspec.Struct, frozen=True, tag="remove-targets", tag_field="cmd"):
+    """Remove targets (by index) from a mission in flight (None: the one followed)."""
+
+    id: CommandId
+    indexes: Annotated[tuple[TargetIndex, ...], msgspec.Meta(min_length=1)]
+    mission: MissionId | None = None
+    wait_s: AckWait = ACK_WAIT_S
+
+
+Command = SendCommand | AbortCommand | OpmRequest | AddTargetsCommand | RemoveTargetsCommand
 _decoder: msgspec.json.Decoder[Command] = msgspec.json.Decoder(Command)
 
 
@@ -86,6 +123,29 @@ def decode_command(data: str | bytes) -> Command:
         return _decoder.decode(data)
     except msgspec.DecodeError as error:
         raise CommandError(f"malformed command ({error}); nothing sent") from None
+
+
+class ProposalState(StrEnum):
+    WAITING = "waiting for the team's results"
+    PROPOSED = "proposed by the ground"
+    NOT_PROPOSED = "not proposed"
+
+
+@dataclass
+class ProposalTrack:
+    """The ground's proposal for one mission sent from the page, as it goes."""
+
+    mission: int
+    stop: threading.Event = field(default_factory=threading.Event)
+    attempt: ProposalAttempt | None = None  #: set once, by the proposing thread
+
+    @property
+    def state(self) -> ProposalState:
+        if self.attempt is None:
+            return ProposalState.WAITING
+        if self.attempt.proposal is None:
+            return ProposalState.NOT_PROPOSED
+        return ProposalState.PROPOSED
 
 
 @dataclass(frozen=True)
@@ -122,17 +182,38 @@ class MissionDesk:
         self._stack = ExitStack()
         self._follower: MissionFollower | None = None
         self._targets: MissionTargets | None = None
+        #: The targets server of the mission this page sent (None: another ground's).
+        self._server: TargetsServer | None = None
+        #: Each UAV's first plan of the followed mission (epoch 0, revision 0): the
+        #: decision that adopted the ground's proposal, or not.
+        #: Their own lock: a follower's fetch (on any thread, the proposer's too) calls
+        #: `_heard`, and `_follow` stops the proposer while it holds `_lock`.
+        self._decisions: dict[int, AssignmentReport] = {}
+        self._decisions_lock = threading.Lock()
+        self._proposal: ProposalTrack | None = None
+
+    def _heard(self, mission: int, message: object) -> None:  # a bus thread
+        if isinstance(message, AssignmentReport) and not (message.epoch or message.revision):
+            with self._decisions_lock:
+                if message.mission == mission:
+                    self._decisions.setdefault(message.uav, message)
+        self._on_change()
 
     def _follow(self, message: MissionTargets, serve: bool) -> None:
         """Follow `message`'s mission from now on (caller holds the lock)."""
         self._stack.close()
         self._stack = ExitStack()
+        with self._decisions_lock:
+            self._decisions = {}
+        self._proposal = None
+        self._server = None
+        mission = message.mission
         follower = MissionFollower(
-            self._bus, self.space, message.mission, lambda kind, _: self._on_change()
+            self._bus, self.space, mission, lambda _, heard: self._heard(mission, heard)
         )
         self._follower = self._stack.enter_context(follower)
         if serve:
-            self._stack.enter_context(TargetsServer(self._bus, self.space, message))
+            self._server = self._stack.enter_context(TargetsServer(self._bus, self.space, message))
         self._targets = message
 
     def send(
@@ -142,8 +223,11 @@ class MissionDesk:
         deadline_s: float,
         zones: tuple[NoFlyZone, ...] = (),
         objective: Objective = Objective.GREEDY,
+        proposals_s: float = 0.0,
     ) -> int:
-        """Claim a mission id no other ground uses (`claim_mission`), follow it, put it."""
+        """Claim a mission id no other ground uses (`claim_mission`), follow it, put it;
+        with `proposals_s`, propose the ground's plan once the team's results are in
+        (`ground.propose`, as `send-targets --propose`), on a thread of its own."""
 
         def make(mission: int) -> MissionTargets:
             return MissionTargets(
@@ -153,17 +237,75 @@ class MissionDesk:
                 deadline_s=deadline_s,
                 zones=zones,
                 objective=objective,
+                proposals_s=proposals_s,
             )
 
         with self._lock:
             claim = ExitStack()
-            message = claim.enter_context(claim_mission(self._bus, self.space, make, 1.0)).targets
+            server = claim.enter_context(claim_mission(self._bus, self.space, make, 1.0))
+            message = server.targets
             self._follow(message, serve=False)
+            self._server = server
             # The claimed id's targets server stays open as long as the mission is followed.
             self._stack.push(claim)
             publish_targets(self._bus, self.space, message)
+            if proposals_s > 0:
+                assert self._follower is not None
+                track = self._proposal = ProposalTrack(message.mission)
+                thread = threading.Thread(
+                    target=self._propose,
+                    args=(message, self._follower, track),
+                    name=f"propose-{message.mission}",
+                    daemon=True,
+                )
+                # Stopped and joined when the page follows another mission, or closes.
+                self._stack.callback(thread.join, 5.0)
+                self._stack.callback(track.stop.set)
+                thread.start()
         self._on_change()
         return message.mission
+
+    def _propose(
+        self, message: MissionTargets, follower: MissionFollower, track: ProposalTrack
+    ) -> None:
+        try:
+            attempt = propose_when_results(self._bus, self.space, message, follower, track.stop)
+        except Exception as error:  # the page must go on; the reason is shown
+            log.exception("mission %d: proposing a plan failed", message.mission)
+            attempt = ProposalAttempt(None, reason=f"failed: {error}")
+        track.attempt = attempt
+        self._on_change()
+
+    def proposal_json(self) -> dict[str, Any] | None:
+        """The ground's proposal for the followed mission and what the UAVs' decisions
+        say of it (their reported digests), for the page; None without one."""
+        with self._lock:
+            track = self._proposal
+        with self._decisions_lock:
+            decisions = list(self._decisions.values())
+        if track is None:
+            return None
+        attempt = track.attempt
+        data: dict[str, Any] = {
+            "mission": track.mission,
+            "state": str(track.state),
+            "reason": attempt.reason if attempt is not None else None,
+            "cpu_s": attempt.cpu_s if attempt is not None else None,
+            "verdict": None,
+        }
+        if attempt is None or attempt.proposal is None:
+            return data
+        seen = adoption(attempt.proposal, decisions)
+        data.update(
+            proposer=attempt.proposal.proposer,
+            verdict=str(seen.verdict),
+            adopted_digest=seen.adopted_digest,
+            baseline_digest=seen.baseline_digest,
+            adopted_by=list(seen.adopted_by),
+            baseline_by=list(seen.baseline_by),
+            other_by=list(seen.other_by),
+        )
+        return data
 
     @property
     def mission(self) -> int | None:
@@ -202,12 +344,29 @@ class MissionDesk:
         self._on_change()
         return True
 
+    def revise(self, message: MissionTargets) -> bool:
+        """Take a later revision of the mission followed (changed in flight, by this
+        page or any ground): its targets added and removed are shown from now on."""
+        with self._lock:
+            held = self._targets
+            if held is None or message.mission != held.mission:
+                return False
+            if message.revision <= held.revision:
+                return False
+            self._targets = message
+            if self._server is not None:
+                self._server.revise(message)
+        self._on_change()
+        return True
+
     def outcome(self) -> MissionOutcome | None:
         with self._lock:
             if self._targets is None or self._follower is None:
                 return None
             message, follower = self._targets, self._follower
-        outcome = MissionOutcome(message.mission, message.team, message.targets)
+        outcome = MissionOutcome(
+            message.mission, message.team, message.targets, removed=frozenset(message.removed)
+        )
         outcome.zones = message.zones
         outcome.results, outcome.assignments = follower.snapshot()
         outcome.outcomes = follower.outcome_snapshot()
@@ -232,8 +391,13 @@ def _send(desk: MissionDesk, command: SendCommand, live: set[int]) -> Reply:
     team = tuple(sorted(set(command.team)))
     try:
         deadline_s = command.deadline_s or consensus_deadline(len(team))
-        mission = desk.send(team, command.targets, deadline_s, command.zones, command.objective)
-    except MissionError as error:
+        proposals_s = 0.0
+        if command.propose:
+            deadline_s, proposals_s = proposal_window(command.objective, deadline_s)
+        mission = desk.send(
+            team, command.targets, deadline_s, command.zones, command.objective, proposals_s
+        )
+    except (MissionError, ValueError) as error:
         return Reply(command.id, False, f"{error}; nothing sent")
     absent = [uav for uav in team if uav not in live]
     note = f" (not live now: {', '.join(map(str, absent))})" if absent else ""
@@ -243,7 +407,8 @@ def _send(desk: MissionDesk, command: SendCommand, live: set[int]) -> Reply:
         f"mission {mission}: {len(command.targets)} targets"
         + (f" and {len(command.zones)} no-fly zones" if command.zones else "")
         + " published to "
-        f"{', '.join(map(str, team))}{note}; waiting for their results",
+        f"{', '.join(map(str, team))}{note}; waiting for their results"
+        + ("; the ground proposes a plan once they are in" if command.propose else ""),
         mission=mission,
     )
 
@@ -264,10 +429,31 @@ def _abort(bus: Bus, desk: MissionDesk, command: AbortCommand) -> Reply:
     )
 
 
+def _change(
+    bus: Bus, desk: MissionDesk, command: AddTargetsCommand | RemoveTargetsCommand
+) -> Reply:
+    """`add-targets` / `remove-targets` as the CLI makes them: ok only once every live
+    team UAV planned the new revision."""
+    added = command.targets if isinstance(command, AddTargetsCommand) else ()
+    removed = command.indexes if isinstance(command, RemoveTargetsCommand) else ()
+    mission = command.mission if command.mission is not None else desk.mission
+    try:
+        change = change_mission(
+            bus, desk.space, mission, added=added, removed=removed, timeout_s=command.wait_s
+        )
+    except ChangeRefused as error:
+        return Reply(command.id, False, str(error), mission)
+    # Shown at once, not only when the page hears the revision on the bus.
+    desk.revise(change.new)
+    return Reply(command.id, change.acknowledged, change.summary(), change.new.mission)
+
+
 def execute(bus: Bus, desk: MissionDesk, command: Command, live: set[int]) -> Reply:
     """Carry out one command (blocking); the reply says what was done, or why not."""
     if isinstance(command, SendCommand):
         return _send(desk, command, live)
+    if isinstance(command, AddTargetsCommand | RemoveTargetsCommand):
+        return _change(bus, desk, command)
     if isinstance(command, AbortCommand):
         return _abort(bus, desk, command)
     if command.uav not in live:

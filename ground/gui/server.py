@@ -179,7 +179,10 @@ class GuiServer:
         if message is None or desk is None:
             return
         followed = desk.mission
-        if followed is None or message.mission > followed:
+        if followed == message.mission:
+            # The mission changed in flight (this page, or another ground).
+            desk.revise(message)
+        elif followed is None or message.mission > followed:
             task = asyncio.create_task(self._follow_later(desk, message))
             self._answers.add(task)
             task.add_done_callback(self._answers.discard)
@@ -286,11 +289,15 @@ class GuiServer:
         assert self._view is not None and self._desk is not None
         views = self._view.snapshot()
         self.model.note_views(views)
+        mission = self.model.mission_json(self._desk.outcome(), views)
+        if mission is not None:
+            # The ground's proposed plan, when the page asked for one, and its adoption.
+            mission["proposal"] = self._desk.proposal_json()
         return {
             "type": "snapshot",
             "time": time.time(),
             "uavs": [self.model.uav_json(view) for view in views],
-            "mission": self.model.mission_json(self._desk.outcome(), views),
+            "mission": mission,
             "statuses": statuses,
             "alerts": self.model.alerts_json(),
             # What this server refused: requests (Host, token, origin, session), commands,

@@ -54,6 +54,7 @@ class TargetState(StrEnum):
     ABORTED = "aborted"  #: the mission, or its holder alone, was aborted short of it
     FAILED = "failed"  #: its holder could not fly it
     PREEMPTED = "preempted"  #: its holder's autopilot left the route short of it
+    REMOVED = "removed"  #: taken off the mission in flight: never flown from then on
 
 
 #: States in which a target has no live claim: no assignment line, no ETA.
@@ -95,6 +96,9 @@ def target_states(
     queued = latest is not None and bool(latest.queues)
     states = []
     for index in range(len(outcome.targets)):
+        if index in outcome.removed:
+            states.append({"index": index, "state": str(TargetState.REMOVED), "uav": None})
+            continue
         uav = reached_by.get(index, owner.get(index))
         view = views.get(uav) if uav is not None else None
         says_reached = (

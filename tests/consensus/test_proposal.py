@@ -10,7 +10,7 @@ import msgspec
 import pytest
 
 from fleet.consensus.mission_round import MissionRound
-from fleet.consensus.proposal import plan_key
+from fleet.consensus.proposal import Verdict, adoption, plan_key
 from fleet.consensus.queues import finish
 from fleet.geo.mercator import MercatorProjection
 from fleet.mission.messages import MISSION_MANAGER, MissionTargets, PlanProposal, Target, UavResult
@@ -137,3 +137,30 @@ def test_an_invalid_proposal_does_not_close_the_window() -> None:
     assert not mission_round.ready(1.0, {3, 5})
     mission_round.add_proposal(_proposal(mission_round))
     assert mission_round.ready(1.0, {3, 5})
+
+
+def test_adoption_is_read_from_the_digests_the_uavs_decided_on() -> None:
+    """The ground tells from each UAV's reported digest alone whether it adopted the
+    proposal, kept the baseline, or decided on other results."""
+    with_it = _round(3)
+    proposal = _proposal(with_it)
+    assert with_it.add_proposal(proposal)
+    adopted = with_it.decide({3, 5})
+    kept = _round(5).decide({3, 5})  # never heard it
+    assert adoption(proposal, []).verdict is Verdict.WAITING
+    seen = adoption(proposal, [adopted])
+    assert (seen.verdict, seen.adopted_by, seen.adopted_digest) == (
+        Verdict.ADOPTED,
+        (3,),
+        adopted.digest,
+    )
+    seen = adoption(proposal, [kept])
+    assert (seen.verdict, seen.baseline_by, seen.baseline_digest) == (
+        Verdict.BASELINE,
+        (5,),
+        kept.digest,
+    )
+    other = msgspec.structs.replace(kept, digest="0123456789abcdef")
+    later = msgspec.structs.replace(kept, epoch=1, digest="fedcba9876543210")
+    seen = adoption(proposal, [adopted, other, later])
+    assert (seen.verdict, seen.adopted_by, seen.other_by) == (Verdict.MIXED, (3,), (5,))

@@ -18,7 +18,7 @@ import pytest
 
 from onboard.core import TARGET_WAYPOINT
 from tests.conftest import Ground
-from tests.ground.test_truth import targets_file
+from tests.ground.test_truth import listed_uavs, targets_file
 from tests.onboard.test_multi_uav import start_ring
 from tests.support.ground_cli import finish_ground_cli, start_ground_cli
 from tests.support.processes import Fleet, start
@@ -39,10 +39,7 @@ def mission_report(ground: Ground) -> tuple[int, dict[str, Any], str]:
 
 
 def phases(ground: Ground) -> dict[int, str]:
-    status, out, _ = finish_ground_cli(
-        start_ground_cli("uavs", "--json", connect=ground.router), 30
-    )
-    return {row["id"]: row["phase"] for row in json.loads(out)} if status == 0 else {}
+    return {row["id"]: row["phase"] for row in listed_uavs(ground)}
 
 
 def test_an_aborted_uav_s_target_and_an_aborted_mission_are_reported_aborted(

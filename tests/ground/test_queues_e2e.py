@@ -11,7 +11,6 @@ from pathlib import Path
 
 import pytest
 
-from fleet.mission.messages import AssignmentReport
 from fleet.mission.phase import Phase
 from tests.conftest import Ground
 from tests.ground.test_truth import targets_file
@@ -33,9 +32,12 @@ REACH_TIMEOUT_S = 300.0
 CLOSE_M = 75.0
 
 
-def _send(
-    ground: Ground, tmp_path: Path, team: list[int], *extra: str
-) -> dict[int, AssignmentReport]:
+def _queues_of_three(
+    fleet: Fleet, ground: Ground, tmp_path: Path
+) -> tuple[list[int], dict[int, tuple[int, ...]]]:
+    """Three UAVs on a ring sent the eight targets (`send-targets --wait`), and every one
+    committed to one plan: the team and the plan's queues."""
+    team = start_ring(fleet, ground, tmp_path, 3, SPEEDUP, telemetry_hz=5.0)
     path = targets_file(tmp_path, TARGETS)
     status, out, err = finish_ground_cli(
         start_ground_cli(
@@ -45,7 +47,6 @@ def _send(
             ",".join(map(str, team)),
             "--wait",
             "--json",
-            *extra,
             connect=ground.router,
         ),
         120,
@@ -57,7 +58,7 @@ def _send(
     wait_until(lambda: set(team) <= set(seen.assignments), 30.0, "every commitment")
     reports = {uav: seen.assignments[uav] for uav in team}
     assert_one_plan(report, reports, len(TARGETS))
-    return reports
+    return team, reports[team[0]].queues
 
 
 def _until_reached(ground: Ground) -> dict[str, object]:
@@ -86,9 +87,7 @@ def _assert_each_reached_where_it_is(ground: Ground, report: dict[str, object]) 
 def test_three_uavs_reach_all_eight_targets_through_their_queues(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    team = start_ring(fleet, ground, tmp_path, 3, SPEEDUP, telemetry_hz=5.0)
-    reports = _send(ground, tmp_path, team)
-    queues = reports[team[0]].queues
+    _, queues = _queues_of_three(fleet, ground, tmp_path)
     assert max(len(q) for q in queues.values()) >= 2  # more targets than UAVs: queues
     report = _until_reached(ground)
     by = _assert_each_reached_where_it_is(ground, report)
@@ -103,9 +102,7 @@ def test_three_uavs_reach_all_eight_targets_through_their_queues(
 def test_a_holder_killed_mid_queue_hands_its_queue_on_and_every_target_is_reached(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    team = start_ring(fleet, ground, tmp_path, 3, SPEEDUP, telemetry_hz=5.0)
-    reports = _send(ground, tmp_path, team)
-    queues = reports[team[0]].queues
+    team, queues = _queues_of_three(fleet, ground, tmp_path)
     victim = max(queues, key=lambda uav: (len(queues[uav]), uav))
     assert len(queues[victim]) >= 2
     seen = ground.seen

@@ -9,6 +9,7 @@ import json
 import signal
 import time
 from pathlib import Path
+from typing import Any
 
 from fleet.files.targets_io import write_targets
 from fleet.mission.key_space import KeySpace
@@ -35,6 +36,21 @@ def targets_file(tmp_path: Path, targets: tuple[Target, ...]) -> Path:
     path = tmp_path / "targets.bin"
     write_targets(path, targets)
     return path
+
+
+def listed_uavs(ground: Ground) -> list[dict[str, Any]]:
+    """The UAVs `ground-cli uavs --json` lists; none while it fails (no UAV heard yet)."""
+    status, out, _ = finish_ground_cli(
+        start_ground_cli("uavs", "--json", connect=ground.router), 30
+    )
+    rows: list[dict[str, Any]] = json.loads(out) if status == 0 else []
+    return rows
+
+
+def every_uav_in(ground: Ground, count: int, phase: str) -> bool:
+    """Whether `ground-cli uavs` lists `count` UAVs, every one in `phase`."""
+    rows = listed_uavs(ground)
+    return len(rows) == count and all(row["phase"] == phase for row in rows)
 
 
 def test_a_uav_killed_before_its_result_is_reported_lost_without_waiting_for_it(
@@ -77,14 +93,7 @@ def test_a_dead_autopilot_link_is_link_lost_and_the_mission_is_not_reported_agre
     sim.process.send_signal(signal.SIGKILL)  # both autopilots go silent
     sim.process.wait(10)
 
-    def all_link_lost() -> bool:
-        status, out, _ = finish_ground_cli(
-            start_ground_cli("uavs", "--json", connect=ground.router), 30
-        )
-        rows = json.loads(out) if status == 0 else []
-        return len(rows) == 2 and all(r["phase"] == "link_lost" for r in rows)
-
-    wait_until(all_link_lost, 30.0, "both UAVs to report link_lost")
+    wait_until(lambda: every_uav_in(ground, 2, "link_lost"), 30.0, "both UAVs to report link_lost")
     status, out, _ = finish_ground_cli(
         start_ground_cli("uavs", "--json", connect=ground.router), 30
     )
@@ -171,15 +180,10 @@ def test_an_abort_while_the_team_waits_for_a_frozen_teammate_is_final(
     finally:
         frozen.process.send_signal(signal.SIGCONT)
 
-    def all_aborted() -> bool:
-        status, out, _ = finish_ground_cli(
-            start_ground_cli("uavs", "--json", connect=ground.router), 30
-        )
-        rows = json.loads(out) if status == 0 else []
-        return len(rows) == 3 and all(r["phase"] == "aborted" for r in rows)
-
     # It learns the mission and its abort from its teammates when it resumes.
-    wait_until(all_aborted, 60.0, "every UAV acknowledging the abort")
+    wait_until(
+        lambda: every_uav_in(ground, 3, "aborted"), 60.0, "every UAV acknowledging the abort"
+    )
     # The old defect showed here: the deadline ran out and all three committed and flew.
     wait_until(
         lambda: time.monotonic() > sent + ABORT_DEADLINE_S + 3.0, 60.0, "the deadline passing"

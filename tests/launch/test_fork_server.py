@@ -8,12 +8,12 @@ import os
 import signal
 import subprocess
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 
-from fleet.launch.fork_client import UNKNOWN_STATUS, ForkServer, ForkServerError
+from fleet.launch.fork_client import UNKNOWN_STATUS, ForkedProcess, ForkServer, ForkServerError
 from fleet.launch.fork_server import parse_request
 from tests.support.processes import ANY_PORT, start_fleet_up, wait_fleet_up
 from tests.support.waiting import wait_until
@@ -34,6 +34,20 @@ def server(tmp_path: Path) -> Iterator[ForkServer]:
 
 def env(**extra: str) -> dict[str, str]:
     return {**os.environ, **extra}
+
+
+#: A child of the server: `CHILD *argv` in this environment (and `extra`), logging to
+#: child.log, and that log's path.
+Spawn = Callable[..., tuple[ForkedProcess, Path]]
+
+
+@pytest.fixture
+def spawn(server: ForkServer, tmp_path: Path) -> Spawn:
+    def spawned(*argv: str, **extra: str) -> tuple[ForkedProcess, Path]:
+        log_path = tmp_path / "child.log"
+        return server.spawn(CHILD, list(argv), log_path, env(**extra)), log_path
+
+    return spawned
 
 
 def lines(path: Path) -> list[str]:
@@ -57,11 +71,8 @@ def test_a_malformed_request_says_what_is_wrong(line: bytes, why: str) -> None:
 
 
 @pytest.mark.e2e
-def test_a_child_is_python_dash_m_with_its_arguments_environment_and_log(
-    server: ForkServer, tmp_path: Path
-) -> None:
-    log_path = tmp_path / "child.log"
-    child = server.spawn(CHILD, ["exit", "3"], log_path, env(FORK_CHILD_SAY="hello"))
+def test_a_child_is_python_dash_m_with_its_arguments_environment_and_log(spawn: Spawn) -> None:
+    child, log_path = spawn("exit", "3", FORK_CHILD_SAY="hello")
     assert child.wait(TIMEOUT_S) == 3
     said = lines(log_path)
     assert said[0] == f"argv ['exit', '3'] session {child.pid} pid {child.pid}"  # its own session
@@ -70,11 +81,8 @@ def test_a_child_is_python_dash_m_with_its_arguments_environment_and_log(
 
 
 @pytest.mark.e2e
-def test_a_signalled_child_reports_the_signal_as_popen_does(
-    server: ForkServer, tmp_path: Path
-) -> None:
-    log_path = tmp_path / "child.log"
-    child = server.spawn(CHILD, ["wait"], log_path, env())
+def test_a_signalled_child_reports_the_signal_as_popen_does(spawn: Spawn) -> None:
+    child, log_path = spawn("wait")
     wait_until(lambda: "waiting" in lines(log_path), TIMEOUT_S, "the child to start")
     assert child.poll() is None
     with pytest.raises(subprocess.TimeoutExpired):
@@ -85,21 +93,15 @@ def test_a_signalled_child_reports_the_signal_as_popen_does(
 
 
 @pytest.mark.e2e
-def test_an_uncaught_error_is_in_the_childs_log_with_status_1(
-    server: ForkServer, tmp_path: Path
-) -> None:
-    log_path = tmp_path / "child.log"
-    child = server.spawn(CHILD, ["raise"], log_path, env())
+def test_an_uncaught_error_is_in_the_childs_log_with_status_1(spawn: Spawn) -> None:
+    child, log_path = spawn("raise")
     assert child.wait(TIMEOUT_S) == 1
     assert "RuntimeError: the child's own error" in log_path.read_text()
 
 
 @pytest.mark.e2e
-def test_a_child_that_crashes_leaves_its_python_traceback_in_its_log(
-    server: ForkServer, tmp_path: Path
-) -> None:
-    log_path = tmp_path / "child.log"
-    child = server.spawn(CHILD, ["segv"], log_path, env())
+def test_a_child_that_crashes_leaves_its_python_traceback_in_its_log(spawn: Spawn) -> None:
+    child, log_path = spawn("segv")
     assert child.wait(TIMEOUT_S) == -signal.SIGSEGV
     text = log_path.read_text()
     assert "Fatal Python error: Segmentation fault" in text

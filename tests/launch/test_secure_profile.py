@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import json
 import signal
-import subprocess
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -36,8 +35,9 @@ from fleet.transport.router import Router
 from fleet.transport.secure import SecureProfile
 from fleet.transport.zenoh_config import build_config, make_config
 from fleet.transport.zenoh_log import parse
-from tests.support import secure_clients, signed
+from tests.support import signed
 from tests.support.processes import Child, wait_fleet_up
+from tests.support.secure_clients import SecureEndpoint
 from tests.support.secure_fleet import start_secure_up
 from tests.support.waiting import wait_until
 
@@ -48,16 +48,8 @@ ROGUE_MISSION = 0xFFFF_FFFF
 
 
 @dataclass
-class SecureFleet:
-    endpoint: str
-    certs: Path
+class SecureFleet(SecureEndpoint):
     up: Child
-
-    def session(self, identity: str) -> zenoh.Session:
-        return secure_clients.session(self.certs, self.endpoint, identity)
-
-    def ground_cli(self, *argv: str) -> subprocess.CompletedProcess[str]:
-        return secure_clients.ground_cli(self.certs, self.endpoint, *argv)
 
     def wait_for_refused(self, kind: str) -> None:
         """Until `fleet up`'s log counts a link refused as `kind` (its embedded router's)."""
@@ -77,15 +69,10 @@ def secure_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SecureFle
 
 
 @dataclass
-class SecureRouter:
+class SecureRouter(SecureEndpoint):
     """The fleet's secure router alone, in this process, with identities for its clients."""
 
     router: Router
-    endpoint: str
-    certs: Path
-
-    def session(self, identity: str) -> zenoh.Session:
-        return secure_clients.session(self.certs, self.endpoint, identity)
 
     def refused(self, kind: str) -> int:
         """How many links it refused as `kind` so far (counted in this process)."""
@@ -106,7 +93,7 @@ def router_here(certs: Path) -> Iterator[SecureRouter]:
     listen = "tls/127.0.0.1:0"  # the certificates name the host; the port is any free one
     write_identities(certs, ["router", "ground", "uav-74", "uav-112"], [listen])
     with Router([listen], secure=SecureProfile.load(certs)) as router:
-        yield SecureRouter(router, router.endpoints[0], certs.resolve())
+        yield SecureRouter(router.endpoints[0], certs.resolve(), router)
 
 
 @pytest.fixture

@@ -49,6 +49,22 @@ def one_uav_behind_a_proxy(
         yield uav, proxy
 
 
+def cut_near(
+    ground: Ground, uav: int, proxy: CuttableProxy, target: Target, near_m: float, within_s: float
+) -> None:
+    """Send `uav` the one `target`, and cut its autopilot link once it flies to it and is
+    within `near_m` of it (the fault: the link drops just before the arrival)."""
+    seen = ground.seen
+    ground.send(MissionTargets(mission=1, team=(uav,), targets=(target,)))
+    wait_until(lambda: any("flying to target 0" in s for s in seen.statuses(uav)), 30.0, "flying")
+    wait_until(
+        lambda: seen.closest_approach(uav, target.lat, target.lon) < near_m,
+        within_s,
+        f"{near_m:g} m from the target",
+    )
+    proxy.cut()
+
+
 def test_target_writes_are_retried_across_a_serial_outage_at_the_commitment(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
@@ -95,15 +111,7 @@ def test_a_target_reached_during_a_link_outage_is_reported_reached(
         lat, lon = MercatorProjection(gps.lat, gps.lon).to_latlon(
             1500.0 * math.cos(course), 1500.0 * math.sin(course)
         )
-        target = Target(lat, lon, gps.alt)
-        ground.send(MissionTargets(mission=1, team=(uav,), targets=(target,)))
-        wait_until(
-            lambda: any("flying to target 0" in s for s in seen.statuses(uav)), 30.0, "flying"
-        )
-        wait_until(
-            lambda: seen.closest_approach(uav, lat, lon) < 400.0, 60.0, "400 m from the target"
-        )
-        proxy.cut()  # the fault: the link drops just before the arrival
+        cut_near(ground, uav, proxy, Target(lat, lon, gps.alt), 400.0, 60.0)
         # The outage lasts until the simulator's own log says the aircraft arrived and
         # its autopilot moved on (60 m short of the target), and then for as long as it
         # takes to fly on past it: PAST_S at 66 m/s is 200 m beyond the telemetry's
@@ -150,14 +158,7 @@ def test_an_arrival_hidden_by_an_outage_that_also_hid_the_next_waypoint_is_reach
         x0, y0 = course.to_xy(corners[0][0], corners[0][1])
         along = 1.0 - SHORT_OF_WAYPOINT_M / math.hypot(x0, y0)
         lat, lon = course.to_latlon(x0 * along, y0 * along)
-        ground.send(MissionTargets(mission=1, team=(uav,), targets=(Target(lat, lon, 600.0),)))
-        wait_until(
-            lambda: any("flying to target 0" in s for s in seen.statuses(uav)), 30.0, "flying"
-        )
-        wait_until(
-            lambda: seen.closest_approach(uav, lat, lon) < 500.0, 120.0, "500 m from the target"
-        )
-        proxy.cut()  # the fault: the link drops just before the arrival
+        cut_near(ground, uav, proxy, Target(lat, lon, 600.0), 500.0, 120.0)
         # The simulator's own log: the target, then waypoint 0, both passed unseen.
         sim = fleet.children[0]
         wait_until(

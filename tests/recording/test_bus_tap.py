@@ -3,13 +3,14 @@ what it is handed: the same tap the recorder and the Foxglove bridge write from.
 
 from __future__ import annotations
 
+from collections import Counter
 from typing import Any
 
 import pytest
 
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import StatusText
-from fleet.recording.bus_tap import BusTap, Heard
+from fleet.recording.bus_tap import BusTap, Heard, ended_line
 from fleet.recording.channels import ChannelSpec
 from fleet.transport import bus_codec
 from fleet.transport.bus import BusSample
@@ -133,3 +134,11 @@ def test_a_full_queue_drops_and_counts_and_a_failing_sink_stops_the_tap() -> Non
     wait_until(lambda: tap.failure is not None, 10.0, "the write to fail")
     tap.stop()
     assert [f.errno for f in failures] == [28]
+
+
+def test_the_last_line_says_what_was_dropped_by_reason_and_nothing_when_none_was() -> None:
+    assert ended_line("fleet record: 3 messages in a.mcap", Counter()) == (
+        "fleet record: 3 messages in a.mcap"
+    )
+    dropped = Counter({"not JSON": 2, "delete": 1})
+    assert ended_line("done", dropped) == "done; 3 dropped: {'not JSON': 2, 'delete': 1}"

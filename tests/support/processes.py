@@ -30,6 +30,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import zenoh
 
@@ -157,6 +158,18 @@ def wait_fleet_up(up: Child, timeout: float) -> FleetUpBanner:
     """Once `fleet up` says every UAV is up: where its banner says to connect."""
     up.wait_for_line(lambda line: FLEET_UP_READY in line, timeout)
     return read_banner(up.history)
+
+
+def end_process(process: subprocess.Popen[Any], sig: signal.Signals, grace_s: float) -> int:
+    """`sig` to `process` (unless it has ended), SIGKILL if it has not ended within
+    `grace_s` s; its exit status."""
+    if process.poll() is None:
+        process.send_signal(sig)
+    try:
+        return process.wait(grace_s)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        return process.wait()
 
 
 def stop_fleet_up(up: Child, grace: float = 30.0) -> int:

@@ -4,6 +4,7 @@ given identity: a raw Zenoh session, or `ground-cli` as the ground."""
 from __future__ import annotations
 
 import subprocess
+from dataclasses import dataclass
 from pathlib import Path
 
 import zenoh
@@ -26,3 +27,18 @@ def ground_cli(certs: Path, endpoint: str, *argv: str) -> subprocess.CompletedPr
         "--zenoh-config", str(certs / "ground.json5"), *argv,
         connect=endpoint, timeout=GROUND_CLI_TIMEOUT_S,
     )  # fmt: skip
+
+
+@dataclass
+class SecureEndpoint:
+    """A secure fleet's router endpoint and the folder of its identities: what a client
+    needs to join it as one of them."""
+
+    endpoint: str
+    certs: Path
+
+    def session(self, identity: str) -> zenoh.Session:
+        return session(self.certs, self.endpoint, identity)
+
+    def ground_cli(self, *argv: str) -> subprocess.CompletedProcess[str]:
+        return ground_cli(self.certs, self.endpoint, *argv)

@@ -11,6 +11,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import NamedTuple
 
 import pytest
 import zenoh
@@ -20,6 +21,7 @@ from fleet.files.signers import revoke, roster_document
 from fleet.mission.key_space import KeySpace
 from fleet.transport import live_revocation
 from fleet.transport.link_cut import Address, address_of, cut
+from fleet.transport.live_revocation import RevocationGuard
 from fleet.transport.router import Router
 from fleet.transport.secure import SecureProfile
 from tests.support import secure_clients
@@ -116,23 +118,31 @@ class Heard:
             return [int(p) for p in self.payloads]
 
 
+class SecureRouter(NamedTuple):
+    """A secure router on loopback, the folder of its identities, where it listens, and
+    its revocation guard (a secure router always has one)."""
+
+    router: Router
+    certs: Path
+    endpoint: str
+    guard: RevocationGuard
+
+
 @pytest.fixture
-def secure_router(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> Iterator[tuple[Router, Path, str]]:
+def secure_router(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[SecureRouter]:
     monkeypatch.setattr(live_revocation, "HOLD_S", 0.5)  # a reconnection held this long
     listen = "tls/127.0.0.1:0"  # the certificates name the host; the port is any free one
     write_identities(tmp_path, ["router", "ground", "uav-74", "uav-112"], [listen])
     with Router([listen], secure=SecureProfile.load(tmp_path)) as router:
-        yield router, tmp_path, router.endpoints[0]
+        guard = router.revocations
+        assert guard is not None
+        yield SecureRouter(router, tmp_path, router.endpoints[0], guard)
 
 
 def test_a_revoked_identitys_link_is_closed_and_its_reconnections_never_routed(
-    secure_router: tuple[Router, Path, str],
+    secure_router: SecureRouter,
 ) -> None:
-    router, certs, endpoint = secure_router
-    guard = router.revocations
-    assert guard is not None
+    router, certs, endpoint, guard = secure_router
     with (
         secure_clients.session(certs, endpoint, "ground") as ground,
         secure_clients.session(certs, endpoint, "uav-74") as lost,
@@ -183,11 +193,9 @@ def test_a_revoked_identitys_link_is_closed_and_its_reconnections_never_routed(
 
 
 def test_a_held_reconnection_is_let_go_when_the_router_closes(
-    secure_router: tuple[Router, Path, str],
+    secure_router: SecureRouter,
 ) -> None:
-    router, certs, endpoint = secure_router
-    guard = router.revocations
-    assert guard is not None
+    router, certs, endpoint, guard = secure_router
     guard.hold_s = HELD_LONG_S  # held until the router closes
     with secure_clients.session(certs, endpoint, "uav-74") as lost:
         guard.revoke(frozenset({"uav-74"}), "this test")

@@ -6,7 +6,7 @@ by a callback or through a ring."""
 from __future__ import annotations
 
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -60,6 +60,22 @@ def taken(ring: RingSubscription, into: Heard) -> Heard:
     return into
 
 
+def stream_until(uav: ZenohBus, template: bytes, heard: Callable[[], object], what: str) -> int:
+    """Put UAV 112's telemetry `template % n` for n = 1, 2, ... until `heard()` is true
+    (until the subscriptions have reached the router, a put may go unheard); how many
+    were put."""
+    sent = 0
+
+    def streamed_and_heard() -> bool:
+        nonlocal sent
+        sent += 1
+        uav.put(SPACE.telemetry(112), template % sent)
+        return bool(heard())
+
+    wait_until(streamed_and_heard, TIMEOUT_S, what)
+    return sent
+
+
 def test_every_subscription_believes_what_the_uav_streamed(
     buses: dict[str, ZenohBus],
 ) -> None:
@@ -76,16 +92,9 @@ def test_every_subscription_believes_what_the_uav_streamed(
         ground.subscribe(SPACE.all_digests, digests_again),
     ]
     try:
-        sent = 0
-
-        def streamed_and_heard() -> bool:
-            nonlocal sent
-            sent += 1
-            uav.put(SPACE.telemetry(112), b'{"n":%d}' % sent)
-            return bool(telemetry.payloads)
-
-        # Until the subscriptions have reached the router, a put may go unheard.
-        wait_until(streamed_and_heard, TIMEOUT_S, "the first telemetry believed")
+        sent = stream_until(
+            uav, b'{"n":%d}', lambda: telemetry.payloads, "the first telemetry believed"
+        )
         last = b'{"n":%d}' % sent
         wait_until(lambda: last in telemetry and last in everything, TIMEOUT_S, "the last")
         wait_until(lambda: digests.payloads and digests_again.payloads, TIMEOUT_S, "digests")
@@ -107,15 +116,12 @@ def test_a_ring_delivers_what_the_uav_streamed_and_never_a_forgery(
     subscription = ground.subscribe(SPACE.all_telemetry, subscribed)
     heard = Heard()
     try:
-        sent = 0
-
-        def streamed_and_taken() -> bool:
-            nonlocal sent
-            sent += 1
-            uav.put(SPACE.telemetry(112), b'{"genuine":%d}' % sent)
-            return bool(taken(ring, heard).payloads)
-
-        wait_until(streamed_and_taken, TIMEOUT_S, "the first telemetry taken from the ring")
+        sent = stream_until(
+            uav,
+            b'{"genuine":%d}',
+            lambda: taken(ring, heard).payloads,
+            "the first telemetry taken from the ring",
+        )
         with client_bus(endpoint) as rogue:  # no digest of UAV 112's vouches for these
             for n in range(5):
                 rogue.put(SPACE.telemetry(112), b'{"forged":%d}' % n)

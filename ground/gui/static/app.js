@@ -1,15 +1,15 @@
 // The Mission Manager's page: a live map of the fleet, targets by click, send, watch, abort.
 // Plain JavaScript modules, no library, no build step. The server pushes snapshots on one
 // WebSocket and takes commands on it; see ground/gui/server.py for the protocol.
-import { abortTeam, sendTargets } from './commands.js';
+import { abortTeam, addToMission, onObjectiveChange, sendTargets } from './commands.js';
 import { connect } from './connection.js';
 import { applyView, clientToMap, pixelsPerMetre, toLatLon } from './frame.js';
 import { notice } from './helpers.js';
 import { render } from './map.js';
-import { onTargetEdit, onTargetListClick, onUavListClick } from './panel.js';
+import { onMissionTableClick, onTargetEdit, onTargetListClick, onUavListClick } from './panel.js';
 import { $, state } from './state.js';
 import { drawStatuses } from './statuses.js';
-import { addTargetAt, loadFile, saveTargets } from './targets.js';
+import { addTargetAt, addTargetTyped, loadFile, saveTargets } from './targets.js';
 import { addZoneVertexAt, drawZoneList, setUpZones, zones } from './zones.js';
 
 // ---- map interaction ------------------------------------------------------------------------
@@ -64,6 +64,11 @@ export function setUpPanel() {
   $('#target-list tbody').addEventListener('click', onTargetListClick);
   $('#target-list tbody').addEventListener('change', onTargetEdit);
   $('#send').addEventListener('click', sendTargets);
+  $('#objective').addEventListener('change', onObjectiveChange);
+  onObjectiveChange();
+  $('#add-to-mission').addEventListener('click', addToMission);
+  $('#add-at').addEventListener('submit', addTargetTyped);
+  $('#mission-targets tbody').addEventListener('click', onMissionTableClick);
   $('#abort').addEventListener('click', abortTeam);
   $('#clear-targets').addEventListener('click', () => { state.targets = []; render(); });
   $('#mission-to-drafts').addEventListener('click', missionToDrafts);

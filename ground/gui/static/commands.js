@@ -112,15 +112,49 @@ export function sendTargets() {
   if (!state.targets.length) return notice('no targets: click the map to add some', false);
   const targets = state.targets.map((t) => ({ lat: t.lat, lon: t.lon, alt: t.alt }));
   const sentZones = zonesToSend();
+  const objective = $('#objective').value;
+  const propose = proposing();
   confirmThen(
-    `Send ${targets.length} target(s) to the team of ${members.length} UAV(s): ${members.join(', ')} (objective ${$('#objective').value})?`,
+    `Send ${targets.length} target(s) to the team of ${members.length} UAV(s): ${members.join(', ')} (objective ${objective}${propose ? ', the ground proposing a plan' : ''})?`,
     sendWarnings(members, targets.length).join(' '),
     () => command({
-      cmd: 'send', team: members, targets, zones: sentZones, objective: $('#objective').value,
-    }, `Send ${targets.length} target(s) to ${members.join(', ')}`, (reply) => {
+      cmd: 'send', team: members, targets, zones: sentZones, objective, propose,
+    }, `Send ${targets.length} target(s) to ${members.join(', ')}${propose ? ' (proposed plan)' : ''}`, (reply) => {
       if (reply.ok) sentAsMission(reply.mission, targets, sentZones);
     }),
   );
+}
+
+// A proposed plan is scored by the objective's key: the greedy has none.
+export function proposing() {
+  return $('#objective').value !== 'greedy' && $('#propose').checked;
+}
+
+export function onObjectiveChange() {
+  $('#propose').disabled = $('#objective').value === 'greedy';
+}
+
+// The drafts added to the mission in flight, as `ground-cli add-targets` adds them: done
+// only once every live UAV of its team acknowledged the new revision.
+export function addToMission() {
+  const m = state.mission;
+  if (!m || m.aborted) return notice('no mission in flight to add targets to', false);
+  if (!state.targets.length) return notice('no draft targets: click the map to add some', false);
+  const targets = state.targets.map((t) => ({ lat: t.lat, lon: t.lon, alt: t.alt }));
+  confirmThen(
+    `Add ${targets.length} target(s) to mission ${m.mission} in flight (team ${m.team.join(', ')})?`,
+    'They go after its targets (indexes never change) and are handed out to the team\'s queues.',
+    () => command({ cmd: 'add-targets', mission: m.mission, targets },
+      `Add ${targets.length} target(s) to mission ${m.mission}`, (reply) => {
+        if (reply.ok) addedToMission(targets);
+      }),
+  );
+}
+
+function addedToMission(targets) {
+  const same = (a, b) => a.length === b.length && a.every((t, i) => sameTarget(t, b[i]));
+  if (same(state.targets, targets)) state.targets = [];
+  render();
 }
 
 export function abortTeam() {

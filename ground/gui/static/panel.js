@@ -187,15 +187,33 @@ export function onTargetListClick(event) {
   if (button) removeTarget(Number(button.getAttribute('data-delete')));
 }
 
+// A mission target the operator may still take off the mission: not flown yet, not gone.
+const REMOVABLE = new Set(['pending', 'assigned']);
+
+export function newMissionRow() {
+  const row = html('tr');
+  for (const name of ['index', 'state', 'uav', 'eta']) row.appendChild(html('td', '', { 'data-cell': name }));
+  const cell = html('td');
+  cell.appendChild(html('button', '✕', {
+    type: 'button', 'data-remove-target': '',
+    title: 'remove this target from the mission in flight (every live UAV of the team must acknowledge it)',
+  }));
+  row.appendChild(cell);
+  return row;
+}
+
+// The mission's table, updated row by row (its remove buttons must survive the pushes).
 export function drawMission() {
-  const box = $('#mission-progress');
   const m = state.mission;
+  const table = $('#mission-targets');
   if (!m) {
-    box.textContent = 'no mission yet';
+    $('#mission-line').textContent = 'no mission yet';
+    $('#agreement').textContent = '';
+    $('#proposal').hidden = true;
+    table.hidden = true;
     $('#mission-summary').textContent = 'no mission';
     return;
   }
-  box.replaceChildren();
   const n = m.team.length;
   const committed = n - m.missing_assignments.length;
   let agreement = 'pending';
@@ -204,18 +222,68 @@ export function drawMission() {
     agreement = m.agreed ? `agreed (digest ${String(m.digest).slice(0, 12)})` : `DISAGREE: ${m.disagreed.join(', ')}`;
     agreementClass = m.agreed ? 'agreed' : 'disagreed';
   }
-  const summary = `mission ${m.mission}${m.aborted ? ' (aborted)' : ''}: team ${m.team.join(', ')}; `
+  const revision = m.revision ? ` revision ${m.revision}` : '';
+  const summary = `mission ${m.mission}${revision}${m.aborted ? ' (aborted)' : ''}: team ${m.team.join(', ')}; `
     + `results ${m.results_received}/${n}; committed ${committed}/${n}`;
-  box.appendChild(html('div', summary, { id: 'mission-line' }));
-  box.appendChild(html('div', `agreement: ${agreement}`, { class: agreementClass, id: 'agreement' }));
-  const table = html('table');
-  table.appendChild(html('tr')).append(html('th', '#'), html('th', 'state'), html('th', 'UAV'), html('th', 'predicted'));
-  for (const t of m.target_states) {
-    const row = html('tr', '', { 'data-mission-target': t.index, 'data-state': t.state });
-    row.append(html('td', t.index), html('td', t.state), html('td', t.uav ?? '-'),
-      html('td', t.eta_s === null ? '-' : formatSeconds(t.eta_s)));
-    table.appendChild(row);
+  setText($('#mission-line'), summary);
+  const line = $('#agreement');
+  setText(line, `agreement: ${agreement}`);
+  if (line.className !== agreementClass) line.className = agreementClass;
+  drawProposal(m.proposal);
+  table.hidden = false;
+  const body = table.querySelector('tbody');
+  const rows = m.target_states.map((t) => {
+    const row = keyedRow(body, t.index, 'data-mission-target', newMissionRow);
+    setAttributes(row, { 'data-state': t.state });
+    const cell = (name) => row.querySelector(`[data-cell="${name}"]`);
+    setText(cell('index'), t.index);
+    setText(cell('state'), t.state);
+    setText(cell('uav'), t.uav ?? '-');
+    setText(cell('eta'), t.eta_s === null || t.eta_s === undefined ? '-' : formatSeconds(t.eta_s));
+    const button = row.querySelector('[data-remove-target]');
+    setAttributes(button, { 'data-remove-target': t.index });
+    // Hidden, not removed: the rows under the pointer keep their layout.
+    button.style.visibility = !m.aborted && REMOVABLE.has(t.state) ? 'visible' : 'hidden';
+    return row;
+  });
+  placeRows(body, rows);
+  setText($('#mission-summary'), summary);
+}
+
+// The ground's proposed plan for the mission (sent with "propose a plan"), and what the
+// UAVs' commitments say of it: adopted only when their reported digest is the digest of
+// a plan adopted from it.
+function drawProposal(p) {
+  const box = $('#proposal');
+  if (!p) {
+    box.hidden = true;
+    return;
   }
-  box.appendChild(table);
-  $('#mission-summary').textContent = summary;
+  box.hidden = false;
+  let text = `proposal: ${p.state}`;
+  if (p.reason) text += ` (${p.reason})`;
+  if (p.cpu_s !== null && p.cpu_s !== undefined) text += `, ${p.cpu_s.toFixed(2)} s of CPU`;
+  if (p.verdict === 'adopted') {
+    text += `; adopted by ${p.adopted_by.join(', ')} (proposer ${p.proposer}, digest ${p.adopted_digest})`;
+  } else if (p.verdict === 'baseline') {
+    text += `; not adopted: ${p.baseline_by.join(', ')} kept the baseline (digest ${p.baseline_digest})`;
+  } else if (p.verdict === 'mixed') {
+    text += `; adopted by ${p.adopted_by.join(', ') || 'none'}, baseline by ${p.baseline_by.join(', ') || 'none'}`
+      + `, other plans by ${p.other_by.join(', ') || 'none'}`;
+  } else if (p.verdict === 'waiting') {
+    text += '; no commitment heard yet';
+  }
+  setText(box, text);
+  setAttributes(box, { 'data-verdict': p.verdict, 'data-state': p.state });
+}
+
+export function onMissionTableClick(event) {
+  const button = event.target.closest('[data-remove-target]');
+  const m = state.mission;
+  if (!button || !m) return;
+  const index = Number(button.getAttribute('data-remove-target'));
+  confirmThen(`Remove target ${index} from mission ${m.mission} in flight?`,
+    'Its holder drops it; it is never flown from then on. Every live UAV of the team must acknowledge it.',
+    () => command({ cmd: 'remove-targets', mission: m.mission, indexes: [index] },
+      `Remove target ${index} (mission ${m.mission})`));
 }

@@ -18,6 +18,20 @@ export function addTargetAt(clientX, clientY) {
   render();
 }
 
+// A draft typed as "lat, lon" (degrees), at the altitude of new targets.
+export function addTargetTyped(event) {
+  event.preventDefault();
+  const field = $('#add-at-text');
+  const parts = field.value.split(/[\s,;]+/).filter(Boolean).map(Number);
+  const [lat, lon] = parts;
+  if (parts.length !== 2 || !parts.every(isFinite) || Math.abs(lat) > 90 || Math.abs(lon) > 180) {
+    return notice(`"${field.value}": type a latitude and a longitude in degrees, e.g. 35.705, -120.76`, false);
+  }
+  state.targets.push({ lat, lon, alt: altitude() });
+  field.value = '';
+  render();
+}
+
 export function removeTarget(index) {
   state.targets.splice(index, 1);
   render();

@@ -53,6 +53,7 @@ from selenium.webdriver.common.action_chains import ActionChains  # noqa: E402
 from selenium.webdriver.common.actions.wheel_input import ScrollOrigin  # noqa: E402
 from selenium.webdriver.common.by import By  # noqa: E402
 from selenium.webdriver.common.keys import Keys  # noqa: E402
+from selenium.webdriver.support.select import Select  # noqa: E402
 
 SPACE = KeySpace()
 
@@ -62,6 +63,17 @@ CHROMEDRIVER = "/usr/bin/chromedriver"
 ON_TRACK_M = 60.0
 #: Wall seconds for the UAVs to reach their targets at speedup 10 (simulated ~170 s).
 REACH_TIMEOUT_S = 120.0
+
+#: Targets added to the thesis scenario's mission in flight, between its own.
+ADDED = [(35.7050, -120.7600), (35.7350, -120.7850)]
+
+PROPOSAL_VERDICT = "return document.querySelector('#proposal').dataset.verdict || null;"
+
+#: Whether the Mission table's remove button of a target is shown.
+REMOVE_SHOWN = """
+const b = document.querySelector(`#mission-targets [data-remove-target='${arguments[0]}']`);
+return Boolean(b) && getComputedStyle(b).visibility === 'visible';
+"""
 
 #: Set by .ci/run, which installs both: there a missing browser fails the tests, not skips.
 REQUIRE_BROWSER = "FLEET_REQUIRE_BROWSER"
@@ -356,15 +368,55 @@ def test_the_thesis_scenario_from_the_page(
             )
             browser.save_screenshot(str(tmp_path / "gui.png"))
 
+            # The mission changed in flight: two targets, one clicked on the map and one
+            # typed, added, done only once both UAVs planned the new revision; then the
+            # last removed from its row in the Mission table.
+            click_at(browser, *ADDED[0])
+            typed = browser.find_element(By.ID, "add-at-text")
+            typed.send_keys(f"{ADDED[1][0]}, {ADDED[1][1]}", Keys.ENTER)
+            marks = target_marks(
+                wait_for(browser, "2 drafts", lambda e: len(target_marks(e)) == 2, 10.0)
+            )
+            assert (float(marks[1]["lat"]), float(marks[1]["lon"])) == ADDED[1]
+            browser.find_element(By.ID, "add-to-mission").click()
+            assert "Add 2 target(s) to mission" in text_of(browser, "confirm-text")
+            browser.find_element(By.ID, "confirm-ok").click()
+            added = wait_command_answered(browser, "add-targets", 60.0)
+            assert added["state"] == "done", added
+            assert "targets 3, 4 added; acknowledged by 74, 112" in added["text"], added
+
+            def revisions() -> set[int]:
+                with seen.lock:
+                    return {r.revision for r in seen.assignments.values()}
+
+            wait_until(lambda: revisions() == {1}, 10.0, "both UAVs' plans of revision 1")
+            wait_for(browser, "5 mission targets", lambda e: len(mission_marks(e)) == 5, 30.0)
+            wait_until(
+                lambda: browser.execute_script(REMOVE_SHOWN, 4), 30.0, "target 4's remove button"
+            )
+            browser.find_element(
+                By.CSS_SELECTOR, "#mission-targets [data-remove-target='4']"
+            ).click()
+            assert "Remove target 4" in text_of(browser, "confirm-text")
+            browser.find_element(By.ID, "confirm-ok").click()
+            removed = wait_command_answered(browser, "remove-targets", 60.0)
+            assert removed["state"] == "done", removed
+            assert "targets 4 removed; acknowledged by 74, 112" in removed["text"], removed
+            assert [(m.revision, m.removed) for m in sent.missions] == [(0, ()), (1, ()), (2, (4,))]
+
             wait_for(
                 browser,
-                "every target reached, the queued one too",
+                "every target reached, the queued and added ones too, the removed one not",
                 lambda e: (
-                    len(mission_marks(e)) == 3
-                    and all(mark["state"] == "reached" for mark in mission_marks(e).values())
+                    {i: m["state"] for i, m in mission_marks(e).items()}
+                    == {0: "reached", 1: "reached", 2: "reached", 3: "reached", 4: "removed"}
                 ),
-                2 * REACH_TIMEOUT_S,
+                3 * REACH_TIMEOUT_S,
             )
+            reached = {
+                o.target for uav in (74, 112) for o in seen.outcomes_of(uav) if o.phase == "reached"
+            }
+            assert reached == {0, 1, 2, 3}
             browser.save_screenshot(str(tmp_path / "gui-reached.png"))
 
             # Abort the team, confirmed: every UAV reports the mission aborted.
@@ -479,9 +531,14 @@ def test_every_press_takes_effect_the_first_time_while_telemetry_flows(
         "the other ground's mission on the map",
     )
     assert len(target_marks(browser.execute_script(READ_MAP))) == 2  # the drafts are kept
-    # Per-UAV abort: once a mission is in flight, one press asks to confirm.
+    # Send with the ground proposing a plan: offered for min-sum and min-max only.
+    assert browser.find_element(By.ID, "propose").get_attribute("disabled") is not None
+    Select(browser.find_element(By.ID, "objective")).select_by_value("min-sum")
+    browser.find_element(By.ID, "propose").click()
     browser.find_element(By.ID, "send").click()
+    assert "the ground proposing a plan" in text_of(browser, "confirm-text")
     browser.find_element(By.ID, "confirm-ok").click()
+    # Per-UAV abort: once a mission is in flight, one press asks to confirm.
     wait_until(
         lambda: browser.execute_script(
             "const b = document.querySelector(\"#uav-list tr[data-uav='112'] [data-abort]\");"
@@ -499,6 +556,19 @@ def test_every_press_takes_effect_the_first_time_while_telemetry_flows(
     )
     press(browser, "#uav-list tr[data-uav='112'] [data-abort]")
     assert "for UAV 112 alone" in text_of(browser, "confirm-text")
+    browser.find_element(By.ID, "confirm-cancel").click()
+    # The proposal, and whether the team adopted it, as the UAVs' digests say: the
+    # digest shown is the one both UAVs agreed on.
+    wait_until(
+        lambda: browser.execute_script(PROPOSAL_VERDICT) in ("adopted", "baseline"),
+        60.0,
+        "the proposal's verdict",
+    )
+    wait_until(lambda: "agreed" in text_of(browser, "agreement"), 30.0, "the agreement")
+    shown = text_of(browser, "proposal")
+    assert "proposed by the ground" in shown and "s of CPU" in shown
+    agreed = re.search(r"digest ([0-9a-f]{12})", text_of(browser, "agreement"))
+    assert agreed is not None and f"digest {agreed[1]}" in shown, shown
 
 
 class CommandsSeen:

@@ -277,6 +277,49 @@ def test_a_websocket_without_the_pages_session_token_is_refused(gui: str) -> Non
     assert "HttpOnly" in cookie
 
 
+def test_a_change_in_flight_not_acknowledged_fails_with_who_did_not(
+    gui: str, mfakes: dict[int, FakeOnboard]
+) -> None:
+    """The fakes commit every mission as first sent (revision 0): a change put to them is
+    never acknowledged, and the page's command fails saying by whom; a bad index, a
+    target out of range, or a proposal for the greedy is refused with nothing sent."""
+    targets: list[dict[str, float]] = [{"lat": t.lat, "lon": t.lon, "alt": t.alt} for t in TARGETS]
+    added = [{"lat": 42.36, "lon": -71.095, "alt": 120.0}]
+    (sent,) = asyncio.run(
+        _session_with(gui, [{"cmd": "send", "id": 20, "team": [74, 112], "targets": targets}])
+    )
+    assert sent["ok"], sent
+    mission = sent["mission"]
+    assert wait_until(
+        lambda: len(mfakes[112].targets) and mfakes[112].targets[-1].mission == mission
+    )
+    before = len(mfakes[74].targets)
+    unacked, beyond, bad, greedy = asyncio.run(
+        _session_with(
+            gui,
+            [
+                {"cmd": "add-targets", "id": 21, "targets": added, "wait_s": 1.0},
+                {"cmd": "remove-targets", "id": 22, "indexes": [7], "wait_s": 1.0},
+                {"cmd": "add-targets", "id": 23, "targets": [{"lat": 91, "lon": 0, "alt": 0}]},
+                {"cmd": "send", "id": 24, "team": [74], "targets": targets, "propose": True},
+            ],
+        )
+    )
+    assert not unacked["ok"] and unacked["mission"] == mission
+    assert f"mission {mission} revision 1: targets 2 added" in unacked["message"]
+    assert "not acknowledged by 74, 112 within 1 s" in unacked["message"]
+    # The revision was put (the fakes heard it): the page shows its target.
+    assert wait_until(lambda: mfakes[74].targets[-1].revision == 1)
+    assert not beyond["ok"] and "target 7 is not one of the mission's 3" in beyond["message"]
+    assert "nothing sent" in beyond["message"]
+    assert not bad["ok"] and "target 3: latitude 91" in bad["message"]
+    assert not greedy["ok"] and "min-sum or min-max" in greedy["message"]
+    assert "nothing sent" in greedy["message"]
+    assert len(mfakes[74].targets) == before + 1  # the unacknowledged revision alone
+    _, outcome = get(f"{gui}/api/mission")
+    assert outcome["mission"] == mission and len(outcome["targets"]) == 3
+
+
 @pytest.mark.e2e
 def test_a_token_when_given_guards_every_request(
     router: str, fakes: object, tmp_path: Path

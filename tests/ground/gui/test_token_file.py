@@ -11,11 +11,15 @@ import pytest
 from ground.gui.cli import TokenError, read_token_file
 
 
+def written(path: Path, text: str, mode: int = 0o600) -> Path:
+    """`path` holding `text`, with the permissions `mode`."""
+    path.write_text(text)
+    path.chmod(mode)
+    return path
+
+
 def test_a_token_file_is_read_and_a_missing_one_is_made_owner_only(tmp_path: Path) -> None:
-    given = tmp_path / "given"
-    given.write_text("  abc-123\n")
-    given.chmod(0o600)
-    assert read_token_file(given) == "abc-123"
+    assert read_token_file(written(tmp_path / "given", "  abc-123\n")) == "abc-123"
     made = tmp_path / "made"
     token = read_token_file(made)
     assert len(token) >= 24
@@ -25,23 +29,16 @@ def test_a_token_file_is_read_and_a_missing_one_is_made_owner_only(tmp_path: Pat
 
 
 def test_a_token_file_others_can_read_is_refused_with_the_fix(tmp_path: Path) -> None:
-    shared = tmp_path / "shared"
-    shared.write_text("abc\n")
-    shared.chmod(0o644)
+    shared = written(tmp_path / "shared", "abc\n", 0o644)
     with pytest.raises(TokenError, match="chmod 600"):
         read_token_file(shared)
 
 
 def test_an_empty_token_file_or_a_link_is_refused(tmp_path: Path) -> None:
-    empty = tmp_path / "empty"
-    empty.write_text("\n")
-    empty.chmod(0o600)
+    empty = written(tmp_path / "empty", "\n")
     with pytest.raises(TokenError, match="one token"):
         read_token_file(empty)
-    target = tmp_path / "target"
-    target.write_text("abc\n")
-    target.chmod(0o600)
     link = tmp_path / "link"
-    os.symlink(target, link)
+    os.symlink(written(tmp_path / "target", "abc\n"), link)
     with pytest.raises(TokenError, match="cannot read"):
         read_token_file(link)
