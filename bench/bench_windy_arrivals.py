@@ -9,11 +9,17 @@ aircraft's clock, from its commitment to its arrival). Error = (predicted - flow
 flown. With `--dynamics jsbsim` the aircraft fly on JSBSim's J3Cub (docs/simulator.md).
 
     python -m bench.bench_windy_arrivals [--dynamics kinematic jsbsim] [--runs N]
-                                         [--after S] [--speedup K]
+                                         [--after S] [--speedup K] [--nine]
 
 `--after S` waits S wall seconds after the fleet is up before sending the targets (the
 UAVs fly their racetracks meanwhile, turning in the wind). Each run takes about
 300 / K wall seconds.
+
+`--nine` sends nine targets instead (`tests.support.targets.WINDY_NINE`, three about
+each UAV) with `--objective min-sum`, so each UAV flies a queue, and prints every leg of
+every queue: the plan's time, the UAV's time said as it began the leg (`begun`: in the
+air of that moment, docs/queues.md) and the time flown, with each one's error and their
+median and worst. About 750 / K wall seconds a run.
 """
 
 from __future__ import annotations
@@ -21,15 +27,18 @@ from __future__ import annotations
 import argparse
 import json
 import signal
+import statistics
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 from fleet.launch.endpoints import free_port
 from fleet.sim.scenario import shipped_scenario_path
 from tests.support.processes import start_fleet_up, wait_fleet_up
+from tests.support.targets import windy_nine_csv
 
 #: Where each UAV's target lies from it, in the scenario's wind (docs/simulator.md).
 WHERE = {"201": "upwind", "202": "downwind", "203": "across"}
@@ -43,6 +52,20 @@ def _run(*argv: str, timeout: float) -> subprocess.CompletedProcess[str]:
 
 def fly(dynamics: str, after_s: float, speedup: float) -> dict[str, tuple[float, float]]:
     """One run: each UAV's (predicted s, flown s)."""
+    (mission,) = _mission(dynamics, after_s, speedup, nine=False)["missions"]
+    return {
+        uav: (float(mission["predicted_s"][uav]), float(mission["flown_s"][uav])) for uav in WHERE
+    }
+
+
+def fly_nine(dynamics: str, after_s: float, speedup: float) -> dict[str, list[dict[str, Any]]]:
+    """One run of nine targets: each UAV's legs (`fleet report --json`'s)."""
+    (mission,) = _mission(dynamics, after_s, speedup, nine=True)["missions"]
+    return {uav: mission["legs"][uav] for uav in WHERE}
+
+
+def _mission(dynamics: str, after_s: float, speedup: float, *, nine: bool) -> dict[str, Any]:
+    """`fleet report --json` of one run."""
     with tempfile.TemporaryDirectory(prefix="bench-windy-") as folder:
         logs = Path(folder)
         endpoint = f"tcp/127.0.0.1:{free_port()}"
@@ -55,11 +78,14 @@ def fly(dynamics: str, after_s: float, speedup: float) -> dict[str, tuple[float,
             time.sleep(after_s)  # the point: targets sent a while after the start
             ground = ("-m", "ground.cli", "--connect", endpoint)
             targets = shipped_scenario_path("windy").with_name("windy_targets.bin")
-            sent = _run(*ground, "send-targets", str(targets), "--wait", "--json",
+            how: tuple[str, ...] = ()
+            if nine:
+                targets, how = windy_nine_csv(logs / "nine.csv"), ("--objective", "min-sum")
+            sent = _run(*ground, "send-targets", str(targets), *how, "--wait", "--json",
                         "--timeout", "60", timeout=120.0)  # fmt: skip
             if sent.returncode != 0:
                 raise RuntimeError(f"send-targets failed: {sent.stderr[-2000:]}")
-            until = 400.0 / speedup + 60.0
+            until = (1000.0 if nine else 400.0) / speedup + 60.0
             reached = _run(*ground, "mission", "--until-reached", f"{until:.0f}", "--json",
                            timeout=until + 60.0)  # fmt: skip
             if reached.returncode != 0:
@@ -71,10 +97,47 @@ def fly(dynamics: str, after_s: float, speedup: float) -> dict[str, tuple[float,
                       timeout=120.0)  # fmt: skip
         if report.returncode != 0:
             raise RuntimeError(f"fleet report failed: {report.stderr[-2000:]}")
-    (mission,) = json.loads(report.stdout)["missions"]
-    return {
-        uav: (float(mission["predicted_s"][uav]), float(mission["flown_s"][uav])) for uav in WHERE
-    }
+    found: dict[str, Any] = json.loads(report.stdout)
+    return found
+
+
+def _error(predicted: float | None, flown: float | None) -> float | None:
+    if predicted is None or flown is None or flown <= 0.0:
+        return None
+    return (predicted - flown) / flown
+
+
+def _cell(seconds: float | None, error: float | None) -> str:
+    if seconds is None or error is None:
+        return f"{'-':>16}"
+    return f"{seconds:>7.1f} {100 * error:>+6.1f}% "
+
+
+def print_nine(dynamics: str, runs: int, after_s: float, speedup: float) -> None:
+    print(f"{'dynamics':<10} {'run':>3} {'UAV':>4} {'leg':>3} {'target':>6} "
+          f"{'plan s   error':>16} {'begun s  error':>16} {'flown s':>8}")  # fmt: skip
+    errors: dict[str, list[float]] = {"plan": [], "begun": []}
+    for run in range(runs):
+        for uav, rows in fly_nine(dynamics, after_s, speedup).items():
+            for leg, row in enumerate(rows):
+                flown = row["flown_s"]
+                plan, begun = _error(row["predicted_s"], flown), _error(row["begun_s"], flown)
+                for name, error in (("plan", plan), ("begun", begun)):
+                    if error is not None:
+                        errors[name].append(abs(error))
+                flown_text = "-" if flown is None else f"{flown:.1f}"
+                print(
+                    f"{dynamics:<10} {run:>3} {uav:>4} {leg:>3} {row['target']:>6} "
+                    f"{_cell(row['predicted_s'], plan)} {_cell(row['begun_s'], begun)} "
+                    f"{flown_text:>8}",
+                    flush=True,
+                )
+    for name, values in errors.items():
+        if values:
+            print(
+                f"{dynamics}: {name} vs flown, {len(values)} legs: median "
+                f"{100 * statistics.median(values):.1f} %, worst {100 * max(values):.1f} %"
+            )
 
 
 def main() -> None:
@@ -85,7 +148,12 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=1)
     parser.add_argument("--after", type=float, default=0.0, metavar="S")
     parser.add_argument("--speedup", type=float, default=3.0, metavar="K")
+    parser.add_argument("--nine", action="store_true", help="nine targets, min-sum queues")
     args = parser.parse_args()
+    if args.nine:
+        for dynamics in args.dynamics:
+            print_nine(dynamics, args.runs, args.after, args.speedup)
+        return
     print(f"{'dynamics':<10} {'run':>3} {'UAV':>4} {'target':<9} {'predicted s':>11} "
           f"{'flown s':>8} {'error':>7}")  # fmt: skip
     for dynamics in args.dynamics:

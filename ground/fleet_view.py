@@ -26,7 +26,7 @@ import math
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -43,6 +43,10 @@ from ground.declarations import Declarations, Enter
 
 log = logging.getLogger(__name__)
 
+
+#: The selector parameter asking teammates to relay a UAV's signed state (the onboard's
+#: `RELAYED`; the ground imports no onboard).
+RELAYED = "relayed"
 
 #: How many status messages the live view keeps (the thesis's status box).
 STATUS_HISTORY = 200
@@ -184,8 +188,9 @@ def _token_ids(bus: Bus, space: KeySpace, timeout_s: float) -> list[int]:
     return sorted(ids)
 
 
-def _vouched(bus: Bus, ids: list[int], states: dict[int, UavState]) -> list[int]:
-    """`ids`, in the secure profile only those whose own signed state answered."""
+def _vouched(bus: Bus, ids: list[int], states: Mapping[int, UavState | None]) -> list[int]:
+    """`ids`, in the secure profile only those whose own signed state answered (or, for
+    the team, was relayed: `live_uav_ids`)."""
     if not bus.signed:
         return ids
     unvouched = [uav for uav in ids if uav not in states]
@@ -198,10 +203,35 @@ def _vouched(bus: Bus, ids: list[int], states: dict[int, UavState]) -> list[int]
 
 
 def live_uav_ids(bus: Bus, space: KeySpace, timeout_s: float) -> list[int]:
-    """The Piccolo IDs whose liveliness token is declared, vouched for or not: the team
-    `send-targets` picks includes a UAV frozen past its state query's timeout (it
-    fetches the mission when it resumes)."""
-    return _token_ids(bus, space, timeout_s)
+    """The Piccolo IDs whose liveliness token is declared: the UAVs `send-targets` picks a
+    team from. In the secure profile only those that spoke for themselves: their own
+    state answered, signed by their own key, or, for a UAV that did not answer (frozen,
+    or cut off, a moment ago: it must stay in the team, and fetches the mission when it
+    resumes), its latest state as it signed it, relayed by a teammate that heard it put.
+    Either is refused when signed longer ago than the replay window, so a ghost token
+    (no key of the UAV's behind it) never joins a team."""
+    ids = _token_ids(bus, space, timeout_s)
+    if not bus.signed or not ids:
+        return ids
+    states = query_states(bus, space, timeout_s)
+    silent = [uav for uav in ids if uav not in states]
+    relayed = {uav for uav in silent if _relayed_state(bus, space, uav, timeout_s) is not None}
+    if relayed:
+        log.info(
+            "UAV(s) %s did not answer: counted on their own signed state, relayed by a teammate",
+            ", ".join(map(str, sorted(relayed))),
+        )
+    return _vouched(bus, ids, {**{uav: None for uav in relayed}, **states})
+
+
+def _relayed_state(bus: Bus, space: KeySpace, uav: int, timeout_s: float) -> UavState | None:
+    """UAV `uav`'s latest state as it signed it, relayed by a teammate (the bus checks the
+    signature is `uav`'s own and its age); None if none came."""
+    key = space.state(uav)
+    for reply_key, state in bus.query_messages(f"{key}?{RELAYED}", UavState, timeout_s):
+        if reply_key == key and state.uav == uav:
+            return state
+    return None
 
 
 def query_states(bus: Bus, space: KeySpace, timeout_s: float) -> dict[int, UavState]:

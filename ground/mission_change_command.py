@@ -101,9 +101,9 @@ class MissionChange:
         """One line: what changed, and who acknowledged it (or who did not)."""
         what = []
         if self.added:
-            what.append(f"targets {', '.join(map(str, self.added))} added")
+            what.append(f"{_targets(self.added)} added")
         if self.removed:
-            what.append(f"targets {', '.join(map(str, self.removed))} removed")
+            what.append(f"{_targets(self.removed)} removed")
         head = f"mission {self.new.mission} revision {self.new.revision}: {'; '.join(what)}"
         if self.missing:
             return (
@@ -111,6 +111,10 @@ class MissionChange:
                 f"{self.timeout_s:g} s"
             )
         return f"{head}; acknowledged by {', '.join(map(str, self.acked)) or 'no UAV'}"
+
+
+def _targets(indexes: list[int]) -> str:
+    return f"target{'s' if len(indexes) > 1 else ''} {', '.join(map(str, indexes))}"
 
 
 def change_mission(

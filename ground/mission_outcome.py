@@ -26,6 +26,7 @@ from typing import Any
 
 import msgspec
 
+from fleet.consensus.proposal import Adoption
 from fleet.mission.claims import flown_by, reached_by
 from fleet.mission.messages import (
     AssignmentReport,
@@ -95,6 +96,8 @@ class MissionOutcome:
     zones: tuple[NoFlyZone, ...] = ()
     #: Targets taken off the mission in flight: never flown from then on.
     removed: frozenset[int] = frozenset()
+    #: What the UAVs' first plans say of the ground's proposal (send-targets --propose).
+    proposal: Adoption | None = None
 
     @property
     def declined(self) -> list[int]:

@@ -15,11 +15,13 @@ from dataclasses import dataclass
 from typing import TextIO
 
 from fleet.consensus.deadline import consensus_deadline
+from fleet.consensus.proposal import adoption
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     AssignmentReport,
     MissionTargets,
     NoFlyZone,
+    PlanProposal,
     Target,
     TargetOutcome,
     UavResult,
@@ -173,7 +175,10 @@ def run_send_targets(bus: Bus, options: SendOptions, out: TextIO) -> int:
         print(f"error: {error}; nothing sent", file=sys.stderr)
         return ExitCode.FAILED
     if options.json:
-        print(json.dumps(outcome.to_json()), file=out)
+        data = outcome.to_json()
+        if outcome.proposal is not None:
+            data["proposal"] = outcome.proposal.to_json()
+        print(json.dumps(data), file=out)
     elif options.wait:
         print("\n".join(summary_lines(outcome)), file=out)
     if not options.wait:
@@ -200,8 +205,7 @@ def _send_and_follow(
             file=progress,
             flush=True,
         )
-        if options.propose:
-            _propose(bus, options, message, follower, progress)
+        proposal = _propose(bus, options, message, follower, progress) if options.propose else None
         if options.wait:
             committed = follower.wait_committed(team, options.timeout, fetch_every_s=1.0)
             outcome.timed_out = not committed and follower.superseded_by is None
@@ -221,6 +225,11 @@ def _send_and_follow(
         outcome.lost = set(follower.lost) & set(team)
         if options.wait:
             _read_phases(bus, options.key_space, outcome, follower, options.query_timeout)
+        if proposal is not None and options.wait:
+            # What the UAVs' first plans say of it: their reported digests, nothing else.
+            outcome.proposal = adoption(proposal, outcome.assignments.values())
+            said = outcome.proposal.summary()
+            print(f"mission {mission}: the ground's proposal: {said}", file=progress)
     return outcome
 
 
@@ -230,20 +239,21 @@ def _propose(
     message: MissionTargets,
     follower: MissionFollower,
     progress: TextIO,
-) -> None:
+) -> PlanProposal | None:
     """Wait for the team's results (within the proposal window), then solve and publish
     the ground's proposal; said on `progress` either way."""
     attempt = propose_when_results(bus, options.key_space, message, follower)
     proposal = attempt.proposal
     if proposal is None:
         print(f"mission {message.mission}: no plan proposed: {attempt.reason}", file=progress)
-        return
+        return None
     queues = ", ".join(f"{uav}: {list(q)}" for uav, q in proposal.queues.items())
     print(
         f"mission {message.mission}: plan proposed ({attempt.cpu_s or 0.0:.2f} s of CPU): {queues}",
         file=progress,
         flush=True,
     )
+    return proposal
 
 
 def _watch_for_rival(
@@ -275,9 +285,11 @@ def _team(bus: Bus, options: SendOptions) -> tuple[int, ...]:
     if not options.team:
         return tuple(live)
     absent = ", ".join(str(uav) for uav in options.team if uav not in live)
+    why = "no liveliness token, or none its UAV's own signed state vouches for"
     if absent and not options.force:
         print(
-            f"error: not live now: {absent} (no liveliness token); nothing sent (--force "
+            f"error: not live now: {absent} ({why if bus.signed else 'no liveliness token'}); "
+            "nothing sent (--force "
             "sends to them all the same: a UAV that comes up fetches the mission)",
             file=sys.stderr,
         )

@@ -27,8 +27,9 @@ from fleet.mission.messages import (
     PlanProposal,
     TargetOutcome,
     UavResult,
+    UavState,
 )
-from fleet.transport.bus import Bus, BusSample, Declaration
+from fleet.transport.bus import Bus, BusQuery, BusSample, Declaration, Queryable
 from fleet.transport.bus_codec import BadMessage, DropReason, decode, decode_header, refuse
 from fleet.transport.refusal_log import RefusalLog
 
@@ -56,6 +57,8 @@ class PresenceEvent:
 
 
 Sink = Callable[[BusEvent | PresenceEvent], None]
+#: The selector parameter by which a query asks teammates to relay a UAV's state.
+RELAYED = "relayed"
 
 
 def _mission_subscriptions(space: KeySpace) -> tuple[tuple[str, type[msgspec.Struct]], ...]:
@@ -110,6 +113,14 @@ class BusEdge:
         for key, kind in subscriptions:
             self._declared.append(bus.subscribe(key, self._decoder(kind)))
         self.state_queries = bus.declare_queryable(space.state(self.uav_id), self.wake)
+        # In the secure profile each teammate's latest state, as it signed it, is kept to
+        # relay to a query that asks for relays (`relayed_state`): the ground learns so
+        # that a UAV frozen or cut off a moment ago is a real one, not a ghost token.
+        self.state_relays: Queryable | None = None
+        kept = bus.keep_latest(space.all_state)
+        if kept is not None:
+            self._declared.append(kept)
+            self.state_relays = bus.declare_queryable(space.all_state, self.wake)
         self.command_queries = bus.declare_queryable(space.command(self.uav_id, "*"), self.wake)
         # Each UAV answers for the targets and the abort of its current mission, for its
         # own result and assignment only, so a teammate's query for a missing result
@@ -173,6 +184,38 @@ class BusEdge:
 
         return on_sample
 
+    def ask_state(self, uav: int, timeout: float = 1.0) -> None:
+        """Ask teammate `uav` for its state; its own signed answer (the bus checks the
+        signature, and that it is fresh) comes back through the sink, `replayed`: in
+        the secure profile, the word that makes its liveliness token count."""
+        key = self.key_space.state(uav)
+
+        def on_reply(sample: BusSample) -> None:
+            try:
+                state = decode(sample.payload, UavState, sample.key)
+            except BadMessage as error:
+                _refusals.warn(f"dropped: {error}")
+                return
+            if sample.key == key and state.uav == uav:
+                self.sink(BusEvent(sample.key, state, replayed=True))
+
+        self.bus.get(key, on_reply, timeout)
+
+    def relayed_state(self, query: BusQuery) -> tuple[str, bytes] | None:
+        """What to relay to a query on a teammate's state: its latest state as it signed
+        it, only to a query naming that one UAV and asking for relays (a query for every
+        state gets each from its own UAV, and a plain one from the UAV alone)."""
+        if RELAYED not in query.parameters.replace("&", ";").split(";"):
+            return None
+        try:
+            uav = parse_key(query.key, self.key_space).uav
+        except WrongKey:
+            return None
+        if uav is None or uav == self.uav_id or query.key != self.key_space.state(uav):
+            return None
+        payload = self.bus.latest(query.key)
+        return None if payload is None else (query.key, payload)
+
     def publish(self, key: str, message: msgspec.Struct) -> None:
         self.bus.publish(key, message)
 
@@ -184,7 +227,8 @@ class BusEdge:
     def close(self) -> None:
         for declared in self._declared:
             declared.undeclare()
-        for queryable in (self.state_queries, self.command_queries, *self.mission_queries):
+        relays = (self.state_relays,) if self.state_relays is not None else ()
+        for queryable in (self.state_queries, *relays, self.command_queries, *self.mission_queries):
             queryable.undeclare()
         self.token.undeclare()
         self.bus.close()

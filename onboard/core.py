@@ -89,10 +89,13 @@ class OnboardCore:
         liveliness_grace_s: float = LIVELINESS_GRACE_S,
         key_space: KeySpace = DEFAULT_SPACE,
         fresh_replans: bool = True,
+        vouch_teammates: bool = False,
     ) -> None:
         """`fresh_replans`: every re-plan is solved again from the survivors' fresh
         times (fleet.consensus.resolve); off, it is the append rule's, committed at once
-        (what a re-plan commits when their times are missing)."""
+        (what a re-plan commits when their times are missing). `vouch_teammates` (the
+        secure profile): a teammate's liveliness token counts only once the teammate
+        spoke for itself (`on_spoke`; onboard.team_presence)."""
         self.uav_id = uav_id
         self.planner = planner
         self.report = StateReport(uav_id, key_space, outputs, status_rate_hz)
@@ -116,7 +119,7 @@ class OnboardCore:
             key_space,
             outputs,
             ApproachPlan(planner, planning_budget_s),
-            TeamPresence(uav_id, liveliness_grace_s),
+            TeamPresence(uav_id, liveliness_grace_s, vouch=vouch_teammates),
             self.life,
             self.link,
             self.flight,
@@ -215,6 +218,19 @@ class OnboardCore:
     def on_alive(self, uav: int, alive: bool, now: float) -> None:
         self.mission.on_alive(uav, alive, now)
 
+    def on_spoke(self, uav: int, now: float) -> None:
+        """A message signed by teammate `uav` was heard, live, or its signed state
+        answered: in the secure profile, what makes its liveliness token count."""
+        self.mission.on_spoke(uav, now)
+
+    def awaits_word(self) -> list[int]:
+        """The teammates whose token is present but does not count yet, for lack of a
+        signed word of theirs (the secure profile): their state is asked for."""
+        team = self.mission.team
+        if not team.vouch:
+            return []
+        return sorted(uav for uav in team.tokens if team.waiting_for_word(uav))
+
     def start(self, now: float) -> None:
         """The module started: its autopilot link is awaited from now, and it catches up
         with a mission in progress (a late join or a restart)."""
@@ -269,6 +285,7 @@ class OnboardCore:
                 targets_digest=targets_digest(self.round.targets),
                 current_target=self.flight.target,
                 reached=dict(self.round.reached_targets),
+                leg_s=self.mission.leg_s(self.round.mission, self.flight.target),
             )
         return self.report.state(
             enabled=self.flight.enabled,

@@ -19,6 +19,7 @@ from typing import Protocol
 
 import msgspec
 
+from fleet.consensus.legs import AIRSPEED_RANGE, Air, leg_from_here
 from fleet.consensus.mission_change import first_revision
 from fleet.consensus.mission_round import (
     MissionRound,
@@ -94,6 +95,9 @@ class MissionParticipation:
     _abort: MissionAbort | None = None  #: the abort this UAV obeyed last (relayed by query)
     #: A target committed before the first telemetry since the start: written once heard.
     _write_awaited: bool = False
+    #: (mission, target, seconds): its time for the leg it flies, timed when it began it
+    #: (`leg_s`); None before any.
+    _leg: tuple[int, int, float | None] | None = None
 
     def __post_init__(self) -> None:
         self.catch_up = CatchUp(self.outputs, lambda: self.round.mission if self.round else None)
@@ -495,10 +499,19 @@ class MissionParticipation:
     def on_alive(self, uav: int, alive: bool, now: float) -> None:
         if alive:
             if self.team.came(uav):
-                self.catch_up.request(now)
-                self._rejoin(uav, now)
+                self._counted(uav, now)
         elif self.team.went(uav, now, committed=self.decided()):
             self.release_gone(now)  # at once when there is no grace
+
+    def on_spoke(self, uav: int, now: float) -> None:
+        """A message signed by `uav` was heard (the secure profile): its token counts."""
+        if uav != self.uav_id and self.team.spoke(uav):
+            self._counted(uav, now)
+
+    def _counted(self, uav: int, now: float) -> None:
+        """A teammate counts as present again (or for the first time)."""
+        self.catch_up.request(now)
+        self._rejoin(uav, now)
 
     def _rejoin(self, uav: int, now: float) -> None:
         """A teammate released as lost is alive again (a partition healed, a router or
@@ -684,7 +697,30 @@ class MissionParticipation:
             return
         following = mission_round.next_target(self.uav_id)
         if following is not None and self.life.phase == Phase.REACHED:
+            reached = self.flight.target
+            seconds = None if reached is None else self._leg_from_here(reached, following)
+            self._leg = (mission_round.mission, following, seconds)
             self._commit(mission_round.committed, following, now)
+
+    def _leg_from_here(self, reached: int, following: int) -> float | None:
+        """Its time from `reached` (just now) to `following` in the air of the moment: the
+        smoothed wind, its airspeed, its track in (fleet.consensus.legs.leg_from_here)."""
+        assert self.round is not None
+        gps, speed = self.link.gps, self.link.airspeed()
+        if gps is None or speed is None or not AIRSPEED_RANGE[0] <= speed <= AIRSPEED_RANGE[1]:
+            return None
+        air = Air(speed, self.link.wind.value)
+        velocity = (gps.vel_east, gps.vel_north)
+        return leg_from_here(self.round.geometry, air, velocity, reached, following)
+
+    def leg_s(self, mission: int, target: int | None) -> float | None:
+        """Its time for the leg to `target` of `mission`, timed when it began it: the air
+        of that moment for a queue's later target, its result's approach time for the
+        first (MissionProgress.leg_s); None where it did not time it."""
+        leg = self._leg
+        if leg is None or target is None or leg[:2] != (mission, target):
+            return None
+        return leg[2]
 
     def _commit(self, report: AssignmentReport, target_index: int, now: float) -> None:
         assert self.round is not None
@@ -695,6 +731,17 @@ class MissionParticipation:
         self.flight.commit(report.mission, target_index, where, now)
         eta_s = predicted_arrival(report, self.uav_id, target_index)
         eta = f"{eta_s:.0f} s" if eta_s is not None else "unknown"
+        queue = report.queues.get(self.uav_id, ())
+        first = not queue or queue[0] == target_index
+        if self._leg is None or self._leg[:2] != (report.mission, target_index):
+            # Not a queue's next target (fly_next timed those): the consensus's first,
+            # whose predicted arrival is the approach time it just computed; a re-plan's
+            # is from the results of its start, not from here: not timed.
+            fresh = first and report.epoch == 0
+            self._leg = (report.mission, target_index, eta_s if fresh else None)
+        leg_s = self._leg[2]
+        if leg_s is not None and not first:
+            eta += f", this leg {leg_s:.0f} s in the wind now"
         self.say(
             StatusKind.TARGET_CHOSEN,
             f"mission {report.mission}: target {target_index} chosen, ETA {eta}",

@@ -79,6 +79,10 @@ Event = LinkEvent | BusEvent | PresenceEvent | _QueuedTelemetry
 LINK_HEALTH_PERIOD = 1.0
 #: The main loop runs the module's timers at least this often (events run them too).
 TICK_PERIOD = 0.25
+#: How often (s) a teammate whose liveliness token does not count yet is asked for its
+#: signed state (the secure profile): a UAV just started may not serve it yet, a ghost
+#: never will.
+WORD_ASK_S = 1.0
 #: At most this many queued events are handled before the timers run again.
 MAX_EVENTS_PER_TICK = 200
 #: The state's link drop counting the payload port's messages refused (secure profile).
@@ -171,8 +175,14 @@ class OnboardProcess:
         #: None only wakes the loop (a query or a planner result waits for it).
         self.events: queue.SimpleQueue[Event | None] = queue.SimpleQueue()
         self.stop_requested = threading.Event()
+        if bus is None:
+            if settings.zenoh_config is None:
+                raise ValueError("an onboard process needs a bus or a Zenoh config")
+            bus = ZenohBus.open(settings.zenoh_config)
         # The model is built at the aircraft's cruise speed, on the first GPS telemetry.
         self.planner = PlannerWorker(notify=self._wake, build_at_start=False)
+        #: When each teammate not counted yet was last asked for its signed state.
+        self._word_asked: dict[int, float] = {}
         self.core = OnboardCore(
             uav_id=settings.uav_id,
             outputs=_Outputs(self),
@@ -182,6 +192,8 @@ class OnboardProcess:
             confirm_limit_s=settings.confirm_limit_s,
             link_release_s=settings.link_release_s,
             key_space=settings.key_space,
+            # A ghost liveliness token (anyone on the way can declare one) never counts.
+            vouch_teammates=bus.signed,
         )
         program, payload = links or (
             SerialLink("program", settings.program_url, settings.baud),
@@ -200,10 +212,6 @@ class OnboardProcess:
             payload,
             sink=self._from_link,
         )
-        if bus is None:
-            if settings.zenoh_config is None:
-                raise ValueError("an onboard process needs a bus or a Zenoh config")
-            bus = ZenohBus.open(settings.zenoh_config)
         self.node = BusEdge(
             settings.uav_id,
             bus,
@@ -226,6 +234,7 @@ class OnboardProcess:
                 self._take_telemetry()
                 self._serve_queries(now)
                 self.core.tick(now)
+                self._ask_word(now)
                 if now >= next_health:
                     next_health = now + LINK_HEALTH_PERIOD
                     self.node.publish(self.space.link(self.settings.uav_id), self._link_health(now))
@@ -323,10 +332,30 @@ class OnboardProcess:
                     self._echoes_queued -= 1
         elif isinstance(event, PresenceEvent):
             self.core.on_alive(event.uav, event.alive, now)
+            if event.alive:
+                self._ask_word(now)
         elif isinstance(event, BusEvent):
+            if not event.replayed and self.node.bus.signed:
+                # A teammate's own signed word, heard live (fresh: the bus checked its
+                # signature and time): its token counts, before its message is handled.
+                author = _author_uav(event.message)
+                if author is not None:
+                    self.core.on_spoke(author, now)
             self._on_message(event.message, now, via_payload=False, replayed=event.replayed)
         elif event is not None:
             self._on_link(event, now)
+
+    def _ask_word(self, now: float) -> None:
+        """Ask each teammate whose token does not count yet for its signed state, at most
+        every WORD_ASK_S (the secure profile; nobody waits in the open one)."""
+        waiting = self.core.awaits_word()
+        for uav in list(self._word_asked):
+            if uav not in waiting:
+                del self._word_asked[uav]
+        for uav in waiting:
+            if now - self._word_asked.get(uav, -math.inf) >= WORD_ASK_S:
+                self._word_asked[uav] = now
+                self.node.ask_state(uav)
 
     def _on_link(self, event: LinkEvent, now: float) -> None:
         if isinstance(event, AutopilotEvent):
@@ -374,6 +403,10 @@ class OnboardProcess:
             core.on_outcome(message, now)
         elif isinstance(message, PlanProposal):
             core.on_proposal(message, now)
+        elif isinstance(message, UavState) and not via_payload:
+            # A teammate's state, signed by its own key, answered this UAV's question
+            # (`_ask_word`): its liveliness token is no ghost's.
+            core.on_spoke(message.uav, now)
         elif isinstance(message, MissionAbort):
             if via_payload:
                 self.node.publish(self.space.mission_abort(message.mission), message)
@@ -388,6 +421,12 @@ class OnboardProcess:
                 self.space.state(self.settings.uav_id),
                 self.with_link(self.core.state(now), now),
             )
+            query.drop()
+        relays = self.node.state_relays
+        while relays is not None and (query := relays.try_recv()) is not None:
+            relayed = self.node.relayed_state(query)
+            if relayed is not None:
+                query.reply_bytes(*relayed)
             query.drop()
         while (query := self.node.command_queries.try_recv()) is not None:
             self._on_command_query(query, now)
@@ -470,3 +509,10 @@ class OnboardProcess:
             key = self.space.mission_outcome(mission, uav)
             if query.key == key:
                 query.reply(key, relayed)
+
+
+def _author_uav(message: object) -> int | None:
+    """The UAV that signed `message`, for the messages a UAV signs about itself."""
+    if isinstance(message, UavResult | AssignmentReport | TargetOutcome):
+        return message.uav
+    return None

@@ -369,3 +369,27 @@ class AirLegs(LegTables):
 
 
 _DEFAULT_AIR = Air()
+
+
+#: Metres behind the target just reached at which the track into it is taken to start
+#: (along the velocity over the ground): only its direction matters.
+_TRACK_IN_M = 100.0
+
+
+def leg_from_here(
+    geometry: LegGeometry, air: Air, velocity: tuple[float, float], i: int, j: int
+) -> float | None:
+    """Seconds from target i, just reached at `velocity` (east, north m/s over the
+    ground), to target j in `air`: a plan's leg (`AirLegs.turning_leg`) timed in the air
+    of the moment, the track into i the one flown. None where it has no finite time."""
+    count = geometry.count
+    if not (0 <= i < count and 0 <= j < count) or i == j:
+        return None
+    speed = math.hypot(*velocity)
+    before: tuple[float, float] | None = None
+    if math.isfinite(speed) and speed > 0.0:
+        x, y = geometry.points[i]
+        before = (x - _TRACK_IN_M * velocity[0] / speed, y - _TRACK_IN_M * velocity[1] / speed)
+    held = Air(air.airspeed, air.wind.at_most(WIND_SHARE * air.airspeed))
+    seconds = AirLegs(geometry, {0: held}).turning_leg(0, before, i, j)
+    return seconds if math.isfinite(seconds) else None

@@ -157,6 +157,37 @@ class Adoption:
     baseline_by: tuple[int, ...]
     other_by: tuple[int, ...]
 
+    def to_json(self) -> dict[str, object]:
+        return {
+            "verdict": str(self.verdict),
+            "adopted_digest": self.adopted_digest,
+            "baseline_digest": self.baseline_digest,
+            "adopted_by": list(self.adopted_by),
+            "baseline_by": list(self.baseline_by),
+            "other_by": list(self.other_by),
+        }
+
+    def summary(self) -> str:
+        """One line: who adopted it, who did not."""
+
+        def ids(uavs: tuple[int, ...]) -> str:
+            return ", ".join(map(str, uavs)) or "none"
+
+        verdict = self.verdict
+        if verdict is Verdict.WAITING:
+            return "no decision heard yet"
+        if verdict is Verdict.ADOPTED:
+            return f"adopted by {ids(self.adopted_by)} (digest {self.adopted_digest})"
+        if verdict is Verdict.BASELINE:
+            return (
+                f"not adopted: {ids(self.baseline_by)} kept the baseline "
+                f"(digest {self.baseline_digest})"
+            )
+        return (
+            f"adopted by {ids(self.adopted_by)}, the baseline by {ids(self.baseline_by)}, "
+            f"other plans by {ids(self.other_by)}"
+        )
+
     @property
     def verdict(self) -> Verdict:
         if not (self.adopted_by or self.baseline_by or self.other_by):

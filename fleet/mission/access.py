@@ -14,7 +14,9 @@ egress: from the router out to that client):
   waypoint and track command queryables, answer mission-targets queries;
 * UAV n may only *write* as UAV n: publish under `{prefix}/uav/n/**`, its own mission
   results and assignments, declare its own liveliness token, answer queries for its own
-  keys, and serve queries (queryables) for its own keys and the mission space.
+  keys, and serve queries (queryables) for its own keys and the mission space; it may
+  also relay, by reply only, a teammate's state and outcome (each believed for its
+  author only, by its signature: `fleet.mission.signature`).
 * UAV n's own router (`router-n`, in a router-per-UAV mesh) has UAV n's rights and no
   more: a captured aircraft's router speaks for that aircraft only;
 * every UAV's router may answer for itself where routers serve (its refused links), as
@@ -112,11 +114,14 @@ def _uav_grants(uav_id: int, space: KeySpace, own: str) -> list[Grant]:
     own_tree = (space.uav_tree(uav_id),) if any(s.tree == "uav" for s in written) else ()
     own_mission = [s for s in written if s.tree == "mission" and Carriage.PUT in s.carriage]
     tokens = [s for s in written if Carriage.TOKEN in s.carriage]
-    # A UAV declares its queryables by wildcard: its own sub-tree, and the mission tree
-    # where it answers for its own keys and relays the ground's.
+    # A UAV declares its queryables by wildcard: its own sub-tree, the keys of its
+    # teammates' sub-trees it relays (their states), and the mission tree where it
+    # answers for its own keys and relays the ground's.
     served = {s.tree for s in REGISTRY if s.servers & _UAVS}
+    relayed_uav_keys = [s for s in REGISTRY if s.tree == "uav" and Party.ANY_UAV in s.servers]
     serve_trees = (
         *((space.uav_tree(uav_id),) if "uav" in served else ()),
+        *_wildcards(space, relayed_uav_keys),
         *((space.all_mission_keys,) if "mission" in served else ()),
     )
     ingress = (Flow.INGRESS,)
@@ -129,7 +134,8 @@ def _uav_grants(uav_id: int, space: KeySpace, own: str) -> list[Grant]:
             (*own_tree, *_wildcards(space, own_mission, id=uav_id)),
         ),
         # A UAV relays its current mission's targets and abort by query (never by put):
-        # how a teammate that was away learns the live mission and that it was aborted.
+        # how a teammate that was away learns the live mission and that it was aborted;
+        # and a teammate's outcome and latest state, each as its author signed it.
         Grant(
             f"uav-{uav_id}-relay",
             me,

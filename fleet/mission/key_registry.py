@@ -148,10 +148,13 @@ TRACK = KeySpec("uav/{id}/track", Track)
 WAYPOINT = KeySpec("uav/{id}/waypoint/{index}", Waypoint)
 STATUS = KeySpec("uav/{id}/status", messages.StatusText)
 LINK = KeySpec("uav/{id}/link", messages.LinkHealth)
+#: Served by its UAV, and relayed by any teammate (its latest put, with the UAV's own
+#: signature) to a query that asks for relays: how the ground learns that a UAV frozen
+#: or cut off a moment ago is a real one.
 STATE = KeySpec(
     "uav/{id}/state", messages.UavState, carriage=Carriage.PUT | Carriage.QUERY,
-    reply=messages.UavState, servers=_OWN, uavs_fetch=True,
-    note="put at the OPM status rate; query reply",
+    reply=messages.UavState, servers=frozenset({Party.OWN_UAV, Party.ANY_UAV}),
+    uavs_fetch=True, note="put at the OPM status rate; query reply (relayed on request)",
 )  # fmt: skip
 #: Signed by its UAV, twice a second while it streams: vouches for its unsigned samples.
 DIGEST = KeySpec("uav/{id}/digest", messages.StreamDigest, recording=Recording.UNHEARD)

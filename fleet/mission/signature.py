@@ -21,7 +21,9 @@ within `window` of the receiver's clock and newer than the last one accepted fro
 author on that key; a reply to a query (a caught-up message, legitimately old) must
 not come from the future, and a mission's abort must not predate the mission's targets
 by more than the window (a mission id reused after a fleet restart cannot be aborted by
-an old abort).
+an old abort). A UAV's state is the exception among replies: it says how the UAV is
+*now* (signed as it answers, or relayed by a teammate that heard it put within the
+last second), so a state reply signed longer than the window ago is a replay, refused.
 """
 
 from __future__ import annotations
@@ -269,6 +271,10 @@ class Freshness:
                 # clocks of two ground stations): from before a restart reused the id.
                 return Refusal.REPLAYED
         if how is Delivery.REPLY:
+            if parsed is not None and parsed.spec is STATE and now_ns - stamp > self.window_ns:
+                # A state says how its UAV is now: an old one replayed would show a UAV
+                # that has landed (or gone) as flying, and vouch for a ghost token.
+                return Refusal.STALE
             return None  # a caught-up message is old by nature; its key binds it
         if now_ns - stamp > self.window_ns:
             return Refusal.STALE

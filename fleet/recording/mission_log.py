@@ -118,6 +118,9 @@ class MissionLog:
     #: The latest re-plan heard (the highest epoch): the survivors' queues, a dropped
     #: UAV's targets appended to them.
     replan: AssignmentReport | None = None
+    #: Each UAV's time for each leg as it said when it began the leg (its state's
+    #: `leg_s`, the first heard): uav -> target -> seconds.
+    leg_said: dict[int, dict[int, float]] = field(default_factory=dict)
 
     def plan_of(self, uav: int) -> AssignmentReport | None:
         """The plan the UAV flew last: the latest re-plan, unless it was released by it
@@ -140,7 +143,8 @@ class MissionLog:
     def legs(self, uav: int, tracks: dict[int, Track]) -> list[dict[str, Any]]:
         """Each target of the UAV's queue: the plan's predicted leg time (s) and the one
         flown (aircraft clock, from the previous arrival or the commitment), None where
-        it was not seen reached."""
+        it was not seen reached; and `begun_s`, the UAV's time for the leg said as it
+        began it (its state's `leg_s`), where it said one."""
         report = self.plan_of(uav)
         queue = self.queue_of(uav)
         if report is None or not queue:
@@ -157,7 +161,11 @@ class MissionLog:
             flown = None
             if track is not None and at is not None and previous_at is not None:
                 flown = track.flown_between(previous_at, at)
-            rows.append({"target": target, "predicted_s": plan, "flown_s": flown})
+            row: dict[str, Any] = {"target": target, "predicted_s": plan, "flown_s": flown}
+            said = self.leg_said.get(uav, {}).get(target)
+            if said is not None:  # the UAV's time for the leg, said as it began it
+                row["begun_s"] = said
+            rows.append(row)
             previous_plan = planned[i] if i < len(planned) else previous_plan
             previous_at = at
         return rows
@@ -258,6 +266,8 @@ class _Builder:
     track_changes: dict[int, list[tuple[float, int]]] = field(default_factory=dict)
     statuses: list[_Said] = field(default_factory=list)
     phases: list[tuple[float, int, int, str]] = field(default_factory=list)
+    #: (mission, uav, target) -> a UAV's time for the leg, said when it began it
+    leg_said: dict[tuple[int, int, int], float] = field(default_factory=dict)
     gone: list[tuple[float, int]] = field(default_factory=list)
     link_down: list[tuple[float, int, str]] = field(default_factory=list)
     link_was_down: dict[int, bool] = field(default_factory=dict)
@@ -302,7 +312,10 @@ class _Builder:
         elif leaf == "state":
             mission = value.get("mission")
             if isinstance(mission, dict):
+                said = _leg_said(mission)  # parsed first: a bad message adds nothing
                 self.phases.append((t, uav, int(mission["mission"]), str(mission["phase"])))
+                if said is not None:
+                    self.leg_said.setdefault((said[0], uav, said[1]), said[2])
         elif leaf == "alive" and value.get("alive") is False:
             self.gone.append((t, uav))
         elif leaf == "link":
@@ -366,6 +379,9 @@ class _Builder:
         ordered = sorted(self.missions.values(), key=lambda m: m.sent)
         for i, log in enumerate(ordered):
             log.end = ordered[i + 1].sent if i + 1 < len(ordered) else end
+            for (mission, uav, target), seconds in self.leg_said.items():
+                if mission == log.mission:
+                    log.leg_said.setdefault(uav, {})[target] = seconds
             self._arrivals(log)
             self._faults(log)
         return Timeline(self.start_ns, end, self.tracks, ordered, self.undecodable)
@@ -455,6 +471,17 @@ class _Builder:
         if log.committed and all(u in log.committed for u in log.team) and not log.agreed:
             log.faults.append((max(log.committed.values()), "the team's assignments disagree"))
         log.faults.sort()
+
+
+def _leg_said(progress: dict[str, Any]) -> tuple[int, int, float] | None:
+    """(mission, target, seconds) of a state's `leg_s` (MissionProgress), if it says one."""
+    target, seconds = progress.get("current_target"), progress.get("leg_s")
+    if target is None or seconds is None:
+        return None
+    seconds = float(seconds)
+    if not math.isfinite(seconds) or seconds < 0.0:
+        raise ValueError("a leg time that is not a duration")
+    return int(progress["mission"]), int(target), seconds
 
 
 def _on_earth(lat: float, lon: float) -> bool:

@@ -44,9 +44,10 @@ def mission_json(log: MissionLog, tracks: dict[int, Track] | None = None) -> dic
 LEG_TOLERANCE = 0.10
 
 
-def leg_error(row: dict[str, Any]) -> float | None:
-    """(predicted - flown) / flown of one leg; None where either is missing."""
-    predicted, flown = row["predicted_s"], row["flown_s"]
+def leg_error(row: dict[str, Any], predicted_by: str = "predicted_s") -> float | None:
+    """(predicted - flown) / flown of one leg, predicted by the plan (or `predicted_by`:
+    "begun_s", the UAV's time said when it began the leg); None where either is missing."""
+    predicted, flown = row.get(predicted_by), row["flown_s"]
     if predicted is None or flown is None or flown <= 0.0:
         return None
     return float((predicted - flown) / flown)
@@ -66,6 +67,8 @@ def _rounded_legs(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
             "flown_s": _round(row["flown_s"]),
             "error": _round(leg_error(row), 3),
             "off": leg_off(row),
+            "begun_s": _round(row.get("begun_s")),
+            "begun_error": _round(leg_error(row, "begun_s"), 3),
         }
         for row in rows
     ]
@@ -128,7 +131,7 @@ def _tour_lines(log: MissionLog, tracks: dict[int, Track]) -> list[str]:
             continue
         legs = ", ".join(
             f"{row['target']} ({_seconds(row['predicted_s'])} predicted, "
-            f"{_seconds(row['flown_s'])} flown){_flag(row)}"
+            f"{_seconds(row['flown_s'])} flown{_begun(row)}){_flag(row)}"
             for row in rows
         )
         lines.append(f"  UAV {uav} tour: {legs}")
@@ -137,6 +140,15 @@ def _tour_lines(log: MissionLog, tracks: dict[int, Track]) -> list[str]:
             f"  {off} leg(s) predicted off the time flown by more than {LEG_TOLERANCE:.0%}"
         )
     return lines
+
+
+def _begun(row: dict[str, Any]) -> str:
+    """'; 221.5 s when begun' where the UAV said its time for the leg as it began it and
+    that differs from the plan's."""
+    begun = row.get("begun_s")
+    if begun is None or begun == row["predicted_s"]:
+        return ""
+    return f"; {begun:.1f} s when begun"
 
 
 def _flag(row: dict[str, Any]) -> str:

@@ -118,6 +118,9 @@ class BusQuery(ABC):
 
     key: str
     payload: bytes
+    #: The selector's parameters (after `?`), "" for none: `relayed` asks teammates to
+    #: relay what they heard (a UAV's latest state), not only the key's owner to answer.
+    parameters: str = ""
 
     @abstractmethod
     def intersects(self, key: str) -> bool:
@@ -248,6 +251,18 @@ class Bus(ABC):
         profile, `fleet.transport.signing`): then a message is believed for its author."""
         return False
 
+    def keep_latest(self, key_expr: str) -> Declaration | None:
+        """In the secure profile, keep the latest signed message put on each key under
+        `key_expr`, as it arrived (payload and its author's envelope, not checked here:
+        whoever it is relayed to checks it), for `latest` to relay; None elsewhere (a
+        relay is believed only for its author's signature)."""
+        return None
+
+    def latest(self, key: str) -> bytes | None:
+        """The payload of the latest message kept on `key` (`keep_latest`), if any: a
+        reply with it passes its author's envelope on."""
+        return None
+
     def publish(self, key: str, message: msgspec.Struct) -> None:
         self.put(key, bus_codec.encode(message))
 
@@ -291,3 +306,9 @@ class DelegatingBus(Bus):
     @property
     def signed(self) -> bool:
         return self.under.signed
+
+    def keep_latest(self, key_expr: str) -> Declaration | None:
+        return self.under.keep_latest(key_expr)
+
+    def latest(self, key: str) -> bytes | None:
+        return self.under.latest(key)

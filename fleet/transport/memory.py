@@ -152,9 +152,12 @@ class _Undeclare:
 
 
 class MemoryQuery(BusQuery):
-    def __init__(self, key: str, payload: bytes, callback: SampleCallback) -> None:
+    def __init__(
+        self, key: str, payload: bytes, callback: SampleCallback, parameters: str = ""
+    ) -> None:
         self.key = key
         self.payload = payload
+        self.parameters = parameters
         self._callback = callback
         #: Set by `drop`: the answerer is done with the query.
         self.done = threading.Event()
@@ -251,10 +254,11 @@ class MemoryBus(Bus):
         return found + errors
 
     def _ask(self, selector: str, payload: bytes, callback: SampleCallback) -> list[MemoryQuery]:
-        key = _checked(selector.partition("?")[0])  # selector parameters: unused by the fleet
+        expr, _, parameters = selector.partition("?")
+        key = _checked(expr)
         with self.network.lock:
             targets = [q for q in self.network.queryables if _intersects(q.key_expr, key)]
-        queries = [MemoryQuery(key, payload, callback) for _ in targets]
+        queries = [MemoryQuery(key, payload, callback, parameters) for _ in targets]
         for queryable, query in zip(targets, queries, strict=True):
             queryable.deliver(query)
         return queries

@@ -53,8 +53,12 @@ from fleet.mission.signature import (
     verify,
 )
 from fleet.transport import bus_codec
+from fleet.transport.refusal_log import RefusalLog
 
 log = logging.getLogger(__name__)
+#: Stale replies, each said with its age, at most every few seconds (a replayer cannot
+#: fill the log); every one is counted as `stale` too.
+_stale_replies = RefusalLog(log)
 
 #: Keys whose signed messages are remembered to relay with their author's envelope.
 RELAY_CACHE = 1024
@@ -165,6 +169,17 @@ class BusSigning:
             if len(self._signed) > RELAY_CACHE:
                 self._signed.popitem(last=False)
 
+    def keep(self, key: str, payload: bytes, attachment: bytes) -> None:
+        """A message heard on `key` kept to relay as it arrived (`ZenohBus.keep_latest`),
+        its envelope not checked: whoever it is relayed to checks it."""
+        self._remember(key, payload, attachment)
+
+    def latest(self, key: str) -> bytes | None:
+        """The payload of the latest message remembered on `key`, if any."""
+        with self._lock:
+            known = self._signed.get(key)
+            return next(reversed(known)) if known else None
+
     def _envelope_of(self, key: str, payload: bytes) -> bytes | None:
         """The envelope remembered for exactly this message, if any (kept as recent)."""
         with self._lock:
@@ -249,13 +264,26 @@ class BusSigning:
             return True, None  # a key that is not signed
         if refusal is None and envelope is not None:
             with self._lock:
-                refusal = self._freshness.check(key, envelope, how, self._clock(), receiver)
+                now_ns = self._clock()
+                refusal = self._freshness.check(key, envelope, how, now_ns, receiver)
+            if refusal is Refusal.STALE and how is Delivery.REPLY:
+                self._log_stale_reply(key, envelope.author, now_ns - envelope.stamp_ns)
         if refusal is None:
             if envelope is not None and envelope.author != self.identity:
                 self._remember(key, payload, attachment)
             return True, envelope.author if envelope is not None else None
         self._refuse(key, refusal, envelope.author if envelope else None, how)
         return False, None
+
+    def _log_stale_reply(self, key: str, author: str, age_ns: int) -> None:
+        """Say why a signed reply was refused as stale: its age against the window (a
+        state replayed from minutes ago, or a clock far off)."""
+        window_s = self._freshness.window_ns / 1e9
+        if age_ns < 0:
+            when = f"{-age_ns / 1e9:.1f} s in the future"
+        else:
+            when = f"{age_ns / 1e9:.1f} s ago, older than the {window_s:g} s replay window"
+        _stale_replies.warn(f"refused a reply on {key} signed by {author} {when} (a replay?)")
 
     def _refuse(self, key: str, refusal: Refusal, author: str | None, how: Delivery) -> None:
         bus_codec.DROPPED.add(refusal)

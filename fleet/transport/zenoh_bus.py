@@ -130,6 +130,7 @@ class ZenohQuery(BusQuery):
         self._signing = signing
         self.key = str(query.key_expr)
         self.payload = query.payload.to_bytes() if query.payload is not None else b""
+        self.parameters = str(query.parameters)
 
     def intersects(self, key: str) -> bool:
         return bool(self._query.key_expr.intersects(zenoh.KeyExpr(key)))
@@ -412,6 +413,28 @@ class ZenohBus(Bus):
 
     def subscribe_ring(self, key_expr: str, limit: int) -> RingSubscription:
         return _ZenohRing(self, key_expr, limit)
+
+    def keep_latest(self, key_expr: str) -> Declaration | None:
+        """Keep, unchecked, the latest signed message on each key under `key_expr`:
+        checking each would cost a signature check per message (a state a second from
+        every teammate); whoever it is relayed to checks it. A forgery kept instead of
+        the real one (only a router can inject one) is refused there, as a message a
+        router dropped would be missed."""
+        signing = self.signing
+        if signing is None:
+            return None
+        self._watch_roster(key_expr)
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            attachment = _attachment(sample)
+            if attachment:
+                signing.keep(str(sample.key_expr), sample.payload.to_bytes(), attachment)
+
+        subscriber: Declaration = self.session.declare_subscriber(key_expr, direct(on_sample))
+        return subscriber
+
+    def latest(self, key: str) -> bytes | None:
+        return self.signing.latest(key) if self.signing is not None else None
 
     def get(
         self, selector: str, callback: SampleCallback, timeout: float, payload: bytes = b""

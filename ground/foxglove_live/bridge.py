@@ -39,7 +39,7 @@ from foxglove.channels import GeoJsonChannel, LocationFixChannel, LogChannel, Sc
 from foxglove.messages import Color, GeoJson, LocationFix, Timestamp
 
 from fleet.mission import key_registry as reg
-from fleet.mission.key_space import KeySpace, uav_id_of
+from fleet.mission.key_space import KeySpace, ParsedKey
 from fleet.mission.messages import AssignmentReport, MissionAbort, MissionTargets, TargetOutcome
 from fleet.recording import channels
 from fleet.recording.bus_tap import DEFAULT_STATE_EVERY_S, BusTap, Heard
@@ -71,6 +71,15 @@ _MISSION_KINDS: dict[reg.KeySpec, type[Any]] = {
     reg.OUTCOME: TargetOutcome,
     reg.ABORT: MissionAbort,
 }
+
+
+def _uav_number(parsed: ParsedKey) -> int | None:
+    """The UAV a key is of, as a number; None if the key spells none (keys are not
+    checked on the way in)."""
+    try:
+        return int(parsed.uav or "")
+    except ValueError:
+        return None
 
 
 class FoxgloveBridge:
@@ -151,12 +160,18 @@ class FoxgloveBridge:
         channel.log(heard.payload, log_time=heard.time_ns)
         self._count(pattern)
         parsed = self._space.parse(heard.key)
-        if parsed is not None and parsed.spec is reg.TELEMETRY:
-            self._publish_fix(heard, value)
-        elif parsed is not None and parsed.spec is reg.STATUS:
-            self._publish_log(heard, value)
-        elif parsed is not None and parsed.spec in _MISSION_KINDS:
+        if parsed is None:
+            return
+        if parsed.spec in _MISSION_KINDS:
             self._follow_mission(heard, _MISSION_KINDS[parsed.spec])
+            return
+        uav = _uav_number(parsed)
+        if uav is None:
+            return
+        if parsed.spec is reg.TELEMETRY:
+            self._publish_fix(heard, uav, value)
+        elif parsed.spec is reg.STATUS:
+            self._publish_log(heard, uav, value)
 
     def tick(self) -> None:
         """The map again, every MAP_EVERY_S at least, so a client that connects late sees it."""
@@ -184,11 +199,7 @@ class FoxgloveBridge:
         self._json[key] = (channel, spec.pattern)
         return self._json[key]
 
-    def _publish_fix(self, heard: Heard, telemetry: object) -> None:
-        try:
-            uav = uav_id_of(heard.key)
-        except (ValueError, IndexError):
-            return
+    def _publish_fix(self, heard: Heard, uav: int, telemetry: object) -> None:
         fix = map_layers.fix_of(telemetry, uav, heard.time_ns)
         if fix is None:
             return
@@ -204,11 +215,7 @@ class FoxgloveBridge:
         if time.monotonic() - self._scene_sent >= SCENE_EVERY_S:
             self._send_scene()
 
-    def _publish_log(self, heard: Heard, status: object) -> None:
-        try:
-            uav = uav_id_of(heard.key)
-        except (ValueError, IndexError):
-            return
+    def _publish_log(self, heard: Heard, uav: int, status: object) -> None:
         entry = scene.status_log(status, uav, heard.time_ns)
         if entry is None:
             return

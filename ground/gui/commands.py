@@ -295,16 +295,8 @@ class MissionDesk:
         }
         if attempt is None or attempt.proposal is None:
             return data
-        seen = adoption(attempt.proposal, decisions)
-        data.update(
-            proposer=attempt.proposal.proposer,
-            verdict=str(seen.verdict),
-            adopted_digest=seen.adopted_digest,
-            baseline_digest=seen.baseline_digest,
-            adopted_by=list(seen.adopted_by),
-            baseline_by=list(seen.baseline_by),
-            other_by=list(seen.other_by),
-        )
+        data["proposer"] = attempt.proposal.proposer
+        data.update(adoption(attempt.proposal, decisions).to_json())
         return data
 
     @property

@@ -18,6 +18,7 @@ from fleet.consensus.legs import (
     Air,
     AirLegs,
     LegGeometry,
+    leg_from_here,
 )
 from fleet.consensus.mission_round import MissionRound
 from fleet.consensus.objectives import plan_queues
@@ -175,3 +176,24 @@ def test_the_plan_is_the_same_whatever_order_the_tables_are_asked_in() -> None:
             legs = AirLegs(LegGeometry.of(targets), air)
             plans.append(plan_queues(times, legs, objective))
         assert plans[-1] == plans[-2]
+
+
+def test_a_leg_from_here_is_timed_in_the_air_of_the_moment_from_the_track_flown_in() -> None:
+    """Straight on from target 0 to 1 (3 km east): the length at the ground speed, the
+    wind's included; come in heading west, the reversal adds time; no leg to itself or to
+    a target the mission does not have."""
+    geometry = LegGeometry.of(targets_at((0.0, 0.0), (3000.0, 0.0)))
+    metres = geometry.metres[0][1]
+    assert leg_from_here(geometry, Air(22.0), (22.0, 0.0), 0, 1) == pytest.approx(metres / 22.0)
+    tail = leg_from_here(geometry, Air(22.0, Wind(10.0, 0.0)), (32.0, 0.0), 0, 1)
+    assert tail == pytest.approx(metres / 32.0)
+    turning = leg_from_here(geometry, Air(22.0), (-22.0, 0.0), 0, 1)
+    assert turning is not None and turning > metres / 22.0 + 5.0
+    expected = AirLegs(geometry, {1: Air(22.0)}).turning_leg(1, (100.0, 0.0), 0, 1)
+    assert turning == pytest.approx(expected)
+    # Not moving over the ground: the mean turn (the pairwise leg).
+    assert leg_from_here(geometry, Air(22.0), (0.0, 0.0), 0, 1) == pytest.approx(
+        AirLegs(geometry, {1: Air(22.0)}).of(1)[0][1]
+    )
+    assert leg_from_here(geometry, Air(22.0), (22.0, 0.0), 0, 0) is None
+    assert leg_from_here(geometry, Air(22.0), (22.0, 0.0), 0, 2) is None

@@ -167,6 +167,17 @@ def test_a_token_that_is_no_uavs_is_shown_as_heard_without_a_schema(live: Live) 
     assert live.bridge.topics() == {"fleet/uav/any/alive": ""}
 
 
+def test_telemetry_and_status_of_a_uav_that_is_no_number_have_no_fix_and_no_log(
+    live: Live,
+) -> None:
+    """Keys are not checked on the way in: such a UAV's keys are shown as heard, no more."""
+    live.fleet.put("fleet/uav/any/telemetry", bus_codec.encode(sample_telemetry()))
+    live.fleet.put("fleet/uav/any/status", bus_codec.encode(StatusText("ready", StatusKind.INFO)))
+    live.stopped()
+    assert set(live.bridge.topics()) == {"fleet/uav/any/telemetry", "fleet/uav/any/status"}
+    assert live.bridge.dropped == {}
+
+
 class QueryProbe(MemoryBus):
     """A ground bus whose queries are noted (and fail with `error`, if given)."""
 

@@ -43,3 +43,32 @@ def test_every_uav_agrees_on_the_plan_of_each_objective(
         reports = {uav: latest[uav] for uav in team}
     assert_one_plan(report, reports, len(TARGETS))
     assert {str(r.objective) for r in reports.values()} == {str(objective)}
+
+
+def test_send_targets_propose_says_whether_the_team_adopted_the_proposal(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--propose --wait --json`: the verdict is what every UAV's reported digest says."""
+    pytest.importorskip("pyvrp", reason="PyVRP is not installed: pip install '.[solver]'")
+    with memory_fleet(ring_file(tmp_path, 3)) as fleet:
+        team = sorted(fleet.ids)
+        seen = AssignmentsHeard(fleet.bus(), SPACE)
+        out = io.StringIO()
+        options = SendOptions(
+            targets=TARGETS,
+            team=tuple(team),
+            wait=True,
+            json=True,
+            objective=Objective.MIN_MAX,
+            propose=True,
+        )
+        assert run_send_targets(fleet.bus(), options, out) == 0
+        said = json.loads(out.getvalue())["proposal"]
+        wait_until(lambda: set(team) <= set(seen.latest()), 30.0, "every commitment")
+        digests = {seen.latest()[uav].digest for uav in team}
+    verdict = said["verdict"]
+    assert verdict in ("adopted", "baseline"), said
+    assert said[f"{verdict}_by"] == team and digests == {said[f"{verdict}_digest"]}
+    assert f"the ground's proposal: {'adopted by' if verdict == 'adopted' else 'not'}" in (
+        capsys.readouterr().err
+    )

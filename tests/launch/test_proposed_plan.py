@@ -127,8 +127,15 @@ def test_a_proposed_plan_is_verified_and_one_plan_adopted_by_every_uav(tmp_path:
         assert {int(u): tuple(q) for u, q in committed["queues"].items()} == {
             u: q for u, q in proposal.queues.items() if q
         }
+        verdict = "adopted"
     else:
         assert committed["digest"] == baseline.digest
+        verdict = "baseline"
+    # send-targets says so, from the digests the UAVs reported.
+    said = outcome["proposal"]
+    assert (said["verdict"], said[f"{verdict}_by"]) == (verdict, [201, 202, 203])
+    assert said[f"{verdict}_digest"] == committed["digest"]
+    assert "the ground's proposal: " in sent.stderr
     # The rogue's proposal was refused by every UAV.
     for uav in (201, 202, 203):
         log = (tmp_path / f"onboard-{uav}.log").read_text()

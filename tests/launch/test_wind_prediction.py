@@ -27,6 +27,7 @@ from fleet.geo.wind import Wind
 from fleet.sim.scenario import shipped_scenario, shipped_scenario_path
 from tests.support.ground_cli import ground_cli
 from tests.support.processes import fleet_up
+from tests.support.targets import windy_nine_csv
 
 pytestmark = pytest.mark.e2e
 
@@ -80,3 +81,42 @@ def test_three_uavs_arrive_when_they_said_in_a_10_ms_wind(tmp_path: Path) -> Non
         predicted, flown = mission["predicted_s"][uav], mission["flown_s"][uav]
         assert predicted is not None and flown is not None, (uav, mission)
         assert abs(predicted - flown) <= TOLERANCE * flown, (uav, predicted, flown)
+
+
+def test_every_leg_of_every_queue_flies_in_the_time_its_uav_said_in_a_10_ms_wind(
+    tmp_path: Path,
+) -> None:
+    """Nine targets on three UAVs (min-sum: queues of three), every leg of every queue
+    within 10 % of the time flown, as the UAV timed it when it began the leg (the first:
+    its result's approach time; a later one: the plan's leg model in its air then).
+
+    The plan's own leg times are in the air at the plan: this scenario's wind turns and
+    strengthens by ~1.5 m/s over the ~11 minutes the queues take, so a last leg is flown
+    up to ~11 % slower than planned (the same leg re-timed in the true wind of its time
+    is within 2 %: docs/benchmarks.md). They are held within 20 % here: before each UAV's
+    legs were timed in its air, they were +10 to +55 % off."""
+    with fleet_up("windy", "--speedup", "4", "--log-dir", str(tmp_path), timeout=90.0) as up:
+        sent = ground_cli(
+            "send-targets", str(windy_nine_csv(tmp_path / "nine.csv")), "--objective", "min-sum",
+            "--wait", "--json", "--timeout", "60", connect=up.connect, timeout=TIMEOUT_S,
+        )  # fmt: skip
+        assert sent.returncode == 0, sent.stderr[-3000:]
+        assert json.loads(sent.stdout)["agreed"] is True
+        # ~700 s simulated for the longest queue: ~175 s at speedup 4.
+        reached = ground_cli(
+            "mission", "--until-reached", "420", "--json", connect=up.connect, timeout=480.0
+        )
+        assert reached.returncode == 0, reached.stdout[-3000:] + reached.stderr[-3000:]
+        assert up.stop(60) == 0
+    report = run("-m", "programs.fleet_cli", "report", str(tmp_path / "fleet.mcap"), "--json")
+    assert report.returncode == 0, report.stderr[-3000:]
+    (mission,) = json.loads(report.stdout)["missions"]
+    legs = {uav: mission["legs"][uav] for uav in ("201", "202", "203")}
+    assert sorted(row["target"] for rows in legs.values() for row in rows) == list(range(9))
+    assert sum(len(rows) > 1 for rows in legs.values()) >= 2, legs  # queues, not one each
+    for uav, rows in legs.items():
+        for row in rows:
+            begun, planned, flown = row["begun_s"], row["predicted_s"], row["flown_s"]
+            assert begun is not None and planned is not None and flown is not None, (uav, legs)
+            assert abs(begun - flown) <= TOLERANCE * flown, (uav, row, legs)
+            assert abs(planned - flown) <= 2 * TOLERANCE * flown, (uav, row, legs)

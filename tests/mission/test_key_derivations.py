@@ -113,8 +113,12 @@ POLICY_74 = [
     ),
     (
         "uav-74-relay", ("uav-74", "router-74"), ("ingress",), ("reply",),
-        # A teammate's outcome, relayed with its own signature (fleet.mission.claims).
-        {"fleet/mission/*/abort", "fleet/mission/*/targets", "fleet/mission/*/outcome/*"},
+        # A teammate's outcome, relayed with its own signature (fleet.mission.claims);
+        # a teammate's latest state, the same way (how a frozen UAV stays on the team).
+        {
+            "fleet/mission/*/abort", "fleet/mission/*/targets", "fleet/mission/*/outcome/*",
+            "fleet/uav/*/state",
+        },
     ),
     (
         "uav-74-alive", ("uav-74", "router-74"), ("ingress",), ("liveliness_token",),
@@ -122,7 +126,7 @@ POLICY_74 = [
     ),
     (
         "uav-74-serve", ("uav-74", "router-74"), ("ingress",), ("declare_queryable",),
-        {"fleet/mission/**", "fleet/uav/74/**"},
+        {"fleet/mission/**", "fleet/uav/74/**", "fleet/uav/*/state"},
     ),
     (
         "uav-74-fetch", ("uav-74", "router-74"), ("ingress",), ("query",),

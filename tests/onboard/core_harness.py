@@ -93,6 +93,7 @@ def make_core(
     uav: int = 112,
     times: tuple[float, ...] = (80.0, 40.0, 60.0),
     liveliness_grace_s: float = 0.0,  # most tests: a lost teammate is released at once
+    vouch_teammates: bool = False,  # the secure profile: a token counts once its UAV spoke
     fresh_replans: bool = False,
 ) -> tuple[OnboardCore, Recorder]:
     """A core on a scripted planner. Its scripted teammates give no standings, so the
@@ -105,6 +106,7 @@ def make_core(
         outputs=recorder,
         planner=ScriptedPlanner(times),
         liveliness_grace_s=liveliness_grace_s,
+        vouch_teammates=vouch_teammates,
         fresh_replans=fresh_replans,
     )
     core.on_telemetry(sample_telemetry(), 0.0)

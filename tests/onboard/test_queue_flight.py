@@ -3,6 +3,9 @@ lost mid-queue hands the rest of its queue to the survivors; driven through the 
 
 from __future__ import annotations
 
+import pytest
+
+from fleet.consensus.legs import Air, leg_from_here
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import AssignmentReport, MissionTargets, TargetOutcome, UavResult
 from fleet.mission.phase import Phase
@@ -103,3 +106,34 @@ def test_a_hint_about_a_teammate_is_fetched_from_it_once() -> None:
     core.on_outcome(TargetOutcome(1, 200, 2, Phase.REACHED, reached={2: 200}), 7.0)
     assert core.state(7.0).mission.reached == {0: 74, 2: 200}  # type: ignore[union-attr]
     assert core.teammate_outcomes(1)[200].target == 2
+
+
+def test_each_leg_is_timed_when_it_begins_in_the_air_of_that_moment() -> None:
+    """The state says the UAV's time for the leg it flies: its result's approach time to
+    its first target; for a later one, the plan's leg model timed as it leaves the
+    target it reached, in its smoothed wind at its airspeed, its track in the one flown."""
+    core, out = _two_uav_plan()
+    progress = core.state(2.0).mission
+    assert progress is not None and (progress.current_target, progress.leg_s) == (1, 40.0)
+    core.on_outcome(TargetOutcome(1, 74, 0, Phase.REACHED), 5.0)
+    core.on_alive(74, False, 6.0)  # 112 takes 74's queue: 1, then 0 (reached), then 2
+    _fly_and_reach(core, out, 1, 10.0)
+    progress = core.state(11.5).mission
+    link, mission_round = core.mission.link, core.round
+    assert progress is not None and mission_round is not None and link.gps is not None
+    speed = link.airspeed()
+    assert speed is not None
+    expected = leg_from_here(
+        mission_round.geometry,
+        Air(speed, link.wind.value),
+        (link.gps.vel_east, link.gps.vel_north),
+        1,
+        2,
+    )
+    assert progress.current_target == 2 and expected is not None
+    assert progress.leg_s == pytest.approx(expected)
+    # The leg's length at about the airspeed, and a turn; not a time of its result's.
+    metres = mission_round.geometry.metres[1][2]
+    assert metres / (speed + 15.0) < expected < metres / max(speed - 15.0, 5.0) + 60.0
+    assert expected not in (80.0, 40.0, 60.0)
+    assert any("this leg" in s for s in out.statuses()), out.statuses()

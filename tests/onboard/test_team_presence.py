@@ -99,3 +99,36 @@ def test_a_teammate_is_released_once_it_stayed_gone_past_the_grace() -> None:
     assert team.gone_past_grace(2.9) == []
     assert team.gone_past_grace(3.0) == [7]
     assert team.gone_past_grace(4.0) == []  # given once
+
+
+def test_in_the_secure_profile_a_ghost_token_is_not_waited_for() -> None:
+    """Tokens of 74 and 75 in a team with 112, a deadline far off: 74 spoke for itself
+    (its signed state answered), 75 never does (a ghost). 112 waits for 74's result only,
+    then decides without 75 once its question to the team has had its grace."""
+    core, out = make_core(112, vouch_teammates=True)
+    core.on_alive(74, True, 0.0)
+    core.on_alive(75, True, 0.0)
+    assert core.awaits_word() == [74, 75]
+    core.on_spoke(74, 0.1)
+    assert core.awaits_word() == [75]
+    mission = MissionTargets(mission=6, team=(74, 75, 112), targets=TARGETS, deadline_s=60.0)
+    core.on_targets(mission, 0.2)
+    core.tick(0.3)
+    assert out.on(SPACE.mission_assignment(6, 112)) == []  # 74's result is awaited
+    core.on_result(UavResult(6, 74, (10.0, 10.0, 10.0)), 0.5)
+    core.tick(0.6)
+    core.tick(0.6 + ASK_GRACE_S)
+    (report,) = out.on(SPACE.mission_assignment(6, 112))
+    assert isinstance(report, AssignmentReport) and report.team == (74, 112)
+
+
+def test_a_token_counts_once_its_uav_spoke_and_needs_its_word_again_after_it_went() -> None:
+    presence = TeamPresence(112, vouch=True)
+    assert not presence.came(74) and presence.alive == {112}
+    assert presence.spoke(74) and presence.alive == {74, 112}
+    assert not presence.spoke(74)  # counted already
+    assert presence.went(74, 1.0, committed=True)
+    assert presence.gone_past_grace(1.0 + presence.grace_s) == [74]
+    assert not presence.came(74), "a token declared again needs the UAV's word again"
+    assert not presence.went(75, 2.0, committed=True), "a ghost's token going releases nobody"
+    assert presence.spoke(74) and 74 in presence.alive

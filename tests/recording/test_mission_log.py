@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import msgspec
@@ -240,17 +241,21 @@ def test_the_mission_s_zones_are_read_and_drawn_under_the_tracks(tmp_path: Path)
 def tour_of_two() -> Timeline:
     """UAV 1 queues targets 0 then 1, planned to arrive at 45 s and 120 s, and reaches
     them at 7 s and 12 s on its clock (each leg flown in 50 s of telemetry time)."""
+    return build_timeline(tour_messages())
+
+
+def tour_messages() -> list[RecordedMessage]:
+    """`tour_of_two`'s recording."""
     tour = AssignmentReport(
         5, 1, 0, {1: 0}, (), (1,), "d1", eta_s=45.0, queues={1: (0, 1)}, arrivals={1: (45.0, 120.0)}
     )
-    messages = [
+    return [
         *(telemetry(t, 1, 35.72, -120.80 + 0.004 * t, 100 + 10 * t) for t in range(0, 14)),
         message(1.0, "fleet/mission/5/targets", MissionTargets(5, (1,), TARGETS)),
         message(2.0, "fleet/mission/5/assignment/1", tour),
         message(7.0, "fleet/mission/5/outcome/1", TargetOutcome(5, 1, 0, Phase.REACHED)),
         message(12.0, "fleet/mission/5/outcome/1", TargetOutcome(5, 1, 1, Phase.REACHED)),
     ]
-    return build_timeline(messages)
 
 
 def test_a_tour_s_legs_predicted_and_flown(tmp_path: Path) -> None:
@@ -281,6 +286,32 @@ def test_every_leg_off_by_more_than_10_percent_is_flagged() -> None:
     lines = report_lines(timeline)
     assert any("1 (75.0 s predicted, 50.0 s flown) OFF by +50 %" in line for line in lines)
     assert any("1 leg(s) predicted off the time flown by more than 10%" in line for line in lines)
+
+
+def test_each_leg_s_time_said_as_it_began_is_beside_the_plan_s() -> None:
+    """UAV 1's state said 52 s for its leg to target 1 as it began it (the plan said
+    75 s; it flew 50 s): the JSON and the text have both, each one's error; a state
+    whose leg time is no duration is an undecodable record, not a crash."""
+    progress = MissionProgress(5, Phase.FLYING, 2, current_target=1, leg_s=52.0)
+    state = UavState(1, True, 1.0, 0, None, None, progress, phase=Phase.FLYING)
+    timeline = tour_of_two()
+    said = build_timeline([*tour_messages(), message(8.0, "fleet/uav/1/state", state)])
+    (log,) = said.missions
+    assert [row.get("begun_s") for row in log.legs(1, said.tracks)] == [None, 52.0]
+    legs = report_json(said)["missions"][0]["legs"]["1"]
+    assert [(leg["begun_s"], leg["begun_error"], leg["off"]) for leg in legs] == [
+        (None, None, False),
+        (52.0, 0.04, True),
+    ]
+    assert any(
+        "1 (75.0 s predicted, 50.0 s flown; 52.0 s when begun) OFF by +50 %" in line
+        for line in report_lines(said)
+    )
+    assert report_lines(timeline) != report_lines(said)
+    good = message(8.0, "fleet/uav/1/state", state)
+    bad = dataclasses.replace(good, data=good.data.replace(b'"leg_s":52.0', b'"leg_s":-1.0'))
+    assert bad.data != good.data
+    assert build_timeline([*tour_messages(), bad]).undecodable == 1
 
 
 def test_a_tour_after_a_re_plan_has_the_dropped_uav_s_targets(tmp_path: Path) -> None:

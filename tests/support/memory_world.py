@@ -15,7 +15,7 @@ from __future__ import annotations
 import itertools
 import threading
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -136,13 +136,16 @@ def memory_fleet(
     telemetry_hz: float = 5.0,
     relay_hz: float | None = None,
     faults: Mapping[int, tuple[FaultRule, ...]] | None = None,
+    bus_of: Callable[[int], Bus] | None = None,
 ) -> Iterator[MemoryFleet]:
     """Every UAV of `scenario`, each an onboard process and a simulated autopilot; with
     `ready`, returned once every UAV is live with a GPS fix. Stopped on exit.
 
     `telemetry_hz`: how often each autopilot sends telemetry (simulated time);
     `relay_hz`: how often each onboard relays it on the bus (`--telemetry-hz`).
-    `faults`: a UAV's onboard puts through the fault-injecting bus with these rules."""
+    `faults`: a UAV's onboard puts through the fault-injecting bus with these rules.
+    `bus_of`: each UAV's onboard on the bus it gives (a real Zenoh session, say), not on
+    the in-process one (then `ready` waits on nothing: the test knows where to look)."""
     faults = faults or {}
     # Loaded once before the onboards start: each would load it on its planner thread,
     # and a second thread can see the first's half-initialised module.
@@ -170,7 +173,7 @@ def memory_fleet(
             status_rate_hz=status_rate_hz,
             telemetry_hz=relay_hz,
         )
-        bus: Bus = network.bus()
+        bus: Bus = network.bus() if bus_of is None else bus_of(uav.piccolo_id)
         if uav.piccolo_id in faults:
             bus = FaultyBus(bus, *faults[uav.piccolo_id])
         processes[uav.piccolo_id] = OnboardProcess(
@@ -188,7 +191,7 @@ def memory_fleet(
     for thread in threads:
         thread.start()
     try:
-        if ready:
+        if ready and bus_of is None:
             fleet.wait_ready()
         yield fleet
     finally:

@@ -1,7 +1,8 @@
 """A secure fleet of real processes for an end-to-end test: a router with mutual TLS and
 access control, the simulated autopilots of `head_on`, onboards 74 and 112, and a raw
 Zenoh session as the ground to ask the UAVs' states (signed, and answered by each UAV
-alone: the ACL lets no other identity reply there)."""
+alone: a teammate relays a UAV's state only to a query that asks for relays, and only
+as that UAV signed it)."""
 
 from __future__ import annotations
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import random
+from pathlib import Path
 
 from fleet.geo.mercator import MercatorProjection
 from fleet.launch.ring import GENERATED_CENTRE
@@ -19,3 +20,26 @@ def ring_targets(count: int, seed: int) -> tuple[Target, ...]:
         lat, lon = projection.to_latlon(distance * math.sin(bearing), distance * math.cos(bearing))
         points.append(Target(lat, lon, 600.0))
     return tuple(points)
+
+
+#: Nine targets for the `windy` scenario, local metres east/north of its first UAV's
+#: start: three about each UAV, upwind, downwind and across the wind of it.
+WINDY_NINE = (
+    (-3000, 1000), (-1000, 3500), (2500, 2500),
+    (3000, -7000), (5000, -4500), (1500, -3500),
+    (1000, 11000), (-2500, 10500), (-3500, 7000),
+)  # fmt: skip
+
+
+def windy_nine_csv(path: Path) -> Path:
+    """`WINDY_NINE` written to `path` as a targets CSV (lat, lon, alt 600 m)."""
+    from fleet.sim.scenario import shipped_scenario
+
+    first = shipped_scenario("windy").uavs[0]
+    projection = MercatorProjection(first.lat, first.lon)
+    rows = ["lat,lon,alt"]
+    for x, y in WINDY_NINE:
+        lat, lon = projection.to_latlon(x, y)
+        rows.append(f"{lat:.7f},{lon:.7f},600")
+    path.write_text("\n".join(rows) + "\n")
+    return path

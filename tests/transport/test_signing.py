@@ -4,7 +4,9 @@ a `ZenohBus` with `BusSigning` signs, relays and refuses."""
 from __future__ import annotations
 
 import json
+import logging
 import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -22,8 +24,8 @@ from fleet.files.signers import (
     signing_key_path,
 )
 from fleet.mission.key_space import KeySpace
-from fleet.mission.messages import MissionAbort, MissionTargets, Target
-from fleet.mission.signature import Delivery
+from fleet.mission.messages import MissionAbort, MissionTargets, Target, UavState
+from fleet.mission.signature import Delivery, sign
 from fleet.transport import bus_codec
 from fleet.transport.bus import BusQuery, BusSample, Queryable
 from fleet.transport.bus_codec import encode
@@ -246,6 +248,48 @@ def test_a_relay_passes_on_the_envelope_of_the_very_mission_it_holds(certs: Path
         if mission % 100 == 0:
             assert uav.reply(key, held) == (held, held_put)
     assert uav.reply(key, held) == (held, held_put)
+
+
+def test_a_state_reply_signed_longer_ago_than_the_replay_window_is_refused_and_said(
+    buses: dict[str, ZenohBus], certs: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """UAV 112's genuine signed state, 31 s old (recorded, replayed as the answer to a
+    late-joining ground's state query) is refused as stale, counted, and logged with its
+    age; the same state signed now is believed. On the code before, the old one was
+    believed: a reply was not judged for its age."""
+    key = SPACE.state(112)
+    payload = encode(UavState(112, True, 1.0, None, None, None, None))
+    signing_key = load_signing_key(signing_key_path(certs, "uav-112"))
+    age_ns = [31 * 1_000_000_000]
+
+    def answer(query: zenoh.Query) -> None:
+        stamp = time.time_ns() - age_ns[0]
+        by_112 = sign(signing_key, "uav-112", key, payload, stamp)
+        query.reply(key, payload, encoding=bus_codec.ENCODING, attachment=by_112)
+
+    queryable = buses["uav-112"].session.declare_queryable(key, answer)
+    try:
+        fresh: list[Any] = []
+        before = refused("stale")
+
+        def asked_and_refused() -> bool:
+            # Ask until the router knows the queryable and the answer is refused.
+            fresh[:] = buses["ground"].query_messages(key, UavState, TIMEOUT_S)
+            return refused("stale") > before
+
+        with caplog.at_level(logging.WARNING, logger="fleet.transport.signing"):
+            wait_until(asked_and_refused, TIMEOUT_S * 5, "the old state refused")
+        assert fresh == []
+        assert any(
+            f"refused a reply on {key} signed by uav-112 31." in record.message
+            and "older than the 30 s replay window" in record.message
+            for record in caplog.records
+        ), caplog.text
+        age_ns[0] = 0
+        believed = buses["ground"].query_messages(key, UavState, TIMEOUT_S)
+    finally:
+        queryable.undeclare()
+    assert [(k, state.uav) for k, state in believed] == [(key, 112)]
 
 
 # ---- the roster, live ----------------------------------------------------------------------------

@@ -401,7 +401,7 @@ def test_the_thesis_scenario_from_the_page(
             browser.find_element(By.ID, "confirm-ok").click()
             removed = wait_command_answered(browser, "remove-targets", 60.0)
             assert removed["state"] == "done", removed
-            assert "targets 4 removed; acknowledged by 74, 112" in removed["text"], removed
+            assert "target 4 removed; acknowledged by 74, 112" in removed["text"], removed
             assert [(m.revision, m.removed) for m in sent.missions] == [(0, ()), (1, ()), (2, (4,))]
 
             wait_for(

@@ -127,7 +127,7 @@ def test_the_page_proposes_a_plan_then_adds_and_removes_targets_in_flight(
                         {"cmd": "remove-targets", "id": "p-3", "indexes": [8]}
                     )
                     assert removed["ok"], removed
-                    assert "revision 2: targets 8 removed" in removed["message"]
+                    assert "revision 2: target 8 removed" in removed["message"]
                     latest = heard.latest()
                     assert {latest[uav].revision for uav in team} == {2}
                     assert all(8 not in q for q in latest[team[0]].queues.values())

@@ -306,7 +306,7 @@ def test_a_change_in_flight_not_acknowledged_fails_with_who_did_not(
         )
     )
     assert not unacked["ok"] and unacked["mission"] == mission
-    assert f"mission {mission} revision 1: targets 2 added" in unacked["message"]
+    assert f"mission {mission} revision 1: target 2 added" in unacked["message"]
     assert "not acknowledged by 74, 112 within 1 s" in unacked["message"]
     # The revision was put (the fakes heard it): the page shows its target.
     assert wait_until(lambda: mfakes[74].targets[-1].revision == 1)
