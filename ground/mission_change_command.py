@@ -13,6 +13,8 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import threading
+from contextlib import ExitStack
 from dataclasses import dataclass
 from typing import TextIO
 
@@ -117,19 +119,72 @@ def _targets(indexes: list[int]) -> str:
     return f"target{'s' if len(indexes) > 1 else ''} {', '.join(map(str, indexes))}"
 
 
-def change_mission(
+class ChangePut:
+    """A change put on the bus (`put_change`), its acknowledgements awaited by `wait`;
+    close it (or leave its `with`) to stop following them."""
+
+    def __init__(
+        self,
+        stack: ExitStack,
+        follower: MissionFollower,
+        held: MissionTargets,
+        new: MissionTargets,
+        removed: tuple[int, ...],
+        expected: list[int],
+    ) -> None:
+        self.new = new
+        self._stack = stack
+        self._follower = follower
+        self._held = held
+        self._removed = removed
+        self._expected = expected
+
+    def wait(self, timeout_s: float, stop: threading.Event | None = None) -> MissionChange:
+        """Wait up to `timeout_s` for every live team UAV to plan the revision (`stop`
+        set: no longer, within a second)."""
+        follower, new, expected = self._follower, self.new, self._expected
+        stopped = stop or threading.Event()
+
+        def acknowledged() -> bool:
+            if stopped.is_set():
+                return True
+            return all(_acks(follower.assignments.get(uav), new) for uav in expected)
+
+        follower.wait_until(acknowledged, timeout_s, fetch_every_s=1.0)
+        _, reports = follower.snapshot()
+        acked = [uav for uav in expected if _acks(reports.get(uav), new)]
+        return MissionChange(
+            new=new,
+            added=list(range(len(self._held.targets), len(new.targets))),
+            removed=list(self._removed),
+            acked=acked,
+            missing=[uav for uav in expected if uav not in acked],
+            reports=reports,
+            timeout_s=timeout_s,
+        )
+
+    def close(self) -> None:
+        self._stack.close()
+
+    def __enter__(self) -> ChangePut:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def put_change(
     bus: Bus,
     space: KeySpace,
     mission: int | None,
     *,
     added: tuple[Target, ...],
     removed: tuple[int, ...],
-    timeout_s: float = ACK_WAIT_S,
     query_timeout_s: float = 1.0,
-) -> MissionChange:
-    """Put mission `mission`'s next revision (None: the latest mission seen) and wait up
-    to `timeout_s` for every live team UAV to plan it. ChangeRefused, with the reason,
-    when nothing was sent. Blocking (Zenoh queries): the page runs it off its loop."""
+) -> ChangePut:
+    """Put mission `mission`'s next revision (None: the latest mission seen), following
+    the team's plans from before the put. ChangeRefused, with the reason, when nothing
+    was sent. Blocking (Zenoh queries): the page runs it off its loop."""
     if mission is None:
         mission = current_mission_id(bus, space, query_timeout_s)
     if mission is None:
@@ -144,24 +199,33 @@ def change_mission(
         raise ChangeRefused(f"mission {mission}: {problem}; nothing sent")
     live = set(live_uav_ids(bus, space, query_timeout_s))
     expected = sorted(uav for uav in new.team if uav in live)
-    with MissionFollower(bus, space, mission, team=new.team) as follower:
+    stack = ExitStack()
+    try:
+        follower = stack.enter_context(MissionFollower(bus, space, mission, team=new.team))
         publish_targets(bus, space, new)
+    except BaseException:
+        stack.close()
+        raise
+    return ChangePut(stack, follower, held, new, removed, expected)
 
-        def acknowledged() -> bool:
-            return all(_acks(follower.assignments.get(uav), new) for uav in expected)
 
-        follower.wait_until(acknowledged, timeout_s, fetch_every_s=1.0)
-        _, reports = follower.snapshot()
-    acked = [uav for uav in expected if _acks(reports.get(uav), new)]
-    return MissionChange(
-        new=new,
-        added=list(range(len(held.targets), len(new.targets))),
-        removed=list(removed),
-        acked=acked,
-        missing=[uav for uav in expected if uav not in acked],
-        reports=reports,
-        timeout_s=timeout_s,
+def change_mission(
+    bus: Bus,
+    space: KeySpace,
+    mission: int | None,
+    *,
+    added: tuple[Target, ...],
+    removed: tuple[int, ...],
+    timeout_s: float = ACK_WAIT_S,
+    query_timeout_s: float = 1.0,
+) -> MissionChange:
+    """Put the change (`put_change`) and wait up to `timeout_s` for every live team UAV
+    to plan it."""
+    put = put_change(
+        bus, space, mission, added=added, removed=removed, query_timeout_s=query_timeout_s
     )
+    with put:
+        return put.wait(timeout_s)
 
 
 def _change(

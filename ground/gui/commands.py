@@ -50,7 +50,7 @@ from fleet.mission.objective import Objective
 from fleet.mission.targets_file import TargetsFileError, encode_targets
 from fleet.piccolo.stream_packet import MAX_PICCOLO_ID, MIN_PICCOLO_ID
 from fleet.transport.bus import Bus
-from ground.mission_change_command import ACK_WAIT_S, ChangeRefused, change_mission
+from ground.mission_change_command import ACK_WAIT_S, ChangePut, ChangeRefused, put_change
 from ground.mission_control import MissionError, publish_targets, send_abort, send_opm
 from ground.mission_follower import MissionFollower
 from ground.mission_ids import MAX_MISSION_ID, TargetsServer, claim_mission, current_mission_id
@@ -258,8 +258,9 @@ class MissionDesk:
                     name=f"propose-{message.mission}",
                     daemon=True,
                 )
-                # Stopped and joined when the page follows another mission, or closes.
-                self._stack.callback(thread.join, 5.0)
+                # Stopped (not joined: the lock is held, and a solve may take seconds; its
+                # outcome then goes to a track no longer shown) when the page follows
+                # another mission, or closes.
                 self._stack.callback(track.stop.set)
                 thread.start()
         self._on_change()
@@ -271,6 +272,8 @@ class MissionDesk:
         try:
             attempt = propose_when_results(self._bus, self.space, message, follower, track.stop)
         except Exception as error:  # the page must go on; the reason is shown
+            if track.stop.is_set():
+                return  # the page moved on, or closed (its bus with it)
             log.exception("mission %d: proposing a plan failed", message.mission)
             attempt = ProposalAttempt(None, reason=f"failed: {error}")
         track.attempt = attempt
@@ -421,22 +424,31 @@ def _abort(bus: Bus, desk: MissionDesk, command: AbortCommand) -> Reply:
     )
 
 
-def _change(
-    bus: Bus, desk: MissionDesk, command: AddTargetsCommand | RemoveTargetsCommand
-) -> Reply:
-    """`add-targets` / `remove-targets` as the CLI makes them: ok only once every live
-    team UAV planned the new revision."""
+ChangeCommand = AddTargetsCommand | RemoveTargetsCommand
+
+
+def put_change_of(bus: Bus, desk: MissionDesk, command: ChangeCommand) -> Reply | ChangePut:
+    """`add-targets` / `remove-targets` as the CLI makes them, in the command's turn: the
+    change put (and shown at once), or the reply refusing it, nothing sent."""
     added = command.targets if isinstance(command, AddTargetsCommand) else ()
     removed = command.indexes if isinstance(command, RemoveTargetsCommand) else ()
     mission = command.mission if command.mission is not None else desk.mission
     try:
-        change = change_mission(
-            bus, desk.space, mission, added=added, removed=removed, timeout_s=command.wait_s
-        )
+        put = put_change(bus, desk.space, mission, added=added, removed=removed)
     except ChangeRefused as error:
         return Reply(command.id, False, str(error), mission)
-    # Shown at once, not only when the page hears the revision on the bus.
-    desk.revise(change.new)
+    # Shown at once, and served as it is now, not only once the page hears it.
+    desk.revise(put.new)
+    return put
+
+
+def change_reply(
+    command: ChangeCommand, put: ChangePut, stop: threading.Event | None = None
+) -> Reply:
+    """A change put, once every live team UAV planned its revision: ok; else failed,
+    naming who did not within the command's `wait_s`."""
+    with put:
+        change = put.wait(command.wait_s, stop)
     return Reply(command.id, change.acknowledged, change.summary(), change.new.mission)
 
 
@@ -445,7 +457,8 @@ def execute(bus: Bus, desk: MissionDesk, command: Command, live: set[int]) -> Re
     if isinstance(command, SendCommand):
         return _send(desk, command, live)
     if isinstance(command, AddTargetsCommand | RemoveTargetsCommand):
-        return _change(bus, desk, command)
+        put = put_change_of(bus, desk, command)
+        return put if isinstance(put, Reply) else change_reply(command, put)
     if isinstance(command, AbortCommand):
         return _abort(bus, desk, command)
     if command.uav not in live:

@@ -10,7 +10,9 @@ script's, `ground-cli`-style) is not remembered: such a command is carried out e
 
 Execution is serial, in arrival order (an Abort pressed after a Send runs after it), on
 tasks of its own, so the socket's reader keeps reading (its pongs too) while a command
-waits on the fleet.
+waits on the fleet. A command whose effect is done in its turn but whose answer waits
+on the fleet (a change in flight, put, then acknowledged by every UAV) returns `Later`:
+its wait goes on after its turn, so an Abort pressed meanwhile is not held up by it.
 """
 
 from __future__ import annotations
@@ -18,11 +20,19 @@ from __future__ import annotations
 import asyncio
 from collections import OrderedDict
 from collections.abc import Awaitable, Callable
+from dataclasses import dataclass
 
 from ground.gui.commands import Reply
 
 #: Outcomes kept by id: far more than a page re-sends after a reconnect.
 KEPT = 1000
+
+
+@dataclass(frozen=True)
+class Later:
+    """A command done in its turn, its reply awaited after it (`wait`)."""
+
+    wait: Callable[[], Awaitable[Reply]]
 
 
 class CommandLedger:
@@ -35,7 +45,7 @@ class CommandLedger:
         self.repeats = 0  #: commands answered from an earlier execution
 
     def submit(
-        self, command_id: int | str, run: Callable[[], Awaitable[Reply]]
+        self, command_id: int | str, run: Callable[[], Awaitable[Reply | Later]]
     ) -> asyncio.Future[Reply]:
         """The reply to the command `command_id`: `run()` in its turn, or, for a page id
         already seen, the first execution's reply."""
@@ -51,9 +61,12 @@ class CommandLedger:
                 self._outcomes.popitem(last=False)
         return outcome
 
-    async def _in_turn(self, run: Callable[[], Awaitable[Reply]]) -> Reply:
+    async def _in_turn(self, run: Callable[[], Awaitable[Reply | Later]]) -> Reply:
         async with self._turn:
-            return await run()
+            done = await run()
+        if isinstance(done, Later):
+            return await done.wait()
+        return done
 
     def pending(self) -> int:
         return sum(1 for outcome in self._outcomes.values() if not outcome.done())

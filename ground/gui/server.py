@@ -40,6 +40,7 @@ import contextlib
 import hmac
 import json
 import logging
+import threading
 import time
 from collections.abc import AsyncIterator, Awaitable, Callable
 from dataclasses import dataclass
@@ -60,14 +61,19 @@ from ground.fleet_view import FleetView
 from ground.gui import zones_api
 from ground.gui.access import Access
 from ground.gui.commands import (
+    AddTargetsCommand,
+    ChangeCommand,
     Command,
     CommandError,
     MissionDesk,
+    RemoveTargetsCommand,
     Reply,
+    change_reply,
     decode_command,
     execute,
+    put_change_of,
 )
-from ground.gui.ledger import CommandLedger
+from ground.gui.ledger import CommandLedger, Later
 from ground.gui.snapshot import Coalescer, GuiModel
 
 log = logging.getLogger(__name__)
@@ -115,6 +121,8 @@ class GuiServer:
         self._ledger: CommandLedger | None = None
         #: Answers being sent: held here so that no task is collected before it ran.
         self._answers: set[asyncio.Task[None]] = set()
+        #: Set when the server stops: a change waiting for acknowledgements stops waiting.
+        self._stopping = threading.Event()
 
     # ---- set-up ------------------------------------------------------------------------
     def app(self) -> web.Application:
@@ -134,6 +142,7 @@ class GuiServer:
     async def _close_sockets(self, app: web.Application) -> None:
         # On shutdown, before the server waits for its handlers to finish: an open page's
         # socket handler would otherwise hold the stop until its time-out.
+        self._stopping.set()
         for ws in list(self.sockets):
             await ws.close(code=WSCloseCode.GOING_AWAY, message=b"server stopping")
 
@@ -367,8 +376,10 @@ class GuiServer:
         self._answers.add(task)
         task.add_done_callback(self._answers.discard)
 
-    async def _command(self, command: Command) -> Reply:
+    async def _command(self, command: Command) -> Reply | Later:
         assert self._view is not None and self._desk is not None and self._coalescer
+        if isinstance(command, AddTargetsCommand | RemoveTargetsCommand):
+            return await self._change(command)
         try:
             reply = await asyncio.to_thread(
                 execute, self.bus, self._desk, command, set(self._view.live_ids())
@@ -380,6 +391,28 @@ class GuiServer:
             self.model.aborted.add(reply.mission)
         self._coalescer.mark()
         return reply
+
+    async def _change(self, command: ChangeCommand) -> Reply | Later:
+        """A change in flight: put in its turn; its acknowledgements awaited after it
+        (`Later`), so that an Abort pressed meanwhile goes out at once."""
+        assert self._desk is not None and self._coalescer is not None
+        try:
+            put = await asyncio.to_thread(put_change_of, self.bus, self._desk, command)
+        except Exception as error:
+            log.exception("command %r failed", command)
+            return Reply(command.id, False, f"failed: {error}")
+        self._coalescer.mark()
+        if isinstance(put, Reply):
+            return put
+
+        async def acknowledged() -> Reply:
+            try:
+                return await asyncio.to_thread(change_reply, command, put, self._stopping)
+            except Exception as error:
+                log.exception("command %r failed", command)
+                return Reply(command.id, False, f"failed: {error}")
+
+        return Later(acknowledged)
 
 
 def _done(reply: Reply) -> asyncio.Future[Reply]:

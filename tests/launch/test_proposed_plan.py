@@ -29,6 +29,7 @@ from fleet.recording.reader import read_recording
 from fleet.transport.zenoh_bus import client_bus
 from tests.support.ground_cli import ground_cli
 from tests.support.processes import ANY_PORT, start_fleet_up, wait_fleet_up
+from tests.support.targets import targets_csv
 
 pytest.importorskip("pyvrp", reason="PyVRP is not installed: pip install '.[solver]'")
 pytestmark = pytest.mark.e2e
@@ -37,18 +38,6 @@ MISSION = 41
 #: Twenty targets, local metres east/north of the windy scenario's origin, seeded.
 _RNG = random.Random(35)
 POINTS = [(_RNG.uniform(-6000, 6000), _RNG.uniform(-9000, 12000)) for _ in range(20)]
-
-
-def _targets_csv(path: Path) -> Path:
-    from fleet.geo.mercator import MercatorProjection
-
-    projection = MercatorProjection(35.72, -120.76)
-    rows = ["lat,lon,alt"]
-    for x, y in POINTS:
-        lat, lon = projection.to_latlon(x, y)
-        rows.append(f"{lat:.7f},{lon:.7f},600")
-    path.write_text("\n".join(rows) + "\n")
-    return path
 
 
 def _rogue(endpoint: str, stop: threading.Event) -> None:
@@ -72,8 +61,9 @@ def test_a_proposed_plan_is_verified_and_one_plan_adopted_by_every_uav(tmp_path:
         endpoint = wait_fleet_up(up, 90.0).connect
         rogue = threading.Thread(target=_rogue, args=(endpoint, stop), daemon=True)
         rogue.start()
+        csv_file = targets_csv(tmp_path / "nine.csv", (35.72, -120.76), POINTS)
         sent = ground_cli(
-            "send-targets", str(_targets_csv(tmp_path / "nine.csv")), "--objective", "min-max",
+            "send-targets", str(csv_file), "--objective", "min-max",
             "--propose", "--mission", str(MISSION), "--wait", "--json", "--timeout", "90",
             connect=endpoint, timeout=240,
         )  # fmt: skip

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import random
+from collections.abc import Iterable
 from pathlib import Path
 
 from fleet.geo.mercator import MercatorProjection
@@ -31,15 +32,23 @@ WINDY_NINE = (
 )  # fmt: skip
 
 
-def windy_nine_csv(path: Path) -> Path:
-    """`WINDY_NINE` written to `path` as a targets CSV (lat, lon, alt 600 m)."""
-    from fleet.sim.scenario import shipped_scenario
-
-    first = shipped_scenario("windy").uavs[0]
-    projection = MercatorProjection(first.lat, first.lon)
+def targets_csv(
+    path: Path, origin: tuple[float, float], points: Iterable[tuple[float, float]]
+) -> Path:
+    """`points`, local metres east/north of `origin` (lat, lon), written to `path` as a
+    targets CSV (lat, lon, alt 600 m)."""
+    projection = MercatorProjection(*origin)
     rows = ["lat,lon,alt"]
-    for x, y in WINDY_NINE:
+    for x, y in points:
         lat, lon = projection.to_latlon(x, y)
         rows.append(f"{lat:.7f},{lon:.7f},600")
     path.write_text("\n".join(rows) + "\n")
     return path
+
+
+def windy_nine_csv(path: Path) -> Path:
+    """`WINDY_NINE` written to `path` as a targets CSV."""
+    from fleet.sim.scenario import shipped_scenario
+
+    first = shipped_scenario("windy").uavs[0]
+    return targets_csv(path, (first.lat, first.lon), WINDY_NINE)

@@ -6,7 +6,7 @@ import asyncio
 from collections.abc import Awaitable, Callable
 
 from ground.gui.commands import Reply
-from ground.gui.ledger import CommandLedger
+from ground.gui.ledger import CommandLedger, Later
 
 
 def test_a_page_id_sent_again_is_answered_with_the_first_reply_not_run_again() -> None:
@@ -88,3 +88,36 @@ def test_only_the_latest_outcomes_are_kept() -> None:
         return runs
 
     assert asyncio.run(scenario()) == 5
+
+
+def test_a_later_reply_is_awaited_after_its_turn_and_holds_up_nothing() -> None:
+    """A change put in its turn, its acknowledgements awaited after: an Abort pressed
+    meanwhile runs at once, yet after the change was put."""
+
+    async def scenario() -> tuple[list[str], Reply]:
+        ledger = CommandLedger()
+        order: list[str] = []
+        acknowledged = asyncio.Event()
+
+        async def change() -> Reply | Later:
+            order.append("change put")
+
+            async def wait() -> Reply:
+                await acknowledged.wait()
+                order.append("change acknowledged")
+                return Reply("p-1", True, "acknowledged")
+
+            return Later(wait)
+
+        async def abort() -> Reply:
+            order.append("abort")
+            acknowledged.set()
+            return Reply("p-2", True, "abort sent")
+
+        first = ledger.submit("p-1", change)
+        await ledger.submit("p-2", abort)
+        return order, await first
+
+    order, reply = asyncio.run(scenario())
+    assert order == ["change put", "abort", "change acknowledged"]
+    assert reply.message == "acknowledged"

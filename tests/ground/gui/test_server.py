@@ -320,6 +320,39 @@ def test_a_change_in_flight_not_acknowledged_fails_with_who_did_not(
     assert outcome["mission"] == mission and len(outcome["targets"]) == 3
 
 
+def test_an_abort_is_not_held_up_by_a_change_waiting_for_acknowledgements(
+    gui: str, mfakes: dict[int, FakeOnboard]
+) -> None:
+    """A change is put in its turn and its acknowledgements awaited after it: an Abort
+    pressed meanwhile is answered (and on the bus) before the change's reply."""
+    targets: list[dict[str, float]] = [{"lat": t.lat, "lon": t.lon, "alt": t.alt} for t in TARGETS]
+    (sent,) = asyncio.run(
+        _session_with(gui, [{"cmd": "send", "id": 30, "team": [74, 112], "targets": targets}])
+    )
+    mission = sent["mission"]
+    assert wait_until(lambda: mfakes[74].targets[-1].mission == mission)
+
+    async def scenario() -> list[dict[str, Any]]:
+        async with aiohttp.ClientSession() as http, http.ws_connect(ws_url(gui)) as ws:
+            change = {"cmd": "remove-targets", "id": "c-1", "indexes": [1], "wait_s": 5.0}
+            await ws.send_str(json.dumps(change))
+            await ws.send_str(json.dumps({"cmd": "abort", "id": "c-2"}))
+            replies: list[dict[str, Any]] = []
+            while len(replies) < 2:
+                message = await ws.receive_json(timeout=20)
+                if message["type"] == "reply":
+                    replies.append(message)
+            return replies
+
+    first, second = asyncio.run(scenario())
+    assert (first["id"], second["id"]) == ("c-2", "c-1")
+    assert first["ok"] and f"mission {mission}: abort sent" in first["message"]
+    assert not second["ok"] and "not acknowledged by 74, 112 within 5 s" in second["message"]
+    # Both went out: the revision (put in its turn) and the abort.
+    assert [t.revision for t in mfakes[74].targets[-1:]] == [1]
+    assert any(a.mission == mission for a in mfakes[74].aborts)
+
+
 @pytest.mark.e2e
 def test_a_token_when_given_guards_every_request(
     router: str, fakes: object, tmp_path: Path
