@@ -19,7 +19,11 @@ UAVs fly their racetracks meanwhile, turning in the wind). Each run takes about
 each UAV) with `--objective min-sum`, so each UAV flies a queue, and prints every leg of
 every queue: the plan's time, the UAV's time said as it began the leg (`begun`: in the
 air of that moment, docs/queues.md) and the time flown, with each one's error and their
-median and worst. About 750 / K wall seconds a run.
+median and worst; and, for each leg after a queue's first, `true wind`: the plan's leg
+model (its airspeed, the turn its queue makes) in the simulator's true mean wind at the
+middle of the leg as flown (`fleet.sim.weather`'s drift, without gusts or the estimate's
+lag and bias), which tells the model's error from the wind's change. About 750 / K wall
+seconds a run.
 """
 
 from __future__ import annotations
@@ -35,8 +39,14 @@ import time
 from pathlib import Path
 from typing import Any
 
+from fleet.consensus.legs import Air, AirLegs, LegGeometry
+from fleet.geo.wind import Wind
 from fleet.launch.endpoints import free_port
-from fleet.sim.scenario import shipped_scenario_path
+from fleet.mission.messages import MissionTargets
+from fleet.recording.mission_log import build_timeline
+from fleet.recording.reader import read_recording
+from fleet.sim.scenario import shipped_scenario, shipped_scenario_path
+from fleet.sim.weather import Weather
 from tests.support.processes import start_fleet_up, wait_fleet_up
 from tests.support.targets import windy_nine_csv
 
@@ -59,9 +69,49 @@ def fly(dynamics: str, after_s: float, speedup: float) -> dict[str, tuple[float,
 
 
 def fly_nine(dynamics: str, after_s: float, speedup: float) -> dict[str, list[dict[str, Any]]]:
-    """One run of nine targets: each UAV's legs (`fleet report --json`'s)."""
-    (mission,) = _mission(dynamics, after_s, speedup, nine=True)["missions"]
-    return {uav: mission["legs"][uav] for uav in WHERE}
+    """One run of nine targets: each UAV's legs (`fleet report --json`'s), each with
+    `true_s`, the leg timed in the true mean wind of its time (None for a first leg)."""
+    found = _mission(dynamics, after_s, speedup, nine=True)
+    (mission,) = found["missions"]
+    legs: dict[str, list[dict[str, Any]]] = {uav: mission["legs"][uav] for uav in WHERE}
+    for uav, rows in legs.items():
+        for row, true_s in zip(rows, found["true_s"][uav], strict=True):
+            row["true_s"] = true_s
+    return legs
+
+
+def true_wind_legs(recording: Path) -> dict[str, list[float | None]]:
+    """Each UAV's legs, timed by the plan's model in the scenario's true mean wind at
+    the middle of each leg (aircraft clock = the simulator's weather clock)."""
+    timeline = build_timeline(read_recording(recording).messages)
+    (log,) = timeline.missions
+    targets = MissionTargets(log.mission, log.team, log.targets, zones=log.zones)
+    geometry = LegGeometry.of(targets.targets, targets.zones)
+    weather = Weather(shipped_scenario("windy").weather)
+    out: dict[str, list[float | None]] = {}
+    for uav in log.team:
+        track, queue = timeline.tracks[uav], log.queue_of(uav)
+        planned = Air.of(log.results[uav])
+        reached = {target: at for at, target in log.arrivals.get(uav, [])}
+        origin = AirLegs(geometry, {uav: planned})._origin(planned)
+        times: list[float | None] = [None]
+        previous = reached.get(queue[0]) if queue else None
+        for k in range(1, len(queue)):
+            at = reached.get(queue[k])
+            start = None if previous is None else track.aircraft_time(previous)
+            end = None if at is None else track.aircraft_time(at)
+            if start is None or end is None:
+                times.append(None)
+            else:
+                mean = weather._mean(0.5 * (start + end))  # the drift alone
+                air = Air(planned.airspeed, Wind(mean.east, mean.north), planned.origin)
+                before = queue[k - 2] if k >= 2 else origin
+                times.append(
+                    AirLegs(geometry, {uav: air}).turning_leg(uav, before, queue[k - 1], queue[k])
+                )
+            previous = at
+        out[str(uav)] = times
+    return out
 
 
 def _mission(dynamics: str, after_s: float, speedup: float, *, nine: bool) -> dict[str, Any]:
@@ -97,7 +147,9 @@ def _mission(dynamics: str, after_s: float, speedup: float, *, nine: bool) -> di
                       timeout=120.0)  # fmt: skip
         if report.returncode != 0:
             raise RuntimeError(f"fleet report failed: {report.stderr[-2000:]}")
-    found: dict[str, Any] = json.loads(report.stdout)
+        found: dict[str, Any] = json.loads(report.stdout)
+        if nine:
+            found["true_s"] = true_wind_legs(logs / "fleet.mcap")
     return found
 
 
@@ -115,21 +167,24 @@ def _cell(seconds: float | None, error: float | None) -> str:
 
 def print_nine(dynamics: str, runs: int, after_s: float, speedup: float) -> None:
     print(f"{'dynamics':<10} {'run':>3} {'UAV':>4} {'leg':>3} {'target':>6} "
-          f"{'plan s   error':>16} {'begun s  error':>16} {'flown s':>8}")  # fmt: skip
-    errors: dict[str, list[float]] = {"plan": [], "begun": []}
+          f"{'plan s   error':>16} {'begun s  error':>16} {'true wind error':>16} "
+          f"{'flown s':>8}")  # fmt: skip
+    predictors = {"plan": "predicted_s", "begun": "begun_s", "true wind": "true_s"}
+    errors: dict[str, list[float]] = {name: [] for name in predictors}
     for run in range(runs):
         for uav, rows in fly_nine(dynamics, after_s, speedup).items():
             for leg, row in enumerate(rows):
                 flown = row["flown_s"]
-                plan, begun = _error(row["predicted_s"], flown), _error(row["begun_s"], flown)
-                for name, error in (("plan", plan), ("begun", begun)):
+                cells = []
+                for name, key in predictors.items():
+                    error = _error(row.get(key), flown)
                     if error is not None:
                         errors[name].append(abs(error))
+                    cells.append(_cell(row.get(key), error))
                 flown_text = "-" if flown is None else f"{flown:.1f}"
                 print(
                     f"{dynamics:<10} {run:>3} {uav:>4} {leg:>3} {row['target']:>6} "
-                    f"{_cell(row['predicted_s'], plan)} {_cell(row['begun_s'], begun)} "
-                    f"{flown_text:>8}",
+                    f"{' '.join(cells)} {flown_text:>8}",
                     flush=True,
                 )
     for name, values in errors.items():

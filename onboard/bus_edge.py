@@ -12,6 +12,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TypeVar
 
 import msgspec
 
@@ -59,6 +60,18 @@ class PresenceEvent:
 Sink = Callable[[BusEvent | PresenceEvent], None]
 #: The selector parameter by which a query asks teammates to relay a UAV's state.
 RELAYED = "relayed"
+
+
+M = TypeVar("M", bound=msgspec.Struct)
+
+
+def _decoded(sample: BusSample, kind: type[M]) -> M | None:
+    """`sample`'s message of `kind`; None, the refusal logged, if it is not one."""
+    try:
+        return decode(sample.payload, kind, sample.key)
+    except BadMessage as error:
+        _refusals.warn(f"dropped: {error}")
+        return None
 
 
 def _mission_subscriptions(space: KeySpace) -> tuple[tuple[str, type[msgspec.Struct]], ...]:
@@ -175,12 +188,9 @@ class BusEdge:
         self, kind: type[msgspec.Struct], *, replayed: bool = False
     ) -> Callable[[BusSample], None]:
         def on_sample(sample: BusSample) -> None:
-            try:
-                message = decode(sample.payload, kind, sample.key)
-            except BadMessage as error:
-                _refusals.warn(f"dropped: {error}")
-                return
-            self.sink(BusEvent(sample.key, message, replayed))
+            message = _decoded(sample, kind)
+            if message is not None:
+                self.sink(BusEvent(sample.key, message, replayed))
 
         return on_sample
 
@@ -191,12 +201,8 @@ class BusEdge:
         key = self.key_space.state(uav)
 
         def on_reply(sample: BusSample) -> None:
-            try:
-                state = decode(sample.payload, UavState, sample.key)
-            except BadMessage as error:
-                _refusals.warn(f"dropped: {error}")
-                return
-            if sample.key == key and state.uav == uav:
+            state = _decoded(sample, UavState)
+            if state is not None and sample.key == key and state.uav == uav:
                 self.sink(BusEvent(sample.key, state, replayed=True))
 
         self.bus.get(key, on_reply, timeout)

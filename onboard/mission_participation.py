@@ -704,9 +704,9 @@ class MissionParticipation:
 
     def _leg_from_here(self, reached: int, following: int) -> float | None:
         """Its time from `reached` (just now) to `following` in the air of the moment: the
-        smoothed wind, its airspeed, its track in (fleet.consensus.legs.leg_from_here)."""
+        smoothed wind and airspeed, its track in (fleet.consensus.legs.leg_from_here)."""
         assert self.round is not None
-        gps, speed = self.link.gps, self.link.airspeed()
+        gps, speed = self.link.gps, self.link.smoothed_airspeed()
         if gps is None or speed is None or not AIRSPEED_RANGE[0] <= speed <= AIRSPEED_RANGE[1]:
             return None
         air = Air(speed, self.link.wind.value)

@@ -328,7 +328,7 @@ class MissionProgress(msgspec.Struct, frozen=True):
     #: The mission's targets it knows reached, and by whom (its own and its teammates').
     reached: Annotated[dict[TargetIndex, PiccoloId], Meta(max_length=MAX_TARGETS)] = {}
     #: Its time (s) for the leg to `current_target`, timed when it began that leg, in
-    #: the air it flew in then (its airspeed and smoothed wind, from where it was): a
+    #: the air it flew in then (its smoothed airspeed and wind, from where it was): a
     #: plan's leg times are in the air at the plan, which the wind leaves as it drifts
     #: (docs/queues.md). For a queue's first target, its result's approach time. None
     #: from a UAV that does not say, or could not time it.

@@ -17,6 +17,7 @@ import math
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -26,7 +27,7 @@ from fleet.geo.mercator import MercatorProjection
 from fleet.geo.wind import Wind
 from fleet.sim.scenario import shipped_scenario, shipped_scenario_path
 from tests.support.ground_cli import ground_cli
-from tests.support.processes import fleet_up
+from tests.support.processes import RunningFleet, fleet_up
 from tests.support.targets import windy_nine_csv
 
 pytestmark = pytest.mark.e2e
@@ -41,6 +42,25 @@ def run(*argv: str, timeout: float = TIMEOUT_S) -> subprocess.CompletedProcess[s
     return subprocess.run(
         [sys.executable, *argv], capture_output=True, text=True, timeout=timeout, check=False
     )
+
+
+def reached_then_stopped(up: RunningFleet, until_s: int, timeout: float) -> None:
+    """`mission --until-reached` (every target reached within `until_s`), then `fleet up`
+    stopped, with its recording closed."""
+    reached = ground_cli(
+        "mission", "--until-reached", str(until_s), "--json", connect=up.connect, timeout=timeout
+    )
+    assert reached.returncode == 0, reached.stdout[-3000:] + reached.stderr[-3000:]
+    assert up.stop(60) == 0
+
+
+def reported_mission(log_dir: Path) -> dict[str, Any]:
+    """The one mission `fleet report --json` finds in the run's recording."""
+    report = run("-m", "programs.fleet_cli", "report", str(log_dir / "fleet.mcap"), "--json")
+    assert report.returncode == 0, report.stderr[-3000:]
+    missions: list[dict[str, Any]] = json.loads(report.stdout)["missions"]
+    (mission,) = missions
+    return mission
 
 
 def test_still_air_times_would_fail_this_test() -> None:
@@ -69,14 +89,8 @@ def test_three_uavs_arrive_when_they_said_in_a_10_ms_wind(tmp_path: Path) -> Non
         assert outcome["agreed"] is True
         assert outcome["assignment"] == {"201": 0, "202": 1, "203": 2}
         # The longest flight (upwind, ~260 s simulated) is ~90 s at speedup 3.
-        reached = ground_cli(
-            "mission", "--until-reached", "240", "--json", connect=up.connect, timeout=300.0
-        )
-        assert reached.returncode == 0, reached.stdout[-3000:] + reached.stderr[-3000:]
-        assert up.stop(60) == 0
-    report = run("-m", "programs.fleet_cli", "report", str(tmp_path / "fleet.mcap"), "--json")
-    assert report.returncode == 0, report.stderr[-3000:]
-    (mission,) = json.loads(report.stdout)["missions"]
+        reached_then_stopped(up, 240, 300.0)
+    mission = reported_mission(tmp_path)
     for uav in ("201", "202", "203"):
         predicted, flown = mission["predicted_s"][uav], mission["flown_s"][uav]
         assert predicted is not None and flown is not None, (uav, mission)
@@ -103,14 +117,8 @@ def test_every_leg_of_every_queue_flies_in_the_time_its_uav_said_in_a_10_ms_wind
         assert sent.returncode == 0, sent.stderr[-3000:]
         assert json.loads(sent.stdout)["agreed"] is True
         # ~700 s simulated for the longest queue: ~175 s at speedup 4.
-        reached = ground_cli(
-            "mission", "--until-reached", "420", "--json", connect=up.connect, timeout=480.0
-        )
-        assert reached.returncode == 0, reached.stdout[-3000:] + reached.stderr[-3000:]
-        assert up.stop(60) == 0
-    report = run("-m", "programs.fleet_cli", "report", str(tmp_path / "fleet.mcap"), "--json")
-    assert report.returncode == 0, report.stderr[-3000:]
-    (mission,) = json.loads(report.stdout)["missions"]
+        reached_then_stopped(up, 420, 480.0)
+    mission = reported_mission(tmp_path)
     legs = {uav: mission["legs"][uav] for uav in ("201", "202", "203")}
     assert sorted(row["target"] for rows in legs.values() for row in rows) == list(range(9))
     assert sum(len(rows) > 1 for rows in legs.values()) >= 2, legs  # queues, not one each

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import msgspec
 import pytest
 
@@ -67,3 +69,30 @@ def test_the_airspeed_held_is_the_air_datas_else_the_gps_less_the_smoothed_wind(
     gps = telemetry.gps
     expected = airspeed((gps.vel_east, gps.vel_north), watch.wind.value)
     assert watch.wind.value.east > 0.0 and watch.airspeed() == pytest.approx(expected)
+
+
+def test_the_smoothed_airspeed_averages_the_air_data_over_the_wind_s_time_constant() -> None:
+    """A gust's reading moves it by the share of the time constant that passed; with no
+    air data ever, it is the airspeed held."""
+    watch = LinkWatch(lambda *_args, **_kwargs: None)
+    telemetry = sample_telemetry()
+    base = telemetry.sensor
+    assert base is not None and telemetry.gps is not None
+    assert watch.smoothed_airspeed() is None
+
+    def reading(speed: float, now: float) -> None:
+        sensor = msgspec.structs.replace(base, indicated_airspeed=speed, density_ratio=1.0)
+        watch.on_telemetry(msgspec.structs.replace(telemetry, sensor=sensor), now)
+
+    reading(22.0, 0.0)
+    assert watch.smoothed_airspeed() == pytest.approx(22.0)  # the first, as it is
+    reading(25.0, 1.0)  # a gust: the instant's reading, not the mean
+    assert watch.airspeed() == pytest.approx(25.0)
+    weight = 1.0 - math.exp(-1.0 / watch.wind.time_constant_s)
+    assert watch.smoothed_airspeed() == pytest.approx(22.0 + 3.0 * weight)
+    reading(22.0, 0.5)  # a clock that went back: taken as it is
+    assert watch.smoothed_airspeed() == pytest.approx(22.0)
+    plain = LinkWatch(lambda *_args, **_kwargs: None)
+    no_pitot = msgspec.structs.replace(base, indicated_airspeed=0.0)
+    plain.on_telemetry(msgspec.structs.replace(telemetry, sensor=no_pitot), 0.0)
+    assert plain.smoothed_airspeed() == pytest.approx(plain.airspeed())

@@ -111,7 +111,7 @@ def test_a_hint_about_a_teammate_is_fetched_from_it_once() -> None:
 def test_each_leg_is_timed_when_it_begins_in_the_air_of_that_moment() -> None:
     """The state says the UAV's time for the leg it flies: its result's approach time to
     its first target; for a later one, the plan's leg model timed as it leaves the
-    target it reached, in its smoothed wind at its airspeed, its track in the one flown."""
+    target it reached, in its smoothed wind at its smoothed airspeed, its track in the one flown."""
     core, out = _two_uav_plan()
     progress = core.state(2.0).mission
     assert progress is not None and (progress.current_target, progress.leg_s) == (1, 40.0)
@@ -121,7 +121,7 @@ def test_each_leg_is_timed_when_it_begins_in_the_air_of_that_moment() -> None:
     progress = core.state(11.5).mission
     link, mission_round = core.mission.link, core.round
     assert progress is not None and mission_round is not None and link.gps is not None
-    speed = link.airspeed()
+    speed = link.smoothed_airspeed()
     assert speed is not None
     expected = leg_from_here(
         mission_round.geometry,

@@ -3,12 +3,13 @@
 Send with "propose a plan" (the ground solves with PyVRP, as `send-targets --propose`),
 the proposal's adoption shown as the UAVs' reported digests say; targets added and one
 removed in flight, each answered only once every UAV planned the new revision, and the
-page's mission showing it. The same in a real browser against a real fleet is
-tests/ground/gui/test_browser.py."""
+page's mission showing it, and a change made by another ground's CLI. The same in a
+real browser against a real fleet is tests/ground/gui/test_browser.py."""
 
 from __future__ import annotations
 
 import asyncio
+import io
 import json
 from collections.abc import Callable
 from pathlib import Path
@@ -18,6 +19,8 @@ import aiohttp
 import pytest
 
 from fleet.mission.key_space import KeySpace
+from fleet.transport.cli import ExitCode
+from ground.mission_change_command import AddOptions, run_add_targets
 from tests.support.agreement import AssignmentsHeard
 from tests.support.gui_page import serving, websocket_url
 from tests.support.memory_world import memory_fleet, ring_file
@@ -146,5 +149,12 @@ def test_the_page_proposes_a_plan_then_adds_and_removes_targets_in_flight(
                     )
                     assert not again["ok"] and "target 8 was removed already" in again["message"]
                     assert {heard.latest()[uav].revision for uav in team} == {2}
+
+                    # A change another ground makes (`ground-cli add-targets`) is shown too.
+                    options = AddOptions(targets=LATER[:1], mission=mission, json=True)
+                    code = await asyncio.to_thread(run_add_targets, bus, options, io.StringIO())
+                    assert code == ExitCode.OK
+                    shown = await page.until("revision 3", lambda m: m["revision"] == 3)
+                    assert len(shown["target_states"]) == 10 and shown["removed"] == [8]
 
             asyncio.run(scenario())
