@@ -26,23 +26,18 @@ from __future__ import annotations
 import argparse
 import queue
 import statistics
-import tempfile
 import threading
 import time
 from pathlib import Path
 
-from fleet.files.certs import write_identities
-from fleet.files.signers import load_roster, load_signing_key, signing_key_path
-from fleet.launch.endpoints import free_port
 from fleet.mission.access import GROUND, uav_identity
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, Target, UavResult
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from fleet.transport.bus import BusSample, SampleCallback, decode_sample
 from fleet.transport.bus_codec import encode
-from fleet.transport.router import Router
-from fleet.transport.signing import BusSigning
 from fleet.transport.zenoh_bus import ZenohBus, connect
+from tests.support.signed import bus_signing, router_and_identities
 
 SPACE = KeySpace()
 ROUND_TIMEOUT_S = 120.0
@@ -104,11 +99,6 @@ class Team:
         self.answerer.join(5.0)
 
 
-def signing_of(certs: Path, identity: str) -> BusSigning:
-    key = load_signing_key(signing_key_path(certs, identity))
-    return BusSigning(identity, key, load_roster(certs))
-
-
 TELEMETRY_HZ = 20.0
 
 
@@ -119,7 +109,7 @@ def stream_cost(
     UAVs stream telemetry at TELEMETRY_HZ to a ground subscribed to all of it."""
 
     def bus(identity: str) -> ZenohBus:
-        return ZenohBus(connect(endpoint).session, signing_of(certs, identity) if signed else None)
+        return ZenohBus(connect(endpoint).session, bus_signing(certs, identity) if signed else None)
 
     ground = bus(GROUND)
     buses = {u: bus(uav_identity(u)) for u in uavs}
@@ -157,12 +147,9 @@ def main() -> None:
     parser.add_argument("--stream-seconds", type=float, default=10.0)
     args = parser.parse_args()
     uavs = list(range(1, args.uavs + 1))
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    with tempfile.TemporaryDirectory() as directory, Router([endpoint]):
-        certs = Path(directory)
-        write_identities(certs, [GROUND, *(uav_identity(u) for u in uavs)], [])
-        signings = {u: signing_of(certs, uav_identity(u)) for u in uavs}
-        ground_signing = signing_of(certs, GROUND)
+    with router_and_identities([GROUND, *(uav_identity(u) for u in uavs)]) as (endpoint, certs):
+        signings = {u: bus_signing(certs, uav_identity(u)) for u in uavs}
+        ground_signing = bus_signing(certs, GROUND)
         ground = connect(endpoint)
         buses = {u: connect(endpoint) for u in uavs}
         team = Team(buses)

@@ -16,20 +16,15 @@ Run: .venv/bin/python -m bench.bench_state_relay [--uavs 50] [--seconds 10]
 from __future__ import annotations
 
 import argparse
-import tempfile
 import time
 from pathlib import Path
 
-from fleet.files.certs import write_identities
-from fleet.files.signers import load_roster, load_signing_key, signing_key_path
-from fleet.launch.endpoints import free_port
 from fleet.mission.access import uav_identity
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import UavState
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
-from fleet.transport.router import Router
-from fleet.transport.signing import BusSigning
 from fleet.transport.zenoh_bus import ZenohBus, connect
+from tests.support.signed import bus_signing, router_and_identities
 
 SPACE = KeySpace()
 
@@ -41,9 +36,7 @@ def state_cost(
     each UAV puts its signed state once a second, every UAV keeping them (`keep`) or not."""
 
     def bus(uav: int) -> ZenohBus:
-        identity = uav_identity(uav)
-        key = load_signing_key(signing_key_path(certs, identity))
-        return ZenohBus(connect(endpoint).session, BusSigning(identity, key, load_roster(certs)))
+        return ZenohBus(connect(endpoint).session, bus_signing(certs, uav_identity(uav)))
 
     buses = {u: bus(u) for u in uavs}
     if keep:
@@ -77,10 +70,7 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=10.0)
     args = parser.parse_args()
     uavs = list(range(1, args.uavs + 1))
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    with tempfile.TemporaryDirectory() as directory, Router([endpoint]):
-        certs = Path(directory)
-        write_identities(certs, [uav_identity(u) for u in uavs], [])
+    with router_and_identities(uav_identity(u) for u in uavs) as (endpoint, certs):
         runs = {
             keep: state_cost(endpoint, certs, uavs, keep, args.seconds) for keep in (False, True)
         }

@@ -15,36 +15,25 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-import zenoh
 
 from fleet.files.certs import write_identities
-from fleet.files.signers import load_roster, load_signing_key, signing_key_path
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionTargets, UavState
 from fleet.mission.targets_file import decode_targets
 from fleet.transport.bus import Bus
 from fleet.transport.router import Router
-from fleet.transport.signing import BusSigning
 from fleet.transport.zenoh_bus import ZenohBus, connect
-from fleet.transport.zenoh_config import make_config
 from ground.fleet_view import live_uav_ids
 from tests.support.memory_world import MemoryFleet, memory_fleet
 from tests.support.processes import ANY_PORT
 from tests.support.secure_fleet import TARGETS_FILE
+from tests.support.signed import signing_bus
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
 TARGETS = decode_targets(Path(TARGETS_FILE).read_bytes(), TARGETS_FILE)
 #: Far longer than a decision takes: a team that waits for a ghost waits this long.
 DEADLINE_S = 120.0
-
-
-def signed_bus(certs: Path, endpoint: str, identity: str) -> ZenohBus:
-    """A client of the router at `endpoint` that signs and checks as `identity`."""
-    signing = BusSigning(
-        identity, load_signing_key(signing_key_path(certs, identity)), load_roster(certs)
-    )
-    return ZenohBus(zenoh.open(make_config("client", [endpoint])), signing)
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +53,7 @@ def endpoint() -> Iterator[str]:
 @pytest.fixture(scope="module")
 def uavs(certs: Path, endpoint: str) -> Iterator[MemoryFleet]:
     def bus_of(uav: int) -> Bus:
-        return signed_bus(certs, endpoint, f"uav-{uav}")
+        return signing_bus(certs, endpoint, f"uav-{uav}")
 
     with memory_fleet("head_on", speedup=5.0, bus_of=bus_of) as running:
         # Each onboard counts the other once its signed state answered (`_ask_word`).
@@ -81,7 +70,7 @@ def uavs(certs: Path, endpoint: str) -> Iterator[MemoryFleet]:
 
 @pytest.fixture
 def ground_bus(certs: Path, endpoint: str) -> Iterator[ZenohBus]:
-    bus = signed_bus(certs, endpoint, "ground")
+    bus = signing_bus(certs, endpoint, "ground")
     yield bus
     bus.close()
 
@@ -101,7 +90,7 @@ def frozen(certs: Path, endpoint: str, uavs: MemoryFleet) -> Iterator[None]:
     """UAV 300 as a frozen onboard is: its token and its state queryable still declared,
     nothing answered; its last state, signed by its own key, put before it froze (and
     kept by its teammates)."""
-    bus = signed_bus(certs, endpoint, "uav-300")
+    bus = signing_bus(certs, endpoint, "uav-300")
     token = bus.declare_token(SPACE.alive(300))  # held: a token dropped is undeclared
     queryable = bus.declare_queryable(SPACE.state(300))  # never answered
     last = UavState(300, True, 1.0, None, None, None, None)

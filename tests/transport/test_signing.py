@@ -17,7 +17,6 @@ import zenoh
 
 from fleet.files.certs import write_identities
 from fleet.files.signers import (
-    load_roster,
     load_signing_key,
     revoke,
     roster_document,
@@ -32,6 +31,7 @@ from fleet.transport.bus_codec import encode
 from fleet.transport.signing import RELAY_CACHE, BusSigning
 from fleet.transport.zenoh_bus import ZenohBus, client_bus, connect
 from fleet.transport.zenoh_config import build_config
+from tests.support.signed import bus_signing
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
@@ -40,9 +40,10 @@ TARGETS = MissionTargets(5, (74, 112), (Target(35.7, -120.7, 600.0),))
 
 
 def signed_bus(certs: Path, endpoint: str, identity: str) -> ZenohBus:
+    """A client of the router at `endpoint` that signs and checks commands as `identity`
+    (signing set after it opened: no stream checks)."""
     bus = connect(endpoint)
-    key = load_signing_key(signing_key_path(certs, identity))
-    bus.signing = BusSigning(identity, key, load_roster(certs))
+    bus.signing = bus_signing(certs, identity)
     return bus
 
 
@@ -191,18 +192,8 @@ def test_a_reply_passes_on_the_message_as_first_signed(certs: Path) -> None:
     """The ground serving its mission while it flies, and a UAV relaying it, both pass on
     the put's own envelope: its time is when the mission was sent, not when asked."""
     now = [1_000]
-    ground = BusSigning(
-        "ground",
-        load_signing_key(signing_key_path(certs, "ground")),
-        load_roster(certs),
-        clock=lambda: now[0],
-    )
-    uav = BusSigning(
-        "uav-74",
-        load_signing_key(signing_key_path(certs, "uav-74")),
-        load_roster(certs),
-        clock=lambda: now[0],
-    )
+    ground = bus_signing(certs, "ground", clock=lambda: now[0])
+    uav = bus_signing(certs, "uav-74", clock=lambda: now[0])
     key, payload = SPACE.mission_targets(9), encode(TARGETS)
     put = ground.attachment(key, payload, Delivery.PUT)
     assert put is not None and uav.check(key, payload, put, Delivery.PUT)
@@ -223,8 +214,7 @@ def test_a_relay_passes_on_the_envelope_of_the_very_mission_it_holds(certs: Path
     now = [1_000]
 
     def signing(identity: str) -> BusSigning:
-        key = load_signing_key(signing_key_path(certs, identity))
-        return BusSigning(identity, key, load_roster(certs), clock=lambda: now[0])
+        return bus_signing(certs, identity, clock=lambda: now[0])
 
     first_ground, second_ground, uav = signing("ground"), signing("ground"), signing("uav-74")
     key = SPACE.mission_targets(9)
@@ -303,11 +293,8 @@ def test_a_roster_put_by_the_ground_revokes_at_once_and_never_revives(
     older = roster_document(tmp_path)
 
     def bus(identity: str) -> ZenohBus:
-        made = signed_bus(tmp_path, endpoint, identity)
-        assert made.signing is not None
-        made.signing = BusSigning(
-            identity, made.signing._key, made.signing.roster, ca_pem=tmp_path / "ca.pem"
-        )
+        made = connect(endpoint)
+        made.signing = bus_signing(tmp_path, identity, ca_pem=tmp_path / "ca.pem")
         return made
 
     ground, uav = bus("ground"), bus("uav-112")

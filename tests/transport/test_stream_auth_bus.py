@@ -10,31 +10,20 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
-import zenoh
 
-from fleet.files.signers import load_roster, load_signing_key, signing_key_path
 from fleet.mission.key_space import KeySpace
 from fleet.transport.bus import BusSample, RingSubscription
-from fleet.transport.signing import BusSigning
 from fleet.transport.zenoh_bus import ZenohBus, client_bus
-from fleet.transport.zenoh_config import make_config
+from tests.support.signed import signing_bus
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
 TIMEOUT_S = 10.0
 
 
-def secure_bus(certs: Path, endpoint: str, identity: str) -> ZenohBus:
-    """A bus signing as `identity`, with the secure profile's stream checks (a bus opened
-    with the secure config has them; here without TLS, which is the router's business)."""
-    key = load_signing_key(signing_key_path(certs, identity))
-    session = zenoh.open(make_config("client", [endpoint]))
-    return ZenohBus(session, BusSigning(identity, key, load_roster(certs)))
-
-
 @pytest.fixture
 def buses(certs: Path, endpoint: str) -> Iterator[dict[str, ZenohBus]]:
-    made = {name: secure_bus(certs, endpoint, name) for name in ("ground", "uav-112")}
+    made = {name: signing_bus(certs, endpoint, name) for name in ("ground", "uav-112")}
     yield made
     for bus in made.values():
         bus.close()
