@@ -1,20 +1,25 @@
-"""Plan quality against PyVRP: the baseline every UAV computes, the proposed plan, the
-plan adopted, for min-sum and min-max.
+"""Plan quality against PyVRP and OR-Tools: the baseline every UAV computes, the proposed
+plan, the plan adopted, for min-sum and min-max.
 
 Seeded instances of N UAVs x M targets (3x8, 5x20, 10x50, 20x100; UAVs and targets
 uniform in a square of 2 km per sqrt(target), as `bench_queues`), every approach time
 and leg the straight line at 22 m/s (one table for every UAV), every plan scored by
-the project's own `arrivals_of` (total of arrivals for min-sum, last arrival for
-min-max). Per size and objective, each method's measure as a ratio to the best any
-method found on that instance (mean and worst over the instances):
+the project's own scorer (`finish`: total of arrivals for min-sum, last arrival for
+min-max). Per size and objective, each method's measure as a ratio to the best known
+(the best any method found on that instance; mean and worst over the instances):
 
 * `baseline`: `plan_queues`, what every UAV computes;
 * `pyvrp`: `ground.solver_plan.solve_queues` (PyVRP, fixed seed, `--iterations`;
-  min-max by bisection on the route duration, min-sum PyVRP then the project's search);
+  min-max by bisection on the route duration, min-sum PyVRP then the project's search),
+  the ground's proposal;
 * `adopted`: the better of the two by the deterministic scorer (what the team adopts
   when the ground proposes), so never worse than the baseline;
+* `ortools`: OR-Tools' routing solver (`bench.ortools_plan`, guided local search for
+  `--ortools-seconds` a solve), a reference only, never proposed; left out (with a
+  note) where OR-Tools is not installed;
 
-and the CPU of each (median per instance). Needs `pip install '.[solver]'`.
+and the CPU of each (median per instance). Needs `pip install '.[solver]'` and, for the
+reference, `pip install '.[compare]'`.
 
     python -m bench.bench_plan_quality [--instances 10] [--sizes 3x8 5x20 10x50 20x100]
 """
@@ -22,6 +27,7 @@ and the CPU of each (median per instance). Needs `pip install '.[solver]'`.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import random
 import statistics
 import time
@@ -34,24 +40,39 @@ from fleet.mission.objective import Objective
 from ground.solver_plan import solve_queues
 
 
-def _methods(
-    times: Times, legs: Legs, objective: Objective, iterations: int
-) -> tuple[tuple[Queues, float], tuple[Queues, float], Callable[[Queues], tuple[float, float]]]:
-    """(baseline, its CPU s), (PyVRP's, its CPU s), the scorer of the objective."""
+def _timed(solve: Callable[[], Queues]) -> tuple[Queues, float]:
+    started = time.process_time()
+    queues = solve()
+    return queues, time.process_time() - started
 
-    def score(queues: Queues) -> tuple[float, float]:
+
+def _baseline(times: Times, legs: Legs, objective: Objective) -> Queues:
+    return {u: list(q) for u, q in plan_queues(times, legs, objective).queues.items()}
+
+
+def _run(
+    times: Times, legs: Legs, objective: Objective, args: argparse.Namespace, with_ortools: bool
+) -> tuple[dict[str, float], dict[str, float]]:
+    """Each method's measure on one instance, and each solver's CPU (s)."""
+
+    def score(queues: Queues) -> float:
         plan = finish(queues, times, legs)
-        if objective is Objective.MIN_MAX:
-            return plan.makespan(), plan.total()
-        return plan.total(), plan.makespan()
+        return plan.makespan() if objective is Objective.MIN_MAX else plan.total()
 
-    started = time.process_time()
-    base = {u: list(q) for u, q in plan_queues(times, legs, objective).queues.items()}
-    base_s = time.process_time() - started
-    started = time.process_time()
-    solved = solve_queues(times, legs, objective, iterations=iterations)
-    solved_s = time.process_time() - started
-    return (base, base_s), (solved, solved_s), score
+    solvers: dict[str, Callable[[], Queues]] = {
+        "baseline": lambda: _baseline(times, legs, objective),
+        "pyvrp": lambda: solve_queues(times, legs, objective, iterations=args.iterations),
+    }
+    if with_ortools:
+        from bench.ortools_plan import solve_ortools
+
+        solvers["ortools"] = lambda: solve_ortools(times, legs, objective, args.ortools_seconds)
+    plans: dict[str, Queues] = {}
+    seconds: dict[str, float] = {}
+    for name, solve in solvers.items():
+        plans[name], seconds[name] = _timed(solve)
+    plans["adopted"] = min(plans["baseline"], plans["pyvrp"], key=score)
+    return {name: score(plan) for name, plan in plans.items()}, seconds
 
 
 def main() -> None:
@@ -59,39 +80,50 @@ def main() -> None:
     parser.add_argument("--instances", type=int, default=10)
     parser.add_argument("--sizes", nargs="+", default=["3x8", "5x20", "10x50", "20x100"])
     parser.add_argument("--iterations", type=int, default=1500)
+    parser.add_argument("--ortools-seconds", type=float, default=2.0)
     parser.add_argument("--seed", type=int, default=35)
     args = parser.parse_args()
-    print(f"{args.instances} instances a size; PyVRP {args.iterations} iterations, seed 1")
-    print("| size | objective | baseline mean / worst | pyvrp mean / worst "
-          "| adopted mean / worst | baseline CPU | pyvrp CPU |")  # fmt: skip
-    print("|---|---|---|---|---|---|---|")
+    with_ortools = importlib.util.find_spec("ortools") is not None
+    names = ["baseline", "pyvrp", "adopted"] + (["ortools"] if with_ortools else [])
+    print(
+        f"{args.instances} instances a size; PyVRP {args.iterations} iterations, seed 1; "
+        + (
+            f"OR-Tools {args.ortools_seconds} s a solve"
+            if with_ortools
+            else "OR-Tools not installed (pip install '.[compare]'): not run"
+        )
+    )
+    print(
+        "| size | objective | "
+        + " | ".join(f"{n} mean / worst" for n in names)
+        + " | "
+        + " | ".join(f"{n} CPU" for n in names if n != "adopted")
+        + " |"
+    )
+    print("|---" * (2 + 2 * len(names) - 1) + "|")
     for size in args.sizes:
         uavs, targets = map(int, size.split("x"))
         for objective in (Objective.MIN_SUM, Objective.MIN_MAX):
-            ratios: dict[str, list[float]] = {"baseline": [], "pyvrp": [], "adopted": []}
-            cpu: dict[str, list[float]] = {"baseline": [], "pyvrp": []}
+            ratios: dict[str, list[float]] = {n: [] for n in names}
+            cpu: dict[str, list[float]] = {n: [] for n in names if n != "adopted"}
             for k in range(args.instances):
                 rng = random.Random(f"{args.seed}:{size}:{k}")
                 where, goals, _ = instance(rng, uavs, targets)
                 times, legs = times_and_legs(where, goals)
 
-                (base, base_s), (solved, solved_s), score = _methods(
-                    times, legs, objective, args.iterations
-                )
-                adopted = min(base, solved, key=score)
-                values = {"baseline": score(base)[0], "pyvrp": score(solved)[0],
-                          "adopted": score(adopted)[0]}  # fmt: skip
+                values, seconds = _run(times, legs, objective, args, with_ortools)
+                for name, value in seconds.items():
+                    cpu[name].append(value)
                 best = min(values.values())
-                for name, value in values.items():
-                    ratios[name].append(value / best)
-                cpu["baseline"].append(base_s)
-                cpu["pyvrp"].append(solved_s)
+                for n in names:
+                    ratios[n].append(values[n] / best)
             cells = [f"{statistics.mean(r):.3f} / {max(r):.3f}" for r in ratios.values()]
-            print(
-                f"| {size} | {objective.value} | {' | '.join(cells)} | "
-                f"{1000 * statistics.median(cpu['baseline']):.0f} ms | "
-                f"{statistics.median(cpu['pyvrp']):.1f} s |"
-            )
+            times_cells = [_cpu(statistics.median(c)) for c in cpu.values()]
+            print(f"| {size} | {objective.value} | {' | '.join(cells + times_cells)} |")
+
+
+def _cpu(seconds: float) -> str:
+    return f"{1000 * seconds:.0f} ms" if seconds < 1.0 else f"{seconds:.1f} s"
 
 
 if __name__ == "__main__":

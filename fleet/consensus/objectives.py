@@ -10,7 +10,9 @@
   greedy queues (`fleet.consensus.queues.greedy_queues`), then, for `min-sum` and
   `min-max`, improved by relocating one target at a time (`fleet.consensus.improve`): a
   deterministic local search with a bounded number of passes, whose measured gap to the
-  optimum is in docs/benchmarks.md.
+  optimum is in docs/benchmarks.md. `min-max` then goes on with the moves on the longest
+  queue and a bisection by ruin and recreate (`fleet.consensus.makespan`), and a
+  tightening bound on the last arrival (`fleet.consensus.tighten`), each bounded.
 
 Deterministic: the input is read in increasing (Piccolo ID, target index) order, and
 every choice among equals takes the first in that order. Pure: no I/O.
@@ -37,6 +39,7 @@ from fleet.consensus.queues import (
     greedy_queues,
     plan_clocks,
 )
+from fleet.consensus.tighten import tighten
 from fleet.mission.objective import Objective
 
 #: Instances up to this many (UAV, target) pairs get the min-max second start: beyond,
@@ -79,6 +82,12 @@ def plan_queues(
                 ruin_and_recreate(other, times, legs) if ruin else other, times, legs
             )
             best = min(best, other, key=lambda q: _last_total(q, times, legs))
+        if objective is Objective.MIN_MAX:
+            # The moves above stall where work must pass along a chain of queues: a
+            # bound on the last arrival, tightened (fleet.consensus.tighten), then the
+            # relocations for the total under it. The better of the two by (last, total).
+            tightened = improve(tighten(best, times, legs), times, legs, objective)
+            best = min(best, tightened, key=lambda q: _last_total(q, times, legs))
         return finish(best, times, legs)
     pairs = min_sum_assign(times, count) if objective is Objective.MIN_SUM else None
     if pairs is None:
