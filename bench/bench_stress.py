@@ -20,14 +20,18 @@ wait until it is ready, let it fly `--fly` seconds, then stop it: with SIGTERM, 
   whole recording a UAV started late or stopped early has fewer samples without any
   being lost; over the window, a lost sample counts. Also the longest gap between two
   samples of one UAV in the window (the recording keeps one every 0.2 s, so a gap of
-  0.4 s or more is a sample not recorded), and, for each recording below 5 % over the
-  whole, how late its smallest UAV started and how early it ended. With
-  `--measure-every N`, only every Nth SIGTERM cycle flies `--fly` s and is measured;
-  the others (SIGKILL cycles too) fly `--fly-other` s (crashes, start failures and
-  orphans are counted in all).
+  0.4 s or more is a sample not recorded, or none sent for that long), and, for each
+  recording below 5 % over the whole, how late its smallest UAV started and how early
+  it ended. With `--measure-every N`, only every Nth SIGTERM cycle flies `--fly` s and
+  is measured; the others (SIGKILL cycles too) fly `--fly-other` s (crashes, start
+  failures and orphans are counted in all).
 
-A recording keeps 5 telemetry samples a second per UAV, so a window under 4 s holds
-fewer than 20 and one sample is more than 5 %: `--fly` 5 or more lets 5 % be told apart.
+A recording keeps a UAV's first telemetry sample 0.2 s or more after the last one it
+kept: one every 0.205 s or so on an idle box; a sample that comes late (a process held
+up by load) stretches that interval. So a window of W seconds holds about W / 0.205
+samples, one more or fewer by where they fall against its edges, fewer where intervals
+stretched: two UAVs may differ by two samples with none lost, more than 5 % below about
+40 samples (`--fly` 10 or more).
 
 `--fake-runs N` also runs `bench.stress_fakes` N times, each a process of
 `--fake-cycles` cycles of the ground tests' fake onboards on an embedded router (with
@@ -68,6 +72,10 @@ ORPHAN_S = 10.0
 CRASH_MARK = "Fatal Python error"
 #: Every UAV's telemetry at least this share of the median UAV's: within 5 %.
 WITHIN = 0.95
+#: A gap this long between two telemetry samples of a UAV in a recording (which keeps
+#: one every 0.2 s): a sample not recorded, or none sent for that long (the file cannot
+#: tell which).
+LOST_GAP_S = 0.4
 
 
 @dataclass
@@ -259,7 +267,17 @@ def main() -> None:
     )
     parser.add_argument("--keep", type=Path, help="keep the logs of what crashed here")
     parser.add_argument("--cores", action="store_true", help="let crashes dump core")
+    parser.add_argument(
+        "--recordings",
+        nargs="+",
+        type=Path,
+        metavar="MCAP",
+        help="start nothing: compare these recordings' UAVs (each file's UAVs, from 101)",
+    )
     args = parser.parse_args()
+    if args.recordings:
+        describe_recordings(args.recordings, args.uavs)
+        return
     if args.keep is not None:
         args.keep.mkdir(parents=True, exist_ok=True)
     if args.cores:
@@ -291,6 +309,35 @@ def main() -> None:
             print(f"stopped by signal {stopping[0]} after {n} rounds of {args.cycles}")
         for result in results:
             report(result)
+
+
+def describe_recordings(paths: list[Path], uavs: int) -> None:
+    """Each recording's telemetry per UAV, in the window every UAV is live, one a line:
+    what a recording kept by `--keep` shows."""
+    ids = list(range(101, 101 + uavs))
+    for path in paths:
+        times = telemetry_times(path)
+        telemetry = spread(times, ids)
+        if telemetry is None:
+            print(f"{path}: no telemetry")
+            continue
+        start = max(times[uav][0] for uav in ids)
+        end = min(times[uav][-1] for uav in ids)
+        per_uav = []
+        for uav in ids:
+            inside = [t for t in times[uav] if start <= t <= end]
+            gap = max((b - a for a, b in itertools.pairwise(inside)), default=0) / 1e9
+            per_uav.append(
+                f"{uav}: {len(inside)} (first {(inside[0] - start) / 1e9:.2f} s after the "
+                f"window's start, last {(end - inside[-1]) / 1e9:.2f} s before its end, "
+                f"longest gap {gap:.3f} s)"
+                if inside
+                else f"{uav}: 0"
+            )
+        print(
+            f"{path}: window {telemetry.window_s:.2f} s, smallest / median "
+            f"{telemetry.window:.3f} (whole recording {telemetry.whole:.3f}); " + "; ".join(per_uav)
+        )
 
 
 def progress(results: list[ModeResult], started: float) -> None:
@@ -364,7 +411,8 @@ def report_recordings(recordings: list[TelemetrySpread]) -> None:
         f"  the window: {windows[0]:.1f} to {windows[-1]:.1f} s (median "
         f"{statistics.median(windows):.1f}), the median UAV's samples in it {samples[0]} to "
         f"{samples[-1]}; longest gap in a UAV's telemetry in it: "
-        f"{max(r.gap_s for r in recordings):.2f} s"
+        f"{max(r.gap_s for r in recordings):.2f} s; recordings with a gap of {LOST_GAP_S} s or "
+        f"more (a sample lost, or none sent): {sum(r.gap_s >= LOST_GAP_S for r in recordings)}"
     )
     short = [r for r in recordings if r.whole < WITHIN]
     if short:
