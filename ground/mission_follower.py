@@ -132,6 +132,8 @@ class MissionFollower(Declarations):
         self._add("outcome", self.outcomes, outcome)
 
     def add_result(self, result: UavResult) -> None:
+        if result.basis is not None:
+            return  # a standing for a re-plan (fleet.consensus.resolve), not the result
         self._add("result", self.results, result)
 
     def add_assignment(self, report: AssignmentReport) -> None:

@@ -43,10 +43,12 @@ class ApproachPlan:
         gps: GpsBlock,
         wind: Wind = CALM_AIR,
         true_airspeed: float | None = None,
+        budget_s: float | None = None,
     ) -> bool:
         """Ask for the approach times from `gps` to `targets` in `wind` (the smoothed
         estimate, onboard.planner.wind_estimate) at `true_airspeed` (the autopilot's, from
-        its air data; None: the GPS velocity less the wind); False if the planner refused.
+        its air data; None: the GPS velocity less the wind), within `budget_s` (None: the
+        mission's `budget`); False if the planner refused.
 
         The air data's airspeed, where there is one: the GPS velocity less a smoothed
         wind moves with every gust the estimate has not followed (the windy scenario:
@@ -57,7 +59,7 @@ class ApproachPlan:
             position=(0.0, 0.0),
             velocity=(gps.vel_east, gps.vel_north),
             targets=tuple(projection.to_xy(t.lat, t.lon) for t in targets.targets),
-            budget_s=self.budget(targets),
+            budget_s=self.budget(targets) if budget_s is None else budget_s,
             cruise_speed=(
                 true_airspeed
                 if true_airspeed is not None

@@ -88,10 +88,14 @@ class OnboardCore:
         link_release_s: float = LINK_RELEASE_S,
         liveliness_grace_s: float = LIVELINESS_GRACE_S,
         key_space: KeySpace = DEFAULT_SPACE,
+        fresh_replans: bool = True,
         vouch_teammates: bool = False,
     ) -> None:
-        """`vouch_teammates` (the secure profile): a teammate's liveliness token counts
-        only once the teammate spoke for itself (`on_spoke`; onboard.team_presence)."""
+        """`fresh_replans`: every re-plan is solved again from the survivors' fresh
+        times (fleet.consensus.resolve); off, it is the append rule's, committed at once
+        (what a re-plan commits when their times are missing). `vouch_teammates` (the
+        secure profile): a teammate's liveliness token counts only once the teammate
+        spoke for itself (`on_spoke`; onboard.team_presence)."""
         self.uav_id = uav_id
         self.planner = planner
         self.report = StateReport(uav_id, key_space, outputs, status_rate_hz)
@@ -120,6 +124,7 @@ class OnboardCore:
             self.link,
             self.flight,
             say,
+            fresh_replans=fresh_replans,
         )
 
     # ---- what the roles hold, read by the process and the tests ----------------------------

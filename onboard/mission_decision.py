@@ -100,7 +100,8 @@ class MissionDecision:
         if missing:
             self.outputs.fetch_results(mission_round.mission, missing)
             return None
-        report = mission_round.replan()
+        awaited = mission_round.awaiting
+        report = mission_round.replan(now)
         if report is not None:
             self.say(
                 StatusKind.REPLANNED,
@@ -108,5 +109,12 @@ class MissionDecision:
                 f"{', '.join(map(str, report.released))}",
                 now,
                 mission=report.mission,
+            )
+        elif mission_round.awaiting is not None and mission_round.awaiting is not awaited:
+            log.info(
+                "mission %d: re-plan epoch %d: waiting for the fresh times of %s",
+                mission_round.mission,
+                mission_round.awaiting.epoch,
+                ", ".join(map(str, mission_round.missing_standings())),
             )
         return report

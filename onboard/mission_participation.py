@@ -4,8 +4,11 @@ A mission's targets start a round (fleet.consensus.mission_round): this UAV comp
 its approach times and publishes them (onboard.own_result), hears its teammates', and
 decides (onboard.mission_decision) or adopts a teammate's decision; it then flies the
 target it is assigned (onboard.target_flight). A target that cannot be flown is `failed` and
-released, and the UAVs still in the mission re-plan it (fleet.consensus.replan); so is
-one of a teammate that dropped out or whose liveliness stayed gone.
+released, and the UAVs still in the mission re-plan it; so is one of a teammate that
+dropped out or whose liveliness stayed gone. A re-plan is solved again from every
+survivor's standing, its approach times from where it is now (fleet.consensus.resolve):
+this UAV gives its own and waits for its teammates' (the append plan of
+fleet.consensus.replan when one is overdue).
 """
 
 from __future__ import annotations
@@ -77,6 +80,8 @@ class MissionParticipation:
     link: LinkWatch
     flight: TargetFlight
     say: Say
+    #: Re-plans solved again from the survivors' standings (MissionRound.resolving).
+    fresh_replans: bool = True
     round: MissionRound | None = None
     #: A snapshot of what this UAV settled of its mission (`Settled`), replaced as it
     #: changes: the bus threads drop the assignment reports it covers by their header.
@@ -193,7 +198,11 @@ class MissionParticipation:
         """Replace the mission in one step: nothing of the old one survives it."""
         # Cancel first: the resume submitted next must survive the new mission's start.
         self.flight.restart(f"mission {targets.mission} started", now)
-        self.round = MissionRound(targets, self.uav_id, now, late=late)
+        self.round = MissionRound(
+            targets, self.uav_id, now, late=late, resolving=self.fresh_replans
+        )
+        self.own.standing = None
+        self.own.stood.clear()
         self.flight.zones = targets.zones
         self.life.observe(Observation.MISSION_STARTED)
         self.own.plan.forget()
@@ -222,10 +231,14 @@ class MissionParticipation:
             self._decline(f"mission {self.round.mission}: the planner refused the request", now)
 
     def collect_plan(self, now: float) -> None:
-        self.own.collect(self.round, now)
+        if self.own.collect(self.round, now):
+            self._resolve_ready(now)  # this UAV's own standing may be the last one
 
     # ---- the team's exchange -------------------------------------------------------------------
     def on_result(self, result: UavResult, now: float) -> None:
+        if result.basis is not None:
+            self._on_standing(result, now)
+            return
         mission_round = self.round
         if mission_round is None or result.mission > mission_round.mission:
             self._early_results = [*self._early_results, result][-MAX_EARLY_RESULTS:]
@@ -240,6 +253,71 @@ class MissionParticipation:
         mission_round.heard(now)
         if mission_round.committed is not None and mission_round.released:
             self._replan(now)  # it may have waited for this result
+
+    def _on_standing(self, standing: UavResult, now: float) -> None:
+        """A teammate's standing for a re-plan (fleet.consensus.resolve): kept, and the
+        re-plan solved again once every survivor's is in."""
+        mission_round = self.round
+        if mission_round is None or standing.uav == self.uav_id:
+            return
+        if mission_round.add_standing(standing):
+            self._resolve_ready(now)
+
+    def _resolve_ready(self, now: float) -> None:
+        mission_round = self.round
+        if mission_round is None or mission_round.mission in self._aborted:
+            return
+        if self.life.phase == Phase.ABORTED:
+            return
+        report = mission_round.resolve_ready()
+        if report is not None:
+            self.say(
+                StatusKind.REPLANNED,
+                f"mission {report.mission}: re-plan epoch {report.epoch} solved again from "
+                f"{len(MissionRound.survivors(report))} survivors' fresh times",
+                now,
+                mission=report.mission,
+            )
+            self._apply(report, now)
+
+    def _stand(self, now: float) -> None:
+        """Give this UAV's standing for the re-plan awaited or followed, once: its
+        approach times from where it is now. A UAV that takes no more targets (the module
+        off, its part preempted or aborted) gives one with no time; one that cannot plan
+        now (no GPS, its autopilot link lost, the planner refused) gives none, and the
+        team commits the append plan when the wait is over."""
+        mission_round = self.round
+        if not self.fresh_replans or mission_round is None:
+            return
+        if mission_round.mission in self._aborted:
+            return
+        fallback = mission_round.stands_for()
+        if fallback is None or self.uav_id not in MissionRound.survivors(fallback):
+            return
+        basis = fallback.digest
+        if basis in self.own.stood:
+            return
+        if not self.flight.enabled or self.life.phase in (Phase.ABORTED, Phase.PREEMPTED):
+            self.own.stand_none(mission_round, basis)
+            self._resolve_ready(now)
+            return
+        gps = self.link.gps
+        if gps is None or self.link.lost(now):
+            log.warning(
+                "mission %d: no standing for re-plan epoch %d: %s",
+                mission_round.mission,
+                fallback.epoch,
+                "no GPS telemetry" if gps is None else "autopilot link lost",
+            )
+            self.own.stood.add(basis)
+            return
+        flying = self.flight.target if self.life.holds_target() else None
+        # Its own word is believed of itself only: the targets it reached itself.
+        own = self.uav_id
+        reached = tuple(sorted(t for t, uav in mission_round.reached_targets.items() if uav == own))
+        where = (gps, self.link.wind.value, self.link.airspeed())
+        if not self.own.start_standing(mission_round, basis, where, flying, reached):
+            log.warning("mission %d: the planner refused this UAV's standing", fallback.mission)
 
     def on_proposal(self, proposal: PlanProposal, now: float) -> None:
         """A plan proposed for the current mission: kept for the decision, which
@@ -270,6 +348,13 @@ class MissionParticipation:
             self._adopt(report, now)
         elif self._merge_membership(mission_round, report):
             self._replan(now)
+        elif (resolved := mission_round.adopt_resolved(report)) is not None:
+            # A teammate held every survivor's standing: this UAV may have missed one.
+            text = (
+                f"mission {report.mission}: adopted UAV {report.uav}'s re-plan epoch {report.epoch}"
+            )
+            self.say(StatusKind.ADOPTED, text, now, mission=report.mission)
+            self._apply(resolved, now)
         elif (followed := mission_round.follow(report)) is not None:
             self._apply(followed, now)
         self._settle()
@@ -472,18 +557,38 @@ class MissionParticipation:
 
     # ---- the decision ------------------------------------------------------------------------
     def tick(self, now: float) -> None:
-        """Fetch the results still missing, and decide once the round is ready."""
+        """Fetch the results still missing, and decide once the round is ready; commit a
+        re-plan's append plan once its survivors' standings are overdue."""
         mission_round = self.round
-        if (
-            mission_round is None
-            or mission_round.committed is not None
-            or mission_round.mission in self._aborted
-        ):
+        if mission_round is None or mission_round.mission in self._aborted:
+            return
+        if mission_round.awaiting is not None:
+            self._expire(now)
+        if mission_round.committed is not None:
             return
         report = self.decision.tick(mission_round, now)
         if report is not None:
             self._apply(report, now)
             self._replan_if_released(now)
+
+    def _expire(self, now: float) -> None:
+        mission_round = self.round
+        assert mission_round is not None
+        missing = mission_round.missing_standings()
+        report = mission_round.expire(now)
+        if report is None:
+            return
+        self.say(
+            StatusKind.REPLANNED,
+            f"mission {report.mission}: re-plan epoch {report.epoch}: no fresh times from "
+            f"{', '.join(map(str, missing))} in time; their targets appended where reached "
+            "earliest",
+            now,
+            mission=report.mission,
+        )
+        # Teammates that hold every standing solved it again: asked for, adopted if so.
+        self.outputs.fetch_assignments(report.mission)
+        self._apply(report, now)
 
     # ---- the assignment ----------------------------------------------------------------------
     def _replan_if_released(self, now: float) -> None:
@@ -545,6 +650,8 @@ class MissionParticipation:
         report = self.decision.replan(mission_round, now)
         if report is not None:
             self._apply(report, now)
+        elif mission_round.awaiting is not None:
+            self._stand(now)  # the survivors' standings are awaited: this UAV's too
 
     def _apply(self, report: AssignmentReport, now: float) -> None:
         """Publish the assignment this UAV follows now and fly what it says."""
@@ -555,9 +662,12 @@ class MissionParticipation:
             # commitments each UAV would otherwise hear change nothing once it committed
             # (docs/lifecycle.md, "Who hears which assignment").
             self.outputs.publish(self.key_space.mission_replan(report.mission, self.uav_id), report)
+            if report.basis is None:
+                self._stand(now)  # an append plan: solved again once every standing is in
         flight = self.flight
-        # The first target of its queue not reached yet: a re-plan only appends, so a
-        # UAV on its way keeps its target, and one done with its queue takes the next.
+        # The first target of its queue not reached yet: a re-plan keeps a UAV's current
+        # target first unless the objective gains, and one done with its queue takes the
+        # next.
         wanted = self.round.next_target(self.uav_id) if self.round is not None else None
         if wanted is None and self.life.phase == Phase.REACHED:
             return  # its queue is done, and this plan gives it nothing more

@@ -8,7 +8,7 @@ publishes an all-None result, so that its teammates need not wait for it.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import msgspec
 
@@ -63,6 +63,11 @@ class OwnResult:
     plan: ApproachPlan
     life: MissionPhase
     say: Say
+    #: The standing being computed (fleet.consensus.resolve): (basis, flying, reached);
+    #: None while the planner computes the mission's first result, or nothing.
+    standing: tuple[str, int | None, tuple[int, ...]] | None = None
+    #: The bases this UAV gave (or is giving) a standing for: one each.
+    stood: set[str] = field(default_factory=set)
 
     def start(
         self,
@@ -76,6 +81,7 @@ class OwnResult:
         the GPS); False if the planner refused."""
         if not self.plan.start(mission_round.targets, gps, wind, true_airspeed):
             return False
+        self.standing = None
         self.say(
             StatusKind.COMPUTING,
             f"mission {mission_round.mission}: computing approach times to "
@@ -85,11 +91,78 @@ class OwnResult:
         )
         return True
 
-    def collect(self, mission_round: MissionRound | None, now: float) -> None:
-        """Publish the approach times once the planner has them."""
+    def start_standing(
+        self,
+        mission_round: MissionRound,
+        basis: str,
+        where: tuple[GpsBlock, Wind, float | None],
+        flying: int | None,
+        reached: tuple[int, ...],
+    ) -> bool:
+        """Start computing this UAV's standing for the re-plan of append plan `basis`:
+        its approach times from `where` it is now (its GPS, wind and airspeed) to every
+        target of the mission's current revision, within the module's own planning
+        budget; False if the planner refused."""
+        self.stood.add(basis)
+        gps, wind, speed = where
+        budget = self.plan.planning_budget_s
+        if not self.plan.start(mission_round.current, gps, wind, speed, budget_s=budget):
+            return False
+        self.standing = (basis, flying, reached)
+        return True
+
+    def stand_none(self, mission_round: MissionRound, basis: str) -> None:
+        """Give a standing with no time at all: this UAV takes nothing in the re-plan."""
+        self.stood.add(basis)
+        count = len(mission_round.current.targets)
+        own = self.uav_id
+        reached = tuple(sorted(t for t, uav in mission_round.reached_targets.items() if uav == own))
+        self._publish_standing(mission_round, basis, (None,) * count, None, reached, None)
+
+    def _publish_standing(
+        self,
+        mission_round: MissionRound,
+        basis: str,
+        times: tuple[float | None, ...],
+        flying: int | None,
+        reached: tuple[int, ...],
+        air: FlownAir | None,
+    ) -> None:
+        result = UavResult(
+            mission=mission_round.mission,
+            uav=self.uav_id,
+            times=times,
+            basis=basis,
+            flying=flying,
+            reached=reached,
+        )
+        if air is not None:
+            result = msgspec.structs.replace(
+                result,
+                airspeed=air.airspeed,
+                wind_east=air.wind.east,
+                wind_north=air.wind.north,
+                lat=None if air.origin is None else air.origin[0],
+                lon=None if air.origin is None else air.origin[1],
+            )
+        mission_round.add_standing(result)
+        self.outputs.publish(self.key_space.mission_result(result.mission, self.uav_id), result)
+
+    def collect(self, mission_round: MissionRound | None, now: float) -> bool:
+        """Publish the approach times once the planner has them; True if they were a
+        standing (the re-plan may be ready)."""
         result = self.plan.take()
-        if result is None or mission_round is None or self.life.phase != Phase.COMPUTING:
-            return
+        if result is None or mission_round is None:
+            return False
+        standing, self.standing = self.standing, None
+        if standing is not None:
+            basis, flying, reached = standing
+            times = tuple(t if math.isfinite(t) else None for t in result.times)
+            air = flown_air(result.request, self.plan.origin)
+            self._publish_standing(mission_round, basis, times, flying, reached, air)
+            return True
+        if self.life.phase != Phase.COMPUTING:
+            return False
         kind, text = plan_status(result, mission_round.mission)
         self.say(kind, text, now, mission=mission_round.mission)
         # An infinite time is a target no route reaches (onboard.planner.route_plan): no answer.
@@ -102,6 +175,7 @@ class OwnResult:
             result.fallback_times,
             air=flown_air(result.request, self.plan.origin),
         )
+        return False
 
     def publish_none(self, mission_round: MissionRound, now: float) -> None:
         """Take no part: an all-None result says so to the team."""

@@ -18,8 +18,9 @@ The thesis assumed lossless links and every UAV in range. Here:
 * every commitment carries the digest of the exact results it used, so the ground can
   confirm agreement or name who disagreed;
 * after the commitment, team UAVs that drop out are *released* and their targets
-  re-planned (`fleet.consensus.replan`): each re-plan is a new epoch of the same
-  mission, published under the same key.
+  re-planned: each re-plan is a new epoch of the same mission, published under the same
+  key, solved again from every survivor's standing (`fleet.consensus.resolve`) or,
+  when one is missing after STANDINGS_WAIT_S, the append plan (`fleet.consensus.replan`).
 
 Pure: no I/O, time comes in as `now`.
 """
@@ -53,6 +54,13 @@ from fleet.consensus.report_checks import (
     targets_problem,
     team_set,
 )
+from fleet.consensus.resolve import (
+    NO_TAKER,
+    Standing,
+    remaining_targets,
+    resolve,
+    resolve_digest,
+)
 from fleet.consensus.result_rows import ResultRows
 from fleet.mission.messages import (
     AssignmentHeader,
@@ -80,6 +88,11 @@ JOIN_GRACE_S = 1.0
 #: A UAV whose decision might not be the team's (`MissionRound.must_ask`) asks the team
 #: what it decided and waits this long (s) for the answers before it decides.
 ASK_GRACE_S = 0.5
+#: A re-plan waits this long (s) for every survivor's standing (its fresh times from
+#: where it is now) before it commits the epoch's append plan instead.
+STANDINGS_WAIT_S = 3.0
+#: Standings are kept for this many epochs' bases at most (the newest).
+STANDING_BASES = 8
 
 
 @dataclass(frozen=True, slots=True)
@@ -110,6 +123,9 @@ class Settled:
     back: tuple[tuple[int, int], ...] = ()
     #: The mission's revision this UAV holds: a report of a later one may change it.
     revision: int = 0
+    #: The append plan whose resolved plan this UAV follows (its digest), None if none:
+    #: a teammate's resolved plan of another basis may change its plan.
+    resolved: str | None = None
 
     def covers(self, header: AssignmentHeader) -> bool:
         """True if the report `header` heads changes nothing for this UAV."""
@@ -119,6 +135,8 @@ class Settled:
             return True
         if not self.committed:
             return False  # it may be adopted
+        if header.basis is not None and header.basis != self.resolved:
+            return False  # a resolved plan this UAV may be waiting for
         if self.following is not None and header.epoch > self.following:
             return False
         if header.revision > self.revision:
@@ -182,6 +200,16 @@ class MissionRound:
     change: MissionTargets | None = None
     #: A later revision heard before the commitment: taken once committed.
     pending_change: MissionTargets | None = None
+    #: Re-plans are solved again from the survivors' standings (fleet.consensus.resolve);
+    #: off, every re-plan is the append rule's, committed at once.
+    resolving: bool = False
+    #: Each survivor's standing (a `UavResult` with a `basis`), by basis, then by UAV: the
+    #: first heard of each.
+    standings: dict[str, dict[int, UavResult]] = field(default_factory=dict)
+    #: The epoch's append plan, not committed: waiting for the survivors' standings.
+    awaiting: AssignmentReport | None = None
+    #: When this UAV started waiting for them.
+    awaiting_since: float | None = None
 
     def __post_init__(self) -> None:
         self.team = team_set(self.targets.team)
@@ -321,6 +349,7 @@ class MissionRound:
             back=tuple(sorted(self.membership.back.items())),
             following=committed.epoch if committed is not None and self.base is None else None,
             revision=self.current.revision,
+            resolved=committed.basis if committed is not None else None,
         )
 
     def add_result(self, result: UavResult) -> bool:
@@ -484,6 +513,7 @@ class MissionRound:
         left: dict[int, int] | None = None,
         back: dict[int, int] | None = None,
         revision: int = 0,
+        basis: str | None = None,
     ) -> AssignmentReport:
         """This UAV's report of a plan; its ETA is its first target's arrival."""
         own = arrivals.get(self.own_id, ())
@@ -505,6 +535,7 @@ class MissionRound:
             left=left or {},
             back=back or {},
             revision=revision,
+            basis=basis,
         )
 
     def thinner(self, report: AssignmentReport, alive: set[int], now: float) -> set[int]:
@@ -613,9 +644,36 @@ class MissionRound:
             return tuple(u for u in candidates(self.base, self.released) if u not in times)
         return missing_times(self.base, times, self.released)
 
-    def replan(self) -> AssignmentReport | None:
+    def replan(self, now: float = 0.0) -> AssignmentReport | None:
         """Commit the assignment for the current released set; None without epoch 0 or
-        while a candidate's results are missing (`replan_missing`)."""
+        while a candidate's results are missing (`replan_missing`).
+
+        `resolving`: the epoch's append plan is the fallback. It is committed at once by
+        a UAV it releases; else the plan solved again from every survivor's standing
+        for it is committed, once they are all in (`resolve_ready`), or the fallback
+        itself STANDINGS_WAIT_S after `now` (`expire`); None meanwhile, and when it
+        changes nothing for this UAV."""
+        fallback = self._fallback()
+        if fallback is None:
+            return None
+        if not self.resolving or self.own_id in fallback.released:
+            self.awaiting = None
+            return self._commit(fallback)
+        committed = self.committed
+        if committed is not None and fallback.digest in (committed.digest, committed.basis):
+            self.awaiting = None
+            return None  # this epoch's plan is followed already
+        if self.awaiting is None or self.awaiting.digest != fallback.digest:
+            self.awaiting, self.awaiting_since = fallback, now
+        return self.resolve_ready()
+
+    def _commit(self, report: AssignmentReport) -> AssignmentReport:
+        self.committed = report
+        self._update_reached()
+        return report
+
+    def _fallback(self) -> AssignmentReport | None:
+        """The append plan for the current released set (`fleet.consensus.replan`)."""
         if self.base is None or self.replan_missing():
             return None
         current = self.current
@@ -636,7 +694,7 @@ class MissionRound:
         # Each revision of the mission is one epoch more (fleet.consensus.mission_change).
         epoch += current.revision
         digest = change_digest(digest, current)
-        self.committed = self._report(
+        return self._report(
             target=heads.get(self.own_id),
             pairs=heads,
             queues={uav: q for uav, q in plan.plan.queues.items() if q},
@@ -652,8 +710,107 @@ class MissionRound:
             back=dict(sorted(membership.back.items())),
             revision=current.revision,
         )
-        self._update_reached()
-        return self.committed
+
+    # ---- solving what is left (fleet.consensus.resolve) --------------------------------
+    def add_standing(self, result: UavResult) -> bool:
+        """Keep a survivor's standing (the first of each UAV for each basis); False if it
+        is not one for this mission."""
+        basis = result.basis
+        if basis is None or result.mission != self.mission or result.uav not in self.team:
+            return False
+        held = self.standings.get(basis)
+        if held is None:
+            held = self.standings[basis] = {}
+            while len(self.standings) > STANDING_BASES:
+                del self.standings[next(iter(self.standings))]
+        if result.uav in held:
+            return False
+        held[result.uav] = result
+        return True
+
+    def stands_for(self) -> AssignmentReport | None:
+        """The append plan whose survivors' standings this UAV waits for or could still
+        use: the one awaited, else the one committed (not resolved), if it is a re-plan."""
+        if self.awaiting is not None:
+            return self.awaiting
+        committed = self.committed
+        if committed is not None and committed.epoch > 0 and committed.basis is None:
+            return committed
+        return None
+
+    @staticmethod
+    def survivors(fallback: AssignmentReport) -> tuple[int, ...]:
+        """The UAVs taking part in a re-plan: its team, less the released."""
+        gone = set(fallback.released)
+        return tuple(sorted(uav for uav in fallback.team if uav not in gone))
+
+    def missing_standings(self) -> tuple[int, ...]:
+        """Survivors whose standing for the plan `stands_for` this UAV lacks."""
+        fallback = self.stands_for()
+        if fallback is None:
+            return ()
+        held = self.standings.get(fallback.digest, {})
+        return tuple(uav for uav in self.survivors(fallback) if uav not in held)
+
+    def resolve_ready(self) -> AssignmentReport | None:
+        """Commit the plan solved again from the survivors' standings, once every one
+        is in for the append plan `stands_for`; None before, or if not a re-plan."""
+        fallback = self.stands_for()
+        if not self.resolving or fallback is None or self.missing_standings():
+            return None
+        held = self.standings[fallback.digest]
+        current = self.current
+        count = len(current.targets)
+        taking_part = {uav: held[uav] for uav in self.survivors(fallback)}
+        if any(len(r.times) != count for r in taking_part.values()):
+            return None  # of another revision: the fallback stands
+        standings = {
+            uav: Standing(r.times, r.flying, frozenset(r.reached)) for uav, r in taking_part.items()
+        }
+        objective = self.targets.objective
+        left = remaining_targets(count, current.removed, standings)
+        air = {uav: Air.of(r) for uav, r in taking_part.items()}
+        legs = AirLegs(self.geometry, air, self.legs)
+        solved = resolve(standings, left, legs, objective).plan
+        heads = solved.heads()
+        self.awaiting = None
+        return self._commit(
+            self._report(
+                target=heads.get(self.own_id),
+                pairs=heads,
+                queues={uav: q for uav, q in solved.queues.items() if q},
+                arrivals={uav: a for uav, a in solved.arrivals.items() if a},
+                unserved={t: NO_TAKER for t in solved.unassigned},
+                team=fallback.team,
+                digest=resolve_digest(fallback.digest, standings, left, objective),
+                epoch=fallback.epoch,
+                released=fallback.released,
+                left=dict(fallback.left),
+                back=dict(fallback.back),
+                revision=fallback.revision,
+                basis=fallback.digest,
+            )
+        )
+
+    def expire(self, now: float) -> AssignmentReport | None:
+        """Commit the awaited append plan once STANDINGS_WAIT_S passed without every
+        survivor's standing (None before): nothing waits longer for a missing one."""
+        fallback, since = self.awaiting, self.awaiting_since
+        if fallback is None or (since is not None and now - since < STANDINGS_WAIT_S):
+            return None
+        self.awaiting = None
+        return self._commit(fallback)
+
+    def adopt_resolved(self, report: AssignmentReport) -> AssignmentReport | None:
+        """Take a teammate's resolved plan of the append plan this UAV awaits or
+        follows (it holds every standing this UAV may lack); None if it is not one."""
+        fallback = self.stands_for()
+        if report.basis is None or fallback is None or report.basis != fallback.digest:
+            return None
+        if report.mission != self.mission or report.revision != fallback.revision:
+            return None
+        self.awaiting = None
+        return self._own_copy(report)
 
     def _times(self) -> dict[int, tuple[float | None, ...]]:
         """The epoch-0 times, and each UAV's estimate to every target added in flight."""

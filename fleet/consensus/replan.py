@@ -24,8 +24,10 @@ saw two losses in opposite orders still agree. Orphans go to the ends of queues,
 in front of a survivor's own targets: what a survivor flies now does not change, and a
 target a released UAV had already reached is skipped by its new holder when it comes to
 it (it heard that outcome). The times are those of the epoch-0 results, computed when the
-mission started: re-planning needs no new round of results, so it is immediate, but the
-times are older than the aircraft's position (see docs/lifecycle.md).
+mission started: this plan needs no new round of results, but the times are older than
+the aircraft's position. It is each epoch's fallback: the plan committed is solved again
+from the survivors' fresh times when they all come in time (`fleet.consensus.resolve`,
+docs/lifecycle.md).
 
 Pure: no I/O.
 """

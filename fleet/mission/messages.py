@@ -164,6 +164,17 @@ class UavResult(msgspec.Struct, frozen=True):
     wind_north: Annotated[float, Meta(ge=-200.0, le=200.0)] | None = None
     lat: Latitude | None = None
     lon: Longitude | None = None
+    #: A *standing* for a re-plan epoch (fleet.consensus.resolve), not the mission's
+    #: first result: the digest of the epoch's append plan it answers. Its times are then
+    #: from where the UAV is now (`lat`, `lon`) to every target of the mission's current
+    #: revision. None: the mission's first result.
+    basis: Annotated[str, Meta(max_length=64)] | None = None
+    #: With `basis`: the target this UAV is flying now, None if none.
+    flying: TargetIndex | None = None
+    #: With `basis`: the targets this UAV reached itself, ascending (its word is believed
+    #: of itself only: a target it says another UAV reached is planned again, and
+    #: skipped by its holder if that UAV's own outcome says it reached it).
+    reached: Annotated[tuple[TargetIndex, ...], Meta(max_length=MAX_TARGETS)] = ()
 
 
 class MissionAbort(msgspec.Struct, frozen=True):
@@ -232,6 +243,9 @@ class AssignmentReport(msgspec.Struct, frozen=True):
     back: Annotated[dict[PiccoloId, MembershipCount], Meta(max_length=MAX_TEAM)] = {}
     #: The mission's revision this plan is of (MissionTargets.revision).
     revision: Annotated[int, Meta(ge=0, le=0xFFFF)] = 0
+    #: A re-plan solved again from the survivors' standings (fleet.consensus.resolve):
+    #: the digest of the epoch's append plan it replaces. None: not resolved.
+    basis: Annotated[str, Meta(max_length=64)] | None = None
 
 
 class PlanProposal(msgspec.Struct, frozen=True):
@@ -269,6 +283,8 @@ class AssignmentHeader(msgspec.Struct, frozen=True):
     back: Annotated[dict[PiccoloId, MembershipCount], Meta(max_length=MAX_TEAM)] = {}
     #: The mission's revision this plan is of (MissionTargets.revision).
     revision: Annotated[int, Meta(ge=0, le=0xFFFF)] = 0
+    #: A resolved re-plan: the digest of the append plan it replaces.
+    basis: Annotated[str, Meta(max_length=64)] | None = None
 
 
 class TargetOutcome(msgspec.Struct, frozen=True):

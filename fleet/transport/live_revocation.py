@@ -115,14 +115,22 @@ class RevocationGuard:
             self.session.declare_subscriber(self.roster_key, on_roster),
         ]
 
-    def stop(self) -> None:
-        """Stop listening; a link being held is cut now, and let go before this returns.
+    def let_go(self) -> None:
+        """Cut a link being held now, let it go before this returns, and from now on cut
+        a revoked identity's new link at once, unheld.
 
         A held link keeps one of Zenoh's threads in `_on_link`: closing the session
-        while it is still there timed out on a loaded box, so wait (bounded) for it."""
+        while it is still there timed out on a loaded box, so wait (bounded) for it. The
+        listener stays declared: a revoked client redials the moment its link is cut,
+        and a link accepted between an undeclare and the session's close was let in."""
         self._stop.set()
         with self._released:
             self._released.wait_for(lambda: self._held == 0, timeout=RELEASE_WAIT_S)
+
+    def stop(self) -> None:
+        """Let go of held links and stop listening (after the session's close: see
+        `let_go`)."""
+        self.let_go()
         declared, self._declared = self._declared, []
         for declaration in declared:
             with contextlib.suppress(zenoh.ZError):  # the session is closed already

@@ -250,10 +250,12 @@ class Router:
     def close(self) -> None:
         guard, self._guard = self._guard, None
         if guard is not None:
-            guard.stop()
+            guard.let_go()
         session, self._session = self._session, None
         if session is not None:
             session.close()
+        if guard is not None:
+            guard.stop()
         self._release_watch()
 
     def _release_watch(self) -> None:

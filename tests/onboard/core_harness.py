@@ -94,7 +94,12 @@ def make_core(
     times: tuple[float, ...] = (80.0, 40.0, 60.0),
     liveliness_grace_s: float = 0.0,  # most tests: a lost teammate is released at once
     vouch_teammates: bool = False,  # the secure profile: a token counts once its UAV spoke
+    fresh_replans: bool = False,
 ) -> tuple[OnboardCore, Recorder]:
+    """A core on a scripted planner. Its scripted teammates give no standings, so the
+    role tests of the re-plan check the append rule, committed at once (what a re-plan
+    commits when standings are missing); `fresh_replans` for the tests of re-plans solved
+    again from standings (test_fresh_replan.py)."""
     recorder = Recorder()
     core = OnboardCore(
         uav_id=uav,
@@ -102,6 +107,7 @@ def make_core(
         planner=ScriptedPlanner(times),
         liveliness_grace_s=liveliness_grace_s,
         vouch_teammates=vouch_teammates,
+        fresh_replans=fresh_replans,
     )
     core.on_telemetry(sample_telemetry(), 0.0)
     core.on_track(Track(2), 0.0)

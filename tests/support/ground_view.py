@@ -33,6 +33,8 @@ class GroundView:
         #: Every report each UAV put on its re-plan key (the one its teammates hear).
         self.replans: dict[int, list[AssignmentReport]] = {}
         self.results: dict[int, UavResult] = {}
+        #: Each UAV's standings for re-plans (fleet.consensus.resolve), in order heard.
+        self.standings: dict[int, list[UavResult]] = {}
         #: Every TargetOutcome each UAV published, in order.
         self.outcomes: dict[int, list[TargetOutcome]] = {}
         self.status: dict[int, list[str]] = {}
@@ -75,7 +77,10 @@ class GroundView:
                 self.outcomes.setdefault(outcome.uav, []).append(outcome)
             elif "/result/" in key:
                 result = msgspec.json.decode(data, type=UavResult)
-                self.results[result.uav] = result
+                if result.basis is not None:  # a standing for a re-plan, not the result
+                    self.standings.setdefault(result.uav, []).append(result)
+                else:
+                    self.results[result.uav] = result
             elif key.endswith("/status"):
                 status = msgspec.json.decode(data, type=StatusText)
                 self.status.setdefault(uav_id_of(key), []).append(status.text)

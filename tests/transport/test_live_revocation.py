@@ -5,6 +5,7 @@ this process."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import socket
 import threading
@@ -197,7 +198,8 @@ def test_a_held_reconnection_is_let_go_when_the_router_closes(
 ) -> None:
     router, certs, endpoint, guard = secure_router
     guard.hold_s = HELD_LONG_S  # held until the router closes
-    with secure_clients.session(certs, endpoint, "uav-74") as lost:
+    lost = secure_clients.session(certs, endpoint, "uav-74")
+    try:
         guard.revoke(frozenset({"uav-74"}), "this test")
         wait_until(lambda: guard.closed == 1, TIMEOUT_S, "74's session closed")
         wait_until(lambda: guard.held == 1, TIMEOUT_S, "74's reconnection held")
@@ -206,3 +208,9 @@ def test_a_held_reconnection_is_let_go_when_the_router_closes(
         assert time.monotonic() - since < HELD_LONG_S / 10
         wait_until(lambda: guard.held == 0, TIMEOUT_S, "the held link let go")
         wait_until(lambda: not lost.info.links(), TIMEOUT_S, "74's link gone")
+    finally:
+        # The client redials the closed router all along; on a loaded box its own close
+        # can overrun Zenoh's bound on closing ("close operation timed out"), which says
+        # nothing of the router this test is about.
+        with contextlib.suppress(zenoh.ZError):
+            lost.close()

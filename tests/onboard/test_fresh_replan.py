@@ -1,0 +1,138 @@
+"""A re-plan solved again from the survivors' fresh standings (fleet.consensus.resolve),
+as one UAV's module runs it: it waits for every survivor's standing, commits the plan of
+what is left from their times, falls back to the append rule when one is overdue, takes
+a late one, and adopts a teammate's resolved plan it could not compute."""
+
+from __future__ import annotations
+
+import msgspec
+
+from fleet.consensus.mission_round import STANDINGS_WAIT_S
+from fleet.mission.key_space import KeySpace
+from fleet.mission.messages import AssignmentReport, MissionTargets, TargetOutcome, UavResult
+from fleet.mission.phase import Phase
+from onboard.core import OnboardCore
+from tests.onboard.core_harness import TARGETS, Recorder, make_core
+from tests.support.link_samples import sample_telemetry
+
+SPACE = KeySpace()
+
+
+def _three_uav_plan() -> tuple[OnboardCore, Recorder]:
+    """112 (this core: 80, 40, 60 s), 74 (10, 90, 90 s), 200 (50, 50, 50 s): one target
+    each, 74 target 0, 112 target 1, 200 target 2."""
+    core, out = make_core(uav=112, fresh_replans=True)
+    for uav in (74, 200):
+        core.on_alive(uav, True, 0.0)
+    core.on_targets(MissionTargets(mission=1, team=(74, 112, 200), targets=TARGETS), 1.0)
+    core.on_result(UavResult(1, 74, (10.0, 90.0, 90.0)), 1.05)
+    core.on_result(UavResult(1, 200, (50.0, 50.0, 50.0)), 1.05)
+    core.tick(1.1)
+    (report,) = out.on(SPACE.mission_assignment(1, 112))
+    assert isinstance(report, AssignmentReport)
+    assert report.queues == {74: (0,), 112: (1,), 200: (2,)}
+    return core, out
+
+
+def _lose_74(core: OnboardCore, out: Recorder, now: float) -> UavResult:
+    """74 is lost before it reached target 0; 200 has reached target 2. This UAV gives its
+    standing (the scripted planner's times, flying target 1) and waits for 200's."""
+    core.on_telemetry(sample_telemetry(), now)
+    core.on_outcome(_reached(200, 2), now)
+    core.on_alive(74, False, now)
+    assert out.on(SPACE.mission_replan(1, 112)) == []  # waiting for 200's standing
+    core.on_telemetry(sample_telemetry(), now + 0.1)
+    core.tick(now + 0.1)  # its own standing, from the planner
+    (own,) = _standings(out)
+    assert own.flying == 1 and own.reached == () and own.times == (80.0, 40.0, 60.0)
+    assert out.on(SPACE.mission_replan(1, 112)) == []
+    return own
+
+
+def _reached(uav: int, target: int) -> TargetOutcome:
+    return TargetOutcome(1, uav, target, Phase.REACHED)
+
+
+def _standings(out: Recorder) -> list[UavResult]:
+    """This UAV's standings published on its result key."""
+    results = out.on(SPACE.mission_result(1, 112))
+    return [m for m in results if isinstance(m, UavResult) and m.basis is not None]
+
+
+def _standing_of_200(basis: str) -> UavResult:
+    """200 is done with target 2 and has flown on to 5 s from target 0."""
+    return UavResult(1, 200, (5.0, 70.0, 60.0), basis=basis, reached=(2,))
+
+
+def test_the_orphan_goes_to_the_survivor_now_closest_by_its_fresh_times() -> None:
+    core, out = _three_uav_plan()
+    own = _lose_74(core, out, 6.0)
+    assert own.basis is not None
+    core.on_result(_standing_of_200(own.basis), 6.3)
+    (replan,) = out.on(SPACE.mission_replan(1, 112))
+    assert isinstance(replan, AssignmentReport)
+    assert replan.epoch == 1 and replan.released == (74,) and replan.basis == own.basis
+    # From the epoch-0 times the append rule hands target 0 to 112 (after its own
+    # target 1, at ~167 s, before 200 at ~172 s); from where they are now, 200 is 5 s away.
+    assert replan.queues == {112: (1,), 200: (0,)}
+    assert replan.arrivals[200] == (5.0,)
+    assert replan.unassigned == ()
+
+
+def test_without_a_survivors_standing_the_append_plan_is_committed_when_the_wait_is_over() -> None:
+    core, out = _three_uav_plan()
+    own = _lose_74(core, out, 6.0)
+    core.on_telemetry(sample_telemetry(), 6.0 + STANDINGS_WAIT_S - 0.2)
+    core.tick(6.0 + STANDINGS_WAIT_S - 0.2)
+    assert out.on(SPACE.mission_replan(1, 112)) == []
+    core.on_telemetry(sample_telemetry(), 6.1 + STANDINGS_WAIT_S)
+    core.tick(6.1 + STANDINGS_WAIT_S)
+    (fallback,) = out.on(SPACE.mission_replan(1, 112))
+    assert isinstance(fallback, AssignmentReport)
+    assert fallback.basis is None and fallback.digest == own.basis
+    assert fallback.queues == {112: (1, 0), 200: (2,)}  # the append rule
+    assert out.assignment_fetches[-1] == 1  # a teammate may have resolved it: asked
+    # 200's standing comes late: the plan is solved again with it.
+    assert own.basis is not None
+    core.on_result(_standing_of_200(own.basis), 9.5)
+    *_, resolved = out.on(SPACE.mission_replan(1, 112))
+    assert isinstance(resolved, AssignmentReport)
+    assert resolved.basis == own.basis and resolved.queues == {112: (1,), 200: (0,)}
+
+
+def test_a_teammates_resolved_plan_of_the_awaited_epoch_is_adopted() -> None:
+    core, out = _three_uav_plan()
+    own = _lose_74(core, out, 6.0)
+    assert own.basis is not None
+    theirs = AssignmentReport(
+        mission=1,
+        uav=200,
+        target=0,
+        pairs={112: 1, 200: 0},
+        unassigned=(),
+        team=(74, 112, 200),
+        digest="0123456789abcdef",
+        epoch=1,
+        released=(74,),
+        queues={112: (1,), 200: (0,)},
+        arrivals={112: (40.0,), 200: (5.0,)},
+        basis=own.basis,
+    )
+    core.on_assignment(theirs, 6.4)
+    (adopted,) = out.on(SPACE.mission_replan(1, 112))
+    assert isinstance(adopted, AssignmentReport)
+    assert (adopted.digest, adopted.queues, adopted.uav) == (theirs.digest, theirs.queues, 112)
+    # Another basis (an epoch this UAV does not hold) is not adopted.
+    other = msgspec.structs.replace(theirs, basis="fedcba9876543210", digest="1111111111111111")
+    core.on_assignment(other, 6.5)
+    assert len(out.on(SPACE.mission_replan(1, 112))) == 1
+
+
+def test_a_uav_whose_autopilot_link_is_lost_gives_no_standing_and_the_append_plan_stands() -> None:
+    core, out = _three_uav_plan()
+    core.on_outcome(_reached(200, 2), 6.0)
+    core.on_alive(74, False, 6.0)  # no telemetry since 0 s: its link is lost
+    assert not _standings(out)
+    core.tick(6.1 + STANDINGS_WAIT_S)
+    (fallback,) = out.on(SPACE.mission_replan(1, 112))
+    assert isinstance(fallback, AssignmentReport) and fallback.basis is None
