@@ -538,6 +538,7 @@ def test_every_press_takes_effect_the_first_time_while_telemetry_flows(
     browser.find_element(By.ID, "send").click()
     assert "the ground proposing a plan" in text_of(browser, "confirm-text")
     browser.find_element(By.ID, "confirm-ok").click()
+    wait_until(lambda: not browser.execute_script(CONFIRM_OPEN), 15.0, "Send's confirmation closed")
     # Per-UAV abort: once a mission is in flight, one press asks to confirm.
     wait_until(
         lambda: browser.execute_script(
@@ -554,7 +555,7 @@ def test_every_press_takes_effect_the_first_time_while_telemetry_flows(
         "return [...document.querySelectorAll('#uav-list button, #target-list button')]"
         "  .every((b) => b.getBoundingClientRect().right <= edge);"
     )
-    press(browser, "#uav-list tr[data-uav='112'] [data-abort]")
+    press_until_confirmation(browser, "#uav-list tr[data-uav='112'] [data-abort]")
     assert "for UAV 112 alone" in text_of(browser, "confirm-text")
     browser.find_element(By.ID, "confirm-cancel").click()
     # The proposal, and whether the team adopted it, as the UAVs' digests say: the
@@ -622,9 +623,8 @@ def command_states(driver: Any) -> list[dict[str, str]]:
 CONFIRM_OPEN = "return !document.querySelector('#confirm').hidden;"
 
 
-def press_and_drop(driver: Any, selector: str) -> None:
-    """Press `selector`, confirm, and drop the page's socket at once, as a loaded box
-    does: the command is on its way or done, its reply lost with the socket.
+def press_until_confirmation(driver: Any, selector: str) -> None:
+    """Press `selector` until its confirmation opens.
 
     A press on a loaded box can land while the page re-lays itself out under the pointer
     (a render between the pointer's move and its press): then no confirmation opens, and
@@ -633,11 +633,16 @@ def press_and_drop(driver: Any, selector: str) -> None:
         press(driver, selector)
         try:
             wait_until(lambda: driver.execute_script(CONFIRM_OPEN), 15.0, "the confirmation")
-            break
+            return
         except AssertionError:
             continue
-    else:
-        raise AssertionError(f"three presses of {selector} opened no confirmation")
+    raise AssertionError(f"three presses of {selector} opened no confirmation")
+
+
+def press_and_drop(driver: Any, selector: str) -> None:
+    """Press `selector`, confirm, and drop the page's socket at once, as a loaded box
+    does: the command is on its way or done, its reply lost with the socket."""
+    press_until_confirmation(driver, selector)
     driver.execute_script(
         "document.querySelector('#confirm-ok').click(); window.fleetPage.dropConnection();"
     )
