@@ -22,9 +22,8 @@ import math
 
 from fleet.consensus.queues import Legs, Queues, Times, leg_count, legs_of
 from fleet.mission.objective import Objective
+from ground.solver_plan import finite_time, time_units
 
-#: The solver's unit: seconds x SCALE are its integers.
-SCALE = 100
 #: What an arc no UAV may fly costs (it is also removed from the vehicle's choices).
 FORBIDDEN = 10**9
 
@@ -35,7 +34,7 @@ def solve_ortools(times: Times, legs: Legs, objective: Objective, seconds: float
 
     uavs = sorted(times)
     count = leg_count(legs)
-    clients = [t for t in range(count) if any(_finite(times[u][t]) for u in uavs)]
+    clients = [t for t in range(count) if any(finite_time(times[u][t]) for u in uavs)]
     if not clients:
         return {uav: [] for uav in uavs}
     end = len(uavs)
@@ -48,11 +47,11 @@ def solve_ortools(times: Times, legs: Legs, objective: Objective, seconds: float
         out = [[0] * nodes for _ in range(nodes)]
         for c, t in enumerate(clients):
             a = end + 1 + c
-            out[k][a] = _units(row[t]) if _finite(row[t]) else FORBIDDEN
+            out[k][a] = time_units(row[t]) if finite_time(row[t]) else FORBIDDEN
             for c2, t2 in enumerate(clients):
                 if c2 != c:
                     leg = table[t][t2]
-                    out[a][end + 1 + c2] = _units(leg) if math.isfinite(leg) else FORBIDDEN
+                    out[a][end + 1 + c2] = time_units(leg) if math.isfinite(leg) else FORBIDDEN
         return out
 
     # Matrices, not Python callbacks: the search then runs in C++ alone.
@@ -63,7 +62,7 @@ def solve_ortools(times: Times, legs: Legs, objective: Objective, seconds: float
     dimension = routing.GetDimensionOrDie("time")
     for c, t in enumerate(clients):
         index = manager.NodeToIndex(end + 1 + c)
-        barred = [k for k, uav in enumerate(uavs) if not _finite(times[uav][t])]
+        barred = [k for k, uav in enumerate(uavs) if not finite_time(times[uav][t])]
         if barred:
             routing.VehicleVar(index).RemoveValues(barred)
         if objective is Objective.MIN_SUM:
@@ -88,12 +87,3 @@ def solve_ortools(times: Times, legs: Legs, objective: Objective, seconds: float
             queues[uav].append(clients[manager.IndexToNode(index) - end - 1])
             index = solution.Value(routing.NextVar(index))
     return queues
-
-
-def _finite(time: float | None) -> bool:
-    return time is not None and math.isfinite(time)
-
-
-def _units(seconds: float | None) -> int:
-    assert seconds is not None
-    return round(seconds * SCALE)

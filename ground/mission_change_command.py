@@ -119,30 +119,22 @@ def _targets(indexes: list[int]) -> str:
     return f"target{'s' if len(indexes) > 1 else ''} {', '.join(map(str, indexes))}"
 
 
+@dataclass
 class ChangePut:
     """A change put on the bus (`put_change`), its acknowledgements awaited by `wait`;
     close it (or leave its `with`) to stop following them."""
 
-    def __init__(
-        self,
-        stack: ExitStack,
-        follower: MissionFollower,
-        held: MissionTargets,
-        new: MissionTargets,
-        removed: tuple[int, ...],
-        expected: list[int],
-    ) -> None:
-        self.new = new
-        self._stack = stack
-        self._follower = follower
-        self._held = held
-        self._removed = removed
-        self._expected = expected
+    stack: ExitStack
+    follower: MissionFollower
+    held: MissionTargets
+    new: MissionTargets
+    removed: tuple[int, ...]
+    expected: list[int]
 
     def wait(self, timeout_s: float, stop: threading.Event | None = None) -> MissionChange:
         """Wait up to `timeout_s` for every live team UAV to plan the revision (`stop`
         set: no longer, within a second)."""
-        follower, new, expected = self._follower, self.new, self._expected
+        follower, new, expected = self.follower, self.new, self.expected
         stopped = stop or threading.Event()
 
         def acknowledged() -> bool:
@@ -155,8 +147,8 @@ class ChangePut:
         acked = [uav for uav in expected if _acks(reports.get(uav), new)]
         return MissionChange(
             new=new,
-            added=list(range(len(self._held.targets), len(new.targets))),
-            removed=list(self._removed),
+            added=list(range(len(self.held.targets), len(new.targets))),
+            removed=list(self.removed),
             acked=acked,
             missing=[uav for uav in expected if uav not in acked],
             reports=reports,
@@ -164,7 +156,7 @@ class ChangePut:
         )
 
     def close(self) -> None:
-        self._stack.close()
+        self.stack.close()
 
     def __enter__(self) -> ChangePut:
         return self

@@ -62,7 +62,7 @@ def solve_queues(
     uavs = sorted(times)
     count = leg_count(legs)
     # Only targets some UAV reaches are clients; they are served by reachers only.
-    clients = [t for t in range(count) if any(_finite(times[u][t]) for u in uavs)]
+    clients = [t for t in range(count) if any(finite_time(times[u][t]) for u in uavs)]
     if not clients or not uavs:
         return {uav: [] for uav in uavs}
     size = len(uavs) + 1 + len(clients)  # start depots, the end depot, the clients
@@ -77,12 +77,12 @@ def solve_queues(
         for c, t in enumerate(clients):
             at = end + 1 + c
             matrix[at, end] = 0
-            if _finite(row[t]):
-                matrix[profile, at] = _units(row[t])
+            if finite_time(row[t]):
+                matrix[profile, at] = time_units(row[t])
             from_t = table[t]
             for c2, t2 in enumerate(clients):
                 if c2 != c and math.isfinite(from_t[t2]):
-                    matrix[at, end + 1 + c2] = _units(from_t[t2])
+                    matrix[at, end + 1 + c2] = time_units(from_t[t2])
         matrices.append(matrix)
     locations = [pyvrp.Location(0.0, 0.0) for _ in range(size)]
     depots = [pyvrp.Depot(location=i) for i in range(len(uavs) + 1)]
@@ -120,7 +120,9 @@ def solve_queues(
     best = unbounded
     if objective is Objective.MIN_MAX:
         high = max(_route_units(times, legs, uavs[p], r) for p, r in enumerate(best))
-        low = max(min(_units(times[u][t]) for u in uavs if _finite(times[u][t])) for t in clients)
+        low = max(
+            min(time_units(times[u][t]) for u in uavs if finite_time(times[u][t])) for t in clients
+        )
         for _ in range(BISECTION_STEPS):
             if high - low <= 1:
                 break
@@ -137,11 +139,13 @@ def solve_queues(
     return queues
 
 
-def _finite(time: float | None) -> bool:
+def finite_time(time: float | None) -> bool:
+    """Whether `time` is an approach or leg time a solver can be given."""
     return time is not None and math.isfinite(time)
 
 
-def _units(seconds: float | None) -> int:
+def time_units(seconds: float | None) -> int:
+    """`seconds` in the solvers' integer unit (SCALE)."""
     assert seconds is not None
     return round(seconds * SCALE)
 
@@ -150,7 +154,7 @@ def _route_units(times: Times, legs: Legs, uav: int, route: Sequence[int]) -> in
     if not route:
         return 0
     table = legs_of(legs, uav)
-    total = _units(times[uav][route[0]])
+    total = time_units(times[uav][route[0]])
     for a, b in itertools.pairwise(route):
-        total += _units(table[a][b])
+        total += time_units(table[a][b])
     return total

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import msgspec
 
@@ -128,23 +129,9 @@ class OwnResult:
         reached: tuple[int, ...],
         air: FlownAir | None,
     ) -> None:
-        result = UavResult(
-            mission=mission_round.mission,
-            uav=self.uav_id,
-            times=times,
-            basis=basis,
-            flying=flying,
-            reached=reached,
+        result = self._result(
+            mission_round, times, air, basis=basis, flying=flying, reached=reached
         )
-        if air is not None:
-            result = msgspec.structs.replace(
-                result,
-                airspeed=air.airspeed,
-                wind_east=air.wind.east,
-                wind_north=air.wind.north,
-                lat=None if air.origin is None else air.origin[0],
-                lon=None if air.origin is None else air.origin[1],
-            )
         mission_round.add_standing(result)
         self.outputs.publish(self.key_space.mission_result(result.mission, self.uav_id), result)
 
@@ -177,6 +164,17 @@ class OwnResult:
         )
         return False
 
+    def _result(
+        self,
+        mission_round: MissionRound,
+        times: tuple[float | None, ...],
+        air: FlownAir | None,
+        **fields: Any,
+    ) -> UavResult:
+        """This UAV's result for `mission_round`, with `fields` and the air it was timed in."""
+        result = UavResult(mission=mission_round.mission, uav=self.uav_id, times=times, **fields)
+        return with_air(result, air)
+
     def publish_none(self, mission_round: MissionRound, now: float) -> None:
         """Take no part: an all-None result says so to the team."""
         self.publish(mission_round, tuple(None for _ in mission_round.targets.targets), now)
@@ -190,25 +188,27 @@ class OwnResult:
         fallback_times: int | None = None,
         air: FlownAir | None = None,
     ) -> None:
-        result = UavResult(
-            mission=mission_round.mission,
-            uav=self.uav_id,
-            times=times,
-            model_times=model_times,
-            fallback_times=fallback_times,
+        result = self._result(
+            mission_round, times, air, model_times=model_times, fallback_times=fallback_times
         )
-        if air is not None:
-            result = msgspec.structs.replace(
-                result,
-                airspeed=air.airspeed,
-                wind_east=air.wind.east,
-                wind_north=air.wind.north,
-                lat=None if air.origin is None else air.origin[0],
-                lon=None if air.origin is None else air.origin[1],
-            )
         mission_round.add_result(result)
         # Teammates are computing too: the first fetch waits one interval.
         mission_round.last_fetch = now
         self.life.observe(Observation.RESULT_PUBLISHED)
         self.outputs.publish(self.key_space.mission_result(result.mission, self.uav_id), result)
         self.outputs.send_ground(result)
+
+
+def with_air(result: UavResult, air: FlownAir | None) -> UavResult:
+    """`result` carrying the air its times were computed in (what its teammates time
+    its legs with), when known."""
+    if air is None:
+        return result
+    return msgspec.structs.replace(
+        result,
+        airspeed=air.airspeed,
+        wind_east=air.wind.east,
+        wind_north=air.wind.north,
+        lat=None if air.origin is None else air.origin[0],
+        lon=None if air.origin is None else air.origin[1],
+    )

@@ -240,23 +240,12 @@ class _Search:
     def _insert(self, t: int) -> bool:
         """Put `t` where it adds the least cost (the lowest (queue, position) among
         equals); False if no queue can take it."""
-        best: tuple[float, int, int] | None = None
-        for k, route in enumerate(self.routes):
-            if self.reach[k][t] == math.inf:
-                continue
-            ext, arrivals = self.ext[k], self.arrivals[k]
-            end = arrivals[-1]
-            old = self.cost_of(end)
-            self.tried += len(route)
-            for at in range(1, len(route) + 1):
-                before = route[at - 1]
-                add = ext[before][t]
-                if at < len(route):
-                    add += ext[t][route[at]] - ext[before][route[at]]
-                delta = self.cost_of(end + add) - old
-                if best is None or delta < best[0]:
-                    best = (delta, k, at)
-        if best is None or not math.isfinite(best[0]):
+        best = (math.inf, 0, 0)
+        for k in range(len(self.routes)):
+            delta, at = self._best_place(k, t)
+            if delta < best[0]:
+                best = (delta, k, at)
+        if not math.isfinite(best[0]):
             return False
         _, k, at = best
         route = self.routes[k]

@@ -7,9 +7,9 @@ import itertools
 
 import pytest
 
-from fleet.consensus.assignment import greedy_assign, results_digest
 from fleet.consensus.replan import candidates, missing_times, orphaned_targets, replan
 from fleet.mission.messages import AssignmentReport
+from tests.support.greedy_report import greedy_report
 
 # 3 UAVs, 2 targets: 74 and 112 hold targets, 200 is idle. Legs of 100 s.
 TIMES: dict[int, tuple[float | None, ...]] = {
@@ -23,16 +23,7 @@ LEGS = [[0.0, 100.0], [100.0, 0.0]]
 
 
 def base_report(times: dict[int, tuple[float | None, ...]] = TIMES) -> AssignmentReport:
-    outcome = greedy_assign(times, len(next(iter(times.values()))))
-    return AssignmentReport(
-        mission=1,
-        uav=74,
-        target=outcome.pairs.get(74),
-        pairs=dict(outcome.pairs),
-        unassigned=outcome.unassigned_targets,
-        team=tuple(sorted(times)),
-        digest=results_digest(times),
-    )
+    return greedy_report(times)
 
 
 def test_the_idle_uav_takes_the_target_of_a_released_holder() -> None:

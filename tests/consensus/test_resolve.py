@@ -10,7 +10,6 @@ from collections.abc import Sequence
 
 import pytest
 
-from fleet.consensus.assignment import greedy_assign, results_digest
 from fleet.consensus.objectives import plan_queues
 from fleet.consensus.queues import LegTables, Matrix, Rows, arrivals_of
 from fleet.consensus.replan import replan
@@ -24,6 +23,7 @@ from fleet.consensus.resolve import (
 )
 from fleet.mission.messages import AssignmentReport
 from fleet.mission.objective import Objective
+from tests.support.greedy_report import greedy_report
 
 SPEED = 10.0
 
@@ -38,16 +38,7 @@ def line_legs(targets: tuple[float, ...]) -> list[list[float]]:
 
 
 def base_report(times: dict[int, tuple[float | None, ...]]) -> AssignmentReport:
-    outcome = greedy_assign(times, len(next(iter(times.values()))))
-    return AssignmentReport(
-        mission=1,
-        uav=74,
-        target=outcome.pairs.get(74),
-        pairs=dict(outcome.pairs),
-        unassigned=outcome.unassigned_targets,
-        team=tuple(sorted(times)),
-        digest=results_digest(times),
-    )
+    return greedy_report(times)
 
 
 # Targets at 0 m, 1000 m and 2000 m. At the start 74 is at 0, 112 at 1000, 200 at 1900:

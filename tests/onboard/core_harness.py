@@ -114,6 +114,19 @@ def make_core(
     return core, recorder
 
 
+def round_of_three(
+    core: OnboardCore, times_74: tuple[float, ...], times_200: tuple[float, ...]
+) -> None:
+    """Mission 1's TARGETS to a team of 74, 112 (the core) and 200, whose results are
+    `times_74` and `times_200`, heard before the core's first tick."""
+    for uav in (74, 200):
+        core.on_alive(uav, True, 0.0)
+    core.on_targets(MissionTargets(mission=1, team=(74, 112, 200), targets=TARGETS), 1.0)
+    core.on_result(UavResult(1, 74, times_74), 1.05)
+    core.on_result(UavResult(1, 200, times_200), 1.06)
+    core.tick(1.1)
+
+
 def telemetry_at(lat: float, lon: float) -> Telemetry:
     sample = sample_telemetry()
     assert sample.gps is not None

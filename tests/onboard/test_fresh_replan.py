@@ -9,10 +9,10 @@ import msgspec
 
 from fleet.consensus.mission_round import STANDINGS_WAIT_S
 from fleet.mission.key_space import KeySpace
-from fleet.mission.messages import AssignmentReport, MissionTargets, TargetOutcome, UavResult
+from fleet.mission.messages import AssignmentReport, TargetOutcome, UavResult
 from fleet.mission.phase import Phase
 from onboard.core import OnboardCore
-from tests.onboard.core_harness import TARGETS, Recorder, make_core
+from tests.onboard.core_harness import Recorder, make_core, round_of_three
 from tests.support.link_samples import sample_telemetry
 
 SPACE = KeySpace()
@@ -22,12 +22,7 @@ def _three_uav_plan() -> tuple[OnboardCore, Recorder]:
     """112 (this core: 80, 40, 60 s), 74 (10, 90, 90 s), 200 (50, 50, 50 s): one target
     each, 74 target 0, 112 target 1, 200 target 2."""
     core, out = make_core(uav=112, fresh_replans=True)
-    for uav in (74, 200):
-        core.on_alive(uav, True, 0.0)
-    core.on_targets(MissionTargets(mission=1, team=(74, 112, 200), targets=TARGETS), 1.0)
-    core.on_result(UavResult(1, 74, (10.0, 90.0, 90.0)), 1.05)
-    core.on_result(UavResult(1, 200, (50.0, 50.0, 50.0)), 1.05)
-    core.tick(1.1)
+    round_of_three(core, (10.0, 90.0, 90.0), (50.0, 50.0, 50.0))
     (report,) = out.on(SPACE.mission_assignment(1, 112))
     assert isinstance(report, AssignmentReport)
     assert report.queues == {74: (0,), 112: (1,), 200: (2,)}

@@ -12,7 +12,7 @@ from fleet.mission.phase import Phase
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from onboard.core import TARGET_WAYPOINT, OnboardCore
-from tests.onboard.core_harness import TARGETS, Recorder, make_core, telemetry_at
+from tests.onboard.core_harness import TARGETS, Recorder, make_core, round_of_three, telemetry_at
 
 SPACE = KeySpace()
 
@@ -92,12 +92,7 @@ def test_a_hint_about_a_teammate_is_fetched_from_it_once() -> None:
     """74 says its teammate 200 reached a target: 200's own outcome is asked for by name,
     once, and believed when it comes."""
     core, out = make_core(uav=112)
-    for uav in (74, 200):
-        core.on_alive(uav, True, 0.0)
-    core.on_targets(MissionTargets(mission=1, team=(74, 112, 200), targets=TARGETS), 1.0)
-    core.on_result(UavResult(1, 74, (10.0, 90.0, 90.0)), 1.05)
-    core.on_result(UavResult(1, 200, (90.0, 90.0, 10.0)), 1.06)
-    core.tick(1.1)
+    round_of_three(core, (10.0, 90.0, 90.0), (90.0, 90.0, 10.0))
     hint = TargetOutcome(1, 74, 0, Phase.REACHED, reached={0: 74, 2: 200})
     core.on_outcome(hint, 5.0)
     core.on_outcome(hint, 5.5)
