@@ -49,6 +49,7 @@ from onboard.target_flight import (
     CONFIRM_LIMIT_S,
     LINK_RELEASE_S,
     TARGET_WAYPOINT,
+    FlightNews,
     FlightOutputs,
     TargetFlight,
 )
@@ -99,6 +100,8 @@ class OnboardCore:
         self.uav_id = uav_id
         self.planner = planner
         self.report = StateReport(uav_id, key_space, outputs, status_rate_hz)
+        self._outputs = outputs
+        self._telemetry_key = key_space.telemetry(uav_id)
         say = self.report.status
         self.life = MissionPhase()
         self.link = LinkWatch(say)
@@ -165,7 +168,14 @@ class OnboardCore:
     def on_telemetry(self, telemetry: Telemetry, now: float) -> None:
         self.link.on_telemetry(telemetry, now)
         self.mission.write_awaited(now)
-        self.mission.on_flight(self.flight.on_telemetry(now), now)
+        news = self.flight.on_telemetry(now)
+        if news is FlightNews.REACHED:
+            # The fix that proved the arrival goes on the bus (and so into recordings)
+            # before the outcome, whatever the telemetry rate: a "reached" can be checked
+            # against it. Rate-limited samples are tens of metres apart at a speedup, and
+            # the aircraft turns back to its course right after this one.
+            self._outputs.publish(self._telemetry_key, telemetry)
+        self.mission.on_flight(news, now)
         self.zone_watch.check(self.link.gps, self.flight.zones, self.mission.current(), now)
 
     def on_track(self, track: Track, now: float) -> None:

@@ -122,6 +122,8 @@ class _Outputs:
         self.process.link.send_autopilot(command)
 
     def publish(self, key: str, message: msgspec.Struct) -> None:
+        if message is self.process.telemetry_published:
+            return  # an arrival's fix the telemetry rate put on the bus already
         if isinstance(message, UavState):
             message = self.process.with_link(message, time.monotonic())
         self.process.node.publish(key, message)
@@ -183,6 +185,8 @@ class OnboardProcess:
         self.planner = PlannerWorker(notify=self._wake, build_at_start=False)
         #: When each teammate not counted yet was last asked for its signed state.
         self._word_asked: dict[int, float] = {}
+        #: The latest sample the telemetry rate put on the bus (`_Outputs.publish`).
+        self.telemetry_published: Telemetry | None = None
         self.core = OnboardCore(
             uav_id=settings.uav_id,
             outputs=_Outputs(self),
@@ -301,6 +305,7 @@ class OnboardProcess:
         if hz and now - self._telemetry_published_at < 1.0 / hz:
             return  # the bus gets telemetry at its own rate, not the autopilot's
         self._telemetry_published_at = now
+        self.telemetry_published = telemetry
         self.node.publish(self._telemetry_key, telemetry)
 
     def _take_telemetry(self) -> None:

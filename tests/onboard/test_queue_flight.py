@@ -9,6 +9,7 @@ from fleet.consensus.legs import Air, leg_from_here
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import AssignmentReport, MissionTargets, TargetOutcome, UavResult
 from fleet.mission.phase import Phase
+from fleet.piccolo.telemetry import Telemetry
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from onboard.core import TARGET_WAYPOINT, OnboardCore
@@ -132,3 +133,18 @@ def test_each_leg_is_timed_when_it_begins_in_the_air_of_that_moment() -> None:
     assert metres / (speed + 15.0) < expected < metres / max(speed - 15.0, 5.0) + 60.0
     assert expected not in (80.0, 40.0, 60.0)
     assert any("this leg" in s for s in out.statuses()), out.statuses()
+
+
+def test_the_fix_that_proved_an_arrival_is_published_before_its_outcome() -> None:
+    """Whatever the telemetry rate, the fix that put the aircraft within its target's
+    radius goes on the bus before the outcome saying reached: a recording or a ground
+    can check the claim against it."""
+    core, out = _two_uav_plan()
+    _fly_and_reach(core, out, 1, 10.0)
+    keys = [key for key, _ in out.published]
+    outcome_at = keys.index(SPACE.mission_outcome(1, 112))
+    (fix_at,) = [i for i, key in enumerate(keys) if key == SPACE.telemetry(112)]
+    assert fix_at < outcome_at
+    fix = out.published[fix_at][1]
+    assert isinstance(fix, Telemetry) and fix.gps is not None
+    assert (fix.gps.lat, fix.gps.lon) == (TARGETS[1].lat, TARGETS[1].lon)
