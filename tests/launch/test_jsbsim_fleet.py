@@ -2,8 +2,8 @@
 simulator with each aircraft on its own JSBSim J3Cub, two onboard modules), two targets
 sent with `ground-cli send-targets`, `mission --until-reached`, then the run's recording
 read back. Each target is reached truthfully: the simulator's own telemetry (JSBSim's
-position, in the recording) passes within the onboard's acceptance radius of it
-(REACHED_RADIUS_M, within which the onboard reports a target reached). The onboard's
+position, as the UAVs put it on the bus) came within the onboard's acceptance radius of
+it (REACHED_RADIUS_M, within which the onboard reports a target reached). The onboard's
 predicted arrival (its approach-time model, the project's own physics) is compared with
 the time flown on JSBSim (`fleet report`): the figure is logged; an ETA off by more than
 the wind test's 10 % fails.
@@ -11,10 +11,8 @@ the wind test's 10 % fails.
 
 from __future__ import annotations
 
-import itertools
 import json
 import logging
-import math
 import signal
 import subprocess
 import sys
@@ -26,8 +24,8 @@ from fleet.geo.mercator import MercatorProjection
 from fleet.launch.endpoints import free_port
 from fleet.launch.ring import GENERATED_CENTRE
 from fleet.mission.target_checks import REACHED_RADIUS_M
-from fleet.recording.reader import read_recording
-from tests.support.processes import start_fleet_up, wait_fleet_up
+from tests.support.ground_view import GroundView
+from tests.support.processes import client_session, start_fleet_up, wait_fleet_up
 
 pytest.importorskip("jsbsim", reason="JSBSim is not installed: pip install '.[jsbsim]'")
 pytestmark = pytest.mark.e2e
@@ -48,18 +46,6 @@ def run(*argv: str, timeout: float = TIMEOUT_S) -> subprocess.CompletedProcess[s
     )
 
 
-def _closest_approach(track: list[tuple[float, float]], point: tuple[float, float]) -> float:
-    """Metres from `point` to the polyline through `track` (local metres)."""
-    best = math.inf
-    for (ax, ay), (bx, by) in itertools.pairwise(track):
-        dx, dy = bx - ax, by - ay
-        length2 = dx * dx + dy * dy
-        t = 0.0 if length2 == 0.0 else ((point[0] - ax) * dx + (point[1] - ay) * dy) / length2
-        t = min(1.0, max(0.0, t))
-        best = min(best, math.dist(point, (ax + t * dx, ay + t * dy)))
-    return best
-
-
 def test_two_uavs_on_jsbsim_reach_their_targets(tmp_path: Path) -> None:
     projection = MercatorProjection(*GENERATED_CENTRE)
     targets = tmp_path / "targets.csv"
@@ -76,34 +62,38 @@ def test_two_uavs_on_jsbsim_reach_their_targets(tmp_path: Path) -> None:
     )  # fmt: skip
     try:
         wait_fleet_up(up, 90.0)
-        ground = ("-m", "ground.cli", "--connect", endpoint)
-        sent = run(*ground, "send-targets", str(targets), "--wait", "--json",
-                   "--timeout", "60")  # fmt: skip
-        assert sent.returncode == 0, sent.stderr[-3000:]
-        outcome = json.loads(sent.stdout)
-        assert outcome["agreed"] is True
-        assert outcome["assignment"] == {"101": 0, "102": 1}
-        # ~80 s simulated each: ~20 s at speedup 4.
-        reached = run(*ground, "mission", "--until-reached", "200", "--json", timeout=240.0)
-        assert reached.returncode == 0, reached.stdout[-3000:] + reached.stderr[-3000:]
+        # Every telemetry sample the UAVs put on the bus, the fix that proved each arrival
+        # among them (the recording keeps one sample per 0.2 s, and ends at the stop).
+        with client_session(endpoint) as session:
+            seen = GroundView(session)
+            try:
+                ground = ("-m", "ground.cli", "--connect", endpoint)
+                sent = run(*ground, "send-targets", str(targets), "--wait", "--json",
+                           "--timeout", "60")  # fmt: skip
+                assert sent.returncode == 0, sent.stderr[-3000:]
+                outcome = json.loads(sent.stdout)
+                assert outcome["agreed"] is True
+                assert outcome["assignment"] == {"101": 0, "102": 1}
+                # ~80 s simulated each: ~20 s at speedup 4.
+                reached = run(*ground, "mission", "--until-reached", "200", "--json", timeout=240.0)
+                assert reached.returncode == 0, reached.stdout[-3000:] + reached.stderr[-3000:]
+                closest = {
+                    uav: seen.closest_approach(uav, *projection.to_latlon(*target))
+                    for uav, target in ((101, TARGETS_XY[0]), (102, TARGETS_XY[1]))
+                }
+            finally:
+                seen.close()
     finally:
         up.process.send_signal(signal.SIGTERM)
         assert up.process.wait(60) == 0
     # The simulator flew JSBSim, not the kinematic model.
     assert "(jsbsim dynamics)" in (tmp_path / "sim.log").read_text()
 
-    # Reached truthfully: the simulator's telemetry (JSBSim's position) passes within the
+    # Reached truthfully: the simulator's telemetry (JSBSim's position) came within the
     # onboard's acceptance radius of each target.
-    recording = read_recording(tmp_path / "fleet.mcap")
-    for uav, target in (("101", TARGETS_XY[0]), ("102", TARGETS_XY[1])):
-        track = [
-            projection.to_xy(m.value()["gps"]["lat"], m.value()["gps"]["lon"])
-            for m in recording.messages
-            if m.topic == f"fleet/uav/{uav}/telemetry"
-        ]
-        closest = _closest_approach(track, target)
-        log.info("UAV %s: closest approach to its target %.1f m", uav, closest)
-        assert closest <= REACHED_RADIUS_M, (uav, closest)
+    for number, distance in closest.items():
+        log.info("UAV %s: closest approach to its target %.1f m", number, distance)
+        assert distance <= REACHED_RADIUS_M, (number, distance)
 
     # The onboard's prediction (the project's own model) against the JSBSim flight.
     report = run("-m", "programs.fleet_cli", "report", str(tmp_path / "fleet.mcap"), "--json")
