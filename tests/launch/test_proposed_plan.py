@@ -56,7 +56,7 @@ def _rogue(endpoint: str, stop: threading.Event) -> None:
     )
     with client_bus(endpoint) as bus:
         while not stop.wait(0.2):
-            bus.publish(DEFAULT_SPACE.mission_proposal(MISSION), bad)
+            bus.publish(DEFAULT_SPACE.uav_proposal(MISSION, 1), bad)
 
 
 def test_a_proposed_plan_is_verified_and_one_plan_adopted_by_every_uav(tmp_path: Path) -> None:
