@@ -101,6 +101,7 @@ def _mission_subscriptions(space: KeySpace) -> tuple[tuple[str, type[msgspec.Str
         (space.all_mission_replans, AssignmentReport),
         (space.all_mission_aborts, MissionAbort),
         (space.all_mission_proposals, PlanProposal),
+        (space.all_uav_proposals, PlanProposal),
         (space.all_mission_outcomes, TargetOutcome),
     )
 

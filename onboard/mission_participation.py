@@ -50,6 +50,7 @@ from onboard.link_watch import LINK_LOST_S, LinkWatch
 from onboard.mission_decision import MissionDecision
 from onboard.mission_phase import MissionPhase
 from onboard.own_result import OwnResult
+from onboard.plan_proposer import PlanProposer
 from onboard.state_report import Say
 from onboard.target_flight import FlightNews, TargetFlight
 from onboard.team_presence import TeamPresence
@@ -83,6 +84,8 @@ class MissionParticipation:
     say: Say
     #: Re-plans solved again from the survivors' standings (MissionRound.resolving).
     fresh_replans: bool = True
+    #: This UAV's own proposer (`--propose`); None: it proposes nothing.
+    proposer: PlanProposer | None = None
     round: MissionRound | None = None
     #: A snapshot of what this UAV settled of its mission (`Settled`), replaced as it
     #: changes: the bus threads drop the assignment reports it covers by their header.
@@ -607,6 +610,12 @@ class MissionParticipation:
         self._stand_with_teammates(now)
         if mission_round.committed is not None:
             return
+        if self.proposer is not None:
+            proposal = self.proposer.tick(mission_round, now)
+            if proposal is not None:
+                key = self.key_space.uav_proposal(proposal.mission, self.uav_id)
+                self.outputs.publish(key, proposal)
+                self.on_proposal(proposal, now)
         report = self.decision.tick(mission_round, now)
         if report is not None:
             self._apply(report, now)

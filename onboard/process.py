@@ -116,6 +116,8 @@ class OnboardSettings:
     #: obeyed. Off in the secure profile: anyone on that pipe would command the UAV
     #: without any identity, so there the ground commands over Zenoh only.
     payload_commands: bool = True
+    #: Propose plans (PyVRP) for the missions that name this UAV (onboard.plan_proposer).
+    propose: bool = False
 
 
 @dataclass
@@ -214,6 +216,7 @@ class OnboardProcess:
             key_space=settings.key_space,
             # A ghost liveliness token (anyone on the way can declare one) never counts.
             vouch_teammates=bus.signed,
+            propose=settings.propose,
         )
         program, payload = links or (
             SerialLink("program", settings.program_url, settings.baud),

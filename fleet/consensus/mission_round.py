@@ -401,9 +401,10 @@ class MissionRound:
         return not self.missing(alive) and not self.awaiting_proposal(now)
 
     def awaiting_proposal(self, now: float) -> bool:
-        """The mission expects a proposed plan (`proposals_s`), no valid one came yet,
-        and its window is still open: the decision waits for it (an invalid proposal
-        does not close the window; fleet.consensus.proposal)."""
+        """The mission expects a proposed plan (`proposals_s`), no valid one came yet
+        (from each proposer the mission names, if it names any), and its window is
+        still open: the decision waits for it (an invalid proposal does not close the
+        window; fleet.consensus.proposal)."""
         window = self.targets.proposals_s
         if window <= 0.0 or now >= self.started + window:
             return False
@@ -413,10 +414,15 @@ class MissionRound:
         legs = self.air_legs(used)
         inputs = self.results_digest(used)
         objective = self.targets.objective
-        return all(
-            proposal_problem(p, self.mission, objective, inputs, used, legs) is not None
-            for p in self.proposals.values()
-        )
+        valid = {
+            proposer
+            for proposer, p in self.proposals.items()
+            if proposal_problem(p, self.mission, objective, inputs, used, legs) is None
+        }
+        # Named proposers: every one's valid proposal, so that every UAV chooses among
+        # the same ones (the first to come would differ from UAV to UAV).
+        named = set(self.targets.proposers)
+        return not named <= valid if named else not valid
 
     def add_proposal(self, proposal: PlanProposal) -> bool:
         """Keep a proposed plan for this round's decision; False if it is another
