@@ -112,6 +112,7 @@ class MissionParticipation:
         if news is FlightNews.REACHED:
             self.publish_outcome(Phase.REACHED, None, self.flight.target)
             self.fly_next(now)
+            self._replan_if_finished(now)
         elif news is FlightNews.STALE_TARGET:
             self._leave_stale_target(now)
 
@@ -434,6 +435,7 @@ class MissionParticipation:
         self._fetch_hinted(mission_round, outcome)
         if outcome.phase == Phase.REACHED:
             mission_round.target_reached(outcome.uav, outcome.target)
+            self._replan_if_finished(now)
             self._settle()
             return
         dropped = outcome.phase in (Phase.FAILED, Phase.LINK_LOST)
@@ -652,6 +654,15 @@ class MissionParticipation:
             self._apply(report, now)
         elif mission_round.awaiting is not None:
             self._stand(now)  # the survivors' standings are awaited: this UAV's too
+
+    def _replan_if_finished(self, now: float) -> None:
+        """A UAV may have finished its queue: the append plan awaited or followed hands
+        finished UAVs orphans only as the last resort (fleet.consensus.replan), so it is
+        computed again, as every teammate computes it once it hears the same arrival
+        (an unchanged plan changes nothing). A resolved plan does not depend on it."""
+        mission_round = self.round
+        if mission_round is not None and mission_round.fallback_moved():
+            self._replan(now)
 
     def _apply(self, report: AssignmentReport, now: float) -> None:
         """Publish the assignment this UAV follows now and fly what it says."""

@@ -46,7 +46,7 @@ from fleet.consensus.mission_change import (
 from fleet.consensus.objectives import plan_digest, plan_queues
 from fleet.consensus.proposal import choose, proposal_digest, proposal_problem
 from fleet.consensus.queues import UNREACHABLE
-from fleet.consensus.replan import candidates, missing_times, replan
+from fleet.consensus.replan import candidates, finished_digest, missing_times, replan
 from fleet.consensus.report_checks import (
     assignment_problem,
     predicted_arrival,
@@ -319,6 +319,14 @@ class MissionRound:
             if target < count and uav in self.team:
                 self.reached_targets.setdefault(target, uav)
         self._update_reached()
+
+    def finished(self) -> frozenset[int]:
+        """Team UAVs done with the mission for now: each reached a target itself and
+        nothing of its queue in the plan followed is left. The append plan hands them an
+        orphan only as the last resort (fleet.consensus.replan); a UAV idle from the
+        start, which flew nothing, is not finished."""
+        flew = set(self.reached_targets.values())
+        return frozenset(u for u in flew & self.team if self.next_target(u) is None)
 
     def _update_reached(self) -> None:
         reached = self.reached_targets.keys()
@@ -684,6 +692,7 @@ class MissionRound:
             self.air_legs(self.base.team),
             removed=current.removed,
             added=added_targets(current),
+            finished=self.finished(),
         )
         heads = plan.pairs
         membership = self.membership
@@ -691,6 +700,7 @@ class MissionRound:
         if membership.back:  # somebody came back: the counts, not the set, name the epoch
             epoch = membership.epoch
             digest = membership_digest(self.base.digest, membership.left, membership.back)
+            digest = finished_digest(digest, plan.finished)
         # Each revision of the mission is one epoch more (fleet.consensus.mission_change).
         epoch += current.revision
         digest = change_digest(digest, current)
@@ -737,6 +747,15 @@ class MissionRound:
         if committed is not None and committed.epoch > 0 and committed.basis is None:
             return committed
         return None
+
+    def fallback_moved(self) -> bool:
+        """The append plan awaited or followed (`stands_for`) is no longer the one the
+        current input gives: a UAV finished its queue since (`finished`)."""
+        held = self.stands_for()
+        if held is None:
+            return False
+        fallback = self._fallback()
+        return fallback is not None and fallback.digest != held.digest
 
     @staticmethod
     def survivors(fallback: AssignmentReport) -> tuple[int, ...]:

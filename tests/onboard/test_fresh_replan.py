@@ -5,6 +5,8 @@ a late one, and adopts a teammate's resolved plan it could not compute."""
 
 from __future__ import annotations
 
+import math
+
 import msgspec
 
 from fleet.consensus.mission_round import STANDINGS_WAIT_S
@@ -131,3 +133,68 @@ def test_a_uav_whose_autopilot_link_is_lost_gives_no_standing_and_the_append_pla
     core.tick(6.1 + STANDINGS_WAIT_S)
     (fallback,) = out.on(SPACE.mission_replan(1, 112))
     assert isinstance(fallback, AssignmentReport) and fallback.basis is None
+
+
+# ---- a finished UAV on the append fallback --------------------------------------------
+def _finished_200_plan(
+    times: tuple[float, ...] = (80.0, 40.0, 60.0),
+) -> tuple[OnboardCore, Recorder]:
+    """As `_three_uav_plan`, but 200 is 15 s from target 2: the append rule's clock has
+    it, once at target 2, the earliest at target 0 (its epoch-0 times, from the start)."""
+    core, out = make_core(uav=112, times=times, fresh_replans=True)
+    round_of_three(core, (10.0, 90.0, 90.0), (50.0, 50.0, 15.0))
+    (report,) = out.on(SPACE.mission_assignment(1, 112))
+    assert isinstance(report, AssignmentReport)
+    assert report.queues == {74: (0,), 112: (1,), 200: (2,)}
+    return core, out
+
+
+def _wait_out(core: OnboardCore, out: Recorder, since: float) -> AssignmentReport:
+    """The standings' wait passes without 200's: the append plan is committed."""
+    now = since + STANDINGS_WAIT_S + 0.1
+    core.on_telemetry(sample_telemetry(), now)
+    core.tick(now)
+    fallback = out.on(SPACE.mission_replan(1, 112))[-1]
+    assert isinstance(fallback, AssignmentReport) and fallback.basis is None
+    return fallback
+
+
+def test_on_the_append_fallback_a_finished_uav_is_not_handed_an_orphan_a_busy_one_can_fly() -> None:
+    core, out = _finished_200_plan()
+    core.on_telemetry(sample_telemetry(), 6.0)
+    core.on_outcome(_reached(200, 2), 6.0)  # 200's queue is done
+    core.on_alive(74, False, 6.0)
+    core.tick(6.1)  # its own standing; 200 (done, its link to the team slow) gives none
+    fallback = _wait_out(core, out, 6.1)
+    # Its epoch-0 times put 200 first at target 0 after target 2, long flown; done, it
+    # is no holder of a later epoch's orphan unless it gives fresh times.
+    assert fallback.queues == {112: (1, 0), 200: (2,)}
+
+
+def test_a_finished_uav_alone_able_to_reach_an_orphan_takes_it_on_the_fallback() -> None:
+    """Dropping a target is worse than a holder timed from old times: the last resort."""
+    core, out = _finished_200_plan(times=(math.inf, 40.0, 60.0))
+    core.on_telemetry(sample_telemetry(), 6.0)
+    core.on_outcome(_reached(200, 2), 6.0)
+    core.on_alive(74, False, 6.0)
+    core.tick(6.1)
+    fallback = _wait_out(core, out, 6.1)
+    assert fallback.queues == {112: (1,), 200: (2, 0)} and fallback.unassigned == ()
+
+
+def test_an_arrival_heard_during_the_wait_moves_the_fallback_and_its_standing() -> None:
+    """200 finished its queue just as 74 was lost: a UAV that heard the loss first
+    computes the append plan again when it hears the arrival, as 200 itself did, so
+    both wait for standings of one plan."""
+    core, out = _finished_200_plan()
+    core.on_telemetry(sample_telemetry(), 6.0)
+    core.on_alive(74, False, 6.0)
+    core.tick(6.05)
+    (first,) = _standings(out)
+    core.on_outcome(_reached(200, 2), 6.1)
+    core.tick(6.15)
+    _, second = _standings(out)
+    assert second.basis != first.basis  # a standing for the moved plan too
+    fallback = _wait_out(core, out, 6.1)
+    assert fallback.digest == second.basis
+    assert fallback.queues == {112: (1, 0), 200: (2,)}
