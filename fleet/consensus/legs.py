@@ -315,14 +315,17 @@ class AirLegs(LegTables):
     def arrivals(self, uav: int, first: float, queue: Sequence[int]) -> list[float]:
         out = [first]
         clock = first
-        befores: list[tuple[float, float] | int | None] = [self._origin(self.air_of(uav))]
+        befores: list[tuple[float, float] | int | None] = [self.origin_of(uav)]
         befores += queue
         for before, i, j in zip(befores, queue, queue[1:], strict=False):
             clock += self.turning_leg(uav, before, i, j)
             out.append(clock)
         return out
 
-    def _origin(self, air: Air) -> tuple[float, float] | None:
+    def origin_of(self, uav: int) -> tuple[float, float] | None:
+        """Where `uav` planned from (local metres of the geometry's plane), the point its
+        track into its queue's first target starts; None where its result did not say."""
+        air = self.air_of(uav)
         projection = self.geometry.projection
         if air.origin is None or projection is None:
             return None
