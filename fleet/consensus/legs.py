@@ -69,8 +69,9 @@ MEAN_TURN_RADII = 0.5
 AIRSPEED_RANGE = (5.0, 100.0)
 MAX_WIND_MPS = 60.0
 #: A wind this share of the airspeed or more is flown in at that share (the approach
-#: model's `PLANNABLE_WIND_SHARE`): no leg is flyable against a wind as fast.
-WIND_SHARE = 0.7
+#: model's `PLANNABLE_WIND_SHARE`, a test checks they agree): no leg is flyable against
+#: a wind as fast. A 15 m/s wind is 0.75 of a 20 m/s aircraft's airspeed.
+WIND_SHARE = 0.8
 
 _LIMITS = AircraftLimits()
 
