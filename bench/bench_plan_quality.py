@@ -9,7 +9,7 @@ min-max). Per size and objective, each method's measure as a ratio to the best k
 (the best any method found on that instance; mean and worst over the instances):
 
 * `baseline`: `plan_queues`, what every UAV computes;
-* `pyvrp`: `ground.solver_plan.solve_queues` (PyVRP, fixed seed, `--iterations`;
+* `pyvrp`: `fleet.solver.pyvrp_plan.solve_queues` (PyVRP, fixed seed, `--iterations`;
   min-max by bisection on the route duration, min-sum PyVRP then the project's search),
   the ground's proposal;
 * `adopted`: the better of the two by the deterministic scorer (what the team adopts
@@ -37,7 +37,7 @@ from bench.bench_queues import Legs, Times, instance, times_and_legs
 from fleet.consensus.objectives import plan_queues
 from fleet.consensus.queues import Queues, finish
 from fleet.mission.objective import Objective
-from ground.solver_plan import solve_queues
+from fleet.solver.pyvrp_plan import solve_queues
 
 
 def _timed(solve: Callable[[], Queues]) -> tuple[Queues, float]:

@@ -22,7 +22,7 @@ import math
 
 from fleet.consensus.queues import Legs, Queues, Times, leg_count, legs_of
 from fleet.mission.objective import Objective
-from ground.solver_plan import finite_time, time_units
+from fleet.solver.pyvrp_plan import finite_time, time_units
 
 #: What an arc no UAV may fly costs (it is also removed from the vehicle's choices).
 FORBIDDEN = 10**9

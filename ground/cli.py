@@ -159,6 +159,15 @@ def _add_send_targets(commands: argparse._SubParsersAction[argparse.ArgumentPars
         "results are in: every UAV verifies it and adopts it if it is valid and better "
         "than its own (min-sum and min-max only)",
     )
+    send.add_argument(
+        "--proposers",
+        type=piccolo_ids,
+        default=(),
+        metavar="ID,...",
+        help="UAVs that propose a plan, each solved on board (`fleet up --proposers`): the "
+        "UAVs wait for each one's proposal, verify it and adopt the best (with --propose, "
+        "the ground's too; min-sum and min-max only)",
+    )
     send.add_argument("--json", action="store_true", help="print the outcome as one JSON object")
     set_handler(send, send_command.SEND_TARGETS)
 

@@ -20,6 +20,7 @@ from fleet.mission.key_space import KeySpace, uav_id_of
 from fleet.mission.messages import (
     AssignmentReport,
     MissionTargets,
+    PlanProposal,
     TargetOutcome,
     UavResult,
 )
@@ -62,6 +63,9 @@ class MissionFollower(Declarations):
         self.results: dict[int, UavResult] = {}
         self.assignments: dict[int, AssignmentReport] = {}
         self.outcomes: dict[int, TargetOutcome] = {}
+        #: The UAVs' proposals for this mission, by proposer (each on its own key, signed
+        #: by it: the bus checks both).
+        self.proposals: dict[int, PlanProposal] = {}
         self.lost: set[int] = set()  #: UAVs whose liveliness token went away
         self.superseded_by: int | None = None  #: the highest later mission of the team
         super().__init__()
@@ -71,6 +75,7 @@ class MissionFollower(Declarations):
         enter(bus.subscribe(space.mission_results(mission), self._on_result_sample))
         enter(bus.subscribe(space.mission_assignments(mission), self._on_assignment_sample))
         enter(bus.subscribe(space.mission_outcomes(mission), self._on_outcome_sample))
+        enter(bus.subscribe(space.mission_proposals(mission), self._on_proposal_sample))
         # The tokens present now are reported too: each is a UAV not lost, a no-op.
         enter(bus.subscribe_presence(space.all_alive, self._on_alive))
         enter(bus.subscribe(space.all_mission_targets, self._on_targets_sample))
@@ -117,6 +122,12 @@ class MissionFollower(Declarations):
         report = decode_sample(sample, AssignmentReport)
         if report is not None:
             self.add_assignment(report)
+
+    def _on_proposal_sample(self, sample: BusSample) -> None:
+        proposal = decode_sample(sample, PlanProposal)
+        if proposal is not None and proposal.mission == self.mission:
+            with self._changed:
+                self.proposals[proposal.proposer] = proposal
 
     def _on_outcome_sample(self, sample: BusSample) -> None:
         outcome = decode_sample(sample, TargetOutcome)
@@ -207,6 +218,10 @@ class MissionFollower(Declarations):
     def snapshot(self) -> tuple[dict[int, UavResult], dict[int, AssignmentReport]]:
         with self._changed:
             return dict(self.results), dict(self.assignments)
+
+    def proposal_snapshot(self) -> dict[int, PlanProposal]:
+        with self._changed:
+            return dict(self.proposals)
 
     def outcome_snapshot(self) -> dict[int, TargetOutcome]:
         with self._changed:

@@ -98,6 +98,8 @@ class MissionOutcome:
     removed: frozenset[int] = frozenset()
     #: What the UAVs' first plans say of the ground's proposal (send-targets --propose).
     proposal: Adoption | None = None
+    #: The same of each UAV's proposal heard (send-targets --proposers), by proposer.
+    uav_proposals: dict[int, Adoption] = field(default_factory=dict)
 
     @property
     def declined(self) -> list[int]:

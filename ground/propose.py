@@ -2,13 +2,11 @@
 
 `send-targets --propose` sends the mission with a proposal window (`proposals_s`):
 every UAV holding every teammate's result waits for a proposal that long before it
-decides. The ground waits for the team's results, computes exactly what every UAV
-computes from them (the legs in each UAV's air, the results digest:
-`fleet.consensus.mission_round.MissionRound`), solves the queues with PyVRP
-(`ground.solver_plan`) and publishes a `PlanProposal`, signed like every command of the
-ground. Every UAV verifies and scores it, and adopts it only if it is valid and better
-than the baseline (fleet.consensus.proposal). The page (`ground-cli gui`, "propose a
-plan") proposes through the same `propose_when_results`.
+decides. The ground waits for the team's results, solves the queues from them with
+PyVRP as any proposer does (`fleet.solver.proposer`) and publishes a `PlanProposal`,
+signed like every command of the ground. Every UAV verifies and scores it, and adopts it
+only if it is valid and better than the baseline (fleet.consensus.proposal). The page
+(`ground-cli gui`, "propose a plan") proposes through the same `propose_when_results`.
 """
 
 from __future__ import annotations
@@ -18,18 +16,17 @@ import threading
 import time
 from dataclasses import dataclass
 
-from fleet.consensus.mission_round import MissionRound
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MISSION_MANAGER, MissionTargets, PlanProposal, UavResult
 from fleet.mission.objective import Objective
+from fleet.solver.proposer import proposal_for
+from fleet.solver.pyvrp_plan import SolverUnavailable
 from fleet.transport.bus import Bus
 from ground.mission_follower import MissionFollower
-from ground.solver_plan import SolverUnavailable, solve_queues
 
 __all__ = [
     "DEFAULT_WINDOW_S",
     "ProposalAttempt",
-    "proposal_for",
     "proposal_window",
     "propose",
     "propose_when_results",
@@ -41,30 +38,12 @@ log = logging.getLogger(__name__)
 DEFAULT_WINDOW_S = 20.0
 
 
-def proposal_for(targets: MissionTargets, results: dict[int, UavResult]) -> PlanProposal:
-    """The plan PyVRP solves from `results` (the team's), as a proposal of the ground."""
-    team = [uav for uav in targets.team if uav in results]
-    mission_round = MissionRound(targets=targets, own_id=team[0], started=0.0)
-    for uav in team:
-        mission_round.add_result(results[uav])
-    used = {uav: mission_round.results[uav].times for uav in sorted(mission_round.results)}
-    legs = mission_round.air_legs(used)
-    queues = solve_queues(used, legs, targets.objective)
-    return PlanProposal(
-        mission=targets.mission,
-        proposer=MISSION_MANAGER,
-        digest=mission_round.results_digest(used),
-        objective=targets.objective,
-        queues={uav: tuple(queue) for uav, queue in sorted(queues.items())},
-    )
-
-
 def propose(
     bus: Bus, space: KeySpace, targets: MissionTargets, results: dict[int, UavResult]
 ) -> tuple[PlanProposal, float]:
     """Solve and publish the ground's proposal; (the proposal, CPU seconds it took)."""
     started = time.process_time()
-    proposal = proposal_for(targets, results)
+    proposal = proposal_for(targets, results, MISSION_MANAGER)
     spent = time.process_time() - started
     bus.publish(space.mission_proposal(targets.mission), proposal)
     log.info("mission %d: plan proposed (%.2f s of CPU)", targets.mission, spent)

@@ -18,6 +18,7 @@ from fleet.consensus.deadline import consensus_deadline
 from fleet.consensus.proposal import adoption
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
+    MISSION_MANAGER,
     AssignmentReport,
     MissionTargets,
     NoFlyZone,
@@ -118,6 +119,8 @@ class SendOptions(BusOptions):
     objective: Objective = Objective.GREEDY
     #: Propose a plan solved by PyVRP (ground.propose) once the results are in.
     propose: bool = False
+    #: UAVs that propose a plan (their onboards started with --propose).
+    proposers: tuple[int, ...] = ()
     json: bool = False
 
 
@@ -146,9 +149,15 @@ def run_send_targets(bus: Bus, options: SendOptions, out: TextIO) -> int:
         return ExitCode.FAILED
     deadline_s = options.deadline or consensus_deadline(len(team))
     proposals_s = 0.0
-    if options.propose:
+    # Named when UAVs propose: the UAVs then wait for each one's proposal (within the
+    # window), so that they all choose among the same ones.
+    proposers: tuple[int, ...] = options.proposers
+    if options.proposers and options.propose:
+        proposers = (*options.proposers, MISSION_MANAGER)
+    if options.propose or options.proposers:
         if options.objective is Objective.GREEDY:
-            print("error: --propose needs --objective min-sum or min-max", file=sys.stderr)
+            flag = "--propose" if options.propose else "--proposers"
+            print(f"error: {flag} needs --objective min-sum or min-max", file=sys.stderr)
             return ExitCode.FAILED
         deadline_s, proposals_s = proposal_window(options.objective, deadline_s)
 
@@ -161,6 +170,7 @@ def run_send_targets(bus: Bus, options: SendOptions, out: TextIO) -> int:
             zones=options.zones,
             objective=options.objective,
             proposals_s=proposals_s,
+            proposers=proposers,
         )
 
     try:
@@ -178,6 +188,8 @@ def run_send_targets(bus: Bus, options: SendOptions, out: TextIO) -> int:
         data = outcome.to_json()
         if outcome.proposal is not None:
             data["proposal"] = outcome.proposal.to_json()
+        if options.proposers:
+            data["uav_proposals"] = {str(u): a.to_json() for u, a in outcome.uav_proposals.items()}
         print(json.dumps(data), file=out)
     elif options.wait:
         print("\n".join(summary_lines(outcome)), file=out)
@@ -230,6 +242,13 @@ def _send_and_follow(
             outcome.proposal = adoption(proposal, outcome.assignments.values())
             said = outcome.proposal.summary()
             print(f"mission {mission}: the ground's proposal: {said}", file=progress)
+        if options.proposers and options.wait:
+            for uav, heard in sorted(follower.proposal_snapshot().items()):
+                outcome.uav_proposals[uav] = adoption(heard, outcome.assignments.values())
+                said = outcome.uav_proposals[uav].summary()
+                print(f"mission {mission}: UAV {uav}'s proposal: {said}", file=progress)
+            for uav in sorted(set(options.proposers) - outcome.uav_proposals.keys()):
+                print(f"mission {mission}: no proposal heard from UAV {uav}", file=progress)
     return outcome
 
 

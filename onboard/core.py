@@ -44,6 +44,7 @@ from onboard.catch_up import CATCH_UP_INTERVAL_S
 from onboard.link_watch import LINK_LOST_S, LinkWatch
 from onboard.mission_participation import MissionOutputs, MissionParticipation
 from onboard.mission_phase import MissionPhase
+from onboard.plan_proposer import PlanProposer
 from onboard.state_report import ReportOutputs, Say, StateReport, overall_phase
 from onboard.target_flight import (
     CONFIRM_LIMIT_S,
@@ -91,12 +92,14 @@ class OnboardCore:
         key_space: KeySpace = DEFAULT_SPACE,
         fresh_replans: bool = True,
         vouch_teammates: bool = False,
+        propose: bool = False,
     ) -> None:
         """`fresh_replans`: every re-plan is solved again from the survivors' fresh
         times (fleet.consensus.resolve); off, it is the append rule's, committed at once
         (what a re-plan commits when their times are missing). `vouch_teammates` (the
         secure profile): a teammate's liveliness token counts only once the teammate
-        spoke for itself (`on_spoke`; onboard.team_presence)."""
+        spoke for itself (`on_spoke`; onboard.team_presence). `propose`: this UAV
+        proposes plans for the missions that name it (onboard.plan_proposer)."""
         self.uav_id = uav_id
         self.planner = planner
         self.report = StateReport(uav_id, key_space, outputs, status_rate_hz)
@@ -128,6 +131,7 @@ class OnboardCore:
             self.flight,
             say,
             fresh_replans=fresh_replans,
+            proposer=PlanProposer(uav_id, say) if propose else None,
         )
 
     # ---- what the roles hold, read by the process and the tests ----------------------------
@@ -313,6 +317,13 @@ class OnboardCore:
         if self.round is None or self.round.mission != mission:
             return None
         return self.round.results.get(self.uav_id)
+
+    def own_standing(self, mission: int, basis: str | None) -> UavResult | None:
+        """This UAV's standing for append plan `basis` of `mission` (None: for the one it
+        awaits or follows), as it put it: served to a teammate or a ground that asks."""
+        if self.round is None or self.round.mission != mission:
+            return None
+        return self.round.standing_of(self.uav_id, basis)
 
     def own_assignment(self, mission: int) -> AssignmentReport | None:
         if self.round is None or self.round.mission != mission:

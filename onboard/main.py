@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.util
 import logging
 import sys
 
@@ -75,6 +76,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="give a held target up (it is re-planned) when the autopilot link stays "
         "lost this long, s (default %(default)g)",
     )
+    parser.add_argument(
+        "--propose",
+        action="store_true",
+        help="solve and propose a plan (PyVRP: pip install '.[solver]') for each mission "
+        "that names this UAV among its proposers",
+    )
     add_zenoh_arguments(parser)
     add_verbose_argument(parser)
     return parser
@@ -97,6 +104,7 @@ def settings_from(args: argparse.Namespace, config: zenoh.Config) -> OnboardSett
         key_space=args.key_space,
         # In the secure profile only Zenoh, where each message's sender is known, commands.
         payload_commands=not uses_mtls(config),
+        propose=args.propose,
     )
 
 
@@ -116,6 +124,8 @@ def main(argv: list[str] | None = None) -> int:
     except ZenohConfigError as error:
         return fail("onboard", str(error))
     settings = settings_from(args, config)
+    if settings.propose and importlib.util.find_spec("pyvrp") is None:
+        return fail("onboard", "--propose needs PyVRP: pip install '.[solver]'")
     try:
         bus = open_bus(config)
     except BusConnectError as error:

@@ -46,7 +46,7 @@ from fleet.consensus.mission_change import (
 from fleet.consensus.objectives import plan_digest, plan_queues
 from fleet.consensus.proposal import choose, proposal_digest, proposal_problem
 from fleet.consensus.queues import UNREACHABLE
-from fleet.consensus.replan import candidates, missing_times, replan
+from fleet.consensus.replan import candidates, finished_digest, missing_times, replan
 from fleet.consensus.report_checks import (
     assignment_problem,
     predicted_arrival,
@@ -210,6 +210,9 @@ class MissionRound:
     awaiting: AssignmentReport | None = None
     #: When this UAV started waiting for them.
     awaiting_since: float | None = None
+    #: The append plans (digests) whose missing standings this UAV asked for by query
+    #: (once each, FETCH_INTERVAL into the wait: `standings_to_fetch`).
+    standings_asked: set[str] = field(default_factory=set)
 
     def __post_init__(self) -> None:
         self.team = team_set(self.targets.team)
@@ -320,6 +323,14 @@ class MissionRound:
                 self.reached_targets.setdefault(target, uav)
         self._update_reached()
 
+    def finished(self) -> frozenset[int]:
+        """Team UAVs done with the mission for now: each reached a target itself and
+        nothing of its queue in the plan followed is left. The append plan hands them an
+        orphan only as the last resort (fleet.consensus.replan); a UAV idle from the
+        start, which flew nothing, is not finished."""
+        flew = set(self.reached_targets.values())
+        return frozenset(u for u in flew & self.team if self.next_target(u) is None)
+
     def _update_reached(self) -> None:
         reached = self.reached_targets.keys()
         if not reached:  # at the commitment: nobody is done, no need to ask N queues
@@ -390,9 +401,10 @@ class MissionRound:
         return not self.missing(alive) and not self.awaiting_proposal(now)
 
     def awaiting_proposal(self, now: float) -> bool:
-        """The mission expects a proposed plan (`proposals_s`), no valid one came yet,
-        and its window is still open: the decision waits for it (an invalid proposal
-        does not close the window; fleet.consensus.proposal)."""
+        """The mission expects a proposed plan (`proposals_s`), no valid one came yet
+        (from each proposer the mission names, if it names any), and its window is
+        still open: the decision waits for it (an invalid proposal does not close the
+        window; fleet.consensus.proposal)."""
         window = self.targets.proposals_s
         if window <= 0.0 or now >= self.started + window:
             return False
@@ -402,10 +414,15 @@ class MissionRound:
         legs = self.air_legs(used)
         inputs = self.results_digest(used)
         objective = self.targets.objective
-        return all(
-            proposal_problem(p, self.mission, objective, inputs, used, legs) is not None
-            for p in self.proposals.values()
-        )
+        valid = {
+            proposer
+            for proposer, p in self.proposals.items()
+            if proposal_problem(p, self.mission, objective, inputs, used, legs) is None
+        }
+        # Named proposers: every one's valid proposal, so that every UAV chooses among
+        # the same ones (the first to come would differ from UAV to UAV).
+        named = set(self.targets.proposers)
+        return not named <= valid if named else not valid
 
     def add_proposal(self, proposal: PlanProposal) -> bool:
         """Keep a proposed plan for this round's decision; False if it is another
@@ -684,6 +701,7 @@ class MissionRound:
             self.air_legs(self.base.team),
             removed=current.removed,
             added=added_targets(current),
+            finished=self.finished(),
         )
         heads = plan.pairs
         membership = self.membership
@@ -691,6 +709,7 @@ class MissionRound:
         if membership.back:  # somebody came back: the counts, not the set, name the epoch
             epoch = membership.epoch
             digest = membership_digest(self.base.digest, membership.left, membership.back)
+            digest = finished_digest(digest, plan.finished)
         # Each revision of the mission is one epoch more (fleet.consensus.mission_change).
         epoch += current.revision
         digest = change_digest(digest, current)
@@ -738,6 +757,15 @@ class MissionRound:
             return committed
         return None
 
+    def fallback_moved(self) -> bool:
+        """The append plan awaited or followed (`stands_for`) is no longer the one the
+        current input gives: a UAV finished its queue since (`finished`)."""
+        held = self.stands_for()
+        if held is None:
+            return False
+        fallback = self._fallback()
+        return fallback is not None and fallback.digest != held.digest
+
     @staticmethod
     def survivors(fallback: AssignmentReport) -> tuple[int, ...]:
         """The UAVs taking part in a re-plan: its team, less the released."""
@@ -751,6 +779,29 @@ class MissionRound:
             return ()
         held = self.standings.get(fallback.digest, {})
         return tuple(uav for uav in self.survivors(fallback) if uav not in held)
+
+    def standing_of(self, uav: int, basis: str | None = None) -> UavResult | None:
+        """`uav`'s standing for append plan `basis`, if held; with no basis, for the one
+        this UAV awaits or follows (`stands_for`): the standing still of use."""
+        if basis is None:
+            fallback = self.stands_for()
+            if fallback is None:
+                return None
+            basis = fallback.digest
+        return self.standings.get(basis, {}).get(uav)
+
+    def standings_to_fetch(self, now: float) -> tuple[str, tuple[int, ...]] | None:
+        """The awaited append plan's digest and the survivors whose standings for it are
+        still missing FETCH_INTERVAL into the wait (a lost put, or one made before this
+        UAV listened): asked for by query once per plan; None otherwise."""
+        fallback, since = self.awaiting, self.awaiting_since
+        if fallback is None or since is None or now - since < FETCH_INTERVAL:
+            return None
+        if fallback.digest in self.standings_asked:
+            return None
+        self.standings_asked.add(fallback.digest)
+        missing = tuple(u for u in self.missing_standings() if u != self.own_id)
+        return (fallback.digest, missing) if missing else None
 
     def resolve_ready(self) -> AssignmentReport | None:
         """Commit the plan solved again from the survivors' standings, once every one

@@ -1,7 +1,7 @@
 """Proposed plans, verified: any party may propose; every UAV re-scores and chooses.
 
 `plan_queues` is the deterministic baseline every UAV computes. A party with the CPU
-and a better solver (the ground, with PyVRP: ground/solver_plan.py) may publish a
+and a better solver (the ground, with PyVRP: fleet/solver/pyvrp_plan.py) may publish a
 `PlanProposal` for a mission: queues solved from the same digested results. Every UAV
 checks it against what it holds and refuses it whole (`proposal_problem`) when
 

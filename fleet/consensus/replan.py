@@ -16,8 +16,15 @@ it. Every UAV still in the mission runs the same rule, with no coordinator:
   (finishing time, Piccolo ID, target index)), whether that survivor had targets at
   epoch 0 or none; a target no survivor has an approach time to is `unserved`, with the
   reason;
-* its digest hashes the epoch-0 digest with the released set, so UAVs that re-planned
-  on the same input publish the same digest and queues, and the ground can check them.
+* a survivor that is **finished** (it reached targets itself and nothing of its queue is
+  left) takes an orphan only when no other survivor has an approach time to it: its
+  epoch-0 times are from where it was at the start, and it has flown on since its queue
+  ended, so the append rule's arrival for it is the least true of all; it takes part
+  again with fresh times (`fleet.consensus.resolve`), and a target is never dropped while
+  a finished UAV can reach it (the last resort);
+* its digest hashes the epoch-0 digest with the released set (and the finished
+  survivors, when there are orphans to hand out), so UAVs that re-planned on the same
+  input publish the same digest and queues, and the ground can check them.
 
 Being a function of the set, not of the order in which losses were seen, two UAVs that
 saw two losses in opposite orders still agree. Orphans go to the ends of queues, never
@@ -42,6 +49,7 @@ from fleet.consensus.queues import Legs, QueuePlan, Queues, append_earliest, fin
 from fleet.mission.messages import AssignmentReport
 
 _REPLAN_VERSION = b"fleet.assignment.replan/v1\x00"
+_FINISHED_VERSION = b"fleet.assignment.finished/v1\x00"
 #: Why an orphan is in no queue after a re-plan.
 NO_SURVIVOR = "no surviving UAV has an approach time to it"
 
@@ -55,6 +63,9 @@ class Replan:
     plan: QueuePlan  #: the survivors' queues (released UAVs: none)
     unserved: dict[int, str]  #: target -> why no survivor serves it
     digest: str
+    #: The finished survivors, handed an orphan only as the last resort (ascending;
+    #: empty when no orphan was handed out: then they change nothing).
+    finished: tuple[int, ...] = ()
 
     @property
     def pairs(self) -> dict[int, int]:
@@ -97,6 +108,19 @@ def replan_digest(base_digest: str, released: Iterable[int]) -> str:
     return h.hexdigest()[:16]
 
 
+def finished_digest(digest: str, finished: Iterable[int]) -> str:
+    """`digest` with the finished survivors an epoch's orphans avoided; `digest` itself
+    when there are none (the plan does not depend on them)."""
+    done = sorted(set(finished))
+    if not done:
+        return digest
+    h = sha256(_FINISHED_VERSION)
+    h.update(digest.encode("ascii", "replace"))
+    for uav in done:
+        h.update(uav.to_bytes(2, "little"))
+    return h.hexdigest()[:16]
+
+
 def replan(
     base: AssignmentReport,
     times: Mapping[int, Sequence[float | None]],
@@ -105,10 +129,12 @@ def replan(
     *,
     removed: Iterable[int] = (),
     added: Iterable[int] = (),
+    finished: Iterable[int] = (),
 ) -> Replan:
     """The plan once `released` dropped out, from the epoch-0 `base`, `times` and `legs`;
     with the mission changed in flight (fleet.consensus.mission_change), `removed`
-    targets leave every queue and the `added` ones are handed out like orphans.
+    targets leave every queue and the `added` ones are handed out like orphans. The
+    `finished` survivors take only the orphans no other survivor can reach.
 
     `times[uav]` is a survivor's epoch-0 approach time to every target of the mission
     (and its estimate to each added one); raises KeyError naming a survivor whose times
@@ -123,10 +149,18 @@ def replan(
     queues: Queues = {
         uav: [t for t in q if t not in off] for uav, q in base_queues(base).items() if uav in pool
     }
+    done = tuple(sorted(set(finished) & set(pool))) if orphans else ()
     if orphans or off:
         # KeyError for a survivor whose times are missing: the caller fetches them.
         rows = {uav: times[uav] for uav in pool}
-        append_earliest(queues, plan_clocks(queues, rows, legs), orphans, rows, legs)
+        clocks = plan_clocks(queues, rows, legs)
+        # The survivors still at work first; the finished ones, the last resort, take
+        # what none of them can reach (the same lists: appended in place).
+        for group in ([u for u in pool if u not in done], list(done)):
+            placed = {t for q in queues.values() for t in q}
+            left = [t for t in orphans if t not in placed]
+            sub = {uav: queues[uav] for uav in group}
+            append_earliest(sub, {uav: clocks[uav] for uav in group}, left, rows, legs)
         plan = finish(queues, rows, legs)
     else:  # nothing moves: the survivors' epoch-0 queues and arrivals
         plan = QueuePlan(
@@ -146,7 +180,8 @@ def replan(
         released=gone,
         plan=plan,
         unserved=dict(sorted(unserved.items())),
-        digest=replan_digest(base.digest, gone),
+        digest=finished_digest(replan_digest(base.digest, gone), done),
+        finished=done,
     )
 
 

@@ -113,6 +113,8 @@ class FleetSpec:
     fork_onboards: bool = True
     #: The simulated aircraft's flight model (`fleet sim --dynamics`).
     dynamics: Dynamics = Dynamics.KINEMATIC
+    #: UAVs whose onboard proposes plans (`fleet-onboard --propose`).
+    proposers: frozenset[int] = frozenset()
 
 
 @dataclass
@@ -483,6 +485,7 @@ class Fleet:
                 "--mode",
                 "client",
                 *zenoh_args,
+                *(["--propose"] if endpoints.piccolo_id in self.spec.proposers else []),
                 *self.spec.onboard_args,
             ],
         )

@@ -38,6 +38,7 @@ from fleet.transport.cli import (
     bounded_int,
     enum_option,
     fail,
+    piccolo_ids,
     positive_float,
     stop_on_signals,
 )
@@ -182,6 +183,14 @@ def add_up_parser(
         help="start a UAV's onboard module again when it dies (back-off 1 s, doubling to "
         "30 s); without it a dead module is reported and the rest of the fleet flies on",
     )
+    parser.add_argument(
+        "--proposers",
+        type=piccolo_ids,
+        default=(),
+        metavar="ID,...",
+        help="UAVs whose onboard solves and proposes plans (PyVRP: pip install '.[solver]') "
+        "for the missions that name them (`ground-cli send-targets --proposers`)",
+    )
     add_dynamics_argument(parser)
     common_arguments(parser, speedup=1.0)
     return parser
@@ -211,6 +220,8 @@ class UpOptions(LaunchOptions):
     restart: bool = False
     #: The simulated aircraft's flight model (`fleet sim --dynamics`).
     dynamics: Dynamics = Dynamics.KINEMATIC
+    #: UAVs whose onboard proposes plans (`fleet-onboard --propose`).
+    proposers: tuple[int, ...] = ()
 
 
 def up_options(args: argparse.Namespace) -> UpOptions:
@@ -269,6 +280,7 @@ def _run_up(args: UpOptions, stop: threading.Event) -> int:
         key_space=args.key_space,
         fork_onboards=args.fork_onboards,
         dynamics=args.dynamics,
+        proposers=frozenset(args.proposers),
     )
     fleet = Fleet(spec, stop_requested=stop, progress=_print_progress)
     if args.uavs is not None:

@@ -18,10 +18,12 @@ from typing import Any
 from fleet.errors import FleetError
 from fleet.mission.key_space import KeySpace, space_of
 from fleet.mission.messages import (
+    MISSION_MANAGER,
     AssignmentHeader,
     AssignmentReport,
     MissionAbort,
     MissionTargets,
+    PlanProposal,
     TargetOutcome,
     UavResult,
     UavState,
@@ -207,6 +209,13 @@ def _check_waypoint(key: str, ids: KeyIds, message: Waypoint) -> None:
         _same(key, "waypoint index", ids.index, message.index)
 
 
+def _check_proposal(key: str, ids: KeyIds, message: PlanProposal) -> None:
+    # A UAV proposes on its own key only, as itself (its signature binds it to the key);
+    # the ground's key carries the ground's proposals only.
+    _same(key, "mission", ids.mission, message.mission)
+    _same(key, "proposer", MISSION_MANAGER if ids.uav is None else ids.uav, message.proposer)
+
+
 _CHECKS: dict[type, Callable[[str, KeyIds, Any], None]] = {
     UavResult: _check_result,
     TargetOutcome: _check_result,
@@ -216,4 +225,5 @@ _CHECKS: dict[type, Callable[[str, KeyIds, Any], None]] = {
     MissionAbort: _check_abort,
     UavState: _check_state,
     Waypoint: _check_waypoint,
+    PlanProposal: _check_proposal,
 }

@@ -32,6 +32,7 @@ Layout (under the prefix, `fleet` by default):
     mission/{m}/outcome/{id}     TargetOutcome: reached, failed or link_lost
     mission/{m}/abort            MissionAbort, ground -> team (served too)
     mission/{m}/proposal         PlanProposal, ground -> team: a plan to verify
+    mission/{m}/proposal/{id}    PlanProposal, UAV id -> team: its own plan to verify
     router/state                 queryable: RouterState, served by each secure router
     roster                       RosterDocument, ground -> all: the CA-signed roster of
                                  signers, put when an identity is revoked
@@ -210,6 +211,11 @@ PROPOSAL = KeySpec(
     "mission/{m}/proposal", messages.PlanProposal, role=Role.COMMAND, writer=Party.GROUND,
     urgency=Urgency.URGENT,
 )  # fmt: skip
+#: A plan proposed by a UAV that has the CPU (`fleet-onboard --propose`), on its own key
+#: and signed by it: a UAV proposes as itself only (fleet.mission.key_check).
+UAV_PROPOSAL = KeySpec(
+    "mission/{m}/proposal/{id}", messages.PlanProposal, role=Role.COMMAND, urgency=Urgency.URGENT
+)
 
 #: Asked with no payload, and answered by each secure router (fleet/transport/router.py),
 #: not by a fleet member: one reply per router, so it is asked with every reply kept.
@@ -229,7 +235,8 @@ ROSTER = KeySpec(
 #: Every key of the fleet. Order is kept wherever keys are listed (schemas, grants).
 REGISTRY: tuple[KeySpec, ...] = (
     ALIVE, TELEMETRY, TRACK, WAYPOINT, STATUS, LINK, STATE, DIGEST, OPM, CMD_WAYPOINT, CMD_TRACK,
-    TARGETS, RESULT, ASSIGNMENT, REPLAN, OUTCOME, ABORT, PROPOSAL, ROUTER_STATE, ROSTER,
+    TARGETS, RESULT, ASSIGNMENT, REPLAN, OUTCOME, ABORT, PROPOSAL, UAV_PROPOSAL, ROUTER_STATE,
+    ROSTER,
 )  # fmt: skip
 
 #: The JSON Schema file (without `.schema.json`) of each struct that travels on a key.

@@ -144,6 +144,14 @@ class KeySpace:
     def mission_proposal(self, mission: int) -> str:
         return self.key(reg.PROPOSAL, m=mission)
 
+    def uav_proposal(self, mission: int, uav_id: int) -> str:
+        """A UAV's own proposal for a mission (the ground's: `mission_proposal`)."""
+        return self.key(reg.UAV_PROPOSAL, m=mission, id=uav_id)
+
+    def mission_proposals(self, mission: int) -> str:
+        """Every UAV's proposal for a mission (not the ground's)."""
+        return self.key(reg.UAV_PROPOSAL, m=mission)
+
     # --- one UAV's keys in every mission ---
 
     def results_of(self, uav_id: int) -> str:
@@ -217,6 +225,10 @@ class KeySpace:
     @property
     def all_mission_proposals(self) -> str:
         return self.key(reg.PROPOSAL)
+
+    @property
+    def all_uav_proposals(self) -> str:
+        return self.key(reg.UAV_PROPOSAL)
 
     @property
     def all_mission_outcomes(self) -> str:

@@ -102,3 +102,36 @@ def test_missing_candidate_times_are_named_and_refused() -> None:
 def test_released_uavs_outside_the_team_are_ignored() -> None:
     plan = replan(base_report(), TIMES, {999}, LEGS)
     assert plan.epoch == 0 and plan.digest == base_report().digest
+
+
+# ---- a finished survivor: the last resort -------------------------------------------
+SLOW = {**TIMES, 200: (30.0, 150.0)}  # 74 would reach target 1 first (110 s), 200 at 150 s
+
+
+def test_a_finished_survivor_is_not_handed_an_orphan_another_survivor_can_reach() -> None:
+    plan = replan(base_report(SLOW), SLOW, {112}, LEGS, finished={74})
+    assert plan.plan.queues == {74: (0,), 200: (1,)}
+    assert plan.finished == (74,)
+    assert plan.digest != replan(base_report(SLOW), SLOW, {112}, LEGS).digest
+
+
+def test_a_finished_survivor_takes_an_orphan_nobody_else_can_reach() -> None:
+    times = {**TIMES, 200: (30.0, None)}
+    plan = replan(base_report(times), times, {112}, LEGS, finished={74})
+    assert plan.plan.queues == {74: (0, 1), 200: ()} and plan.unassigned == ()
+
+
+def test_only_finished_survivors_left_share_the_orphans_by_the_append_rule() -> None:
+    plan = replan(base_report(SLOW), SLOW, {112}, LEGS, finished={74, 200})
+    assert plan.plan.queues == {74: (0, 1), 200: ()}
+    assert plan.unassigned == ()
+
+
+def test_finished_uavs_change_nothing_without_orphans_or_outside_the_survivors() -> None:
+    base = base_report()
+    assert (
+        replan(base, TIMES, {200}, LEGS, finished={74}).digest
+        == replan(base, TIMES, {200}, LEGS).digest
+    )
+    gone = replan(base, TIMES, {112}, LEGS, finished={112})
+    assert gone.finished == () and gone.digest == replan(base, TIMES, {112}, LEGS).digest

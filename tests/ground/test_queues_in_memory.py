@@ -21,6 +21,8 @@ from tests.support.targets import ring_targets
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
+#: The ring scenario's first UAV: the one that proposes.
+_FIRST = 101
 TARGETS = ring_targets(8, seed=23)
 
 
@@ -72,3 +74,30 @@ def test_send_targets_propose_says_whether_the_team_adopted_the_proposal(
     assert f"the ground's proposal: {'adopted by' if verdict == 'adopted' else 'not'}" in (
         capsys.readouterr().err
     )
+
+
+def test_a_uav_proposes_and_every_uav_adopts_one_plan(tmp_path: Path) -> None:
+    """`send-targets --proposers U` to a fleet whose UAV U solves on board (`--propose`):
+    U's proposal, signed as U on its own key, is verified by every UAV; all report one
+    digest, and the ground reads from it whether they adopted U's plan."""
+    pytest.importorskip("pyvrp", reason="PyVRP is not installed: pip install '.[solver]'")
+    with memory_fleet(ring_file(tmp_path, 3), proposers=frozenset({_FIRST})) as fleet:
+        team = sorted(fleet.ids)
+        assert _FIRST in team
+        seen = AssignmentsHeard(fleet.bus(), SPACE)
+        out = io.StringIO()
+        options = SendOptions(
+            targets=TARGETS,
+            team=tuple(team),
+            wait=True,
+            json=True,
+            objective=Objective.MIN_MAX,
+            proposers=(_FIRST,),
+        )
+        assert run_send_targets(fleet.bus(), options, out) == 0
+        said = json.loads(out.getvalue())["uav_proposals"][str(_FIRST)]
+        wait_until(lambda: set(team) <= set(seen.latest()), 30.0, "every commitment")
+        digests = {seen.latest()[uav].digest for uav in team}
+    verdict = said["verdict"]
+    assert verdict in ("adopted", "baseline"), said
+    assert said[f"{verdict}_by"] == team and digests == {said[f"{verdict}_digest"]}

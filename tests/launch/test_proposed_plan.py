@@ -5,7 +5,10 @@ twice, other results, from a lower ID) throughout. Every UAV commits one plan wi
 digest: the ground's proposal where the deterministic scorer finds it strictly better
 than the baseline (here it is: PyVRP's bisection beats the baseline's min-max on this
 instance, about 8 % when measured), else the baseline, both recomputed here from the
-recorded results; the invalid one refused by each UAV (its log says why)."""
+recorded results; the invalid one refused by each UAV (its log says why). Then UAV 201,
+started with `fleet up --proposers 201`, proposes the next mission's plan itself (named
+by `send-targets --proposers 201`), signed as 201 on its own key: every UAV commits one
+digest, the plan adopted from 201's proposal or the baseline, as the ground reads it."""
 
 from __future__ import annotations
 
@@ -35,6 +38,8 @@ pytest.importorskip("pyvrp", reason="PyVRP is not installed: pip install '.[solv
 pytestmark = pytest.mark.e2e
 
 MISSION = 41
+#: The mission UAV 201 proposes for, and the UAV.
+UAV_MISSION, PROPOSER = 42, 201
 #: Twenty targets, local metres east/north of the windy scenario's origin, seeded.
 _RNG = random.Random(35)
 POINTS = [(_RNG.uniform(-6000, 6000), _RNG.uniform(-9000, 12000)) for _ in range(20)]
@@ -51,11 +56,14 @@ def _rogue(endpoint: str, stop: threading.Event) -> None:
     )
     with client_bus(endpoint) as bus:
         while not stop.wait(0.2):
-            bus.publish(DEFAULT_SPACE.mission_proposal(MISSION), bad)
+            bus.publish(DEFAULT_SPACE.uav_proposal(MISSION, 1), bad)
 
 
 def test_a_proposed_plan_is_verified_and_one_plan_adopted_by_every_uav(tmp_path: Path) -> None:
-    up = start_fleet_up("windy", "--listen", ANY_PORT, "--speedup", "3", "--log-dir", str(tmp_path))
+    up = start_fleet_up(
+        "windy", "--listen", ANY_PORT, "--speedup", "3", "--log-dir", str(tmp_path),
+        "--proposers", str(PROPOSER),
+    )  # fmt: skip
     stop = threading.Event()
     try:
         endpoint = wait_fleet_up(up, 90.0).connect
@@ -71,6 +79,15 @@ def test_a_proposed_plan_is_verified_and_one_plan_adopted_by_every_uav(tmp_path:
         outcome = json.loads(sent.stdout)
         assert outcome["agreed"] is True, sent.stderr[-3000:]
         assert "plan proposed" in sent.stderr, sent.stderr[-3000:]
+        by_uav = ground_cli(
+            "send-targets", str(csv_file), "--objective", "min-max",
+            "--proposers", str(PROPOSER), "--mission", str(UAV_MISSION),
+            "--wait", "--json", "--timeout", "90",
+            connect=endpoint, timeout=240,
+        )  # fmt: skip
+        assert by_uav.returncode == 0, by_uav.stderr[-3000:]
+        uav_outcome = json.loads(by_uav.stdout)
+        assert uav_outcome["agreed"] is True, by_uav.stderr[-3000:]
     finally:
         stop.set()
         up.process.send_signal(signal.SIGTERM)
@@ -130,3 +147,23 @@ def test_a_proposed_plan_is_verified_and_one_plan_adopted_by_every_uav(tmp_path:
     for uav in (201, 202, 203):
         log = (tmp_path / f"onboard-{uav}.log").read_text()
         assert "the plan proposed by 1 refused" in log, uav
+    # Mission 41 named no UAV proposer: 201 proposed nothing for it.
+    assert not [m for m in recording.messages if m.topic.endswith(f"{MISSION}/proposal/201")]
+    # Mission 42: UAV 201's own proposal, heard by every UAV, one digest on every UAV.
+    own = [
+        msgspec.json.decode(m.data, type=PlanProposal)
+        for m in recording.messages
+        if m.topic.endswith(f"mission/{UAV_MISSION}/proposal/{PROPOSER}")
+    ]
+    assert own and {p.proposer for p in own} == {PROPOSER}
+    second = {
+        m.topic: m.value()
+        for m in recording.messages
+        if f"mission/{UAV_MISSION}/assignment/" in m.topic
+    }
+    assert len(second) == 3 and len({r["digest"] for r in second.values()}) == 1
+    said = uav_outcome["uav_proposals"][str(PROPOSER)]
+    assert said["verdict"] in ("adopted", "baseline"), said
+    assert said[f"{said['verdict']}_by"] == [201, 202, 203], said
+    assert said[f"{said['verdict']}_digest"] == next(iter(second.values()))["digest"]
+    assert f"UAV {PROPOSER}'s proposal: " in by_uav.stderr

@@ -56,6 +56,12 @@ KEYS: dict[str, tuple[Qos, bool, str, str, KeyIds]] = {
     "fleet/mission/5/abort": (
         URGENT, True, "MissionAbort", "fleet/mission/*/abort", KeyIds(None, 5, None),
     ),
+    "fleet/mission/5/proposal": (
+        URGENT, True, "PlanProposal", "fleet/mission/*/proposal", KeyIds(None, 5, None),
+    ),
+    "fleet/mission/5/proposal/74": (
+        URGENT, True, "PlanProposal", "fleet/mission/*/proposal/*", KeyIds(74, 5, None),
+    ),
 }  # fmt: skip
 
 
@@ -109,6 +115,8 @@ POLICY_74 = [
         {
             "fleet/mission/*/assignment/74", "fleet/mission/*/outcome/74",
             "fleet/mission/*/replan/74", "fleet/mission/*/result/74", "fleet/uav/74/**",
+            # Its own proposed plan (fleet-onboard --propose), never another's.
+            "fleet/mission/*/proposal/74",
         },
     ),
     (

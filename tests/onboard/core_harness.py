@@ -37,6 +37,7 @@ class Recorder:
     assignment_fetches: list[int] = field(default_factory=list)
     mission_fetches: int = 0
     outcome_fetches: list[tuple[int, tuple[int, ...]]] = field(default_factory=list)
+    standing_fetches: list[tuple[int, tuple[int, ...], str | None]] = field(default_factory=list)
 
     def send_autopilot(self, command: AutopilotCommand) -> None:
         self.autopilot.append(command)
@@ -58,6 +59,9 @@ class Recorder:
 
     def fetch_outcomes(self, mission: int, uavs: tuple[int, ...]) -> None:
         self.outcome_fetches.append((mission, uavs))
+
+    def fetch_standings(self, mission: int, uavs: tuple[int, ...], basis: str | None) -> None:
+        self.standing_fetches.append((mission, uavs, basis))
 
     def statuses(self) -> list[str]:
         return [m.text for _, m in self.published if isinstance(m, StatusText)]
@@ -191,18 +195,22 @@ class HeldPlanner:
 FOUR_TEAM = (10, 20, 30, 40)
 
 
-def commit_four_uav_team(core: OnboardCore) -> None:
-    """UAV 30 (this core, times (30, 35)) with 10 (holds 0), 20 (holds 1) and 40 (idle).
+def commit_four_uav_team(
+    core: OnboardCore, times_40: tuple[float | None, ...] = (32.0, 60.0)
+) -> None:
+    """UAV 30 (this core, times (30, 35)) with 10 (holds 0), 20 (holds 1) and 40 (idle,
+    `times_40`).
 
-    Once 20 is lost, 30 takes target 1; once 10 is lost too, the greedy over 30 and 40
-    gives 30 target 0 (30 s) and 40 target 1.
+    Once 20 is lost, 30 takes target 1; once 10 is lost too, the append rule gives 30
+    target 0 (30 s) and 40 target 1, unless 30 is done with its queue by then (a finished
+    UAV takes an orphan only when no other survivor can reach it).
     """
     for uav in (10, 20, 40):
         core.on_alive(uav, True, 0.0)
     core.on_targets(MissionTargets(mission=5, team=FOUR_TEAM, targets=TWO_TARGETS), 0.0)
     core.on_result(UavResult(5, 10, (10.0, 50.0)), 0.1)
     core.on_result(UavResult(5, 20, (40.0, 20.0)), 0.1)
-    core.on_result(UavResult(5, 40, (32.0, 60.0)), 0.1)
+    core.on_result(UavResult(5, 40, times_40), 0.1)
     core.tick(0.2)
     core.on_telemetry(sample_telemetry(), 1.0)
     core.on_alive(20, False, 1.0)

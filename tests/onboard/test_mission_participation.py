@@ -340,12 +340,13 @@ def test_an_assignment_naming_a_target_beyond_the_mission_is_refused_never_index
 
 def test_a_candidate_that_reached_its_orphan_flies_the_next_one_and_shows_it() -> None:
     core, out = make_core(30, (30.0, 35.0))
-    commit_four_uav_team(core)
+    # 40 cannot reach target 0: 30, done with its queue, is the only one that can.
+    commit_four_uav_team(core, times_40=(None, 60.0))
     core.on_waypoint(out.autopilot[-1], 1.1)  # type: ignore[arg-type]
     core.on_track(Track(TARGET_WAYPOINT), 1.2)
     core.on_telemetry(telemetry_at(TWO_TARGETS[1].lat, TWO_TARGETS[1].lon), 2.0)
     assert core.phase == Phase.REACHED
-    core.on_alive(10, False, 3.0)  # epoch 2 hands 30 target 0
+    core.on_alive(10, False, 3.0)  # epoch 2 hands 30 target 0: the last resort
     report = out.on(SPACE.mission_assignment(5, 30))[-1]
     assert isinstance(report, AssignmentReport) and (report.epoch, report.target) == (2, 0)
     waypoint = [c for c in out.autopilot if isinstance(c, Waypoint)][-1]

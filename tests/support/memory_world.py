@@ -137,6 +137,7 @@ def memory_fleet(
     relay_hz: float | None = None,
     faults: Mapping[int, tuple[FaultRule, ...]] | None = None,
     bus_of: Callable[[int], Bus] | None = None,
+    proposers: frozenset[int] = frozenset(),
 ) -> Iterator[MemoryFleet]:
     """Every UAV of `scenario`, each an onboard process and a simulated autopilot; with
     `ready`, returned once every UAV is live with a GPS fix. Stopped on exit.
@@ -145,7 +146,8 @@ def memory_fleet(
     `relay_hz`: how often each onboard relays it on the bus (`--telemetry-hz`).
     `faults`: a UAV's onboard puts through the fault-injecting bus with these rules.
     `bus_of`: each UAV's onboard on the bus it gives (a real Zenoh session, say), not on
-    the in-process one (then `ready` waits on nothing: the test knows where to look)."""
+    the in-process one (then `ready` waits on nothing: the test knows where to look).
+    `proposers`: these UAVs' onboards propose plans (`--propose`)."""
     faults = faults or {}
     # Loaded once before the onboards start: each would load it on its planner thread,
     # and a second thread can see the first's half-initialised module.
@@ -172,6 +174,7 @@ def memory_fleet(
             payload_url="memory",
             status_rate_hz=status_rate_hz,
             telemetry_hz=relay_hz,
+            propose=uav.piccolo_id in proposers,
         )
         bus: Bus = network.bus() if bus_of is None else bus_of(uav.piccolo_id)
         if uav.piccolo_id in faults:

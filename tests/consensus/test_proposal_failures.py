@@ -1,0 +1,191 @@
+"""A proposal that fails changes nothing: results missing for the mission, PyVRP absent,
+a candidate after the decision, an invalid candidate (an infinite leg among them), a
+named proposer that never proposes. And a UAV's own proposer (onboard.plan_proposer):
+it solves once it holds every team UAV's result, for a mission that names it only."""
+
+from __future__ import annotations
+
+import math
+from typing import Any, cast
+
+import msgspec
+import pytest
+
+from fleet.consensus.proposal import proposal_problem
+from fleet.mission.key_space import KeySpace
+from fleet.mission.messages import MISSION_MANAGER, MissionTargets, PlanProposal, UavResult
+from fleet.mission.objective import Objective
+from fleet.mission.status_kind import StatusKind
+from fleet.solver.pyvrp_plan import SolverUnavailable
+from ground.mission_follower import MissionFollower
+from ground.propose import propose_when_results
+from onboard.plan_proposer import PlanProposer
+from tests.consensus.test_proposal import _inputs, _proposal, _round
+
+
+class _Said:
+    def __init__(self) -> None:
+        self.said: list[tuple[StatusKind, str]] = []
+
+    def __call__(self, kind: StatusKind, text: str, now: float, **_: Any) -> None:
+        self.said.append((kind, text))
+
+
+def _named(mission_round: Any, proposers: tuple[int, ...], window: float = 5.0) -> None:
+    mission_round.targets = msgspec.structs.replace(
+        mission_round.targets, proposers=proposers, proposals_s=window
+    )
+
+
+def _run_now(work: Any) -> None:
+    work()
+
+
+def test_an_infinite_leg_makes_a_candidate_invalid() -> None:
+    times = {3: [100.0, 120.0, 130.0], 5: [110.0, 90.0, 140.0]}
+    legs = [[0.0, 50.0, math.inf], [50.0, 0.0, 60.0], [math.inf, 60.0, 0.0]]
+    proposal = PlanProposal(
+        mission=9, proposer=5, digest="d", objective=Objective.MIN_SUM, queues={3: (0, 2), 5: (1,)}
+    )
+    why = proposal_problem(proposal, 9, Objective.MIN_SUM, "d", times, legs)
+    assert why == "UAV 3's queue flies a leg no route flies"
+    fine = msgspec.structs.replace(proposal, queues={3: (0,), 5: (1, 2)})
+    assert proposal_problem(fine, 9, Objective.MIN_SUM, "d", times, legs) is None
+
+
+def test_the_uavs_wait_for_every_named_proposer_within_the_window() -> None:
+    mission_round = _round(3)
+    _named(mission_round, (5, MISSION_MANAGER))
+    assert mission_round.awaiting_proposal(1.0)
+    mission_round.add_proposal(_proposal(mission_round))  # the ground's, valid
+    assert mission_round.awaiting_proposal(1.0)  # UAV 5's still to come
+    mission_round.add_proposal(_proposal(mission_round, proposer=5, queues={3: (0, 0)}))
+    assert mission_round.awaiting_proposal(1.0)  # UAV 5's invalid: still waiting
+    assert not mission_round.awaiting_proposal(5.0)  # the window closed: decide
+    mission_round.add_proposal(_proposal(mission_round, proposer=5))
+    assert not mission_round.awaiting_proposal(1.0)
+
+
+def test_a_uav_proposes_as_itself_once_it_holds_every_result() -> None:
+    pytest.importorskip("pyvrp", reason="PyVRP is not installed: pip install '.[solver]'")
+    said = _Said()
+    proposer = PlanProposer(5, said, run=_run_now)
+    mission_round = _round(5)
+    _named(mission_round, (5,))
+    proposal = proposer.tick(mission_round, 1.0)
+    assert proposal is not None and proposal.proposer == 5 and proposal.mission == 9
+    assert proposal.digest == _inputs(mission_round)
+    used = {uav: r.times for uav, r in mission_round.results.items()}
+    legs = mission_round.air_legs(used)
+    assert proposal_problem(proposal, 9, Objective.MIN_SUM, proposal.digest, used, legs) is None
+    assert proposer.tick(mission_round, 2.0) is None  # once a mission
+    assert said.said == []
+
+
+def test_a_uav_not_named_or_missing_results_proposes_nothing() -> None:
+    calls: list[int] = []
+
+    def solve(targets: MissionTargets, results: dict[int, UavResult], uav: int) -> PlanProposal:
+        calls.append(uav)
+        raise AssertionError("not to be solved")
+
+    proposer = PlanProposer(5, _Said(), solve=solve, run=_run_now)
+    not_named = _round(5)
+    _named(not_named, (MISSION_MANAGER,))
+    assert proposer.tick(not_named, 1.0) is None
+    missing = _round(5)
+    _named(missing, (5,))
+    del missing.results[3]  # a teammate's result not heard yet
+    assert proposer.tick(missing, 1.0) is None
+    greedy = _round(5)
+    _named(greedy, (5,))
+    greedy.targets = msgspec.structs.replace(greedy.targets, objective=Objective.GREEDY)
+    assert proposer.tick(greedy, 1.0) is None
+    assert calls == []
+
+
+def test_pyvrp_absent_is_said_and_the_baseline_decided() -> None:
+    def solve(targets: MissionTargets, results: dict[int, UavResult], uav: int) -> PlanProposal:
+        raise SolverUnavailable("PyVRP is not installed: pip install '.[solver]'")
+
+    said = _Said()
+    baseline = _round(5).decide({3, 5})
+    mission_round = _round(5)
+    _named(mission_round, (5,))
+    assert PlanProposer(5, said, solve=solve, run=_run_now).tick(mission_round, 1.0) is None
+    assert said.said == [
+        (
+            StatusKind.WARNING,
+            "mission 9: no plan proposed: PyVRP is not installed: pip install '.[solver]'",
+        )
+    ]
+    assert mission_round.ready(5.0, {3, 5})  # the window closes all the same
+    report = mission_round.decide({3, 5})
+    assert (report.queues, report.digest) == (baseline.queues, baseline.digest)
+
+
+def test_a_proposal_solved_after_the_decision_is_not_put() -> None:
+    pending: list[Any] = []
+    proposer = PlanProposer(
+        5,
+        _Said(),
+        solve=lambda targets, results, uav: _proposal(mission_round, proposer=uav),
+        run=pending.append,
+    )
+    mission_round = _round(5)
+    _named(mission_round, (5,))
+    assert proposer.tick(mission_round, 1.0) is None  # solving
+    baseline = mission_round.decide({3, 5})  # the window closed first
+    pending.pop()()
+    assert proposer.tick(mission_round, 6.0) is None
+    assert not mission_round.add_proposal(_proposal(mission_round, proposer=5))
+    assert mission_round.committed == baseline
+
+
+class _Follower:
+    """What `propose_when_results` asks of the ground's follower."""
+
+    def __init__(self, results: dict[int, UavResult]) -> None:
+        self.results = results
+
+    def wait_until(self, done: Any, timeout_s: float, fetch_every_s: float) -> bool:
+        return bool(done())
+
+    def snapshot(self) -> tuple[dict[int, UavResult], dict[int, Any]]:
+        return dict(self.results), {}
+
+
+class _Bus:
+    def __init__(self) -> None:
+        self.put: list[tuple[str, object]] = []
+
+    def publish(self, key: str, message: object) -> None:
+        self.put.append((key, message))
+
+
+def _ground_attempt(results: dict[int, UavResult]) -> tuple[Any, _Bus]:
+    mission_round = _round(3, proposals_s=5.0)
+    bus = _Bus()
+    attempt = propose_when_results(
+        cast(Any, bus), KeySpace(), mission_round.targets, cast(MissionFollower, _Follower(results))
+    )
+    return attempt, bus
+
+
+def test_the_ground_proposes_nothing_without_every_result() -> None:
+    results = dict(_round(3).results)
+    del results[5]
+    attempt, bus = _ground_attempt(results)
+    assert (attempt.proposal, attempt.reason, bus.put) == (None, "results missing", [])
+
+
+def test_the_ground_says_pyvrp_is_absent_and_puts_nothing(monkeypatch: pytest.MonkeyPatch) -> None:
+    import ground.propose
+
+    def absent(*_: object) -> PlanProposal:
+        raise SolverUnavailable("PyVRP is not installed: pip install '.[solver]'")
+
+    monkeypatch.setattr(ground.propose, "proposal_for", absent)
+    attempt, bus = _ground_attempt(dict(_round(3).results))
+    assert attempt.proposal is None and bus.put == []
+    assert attempt.reason is not None and "pip install '.[solver]'" in attempt.reason
