@@ -19,6 +19,7 @@ from typing import Protocol
 
 import msgspec
 
+from fleet.consensus.heal import Rank
 from fleet.consensus.legs import AIRSPEED_RANGE, Air, leg_from_here
 from fleet.consensus.mission_change import first_revision
 from fleet.consensus.mission_round import (
@@ -389,6 +390,19 @@ class MissionParticipation:
             return
         if mission_round.committed is None:
             self._adopt(report, now)
+        elif (ranked := mission_round.rank_of(report)) is Rank.WEAKER:
+            # Two plans of this mission after a heal: the other side re-bases onto ours
+            # (fleet.consensus.heal); nothing of its plan, counts included, is taken.
+            log.info(
+                "mission %d: UAV %d follows a plan built on %d results, ours on %d: "
+                "ours stands, it re-bases",
+                report.mission,
+                report.uav,
+                len(report.team),
+                len(mission_round.basis_team or ()),
+            )
+        elif ranked is Rank.STRONGER:
+            self._rebase(report, now)
         elif self._merge_membership(mission_round, report):
             self._replan(now)
         elif (resolved := mission_round.adopt_resolved(report)) is not None:
@@ -401,6 +415,25 @@ class MissionParticipation:
         elif (followed := mission_round.follow(report)) is not None:
             self._apply(followed, now)
         self._settle()
+
+    def _rebase(self, report: AssignmentReport, now: float) -> None:
+        """A teammate's plan of this mission wins over ours after a heal
+        (fleet.consensus.heal): follow it, keeping what was reached; an append plan
+        followed gets this UAV's standing at once (`_apply`), so that the winner's
+        re-plan is solved again with it counted in."""
+        mission_round = self.round
+        assert mission_round is not None
+        ours = len(mission_round.basis_team or ())
+        rebased = mission_round.rebase(report)
+        if rebased is None:
+            return
+        text = (
+            f"mission {report.mission}: two plans after a partition; re-based onto UAV "
+            f"{report.uav}'s epoch {report.epoch}, built on {len(report.team)} results "
+            f"(ours on {ours})"
+        )
+        self.say(StatusKind.ADOPTED, text, now, mission=report.mission)
+        self._apply(rebased, now)
 
     def _merge_membership(self, mission_round: MissionRound, report: AssignmentReport) -> bool:
         """Take a teammate's membership counts (fleet.consensus.membership); True if the

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 import msgspec
 
 from fleet.consensus.assignment import air_bytes, results_digest
+from fleet.consensus.heal import Rank, rank
 from fleet.consensus.legs import Air, AirLegs, LegGeometry, leg_times
 from fleet.consensus.membership import Membership, membership_digest, report_counts
 from fleet.consensus.mission_change import (
@@ -126,6 +127,10 @@ class Settled:
     #: The append plan whose resolved plan this UAV follows (its digest), None if none:
     #: a teammate's resolved plan of another basis may change its plan.
     resolved: str | None = None
+    #: The epoch-0 team the plan followed is built on (`MissionRound.basis_team`): a
+    #: report of a plan built on another may be the one the team keeps after a heal
+    #: (fleet.consensus.heal).
+    basis_team: tuple[int, ...] = ()
 
     def covers(self, header: AssignmentHeader) -> bool:
         """True if the report `header` heads changes nothing for this UAV."""
@@ -135,6 +140,8 @@ class Settled:
             return True
         if not self.committed:
             return False  # it may be adopted
+        if header.team and self.basis_team and rank(header.team, self.basis_team) != Rank.SAME:
+            return False  # two plans of one mission after a heal: one wins
         if header.basis is not None and header.basis != self.resolved:
             return False  # a resolved plan this UAV may be waiting for
         if self.following is not None and header.epoch > self.following:
@@ -361,6 +368,7 @@ class MissionRound:
             following=committed.epoch if committed is not None and self.base is None else None,
             revision=self.current.revision,
             resolved=committed.basis if committed is not None else None,
+            basis_team=self.basis_team or (),
         )
 
     def add_result(self, result: UavResult) -> bool:
@@ -607,6 +615,38 @@ class MissionRound:
         self.membership.merge(*report_counts(report.released, report.left, report.back))
         self.committed = self._own_copy(report)
         return self.committed
+
+    @property
+    def basis_team(self) -> tuple[int, ...] | None:
+        """The epoch-0 team the plan this UAV follows is built on: its epoch 0's, else
+        (following its teammates' epochs) the followed plan's; None before it commits."""
+        if self.base is not None:
+            return self.base.team
+        return self.committed.team if self.committed is not None else None
+
+    def rank_of(self, report: AssignmentReport) -> Rank:
+        """How a teammate's committed plan of this mission ranks against the one this UAV
+        follows (fleet.consensus.heal); SAME before this UAV commits."""
+        ours = self.basis_team
+        if ours is None or report.mission != self.mission:
+            return Rank.SAME
+        return rank(report.team, ours)
+
+    def rebase(self, report: AssignmentReport) -> AssignmentReport | None:
+        """Two plans of this mission met after a heal and `report`'s wins (`rank_of`):
+        follow it from now on, as a UAV without epoch 0 follows its teammates' epochs.
+
+        This UAV's epoch 0, its re-plan awaited and its membership counts (all of the
+        losing plan) go; the targets reached stay reached (arrivals are facts) and are
+        skipped by whoever's queue comes to them; its standing for the winner's next
+        re-plan counts it in there. None if `report` does not win."""
+        if self.committed is None or self.rank_of(report) != Rank.STRONGER:
+            return None
+        self.base = None
+        self.awaiting = self.awaiting_since = None
+        self.membership = Membership(self.team)
+        self.membership.merge(*report_counts(report.released, report.left, report.back))
+        return self._own_copy(report)
 
     def _own_copy(self, report: AssignmentReport) -> AssignmentReport:
         target = report.pairs.get(self.own_id)

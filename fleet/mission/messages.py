@@ -292,6 +292,9 @@ class AssignmentHeader(msgspec.Struct, frozen=True):
     revision: Annotated[int, Meta(ge=0, le=0xFFFF)] = 0
     #: A resolved re-plan: the digest of the append plan it replaces.
     basis: Annotated[str, Meta(max_length=64)] | None = None
+    #: The epoch-0 team the plan is built on: two plans of one mission after a heal
+    #: (fleet.consensus.heal).
+    team: Team = ()
 
 
 class TargetOutcome(msgspec.Struct, frozen=True):
