@@ -28,6 +28,7 @@ from fleet.consensus.improve import improve
 from fleet.consensus.queues import Legs, Queues, Times, leg_count, legs_of
 from fleet.errors import FleetError
 from fleet.mission.objective import Objective
+from fleet.solver.min_sum_search import search_min_sum
 
 __all__ = ["SolverUnavailable", "solve_queues"]
 
@@ -136,6 +137,7 @@ def solve_queues(
     queues = {uav: list(route) for uav, route in zip(uavs, best, strict=True)}
     if objective is Objective.MIN_SUM:
         queues = improve(queues, times, legs, Objective.MIN_SUM)
+        queues = search_min_sum(queues, times, legs, seed=seed)
     return queues
 
 
