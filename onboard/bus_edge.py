@@ -60,6 +60,24 @@ class PresenceEvent:
 Sink = Callable[[BusEvent | PresenceEvent], None]
 #: The selector parameter by which a query asks teammates to relay a UAV's state.
 RELAYED = "relayed"
+#: The selector parameter by which a query on a result key asks for the UAV's standing
+#: (fleet.consensus.resolve), not its first result: `standing=DIGEST` for the one of
+#: that append plan, a bare `standing` for the one of the plan the UAV waits on.
+STANDING = "standing"
+
+
+def standing_asked(parameters: str) -> tuple[bool, str | None]:
+    """Whether a query's `parameters` ask for a standing, and for which append plan."""
+    for part in parameters.replace("&", ";").split(";"):
+        name, equals, value = part.partition("=")
+        if name == STANDING:
+            return True, (value or None) if equals else None
+    return False, None
+
+
+def standing_selector(key: str, basis: str | None) -> str:
+    """A query on result `key` (one UAV's, or a wildcard) for the standing of `basis`."""
+    return f"{key}?{STANDING}" if basis is None else f"{key}?{STANDING}={basis}"
 
 
 M = TypeVar("M", bound=msgspec.Struct)

@@ -318,6 +318,13 @@ class OnboardCore:
             return None
         return self.round.results.get(self.uav_id)
 
+    def own_standing(self, mission: int, basis: str | None) -> UavResult | None:
+        """This UAV's standing for append plan `basis` of `mission` (None: for the one it
+        awaits or follows), as it put it: served to a teammate or a ground that asks."""
+        if self.round is None or self.round.mission != mission:
+            return None
+        return self.round.standing_of(self.uav_id, basis)
+
     def own_assignment(self, mission: int) -> AssignmentReport | None:
         if self.round is None or self.round.mission != mission:
             return None

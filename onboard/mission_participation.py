@@ -68,6 +68,7 @@ class MissionOutputs(Protocol):
     def fetch_assignments(self, mission: int) -> None: ...
     def fetch_missions(self) -> None: ...
     def fetch_outcomes(self, mission: int, uavs: tuple[int, ...]) -> None: ...
+    def fetch_standings(self, mission: int, uavs: tuple[int, ...], basis: str | None) -> None: ...
 
 
 @dataclass
@@ -101,6 +102,10 @@ class MissionParticipation:
     #: (mission, target, seconds): its time for the leg it flies, timed when it began it
     #: (`leg_s`); None before any.
     _leg: tuple[int, int, float | None] | None = None
+    #: Following its teammates' epochs (no epoch 0 of its own: a restart, a late join),
+    #: the append plan their standings are for, which this UAV stands for too once it can
+    #: (`_stand_with_teammates`); None when there is none to give.
+    _teammates_basis: str | None = None
 
     def __post_init__(self) -> None:
         self.catch_up = CatchUp(self.outputs, lambda: self.round.mission if self.round else None)
@@ -207,6 +212,7 @@ class MissionParticipation:
         )
         self.own.standing = None
         self.own.stood.clear()
+        self._teammates_basis = None
         self.flight.zones = targets.zones
         self.life.observe(Observation.MISSION_STARTED)
         self.own.plan.forget()
@@ -266,6 +272,26 @@ class MissionParticipation:
             return
         if mission_round.add_standing(standing):
             self._resolve_ready(now)
+            if mission_round.base is None and mission_round.committed is not None:
+                assert standing.basis is not None
+                self._teammates_basis = standing.basis
+                self._stand_with_teammates(now)
+
+    def _stand_with_teammates(self, now: float) -> None:
+        """Following its teammates' epochs, this UAV cannot compute the append plan they
+        wait on (it lacks epoch 0), but their standings name it: it gives its own for it,
+        so that they solve the re-plan with it (a UAV back from a restart) without
+        waiting STANDINGS_WAIT_S for the append plan, which it would then follow and only
+        then stand for. A standing for a plan that does not count it in is ignored."""
+        basis = self._teammates_basis
+        mission_round = self.round
+        if basis is None or mission_round is None or basis in self.own.stood:
+            return
+        if mission_round.base is not None or self._dropped(self.uav_id):
+            self._teammates_basis = None
+            return
+        if self._stand(now, basis):
+            self._teammates_basis = None
 
     def _resolve_ready(self, now: float) -> None:
         mission_round = self.round
@@ -284,44 +310,55 @@ class MissionParticipation:
             )
             self._apply(report, now)
 
-    def _stand(self, now: float) -> None:
-        """Give this UAV's standing for the re-plan awaited or followed, once: its
-        approach times from where it is now. A UAV that takes no more targets (the module
-        off, its part preempted or aborted) gives one with no time; one that cannot plan
-        now (no GPS, its autopilot link lost, the planner refused) gives none, and the
-        team commits the append plan when the wait is over."""
+    def _stand(self, now: float, teammates_basis: str | None = None) -> bool:
+        """Give this UAV's standing for the re-plan awaited or followed (or, following
+        its teammates' epochs, for the append plan `teammates_basis` their standings
+        name), once: its approach times from where it is now. A UAV that takes no more
+        targets (the module off, its part preempted or aborted) gives one with no time;
+        one that cannot plan now (no GPS, its autopilot link lost, the planner refused)
+        gives none, and the team commits the append plan when the wait is over. False
+        when it could not plan now for its teammates' plan (tried again on the tick)."""
         mission_round = self.round
         if not self.fresh_replans or mission_round is None:
-            return
+            return True
         if mission_round.mission in self._aborted:
-            return
-        fallback = mission_round.stands_for()
-        if fallback is None or self.uav_id not in MissionRound.survivors(fallback):
-            return
-        basis = fallback.digest
+            return True
+        if teammates_basis is None:
+            fallback = mission_round.stands_for()
+            if fallback is None or self.uav_id not in MissionRound.survivors(fallback):
+                return True
+            basis, epoch = fallback.digest, f"epoch {fallback.epoch}"
+        else:
+            basis = teammates_basis
+            epoch = f"of {basis}"
         if basis in self.own.stood:
-            return
+            return True
         if not self.flight.enabled or self.life.phase in (Phase.ABORTED, Phase.PREEMPTED):
             self.own.stand_none(mission_round, basis)
             self._resolve_ready(now)
-            return
+            return True
         gps = self.link.gps
         if gps is None or self.link.lost(now):
+            if teammates_basis is not None:
+                return False  # its first telemetry since a restart may be just ahead
             log.warning(
-                "mission %d: no standing for re-plan epoch %d: %s",
+                "mission %d: no standing for re-plan %s: %s",
                 mission_round.mission,
-                fallback.epoch,
+                epoch,
                 "no GPS telemetry" if gps is None else "autopilot link lost",
             )
             self.own.stood.add(basis)
-            return
+            return True
         flying = self.flight.target if self.life.holds_target() else None
         # Its own word is believed of itself only: the targets it reached itself.
         own = self.uav_id
         reached = tuple(sorted(t for t, uav in mission_round.reached_targets.items() if uav == own))
         where = (gps, self.link.wind.value, self.link.airspeed())
         if not self.own.start_standing(mission_round, basis, where, flying, reached):
-            log.warning("mission %d: the planner refused this UAV's standing", fallback.mission)
+            log.warning(
+                "mission %d: the planner refused this UAV's standing", mission_round.mission
+            )
+        return True
 
     def on_proposal(self, proposal: PlanProposal, now: float) -> None:
         """A plan proposed for the current mission: kept for the decision, which
@@ -568,7 +605,9 @@ class MissionParticipation:
         if mission_round is None or mission_round.mission in self._aborted:
             return
         if mission_round.awaiting is not None:
+            self._fetch_standings(now)
             self._expire(now)
+        self._stand_with_teammates(now)
         if mission_round.committed is not None:
             return
         if self.proposer is not None:
@@ -581,6 +620,16 @@ class MissionParticipation:
         if report is not None:
             self._apply(report, now)
             self._replan_if_released(now)
+
+    def _fetch_standings(self, now: float) -> None:
+        """Ask the survivors whose standings are still missing a while into the wait
+        for them by query (each answers its own, signed), once per append plan."""
+        mission_round = self.round
+        assert mission_round is not None
+        wanted = mission_round.standings_to_fetch(now)
+        if wanted is not None:
+            basis, uavs = wanted
+            self.outputs.fetch_standings(mission_round.mission, uavs, basis)
 
     def _expire(self, now: float) -> None:
         mission_round = self.round
@@ -684,6 +733,7 @@ class MissionParticipation:
             self.outputs.publish(self.key_space.mission_replan(report.mission, self.uav_id), report)
             if report.basis is None:
                 self._stand(now)  # an append plan: solved again once every standing is in
+        self._ask_teammates_standings(report)
         flight = self.flight
         # The first target of its queue not reached yet: a re-plan keeps a UAV's current
         # target first unless the objective gains, and one done with its queue takes the
@@ -709,6 +759,17 @@ class MissionParticipation:
             self._leave_stale_target(now)
             return
         self._commit(report, wanted, now)
+
+    def _ask_teammates_standings(self, report: AssignmentReport) -> None:
+        """Following its teammates' epochs, this UAV is counted out of the one it took
+        (a restart): back, it is counted in again by a re-plan whose standings may have
+        been put before it listened. It asks for them (each UAV answers its own, for the
+        append plan it waits on) and stands for that plan too (`_on_standing`)."""
+        mission_round = self.round
+        if not self.fresh_replans or mission_round is None or mission_round.base is not None:
+            return
+        if self.uav_id in report.released and not self._dropped(self.uav_id):
+            self.outputs.fetch_standings(report.mission, (), None)
 
     def fly_next(self, now: float) -> None:
         """Its target reached: on to the next target of its queue no UAV reached yet."""

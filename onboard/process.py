@@ -55,7 +55,13 @@ from fleet.transport.refusal_log import RefusalLog
 from fleet.transport.serial_port import DEFAULT_BAUD, SerialLink
 from fleet.transport.zenoh_bus import ZenohBus
 from onboard.autopilot_commands import AutopilotCommand
-from onboard.bus_edge import BusEdge, BusEvent, PresenceEvent
+from onboard.bus_edge import (
+    BusEdge,
+    BusEvent,
+    PresenceEvent,
+    standing_asked,
+    standing_selector,
+)
 from onboard.core import CONFIRM_LIMIT_S, LINK_RELEASE_S, OnboardCore
 from onboard.link_adapter import LinkAdapter
 from onboard.planner.planner_worker import PlannerWorker
@@ -150,6 +156,16 @@ class _Outputs:
 
     def fetch_missions(self) -> None:
         self.process.node.fetch(self.process.space.all_mission_targets, MissionTargets)
+
+    def fetch_standings(self, mission: int, uavs: tuple[int, ...], basis: str | None) -> None:
+        """Ask these teammates (none: every one) for their standings for append plan
+        `basis` (None: the one each waits on); each answers its own, as it signed it."""
+        space = self.process.space
+        keys = [space.mission_result(mission, uav) for uav in uavs] or [
+            space.mission_results(mission)
+        ]
+        for key in keys:
+            self.process.node.fetch(standing_selector(key, basis), UavResult)
 
     def fetch_outcomes(self, mission: int, uavs: tuple[int, ...]) -> None:
         """Ask for these teammates' own outcomes, by name: each teammate that heard one
@@ -490,6 +506,13 @@ class OnboardProcess:
         if targets is None:
             return
         mission = targets.mission
+        asked, basis = standing_asked(query.parameters)
+        if asked:  # a standing, not the first result: from this UAV only, as it put it
+            key = self.space.mission_result(mission, self.settings.uav_id)
+            standing = self.core.own_standing(mission, basis)
+            if standing is not None and query.intersects(key):
+                query.reply(key, standing)
+            return
         answers: list[tuple[str, msgspec.Struct | None]] = [
             (self.space.mission_targets(mission), targets),
             (

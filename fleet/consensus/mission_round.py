@@ -210,6 +210,9 @@ class MissionRound:
     awaiting: AssignmentReport | None = None
     #: When this UAV started waiting for them.
     awaiting_since: float | None = None
+    #: The append plans (digests) whose missing standings this UAV asked for by query
+    #: (once each, FETCH_INTERVAL into the wait: `standings_to_fetch`).
+    standings_asked: set[str] = field(default_factory=set)
 
     def __post_init__(self) -> None:
         self.team = team_set(self.targets.team)
@@ -776,6 +779,29 @@ class MissionRound:
             return ()
         held = self.standings.get(fallback.digest, {})
         return tuple(uav for uav in self.survivors(fallback) if uav not in held)
+
+    def standing_of(self, uav: int, basis: str | None = None) -> UavResult | None:
+        """`uav`'s standing for append plan `basis`, if held; with no basis, for the one
+        this UAV awaits or follows (`stands_for`): the standing still of use."""
+        if basis is None:
+            fallback = self.stands_for()
+            if fallback is None:
+                return None
+            basis = fallback.digest
+        return self.standings.get(basis, {}).get(uav)
+
+    def standings_to_fetch(self, now: float) -> tuple[str, tuple[int, ...]] | None:
+        """The awaited append plan's digest and the survivors whose standings for it are
+        still missing FETCH_INTERVAL into the wait (a lost put, or one made before this
+        UAV listened): asked for by query once per plan; None otherwise."""
+        fallback, since = self.awaiting, self.awaiting_since
+        if fallback is None or since is None or now - since < FETCH_INTERVAL:
+            return None
+        if fallback.digest in self.standings_asked:
+            return None
+        self.standings_asked.add(fallback.digest)
+        missing = tuple(u for u in self.missing_standings() if u != self.own_id)
+        return (fallback.digest, missing) if missing else None
 
     def resolve_ready(self) -> AssignmentReport | None:
         """Commit the plan solved again from the survivors' standings, once every one

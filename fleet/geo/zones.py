@@ -37,6 +37,7 @@ __all__ = [
     "Ring",
     "ZoneError",
     "convex_hull",
+    "distance_to_segment",
     "inflate",
     "point_in_ring",
     "ring_to_local",
@@ -141,14 +142,15 @@ def point_in_ring(point: Point, ring: Sequence[Point]) -> bool:
     n = len(ring)
     for i in range(n):
         (x0, y0), (x1, y1) = ring[i], ring[(i + 1) % n]
-        if _distance_to_segment(point, (x0, y0), (x1, y1)) <= EPSILON_M:
+        if distance_to_segment(point, (x0, y0), (x1, y1)) <= EPSILON_M:
             return True
         if (y0 > y) != (y1 > y) and x < x0 + (y - y0) * (x1 - x0) / (y1 - y0):
             inside = not inside
     return inside
 
 
-def _distance_to_segment(p: Point, a: Point, b: Point) -> float:
+def distance_to_segment(p: Point, a: Point, b: Point) -> float:
+    """Metres from `p` to the segment `a`-`b` (local plane)."""
     dx, dy = b[0] - a[0], b[1] - a[1]
     length2 = dx * dx + dy * dy
     t = 0.0 if length2 == 0.0 else ((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / length2
@@ -161,9 +163,7 @@ def strictly_inside(point: Point, ring: Sequence[Point]) -> bool:
     if not point_in_ring(point, ring):
         return False
     n = len(ring)
-    return all(
-        _distance_to_segment(point, ring[i], ring[(i + 1) % n]) > EPSILON_M for i in range(n)
-    )
+    return all(distance_to_segment(point, ring[i], ring[(i + 1) % n]) > EPSILON_M for i in range(n))
 
 
 def segment_enters(a: Point, b: Point, ring: Sequence[Point]) -> bool:

@@ -12,6 +12,7 @@ Runnable on its own as ``python -m fleet.sim.command``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import sys
 from collections.abc import Sequence
@@ -36,6 +37,7 @@ from fleet.sim.server import (
     DEFAULT_SPEEDUP,
     SimServer,
 )
+from fleet.sim.truth_log import TRUTH_PERIOD_MS, TruthLog
 from fleet.transport.cli import (
     ExitCode,
     enum_option,
@@ -98,6 +100,12 @@ def configure_parser(parser: argparse.ArgumentParser) -> None:
         metavar="ZONES.geojson",
         help="no-fly zones (GeoJSON) whose every incursion is logged as an error "
         "(default: the scenario's no_fly file, if any)",
+    )
+    parser.add_argument(
+        "--truth-log",
+        metavar="FILE",
+        help="write every aircraft's true position (the simulator's own state) every "
+        f"{TRUTH_PERIOD_MS} simulated ms to FILE, as CSV lines sim_ms,uav,lat,lon,alt",
     )
     add_dynamics_argument(parser)
 
@@ -180,6 +188,8 @@ class SimOptions:
     no_fly: str | None = None
     #: The aircraft's flight model (fleet.sim.flight_model).
     dynamics: Dynamics = Dynamics.KINEMATIC
+    #: Where to write every aircraft's true position (None: nowhere).
+    truth_log: str | None = None
 
 
 def _build(args: SimOptions) -> list[SimulatedAutopilot]:
@@ -210,21 +220,32 @@ def _build(args: SimOptions) -> list[SimulatedAutopilot]:
 
 def run(args: SimOptions, out: TextIO) -> int:
     """Run the simulator until SIGTERM or SIGINT; return the exit status."""
-    try:
-        autopilots = _build(args)
-        server = SimServer(
-            autopilots,
-            host=args.host,
-            program_port=args.program_port,
-            payload_port=args.payload_port,
-            ground_port=args.ground_port,
-            speedup=args.speedup,
-            use_pty=args.pty,
-        )
-    except (ScenarioError, FlightModelError, ValueError) as error:
-        return fail("fleet sim", str(error))
-    except OSError as error:
-        return fail("fleet sim", f"cannot read {error.filename}: {error.strerror}")
+    with contextlib.ExitStack() as stack:
+        try:
+            autopilots = _build(args)
+            truth = None
+            if args.truth_log is not None:
+                # Line-buffered: a simulator killed by a signal leaves every line it had.
+                file = stack.enter_context(open(args.truth_log, "w", buffering=1, encoding="utf-8"))
+                truth = TruthLog(file)
+            server = SimServer(
+                autopilots,
+                host=args.host,
+                program_port=args.program_port,
+                payload_port=args.payload_port,
+                ground_port=args.ground_port,
+                speedup=args.speedup,
+                use_pty=args.pty,
+                truth=truth,
+            )
+        except (ScenarioError, FlightModelError, ValueError) as error:
+            return fail("fleet sim", str(error))
+        except OSError as error:
+            return fail("fleet sim", f"cannot open {error.filename}: {error.strerror}")
+        return _serve(server, autopilots, out)
+
+
+def _serve(server: SimServer, autopilots: list[SimulatedAutopilot], out: TextIO) -> int:
     # Handlers first: a launcher may send SIGTERM as soon as it has read `ready`.
     with server, stop_on_signals(server.stop):
         try:
@@ -234,7 +255,7 @@ def run(args: SimOptions, out: TextIO) -> int:
         for endpoint in endpoints:
             print(endpoint.line(), file=out)
         print("ready", file=out, flush=True)
-        logger.info("simulating at speedup %g", args.speedup)
+        logger.info("simulating at speedup %g", server.speedup)
         server.run()
     logger.info("stopped at simulated time %.1f s", server.time_ms / 1000.0)
     if autopilots[0].settings.zones:

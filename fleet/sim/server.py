@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 
 from fleet.piccolo.stream_queue import StreamQueue
 from fleet.sim.autopilot import STEP_MS, ProgramConnection, SimulatedAutopilot, bounded_buffer
+from fleet.sim.truth_log import TruthLog
 
 logger = logging.getLogger(__name__)
 
@@ -147,6 +148,7 @@ class SimServer:
         use_pty: bool = False,
         clock: Callable[[], float] = time.monotonic,
         report_interval: float = DEFAULT_REPORT_INTERVAL_S,
+        truth: TruthLog | None = None,
     ) -> None:
         if not autopilots:
             raise ValueError("no autopilot to serve")
@@ -166,6 +168,7 @@ class SimServer:
         self._use_pty = use_pty
         self._clock = clock
         self._report_interval = report_interval
+        self._truth = truth
         self._uavs = [_Uav(autopilot) for autopilot in autopilots]
         self._selector = selectors.DefaultSelector()
         self._listeners: list[_Channel] = []
@@ -313,6 +316,9 @@ class SimServer:
             for _ in range(batch):
                 for uav in self._uavs:
                     uav.autopilot.step()
+                    if self._truth is not None:
+                        pilot = uav.autopilot
+                        self._truth.note(pilot.piccolo_id, pilot.time_ms, pilot.position())
             self._flush()
             if due > batch or self.speedup == 0.0:
                 timeout = 0.0

@@ -14,6 +14,11 @@ not the descriptor, and closes none, so Zenoh's own descriptor stays valid until
 closes it. Bytes the peer sent that Zenoh has not read yet are read and dropped, so none
 of them is routed.
 
+`cut_accepted` ends every connection still open on a closed listener's address: Zenoh
+accepts a connection while its session closes and completes the handshake after the close
+has closed the transports it knew, so that one transport outlives the session (its client
+stays connected to a router that is gone; seen with a client redialling at that moment).
+
 Stream sockets (tcp/, tls/) only: a datagram link (udp/, quic/) shares its socket with
 others and is not cut. Descriptors are listed from /proc/self/fd (Linux) or /dev/fd.
 """
@@ -24,6 +29,7 @@ import ipaddress
 import logging
 import os
 import socket
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -48,12 +54,13 @@ class Address:
 
     def matches(self, address: tuple[str, int] | tuple[str, int, int, int]) -> bool:
         """Whether a socket address (`getsockname`, `getpeername`) is this one. A host
-        that is a name, not an address, is matched on the port alone."""
+        that is a name, not an address, or the unspecified address a listener binds
+        (`0.0.0.0`, `::`), is matched on the port alone."""
         host, port = address[0], address[1]
         if port != self.port:
             return False
         mine = _ip(self.host)
-        return mine is None or mine == _ip(host)
+        return mine is None or mine.is_unspecified or mine == _ip(host)
 
 
 def _ip(text: str) -> ipaddress.IPv4Address | ipaddress.IPv6Address | None:
@@ -93,6 +100,19 @@ def _descriptors() -> list[int]:
 def cut(local: Address, peer: Address) -> int:
     """Shut down every socket of this process from `local` to `peer` (both ways), drop
     what it received unread; how many were cut (0: none is open, or none can be listed)."""
+    return _cut_where(lambda mine, theirs: local.matches(mine) and peer.matches(theirs))
+
+
+def cut_accepted(local: Address) -> int:
+    """Shut down every connected socket of this process on `local` (a listener's address,
+    closed now), whatever its peer, as `cut` does; how many were cut."""
+    return _cut_where(lambda mine, _theirs: local.matches(mine))
+
+
+_SocketAddress = tuple[str, int] | tuple[str, int, int, int]
+
+
+def _cut_where(matching: Callable[[_SocketAddress, _SocketAddress], bool]) -> int:
     cut_count = 0
     for fd in _descriptors():
         try:
@@ -105,16 +125,18 @@ def cut(local: Address, peer: Address) -> int:
             os.close(duplicate)  # not a socket
             continue
         with sock:  # closes the duplicate only
-            if _cut_if_matching(sock, local, peer):
+            if _cut_if_matching(sock, matching):
                 cut_count += 1
     return cut_count
 
 
-def _cut_if_matching(sock: socket.socket, local: Address, peer: Address) -> bool:
+def _cut_if_matching(
+    sock: socket.socket, matching: Callable[[_SocketAddress, _SocketAddress], bool]
+) -> bool:
     if sock.type != socket.SOCK_STREAM or sock.family not in (socket.AF_INET, socket.AF_INET6):
         return False
     try:
-        if not (local.matches(sock.getsockname()) and peer.matches(sock.getpeername())):
+        if not matching(sock.getsockname(), sock.getpeername()):
             return False
         sock.shutdown(socket.SHUT_RDWR)
     except OSError:

@@ -46,6 +46,7 @@ from fleet.transport.cli import (
     setup_logging,
     stop_on_signals,
 )
+from fleet.transport.link_cut import address_of, cut_accepted
 from fleet.transport.link_refusal import LinkRefusal
 from fleet.transport.live_revocation import RevocationGuard
 from fleet.transport.secure import SecureProfile
@@ -253,10 +254,25 @@ class Router:
             guard.let_go()
         session, self._session = self._session, None
         if session is not None:
-            session.close()
+            try:
+                session.close()
+            finally:
+                self._end_accepted()
         if guard is not None:
             guard.stop()
         self._release_watch()
+
+    def _end_accepted(self) -> None:
+        """End the connections still open on the closed listeners: one Zenoh accepted as
+        the session closed outlives the close, its client connected to no router
+        (`fleet.transport.link_cut`; a revoked client redials many times a second)."""
+        for endpoint in self.endpoints:
+            local = address_of(endpoint)
+            if local is None or local.port == 0:
+                continue  # not a stream listener, or never bound
+            ended = cut_accepted(local)
+            if ended:
+                log.info("ended %d connection(s) accepted on %s as it closed", ended, endpoint)
 
     def _release_watch(self) -> None:
         watch, self._watch = self._watch, None

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -25,6 +24,7 @@ import pytest
 from fleet.files.targets_io import write_targets
 from fleet.launch.ring import ring_scenario
 from tests.support.ground_cli import ground_cli
+from tests.support.netns import check_ip, in_namespace, ip, namespaces_allowed
 from tests.support.processes import Child, start
 from tests.support.targets import ring_targets
 
@@ -35,24 +35,6 @@ VICTIM = 103
 ROUTER_PORT = 7447
 DEADLINE_S = 8.0
 TAG = f"f{os.getpid() % 100000}"  # unique per test run; interface names are <= 15 chars
-
-
-def ip(*argv: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(["ip", *argv], capture_output=True, text=True, check=False)
-
-
-def namespaces_allowed() -> str | None:
-    """None if this machine lets the test make namespaces, else why not."""
-    if shutil.which("ip") is None:
-        return "no `ip` command (iproute2)"
-    if os.geteuid() != 0:
-        return "network namespaces need root"
-    probe = f"{TAG}-probe"
-    made = ip("netns", "add", probe)
-    if made.returncode != 0:
-        return f"`ip netns add` refused: {made.stderr.strip()}"
-    ip("netns", "del", probe)
-    return None
 
 
 @dataclass
@@ -68,34 +50,30 @@ class Network:
         return f"10.211.{uav}.1"
 
     def run(self, namespace: str, *argv: str) -> list[str]:
-        return ["ip", "netns", "exec", namespace, *argv]
-
-
-def _check(done: subprocess.CompletedProcess[str]) -> None:
-    assert done.returncode == 0, f"{done.args}: {done.stderr}"
+        return in_namespace(namespace, *argv)
 
 
 @pytest.fixture
 def network() -> Iterator[Network]:
-    reason = namespaces_allowed()
+    reason = namespaces_allowed(TAG)
     if reason is not None:
         pytest.skip(reason)
     net = Network(f"{TAG}-ground", {uav: f"{TAG}-uav{uav}" for uav in UAVS})
     try:
         for namespace in (net.ground, *net.uavs.values()):
-            _check(ip("netns", "add", namespace))
+            check_ip(ip("netns", "add", namespace))
             net.made.append(namespace)
-            _check(ip("-n", namespace, "link", "set", "lo", "up"))
+            check_ip(ip("-n", namespace, "link", "set", "lo", "up"))
         for uav, namespace in net.uavs.items():
             near, far = net.ground_side(uav), f"{TAG}u{uav}"
-            _check(ip("link", "add", near, "netns", net.ground, "type", "veth",
+            check_ip(ip("link", "add", near, "netns", net.ground, "type", "veth",
                       "peer", "name", far, "netns", namespace))  # fmt: skip
-            _check(
+            check_ip(
                 ip("-n", net.ground, "addr", "add", f"{net.router_address(uav)}/24", "dev", near)
             )
-            _check(ip("-n", namespace, "addr", "add", f"10.211.{uav}.2/24", "dev", far))
-            _check(ip("-n", net.ground, "link", "set", near, "up"))
-            _check(ip("-n", namespace, "link", "set", far, "up"))
+            check_ip(ip("-n", namespace, "addr", "add", f"10.211.{uav}.2/24", "dev", far))
+            check_ip(ip("-n", net.ground, "link", "set", near, "up"))
+            check_ip(ip("-n", namespace, "link", "set", far, "up"))
         yield net
     finally:
         for namespace in net.made:  # deleting a namespace deletes its veth ends too
@@ -170,7 +148,7 @@ def test_cut_uav_the_survivors_complete_and_the_ground_reports_it(
     # a radio out of range. The next mission names it, as the ground would by default
     # (its token lives on until its lease ends); the survivors wait for it until the
     # deadline, then commit without it.
-    _check(ip("-n", net.ground, "link", "set", net.ground_side(VICTIM), "down"))
+    check_ip(ip("-n", net.ground, "link", "set", net.ground_side(VICTIM), "down"))
     second = run_mission(net, targets, "--team", ",".join(map(str, UAVS)))
     assert second.returncode in (0, 1), second.stderr
     outcome = json.loads(second.stdout)

@@ -37,6 +37,7 @@ class Recorder:
     assignment_fetches: list[int] = field(default_factory=list)
     mission_fetches: int = 0
     outcome_fetches: list[tuple[int, tuple[int, ...]]] = field(default_factory=list)
+    standing_fetches: list[tuple[int, tuple[int, ...], str | None]] = field(default_factory=list)
 
     def send_autopilot(self, command: AutopilotCommand) -> None:
         self.autopilot.append(command)
@@ -58,6 +59,9 @@ class Recorder:
 
     def fetch_outcomes(self, mission: int, uavs: tuple[int, ...]) -> None:
         self.outcome_fetches.append((mission, uavs))
+
+    def fetch_standings(self, mission: int, uavs: tuple[int, ...], basis: str | None) -> None:
+        self.standing_fetches.append((mission, uavs, basis))
 
     def statuses(self) -> list[str]:
         return [m.text for _, m in self.published if isinstance(m, StatusText)]

@@ -11,10 +11,10 @@ import msgspec
 
 from fleet.consensus.mission_round import STANDINGS_WAIT_S
 from fleet.mission.key_space import KeySpace
-from fleet.mission.messages import AssignmentReport, TargetOutcome, UavResult
+from fleet.mission.messages import AssignmentReport, MissionTargets, TargetOutcome, UavResult
 from fleet.mission.phase import Phase
 from onboard.core import OnboardCore
-from tests.onboard.core_harness import Recorder, make_core, round_of_three
+from tests.onboard.core_harness import TARGETS, Recorder, make_core, round_of_three
 from tests.support.link_samples import sample_telemetry
 
 SPACE = KeySpace()
@@ -198,3 +198,75 @@ def test_an_arrival_heard_during_the_wait_moves_the_fallback_and_its_standing() 
     fallback = _wait_out(core, out, 6.1)
     assert fallback.digest == second.basis
     assert fallback.queues == {112: (1, 0), 200: (2,)}
+
+
+# ---- standings fetched by query ---------------------------------------------------------
+def test_a_standing_still_missing_a_second_into_the_wait_is_asked_for_once() -> None:
+    core, out = _three_uav_plan()
+    own = _lose_74(core, out, 6.0)
+    core.tick(6.5)
+    assert out.standing_fetches == []  # it may be on its way
+    core.tick(7.2)
+    core.tick(7.5)
+    assert out.standing_fetches == [(1, (200,), own.basis)]  # 200's own, for this plan
+    assert own.basis is not None
+    core.on_result(_standing_of_200(own.basis), 7.6)  # the answer: solved at once
+    (resolved,) = out.on(SPACE.mission_replan(1, 112))
+    assert isinstance(resolved, AssignmentReport) and resolved.basis == own.basis
+
+
+def test_a_restarted_uav_stands_for_the_plan_its_teammates_standings_name() -> None:
+    """Back from a restart it follows its teammates' epochs (no epoch 0 of its own), and
+    the one it takes counts it out: it asks for their standings and gives its own for
+    the append plan they name, so they solve the re-plan with it without waiting for
+    their append plan's wait to pass."""
+    core, out = make_core(uav=200, times=(5.0, 70.0, 60.0), fresh_replans=True)
+    for uav in (74, 112):
+        core.on_alive(uav, True, 0.0)
+    targets = MissionTargets(mission=1, team=(74, 112, 200), targets=TARGETS)
+    core.on_targets(targets, 0.5, replayed=True)  # its catch-up's reply
+    epoch_1 = AssignmentReport(
+        1, 112, 1, {74: 0, 112: 1}, (2,), (74, 112, 200), "e1", epoch=1, released=(200,),
+        queues={74: (0, 2), 112: (1,)}, basis="b0",
+    )  # fmt: skip
+    core.on_assignment(epoch_1, 0.6)
+    assert out.standing_fetches == [(1, (), None)]  # the standings of the plan awaited
+    assert _standings_of(out, 200) == []
+    theirs = UavResult(1, 112, (80.0, 40.0, 60.0), basis="b1", flying=1)
+    core.on_result(theirs, 0.7)  # 112's standing, for the append plan counting 200 back
+    core.on_telemetry(sample_telemetry(), 0.8)
+    core.tick(0.8)  # its own, from the planner
+    (own,) = _standings_of(out, 200)
+    assert own.basis == "b1" and own.times == (5.0, 70.0, 60.0)
+    resolved = msgspec.structs.replace(
+        epoch_1, epoch=2, released=(), digest="e2", basis="b1", back={200: 1}, left={200: 1},
+        pairs={74: 2, 112: 1, 200: 0}, queues={74: (2,), 112: (1,), 200: (0,)},
+    )  # fmt: skip
+    core.on_assignment(resolved, 1.0)
+    mine = out.on(SPACE.mission_assignment(1, 200))[-1]
+    assert isinstance(mine, AssignmentReport) and (mine.digest, mine.target) == ("e2", 0)
+
+
+def test_a_restarted_uav_without_telemetry_yet_stands_once_it_has_some() -> None:
+    core, out = make_core(uav=200, times=(5.0, 70.0, 60.0), fresh_replans=True)
+    for uav in (74, 112):
+        core.on_alive(uav, True, 0.0)
+    core.on_targets(MissionTargets(mission=1, team=(74, 112, 200), targets=TARGETS), 9.0)
+    epoch_1 = AssignmentReport(
+        1, 112, 1, {74: 0, 112: 1}, (2,), (74, 112, 200), "e1", epoch=1, released=(200,),
+        queues={74: (0, 2), 112: (1,)},
+    )  # fmt: skip
+    core.on_assignment(epoch_1, 9.1)
+    core.on_result(UavResult(1, 74, (10.0, 90.0, 90.0), basis="b1"), 9.2)
+    core.tick(9.3)  # its last telemetry was at 0 s: its link is lost, no standing yet
+    assert _standings_of(out, 200) == []
+    core.on_telemetry(sample_telemetry(), 9.5)
+    core.tick(9.5)
+    core.tick(9.6)
+    (own,) = _standings_of(out, 200)
+    assert own.basis == "b1"
+
+
+def _standings_of(out: Recorder, uav: int) -> list[UavResult]:
+    results = out.on(SPACE.mission_result(1, uav))
+    return [m for m in results if isinstance(m, UavResult) and m.basis is not None]

@@ -9,10 +9,14 @@ from pathlib import Path
 
 import pytest
 
-from fleet.mission.messages import AssignmentReport, MissionTargets
+from fleet.mission.key_space import KeySpace
+from fleet.mission.messages import AssignmentReport, MissionTargets, UavResult
+from onboard.bus_edge import standing_selector
 from tests.onboard.test_multi_uav_in_memory import PLANNING_SPEEDUP, ring, send
 from tests.support.targets import ring_targets
 from tests.support.waiting import wait_until
+
+SPACE = KeySpace()
 
 
 def test_a_re_plan_after_a_loss_is_solved_again_from_the_survivors_fresh_times(
@@ -53,3 +57,14 @@ def test_a_re_plan_after_a_loss_is_solved_again_from_the_survivors_fresh_times(
             assert plan.arrivals[uav][0] == pytest.approx(standing.times[queue[0]])
             assert standing.times[queue[0]] != epoch0[uav].times[queue[0]]
             assert (standing.lat, standing.lon) != (epoch0[uav].lat, epoch0[uav].lon)
+        # Each survivor's standing can be fetched by query, from the survivor itself, as
+        # it put it (a restarted teammate or a ground that missed it): by the append
+        # plan's digest; a plain query on a result key still gets the first result.
+        ask = fleet.bus()
+        for uav in survivors:
+            key = SPACE.mission_result(1, uav)
+            (fetched,) = ask.query_messages(standing_selector(key, plan.basis), UavResult, 2.0)
+            assert fetched[0] == key and fetched[1].basis == plan.basis
+            assert fetched[1] in heard[uav]
+            ((_, result),) = ask.query_messages(key, UavResult, 2.0)
+            assert result.basis is None and result == epoch0[uav]

@@ -21,7 +21,7 @@ from fleet.files.certs import write_identities
 from fleet.files.signers import revoke, roster_document
 from fleet.mission.key_space import KeySpace
 from fleet.transport import live_revocation
-from fleet.transport.link_cut import Address, address_of, cut
+from fleet.transport.link_cut import Address, address_of, cut, cut_accepted
 from fleet.transport.live_revocation import RevocationGuard
 from fleet.transport.router import Router
 from fleet.transport.secure import SecureProfile
@@ -60,6 +60,8 @@ def test_an_address_matches_its_socket_address_and_a_name_its_port() -> None:
     assert not Address("127.0.0.1", 7447).matches(("127.0.0.2", 7447))
     assert not Address("127.0.0.1", 7447).matches(("127.0.0.1", 7448))
     assert Address("router.example", 7447).matches(("10.0.0.2", 7447))
+    assert Address("0.0.0.0", 7447).matches(("127.0.0.1", 7447))  # a listener's, any host
+    assert not Address("0.0.0.0", 7447).matches(("127.0.0.1", 7448))
 
 
 @pytest.fixture
@@ -94,6 +96,23 @@ def test_cut_shuts_down_only_the_matching_socket_and_drops_what_it_held(
     other_client.sendall(b"still open")
     other_server.settimeout(TIMEOUT_S)
     assert other_server.recv(100) == b"still open"
+
+
+def test_cut_accepted_ends_every_connection_on_a_listeners_address_and_no_other(
+    connections: list[tuple[socket.socket, socket.socket]],
+) -> None:
+    (client, server), (other_client, _) = connections
+    with socket.create_server(("127.0.0.1", 0)) as elsewhere:
+        unrelated = socket.create_connection(elsewhere.getsockname()[:2])
+        unrelated_server, _ = elsewhere.accept()
+        with unrelated, unrelated_server:
+            assert cut_accepted(Address(*server.getsockname()[:2])) == 2  # both, not the rest
+            for end in (client, other_client):
+                end.settimeout(TIMEOUT_S)
+                assert end.recv(100) == b""
+            unrelated.sendall(b"still open")
+            unrelated_server.settimeout(TIMEOUT_S)
+            assert unrelated_server.recv(100) == b"still open"
 
 
 def _pending(sock: socket.socket) -> bool:
@@ -214,3 +233,29 @@ def test_a_held_reconnection_is_let_go_when_the_router_closes(
         # nothing of the router this test is about.
         with contextlib.suppress(zenoh.ZError):
             lost.close()
+
+
+#: Revoked clients redialling as the router closes.
+REDIALLING = 8
+
+
+def test_a_connection_accepted_as_the_router_closes_does_not_outlive_it(
+    secure_router: SecureRouter,
+) -> None:
+    # Zenoh accepts a connection while its session closes and finishes the handshake after
+    # the close ended the transports it knew: that transport outlived the router, its
+    # client kept a link to no router (seen for the redialling client of the test above).
+    # Revoked clients cut at once redial hundreds of times a second, so one is in flight.
+    router, certs, endpoint, guard = secure_router
+    clients = [secure_clients.session(certs, endpoint, "uav-74") for _ in range(REDIALLING)]
+    try:
+        guard.let_go()  # from now on a revoked link is cut at once: its client redials
+        guard.revoke(frozenset({"uav-74"}), "this test")
+        wait_until(lambda: guard.refused >= 10 * REDIALLING, TIMEOUT_S, "74's redials cut")
+        router.close()
+        for lost in clients:
+            wait_until(lambda lost=lost: not lost.info.links(), TIMEOUT_S, "74's link gone")
+    finally:
+        for lost in clients:
+            with contextlib.suppress(zenoh.ZError):  # as above: a redialling client's close
+                lost.close()
