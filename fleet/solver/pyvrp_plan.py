@@ -7,7 +7,8 @@ last target. PyVRP minimises the travel; the two objectives are reached thus:
 * `min-max`: a bisection on a bound of each route's duration (`max_distance`): the least
   bound under which PyVRP still serves every target, the plan of that bound;
 * `min-sum`: PyVRP's least-travel plan, then the project's own local search for the sum
-  of arrivals (`fleet.consensus.improve`), which PyVRP has no objective for.
+  of arrivals (`fleet.consensus.improve`), which PyVRP has no objective for, then an
+  iterated local search on that sum (`fleet.solver.min_sum_search`).
 
 Deterministic for a seed and an iteration limit (`MaxIterations`: a time limit would
 make the plan depend on the machine's speed), on one machine and build; nothing more
