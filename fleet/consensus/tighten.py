@@ -24,14 +24,19 @@ raised halfway back. At each bound:
   kept if its cost is at most `ACCEPT` above the current one (a threshold that falls to
   0 over the rounds, so that the search can cross a flat stretch).
 
-Up to `REGRET_UP_TO` (UAV, target) pairs, the search starts from the best of the plan
-given and plans built afresh by regret insertion under a few bounds below its last
+Up to `REGRET_UP_TO` (UAV, target) pairs, the search runs from the plan given and from
+each distinct plan built afresh by regret insertion under a few bounds below its last
 arrival (each target in turn where the difference between its best and second-best
-queue is the largest): the plan given is often a poor basin.
+queue is the largest), each run with `START_BUDGET` moves and its own seed, and keeps
+the shortest (the first among equals): the plan given is often a poor basin, and where
+a run ends depends on the basin it starts in far more than on how long it runs there
+(the worst of the benchmark's 20 x 100 instances stalled at 16 % above the best known
+from one start with all the moves, 11 % from four with a quarter each).
 
 Deterministic: a fixed seed (Python's Mersenne Twister, the same on every machine), a
-fixed order, and at most `BUDGET` moves tried (the plan never depends on the machine's
-speed). Every queue is timed in its own UAV's legs (`legs_of`). Pure: no I/O.
+fixed order, and at most `BUDGET` moves tried from one start, `START_BUDGET` from each of
+several (the plan never depends on the machine's speed). Every queue is timed in its
+own UAV's legs (`legs_of`). Pure: no I/O.
 """
 
 from __future__ import annotations
@@ -61,8 +66,10 @@ MIN_GAP = 0.002
 ROUNDS = 60
 RUIN_MAX = 8
 ACCEPT = 0.01
-#: Moves and insertion places tried at most in a search.
+#: Moves and insertion places tried at most in a search from one start, and from each
+#: of several starts.
 BUDGET = 300_000
+START_BUDGET = 75_000
 #: Instances up to this many (UAV, target) pairs get the regret-insertion starts, at
 #: these bounds (relative to the plan's last arrival): beyond, they cost more than the
 #: search (each is T x T x the queues' length).
@@ -80,15 +87,29 @@ def tighten(queues: Queues, times: Times, legs: Legs) -> Queues:
     search = _Search(queues, times, legs)
     if len(search.uavs) < 2 or len(search.targets) < 2:
         return {uav: list(q) for uav, q in queues.items()}
-    start = search.snapshot()
-    span = search.span()
+    starts = [search.snapshot()]
     if len(search.uavs) * search.count <= REGRET_UP_TO:
+        span = search.span()
         for share in REGRET_BOUNDS:
             if search.build(span * share):
                 search.descend(search.targets)
-                if search.span() < span * (1.0 - EPSILON):
-                    start, span = search.snapshot(), search.span()
-    best = search.bisect(start)
+                if search.routes not in starts:
+                    starts.append(search.snapshot())
+    if len(starts) == 1:
+        best = search.bisect(starts[0])
+    else:
+        # From every start in turn, each with its own share of moves and its own seed:
+        # where the search ends depends on the basin it starts in much more than on how
+        # long it runs there, so several short runs beat one long one.
+        ends = []
+        for index, start in enumerate(starts):
+            search.tried = 0
+            search.limit = START_BUDGET
+            search.rng = random.Random(SEED + index)
+            plan = search.bisect(start)
+            search.restore(plan)
+            ends.append((search.span(), index, plan))
+        best = min(ends, key=lambda end: (end[0], end[1]))[2]
     return {uav: list(best[k][1:]) for k, uav in enumerate(search.uavs)}
 
 
@@ -135,6 +156,7 @@ class _Search:
         self.where: dict[int, tuple[int, int]] = {}
         self.bound = math.inf
         self.tried = 0
+        self.limit = BUDGET
         self.changed: set[int] = set()
         self.rng = random.Random(SEED)
         for k in range(len(self.routes)):
@@ -191,14 +213,14 @@ class _Search:
         best, best_span = start, self.span()
         gap = FIRST_GAP
         for _ in range(STEPS):
-            if self.tried >= BUDGET or gap < MIN_GAP:
+            if self.tried >= self.limit or gap < MIN_GAP:
                 break
             self.bound = best_span * (1.0 - gap)
             self.restore(best)
             self.descend(self.targets)
             current = self.cost()
             for round_ in range(ROUNDS):
-                if self.tried >= BUDGET or self.span() <= self.bound:
+                if self.tried >= self.limit or self.span() <= self.bound:
                     break
                 kept = self.snapshot()
                 if self.kick():
@@ -308,7 +330,7 @@ class _Search:
         pending = list(dict.fromkeys(targets))
         waiting = set(pending)
         index = 0
-        while index < len(pending) and self.tried < BUDGET:
+        while index < len(pending) and self.tried < self.limit:
             t = pending[index]
             index += 1
             waiting.discard(t)

@@ -12,7 +12,6 @@ Runnable on its own as ``python -m fleet.sim.command``.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import logging
 import sys
 from collections.abc import Sequence
@@ -220,32 +219,23 @@ def _build(args: SimOptions) -> list[SimulatedAutopilot]:
 
 def run(args: SimOptions, out: TextIO) -> int:
     """Run the simulator until SIGTERM or SIGINT; return the exit status."""
-    with contextlib.ExitStack() as stack:
-        try:
-            autopilots = _build(args)
-            truth = None
-            if args.truth_log is not None:
-                # Line-buffered: a simulator killed by a signal leaves every line it had.
-                file = stack.enter_context(open(args.truth_log, "w", buffering=1, encoding="utf-8"))
-                truth = TruthLog(file)
-            server = SimServer(
-                autopilots,
-                host=args.host,
-                program_port=args.program_port,
-                payload_port=args.payload_port,
-                ground_port=args.ground_port,
-                speedup=args.speedup,
-                use_pty=args.pty,
-                truth=truth,
-            )
-        except (ScenarioError, FlightModelError, ValueError) as error:
-            return fail("fleet sim", str(error))
-        except OSError as error:
-            return fail("fleet sim", f"cannot open {error.filename}: {error.strerror}")
-        return _serve(server, autopilots, out)
-
-
-def _serve(server: SimServer, autopilots: list[SimulatedAutopilot], out: TextIO) -> int:
+    try:
+        autopilots = _build(args)
+        truth = TruthLog.to_file(args.truth_log) if args.truth_log is not None else None
+        server = SimServer(
+            autopilots,
+            host=args.host,
+            program_port=args.program_port,
+            payload_port=args.payload_port,
+            ground_port=args.ground_port,
+            speedup=args.speedup,
+            use_pty=args.pty,
+            truth=truth,
+        )
+    except (ScenarioError, FlightModelError, ValueError) as error:
+        return fail("fleet sim", str(error))
+    except OSError as error:
+        return fail("fleet sim", f"cannot open {error.filename}: {error.strerror}")
     # Handlers first: a launcher may send SIGTERM as soon as it has read `ready`.
     with server, stop_on_signals(server.stop):
         try:
@@ -255,7 +245,7 @@ def _serve(server: SimServer, autopilots: list[SimulatedAutopilot], out: TextIO)
         for endpoint in endpoints:
             print(endpoint.line(), file=out)
         print("ready", file=out, flush=True)
-        logger.info("simulating at speedup %g", server.speedup)
+        logger.info("simulating at speedup %g", args.speedup)
         server.run()
     logger.info("stopped at simulated time %.1f s", server.time_ms / 1000.0)
     if autopilots[0].settings.zones:

@@ -254,7 +254,7 @@ class SimServer:
         return path
 
     def close(self) -> None:
-        """Close every socket and pty. Idempotent."""
+        """Close every socket and pty, and the truth log. Idempotent."""
         if self._closed:
             return
         self._closed = True
@@ -275,6 +275,8 @@ class SimServer:
         self._selector.close()
         self._wake_read.close()
         self._wake_write.close()
+        if self._truth is not None:
+            self._truth.close()
 
     def __enter__(self) -> SimServer:
         return self

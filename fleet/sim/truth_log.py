@@ -47,6 +47,15 @@ class TruthLog:
     def __post_init__(self) -> None:
         print(HEADER, file=self.out)
 
+    @classmethod
+    def to_file(cls, path: str) -> TruthLog:
+        """A log written to `path` (replaced), line-buffered: a simulator killed by a
+        signal leaves every line it had. `close` closes it."""
+        return cls(open(path, "w", buffering=1, encoding="utf-8"))
+
+    def close(self) -> None:
+        self.out.close()
+
     def note(self, uav: int, sim_ms: int, position: tuple[float, float, float]) -> None:
         """The aircraft `uav` is at `position` (lat, lon, alt) at simulated `sim_ms`."""
         if sim_ms < self._next_ms.get(uav, 0):
