@@ -38,7 +38,7 @@ ROUNDS = 40
 MAX_ROUNDS = 200
 ROUND_TARGETS = 4000
 #: The share of the targets a ruin takes out (at least two): 15 % left some plans where
-#: they were (measured: 5x20 and 10x50 worse in docs/benchmarks.md's instances).
+#: they were (docs/benchmarks.md, "The min-sum proposal's own search").
 RUIN_SHARE = 0.3
 #: A move must lower the sum by more than this (s): no move for rounding alone.
 EPSILON = 1e-6
