@@ -53,12 +53,14 @@ class MissionFollower(Declarations):
         mission: int,
         listener: Listener | None = None,
         team: Iterable[int] = (),
+        on_revision: Callable[[MissionTargets], object] | None = None,
     ) -> None:
         self._bus = bus
         self._space = space
         self.mission = mission
         self._listener = listener
         self._team = frozenset(team)
+        self._on_revision = on_revision
         self._changed = threading.Condition()
         self.results: dict[int, UavResult] = {}
         self.assignments: dict[int, AssignmentReport] = {}
@@ -98,7 +100,10 @@ class MissionFollower(Declarations):
             self.note_targets(targets)
 
     def note_targets(self, targets: MissionTargets) -> None:
-        """A mission sent to some team: a later one for any of ours supersedes this one."""
+        """A mission sent to some team: a later one for any of ours supersedes this one;
+        this one again (a revision, changed in flight) goes to `on_revision`."""
+        if targets.mission == self.mission and self._on_revision is not None:
+            self._on_revision(targets)
         if not self._team or self._team & set(targets.team):
             self.note_later_mission(targets.mission)
 

@@ -239,6 +239,7 @@ class TargetsServer(Declarations):
         self._payload = bus_codec.encode(targets)
         #: Another ground asked for this id with other targets (see `claim_mission`).
         self.contested = threading.Event()
+        self._revising = threading.Lock()
         self._queryable: Queryable | None = None
         super().__init__()
 
@@ -261,10 +262,12 @@ class TargetsServer(Declarations):
     def revise(self, targets: MissionTargets) -> None:
         """Serve `targets`, a later revision of the same mission (changed in flight), from
         now on: a UAV that joins late gets the mission as it is now."""
-        if targets.mission != self.targets.mission or targets.revision <= self.targets.revision:
-            return
-        self._payload = bus_codec.encode(targets)
-        self.targets = targets
+        with self._revising:  # heard on the bus's thread and fetched on the caller's
+            held = self.targets
+            if targets.mission != held.mission or targets.revision <= held.revision:
+                return
+            self._payload = bus_codec.encode(targets)
+            self.targets = targets
 
     def _answer(self, query: BusQuery) -> None:
         # The concrete key, not the query's (possibly wildcard) one: otherwise Zenoh's

@@ -207,7 +207,11 @@ def _send_and_follow(
     mission, team, targets = message.mission, message.team, message.targets
     listener = _progress_printer(progress, team) if options.wait else None
     outcome = MissionOutcome(mission=mission, team=team, targets=targets, zones=message.zones)
-    with MissionFollower(bus, options.key_space, mission, listener, team) as follower:
+    # A change in flight (`add-targets`, the page) is served from then on: a UAV that
+    # joins late fetches the mission as it is, not as it was sent.
+    with MissionFollower(
+        bus, options.key_space, mission, listener, team, on_revision=server.revise
+    ) as follower:
         publish_targets(bus, options.key_space, message)
         print(
             f"mission {mission}: {len(targets)} targets from {options.file}"

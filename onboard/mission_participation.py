@@ -236,7 +236,9 @@ class MissionParticipation:
     def _start_planning(self, now: float) -> None:
         gps = self.link.gps
         assert self.round is not None and gps is not None
-        speed = self.link.airspeed()
+        # Averaged like the wind: the result carries it, and every leg of the plan is
+        # timed at it (on JSBSim one reading is off its mean by a gust's 0.9 m/s).
+        speed = self.link.smoothed_airspeed()
         if not self.own.start(self.round, gps, now, self.link.wind.value, speed):
             self._decline(f"mission {self.round.mission}: the planner refused the request", now)
 
@@ -353,7 +355,7 @@ class MissionParticipation:
         # Its own word is believed of itself only: the targets it reached itself.
         own = self.uav_id
         reached = tuple(sorted(t for t, uav in mission_round.reached_targets.items() if uav == own))
-        where = (gps, self.link.wind.value, self.link.airspeed())
+        where = (gps, self.link.wind.value, self.link.smoothed_airspeed())
         if not self.own.start_standing(mission_round, basis, where, flying, reached):
             log.warning(
                 "mission %d: the planner refused this UAV's standing", mission_round.mission

@@ -39,6 +39,10 @@ SPACE = KeySpace()
 E2E = "e2e"
 #: Fixtures that start processes, or stand in for the ground of a test that does.
 E2E_FIXTURES = frozenset({"fleet", "ground"})
+#: An end-to-end test's time limit (pytest-timeout's; the others have pyproject's 300 s),
+#: unless it sets its own: one waits on processes and flights, and on a loaded machine
+#: its waits are stretched (tests/support/waiting.py); a hung one still ends.
+E2E_TIME_LIMIT_S = 600.0
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -51,6 +55,8 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if E2E_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(E2E)
+        if item.get_closest_marker(E2E) is not None and not item.get_closest_marker("timeout"):
+            item.add_marker(pytest.mark.timeout(E2E_TIME_LIMIT_S))
 
 
 class ProcessInFastTest(AssertionError):

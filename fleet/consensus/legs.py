@@ -69,8 +69,9 @@ MEAN_TURN_RADII = 0.5
 AIRSPEED_RANGE = (5.0, 100.0)
 MAX_WIND_MPS = 60.0
 #: A wind this share of the airspeed or more is flown in at that share (the approach
-#: model's `PLANNABLE_WIND_SHARE`): no leg is flyable against a wind as fast.
-WIND_SHARE = 0.7
+#: model's `PLANNABLE_WIND_SHARE`, a test checks they agree): no leg is flyable against
+#: a wind as fast. A 15 m/s wind is 0.75 of a 20 m/s aircraft's airspeed.
+WIND_SHARE = 0.8
 
 _LIMITS = AircraftLimits()
 
@@ -315,14 +316,17 @@ class AirLegs(LegTables):
     def arrivals(self, uav: int, first: float, queue: Sequence[int]) -> list[float]:
         out = [first]
         clock = first
-        befores: list[tuple[float, float] | int | None] = [self._origin(self.air_of(uav))]
+        befores: list[tuple[float, float] | int | None] = [self.origin_of(uav)]
         befores += queue
         for before, i, j in zip(befores, queue, queue[1:], strict=False):
             clock += self.turning_leg(uav, before, i, j)
             out.append(clock)
         return out
 
-    def _origin(self, air: Air) -> tuple[float, float] | None:
+    def origin_of(self, uav: int) -> tuple[float, float] | None:
+        """Where `uav` planned from (local metres of the geometry's plane), the point its
+        track into its queue's first target starts; None where its result did not say."""
+        air = self.air_of(uav)
         projection = self.geometry.projection
         if air.origin is None or projection is None:
             return None

@@ -89,10 +89,12 @@ class Weather:
             else (0.0, 0.0)
         )
         self._gust = (0.0, 0.0)
-        self.wind = self._mean(0.0)
+        self.wind = self.mean_at(0.0)
         self._estimate = self.wind
 
-    def _mean(self, t: float) -> Wind:
+    def mean_at(self, t: float) -> Wind:
+        """The mean wind at `t` seconds (the drift alone: no gust, no estimate's lag or
+        bias); the same for every aircraft of the scenario."""
         spec = self.spec
         if spec.drift_speed == 0.0 and spec.drift_direction_deg == 0.0:
             return spec.mean
@@ -114,7 +116,7 @@ class Weather:
         self.time_s += dt
         if spec.steady:
             return self.wind
-        mean = self._mean(self.time_s)
+        mean = self.mean_at(self.time_s)
         if spec.gust > 0.0:
             # Exact discretisation of the Gauss-Markov process, whatever dt.
             keep = math.exp(-dt / spec.gust_time_s)

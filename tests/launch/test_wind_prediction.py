@@ -35,6 +35,9 @@ pytestmark = pytest.mark.e2e
 TIMEOUT_S = 120.0
 #: How far a published ETA may be from the time flown.
 TOLERANCE = 0.10
+#: How far a plan's leg time may be from the time flown when the wind drifts after the
+#: plan (the nine targets' test).
+PLAN_TOLERANCE = 0.15
 WINDY = shipped_scenario("windy")
 
 
@@ -104,11 +107,13 @@ def test_every_leg_of_every_queue_flies_in_the_time_its_uav_said_in_a_10_ms_wind
     within 10 % of the time flown, as the UAV timed it when it began the leg (the first:
     its result's approach time; a later one: the plan's leg model in its air then).
 
-    The plan's own leg times are in the air at the plan: this scenario's wind turns and
-    strengthens by ~1.5 m/s over the ~11 minutes the queues take, so a last leg is flown
-    up to ~11 % slower than planned (the same leg re-timed in the true wind of its time
-    is within 2 %: docs/benchmarks.md). They are held within 20 % here: before each UAV's
-    legs were timed in its air, they were +10 to +55 % off."""
+    The plan's own leg times are in the air at the plan: this scenario's mean wind turns
+    by ~1.3 m/s over the ~11 minutes the queues take (its drift, by design), and each
+    result's wind is off the true mean by its autopilot's estimate's bias (0.3-0.7 m/s
+    here, by design too; nothing else: docs/benchmarks.md), so a last leg is flown up to
+    ~11 % slower than planned (the same leg timed by the plan's model in the true wind of
+    its time is within 2 %). They are held within 15 % here: before each UAV's legs were
+    timed in its air, they were +10 to +55 % off."""
     with fleet_up("windy", "--speedup", "4", "--log-dir", str(tmp_path), timeout=90.0) as up:
         sent = ground_cli(
             "send-targets", str(windy_nine_csv(tmp_path / "nine.csv")), "--objective", "min-sum",
@@ -127,4 +132,4 @@ def test_every_leg_of_every_queue_flies_in_the_time_its_uav_said_in_a_10_ms_wind
             begun, planned, flown = row["begun_s"], row["predicted_s"], row["flown_s"]
             assert begun is not None and planned is not None and flown is not None, (uav, legs)
             assert abs(begun - flown) <= TOLERANCE * flown, (uav, row, legs)
-            assert abs(planned - flown) <= 2 * TOLERANCE * flown, (uav, row, legs)
+            assert abs(planned - flown) <= PLAN_TOLERANCE * flown, (uav, row, legs)

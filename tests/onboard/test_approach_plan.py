@@ -104,6 +104,18 @@ def test_the_plan_is_asked_in_the_smoothed_reported_wind() -> None:
     assert second.wind.north == pytest.approx(2.0 * kept)
 
 
+def test_the_plan_is_asked_at_the_air_data_s_airspeed_averaged_like_the_wind() -> None:
+    """A gust reads 25 m/s for an instant on an aircraft holding 22 (its air data at sea
+    level): the plan, and the result its teammates time its legs by, take the airspeed
+    averaged over the wind's time constant, not that instant's reading."""
+    core, planner, telemetry, gusty = windy_core(indicated_airspeed=25.0)
+    core.on_telemetry(telemetry, 0.0)
+    core.on_telemetry(gusty, 2.0)
+    core.on_targets(MissionTargets(mission=1, team=(112,), targets=TARGETS), 2.1)
+    (request,) = planner.requests
+    assert request.cruise_speed == pytest.approx(22.0 + 3.0 * (1.0 - math.exp(-2.0 / 20.0)))
+
+
 def test_without_air_data_the_airspeed_is_the_ground_velocity_less_the_wind() -> None:
     core, planner, _, no_pitot = windy_core(indicated_airspeed=0.0)
     core.on_telemetry(no_pitot, 0.0)

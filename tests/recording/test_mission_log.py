@@ -314,6 +314,39 @@ def test_each_leg_s_time_said_as_it_began_is_beside_the_plan_s() -> None:
     assert build_timeline([*tour_messages(), bad]).undecodable == 1
 
 
+def test_a_leg_is_flagged_by_each_prediction_off_and_says_which() -> None:
+    """UAV 1 said 40 s for its leg to target 0 as it began it (the plan 45 s; flown 50 s:
+    -20 % when begun, -10 % as planned) and 60 s to target 1 (the plan 75 s; flown 50 s:
+    +20 % when begun, +50 % as planned): each flag names the prediction it is of, and
+    the count closing the tour lines counts each."""
+    states = [
+        message(at, "fleet/uav/1/state", UavState(1, True, 1.0, 0, None, None, progress,
+                                                  phase=Phase.FLYING))
+        for at, progress in (
+            (3.0, MissionProgress(5, Phase.FLYING, 2, current_target=0, leg_s=40.0)),
+            (8.0, MissionProgress(5, Phase.FLYING, 2, current_target=1, leg_s=60.0)),
+        )
+    ]  # fmt: skip
+    timeline = build_timeline([*tour_messages(), *states])
+    legs = report_json(timeline)["missions"][0]["legs"]["1"]
+    assert [(leg["off"], leg["begun_off"], leg["begun_error"]) for leg in legs] == [
+        (False, True, -0.2),
+        (True, True, 0.2),
+    ]
+    lines = report_lines(timeline)
+    assert any(
+        "0 (45.0 s predicted, 50.0 s flown; 40.0 s when begun) OFF by -20 % when begun, "
+        "1 (75.0 s predicted, 50.0 s flown; 60.0 s when begun) OFF by +50 % as planned, "
+        "+20 % when begun" in line
+        for line in lines
+    ), lines
+    assert any(
+        "1 leg(s) predicted off the time flown by more than 10% as planned, 2 as timed when "
+        "begun" in line
+        for line in lines
+    ), lines
+
+
 def test_a_tour_after_a_re_plan_has_the_dropped_uav_s_targets(tmp_path: Path) -> None:
     """UAV 2 drops out; the re-plan appends its target 1 to UAV 1's queue: the report's
     tour of UAV 1 is 0 then 1, UAV 2's stays what it committed to."""

@@ -17,6 +17,7 @@ from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
 
 from fleet.transport.zenoh_config import CONFIG_ENV, CONNECT_ENV
+from tests.support.waiting import stretched
 
 REPO = Path(__file__).resolve().parents[2]
 #: How long a `ground-cli` process may run before the test gives up on it.
@@ -95,14 +96,15 @@ def ground_cli(
     prefix: Sequence[str] = (),
 ) -> subprocess.CompletedProcess[str]:
     """`[PREFIX] python -m ground.cli [--connect C] ARGV` in a process of its own, run to
-    its end; its environment is `_environment(env)`."""
+    its end (within `timeout` s, `stretched` when loaded); its environment is
+    `_environment(env)`."""
     return subprocess.run(
         _command(argv, connect, prefix),
         cwd=REPO,
         env=_environment(env),
         capture_output=True,
         text=True,
-        timeout=timeout,
+        timeout=stretched(timeout),
         check=False,
     )
 
@@ -128,9 +130,10 @@ def start_ground_cli(
 
 def finish_ground_cli(process: subprocess.Popen[str], timeout: float) -> tuple[int, str, str]:
     """A started `ground-cli`'s exit status, stdout and stderr once it ends (killed if it
-    has not within `timeout`, which then raises subprocess.TimeoutExpired)."""
+    has not within `timeout`, `stretched` when loaded, which then raises
+    subprocess.TimeoutExpired)."""
     try:
-        out, err = process.communicate(timeout=timeout)
+        out, err = process.communicate(timeout=stretched(timeout))
     finally:
         if process.poll() is None:
             process.kill()

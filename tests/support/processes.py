@@ -40,6 +40,7 @@ from fleet.launch.endpoints import SimEndpoints, parse_sim_line
 from fleet.transport.cli import CRASH_DUMP_ENV
 from fleet.transport.router import Router, parse_listening
 from fleet.transport.zenoh_config import CONNECT_ENV, make_config
+from tests.support.waiting import stretched
 
 #: A Zenoh endpoint on loopback on the port the OS picks when it is bound.
 ANY_PORT = "tcp/127.0.0.1:0"
@@ -57,6 +58,8 @@ class Child:
     history: list[str] = field(default_factory=list)
 
     def wait_for_line(self, predicate: Callable[[str], bool], timeout: float) -> str:
+        """The first line that matches, within `timeout` s (`stretched` when loaded)."""
+        timeout = stretched(timeout)
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             try:
@@ -68,7 +71,7 @@ class Child:
             if predicate(line):
                 return line
         raise AssertionError(
-            f"{self.name}: no expected line within {timeout} s; last output:\n"
+            f"{self.name}: no expected line within {timeout:.0f} s; last output:\n"
             + "\n".join(self.history[-30:])
         )
 

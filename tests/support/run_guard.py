@@ -8,7 +8,7 @@ unnoticed; and a `ground-cli gui` the dead worker had started ran on for 47 minu
 
 What it does:
 
-* every test that runs past its time limit (pytest-timeout's, 300 s) plus a minute
+* every test that runs past its time limit (pytest-timeout's: 300 s, e2e 600 s) plus a minute
   has every thread's traceback dumped and its process ended (`faulthandler`'s timer,
   which needs no Python to run: pytest-timeout's signal cannot interrupt a test stuck
   in native code); with xdist that is a crashed worker, reported as below;

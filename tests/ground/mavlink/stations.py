@@ -10,6 +10,8 @@ from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink2
 
+from tests.support.waiting import stretched
+
 #: How long a test waits for an expected message at most.
 WAIT_S = 60.0
 
@@ -29,6 +31,7 @@ def receiver(sock: socket.socket, parser: mavlink2.MAVLink) -> Callable[..., Any
     """`heard(predicate, timeout_s)`: the first message off `sock` that matches."""
 
     def heard(predicate: Callable[[Any], bool], timeout_s: float = WAIT_S) -> Any:
+        timeout_s = stretched(timeout_s)
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             try:
@@ -38,6 +41,6 @@ def receiver(sock: socket.socket, parser: mavlink2.MAVLink) -> Callable[..., Any
             for message in parser.parse_buffer(data) or []:
                 if predicate(message):
                     return message
-        raise AssertionError(f"nothing matching within {timeout_s} s")
+        raise AssertionError(f"nothing matching within {timeout_s:.0f} s")
 
     return heard

@@ -89,23 +89,39 @@ def upload_one(identity: str, fleet: SecureFleet) -> tuple[list[str], int]:
         gateway.stop(grace=15.0)
 
 
+@dataclass
+class Upload:
+    """What a gateway said while uploading, and the MISSION_ACK's type."""
+
+    lines: list[str]
+    result: int
+
+
+@pytest.fixture(scope="module")
+def grounds_upload(secure_fleet: SecureFleet) -> Upload:
+    """The ground's gateway's upload, once per fleet: UAV 74 then holds mission 1 (each
+    test that needs it asks for it, so none depends on another having run first)."""
+    return Upload(*upload_one("ground", secure_fleet))
+
+
 def test_holding_the_grounds_identity_it_says_so_and_missions_are_taken(
-    secure_fleet: SecureFleet,
+    grounds_upload: Upload,
 ) -> None:
-    lines, result = upload_one("ground", secure_fleet)
+    lines, result = grounds_upload.lines, grounds_upload.result
     assert any("Zenoh: holding the ground's identity" in line for line in lines)
     assert result == mavlink2.MAV_MISSION_ACCEPTED, "\n".join(lines)
 
 
 def test_holding_a_uavs_identity_it_says_so_and_its_missions_are_refused(
-    secure_fleet: SecureFleet,
+    secure_fleet: SecureFleet, grounds_upload: Upload
 ) -> None:
+    assert grounds_upload.result == mavlink2.MAV_MISSION_ACCEPTED, "the ground's mission first"
     lines, result = upload_one("uav-112", secure_fleet)
     assert any("not the ground's identity" in line for line in lines)
-    # The routers drop its put. It must not take UAV 74's holding the previous test's
-    # mission (the same waypoint, under mission id 1) for an acknowledgement: it sees
-    # that mission (a UAV's identity may fetch the ground's targets) and chooses id 2,
-    # which no UAV acknowledges.
+    # The routers drop its put. It must not take UAV 74's holding the ground's mission
+    # (the same waypoint, under mission id 1) for an acknowledgement: it sees that
+    # mission (a UAV's identity may fetch the ground's targets) and chooses id 2, which
+    # no UAV acknowledges.
     assert any("mission 2: 1 items from MAVLink sent to (74,)" in line for line in lines), (
         "\n".join(lines)
     )
