@@ -22,6 +22,7 @@ and the CPU of each (median per instance). Needs `pip install '.[solver]'` and, 
 reference, `pip install '.[compare]'`.
 
     python -m bench.bench_plan_quality [--instances 10] [--sizes 3x8 5x20 10x50 20x100]
+        [--objectives min-sum min-max]
 """
 
 from __future__ import annotations
@@ -82,6 +83,13 @@ def main() -> None:
     parser.add_argument("--iterations", type=int, default=1500)
     parser.add_argument("--ortools-seconds", type=float, default=2.0)
     parser.add_argument("--seed", type=int, default=35)
+    parser.add_argument(
+        "--objectives",
+        nargs="+",
+        type=Objective,
+        default=[Objective.MIN_SUM, Objective.MIN_MAX],
+        help="min-sum and/or min-max (default both)",
+    )
     args = parser.parse_args()
     with_ortools = importlib.util.find_spec("ortools") is not None
     names = ["baseline", "pyvrp", "adopted"] + (["ortools"] if with_ortools else [])
@@ -103,7 +111,7 @@ def main() -> None:
     print("|---" * (2 + 2 * len(names) - 1) + "|")
     for size in args.sizes:
         uavs, targets = map(int, size.split("x"))
-        for objective in (Objective.MIN_SUM, Objective.MIN_MAX):
+        for objective in args.objectives:
             ratios: dict[str, list[float]] = {n: [] for n in names}
             cpu: dict[str, list[float]] = {n: [] for n in names if n != "adopted"}
             for k in range(args.instances):

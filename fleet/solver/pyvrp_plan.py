@@ -7,7 +7,8 @@ last target. PyVRP minimises the travel; the two objectives are reached thus:
 * `min-max`: a bisection on a bound of each route's duration (`max_distance`): the least
   bound under which PyVRP still serves every target, the plan of that bound;
 * `min-sum`: PyVRP's least-travel plan, then the project's own local search for the sum
-  of arrivals (`fleet.consensus.improve`), which PyVRP has no objective for.
+  of arrivals (`fleet.consensus.improve`), which PyVRP has no objective for, then an
+  iterated local search on that sum (`fleet.solver.min_sum_search`).
 
 Deterministic for a seed and an iteration limit (`MaxIterations`: a time limit would
 make the plan depend on the machine's speed), on one machine and build; nothing more
@@ -28,6 +29,7 @@ from fleet.consensus.improve import improve
 from fleet.consensus.queues import Legs, Queues, Times, leg_count, legs_of
 from fleet.errors import FleetError
 from fleet.mission.objective import Objective
+from fleet.solver.min_sum_search import search_min_sum
 
 __all__ = ["SolverUnavailable", "solve_queues"]
 
@@ -136,6 +138,7 @@ def solve_queues(
     queues = {uav: list(route) for uav, route in zip(uavs, best, strict=True)}
     if objective is Objective.MIN_SUM:
         queues = improve(queues, times, legs, Objective.MIN_SUM)
+        queues = search_min_sum(queues, times, legs, seed=seed)
     return queues
 
 

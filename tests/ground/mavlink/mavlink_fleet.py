@@ -50,12 +50,14 @@ class FleetUp:
 
     def mavproxy(self, port: int, state: str = "mavproxy") -> Child:
         """MAVProxy, headless (driven through its standard input), listening on UDP `port`
-        for the gateway; its state in tmp/`state`."""
+        for the gateway; its state in tmp/`state`. Unbuffered: some of what it says is
+        printed, not written to its console (which flushes), and a test that fails shows
+        it all (`wp load`'s "Loaded 3 waypoints" was missing from a failure's output)."""
         return start(
             "mavproxy",
             [sys.executable, "-m", "MAVProxy.mavproxy", f"--master=udpin:127.0.0.1:{port}",
              f"--state-basedir={self.tmp / state}"],
-            env={"HOME": str(self.tmp)},
+            env={"HOME": str(self.tmp), "PYTHONUNBUFFERED": "1"},
             stdin=True,
         )  # fmt: skip
 
