@@ -16,6 +16,13 @@ commit (right after the ground delivered the mission, while the UAVs agree) or m
 * split 2|2 or 1|3 for 10, 30 or 60 s (the ground stays with 101's side);
 * the ground's router frozen (SIGSTOP) for 15 s, or killed and restarted 15 s later.
 
+The `star-` scenarios (`star-freeze-15-mid`, ...) fly the same missions on `fleet up`'s
+default star topology instead: no UAV routers, every onboard (still in its namespace,
+with its simulator) a client of the ground's router over its veth, the one router
+everyone goes through. There the ground's router frozen or restarted (on the same port)
+cuts every UAV from every other. Star and ring scenarios cannot share a run (the layout
+is set up once per run).
+
 Measured, per mission, from the simulators' truth logs (fleet.sim.truth_log): the targets
 some UAV truly came within the reached radius of, those two UAVs flew, those none flew;
 each onboard's "reached target N" claims (its log) that its own true track does not bear
@@ -27,6 +34,8 @@ deleted at the end, on Ctrl-C or an error too.
 
 Run: sudo .venv/bin/python -m bench.bench_partition_campaign [--missions 24] [--speedup 5]
      [--scenarios split22-10-mid,freeze-15-commit] [--quick]
+     sudo .venv/bin/python -m bench.bench_partition_campaign --missions 8 --scenarios \
+     star-freeze-15-mid,star-freeze-15-commit,star-restart-15-mid,star-restart-15-commit
 """
 
 from __future__ import annotations
@@ -95,10 +104,13 @@ class Scenario:
     fault: Fault
     seconds: float
     moment: Moment
+    #: fleet.launch.topology's star: every onboard a client of the ground's router.
+    star: bool = False
 
     @property
     def name(self) -> str:
-        return f"{self.fault}-{self.seconds:g}-{self.moment}"
+        prefix = "star-" if self.star else ""
+        return f"{prefix}{self.fault}-{self.seconds:g}-{self.moment}"
 
 
 def all_scenarios() -> list[Scenario]:
@@ -113,7 +125,12 @@ def all_scenarios() -> list[Scenario]:
         for fault in (Fault.FREEZE_GROUND, Fault.RESTART_GROUND)
         for moment in (Moment.MID_QUEUE, Moment.COMMIT)
     ]
-    return splits + ground
+    star = [
+        Scenario(fault, 15.0, moment, star=True)
+        for fault in (Fault.FREEZE_GROUND, Fault.RESTART_GROUND)
+        for moment in (Moment.MID_QUEUE, Moment.COMMIT)
+    ]
+    return splits + ground + star
 
 
 QUICK = ("split22-10-mid", "freeze-15-commit", "split13-30-mid")
@@ -185,6 +202,8 @@ class Fleet:
     net: Network
     workdir: Path
     speedup: float
+    #: The star topology: no UAV routers, each onboard dials the ground's router.
+    star: bool = False
     ground_port: int = field(default_factory=lambda: free_port("127.0.0.1"))
     children: list[Child] = field(default_factory=list)
     ground_router: Child | None = None
@@ -195,11 +214,11 @@ class Fleet:
 
     @property
     def ground_connect(self) -> list[str]:
-        """The ground's router first, each UAV's router as a fallback."""
-        return [
-            f"tcp/127.0.0.1:{self.ground_port}",
-            *(f"tcp/{self.net.uav_address[u]}:{UAV_ROUTER_PORT}" for u in UAVS),
-        ]
+        """The ground's router first, each UAV's router as a fallback (ring only)."""
+        ground = f"tcp/127.0.0.1:{self.ground_port}"
+        if self.star:
+            return [ground]
+        return [ground, *(f"tcp/{self.net.uav_address[u]}:{UAV_ROUTER_PORT}" for u in UAVS)]
 
     def ground_endpoint(self, uav: int) -> str:
         """The ground's router as UAV `uav`'s router dials it."""
@@ -229,15 +248,18 @@ class Fleet:
         nexts = ring_links(list(UAVS))
         for uav in UAVS:
             namespace = self.net.namespaces[uav]
-            argv = [sys.executable, "-m", "fleet.transport.router",
-                    "--listen", f"tcp/0.0.0.0:{UAV_ROUTER_PORT}",
-                    "--connect", self.ground_endpoint(uav)]  # fmt: skip
-            for other in nexts[uav]:
-                argv += [
-                    "--connect",
-                    f"tcp/{self.net.ring_address[(uav, other)]}:{UAV_ROUTER_PORT}",
-                ]
-            self.children.append(start(f"router-{uav}", in_namespace(namespace, *argv)))
+            # The onboard's router: its UAV's own on the ring, the ground's on the star.
+            router = self.ground_endpoint(uav) if self.star else f"tcp/127.0.0.1:{UAV_ROUTER_PORT}"
+            if not self.star:
+                argv = [sys.executable, "-m", "fleet.transport.router",
+                        "--listen", f"tcp/0.0.0.0:{UAV_ROUTER_PORT}",
+                        "--connect", self.ground_endpoint(uav)]  # fmt: skip
+                for other in nexts[uav]:
+                    argv += [
+                        "--connect",
+                        f"tcp/{self.net.ring_address[(uav, other)]}:{UAV_ROUTER_PORT}",
+                    ]
+                self.children.append(start(f"router-{uav}", in_namespace(namespace, *argv)))
             sim = start(f"sim {uav}", in_namespace(namespace, sys.executable, "-m",
                 "fleet.sim.command", str(scenario), "--uav", str(uav), "--speedup",
                 f"{self.speedup:g}", "--telemetry-hz", "5",
@@ -247,7 +269,7 @@ class Fleet:
             onboard = start(f"onboard {uav}", in_namespace(namespace, sys.executable, "-m",
                 "onboard.main", "--id", str(uav), "--program", "socket://127.0.0.1:5760",
                 "--payload", "socket://127.0.0.1:5860",
-                "--connect", f"tcp/127.0.0.1:{UAV_ROUTER_PORT}"))  # fmt: skip
+                "--connect", router))  # fmt: skip
             self.children.append(onboard)
             self.onboards[uav] = onboard
 
@@ -448,7 +470,7 @@ def fly(
 
 
 HEADER = (
-    f"{'mission':>7} {'scenario':<18} {'objective':<8} {'reached':>7} {'twice':>5} "
+    f"{'mission':>7} {'scenario':<22} {'objective':<8} {'reached':>7} {'twice':>5} "
     f"{'never':>5} {'false/claims':>12} {'converge s':>10} {'epoch':>5} {'fleet says':>10}"
 )
 
@@ -456,7 +478,7 @@ HEADER = (
 def row(s: Score) -> str:
     converge = f"{s.converge_s:.1f}" if s.converge_s is not None else "never"
     return (
-        f"{s.mission:>7} {s.scenario:<18} {s.objective:<8} {s.reached:>5}/{TARGETS} "
+        f"{s.mission:>7} {s.scenario:<22} {s.objective:<8} {s.reached:>5}/{TARGETS} "
         f"{s.twice:>5} {len(s.never):>5} {s.false_claims:>5}/{s.claims:<6} "
         f"{converge:>10} {s.epoch:>5} {s.fleet_reached:>8}/{TARGETS}  {s.note}"
     )
@@ -506,12 +528,16 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         print(f"unknown scenarios {unknown}: expected some of {list(known)}", file=sys.stderr)
         return 2
+    layouts = {known[n].star for n in names}
+    if len(layouts) > 1:
+        print("star- and ring scenarios cannot share a run: run them apart", file=sys.stderr)
+        return 2
     count = len(names) if args.quick else args.missions
     plan = list(itertools.islice(itertools.cycle(names), count))
     _stop_on_sigterm()
     scores: list[Score] = []
     with tempfile.TemporaryDirectory(prefix="partition-") as tmp, network() as net:
-        fleet = Fleet(net, Path(tmp), args.speedup, logs=args.logs)
+        fleet = Fleet(net, Path(tmp), args.speedup, star=layouts == {True}, logs=args.logs)
         try:
             fleet.start()
             with zenoh.open(make_config(connect=fleet.ground_connect)) as session:

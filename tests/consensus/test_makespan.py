@@ -116,3 +116,20 @@ def test_several_starts_shorten_a_plan_one_start_leaves() -> None:
         assert several <= one.makespan() + 1e-9
         shorter += several < 0.99 * one.makespan()
     assert shorter >= 2
+
+
+def test_the_regret_insertion_of_three_queues_places_every_target_once_the_same_way() -> None:
+    """The regret insertion's starts weigh the second- and third-best queues too (regret
+    3): every target placed once, only in a queue whose UAV reaches it, the same plan
+    twice."""
+    times, legs = _instance(5, 4, 16)
+    times[104][3] = None
+    start = improve(greedy_queues(times, legs), times, legs, Objective.MIN_MAX)
+    plans = []
+    for _ in range(2):
+        search = _Search(start, times, legs)
+        assert search.build(search.span() * 0.9, 3)
+        plans.append(search.snapshot())
+    assert plans[0] == plans[1]
+    assert sorted(t for route in plans[0] for t in route[1:]) == list(range(16))
+    assert 3 not in plans[0][search.uavs.index(104)]
