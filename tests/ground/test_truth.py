@@ -148,8 +148,20 @@ def test_a_commitment_thinner_than_what_the_teammates_hold_is_not_adopted(
     report = json.loads(out)
     for uav in slow:  # neither took it as its own: each committed on what it held
         assert seen.assignments[uav].team != (first,), f"UAV {uav} adopted a thin commitment"
-    assert report["agreed"] is False and report["disagreed"], err  # visibly
-    assert status == 1, err
+    # The thin plan then loses to the one built on more results (a plan of two sides is
+    # merged so): its UAV re-bases onto the teammates' plan and the team ends on one.
+    wait_until(
+        lambda: (
+            seen.assignments[first].team == tuple(sorted(team))
+            and len({seen.assignments[uav].digest for uav in team}) == 1
+        ),
+        60.0,
+        f"UAV {first} re-based onto its teammates' plan",
+    )
+    # Whether `send-targets` still watched when it did: its verdict says what it saw.
+    if not report["agreed"]:
+        assert report["disagreed"], err  # visibly
+    assert status == (0 if report["agreed"] else 1), err
 
 
 # An operator re-tasking a UAV in flight: in memory, tests/ground/test_truth_in_memory.py.
