@@ -51,13 +51,21 @@ def test_onboard_refuses_counts_and_keeps_flying(fleet: Fleet, ground: Ground) -
             for payload in (NESTED, HUGE):
                 # Blocking: a large put may otherwise be dropped when the queue is full.
                 session.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK)
-        session.put(SPACE.mission_result(5, 74), encode(UavResult(5, 112, (1.0,))))
-        session.put(SPACE.mission_targets(6), b'{"mission": "six"}')
+        # Blocking too: behind the large puts, a small one may otherwise be dropped, and
+        # the drop it should cause never counted.
+        block = zenoh.CongestionControl.BLOCK
+        result = encode(UavResult(5, 112, (1.0,)))
+        session.put(SPACE.mission_result(5, 74), result, congestion_control=block)
+        session.put(SPACE.mission_targets(6), b'{"mission": "six"}', congestion_control=block)
         for payload in (NESTED, HUGE):
             replies = list(session.get(SPACE.command(112, "waypoint"), payload=payload, timeout=5))
             assert replies and replies[0].err is not None  # refused, with the reason
         expected = {"bus_too_deep", "bus_too_large", "bus_wrong_key", "bus_invalid"}
-        wait_until(lambda: expected <= set(bus_drops(ground, 112)), 20.0, "the drops counted")
+        wait_until(
+            lambda: expected <= set(bus_drops(ground, 112)),
+            20.0,
+            f"the drops counted: {sorted(expected)}",
+        )
     finally:
         token.undeclare()
     assert onboard.process.poll() is None
