@@ -98,25 +98,23 @@ def candidates(base: AssignmentReport, released: Iterable[int]) -> tuple[int, ..
 
 def replan_digest(base_digest: str, released: Iterable[int]) -> str:
     """16 hex digits identifying (epoch-0 results, released set); the base's at epoch 0."""
-    gone = sorted(set(released))
-    if not gone:
-        return base_digest
-    h = sha256(_REPLAN_VERSION)
-    h.update(base_digest.encode("ascii", "replace"))
-    for uav in gone:
-        h.update(uav.to_bytes(2, "little"))
-    return h.hexdigest()[:16]
+    return _with_uavs(_REPLAN_VERSION, base_digest, released)
 
 
 def finished_digest(digest: str, finished: Iterable[int]) -> str:
     """`digest` with the finished survivors an epoch's orphans avoided; `digest` itself
     when there are none (the plan does not depend on them)."""
-    done = sorted(set(finished))
-    if not done:
+    return _with_uavs(_FINISHED_VERSION, digest, finished)
+
+
+def _with_uavs(version: bytes, digest: str, uavs: Iterable[int]) -> str:
+    """`digest` extended by a set of UAVs under `version`; `digest` itself when empty."""
+    ids = sorted(set(uavs))
+    if not ids:
         return digest
-    h = sha256(_FINISHED_VERSION)
+    h = sha256(version)
     h.update(digest.encode("ascii", "replace"))
-    for uav in done:
+    for uav in ids:
         h.update(uav.to_bytes(2, "little"))
     return h.hexdigest()[:16]
 
