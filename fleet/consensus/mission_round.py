@@ -667,15 +667,31 @@ class MissionRound:
         new = self.membership.leave(uavs)
         if self.base is None:
             return False
-        return bool(new & set(self.base.team))
+        # A UAV counted in since epoch 0 may hold targets of a resolved plan: its going
+        # is a new epoch like a base UAV's (it was in: `leave` changes only those).
+        return any(uav in self.base.team or self.membership.back.get(uav) for uav in new)
 
     def rejoin(self, uavs: Iterable[int]) -> bool:
-        """Team UAVs out of the mission came back (alive again): in again from the next
-        epoch. True if that changes the re-plan input."""
+        """Team UAVs out of the mission came back (alive again), or UAVs the epoch-0 plan
+        was built without are counted in (a side that re-based onto this plan after a
+        heal, `joinable`): in from the next epoch, which solves what is left with their
+        standings (`survivors`). True if that changes the re-plan input."""
+        uavs = tuple(uavs)
         back = self.membership.come_back(uavs)
         if self.base is None:
             return False
-        return bool(back & set(self.base.team))
+        base_team = set(self.base.team)
+        joined = self.membership.join(uav for uav in uavs if uav not in base_team)
+        return bool(back or joined)
+
+    def joinable(self, uav: int) -> bool:
+        """`uav` is a team UAV the plan was built without, never counted in or out since:
+        counted in by `rejoin` when it stands for this plan (it re-based onto it)."""
+        base = self.base
+        if base is None or uav not in self.team or uav in base.team:
+            return False
+        membership = self.membership
+        return not membership.left.get(uav) and not membership.back.get(uav)
 
     def counted_out(self, report: AssignmentReport) -> set[int]:
         """The team UAVs a teammate's report counts out of the mission."""
@@ -808,9 +824,19 @@ class MissionRound:
 
     @staticmethod
     def survivors(fallback: AssignmentReport) -> tuple[int, ...]:
-        """The UAVs taking part in a re-plan: its team, less the released."""
+        """The UAVs taking part in a re-plan: its team, less the released, and the UAVs
+        outside its team counted in since (`rejoin`: counted back, not out again). Those
+        hold nothing in the append plan (it is epoch 0's, whose times they lack); they
+        take part in the plan solved again from the standings."""
+        left, back = report_counts(fallback.released, fallback.left, fallback.back)
         gone = set(fallback.released)
-        return tuple(sorted(uav for uav in fallback.team if uav not in gone))
+        return tuple(
+            sorted(
+                uav
+                for uav in set(fallback.team) | back.keys()
+                if uav not in gone and left.get(uav, 0) <= back.get(uav, 0)
+            )
+        )
 
     def missing_standings(self) -> tuple[int, ...]:
         """Survivors whose standing for the plan `stands_for` this UAV lacks."""
