@@ -29,6 +29,7 @@ from fleet.consensus.mission_round import (
     predicted_arrival,
     targets_problem,
 )
+from fleet.consensus.proposal import ProposalRefused
 from fleet.mission import claims
 from fleet.mission.key_space import KeySpace
 from fleet.mission.lifecycle import Observation, advance
@@ -45,6 +46,7 @@ from fleet.mission.phase import Phase
 from fleet.mission.recent_ids import RecentIds
 from fleet.mission.status_kind import StatusKind
 from fleet.transport.bus_codec import DROPPED, DropReason
+from fleet.transport.refusal_log import RefusalLog
 from onboard.approach_plan import ApproachPlan
 from onboard.catch_up import CatchUp
 from onboard.link_watch import LINK_LOST_S, LinkWatch
@@ -57,6 +59,8 @@ from onboard.target_flight import FlightNews, TargetFlight
 from onboard.team_presence import TeamPresence
 
 log = logging.getLogger(__name__)
+#: Proposals refused as they arrive: a hostile teammate may send them as fast as it likes.
+_refusals = RefusalLog(log)
 
 #: Results for missions not seen yet are kept, at most this many, for when they start.
 MAX_EARLY_RESULTS = 256
@@ -389,9 +393,21 @@ class MissionParticipation:
 
     def on_proposal(self, proposal: PlanProposal, now: float) -> None:
         """A plan proposed for the current mission: kept for the decision, which
-        verifies and scores it (fleet.consensus.proposal); after it, changes nothing."""
+        verifies and scores it (fleet.consensus.proposal); after it, changes nothing.
+        One from a proposer the mission does not entitle is refused and counted, before
+        or after the decision (its signature only says who wrote it)."""
         mission_round = self.round
-        if mission_round is not None and mission_round.add_proposal(proposal):
+        if mission_round is None or proposal.mission != mission_round.mission:
+            return
+        why = mission_round.right_problem(proposal)
+        if why is not None:
+            DROPPED.add(ProposalRefused.NO_RIGHT)
+            _refusals.warn(
+                f"mission {proposal.mission}: the plan proposed by {proposal.proposer} "
+                f"refused: {why}"
+            )
+            return
+        if mission_round.add_proposal(proposal):
             log.info(
                 "mission %d: a plan proposed by %d, to verify at the decision",
                 proposal.mission,

@@ -45,7 +45,13 @@ from fleet.consensus.mission_change import (
     planned_count,
 )
 from fleet.consensus.objectives import plan_digest, plan_queues
-from fleet.consensus.proposal import choose, proposal_digest, proposal_problem
+from fleet.consensus.proposal import (
+    awaited_proposers,
+    choose,
+    proposal_digest,
+    proposal_problem,
+    right_problem,
+)
 from fleet.consensus.queues import UNREACHABLE
 from fleet.consensus.replan import candidates, finished_digest, missing_times, replan
 from fleet.consensus.report_checks import (
@@ -406,19 +412,30 @@ class MissionRound:
             return False
         if now >= self.deadline:
             return True
-        return not self.missing(alive) and not self.awaiting_proposal(now)
+        return not self.missing(alive) and not self.awaiting_proposal(now, alive)
 
-    def awaiting_proposal(self, now: float) -> bool:
-        """The mission expects a proposed plan (`proposals_s`), no valid one came yet
-        (from each proposer the mission names, if it names any), and its window is
-        still open: the decision waits for it (an invalid proposal does not close the
-        window; fleet.consensus.proposal)."""
+    def awaiting_proposal(self, now: float, alive: set[int] | None = None) -> bool:
+        """The mission expects a proposed plan (`proposals_s`), its window is still open,
+        and a proposal that could be adopted now is still to come: a valid one from each
+        proposer the mission names and entitles (a named UAV outside the team is not
+        waited for), or any valid one if it names none. A decision that would leave a
+        team UAV out (gone by `alive`; None: every team UAV alive) waits for none: each
+        proposal is solved from every team UAV's result, so none could be adopted
+        (fleet.consensus.proposal). An invalid proposal does not close the window."""
         window = self.targets.proposals_s
         if window <= 0.0 or now >= self.started + window:
             return False
+        gone = self.team - alive - {self.own_id} if alive is not None else frozenset()
+        awaited = awaited_proposers(self.targets.proposers, self.team, gone)
+        if awaited is not None and not awaited:
+            return False
         if not self.proposals:
             return True
-        used = {uav: result.times for uav, result in self.results.items()}
+        used = {
+            uav: result.times
+            for uav, result in self.results.items()
+            if alive is None or uav in alive or uav == self.own_id
+        }
         legs = self.air_legs(used)
         inputs = self.results_digest(used)
         objective = self.targets.objective
@@ -429,13 +446,19 @@ class MissionRound:
         }
         # Named proposers: every one's valid proposal, so that every UAV chooses among
         # the same ones (the first to come would differ from UAV to UAV).
-        named = set(self.targets.proposers)
-        return not named <= valid if named else not valid
+        return not awaited <= valid if awaited is not None else not valid
+
+    def right_problem(self, proposal: PlanProposal) -> str | None:
+        """Why `proposal`'s proposer may not propose for this mission; None if it may."""
+        return right_problem(proposal.proposer, self.targets.proposers, self.team)
 
     def add_proposal(self, proposal: PlanProposal) -> bool:
         """Keep a proposed plan for this round's decision; False if it is another
-        mission's or came after the commitment (a late proposal changes nothing)."""
+        mission's, from a proposer the mission does not entitle (`right_problem`), or
+        came after the commitment (a late proposal changes nothing)."""
         if proposal.mission != self.mission or self.committed is not None:
+            return False
+        if self.right_problem(proposal) is not None:
             return False
         self.proposals[proposal.proposer] = proposal
         return True
