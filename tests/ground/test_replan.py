@@ -66,13 +66,21 @@ def local_targets(points: Sequence[tuple[float, float]]) -> tuple[Target, ...]:
     return tuple(Target(*plane.to_latlon(x, y), 600.0) for x, y in points)
 
 
+def ring_committed(
+    fleet: Fleet, ground: Ground, tmp_path: Path, count: int, targets: tuple[Target, ...]
+) -> list[int]:
+    """`count` UAVs on a ring, `targets` sent and committed by all; the team."""
+    team = start_ring(fleet, ground, tmp_path, count, SPEEDUP, telemetry_hz=5.0)
+    send_and_commit(ground, tmp_path, team, targets)
+    return team
+
+
 def commit_ring(
     fleet: Fleet, ground: Ground, tmp_path: Path, count: int, n_targets: int
 ) -> tuple[list[int], dict[int, int]]:
     """`count` UAVs on a ring, a mission of `n_targets` sent and committed by all; the
     team and the holders (UAV -> target)."""
-    team = start_ring(fleet, ground, tmp_path, count, SPEEDUP, telemetry_hz=5.0)
-    send_and_commit(ground, tmp_path, team, ring_targets(n_targets, seed=7))
+    team = ring_committed(fleet, ground, tmp_path, count, ring_targets(n_targets, seed=7))
     pairs = ground.seen.assignments[team[0]].pairs
     return team, {int(uav): target for uav, target in pairs.items()}
 
@@ -273,10 +281,9 @@ FINISHER_TARGETS = ((-700.0, 1500.0), (-1700.0, 1700.0), (1699.0, -57.0))
 def test_a_finished_uav_killed_then_a_holder_killed_every_orphan_is_flown_by_a_live_uav(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    team = start_ring(fleet, ground, tmp_path, 3, SPEEDUP, telemetry_hz=5.0)
-    seen = ground.seen
     targets = local_targets(FINISHER_TARGETS)
-    send_and_commit(ground, tmp_path, team, targets)
+    team = ring_committed(fleet, ground, tmp_path, 3, targets)
+    seen = ground.seen
     holders = {int(uav): target for uav, target in seen.assignments[team[0]].pairs.items()}
     assert holders == {101: 0, 102: 2, 103: 1}, holders
     finisher, holder, survivor = 101, 103, 102
@@ -322,10 +329,9 @@ A, B, C, D = range(4)
 def test_an_onboard_restarted_after_10_s_rejoins_and_flies_the_target_it_is_best_for(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    team = start_ring(fleet, ground, tmp_path, 3, SPEEDUP, telemetry_hz=5.0)
-    seen = ground.seen
     targets = local_targets(RESTART_TARGETS)
-    send_and_commit(ground, tmp_path, team, targets)
+    team = ring_committed(fleet, ground, tmp_path, 3, targets)
+    seen = ground.seen
     first = seen.assignments[team[0]]
     assert dict(first.queues) == {101: (A, B), 102: (C,), 103: (D,)}, first.queues
     victim, others = 101, (102, 103)
