@@ -21,7 +21,7 @@ from tests.ground.mavlink.mavlink_fleet import (
     served_port,
     stop,
 )
-from tests.ground.mavlink.stations import receiver
+from tests.ground.mavlink.stations import WAIT_S, receiver
 from tests.support.ground_view import GroundView
 from tests.support.processes import client_session
 from tests.support.waiting import wait_until
@@ -29,7 +29,6 @@ from tests.support.waiting import wait_until
 pytestmark = pytest.mark.e2e
 
 UAVS = (101, 102, 103)
-WAIT_S = 60.0
 
 
 @pytest.fixture(scope="module")

@@ -29,13 +29,12 @@ from tests.ground.mavlink.mavlink_fleet import (
     served_port,
     stop,
 )
-from tests.ground.mavlink.stations import receiver
+from tests.ground.mavlink.stations import WAIT_S, receiver
 from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
 
 UAVS = (101, 102)
-WAIT_S = 60.0
 PASSPHRASE = "correct horse battery staple"
 
 
