@@ -694,6 +694,8 @@ class MissionParticipation:
             self._expire(now)
         self._stand_with_teammates(now)
         if mission_round.committed is not None:
+            if mission_round.ask_if_thin(now, self.team.alive):
+                self.outputs.fetch_assignments(mission_round.mission)
             return
         if self.proposer is not None:
             proposal = self.proposer.tick(mission_round, now)

@@ -100,6 +100,12 @@ ASK_GRACE_S = 0.5
 STANDINGS_WAIT_S = 3.0
 #: Standings are kept for this many epochs' bases at most (the newest).
 STANDING_BASES = 8
+#: A UAV that committed on a plan built without some live teammates' results asks the
+#: team what it decided this often (s), at most THIN_ASKS times a basis: a stronger plan
+#: of theirs is re-based onto (fleet.consensus.heal). Their epoch-0 commitments are not
+#: heard live, and without a later re-plan nothing else would tell it.
+THIN_ASK_S = 2.0
+THIN_ASKS = 15
 
 
 @dataclass(frozen=True, slots=True)
@@ -226,6 +232,9 @@ class MissionRound:
     #: The append plans (digests) whose missing standings this UAV asked for by query
     #: (once each, FETCH_INTERVAL into the wait: `standings_to_fetch`).
     standings_asked: set[str] = field(default_factory=set)
+    #: The basis (epoch-0 team) this UAV last asked about as thin (`ask_if_thin`), when,
+    #: and how often.
+    thin_asked: tuple[tuple[int, ...], float, int] | None = None
 
     def __post_init__(self) -> None:
         self.team = team_set(self.targets.team)
@@ -497,6 +506,23 @@ class MissionRound:
         decide alone once the grace ran out."""
         if self.committed is None:
             self.resumed = True
+
+    def ask_if_thin(self, now: float, alive: set[int]) -> bool:
+        """Whether to ask the team what it decided now: this UAV follows a plan built
+        without some teammates alive here (a thin commitment after a deadline), every
+        THIN_ASK_S, THIN_ASKS times for one basis at most (a teammate that never commits
+        is not asked about forever)."""
+        basis = self.basis_team
+        if basis is None or not (self.team & alive) - set(basis) - {self.own_id}:
+            return False
+        if self.thin_asked is not None and self.thin_asked[0] == basis:
+            _, at, count = self.thin_asked
+            if count >= THIN_ASKS or now - at < THIN_ASK_S:
+                return False
+            self.thin_asked = (basis, now, count + 1)
+            return True
+        self.thin_asked = (basis, now, 1)
+        return True
 
     def asking(self, now: float) -> bool:
         """Still waiting for the answers to the question `must_ask` called for."""

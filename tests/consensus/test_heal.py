@@ -6,8 +6,10 @@ from __future__ import annotations
 
 from itertools import permutations
 
+import msgspec
+
 from fleet.consensus.heal import Rank, rank
-from fleet.consensus.mission_round import MissionRound
+from fleet.consensus.mission_round import THIN_ASK_S, THIN_ASKS, MissionRound
 from fleet.mission.messages import (
     AssignmentHeader,
     AssignmentReport,
@@ -173,3 +175,25 @@ def test_the_side_rebased_onto_a_plan_built_without_it_is_counted_in_and_takes_p
     followed = loser.follow(plan)
     assert followed is not None and followed.digest == plan.digest
     assert winners[0].release((104,))
+
+
+def test_a_thin_commitment_asks_the_team_what_it_decided_until_its_basis_holds_the_live() -> None:
+    """Teammates' epoch-0 commitments are not heard live: a UAV that committed without
+    live teammates' results asks for them, every THIN_ASK_S and THIN_ASKS times a basis
+    at most, so that a stronger plan of theirs reaches it with no later re-plan."""
+    thin = _side(101, (101,))
+    alive = set(TEAM)
+    assert thin.ask_if_thin(0.0, alive)
+    assert not thin.ask_if_thin(THIN_ASK_S / 2, alive)  # not every tick
+    asked = 1 + sum(thin.ask_if_thin(THIN_ASK_S * k, alive) for k in range(1, 3 * THIN_ASKS))
+    assert asked == THIN_ASKS  # bounded: a teammate that never commits is not asked forever
+    # Teammates gone (a partition): nobody to ask.
+    assert not _side(101, (101,)).ask_if_thin(0.0, {101})
+    # A plan built on every live teammate's result is not thin.
+    assert not _side(103, TEAM).ask_if_thin(0.0, alive)
+    # Re-based onto the stronger plan: its basis holds every live UAV, no more asking.
+    strong = _side(103, TEAM)
+    assert strong.committed is not None
+    rebased = thin.rebase(msgspec.structs.replace(strong.committed, uav=103))
+    assert rebased is not None
+    assert not thin.ask_if_thin(1000.0, alive)
