@@ -20,11 +20,11 @@ each UAV) with `--objective min-sum`, so each UAV flies a queue, and prints ever
 every queue: the time of the plan in force when the leg began (`plan`: the first plan,
 or a re-plan in the air of its time, `epoch` > 0: docs/queues.md), the UAV's time said
 as it began the leg (`begun`: in the air of that moment) and the time flown, with each
-one's error and their median and worst; and, for each leg after a queue's first, `true wind`: the plan's leg
-model (its airspeed, the turn its queue makes) in the simulator's true mean wind at the
-middle of the leg as flown (`fleet.sim.weather`'s drift, without gusts or the estimate's
-lag and bias), which tells the model's error from the wind's change. About 750 / K wall
-seconds a run.
+one's error and their median and worst; and, for each leg after a queue's first, `true
+wind`: the plan's leg model (its airspeed, the turn its queue makes) in the simulator's
+true mean wind at the middle of the leg as flown (`fleet.sim.weather`'s drift, without
+gusts or the estimate's lag and bias), which tells the model's error from the wind's
+change. About 750 / K wall seconds a run.
 
 `--wind W ...` flies the scenario with its mean wind at each speed W (m/s, from the
 west; drift, gusts and the estimate's lag and bias as shipped) and `--airspeeds A A A`
