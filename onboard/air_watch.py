@@ -9,8 +9,8 @@ and says when the UAV should ask its team for a re-plan in the air of now (an ep
 its own, fleet.consensus.membership `asked`), so gusts never make one:
 
 * the air now is the module's smoothed air averaged again over `average_s` of the
-  aircraft's clock: at real time the 20 s average still wanders ~0.4 m/s with this
-  fleet's scenario gusts (0.8 m/s, 5 s), and a re-plan is for the weather's drift;
+  aircraft's clock: at real time the 20 s average still wanders ~0.4 m/s in the `windy`
+  scenario's gusts (0.8 m/s, 5 s), and a re-plan is for the weather's drift;
 * the change must exceed `change_mps` (the wind as a vector, or the airspeed), and stay
   above `clear_mps` (hysteresis) for `dwell_s` of the aircraft's clock: a gust that the
   averages let through for a few seconds is not a change of the weather;
