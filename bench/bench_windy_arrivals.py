@@ -71,6 +71,9 @@ from fleet.sim.weather import Weather
 from tests.support.processes import start_fleet_up, wait_fleet_up
 from tests.support.targets import windy_nine_csv
 
+#: Where each run's recording is copied (`--keep DIR`); None: not kept.
+KEEP: list[str | None] = [None]
+
 #: Where each UAV's target lies from it, in the scenario's wind (docs/simulator.md).
 WHERE = {"201": "upwind", "202": "downwind", "203": "across"}
 
@@ -262,6 +265,10 @@ def _mission(
         if report.returncode != 0:
             raise RuntimeError(f"fleet report failed: {report.stderr[-2000:]}")
         found: dict[str, Any] = json.loads(report.stdout)
+        if KEEP[0] is not None:  # the recording kept for a closer look
+            kept = Path(KEEP[0]) / f"{dynamics}-{int(time.time())}.mcap"
+            kept.write_bytes((logs / "fleet.mcap").read_bytes())
+            print(f"recording kept: {kept}", flush=True)
         if nine or estimate:
             scenario = load_scenario(scenario_path)
             timeline = build_timeline(read_recording(logs / "fleet.mcap").messages)
@@ -363,7 +370,9 @@ def main() -> None:
     parser.add_argument(
         "--estimate", action="store_true", help="each result's wind against the simulator's"
     )
+    parser.add_argument("--keep", metavar="DIR", help="copy each run's recording into DIR")
     args = parser.parse_args()
+    KEEP[0] = args.keep
     speeds = None if args.airspeeds is None else tuple(args.airspeeds)
     airs = [Air3(wind, speeds) for wind in args.wind] if args.wind else [Air3(None, speeds)]
     if args.nine:
