@@ -6,7 +6,9 @@ decides. The ground waits for the team's results, solves the queues from them wi
 PyVRP as any proposer does (`fleet.solver.proposer`) and publishes a `PlanProposal`,
 signed like every command of the ground. Every UAV verifies and scores it, and adopts it
 only if it is valid and better than the baseline (fleet.consensus.proposal). The page
-(`ground-cli gui`, "propose a plan") proposes through the same `propose_when_results`.
+(`ground-cli gui`, "propose a plan") proposes through the same `propose_when_results`,
+and names UAV proposers (`send-targets --proposers`, the page's "UAV proposers" field)
+through the same `named_proposers`.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from fleet.mission.key_space import KeySpace
@@ -27,6 +30,7 @@ from ground.mission_follower import MissionFollower
 __all__ = [
     "DEFAULT_WINDOW_S",
     "ProposalAttempt",
+    "named_proposers",
     "proposal_window",
     "propose",
     "propose_when_results",
@@ -48,6 +52,20 @@ def propose(
     bus.publish(space.mission_proposal(targets.mission), proposal)
     log.info("mission %d: plan proposed (%.2f s of CPU)", targets.mission, spent)
     return proposal, spent
+
+
+def named_proposers(propose: bool, uavs: Sequence[int], team: Sequence[int]) -> tuple[int, ...]:
+    """Who a mission sent to `team` names as its proposers: the UAVs that propose a plan
+    on board (each started with `--propose`), and the ground too when it proposes as
+    well. The ground proposing alone names none: the UAVs then take the ground's
+    proposal alone. ValueError for a UAV outside the team: it holds no round to solve
+    from, and the UAVs would refuse its plan."""
+    outside = [uav for uav in uavs if uav not in team]
+    if outside:
+        which = ", ".join(map(str, outside))
+        raise ValueError(f"UAV proposer {which} is not in the team ({', '.join(map(str, team))})")
+    named = tuple(dict.fromkeys(uavs))
+    return (*named, MISSION_MANAGER) if named and propose else named
 
 
 def proposal_window(objective: Objective, deadline_s: float) -> tuple[float, float]:

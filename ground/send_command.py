@@ -18,7 +18,6 @@ from fleet.consensus.deadline import consensus_deadline
 from fleet.consensus.proposal import adoption
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
-    MISSION_MANAGER,
     AssignmentReport,
     MissionTargets,
     NoFlyZone,
@@ -39,7 +38,7 @@ from ground.mission_follower import Listener, MissionFollower
 from ground.mission_ids import TargetsServer, claim_mission, contest_grace_s
 from ground.mission_outcome import MissionOutcome, check_agreement
 from ground.mission_summary import summary_lines
-from ground.propose import proposal_window, propose_when_results
+from ground.propose import named_proposers, proposal_window, propose_when_results
 from ground.targets_command import read_or_say
 from ground.zones_command import zones_or_say
 
@@ -151,9 +150,11 @@ def run_send_targets(bus: Bus, options: SendOptions, out: TextIO) -> int:
     proposals_s = 0.0
     # Named when UAVs propose: the UAVs then wait for each one's proposal (within the
     # window), so that they all choose among the same ones.
-    proposers: tuple[int, ...] = options.proposers
-    if options.proposers and options.propose:
-        proposers = (*options.proposers, MISSION_MANAGER)
+    try:
+        proposers = named_proposers(options.propose, options.proposers, team)
+    except ValueError as error:
+        print(f"error: {error}; nothing sent", file=sys.stderr)
+        return ExitCode.FAILED
     if options.propose or options.proposers:
         if options.objective is Objective.GREEDY:
             flag = "--propose" if options.propose else "--proposers"

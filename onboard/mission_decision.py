@@ -16,8 +16,10 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from fleet.consensus.mission_round import MissionRound
+from fleet.consensus.proposal import ProposalRefused
 from fleet.mission.messages import AssignmentReport
 from fleet.mission.status_kind import StatusKind
+from fleet.transport.bus_codec import DROPPED
 from onboard.state_report import Say
 from onboard.team_presence import TeamPresence
 
@@ -70,6 +72,7 @@ class MissionDecision:
         missing = mission_round.missing(self.team.alive)
         report = mission_round.decide(self.team.alive)
         for proposer, why in sorted(mission_round.refused_proposals.items()):
+            DROPPED.add(ProposalRefused.INVALID)
             log.warning(
                 "mission %d: the plan proposed by %d refused: %s",
                 mission_round.mission,

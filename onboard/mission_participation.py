@@ -31,6 +31,7 @@ from fleet.consensus.mission_round import (
     predicted_arrival,
     targets_problem,
 )
+from fleet.consensus.proposal import ProposalRefused
 from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.wind import Wind
 from fleet.mission import claims
@@ -49,6 +50,7 @@ from fleet.mission.phase import Phase
 from fleet.mission.recent_ids import RecentIds
 from fleet.mission.status_kind import StatusKind
 from fleet.transport.bus_codec import DROPPED, DropReason
+from fleet.transport.refusal_log import RefusalLog
 from onboard.air_watch import AirWatch, FlyingAir
 from onboard.approach_plan import ApproachPlan
 from onboard.catch_up import CatchUp
@@ -62,6 +64,8 @@ from onboard.target_flight import FlightNews, TargetFlight
 from onboard.team_presence import TeamPresence
 
 log = logging.getLogger(__name__)
+#: Proposals refused as they arrive: a hostile teammate may send them as fast as it likes.
+_refusals = RefusalLog(log)
 
 #: Results for missions not seen yet are kept, at most this many, for when they start.
 MAX_EARLY_RESULTS = 256
@@ -117,6 +121,9 @@ class MissionParticipation:
     #: Whether the air moved away from the air the plan in force times this UAV's legs
     #: in (onboard.air_watch): it then asks its team for a re-plan in the air of now.
     air: AirWatch = field(default_factory=AirWatch)
+    #: Re-based onto a plan built without it (fleet.consensus.heal), and not counted in
+    #: yet: it stands for each plan it follows until one counts it in (`_ask_to_join`).
+    _joining: bool = False
 
     def __post_init__(self) -> None:
         self.catch_up = CatchUp(self.outputs, lambda: self.round.mission if self.round else None)
@@ -225,6 +232,7 @@ class MissionParticipation:
         self.own.stood.clear()
         self._teammates_basis = None
         self.air.follow(None, self._aircraft_clock())
+        self._joining = False
         self.flight.zones = targets.zones
         self.life.observe(Observation.MISSION_STARTED)
         self.own.plan.forget()
@@ -284,6 +292,7 @@ class MissionParticipation:
         mission_round = self.round
         if mission_round is None or standing.uav == self.uav_id:
             return
+        self._count_in(standing, now)
         if mission_round.add_standing(standing):
             self._resolve_ready(now)
             if mission_round.take_asked(standing.uav, standing.asked):
@@ -302,12 +311,31 @@ class MissionParticipation:
                 self._teammates_basis = standing.basis
                 self._stand_with_teammates(now)
 
+    def _count_in(self, standing: UavResult, now: float) -> None:
+        """A standing from a team UAV the plan followed was built without: a UAV that
+        re-based onto it after a heal (fleet.consensus.heal) says where it stands, alive
+        and with telemetry. It is counted in as a rejoining UAV is (`_rejoin`): the next
+        epoch solves what is left with it taking part. A standing with no time (a UAV
+        that takes no more targets) counts nobody in."""
+        mission_round = self.round
+        if mission_round is None or mission_round.committed is None:
+            return
+        if not mission_round.resolving or standing.mission != mission_round.mission:
+            return
+        uav = standing.uav
+        if not mission_round.joinable(uav) or uav not in self.team.alive:
+            return
+        if not any(t is not None for t in standing.times):
+            return
+        self._count_back(uav, now, f"UAV {uav} re-based onto this plan; re-planning with it")
+
     def _stand_with_teammates(self, now: float) -> None:
         """Following its teammates' epochs, this UAV cannot compute the append plan they
         wait on (it lacks epoch 0), but their standings name it: it gives its own for it,
         so that they solve the re-plan with it (a UAV back from a restart) without
         waiting STANDINGS_WAIT_S for the append plan, which it would then follow and only
-        then stand for. A standing for a plan that does not count it in is ignored."""
+        then stand for. A standing for a plan that does not count it in is ignored, unless
+        the plan was built without it: then it counts it in (`_count_in`)."""
         basis = self._teammates_basis
         mission_round = self.round
         if basis is None or mission_round is None or basis in self.own.stood:
@@ -387,9 +415,21 @@ class MissionParticipation:
 
     def on_proposal(self, proposal: PlanProposal, now: float) -> None:
         """A plan proposed for the current mission: kept for the decision, which
-        verifies and scores it (fleet.consensus.proposal); after it, changes nothing."""
+        verifies and scores it (fleet.consensus.proposal); after it, changes nothing.
+        One from a proposer the mission does not entitle is refused and counted, before
+        or after the decision (its signature only says who wrote it)."""
         mission_round = self.round
-        if mission_round is not None and mission_round.add_proposal(proposal):
+        if mission_round is None or proposal.mission != mission_round.mission:
+            return
+        why = mission_round.right_problem(proposal)
+        if why is not None:
+            DROPPED.add(ProposalRefused.NO_RIGHT)
+            _refusals.warn(
+                f"mission {proposal.mission}: the plan proposed by {proposal.proposer} "
+                f"refused: {why}"
+            )
+            return
+        if mission_round.add_proposal(proposal):
             log.info(
                 "mission %d: a plan proposed by %d, to verify at the decision",
                 proposal.mission,
@@ -455,6 +495,7 @@ class MissionParticipation:
             f"(ours on {ours})"
         )
         self.say(StatusKind.ADOPTED, text, now, mission=report.mission)
+        self._joining = True
         self._apply(rebased, now)
 
     def _merge_membership(self, mission_round: MissionRound, report: AssignmentReport) -> bool:
@@ -620,15 +661,18 @@ class MissionParticipation:
             return
         if mission_round.mission in self._aborted or uav not in mission_round.released:
             return
-        if self._dropped(uav):
+        self._count_back(uav, now, f"UAV {uav} is back; re-planning with it")
+
+    def _count_back(self, uav: int, now: float, why: str) -> None:
+        """Count `uav` in again (back from a loss, or in a plan built without it): a new
+        epoch, re-planned with it taking part."""
+        mission_round = self.round
+        assert mission_round is not None
+        if mission_round.mission in self._aborted or self._dropped(uav):
             return  # it said it failed or lost its link: alive is not able
         if mission_round.rejoin((uav,)):
-            self.say(
-                StatusKind.REPLANNED,
-                f"mission {mission_round.mission}: UAV {uav} is back; re-planning with it",
-                now,
-                mission=mission_round.mission,
-            )
+            text = f"mission {mission_round.mission}: {why}"
+            self.say(StatusKind.REPLANNED, text, now, mission=mission_round.mission)
             self._replan(now)
         self._settle()
 
@@ -793,6 +837,11 @@ class MissionParticipation:
                 self._stand(now)  # an append plan: solved again once every standing is in
         self._ask_teammates_standings(report)
         self._follow_air()
+        self._fly_plan(report, now)
+        self._ask_to_join(report, now)  # once off its old target: it flies none now
+
+    def _fly_plan(self, report: AssignmentReport, now: float) -> None:
+        """Fly what the plan followed now says this UAV flies."""
         flight = self.flight
         # The first target of its queue not reached yet: a re-plan keeps a UAV's current
         # target first unless the objective gains, and one done with its queue takes the
@@ -892,6 +941,21 @@ class MissionParticipation:
         )
         self._replan(now)
         self._settle()
+
+    def _ask_to_join(self, report: AssignmentReport, now: float) -> None:
+        """Re-based onto a plan it takes no part in (the winning side's plan was built
+        without it), this UAV gives its standing for it: the UAVs that hold the plan's
+        epoch 0 count it in on it (`_count_in`), as they count in a UAV back from a loss,
+        and the next epoch solves what is left with it. Without this, it would stay idle
+        until some other loss or return made a re-plan."""
+        if not self._joining:
+            return
+        mission_round = self.round
+        if mission_round is None or self.uav_id in MissionRound.survivors(report):
+            self._joining = False  # counted in (or it holds epoch 0 again): done
+            return
+        self._teammates_basis = report.digest
+        self._stand_with_teammates(now)
 
     def fly_next(self, now: float) -> None:
         """Its target reached: on to the next target of its queue no UAV reached yet."""

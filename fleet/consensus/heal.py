@@ -14,7 +14,10 @@ from the same two reports whatever the order they arrive in:
 A UAV whose plan loses re-bases onto the winner (`fleet.consensus.mission_round`,
 `MissionRound.rebase`): it follows the winner's epochs, keeps the targets reached (an
 arrival is a fact) and gives its fresh standing for the winner's next re-plan, which
-then counts it in. A report of a losing plan changes nothing for a UAV on the winner.
+then counts it in. A UAV the winner's plan was built without (`MissionRound.joinable`)
+stands for that plan at once, and the UAVs holding its epoch 0 count it in as they
+count in a UAV back from a loss (`MissionRound.rejoin`): a new epoch, solved again with
+it taking part. A report of a losing plan changes nothing for a UAV on the winner.
 
 Pure: no I/O.
 """

@@ -13,6 +13,11 @@ and the plan of an epoch is a function of them. The two sides of a partition, ea
 which counted the other out, converge once they hear each other: every UAV of the other
 side came back, and the counts say so on both.
 
+A team UAV the epoch-0 plan was built without (a side's UAV that re-based onto the other
+side's plan after a heal, fleet.consensus.heal) was out of that plan from its start: when
+it is counted in (`join`) it is counted out once and back once, as if it had left and come
+back, so the same rule merges it: every UAV that counts it in sets the same counts.
+
 The epoch is the sum of all counts: it grows with every departure and every return, and
 equals the number of UAVs out while nobody came back (`len(released)`, as before).
 
@@ -84,6 +89,16 @@ class Membership:
         for uav in uavs:
             if uav in self.team and self.is_out(uav):
                 self.back[uav] = self.left[uav]
+                changed.add(uav)
+        return changed
+
+    def join(self, uavs: Iterable[int]) -> set[int]:
+        """Count team UAVs in that were never counted (out of the plan since its start):
+        out once and back once; the ones that changed."""
+        changed = set()
+        for uav in uavs:
+            if uav in self.team and not self.left.get(uav) and not self.back.get(uav):
+                self.left[uav] = self.back[uav] = 1
                 changed.add(uav)
         return changed
 

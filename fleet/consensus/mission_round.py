@@ -45,7 +45,13 @@ from fleet.consensus.mission_change import (
     planned_count,
 )
 from fleet.consensus.objectives import plan_digest, plan_queues
-from fleet.consensus.proposal import choose, proposal_digest, proposal_problem
+from fleet.consensus.proposal import (
+    awaited_proposers,
+    choose,
+    proposal_digest,
+    proposal_problem,
+    right_problem,
+)
 from fleet.consensus.queues import UNREACHABLE
 from fleet.consensus.replan import candidates, finished_digest, missing_times, replan
 from fleet.consensus.report_checks import (
@@ -408,19 +414,30 @@ class MissionRound:
             return False
         if now >= self.deadline:
             return True
-        return not self.missing(alive) and not self.awaiting_proposal(now)
+        return not self.missing(alive) and not self.awaiting_proposal(now, alive)
 
-    def awaiting_proposal(self, now: float) -> bool:
-        """The mission expects a proposed plan (`proposals_s`), no valid one came yet
-        (from each proposer the mission names, if it names any), and its window is
-        still open: the decision waits for it (an invalid proposal does not close the
-        window; fleet.consensus.proposal)."""
+    def awaiting_proposal(self, now: float, alive: set[int] | None = None) -> bool:
+        """The mission expects a proposed plan (`proposals_s`), its window is still open,
+        and a proposal that could be adopted now is still to come: a valid one from each
+        proposer the mission names and entitles (a named UAV outside the team is not
+        waited for), or any valid one if it names none. A decision that would leave a
+        team UAV out (gone by `alive`; None: every team UAV alive) waits for none: each
+        proposal is solved from every team UAV's result, so none could be adopted
+        (fleet.consensus.proposal). An invalid proposal does not close the window."""
         window = self.targets.proposals_s
         if window <= 0.0 or now >= self.started + window:
             return False
+        gone = self.team - alive - {self.own_id} if alive is not None else frozenset()
+        awaited = awaited_proposers(self.targets.proposers, self.team, gone)
+        if awaited is not None and not awaited:
+            return False
         if not self.proposals:
             return True
-        used = {uav: result.times for uav, result in self.results.items()}
+        used = {
+            uav: result.times
+            for uav, result in self.results.items()
+            if alive is None or uav in alive or uav == self.own_id
+        }
         legs = self.air_legs(used)
         inputs = self.results_digest(used)
         objective = self.targets.objective
@@ -431,13 +448,19 @@ class MissionRound:
         }
         # Named proposers: every one's valid proposal, so that every UAV chooses among
         # the same ones (the first to come would differ from UAV to UAV).
-        named = set(self.targets.proposers)
-        return not named <= valid if named else not valid
+        return not awaited <= valid if awaited is not None else not valid
+
+    def right_problem(self, proposal: PlanProposal) -> str | None:
+        """Why `proposal`'s proposer may not propose for this mission; None if it may."""
+        return right_problem(proposal.proposer, self.targets.proposers, self.team)
 
     def add_proposal(self, proposal: PlanProposal) -> bool:
         """Keep a proposed plan for this round's decision; False if it is another
-        mission's or came after the commitment (a late proposal changes nothing)."""
+        mission's, from a proposer the mission does not entitle (`right_problem`), or
+        came after the commitment (a late proposal changes nothing)."""
         if proposal.mission != self.mission or self.committed is not None:
+            return False
+        if self.right_problem(proposal) is not None:
             return False
         self.proposals[proposal.proposer] = proposal
         return True
@@ -671,15 +694,31 @@ class MissionRound:
         new = self.membership.leave(uavs)
         if self.base is None:
             return False
-        return bool(new & set(self.base.team))
+        # A UAV counted in since epoch 0 may hold targets of a resolved plan: its going
+        # is a new epoch like a base UAV's (it was in: `leave` changes only those).
+        return any(uav in self.base.team or self.membership.back.get(uav) for uav in new)
 
     def rejoin(self, uavs: Iterable[int]) -> bool:
-        """Team UAVs out of the mission came back (alive again): in again from the next
-        epoch. True if that changes the re-plan input."""
+        """Team UAVs out of the mission came back (alive again), or UAVs the epoch-0 plan
+        was built without are counted in (a side that re-based onto this plan after a
+        heal, `joinable`): in from the next epoch, which solves what is left with their
+        standings (`survivors`). True if that changes the re-plan input."""
+        uavs = tuple(uavs)
         back = self.membership.come_back(uavs)
         if self.base is None:
             return False
-        return bool(back & set(self.base.team))
+        base_team = set(self.base.team)
+        joined = self.membership.join(uav for uav in uavs if uav not in base_team)
+        return bool(back or joined)
+
+    def joinable(self, uav: int) -> bool:
+        """`uav` is a team UAV the plan was built without, never counted in or out since:
+        counted in by `rejoin` when it stands for this plan (it re-based onto it)."""
+        base = self.base
+        if base is None or uav not in self.team or uav in base.team:
+            return False
+        membership = self.membership
+        return not membership.left.get(uav) and not membership.back.get(uav)
 
     def counted_out(self, report: AssignmentReport) -> set[int]:
         """The team UAVs a teammate's report counts out of the mission."""
@@ -851,9 +890,19 @@ class MissionRound:
 
     @staticmethod
     def survivors(fallback: AssignmentReport) -> tuple[int, ...]:
-        """The UAVs taking part in a re-plan: its team, less the released."""
+        """The UAVs taking part in a re-plan: its team, less the released, and the UAVs
+        outside its team counted in since (`rejoin`: counted back, not out again). Those
+        hold nothing in the append plan (it is epoch 0's, whose times they lack); they
+        take part in the plan solved again from the standings."""
+        left, back = report_counts(fallback.released, fallback.left, fallback.back)
         gone = set(fallback.released)
-        return tuple(sorted(uav for uav in fallback.team if uav not in gone))
+        return tuple(
+            sorted(
+                uav
+                for uav in set(fallback.team) | back.keys()
+                if uav not in gone and left.get(uav, 0) <= back.get(uav, 0)
+            )
+        )
 
     def missing_standings(self) -> tuple[int, ...]:
         """Survivors whose standing for the plan `stands_for` this UAV lacks."""

@@ -20,13 +20,28 @@ only wins when it is strictly better. Every UAV holding the same results and the
 proposals adopts the same plan; the adopted proposal's queues go into the plan's digest
 (`proposal_digest`), so a UAV that did not hear it reports another digest, visibly.
 
+Who may propose (`right_problem`): the proposers the mission names, the ground alone
+when it names none (`send-targets --propose`); a UAV must also be in the mission's team
+(only a team UAV holds the round it solves from). A proposal from anyone else is refused
+as it arrives, whatever it holds: an unexpected proposal heard by some UAVs before their
+decision and by others after it would split the team.
+
+How long the decision waits (`awaited_proposers`): every proposer solves from every team
+UAV's result, and its proposal's digest says so. A UAV that would decide without a
+teammate's result (gone by its liveliness) can therefore adopt no proposal at all, and
+waits for none; otherwise it waits for each named proposer entitled to propose. What
+every UAV can agree on is the results it decides from: two UAVs deciding on the same
+results wait for the same proposers. One that sees a teammate gone decides on other
+results than one that does not, with or without the wait; that split is liveliness's,
+visible in the digests, as for a mission with no proposer.
+
 Pure: no I/O.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Collection, Iterable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -34,21 +49,64 @@ from fleet.consensus.assignment import usable
 from fleet.consensus.digest import sha256
 from fleet.consensus.objectives import plan_digest
 from fleet.consensus.queues import Legs, QueuePlan, Times, finish, leg_count, queue_arrivals
-from fleet.mission.messages import AssignmentReport, PlanProposal
+from fleet.mission.messages import MISSION_MANAGER, AssignmentReport, PlanProposal
 from fleet.mission.objective import Objective
 
 __all__ = [
     "Adoption",
+    "ProposalRefused",
     "Verdict",
     "adoption",
+    "awaited_proposers",
     "choose",
     "plan_key",
     "proposal_digest",
     "proposal_problem",
+    "right_problem",
 ]
 
 #: The proposer ID the baseline is ranked by: below every Piccolo ID.
 BASELINE = 0
+
+
+class ProposalRefused(StrEnum):
+    """Why a UAV refused a proposal: counted with the bus messages it refused (a UAV's
+    state's link drops, `bus_{reason}`)."""
+
+    NO_RIGHT = "proposal_no_right"  #: from a proposer the mission does not entitle
+    INVALID = "proposal_invalid"  #: not a plan of the round's inputs (`proposal_problem`)
+
+
+def right_problem(proposer: int, named: Collection[int], team: Collection[int]) -> str | None:
+    """Why `proposer` may not propose for a mission naming `named` with `team`; None if
+    it may."""
+    if not named:
+        if proposer == MISSION_MANAGER:
+            return None
+        return f"{proposer} is not the ground, the only proposer of a mission naming none"
+    if proposer not in named:
+        return f"{proposer} is not among the mission's proposers ({_ids(named)})"
+    if proposer != MISSION_MANAGER and proposer not in team:
+        return f"UAV {proposer} is not in the mission's team ({_ids(team)})"
+    return None
+
+
+def awaited_proposers(
+    named: Collection[int], team: Collection[int], gone: Collection[int]
+) -> frozenset[int] | None:
+    """The proposers whose valid proposals a decision waits for while the team UAVs
+    `gone` are out of it (their results left out): an empty set, none (no proposal can
+    be valid without every team UAV's result); None: any one valid proposal (a mission
+    naming no proposer: the ground's)."""
+    if gone:
+        return frozenset()
+    if not named:
+        return None
+    return frozenset(p for p in named if right_problem(p, named, team) is None)
+
+
+def _ids(uavs: Iterable[int]) -> str:
+    return ", ".join(map(str, sorted(uavs))) or "none"
 
 
 def proposal_problem(

@@ -139,10 +139,11 @@ class MissionTargets(msgspec.Struct, frozen=True):
     #: How many of `targets` the mission had as first sent (what the UAVs' results time);
     #: None: all of them.
     planned: Annotated[int, Meta(ge=1, le=MAX_TARGETS)] | None = None
-    #: Who proposes a plan within `proposals_s` (Piccolo IDs; the ground's is
-    #: MISSION_MANAGER): a UAV started with `--propose` proposes when it is named, and
-    #: the UAVs wait (within the window) for a valid proposal from each one named. Empty:
-    #: whoever proposes, the first valid proposal ends the wait.
+    #: Who may propose a plan within `proposals_s` (Piccolo IDs; the ground's is
+    #: MISSION_MANAGER): a UAV started with `--propose` proposes when it is named (and in
+    #: the team), and the UAVs wait (within the window) for a valid proposal from each
+    #: one named. Empty: the ground alone, its first valid proposal ending the wait. Any
+    #: other proposer's plan is refused (fleet.consensus.proposal.right_problem).
     proposers: Annotated[
         tuple[Annotated[int, Meta(ge=1, le=0xFFFF)], ...], Meta(max_length=MAX_TEAM)
     ] = ()

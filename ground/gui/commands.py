@@ -38,6 +38,7 @@ from fleet.consensus.proposal import adoption
 from fleet.errors import CodecError
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
+    MAX_TEAM,
     MAX_ZONES,
     AssignmentReport,
     MissionTargets,
@@ -55,7 +56,12 @@ from ground.mission_control import MissionError, publish_targets, send_abort, se
 from ground.mission_follower import MissionFollower
 from ground.mission_ids import MAX_MISSION_ID, TargetsServer, claim_mission, current_mission_id
 from ground.mission_outcome import MissionOutcome
-from ground.propose import ProposalAttempt, proposal_window, propose_when_results
+from ground.propose import (
+    ProposalAttempt,
+    named_proposers,
+    proposal_window,
+    propose_when_results,
+)
 
 log = logging.getLogger(__name__)
 
@@ -77,6 +83,8 @@ class SendCommand(msgspec.Struct, frozen=True, tag="send", tag_field="cmd"):
     objective: Objective = Objective.GREEDY
     #: The ground proposes a plan solved by its routing solver (`send-targets --propose`).
     propose: bool = False
+    #: UAVs that propose a plan, each solved on board (`send-targets --proposers`).
+    proposers: Annotated[tuple[PiccoloId, ...], msgspec.Meta(max_length=MAX_TEAM)] = ()
 
 
 class AbortCommand(msgspec.Struct, frozen=True, tag="abort", tag_field="cmd"):
@@ -224,9 +232,12 @@ class MissionDesk:
         zones: tuple[NoFlyZone, ...] = (),
         objective: Objective = Objective.GREEDY,
         proposals_s: float = 0.0,
+        proposers: tuple[int, ...] = (),
+        propose: bool = True,
     ) -> int:
-        """Claim a mission id no other ground uses (`claim_mission`), follow it, put it;
-        with `proposals_s`, propose the ground's plan once the team's results are in
+        """Claim a mission id no other ground uses (`claim_mission`), follow it, put it,
+        naming `proposers` (`ground.propose.named_proposers`); with `proposals_s` and
+        `propose`, propose the ground's plan once the team's results are in
         (`ground.propose`, as `send-targets --propose`), on a thread of its own."""
 
         def make(mission: int) -> MissionTargets:
@@ -238,6 +249,7 @@ class MissionDesk:
                 zones=zones,
                 objective=objective,
                 proposals_s=proposals_s,
+                proposers=proposers,
             )
 
         with self._lock:
@@ -249,7 +261,7 @@ class MissionDesk:
             # The claimed id's targets server stays open as long as the mission is followed.
             self._stack.push(claim)
             publish_targets(self._bus, self.space, message)
-            if proposals_s > 0:
+            if proposals_s > 0 and propose:
                 assert self._follower is not None
                 track = self._proposal = ProposalTrack(message.mission)
                 thread = threading.Thread(
@@ -385,12 +397,20 @@ def _send(desk: MissionDesk, command: SendCommand, live: set[int]) -> Reply:
         return Reply(command.id, False, f"{problem}; nothing sent")
     team = tuple(sorted(set(command.team)))
     try:
+        proposers = named_proposers(command.propose, command.proposers, team)
         deadline_s = command.deadline_s or consensus_deadline(len(team))
         proposals_s = 0.0
-        if command.propose:
+        if command.propose or command.proposers:
             deadline_s, proposals_s = proposal_window(command.objective, deadline_s)
         mission = desk.send(
-            team, command.targets, deadline_s, command.zones, command.objective, proposals_s
+            team,
+            command.targets,
+            deadline_s,
+            command.zones,
+            command.objective,
+            proposals_s,
+            proposers=proposers,
+            propose=command.propose,
         )
     except (MissionError, ValueError) as error:
         return Reply(command.id, False, f"{error}; nothing sent")
@@ -403,7 +423,12 @@ def _send(desk: MissionDesk, command: SendCommand, live: set[int]) -> Reply:
         + (f" and {len(command.zones)} no-fly zones" if command.zones else "")
         + " published to "
         f"{', '.join(map(str, team))}{note}; waiting for their results"
-        + ("; the ground proposes a plan once they are in" if command.propose else ""),
+        + ("; the ground proposes a plan once they are in" if command.propose else "")
+        + (
+            f"; UAV {', '.join(map(str, command.proposers))} to propose a plan"
+            if command.proposers
+            else ""
+        ),
         mission=mission,
     )
 

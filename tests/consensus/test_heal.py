@@ -133,3 +133,43 @@ def test_a_report_of_another_mission_is_never_ranked() -> None:
         mission=8, uav=103, target=0, pairs={103: 0}, unassigned=(), team=TEAM, digest="d"
     )
     assert weak.rank_of(other) is Rank.SAME and weak.rebase(other) is None
+
+
+def test_the_side_rebased_onto_a_plan_built_without_it_is_counted_in_and_takes_part() -> None:
+    """A 2|2 split during the results' fan-out: each side committed on its own two, and
+    the tie goes to (101, 102). 103 and 104 re-base onto a plan that holds nothing for
+    them; counted in (as a UAV back from a loss is), the next epoch is solved again from
+    all four standings, on every UAV of the winning side alike."""
+    winners = [_side(101, (101, 102)), _side(102, (101, 102))]
+    loser = _side(103, (103, 104))
+    theirs = winners[0].committed
+    assert theirs is not None and loser.rank_of(theirs) is Rank.STRONGER
+    rebased = loser.rebase(theirs)
+    assert rebased is not None
+    assert MissionRound.survivors(rebased) == (101, 102)  # 103 and 104 take no part
+    loser.target_reached(103, 2)  # flown under its own plan before the heal
+    plans = []
+    for winner in winners:
+        assert winner.joinable(103) and winner.joinable(104) and not winner.joinable(101)
+        assert winner.rejoin((103,)) and winner.rejoin((104,))
+        assert not winner.joinable(103) and not winner.rejoin((103,))  # counted once
+        assert winner.replan(50.0) is None  # waiting for every standing, the joined too
+        fallback = winner.awaiting
+        assert fallback is not None and MissionRound.survivors(fallback) == TEAM
+        assert fallback.queues == theirs.queues  # the append plan: epoch 0's, nothing moved
+        assert winner.missing_standings() == TEAM
+        for uav in TEAM:
+            winner.add_standing(_standing(uav, fallback.digest, reached=(2,) if uav == 103 else ()))
+        resolved = winner.resolve_ready()
+        assert resolved is not None and resolved.basis == fallback.digest
+        plans.append(resolved)
+    assert plans[0].digest == plans[1].digest and plans[0].queues == plans[1].queues
+    plan = plans[0]
+    assert plan.team == (101, 102) and plan.epoch == 4  # counted out once, back once: 2 each
+    queued = sorted(t for q in plan.queues.values() for t in q)
+    assert queued == [0, 1, 3]  # 2 reached: not again; nothing dropped
+    assert plan.queues.get(104)  # a re-based UAV flies again
+    # The rebased UAV follows the resolved plan, and its going is a new epoch again.
+    followed = loser.follow(plan)
+    assert followed is not None and followed.digest == plan.digest
+    assert winners[0].release((104,))

@@ -36,6 +36,21 @@ def test_two_sides_of_a_partition_converge_once_they_hear_each_other() -> None:
     assert membership_digest("d", a.left, a.back) == membership_digest("d", b.left, b.back)
 
 
+def test_a_uav_outside_the_plan_is_counted_in_as_out_once_and_back_once() -> None:
+    view = Membership(TEAM)
+    assert view.join([103]) == {103} and view.out() == frozenset() and view.epoch == 2
+    assert view.join([103]) == set()  # counted once
+    assert view.join([999]) == set()  # not of the team
+    view.leave([104])
+    assert view.join([104]) == set()  # counted already (out: it comes back, not joins)
+    # Two UAVs that count it in set the same counts, in either order with a merge.
+    other = Membership(TEAM)
+    other.join([103])
+    other.merge(view.left, view.back)
+    view.merge(other.left, other.back)
+    assert (view.left, view.back) == (other.left, other.back)
+
+
 def test_a_report_without_counts_counts_its_released_uavs_out_once() -> None:
     assert report_counts((102,), {}, {}) == ({102: 1}, {})
     assert report_counts((102,), {102: 3}, {101: 1}) == ({102: 3}, {101: 1})

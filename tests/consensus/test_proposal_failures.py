@@ -189,3 +189,66 @@ def test_the_ground_says_pyvrp_is_absent_and_puts_nothing(monkeypatch: pytest.Mo
     attempt, bus = _ground_attempt(dict(_round(3).results))
     assert attempt.proposal is None and bus.put == []
     assert attempt.reason is not None and "pip install '.[solver]'" in attempt.reason
+
+
+def test_a_named_proposer_outside_the_team_is_not_waited_for_nor_believed() -> None:
+    """UAV 7 is named but not in the team (3, 5): it holds no round to solve from, so
+    no UAV waits for it, and a proposal it signs is refused whatever it holds."""
+    mission_round = _round(3)
+    _named(mission_round, (7,))
+    assert not mission_round.awaiting_proposal(1.0, {3, 5})
+    assert mission_round.ready(1.0, {3, 5})  # decided at once, not at the window's end
+    assert not mission_round.add_proposal(_proposal(mission_round, proposer=7))
+    why = mission_round.right_problem(_proposal(mission_round, proposer=7))
+    assert why == "UAV 7 is not in the mission's team (3, 5)"
+    # Named with the ground: the ground's proposal is still waited for, not 7's.
+    _named(mission_round, (7, MISSION_MANAGER))
+    assert mission_round.awaiting_proposal(1.0, {3, 5})
+    assert mission_round.add_proposal(_proposal(mission_round))
+    assert not mission_round.awaiting_proposal(1.0, {3, 5})
+
+
+def test_a_proposer_not_named_is_refused() -> None:
+    mission_round = _round(3)
+    _named(mission_round, (5,))
+    for proposer in (3, MISSION_MANAGER):
+        assert not mission_round.add_proposal(_proposal(mission_round, proposer=proposer))
+    assert mission_round.right_problem(_proposal(mission_round, proposer=3)) == (
+        "3 is not among the mission's proposers (5)"
+    )
+    assert not mission_round.proposals
+    # A mission naming none takes the ground's proposal only.
+    _named(mission_round, ())
+    assert not mission_round.add_proposal(_proposal(mission_round, proposer=5))
+    assert mission_round.add_proposal(_proposal(mission_round))
+
+
+def test_a_gone_teammate_ends_the_wait_at_once_on_every_uav_alike() -> None:
+    """UAV 5, the named proposer, is gone (no liveliness token): a decision without its
+    result could adopt no proposal (each is solved from every team UAV's result, its
+    digest says so), so UAV 3 decides at once, and what it decides is what it would
+    have decided at the window's end."""
+    mission_round = _round(3)
+    _named(mission_round, (5,))
+    assert mission_round.awaiting_proposal(1.0, {3, 5})  # 5 alive: its proposal awaited
+    assert not mission_round.ready(1.0, {3, 5})
+    assert not mission_round.awaiting_proposal(1.0, {3})  # 5 gone
+    assert mission_round.ready(1.0, {3})
+    early = mission_round.decide({3})
+    late = _round(3)
+    _named(late, (5,))
+    assert late.ready(5.0, {3})  # the window closed
+    assert late.add_proposal(_proposal(late, proposer=5))  # 5's, heard before the end
+    full = late.decide({3})
+    assert (early.digest, early.queues) == (full.digest, full.queues)
+    assert "other results" in late.refused_proposals[5]
+
+
+def test_a_gone_teammate_that_is_not_the_proposer_ends_the_wait_too() -> None:
+    """Three UAVs, 5 the proposer, 8 gone: 5 solves from every team UAV's result, so no
+    proposal of it can be a plan of the results 3 decides from."""
+    mission_round = _round(3)
+    _named(mission_round, (5,))
+    mission_round.team = frozenset({3, 5, 8})
+    assert not mission_round.awaiting_proposal(1.0, {3, 5})
+    assert mission_round.awaiting_proposal(1.0, {3, 5, 8})  # 8 alive: its result may come

@@ -4,7 +4,9 @@ attacked by a captured aircraft (UAV 74's certificate and signing key), a captur
 router (the ground's router identity, joined as a router to the fleet's router, which
 is UAV 112's own router of a router-per-UAV mesh: the one place the ground's router
 identity has its relay rights) and a revoked aircraft (UAV 300, withdrawn by
-`fleet certs revoke`).
+`fleet certs revoke`). UAV 74 runs with `--propose`: a mission naming it gets its own
+proposed plan, signed with its own key, checked by its teammate; plans signed with the
+wrong key, or by a UAV the mission does not name, are refused and counted.
 
 A refusal is observed, not assumed: the target UAV counts each message it refused in its
 state's link drops (`bus_not_entitled`, `bus_replayed`, ...), and the test waits for
@@ -13,33 +15,47 @@ that count to grow before it checks that nothing was obeyed.
 
 from __future__ import annotations
 
+import importlib.util
 import json
+import random
 import signal
 import threading
 import time
 from collections.abc import Callable, Iterator
 from importlib.resources import files
+from pathlib import Path
+from subprocess import CompletedProcess
 
+import msgspec
 import pytest
 import zenoh
 
+from fleet.consensus.mission_round import MissionRound
+from fleet.consensus.objectives import plan_digest
+from fleet.consensus.proposal import ProposalRefused, plan_key, proposal_digest
+from fleet.consensus.queues import finish
 from fleet.files.certs import IdentityFiles, tls_settings
+from fleet.files.signers import load_roster
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     MissionAbort,
     MissionProgress,
     MissionTargets,
     OpmCommand,
+    PlanProposal,
     Target,
     UavResult,
     UavState,
 )
+from fleet.mission.objective import Objective
 from fleet.mission.phase import Phase
-from fleet.transport.bus_codec import ENCODING, encode
+from fleet.mission.signature import Delivery, verify
+from fleet.transport.bus_codec import ENCODING, decode, encode
 from fleet.transport.zenoh_config import make_config
 from tests.support import signed
 from tests.support.secure_fleet import SignedFleet, mission_of
 from tests.support.secure_fleet import signed_fleet as start_signed_fleet
+from tests.support.targets import targets_csv
 from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
@@ -50,7 +66,17 @@ FORGED = 4_000_000_000
 ROGUE_MISSION = 0xFFFF_FFFF
 #: How long UAV 112 is frozen (SIGSTOP) so that it catches up when it resumes.
 FROZEN_S = 3.0
+#: How long the test waits for `send-targets --wait` to end (it bounds itself).
+GROUND_CLI_WAIT_S = 240.0
 TARGETS_FILE = str(files("fleet") / "scenarios" / "head_on_targets.bin")
+#: The UAV that proposes plans (`fleet-onboard --propose`, with PyVRP installed).
+PROPOSER = 74
+HAS_PYVRP = importlib.util.find_spec("pyvrp") is not None
+#: Twenty targets for a proposed plan, local metres east/north of head_on's origin,
+#: seeded: enough that PyVRP's plan beat the baseline's min-max (adopted in 2 of 2 runs;
+#: the instance moves with where the UAVs are when it is sent, so either is checked).
+_RNG = random.Random(74)
+TWENTY = [(_RNG.uniform(-6000, 6000), _RNG.uniform(-6000, 6000)) for _ in range(20)]
 
 
 @pytest.fixture(scope="module")
@@ -59,7 +85,10 @@ def signed_fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SignedFle
     names = ["router", "router-112", "ground", "uav-74", "uav-112", "uav-300"]
     # UAV 112's own router, in whose ACL the ground's router relays; UAV 300 a lost aircraft.
     router_argv = ("--identity", "router-112")
-    with start_signed_fleet(certs, names, *router_argv, revoked=["uav-300"]) as secure:
+    proposing = {PROPOSER: ("--propose",)} if HAS_PYVRP else {}
+    with start_signed_fleet(
+        certs, names, *router_argv, revoked=["uav-300"], onboard_argv=proposing
+    ) as secure:
         yield secure
 
 
@@ -282,6 +311,139 @@ def test_a_revoked_uavs_key_commands_nothing(signed_fleet: SignedFleet) -> None:
         wait_until(relayed_and_refused, 30.0, "112 refusing UAV 300")
     assert mission_of(secure.state(112)) == mission
     assert not onboard_said(secure, 112, f"mission {mission + 1}")
+
+
+# ---- a UAV's own proposed plan -------------------------------------------------------------------
+def _proposals_heard(
+    secure: SignedFleet, recorder: Recorder, mission: int
+) -> list[tuple[PlanProposal, str | None]]:
+    """Every proposal the captured router saw on UAV 74's proposal key for `mission`,
+    with the identity whose valid signature it bears (None: the signature is refused)."""
+    key = SPACE.uav_proposal(mission, PROPOSER)
+    roster = load_roster(secure.certs)
+    with recorder.lock:
+        samples = [(p, a) for k, p, a in recorder.samples if k == key]
+    heard = []
+    for payload, attachment in samples:
+        envelope, refusal = verify(roster, SPACE, key, payload, attachment, Delivery.PUT)
+        author = envelope.author if envelope is not None and refusal is None else None
+        heard.append((decode(payload, PlanProposal, key), author))
+    return heard
+
+
+def _expected_digest(recorder: Recorder, mission: int, proposal: PlanProposal) -> str:
+    """The digest every UAV must commit, recomputed from the results the captured
+    router saw: the proposal's if the deterministic scorer finds it strictly better
+    than the baseline, else the baseline's."""
+    with recorder.lock:
+        samples = list(recorder.samples)
+    targets = next(
+        decode(p, MissionTargets, k) for k, p, _ in samples if k == SPACE.mission_targets(mission)
+    )
+    mission_round = MissionRound(
+        targets=msgspec.structs.replace(targets, proposals_s=0.0), own_id=PROPOSER, started=0.0
+    )
+    for uav in targets.team:
+        key = SPACE.mission_result(mission, uav)
+        result = next(decode(p, UavResult, k) for k, p, _ in samples if k == key)
+        assert mission_round.add_result(result)
+    used = {uav: r.times for uav, r in mission_round.results.items()}
+    legs = mission_round.air_legs(used)
+    baseline = mission_round.decide(set(used))
+
+    def key_of(queues: dict[int, tuple[int, ...]]) -> tuple[float, float]:
+        plan = finish({u: list(q) for u, q in queues.items()}, used, legs)
+        return plan_key(plan, Objective.MIN_MAX)
+
+    if key_of(dict(proposal.queues)) < key_of(dict(baseline.queues)):
+        inputs = mission_round.results_digest(used)
+        return proposal_digest(plan_digest(inputs, Objective.MIN_MAX), proposal)
+    return baseline.digest
+
+
+def test_a_uavs_own_proposal_is_signed_by_it_and_forged_ones_are_refused(
+    signed_fleet: SignedFleet, tmp_path: Path
+) -> None:
+    """`send-targets --proposers 74`: UAV 74 solves and puts its plan on its own key,
+    signed with its own key; both UAVs verify it and commit one plan with one digest
+    (the proposal's if the scorer finds it strictly better, else the baseline's). A
+    captured router relays, meanwhile, a plan on 74's key signed with UAV 112's key (a
+    valid signature, not entitled: refused by the bus) and one 112 signed on its own key
+    though the mission names 74 alone (no right to propose: refused by the mission);
+    each UAV counts both."""
+    if not HAS_PYVRP:
+        pytest.skip("PyVRP is not installed: pip install '.[solver]'")
+    secure = signed_fleet
+    mission = (mission_of(secure.state(112)) or 0) + 10
+    csv_file = targets_csv(tmp_path / "twenty.csv", (35.72, -120.765), TWENTY)
+    uavs = (PROPOSER, 112)
+    before = {
+        uav: (secure.refused(uav, "not_entitled"), secure.refused(uav, ProposalRefused.NO_RIGHT))
+        for uav in uavs
+    }
+    sent: list[CompletedProcess[str]] = []
+    argv = (
+        "send-targets", str(csv_file), "--objective", "min-max",
+        "--proposers", str(PROPOSER), "--mission", str(mission),
+        "--wait", "--json", "--timeout", "90",
+    )  # fmt: skip
+    with captured_router(secure) as rogue:
+        recorder = Recorder(rogue)
+        sender = threading.Thread(target=lambda: sent.append(secure.ground_cli(*argv)), daemon=True)
+        sender.start()
+        try:
+            wait_until(
+                lambda: all(mission_of(secure.state(uav)) == mission for uav in uavs),
+                60.0,
+                f"both UAVs on mission {mission}",
+            )
+            as_74 = PlanProposal(
+                mission, PROPOSER, "0" * 16, Objective.MIN_MAX, {PROPOSER: tuple(range(8))}
+            )
+            by_112 = msgspec.structs.replace(as_74, proposer=112, queues={112: tuple(range(8))})
+            forged = (
+                (SPACE.uav_proposal(mission, PROPOSER), encode(as_74)),
+                (SPACE.uav_proposal(mission, 112), encode(by_112)),
+            )
+
+            def refused_by_both() -> bool:
+                # Put again until counted: the new router may not know the subscriptions yet.
+                for key, payload in forged:
+                    by_112_key = signed.attachment(secure.certs, "uav-112", key, payload)
+                    rogue.put(key, payload, encoding=ENCODING, attachment=by_112_key)
+                return all(
+                    secure.refused(uav, "not_entitled") > before[uav][0]
+                    and secure.refused(uav, ProposalRefused.NO_RIGHT) > before[uav][1]
+                    for uav in uavs
+                )
+
+            wait_until(refused_by_both, 30.0, "both UAVs refusing the forged proposals")
+        finally:
+            sender.join(GROUND_CLI_WAIT_S)
+        recorder.subscriber.undeclare()
+    assert sent, "send-targets did not end"
+    assert sent[0].returncode == 0, sent[0].stderr[-3000:]
+    outcome = json.loads(sent[0].stdout)
+    assert outcome["agreed"] is True, sent[0].stderr[-3000:]
+    # 74's own plan, as the captured router relayed it: signed by 74 and no one else.
+    heard = _proposals_heard(secure, recorder, mission)
+    genuine = [proposal for proposal, author in heard if author == "uav-74"]
+    assert genuine and {p.proposer for p in genuine} == {PROPOSER}
+    assert {author for _, author in heard} <= {"uav-74", None}  # 112's refused
+    # Both UAVs decided with it (and it alone: the forged ones were never kept) on one
+    # plan with one digest, the one the scorer gives.
+    said = outcome["uav_proposals"][str(PROPOSER)]
+    verdict = said["verdict"]
+    assert verdict in ("adopted", "baseline") and said[f"{verdict}_by"] == list(uavs), said
+    assert said[f"{verdict}_digest"] == _expected_digest(recorder, mission, genuine[-1])
+    for uav in uavs:
+        assert onboard_said(secure, uav, f"mission {mission}: decided with 1 proposal(s)"), uav
+        assert onboard_said(
+            secure,
+            uav,
+            f"mission {mission}: the plan proposed by 112 refused: 112 is not among the "
+            f"mission's proposers ({PROPOSER})",
+        ), uav
 
 
 # ---- what signing must not stop -----------------------------------------------------------------

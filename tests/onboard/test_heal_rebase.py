@@ -10,8 +10,16 @@ import msgspec
 from fleet.consensus.mission_round import MissionRound
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import AssignmentReport, MissionTargets, UavResult
-from onboard.core import OnboardCore
-from tests.onboard.core_harness import TARGETS, Recorder, make_core, run_with_telemetry
+from fleet.piccolo.track import Track
+from fleet.piccolo.waypoint import Waypoint
+from onboard.core import TARGET_WAYPOINT, OnboardCore
+from tests.onboard.core_harness import (
+    TARGETS,
+    Recorder,
+    make_core,
+    run_with_telemetry,
+    telemetry_at,
+)
 
 SPACE = KeySpace()
 TEAM = (101, 102, 103, 104)
@@ -103,3 +111,93 @@ def test_the_side_with_more_results_ignores_the_other_sides_plan() -> None:
     assert core.round is not None and core.round.committed is not None
     assert core.round.committed.digest == mine.digest
     assert core.round.released == set() and out.outcome_fetches == []
+
+
+# ---- a side re-based onto a plan built without it ---------------------------------------
+PAIR = (101, 102)
+PAIR_MISSION = MissionTargets(mission=2, team=PAIR, targets=TARGETS, deadline_s=10.0)
+
+
+def _alone(uav: int) -> tuple[OnboardCore, Recorder]:
+    """`uav` cut off from its teammate from the start (the results' fan-out lost): it
+    commits on its own result alone, a plan of one UAV holding every target."""
+    core, out = make_core(uav=uav, fresh_replans=True, times=TIMES[uav])
+    core.on_targets(PAIR_MISSION, 1.0)
+    run_with_telemetry(core, 1.0, 3.0)
+    (report,) = out.on(SPACE.mission_assignment(2, uav))
+    assert isinstance(report, AssignmentReport) and report.team == (uav,)
+    assert sorted(report.queues[uav]) == [0, 1, 2]
+    return core, out
+
+
+class _Relay:
+    """Carries what each core publishes to the others (results and standings, re-plans),
+    as the bus does once the partition healed."""
+
+    def __init__(self, cores: dict[int, tuple[OnboardCore, Recorder]]) -> None:
+        self.cores = cores
+        self.sent = {uav: len(out.published) for uav, (_, out) in cores.items()}
+
+    def run(self, start: float, end: float) -> float:
+        now = start
+        while now < end:
+            now += 0.25
+            for uav, (_core, out) in self.cores.items():
+                new, self.sent[uav] = out.published[self.sent[uav] :], len(out.published)
+                for key, message in new:
+                    for other, (peer, _) in self.cores.items():
+                        if other == uav:
+                            continue
+                        if isinstance(message, UavResult):
+                            peer.on_result(message, now)
+                        elif isinstance(message, AssignmentReport) and "replan" in key:
+                            peer.on_assignment(message, now)
+            for core, _ in self.cores.values():
+                run_with_telemetry(core, now - 0.25, now)
+        return now
+
+
+def test_a_uav_rebased_onto_a_plan_built_without_it_is_counted_in_and_flies() -> None:
+    """Both UAVs committed alone; after the heal 102 re-bases onto 101's plan (the tie
+    goes to the team that sorts first), in which it holds nothing. It stands for that
+    plan, 101 counts it in as it counts in a UAV back from a loss, and the team solves
+    what is left with both: 102 flies again, and the target it reached before the heal
+    stays reached (planned for nobody)."""
+    winner, won = _alone(101)
+    loser, lost = _alone(102)
+    # 102 reaches its first target (0) on its own plan before the heal.
+    waypoint = lost.autopilot[-1]
+    assert isinstance(waypoint, Waypoint)
+    assert (waypoint.lat, waypoint.lon) == (TARGETS[0].lat, TARGETS[0].lon)
+    loser.on_waypoint(waypoint, 3.5)
+    loser.on_track(Track(TARGET_WAYPOINT), 3.6)
+    loser.on_telemetry(telemetry_at(TARGETS[0].lat, TARGETS[0].lon), 4.0)
+    assert loser.round is not None and loser.round.reached_targets == {0: 102}
+    # The heal: each sees the other alive, and hears the other's plan (a catch-up).
+    winner.on_alive(102, True, 5.0)
+    loser.on_alive(101, True, 5.0)
+    (theirs,) = won.on(SPACE.mission_assignment(2, 101))
+    (ours,) = lost.on(SPACE.mission_assignment(2, 102))
+    assert isinstance(theirs, AssignmentReport) and isinstance(ours, AssignmentReport)
+    loser.on_assignment(theirs, 5.1)
+    winner.on_assignment(ours, 5.1)
+    assert loser.round.committed is not None and loser.round.committed.digest == theirs.digest
+    assert loser.round.next_target(102) is None  # 101's plan gives it nothing...
+    relay = _Relay({101: (winner, won), 102: (loser, lost)})
+    relay.run(5.1, 12.0)
+    # ... until 101 counted it in: one plan, solved again from both standings.
+    assert winner.round is not None
+    plan = winner.round.committed
+    assert plan is not None and plan.epoch > 0 and plan.basis is not None
+    assert plan.team == (101,)  # still the plan built on 101's result (the heal's rank)
+    assert loser.round.committed is not None and loser.round.committed.digest == plan.digest
+    # Target 0 stays reached: nobody is sent there again; 1 and 2 are shared, 102 flies.
+    queued = sorted(t for q in plan.queues.values() for t in q)
+    assert queued == [1, 2] and plan.unassigned == ()
+    assert plan.queues.get(102)
+    assert loser.round.next_target(102) == plan.queues[102][0]
+    flown = lost.autopilot[-1]
+    assert isinstance(flown, Waypoint)
+    target = TARGETS[plan.queues[102][0]]
+    assert (flown.lat, flown.lon) == (target.lat, target.lon)
+    assert any("re-based onto this plan; re-planning with it" in s for s in won.statuses())

@@ -10,7 +10,7 @@ import contextlib
 import json
 import subprocess
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
@@ -103,10 +103,12 @@ def signed_fleet(
     *router_argv: str,
     speedup: float = 5.0,
     revoked: Sequence[str] = (),
+    onboard_argv: Mapping[int, Sequence[str]] | None = None,
 ) -> Iterator[SignedFleet]:
     """Identities `names` made in `certs` (with `router`, `ground`, `uav-74`, `uav-112`),
     those `revoked` withdrawn (`fleet certs revoke`), a secure router (`router_argv` added
-    to its command line) and the fleet."""
+    to its command line) and the fleet (each onboard's command line with its
+    `onboard_argv`, if any)."""
     write_identities(certs, names, [ANY_TLS_PORT])
     if revoked:
         revoke(certs, list(revoked))
@@ -120,7 +122,8 @@ def signed_fleet(
         try:
             for uav, where in fleet.sim("head_on", speedup=speedup).items():
                 config = str(certs / f"uav-{uav}.json5")
-                fleet.onboard(uav, where, endpoint, "--zenoh-config", config)
+                extra = (onboard_argv or {}).get(uav, ())
+                fleet.onboard(uav, where, endpoint, "--zenoh-config", config, *extra)
             secure = SignedFleet(endpoint, certs, fleet, ground)
             wait_until(lambda: secure.state(74) and secure.state(112), 60.0, "both onboards up")
             yield secure

@@ -114,12 +114,18 @@ export function sendTargets() {
   const sentZones = zonesToSend();
   const objective = $('#objective').value;
   const propose = proposing();
+  const proposers = uavProposers();
+  if (typeof proposers === 'string') return notice(proposers, false);
+  const outside = proposers.filter((id) => !members.includes(id));
+  if (outside.length) return notice(`UAV proposer ${outside.join(', ')} is not in the team: select it, or leave it out`, false);
+  const by = [propose ? 'the ground' : '', proposers.length ? `UAV ${proposers.join(', ')}` : ''].filter(Boolean);
+  const proposed = by.length ? `, ${by.join(' and ')} proposing a plan` : '';
   confirmThen(
-    `Send ${targets.length} target(s) to the team of ${members.length} UAV(s): ${members.join(', ')} (objective ${objective}${propose ? ', the ground proposing a plan' : ''})?`,
+    `Send ${targets.length} target(s) to the team of ${members.length} UAV(s): ${members.join(', ')} (objective ${objective}${proposed})?`,
     sendWarnings(members, targets.length).join(' '),
     () => command({
-      cmd: 'send', team: members, targets, zones: sentZones, objective, propose,
-    }, `Send ${targets.length} target(s) to ${members.join(', ')}${propose ? ' (proposed plan)' : ''}`, (reply) => {
+      cmd: 'send', team: members, targets, zones: sentZones, objective, propose, proposers,
+    }, `Send ${targets.length} target(s) to ${members.join(', ')}${by.length ? ' (proposed plan)' : ''}`, (reply) => {
       if (reply.ok) sentAsMission(reply.mission, targets, sentZones);
     }),
   );
@@ -131,7 +137,23 @@ export function proposing() {
 }
 
 export function onObjectiveChange() {
-  $('#propose').disabled = $('#objective').value === 'greedy';
+  const greedy = $('#objective').value === 'greedy';
+  $('#propose').disabled = greedy;
+  $('#proposers').disabled = greedy;
+}
+
+// The UAVs named in "UAV proposers" (`send-targets --proposers`): Piccolo IDs separated by
+// commas or spaces, none for the greedy; a string says what is wrong with the field.
+export function uavProposers() {
+  if ($('#objective').value === 'greedy') return [];
+  const words = $('#proposers').value.split(/[\s,]+/).filter(Boolean);
+  const ids = [];
+  for (const word of words) {
+    const id = /^\d+$/.test(word) ? Number(word) : NaN;
+    if (!(id >= 1 && id <= 0xFFF0)) return `UAV proposers: "${word}" is not a Piccolo ID (1-65520)`;
+    if (!ids.includes(id)) ids.push(id);
+  }
+  return ids;
 }
 
 // The drafts added to the mission in flight, as `ground-cli add-targets` adds them: done

@@ -533,7 +533,18 @@ def test_every_press_takes_effect_the_first_time_while_telemetry_flows(
     assert len(target_marks(browser.execute_script(READ_MAP))) == 2  # the drafts are kept
     # Send with the ground proposing a plan: offered for min-sum and min-max only.
     assert browser.find_element(By.ID, "propose").get_attribute("disabled") is not None
+    proposers = browser.find_element(By.ID, "proposers")
+    assert proposers.get_attribute("disabled") is not None
     Select(browser.find_element(By.ID, "objective")).select_by_value("min-sum")
+    # UAV proposers (`send-targets --proposers`) are team UAVs' Piccolo IDs: a bad one
+    # is said, and nothing is sent (no confirmation asked).
+    for typed, said in (("7x", "is not a Piccolo ID"), ("999", "UAV proposer 999 is not in")):
+        proposers.clear()
+        proposers.send_keys(typed)
+        browser.find_element(By.ID, "send").click()
+        wait_until(lambda said=said: said in text_of(browser, "notice"), 10.0, f"refusing {typed}")
+        assert not browser.execute_script(CONFIRM_OPEN)
+    proposers.clear()
     browser.find_element(By.ID, "propose").click()
     browser.find_element(By.ID, "send").click()
     assert "the ground proposing a plan" in text_of(browser, "confirm-text")

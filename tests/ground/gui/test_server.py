@@ -17,9 +17,10 @@ from typing import Any
 import aiohttp
 import pytest
 
-from fleet.mission.messages import Target
+from fleet.mission.messages import MISSION_MANAGER, Target
 from fleet.mission.targets_file import encode_targets
 from fleet.transport.bus_factory import opened_bus
+from ground.propose import DEFAULT_WINDOW_S, named_proposers
 from tests.ground.test_cli import run_cli
 from tests.support.fake_onboard import FakeOnboard, fake_pair
 from tests.support.gui_page import serving, websocket_url
@@ -318,6 +319,40 @@ def test_a_change_in_flight_not_acknowledged_fails_with_who_did_not(
     assert len(mfakes[74].targets) == before + 1  # the unacknowledged revision alone
     _, outcome = get(f"{gui}/api/mission")
     assert outcome["mission"] == mission and len(outcome["targets"]) == 3
+
+
+def test_the_page_names_uav_proposers_as_send_targets_does(
+    gui: str, mfakes: dict[int, FakeOnboard]
+) -> None:
+    """The page's "UAV proposers" field names the UAVs that propose (`send-targets
+    --proposers`, through the same `named_proposers`): the mission put names them with
+    the proposal window; a proposer outside the team, or one for the greedy, is refused
+    with nothing sent."""
+    targets: list[dict[str, float]] = [{"lat": t.lat, "lon": t.lon, "alt": t.alt} for t in TARGETS]
+    send = {"cmd": "send", "team": [74, 112], "targets": targets, "objective": "min-max"}
+    before = len(mfakes[112].targets)
+    named, outside, greedy = asyncio.run(
+        _session_with(
+            gui,
+            [
+                {**send, "id": 40, "proposers": [112]},
+                {**send, "id": 41, "proposers": [74, 300]},
+                {**send, "id": 42, "proposers": [74], "objective": "greedy"},
+            ],
+        )
+    )
+    assert named["ok"] and "UAV 112 to propose a plan" in named["message"], named
+    assert wait_until(lambda: len(mfakes[112].targets) > before)
+    heard = mfakes[112].targets[-1]
+    assert heard.mission == named["mission"] and heard.proposers == (112,)
+    assert heard.proposals_s == DEFAULT_WINDOW_S and heard.deadline_s > DEFAULT_WINDOW_S
+    assert not outside["ok"] and "UAV proposer 300 is not in the team" in outside["message"]
+    assert not greedy["ok"] and "min-sum or min-max" in greedy["message"]
+    assert "nothing sent" in outside["message"] and "nothing sent" in greedy["message"]
+    assert len(mfakes[112].targets) == before + 1
+    # With the ground proposing too, it is named after the UAVs, as by send-targets.
+    assert named_proposers(True, (112, 74, 112), (74, 112)) == (112, 74, MISSION_MANAGER)
+    assert named_proposers(True, (), (74, 112)) == ()
 
 
 def test_an_abort_is_not_held_up_by_a_change_waiting_for_acknowledgements(
