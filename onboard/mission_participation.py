@@ -346,11 +346,17 @@ class MissionParticipation:
         if self._stand(now, basis):
             self._teammates_basis = None
 
-    def _resolve_ready(self, now: float) -> None:
+    def _replannable(self) -> MissionRound | None:
+        """The round, if it may still be re-planned: neither its mission nor this UAV
+        aborted."""
         mission_round = self.round
         if mission_round is None or mission_round.mission in self._aborted:
-            return
-        if self.life.phase == Phase.ABORTED:
+            return None
+        return None if self.life.phase == Phase.ABORTED else mission_round
+
+    def _resolve_ready(self, now: float) -> None:
+        mission_round = self._replannable()
+        if mission_round is None:
             return
         report = mission_round.resolve_ready()
         if report is not None:
@@ -804,10 +810,8 @@ class MissionParticipation:
 
     def _replan(self, now: float) -> None:
         """Re-assign the targets of released UAVs, or fetch the results that needs."""
-        mission_round = self.round
-        if mission_round is None or mission_round.mission in self._aborted:
-            return
-        if self.life.phase == Phase.ABORTED:
+        mission_round = self._replannable()
+        if mission_round is None:
             return
         report = self.decision.replan(mission_round, now)
         if report is not None:

@@ -270,26 +270,16 @@ class ZenohBus(Bus):
         wanted = zenoh.KeyExpr(key_expr)
         if not any(wanted.intersects(zenoh.KeyExpr(space.key(spec))) for spec in STREAM_KEYS):
             return
-        with self._rosters_lock:
-            if space.prefix in self._digests:
+
+        def on_digest(received: BusSample) -> None:
+            try:
+                digest = bus_codec.decode(received.payload, StreamDigest, received.key)
+            except bus_codec.BadMessage as error:
+                log.warning("dropped a stream digest: %s", error)
                 return
+            checker.vouch(uav_identity(digest.uav), digest)
 
-            receiver = self.new_receiver()
-
-            def on_digest(sample: zenoh.Sample) -> None:
-                received = self._received(sample, Delivery.PUT, receiver=receiver)
-                if received is None:
-                    return
-                try:
-                    digest = bus_codec.decode(received.payload, StreamDigest, received.key)
-                except bus_codec.BadMessage as error:
-                    log.warning("dropped a stream digest: %s", error)
-                    return
-                checker.vouch(uav_identity(digest.uav), digest)
-
-            self._digests[space.prefix] = self.session.declare_subscriber(
-                space.all_digests, direct(on_digest)
-            )
+        self._hear_once(self._digests, space.prefix, space.all_digests, on_digest)
 
     def _watch_roster(self, key_expr: str) -> None:
         """In the secure profile, hear the roster on the prefix of `key_expr` (once per
@@ -299,20 +289,33 @@ class ZenohBus(Bus):
         space = space_of(key_expr) if signing is not None else None
         if signing is None or space is None:
             return
+
+        def on_roster(received: BusSample) -> None:
+            signing.apply_roster(received.key, received.payload)
+
+        self._hear_once(self._rosters, space.prefix, space.roster(), on_roster)
+
+    def _hear_once(
+        self,
+        held: dict[str, zenoh.Subscriber[None]],
+        prefix: str,
+        key: str,
+        on_put: Callable[[BusSample], None],
+    ) -> None:
+        """Subscribe `on_put` to `key` once for `prefix` (`held` keeps the subscriptions by
+        prefix), every sample checked as a put to this bus is: dropped if refused."""
         with self._rosters_lock:
-            if space.prefix in self._rosters:
+            if prefix in held:
                 return
 
             receiver = self.new_receiver()
 
-            def on_roster(sample: zenoh.Sample) -> None:
+            def on_sample(sample: zenoh.Sample) -> None:
                 received = self._received(sample, Delivery.PUT, receiver=receiver)
                 if received is not None:
-                    signing.apply_roster(received.key, received.payload)
+                    on_put(received)
 
-            self._rosters[space.prefix] = self.session.declare_subscriber(
-                space.roster(), direct(on_roster)
-            )
+            held[prefix] = self.session.declare_subscriber(key, direct(on_sample))
 
     @classmethod
     def open(cls, config: zenoh.Config) -> ZenohBus:

@@ -182,6 +182,17 @@ class MissionMap:
         reached = self.reached()
         return tuple(t for t in self.queues.get(uav, ()) if t not in reached)
 
+    def tours(self) -> dict[int, tuple[int, ...]]:
+        """Each UAV's `tour_of`, by UAV id in order, the mission's targets only (a report
+        may name one it does not have); none before the mission is heard."""
+        if self.targets is None:
+            return {}
+        count = len(self.targets.targets)
+        return {
+            uav: tuple(index for index in self.tour_of(uav) if index < count)
+            for uav in sorted(self.queues)
+        }
+
     def reached(self) -> dict[int, int]:
         """Every target a UAV said it reached itself, and by whom (a UAV's latest outcome
         names its last one; `reached` lists every one it knows of, along a queue: what it
@@ -268,10 +279,8 @@ def tour_lines(view: MissionMap) -> list[Feature]:
     from its current target on, in the UAV's colour; none for a queue of one."""
     if view.targets is None:
         return []
-    count = len(view.targets.targets)
     features = []
-    for uav in sorted(view.queues):
-        tour = [index for index in view.tour_of(uav) if index < count]
+    for uav, tour in view.tours().items():
         if len(tour) < 2:
             continue
         points = [view.targets.targets[index] for index in tour]
@@ -282,7 +291,7 @@ def tour_lines(view: MissionMap) -> list[Feature]:
                 colour_of(uav).hex,
                 mission=view.targets.mission,
                 uav=uav,
-                tour=tour,
+                tour=list(tour),
             )
         )
     return features

@@ -193,10 +193,8 @@ def _tours(view: MissionMap, projection: MercatorProjection) -> list[Shape]:
     """From each UAV through the targets it still has to fly, in its colour."""
     if view.targets is None:
         return []
-    count = len(view.targets.targets)
     found = []
-    for uav in sorted(view.queues):
-        tour = [i for i in view.tour_of(uav) if i < count]
+    for uav, tour in view.tours().items():
         fix = view.fixes.get(uav)
         if not tour or fix is None:
             continue

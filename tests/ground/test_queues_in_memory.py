@@ -9,14 +9,16 @@ from __future__ import annotations
 import io
 import json
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from fleet.mission.key_space import KeySpace
+from fleet.mission.messages import AssignmentReport
 from fleet.mission.objective import Objective
 from ground.send_command import SendOptions, run_send_targets
 from tests.support.agreement import AssignmentsHeard, assert_one_plan
-from tests.support.memory_world import memory_fleet, ring_file
+from tests.support.memory_world import MemoryFleet, memory_fleet, ring_file
 from tests.support.targets import ring_targets
 from tests.support.waiting import wait_until
 
@@ -26,23 +28,39 @@ _FIRST = 101
 TARGETS = ring_targets(8, seed=23)
 
 
+def send_and_commit(
+    fleet: MemoryFleet, **options: Any
+) -> tuple[dict[str, Any], dict[int, AssignmentReport]]:
+    """`send-targets --wait --json` of TARGETS to the whole fleet, with `options`: its
+    JSON report, and each UAV's commitment once every UAV has committed."""
+    team = fleet.ids
+    seen = AssignmentsHeard(fleet.bus(), SPACE)
+    out = io.StringIO()
+    sent = SendOptions(targets=TARGETS, team=team, wait=True, json=True, **options)
+    assert run_send_targets(fleet.bus(), sent, out) == 0
+    report = json.loads(out.getvalue())
+    wait_until(lambda: set(team) <= set(seen.latest()), 30.0, "every commitment")
+    latest = seen.latest()
+    return report, {uav: latest[uav] for uav in team}
+
+
+def assert_verdict(said: dict[str, Any], reports: dict[int, AssignmentReport]) -> str:
+    """A proposal's verdict in the JSON (`said`) is what every UAV's commitment says: the
+    team adopted it, or kept the baseline; the verdict."""
+    verdict: str = said["verdict"]
+    assert verdict in ("adopted", "baseline"), said
+    digests = {report.digest for report in reports.values()}
+    assert said[f"{verdict}_by"] == sorted(reports) and digests == {said[f"{verdict}_digest"]}
+    return verdict
+
+
 @pytest.mark.parametrize("objective", [Objective.MIN_SUM, Objective.MIN_MAX])
 def test_every_uav_agrees_on_the_plan_of_each_objective(
     tmp_path: Path, objective: Objective
 ) -> None:
     with memory_fleet(ring_file(tmp_path, 3)) as fleet:
-        team = list(fleet.ids)
-        seen = AssignmentsHeard(fleet.bus(), SPACE)
-        out = io.StringIO()
-        options = SendOptions(
-            targets=TARGETS, team=tuple(team), wait=True, json=True, objective=objective
-        )
-        assert run_send_targets(fleet.bus(), options, out) == 0
-        report = json.loads(out.getvalue())
-        assert report["agreed"] is True and report["complete"] is True
-        wait_until(lambda: set(team) <= set(seen.latest()), 30.0, "every commitment")
-        latest = seen.latest()
-        reports = {uav: latest[uav] for uav in team}
+        report, reports = send_and_commit(fleet, objective=objective)
+    assert report["agreed"] is True and report["complete"] is True
     assert_one_plan(report, reports, len(TARGETS))
     assert {str(r.objective) for r in reports.values()} == {str(objective)}
 
@@ -53,24 +71,8 @@ def test_send_targets_propose_says_whether_the_team_adopted_the_proposal(
     """`--propose --wait --json`: the verdict is what every UAV's reported digest says."""
     pytest.importorskip("pyvrp", reason="PyVRP is not installed: pip install '.[solver]'")
     with memory_fleet(ring_file(tmp_path, 3)) as fleet:
-        team = sorted(fleet.ids)
-        seen = AssignmentsHeard(fleet.bus(), SPACE)
-        out = io.StringIO()
-        options = SendOptions(
-            targets=TARGETS,
-            team=tuple(team),
-            wait=True,
-            json=True,
-            objective=Objective.MIN_MAX,
-            propose=True,
-        )
-        assert run_send_targets(fleet.bus(), options, out) == 0
-        said = json.loads(out.getvalue())["proposal"]
-        wait_until(lambda: set(team) <= set(seen.latest()), 30.0, "every commitment")
-        digests = {seen.latest()[uav].digest for uav in team}
-    verdict = said["verdict"]
-    assert verdict in ("adopted", "baseline"), said
-    assert said[f"{verdict}_by"] == team and digests == {said[f"{verdict}_digest"]}
+        report, reports = send_and_commit(fleet, objective=Objective.MIN_MAX, propose=True)
+    verdict = assert_verdict(report["proposal"], reports)
     assert f"the ground's proposal: {'adopted by' if verdict == 'adopted' else 'not'}" in (
         capsys.readouterr().err
     )
@@ -82,22 +84,6 @@ def test_a_uav_proposes_and_every_uav_adopts_one_plan(tmp_path: Path) -> None:
     digest, and the ground reads from it whether they adopted U's plan."""
     pytest.importorskip("pyvrp", reason="PyVRP is not installed: pip install '.[solver]'")
     with memory_fleet(ring_file(tmp_path, 3), proposers=frozenset({_FIRST})) as fleet:
-        team = sorted(fleet.ids)
-        assert _FIRST in team
-        seen = AssignmentsHeard(fleet.bus(), SPACE)
-        out = io.StringIO()
-        options = SendOptions(
-            targets=TARGETS,
-            team=tuple(team),
-            wait=True,
-            json=True,
-            objective=Objective.MIN_MAX,
-            proposers=(_FIRST,),
-        )
-        assert run_send_targets(fleet.bus(), options, out) == 0
-        said = json.loads(out.getvalue())["uav_proposals"][str(_FIRST)]
-        wait_until(lambda: set(team) <= set(seen.latest()), 30.0, "every commitment")
-        digests = {seen.latest()[uav].digest for uav in team}
-    verdict = said["verdict"]
-    assert verdict in ("adopted", "baseline"), said
-    assert said[f"{verdict}_by"] == team and digests == {said[f"{verdict}_digest"]}
+        assert _FIRST in fleet.ids
+        report, reports = send_and_commit(fleet, objective=Objective.MIN_MAX, proposers=(_FIRST,))
+    assert_verdict(report["uav_proposals"][str(_FIRST)], reports)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import json
 import time
+from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -44,20 +45,43 @@ def mission_until_reached(ground: Ground) -> tuple[int, dict[str, Any], dict[int
     return status, report, {s["index"]: s for s in report["target_states"]}, err
 
 
+def send_and_commit(
+    ground: Ground, tmp_path: Path, team: Sequence[int], targets: tuple[Target, ...]
+) -> None:
+    """`ground-cli send-targets` of `targets` to `team`, and every UAV of it committed."""
+    send = start_ground_cli(
+        "send-targets",
+        str(targets_file(tmp_path, targets)),
+        "--team",
+        ",".join(map(str, team)),
+        connect=ground.router,
+    )
+    assert finish_ground_cli(send, 60)[0] == 0
+    wait_until(lambda: set(team) <= set(ground.seen.assignments), 60.0, "every commitment")
+
+
+def local_targets(points: Sequence[tuple[float, float]]) -> tuple[Target, ...]:
+    """Targets at 600 m at `points`, local metres east/north of the ring's centre."""
+    plane = MercatorProjection(*GENERATED_CENTRE)
+    return tuple(Target(*plane.to_latlon(x, y), 600.0) for x, y in points)
+
+
+def ring_committed(
+    fleet: Fleet, ground: Ground, tmp_path: Path, count: int, targets: tuple[Target, ...]
+) -> list[int]:
+    """`count` UAVs on a ring, `targets` sent and committed by all; the team."""
+    team = start_ring(fleet, ground, tmp_path, count, SPEEDUP, telemetry_hz=5.0)
+    send_and_commit(ground, tmp_path, team, targets)
+    return team
+
+
 def commit_ring(
     fleet: Fleet, ground: Ground, tmp_path: Path, count: int, n_targets: int
 ) -> tuple[list[int], dict[int, int]]:
     """`count` UAVs on a ring, a mission of `n_targets` sent and committed by all; the
     team and the holders (UAV -> target)."""
-    team = start_ring(fleet, ground, tmp_path, count, SPEEDUP, telemetry_hz=5.0)
-    seen = ground.seen
-    path = targets_file(tmp_path, ring_targets(n_targets, seed=7))
-    send = start_ground_cli(
-        "send-targets", str(path), "--team", ",".join(map(str, team)), connect=ground.router
-    )
-    assert finish_ground_cli(send, 60)[0] == 0
-    wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "every commitment")
-    pairs = seen.assignments[team[0]].pairs
+    team = ring_committed(fleet, ground, tmp_path, count, ring_targets(n_targets, seed=7))
+    pairs = ground.seen.assignments[team[0]].pairs
     return team, {int(uav): target for uav, target in pairs.items()}
 
 
@@ -176,16 +200,7 @@ def test_a_holder_whose_autopilot_link_is_cut_is_released_and_its_teammate_reach
         team = sorted(endpoints)
         wait_for_telemetry(ground, team)
         targets = ring_targets(1, seed=7)
-        path = targets_file(tmp_path, targets)
-        send = start_ground_cli(
-            "send-targets",
-            str(path),
-            "--team",
-            ",".join(map(str, team)),
-            connect=ground.router,
-        )
-        assert finish_ground_cli(send, 60)[0] == 0
-        wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "both commitments")
+        send_and_commit(ground, tmp_path, team, targets)
         (holder,) = (int(uav) for uav in seen.assignments[team[0]].pairs)
         (idle,) = set(team) - {holder}
         wait_until(lambda: seen.latest_track(holder) == TARGET_WAYPOINT, 30.0, "flying")
@@ -266,16 +281,9 @@ FINISHER_TARGETS = ((-700.0, 1500.0), (-1700.0, 1700.0), (1699.0, -57.0))
 def test_a_finished_uav_killed_then_a_holder_killed_every_orphan_is_flown_by_a_live_uav(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    team = start_ring(fleet, ground, tmp_path, 3, SPEEDUP, telemetry_hz=5.0)
+    targets = local_targets(FINISHER_TARGETS)
+    team = ring_committed(fleet, ground, tmp_path, 3, targets)
     seen = ground.seen
-    plane = MercatorProjection(*GENERATED_CENTRE)
-    targets = tuple(Target(*plane.to_latlon(x, y), 600.0) for x, y in FINISHER_TARGETS)
-    path = targets_file(tmp_path, targets)
-    send = start_ground_cli(
-        "send-targets", str(path), "--team", ",".join(map(str, team)), connect=ground.router
-    )
-    assert finish_ground_cli(send, 60)[0] == 0
-    wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "every commitment")
     holders = {int(uav): target for uav, target in seen.assignments[team[0]].pairs.items()}
     assert holders == {101: 0, 102: 2, 103: 1}, holders
     finisher, holder, survivor = 101, 103, 102
@@ -321,19 +329,9 @@ A, B, C, D = range(4)
 def test_an_onboard_restarted_after_10_s_rejoins_and_flies_the_target_it_is_best_for(
     fleet: Fleet, ground: Ground, tmp_path: Path
 ) -> None:
-    team = start_ring(fleet, ground, tmp_path, 3, SPEEDUP, telemetry_hz=5.0)
+    targets = local_targets(RESTART_TARGETS)
+    team = ring_committed(fleet, ground, tmp_path, 3, targets)
     seen = ground.seen
-    plane = MercatorProjection(*GENERATED_CENTRE)
-    targets = tuple(Target(*plane.to_latlon(x, y), 600.0) for x, y in RESTART_TARGETS)
-    send = start_ground_cli(
-        "send-targets",
-        str(targets_file(tmp_path, targets)),
-        "--team",
-        ",".join(map(str, team)),
-        connect=ground.router,
-    )
-    assert finish_ground_cli(send, 60)[0] == 0
-    wait_until(lambda: set(team) <= set(seen.assignments), 60.0, "every commitment")
     first = seen.assignments[team[0]]
     assert dict(first.queues) == {101: (A, B), 102: (C,), 103: (D,)}, first.queues
     victim, others = 101, (102, 103)

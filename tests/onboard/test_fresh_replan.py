@@ -20,11 +20,14 @@ from tests.support.link_samples import sample_telemetry
 SPACE = KeySpace()
 
 
-def _three_uav_plan() -> tuple[OnboardCore, Recorder]:
-    """112 (this core: 80, 40, 60 s), 74 (10, 90, 90 s), 200 (50, 50, 50 s): one target
-    each, 74 target 0, 112 target 1, 200 target 2."""
-    core, out = make_core(uav=112, fresh_replans=True)
-    round_of_three(core, (10.0, 90.0, 90.0), (50.0, 50.0, 50.0))
+def _three_uav_plan(
+    times: tuple[float, ...] = (80.0, 40.0, 60.0),
+    times_200: tuple[float, ...] = (50.0, 50.0, 50.0),
+) -> tuple[OnboardCore, Recorder]:
+    """112 (this core: `times`), 74 (10, 90, 90 s), 200 (`times_200`): one target each,
+    74 target 0, 112 target 1, 200 target 2."""
+    core, out = make_core(uav=112, times=times, fresh_replans=True)
+    round_of_three(core, (10.0, 90.0, 90.0), times_200)
     (report,) = out.on(SPACE.mission_assignment(1, 112))
     assert isinstance(report, AssignmentReport)
     assert report.queues == {74: (0,), 112: (1,), 200: (2,)}
@@ -141,12 +144,7 @@ def _finished_200_plan(
 ) -> tuple[OnboardCore, Recorder]:
     """As `_three_uav_plan`, but 200 is 15 s from target 2: the append rule's clock has
     it, once at target 2, the earliest at target 0 (its epoch-0 times, from the start)."""
-    core, out = make_core(uav=112, times=times, fresh_replans=True)
-    round_of_three(core, (10.0, 90.0, 90.0), (50.0, 50.0, 15.0))
-    (report,) = out.on(SPACE.mission_assignment(1, 112))
-    assert isinstance(report, AssignmentReport)
-    assert report.queues == {74: (0,), 112: (1,), 200: (2,)}
-    return core, out
+    return _three_uav_plan(times, times_200=(50.0, 50.0, 15.0))
 
 
 def _wait_out(core: OnboardCore, out: Recorder, since: float) -> AssignmentReport:

@@ -49,6 +49,19 @@ def signing_bus(certs: Path, endpoint: str, identity: str) -> ZenohBus:
 
 
 @contextmanager
+def buses_of(
+    names: Iterable[str], open_bus: Callable[[str], ZenohBus]
+) -> Iterator[dict[str, ZenohBus]]:
+    """A bus for each identity of `names`, opened by `open_bus`; all closed on leaving."""
+    made = {name: open_bus(name) for name in names}
+    try:
+        yield made
+    finally:
+        for bus in made.values():
+            bus.close()
+
+
+@contextmanager
 def router_and_identities(names: Iterable[str]) -> Iterator[tuple[str, Path]]:
     """A plain router of this process on a port it chose, and the identities of `names`
     (naming no endpoint) in a temporary folder: its endpoint, and that folder."""

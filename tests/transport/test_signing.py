@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import logging
-import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -26,12 +25,13 @@ from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import MissionAbort, MissionTargets, Target, UavState
 from fleet.mission.signature import Delivery, sign
 from fleet.transport import bus_codec
-from fleet.transport.bus import BusQuery, BusSample, Queryable
+from fleet.transport.bus import BusQuery, Queryable
 from fleet.transport.bus_codec import encode
 from fleet.transport.signing import RELAY_CACHE, BusSigning
 from fleet.transport.zenoh_bus import ZenohBus, client_bus, connect
 from fleet.transport.zenoh_config import build_config
-from tests.support.signed import bus_signing
+from tests.support.heard import Heard
+from tests.support.signed import bus_signing, buses_of
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
@@ -49,20 +49,10 @@ def signed_bus(certs: Path, endpoint: str, identity: str) -> ZenohBus:
 
 @pytest.fixture
 def buses(certs: Path, endpoint: str) -> Iterator[dict[str, ZenohBus]]:
-    made = {name: signed_bus(certs, endpoint, name) for name in ("ground", "uav-74", "uav-112")}
-    yield made
-    for bus in made.values():
-        bus.close()
-
-
-class Heard:
-    def __init__(self) -> None:
-        self.samples: list[BusSample] = []
-        self.arrived = threading.Event()
-
-    def __call__(self, sample: BusSample) -> None:
-        self.samples.append(sample)
-        self.arrived.set()
+    with buses_of(
+        ("ground", "uav-74", "uav-112"), lambda name: signed_bus(certs, endpoint, name)
+    ) as made:
+        yield made
 
 
 @contextmanager

@@ -5,16 +5,16 @@ by a callback or through a ring."""
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 
 from fleet.mission.key_space import KeySpace
-from fleet.transport.bus import BusSample, RingSubscription
+from fleet.transport.bus import RingSubscription
 from fleet.transport.zenoh_bus import ZenohBus, client_bus
-from tests.support.signed import signing_bus
+from tests.support.heard import Heard
+from tests.support.signed import buses_of, signing_bus
 from tests.support.waiting import wait_until
 
 SPACE = KeySpace()
@@ -23,24 +23,8 @@ TIMEOUT_S = 10.0
 
 @pytest.fixture
 def buses(certs: Path, endpoint: str) -> Iterator[dict[str, ZenohBus]]:
-    made = {name: signing_bus(certs, endpoint, name) for name in ("ground", "uav-112")}
-    yield made
-    for bus in made.values():
-        bus.close()
-
-
-class Heard:
-    def __init__(self) -> None:
-        self.payloads: list[bytes] = []
-        self._lock = threading.Lock()
-
-    def __call__(self, sample: BusSample) -> None:
-        with self._lock:
-            self.payloads.append(sample.payload)
-
-    def __contains__(self, payload: bytes) -> bool:
-        with self._lock:
-            return payload in self.payloads
+    with buses_of(("ground", "uav-112"), lambda name: signing_bus(certs, endpoint, name)) as made:
+        yield made
 
 
 def taken(ring: RingSubscription, into: Heard) -> Heard:
