@@ -6,7 +6,11 @@ from __future__ import annotations
 
 import math
 import random
+from collections.abc import Iterable
 
+import pytest
+
+from fleet.consensus import tighten as tighten_module
 from fleet.consensus.improve import improve
 from fleet.consensus.makespan import ruin_and_recreate, shorten_longest
 from fleet.consensus.objectives import plan_queues
@@ -133,3 +137,64 @@ def test_the_regret_insertion_of_three_queues_places_every_target_once_the_same_
     assert plans[0] == plans[1]
     assert sorted(t for route in plans[0] for t in route[1:]) == list(range(16))
     assert 3 not in plans[0][search.uavs.index(104)]
+
+
+class _FirstChoices(random.Random):
+    """The rounds' choices made plain: the first queue over the bound, its first target,
+    and that target alone removed."""
+
+    def randrange(self, *args: int, **_: object) -> int:  # type: ignore[override]
+        return 0
+
+    def randint(self, a: int, b: int) -> int:
+        return a
+
+
+class _RecreateOnly(_Search):
+    """A round's ruin and recreate without the descent after it."""
+
+    def descend(self, targets: Iterable[int]) -> None:
+        pass
+
+
+def test_a_round_puts_its_seed_back_in_another_queue() -> None:
+    """The target a round takes from a queue over the bound is put back in another
+    queue, where it adds the least there, and the plan changes: put back where it added
+    the least over every queue, it went back where it was (from a plan the descent left,
+    most often its cheapest place) and the round rebuilt the plan it started from."""
+    checked = 0
+    for seed in range(6):
+        times, legs = _instance(seed, 4, 12)
+        start = improve(greedy_queues(times, legs), times, legs, Objective.MIN_MAX)
+        search = _RecreateOnly(start, times, legs)
+        search.bound = 0.9 * search.span()
+        _Search.descend(search, search.targets)
+        over = [k for k, a in enumerate(search.arrivals) if len(a) > 1 and a[-1] > search.bound]
+        if not over:
+            continue
+        before = search.snapshot()
+        home, target = over[0], search.routes[over[0]][1]
+        search.rng = _FirstChoices()
+        assert search.kick()
+        assert search.where[target][0] != home
+        assert search.snapshot() != before
+        assert sorted(t for route in search.routes for t in route[1:]) == list(range(12))
+        checked += 1
+    assert checked >= 4
+
+
+def test_the_lowest_ends_searched_again_never_end_higher_and_serve_every_target_once(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The several starts' lowest ends are each searched again with their own seed: the
+    plan is never longer than without that, the same plan twice, every target once."""
+    for seed in (2, 6):
+        times, legs = _instance(seed, 5, 20)
+        start = improve(greedy_queues(times, legs), times, legs, Objective.MIN_MAX)
+        again = tighten(start, times, legs)
+        assert tighten(start, times, legs) == again
+        assert sorted(t for q in again.values() for t in q) == list(range(20))
+        with monkeypatch.context() as patch:
+            patch.setattr(tighten_module, "CONTINUED", 0)
+            once = tighten(start, times, legs)
+        assert finish(again, times, legs).makespan() <= finish(once, times, legs).makespan() + 1e-9

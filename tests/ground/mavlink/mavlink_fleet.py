@@ -12,7 +12,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from tests.ground.mavlink.stations import WAIT_S
+from tests.ground.mavlink.stations import WAIT_S, free_udp_port
 from tests.support.ground_cli import ground_cli
 from tests.support.processes import ANY_PORT, Child, start, start_fleet_up, wait_fleet_up
 from tests.support.waiting import wait_until
@@ -60,6 +60,22 @@ class FleetUp:
             env={"HOME": str(self.tmp), "PYTHONUNBUFFERED": "1"},
             stdin=True,
         )  # fmt: skip
+
+    @contextmanager
+    def mavproxy_gateway(
+        self, *extra: str, state: str = "mavproxy"
+    ) -> Iterator[tuple[Child, Child]]:
+        """A gateway (with `extra` arguments) sending to MAVProxy (`mavproxy`) on a free
+        UDP port: (MAVProxy, the gateway), both stopped on exit (the gateway's whole
+        output is then its `history`)."""
+        port = free_udp_port()
+        gateway = self.gateway(f"udpout:127.0.0.1:{port}", *extra)
+        proxy = self.mavproxy(port, state)
+        try:
+            yield proxy, gateway
+        finally:
+            proxy.stop()
+            stop(gateway)
 
 
 def served_port(gateway: Child) -> int:

@@ -21,7 +21,7 @@ from tests.ground.mavlink.mavlink_fleet import (
     served_port,
     stop,
 )
-from tests.ground.mavlink.stations import free_udp_port, receiver
+from tests.ground.mavlink.stations import WAIT_S, receiver
 from tests.support.ground_view import GroundView
 from tests.support.processes import client_session
 from tests.support.waiting import wait_until
@@ -29,7 +29,6 @@ from tests.support.waiting import wait_until
 pytestmark = pytest.mark.e2e
 
 UAVS = (101, 102, 103)
-WAIT_S = 60.0
 
 
 @pytest.fixture(scope="module")
@@ -60,12 +59,9 @@ WPL = """QGC WPL 110
 def test_mavproxy_sees_every_uav_and_its_mission_is_assigned_across_the_team(
     fleet_up: FleetUp,
 ) -> None:
-    port = free_udp_port()
-    gateway = fleet_up.gateway(f"udpout:127.0.0.1:{port}", "--mission-team", "live")
     mission_file = fleet_up.tmp / "three.txt"
     mission_file.write_text(WPL)
-    proxy = fleet_up.mavproxy(port)
-    try:
+    with fleet_up.mavproxy_gateway("--mission-team", "live") as (proxy, _):
         detected: set[int] = set()
         fetched = False
 
@@ -104,9 +100,6 @@ def test_mavproxy_sees_every_uav_and_its_mission_is_assigned_across_the_team(
         assert found["agreed"]
         proxy.process.stdin.write("exit\n")
         proxy.process.stdin.flush()
-    finally:
-        proxy.stop()
-        stop(gateway)
 
 
 # ---- MAVSDK --------------------------------------------------------------------------------

@@ -29,13 +29,12 @@ from tests.ground.mavlink.mavlink_fleet import (
     served_port,
     stop,
 )
-from tests.ground.mavlink.stations import free_udp_port, receiver
+from tests.ground.mavlink.stations import WAIT_S, receiver
 from tests.support.waiting import wait_until
 
 pytestmark = pytest.mark.e2e
 
 UAVS = (101, 102)
-WAIT_S = 60.0
 PASSPHRASE = "correct horse battery staple"
 
 
@@ -217,17 +216,11 @@ def test_mavsdk_sees_health_a_home_and_a_flight_mode(fleet_up: FleetUp) -> None:
 
 
 def test_mavproxy_reports_no_fence_breach(fleet_up: FleetUp) -> None:
-    port = free_udp_port()
-    gateway = fleet_up.gateway(f"udpout:127.0.0.1:{port}")
-    proxy = fleet_up.mavproxy(port)
-    try:
+    with fleet_up.mavproxy_gateway() as (proxy, _):
         # It loads the parameters once it has heard a vehicle's heartbeat, and each
         # heartbeat comes with a SYS_STATUS, which its fence module reads: by then it has.
         proxy.wait_for_line(lambda line: line.startswith("Received 5 parameters"), WAIT_S)
         assert not [line for line in proxy.history if "fence" in line.lower()], proxy.history
-    finally:
-        proxy.stop()
-        stop(gateway)
 
 
 # ---- attacks on the port --------------------------------------------------------------------
@@ -348,10 +341,8 @@ def test_mavproxy_commands_once_it_signs_with_its_passphrase(fleet_up: FleetUp) 
     keys = fleet_up.tmp / "mavproxy.keys"
     keys.write_text(f"mavproxy {passphrase}\n")
     keys.chmod(0o600)
-    port = free_udp_port()
-    gateway = fleet_up.gateway(f"udpout:127.0.0.1:{port}", "--signing-key", str(keys))
-    proxy = fleet_up.mavproxy(port, "mavproxy-signed")
-    try:
+    signed = fleet_up.mavproxy_gateway("--signing-key", str(keys), state="mavproxy-signed")
+    with signed as (proxy, gateway):
         proxy.wait_for_line(lambda line: line.startswith("Detected vehicle"), WAIT_S)
         assert proxy.process.stdin is not None
         # Unsigned first (refused, counted), then signed.
@@ -363,7 +354,5 @@ def test_mavproxy_commands_once_it_signs_with_its_passphrase(fleet_up: FleetUp) 
         )
         proxy.process.stdin.write("exit\n")
         proxy.process.stdin.flush()
-    finally:
-        proxy.stop()
-        lines = stop(gateway)
+    lines = gateway.history
     assert "'unsigned'" in exit_drops(lines), lines[-3:]  # its frames before the key
