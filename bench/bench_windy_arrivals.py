@@ -17,13 +17,14 @@ UAVs fly their racetracks meanwhile, turning in the wind). Each run takes about
 
 `--nine` sends nine targets instead (`tests.support.targets.WINDY_NINE`, three about
 each UAV) with `--objective min-sum`, so each UAV flies a queue, and prints every leg of
-every queue: the plan's time, the UAV's time said as it began the leg (`begun`: in the
-air of that moment, docs/queues.md) and the time flown, with each one's error and their
-median and worst; and, for each leg after a queue's first, `true wind`: the plan's leg
-model (its airspeed, the turn its queue makes) in the simulator's true mean wind at the
-middle of the leg as flown (`fleet.sim.weather`'s drift, without gusts or the estimate's
-lag and bias), which tells the model's error from the wind's change. About 750 / K wall
-seconds a run.
+every queue: the time of the plan in force when the leg began (`plan`: the first plan,
+or a re-plan in the air of its time, `epoch` > 0: docs/queues.md), the UAV's time said
+as it began the leg (`begun`: in the air of that moment) and the time flown, with each
+one's error and their median and worst; and, for each leg after a queue's first, `true
+wind`: the plan's leg model (its airspeed, the turn its queue makes) in the simulator's
+true mean wind at the middle of the leg as flown (`fleet.sim.weather`'s drift, without
+gusts or the estimate's lag and bias), which tells the model's error from the wind's
+change. About 750 / K wall seconds a run.
 
 `--wind W ...` flies the scenario with its mean wind at each speed W (m/s, from the
 west; drift, gusts and the estimate's lag and bias as shipped) and `--airspeeds A A A`
@@ -69,6 +70,9 @@ from fleet.sim.scenario import Scenario, load_scenario, shipped_scenario, shippe
 from fleet.sim.weather import Weather
 from tests.support.processes import start_fleet_up, wait_fleet_up
 from tests.support.targets import windy_nine_csv
+
+#: Where each run's recording is copied (`--keep DIR`); None: not kept.
+KEEP: list[str | None] = [None]
 
 #: Where each UAV's target lies from it, in the scenario's wind (docs/simulator.md).
 WHERE = {"201": "upwind", "202": "downwind", "203": "across"}
@@ -153,36 +157,41 @@ def fly_nine(
 
 
 def true_wind_legs(timeline: Timeline, scenario: Scenario) -> dict[str, list[float | None]]:
-    """Each UAV's legs, timed by the plan's model in the scenario's true mean wind at
-    the middle of each leg (aircraft clock = the simulator's weather clock)."""
+    """Each UAV's legs (`MissionLog.leg_plans`), timed by the model of the plan in force
+    when each began (its airspeed, the turn its queue makes) in the scenario's true mean
+    wind at the middle of the leg (aircraft clock = the simulator's weather clock); None
+    for a first leg."""
     (log,) = timeline.missions
     targets = MissionTargets(log.mission, log.team, log.targets, zones=log.zones)
     geometry = LegGeometry.of(targets.targets, targets.zones)
     weather = Weather(scenario.weather)
     out: dict[str, list[float | None]] = {}
     for uav in log.team:
-        track, queue = timeline.tracks[uav], log.queue_of(uav)
-        planned = Air.of(log.results[uav])
+        track = timeline.tracks[uav]
         reached = {target: at for at, target in log.arrivals.get(uav, [])}
-        origin = AirLegs(geometry, {uav: planned}).origin_of(uav)
-        times: list[float | None] = [None]
-        previous = reached.get(queue[0]) if queue else None
-        for k in range(1, len(queue)):
-            at = reached.get(queue[k])
-            start = None if previous is None else track.aircraft_time(previous)
+        legs = log.leg_plans(uav)
+        times: list[float | None] = []
+        for k, leg in enumerate(legs):
+            at = reached.get(leg.target)
+            start = None if leg.begun is None else track.aircraft_time(leg.begun)
             end = None if at is None else track.aircraft_time(at)
-            if start is None or end is None:
+            result = None if leg.plan is None else log.air_result(uav, leg.plan[1])
+            if leg.previous is None or start is None or end is None or result is None:
                 times.append(None)
-            else:
-                mean = weather.mean_at(0.5 * (start + end))  # the drift alone
-                true_air = Air(planned.airspeed, Wind(mean.east, mean.north), planned.origin)
-                before = queue[k - 2] if k >= 2 else origin
-                times.append(
-                    AirLegs(geometry, {uav: true_air}).turning_leg(
-                        uav, before, queue[k - 1], queue[k]
-                    )
+                continue
+            planned = Air.of(result)
+            mean = weather.mean_at(0.5 * (start + end))  # the drift alone
+            true_air = Air(planned.airspeed, Wind(mean.east, mean.north), planned.origin)
+            air_legs = AirLegs(geometry, {uav: true_air})
+            before = legs[k - 1].previous
+            times.append(
+                air_legs.turning_leg(
+                    uav,
+                    air_legs.origin_of(uav) if before is None else before,
+                    leg.previous,
+                    leg.target,
                 )
-            previous = at
+            )
         out[str(uav)] = times
     return out
 
@@ -256,6 +265,10 @@ def _mission(
         if report.returncode != 0:
             raise RuntimeError(f"fleet report failed: {report.stderr[-2000:]}")
         found: dict[str, Any] = json.loads(report.stdout)
+        if KEEP[0] is not None:  # the recording kept for a closer look
+            kept = Path(KEEP[0]) / f"{dynamics}-{int(time.time())}.mcap"
+            kept.write_bytes((logs / "fleet.mcap").read_bytes())
+            print(f"recording kept: {kept}", flush=True)
         if nine or estimate:
             scenario = load_scenario(scenario_path)
             timeline = build_timeline(read_recording(logs / "fleet.mcap").messages)
@@ -287,7 +300,7 @@ def print_nine(
     """Every leg of every run printed; each predictor's absolute errors returned."""
     print(f"{'dynamics':<10} {'air':<16} {'run':>3} {'UAV':>4} {'leg':>3} {'target':>6} "
           f"{'plan s   error':>16} {'begun s  error':>16} {'true wind error':>16} "
-          f"{'flown s':>8}")  # fmt: skip
+          f"{'flown s':>8} {'epoch':>5}")  # fmt: skip
     errors: dict[str, list[float]] = {name: [] for name in PREDICTORS}
     for run in range(runs):
         legs, said = fly_nine(dynamics, after_s, speedup, air, estimate)
@@ -303,7 +316,8 @@ def print_nine(
                 flown_text = "-" if flown is None else f"{flown:.1f}"
                 print(
                     f"{dynamics:<10} {air.label:<16} {run:>3} {uav:>4} {leg:>3} "
-                    f"{row['target']:>6} {' '.join(cells)} {flown_text:>8}",
+                    f"{row['target']:>6} {' '.join(cells)} {flown_text:>8} "
+                    f"{row.get('epoch', 0):>5}",
                     flush=True,
                 )
         for line in said:
@@ -356,7 +370,9 @@ def main() -> None:
     parser.add_argument(
         "--estimate", action="store_true", help="each result's wind against the simulator's"
     )
+    parser.add_argument("--keep", metavar="DIR", help="copy each run's recording into DIR")
     args = parser.parse_args()
+    KEEP[0] = args.keep
     speeds = None if args.airspeeds is None else tuple(args.airspeeds)
     airs = [Air3(wind, speeds) for wind in args.wind] if args.wind else [Air3(None, speeds)]
     if args.nine:

@@ -159,6 +159,12 @@ class MissionOutcome:
             )
         return rows
 
+    def asked(self) -> dict[int, int]:
+        """Re-plans in changed air each UAV asked for, at the latest epoch
+        (fleet.consensus.membership `asked`, docs/lifecycle.md)."""
+        report = self.latest()
+        return {} if report is None else dict(sorted(report.asked.items()))
+
     def reached_by(self) -> dict[int, int]:
         """Target index -> the UAV whose telemetry put it inside the acceptance radius, as
         that UAV's own outcome says (a teammate's word for it is a hint, not a fact)."""
@@ -369,6 +375,7 @@ class MissionOutcome:
             "revision": self.revision,
             "removed": sorted(self.removed),
             "membership": self.membership(),
+            "asked": {str(uav): count for uav, count in self.asked().items()},
             "flown_twice": {str(t): uavs for t, uavs in self.flown_twice().items()},
             "outcomes": {
                 str(uav): msgspec.to_builtins(outcome)

@@ -46,6 +46,10 @@ def summary_lines(outcome: MissionOutcome) -> list[str]:
             f"  UAV {row['uav']}: left {row['left']}x ({row['why']}), came back "
             f"{row['back']}x: {now}"
         )
+    asked = outcome.asked()
+    if asked:
+        who = ", ".join(f"UAV {uav} {count}x" for uav, count in asked.items())
+        lines.append(f"  re-planned in the air of now: asked by {who}")
     for index, uavs in outcome.flown_twice().items():
         lines.append(f"  target {index}: FLOWN TWICE, by UAVs {', '.join(map(str, uavs))}")
     for target in outcome.target_states():

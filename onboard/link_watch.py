@@ -70,6 +70,12 @@ class LinkWatch:
         an upwind time ~10 % for 1 m/s."""
         return self._airspeed_mean if self._airspeed_mean is not None else self.airspeed()
 
+    def air_data_airspeed(self) -> float | None:
+        """The air data's true airspeed averaged like the wind; None where the autopilot
+        reports none (`smoothed_airspeed` then falls back on the GPS velocity less the
+        wind, which moves with every turn)."""
+        return self._airspeed_mean
+
     def _average_airspeed(self, telemetry: Telemetry, now: float) -> None:
         sensor = telemetry.sensor
         speed = sensor.true_airspeed() if sensor is not None else None

@@ -8,7 +8,9 @@ released, and the UAVs still in the mission re-plan it; so is one of a teammate 
 dropped out or whose liveliness stayed gone. A re-plan is solved again from every
 survivor's standing, its approach times from where it is now (fleet.consensus.resolve):
 this UAV gives its own and waits for its teammates' (the append plan of
-fleet.consensus.replan when one is overdue).
+fleet.consensus.replan when one is overdue). The same re-plan is asked for by a UAV whose
+air (smoothed wind, airspeed) moved away from the air its plan timed its legs in
+(onboard.air_watch): an epoch of its own, which its teammates take from its standing.
 """
 
 from __future__ import annotations
@@ -30,6 +32,8 @@ from fleet.consensus.mission_round import (
     targets_problem,
 )
 from fleet.consensus.proposal import ProposalRefused
+from fleet.geo.aircraft import AircraftLimits
+from fleet.geo.wind import Wind
 from fleet.mission import claims
 from fleet.mission.key_space import KeySpace
 from fleet.mission.lifecycle import Observation, advance
@@ -47,6 +51,7 @@ from fleet.mission.recent_ids import RecentIds
 from fleet.mission.status_kind import StatusKind
 from fleet.transport.bus_codec import DROPPED, DropReason
 from fleet.transport.refusal_log import RefusalLog
+from onboard.air_watch import AirWatch, FlyingAir
 from onboard.approach_plan import ApproachPlan
 from onboard.catch_up import CatchUp
 from onboard.link_watch import LINK_LOST_S, LinkWatch
@@ -64,6 +69,8 @@ _refusals = RefusalLog(log)
 
 #: Results for missions not seen yet are kept, at most this many, for when they start.
 MAX_EARLY_RESULTS = 256
+#: The airspeeds a result carries are clamped to these (onboard.own_result.flown_air).
+_LIMITS = AircraftLimits()
 
 
 class MissionOutputs(Protocol):
@@ -111,6 +118,9 @@ class MissionParticipation:
     #: the append plan their standings are for, which this UAV stands for too once it can
     #: (`_stand_with_teammates`); None when there is none to give.
     _teammates_basis: str | None = None
+    #: Whether the air moved away from the air the plan in force times this UAV's legs
+    #: in (onboard.air_watch): it then asks its team for a re-plan in the air of now.
+    air: AirWatch = field(default_factory=AirWatch)
     #: Re-based onto a plan built without it (fleet.consensus.heal), and not counted in
     #: yet: it stands for each plan it follows until one counts it in (`_ask_to_join`).
     _joining: bool = False
@@ -221,6 +231,7 @@ class MissionParticipation:
         self.own.standing = None
         self.own.stood.clear()
         self._teammates_basis = None
+        self.air.follow(None, self._aircraft_clock())
         self._joining = False
         self.flight.zones = targets.zones
         self.life.observe(Observation.MISSION_STARTED)
@@ -284,6 +295,17 @@ class MissionParticipation:
         self._count_in(standing, now)
         if mission_round.add_standing(standing):
             self._resolve_ready(now)
+            if mission_round.take_asked(standing.uav, standing.asked):
+                # It asked for a re-plan in the air of now: the same epoch here.
+                self.say(
+                    StatusKind.REPLANNED,
+                    f"mission {mission_round.mission}: UAV {standing.uav} asks for a "
+                    "re-plan in the air of now; re-planning",
+                    now,
+                    mission=mission_round.mission,
+                )
+                self._replan(now)
+                self._settle()
             if mission_round.base is None and mission_round.committed is not None:
                 assert standing.basis is not None
                 self._teammates_basis = standing.basis
@@ -696,6 +718,7 @@ class MissionParticipation:
         if mission_round.committed is not None:
             if mission_round.ask_if_thin(now, self.team.alive):
                 self.outputs.fetch_assignments(mission_round.mission)
+            self._watch_air(now)
             return
         if self.proposer is not None:
             proposal = self.proposer.tick(mission_round, now)
@@ -819,6 +842,7 @@ class MissionParticipation:
             if report.basis is None:
                 self._stand(now)  # an append plan: solved again once every standing is in
         self._ask_teammates_standings(report)
+        self._follow_air()
         self._fly_plan(report, now)
         self._ask_to_join(report, now)  # once off its old target: it flies none now
 
@@ -860,6 +884,69 @@ class MissionParticipation:
             return
         if self.uav_id in report.released and not self._dropped(self.uav_id):
             self.outputs.fetch_standings(report.mission, (), None)
+
+    # ---- the air the plan was timed in -----------------------------------------------------
+    def _aircraft_clock(self) -> float | None:
+        """The autopilot's clock (s): mission time, whatever the simulator's speedup."""
+        telemetry = self.link.telemetry
+        return None if telemetry is None else telemetry.system_time_ms / 1000.0
+
+    def _follow_air(self) -> None:
+        """The plan just applied times this UAV's legs in its result's or standing's air."""
+        mission_round = self.round
+        result = mission_round.air_of(self.uav_id) if mission_round is not None else None
+        air = None
+        if result is not None and result.wind_east is not None and result.wind_north is not None:
+            air = FlyingAir(result.airspeed, Wind(result.wind_east, result.wind_north))
+        self.air.follow(air, self._aircraft_clock())
+
+    def _flying_air(self) -> FlyingAir:
+        """The air it flies in now, as a result would carry it (the smoothed wind, the
+        air data's averaged airspeed clamped to the aircraft's limits)."""
+        speed = self.link.air_data_airspeed()
+        clamped = None if speed is None else round(_LIMITS.clamp_airspeed(speed), 2)
+        return FlyingAir(clamped, self.link.wind.value)
+
+    def _legs_ahead(self) -> bool:
+        """It flies a target with more of its queue after it: legs the plan timed ahead."""
+        mission_round = self.round
+        target = self.flight.target
+        if mission_round is None or target is None or not self.life.holds_target():
+            return False
+        queue = mission_round.queue_of(self.uav_id)
+        if target not in queue:
+            return False
+        rest = queue[queue.index(target) + 1 :]
+        return any(
+            t not in mission_round.reached_targets and not mission_round.removed(t) for t in rest
+        )
+
+    def _watch_air(self, now: float) -> None:
+        """Ask the team for a re-plan in the air of now when the air moved away from the
+        air the plan in force times this UAV's legs in (onboard.air_watch): a new epoch,
+        solved again from every UAV's standing (its own carries the ask)."""
+        mission_round = self.round
+        if not self.fresh_replans or mission_round is None or mission_round.awaiting is not None:
+            return
+        if mission_round.mission in self._aborted or self.link.lost(now):
+            return
+        flying = self._flying_air() if self._legs_ahead() else None
+        reference = self.air.reference
+        if not self.air.check(flying, self._aircraft_clock()):
+            return
+        assert flying is not None and reference is not None
+        if not mission_round.ask_air():
+            return
+        self.say(
+            StatusKind.REPLANNED,
+            f"mission {mission_round.mission}: the air moved {flying.off_by(reference):.1f} "
+            "m/s from the one its plan timed its legs in; asking the team to re-plan in the "
+            "air of now",
+            now,
+            mission=mission_round.mission,
+        )
+        self._replan(now)
+        self._settle()
 
     def _ask_to_join(self, report: AssignmentReport, now: float) -> None:
         """Re-based onto a plan it takes no part in (the winning side's plan was built

@@ -129,8 +129,11 @@ class OwnResult:
         reached: tuple[int, ...],
         air: FlownAir | None,
     ) -> None:
+        # Its own count of re-plans in changed air asked for: a teammate that counts
+        # fewer re-plans this epoch too (onboard.mission_participation).
+        asked = mission_round.membership.asked.get(self.uav_id, 0)
         result = self._result(
-            mission_round, times, air, basis=basis, flying=flying, reached=reached
+            mission_round, times, air, basis=basis, flying=flying, reached=reached, asked=asked
         )
         mission_round.add_standing(result)
         self.outputs.publish(self.key_space.mission_result(result.mission, self.uav_id), result)

@@ -21,6 +21,14 @@ back, so the same rule merges it: every UAV that counts it in sets the same coun
 The epoch is the sum of all counts: it grows with every departure and every return, and
 equals the number of UAVs out while nobody came back (`len(released)`, as before).
 
+A third count per UAV, `asked`, is how many re-plans in changed air it asked for: a
+UAV whose smoothed wind or airspeed moved away from the air its plan timed its legs in
+(onboard.air_watch) adds one to its own, and its teammates take it from the standing
+it gives for that epoch (its own word, of itself) or from any later report. It is an
+epoch like a departure or a return: the same team, solved again from every UAV's fresh
+standing (fleet.consensus.resolve), so the plan in force is timed in the air of about
+the time its legs are flown.
+
 Pure: no I/O.
 """
 
@@ -28,10 +36,13 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
 
 from fleet.consensus.digest import sha256
 
 _MEMBERSHIP_VERSION = b"fleet.assignment.membership/v1\x00"
+#: No re-plan in changed air asked for (a read-only empty mapping).
+NONE_ASKED: Mapping[int, int] = MappingProxyType({})
 
 
 @dataclass
@@ -41,6 +52,8 @@ class Membership:
     team: frozenset[int]
     left: dict[int, int] = field(default_factory=dict)
     back: dict[int, int] = field(default_factory=dict)
+    #: Re-plans in changed air each UAV asked for (its own count, merged like the others).
+    asked: dict[int, int] = field(default_factory=dict)
 
     def out(self) -> frozenset[int]:
         """The team UAVs out now."""
@@ -51,7 +64,15 @@ class Membership:
 
     @property
     def epoch(self) -> int:
-        return sum(self.left.values()) + sum(self.back.values())
+        return sum(self.left.values()) + sum(self.back.values()) + sum(self.asked.values())
+
+    def ask(self, uav: int) -> bool:
+        """Count one more re-plan in changed air asked for by team UAV `uav`; False if it
+        is not one."""
+        if uav not in self.team:
+            return False
+        self.asked[uav] = self.asked.get(uav, 0) + 1
+        return True
 
     def leave(self, uavs: Iterable[int]) -> set[int]:
         """Count team UAVs out that are in; the ones that changed."""
@@ -81,21 +102,31 @@ class Membership:
                 changed.add(uav)
         return changed
 
-    def merge(self, left: Mapping[int, int], back: Mapping[int, int]) -> bool:
+    def merge(
+        self,
+        left: Mapping[int, int],
+        back: Mapping[int, int],
+        asked: Mapping[int, int] = NONE_ASKED,
+    ) -> bool:
         """Take the larger of each count (team UAVs only); True if any changed."""
         changed = False
-        for mine, theirs in ((self.left, left), (self.back, back)):
+        for mine, theirs in ((self.left, left), (self.back, back), (self.asked, asked)):
             for uav, count in theirs.items():
                 if uav in self.team and count > mine.get(uav, 0):
                     mine[uav] = count
                     changed = True
         return changed
 
-    def covers(self, left: Mapping[int, int], back: Mapping[int, int]) -> bool:
+    def covers(
+        self,
+        left: Mapping[int, int],
+        back: Mapping[int, int],
+        asked: Mapping[int, int] = NONE_ASKED,
+    ) -> bool:
         """Merging these counts would change nothing."""
         return all(
             uav not in self.team or count <= mine.get(uav, 0)
-            for mine, theirs in ((self.left, left), (self.back, back))
+            for mine, theirs in ((self.left, left), (self.back, back), (self.asked, asked))
             for uav, count in theirs.items()
         )
 
@@ -111,11 +142,18 @@ def report_counts(
     return counted, dict(back)
 
 
-def membership_digest(base_digest: str, left: Mapping[int, int], back: Mapping[int, int]) -> str:
-    """16 hex digits identifying (epoch-0 results, the counts) once somebody came back."""
+def membership_digest(
+    base_digest: str,
+    left: Mapping[int, int],
+    back: Mapping[int, int],
+    asked: Mapping[int, int] = NONE_ASKED,
+) -> str:
+    """16 hex digits identifying (epoch-0 results, the counts) once somebody came back or
+    asked for a re-plan in changed air (the `asked` counts hashed only when there are
+    some: the digests of plans without them are the same bytes as before)."""
     h = sha256(_MEMBERSHIP_VERSION)
     h.update(base_digest.encode("ascii", "replace"))
-    for counts in (left, back):
+    for counts in (left, back, asked) if asked else (left, back):
         for uav in sorted(counts):
             h.update(uav.to_bytes(2, "little"))
             h.update(counts[uav].to_bytes(4, "little"))

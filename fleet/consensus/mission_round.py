@@ -134,6 +134,7 @@ class Settled:
     #: larger changes nothing.
     left: tuple[tuple[int, int], ...] = ()
     back: tuple[tuple[int, int], ...] = ()
+    asked: tuple[tuple[int, int], ...] = ()
     #: The mission's revision this UAV holds: a report of a later one may change it.
     revision: int = 0
     #: The append plan whose resolved plan this UAV follows (its digest), None if none:
@@ -160,10 +161,10 @@ class Settled:
             return False
         if header.revision > self.revision:
             return False
-        if header.left or header.back:
+        if header.left or header.back or header.asked:
             left, back = report_counts(header.released, header.left, header.back)
-            view = Membership(self.team, dict(self.left), dict(self.back))
-            return view.covers(left, back)
+            view = Membership(self.team, dict(self.left), dict(self.back), dict(self.asked))
+            return view.covers(left, back, header.asked)
         released = header.released
         return not released or all(uav in self.done or uav not in self.team for uav in released)
 
@@ -380,6 +381,7 @@ class MissionRound:
             done=frozenset(self.released),
             left=tuple(sorted(self.membership.left.items())),
             back=tuple(sorted(self.membership.back.items())),
+            asked=tuple(sorted(self.membership.asked.items())),
             following=committed.epoch if committed is not None and self.base is None else None,
             revision=self.current.revision,
             resolved=committed.basis if committed is not None else None,
@@ -588,6 +590,7 @@ class MissionRound:
         back: dict[int, int] | None = None,
         revision: int = 0,
         basis: str | None = None,
+        asked: dict[int, int] | None = None,
     ) -> AssignmentReport:
         """This UAV's report of a plan; its ETA is its first target's arrival."""
         own = arrivals.get(self.own_id, ())
@@ -610,6 +613,7 @@ class MissionRound:
             back=back or {},
             revision=revision,
             basis=basis,
+            asked=asked or {},
         )
 
     def thinner(self, report: AssignmentReport, alive: set[int], now: float) -> set[int]:
@@ -652,7 +656,7 @@ class MissionRound:
         # epochs instead of waiting for them forever.
         if report.epoch == 0 and (self.own_id in self.results or self.own_id not in report.team):
             self.base = self.committed
-        self.membership.merge(*report_counts(report.released, report.left, report.back))
+        self.membership.merge(*_counts(report))
         return self.committed
 
     def follow(self, report: AssignmentReport) -> AssignmentReport | None:
@@ -661,7 +665,7 @@ class MissionRound:
             return None
         if report.epoch <= self.committed.epoch:
             return None
-        self.membership.merge(*report_counts(report.released, report.left, report.back))
+        self.membership.merge(*_counts(report))
         self.committed = self._own_copy(report)
         return self.committed
 
@@ -694,7 +698,7 @@ class MissionRound:
         self.base = None
         self.awaiting = self.awaiting_since = None
         self.membership = Membership(self.team)
-        self.membership.merge(*report_counts(report.released, report.left, report.back))
+        self.membership.merge(*_counts(report))
         return self._own_copy(report)
 
     def _own_copy(self, report: AssignmentReport) -> AssignmentReport:
@@ -750,12 +754,44 @@ class MissionRound:
     def merge(self, report: AssignmentReport, disputed: Iterable[int] = ()) -> bool:
         """Take a teammate's membership counts (the larger of each), but none about the
         `disputed` UAVs; True if that changes the re-plan input."""
-        left, back = report_counts(report.released, report.left, report.back)
+        left, back, asked = _counts(report)
         for uav in disputed:
             left.pop(uav, None)
             back.pop(uav, None)
-        changed = self.membership.merge(left, back)
+        changed = self.membership.merge(left, back, asked)
         return changed and self.base is not None
+
+    def ask_air(self) -> bool:
+        """This UAV asks its team to re-plan in the air of now (its smoothed wind or
+        airspeed moved away from the air its plan timed its legs in: onboard.air_watch):
+        one more `asked` count of its own, a new epoch (fleet.consensus.membership). False
+        where it cannot: before the commitment, without epoch 0 (following its teammates'
+        epochs, it has no append plan to stand for), with re-plans not solved again from
+        standings (the append plan of an epoch nobody left is epoch 0's again), or out of
+        the mission."""
+        if self.committed is None or self.base is None or not self.resolving:
+            return False
+        if self.membership.is_out(self.own_id):
+            return False
+        return self.membership.ask(self.own_id)
+
+    def take_asked(self, uav: int, asked: int) -> bool:
+        """A teammate's standing says it asked for `asked` re-plans in changed air (its
+        own word, of itself): taken if more than counted here; True if that changes the
+        re-plan input."""
+        if uav == self.own_id or asked <= 0:
+            return False
+        changed = self.membership.merge({}, {}, {uav: asked})
+        return changed and self.base is not None
+
+    def air_of(self, uav: int) -> UavResult | None:
+        """The result whose air (airspeed, wind) times `uav`'s legs in the plan this UAV
+        follows: its standing for a resolved re-plan, else its epoch-0 result (the
+        append plan's legs are timed in the epoch-0 results' air); None if not held."""
+        committed = self.committed
+        if committed is not None and committed.basis is not None:
+            return self.standings.get(committed.basis, {}).get(uav)
+        return self.results.get(uav)
 
     def replan_missing(self) -> tuple[int, ...]:
         """Candidates whose results a re-plan needs and this UAV lacks."""
@@ -811,9 +847,13 @@ class MissionRound:
         heads = plan.pairs
         membership = self.membership
         epoch, digest = plan.epoch, plan.digest
-        if membership.back:  # somebody came back: the counts, not the set, name the epoch
+        if membership.back or membership.asked:
+            # Somebody came back, or asked for a re-plan in changed air: the counts, not
+            # the set, name the epoch.
             epoch = membership.epoch
-            digest = membership_digest(self.base.digest, membership.left, membership.back)
+            digest = membership_digest(
+                self.base.digest, membership.left, membership.back, membership.asked
+            )
             digest = finished_digest(digest, plan.finished)
         # Each revision of the mission is one epoch more (fleet.consensus.mission_change).
         epoch += current.revision
@@ -828,10 +868,13 @@ class MissionRound:
             digest=digest,
             epoch=epoch,
             released=plan.released,
-            # Counts only once somebody came back: until then each is 1, and `released`
-            # says the same (fleet.consensus.membership.report_counts).
-            left=dict(sorted(membership.left.items())) if membership.back else {},
+            # Counts only once somebody came back (or asked): until then each is 1, and
+            # `released` says the same (fleet.consensus.membership.report_counts).
+            left=dict(sorted(membership.left.items()))
+            if membership.back or membership.asked
+            else {},
             back=dict(sorted(membership.back.items())),
+            asked=dict(sorted(membership.asked.items())),
             revision=current.revision,
         )
 
@@ -953,6 +996,7 @@ class MissionRound:
                 released=fallback.released,
                 left=dict(fallback.left),
                 back=dict(fallback.back),
+                asked=dict(fallback.asked),
                 revision=fallback.revision,
                 basis=fallback.digest,
             )
@@ -988,3 +1032,9 @@ class MissionRound:
             uav: result.times + estimated_times(result, current.targets, extra)
             for uav, result in self.results.items()
         }
+
+
+def _counts(report: AssignmentReport) -> tuple[dict[int, int], dict[int, int], dict[int, int]]:
+    """A report's membership counts: left, back (`report_counts`) and asked."""
+    left, back = report_counts(report.released, report.left, report.back)
+    return left, back, dict(report.asked)

@@ -39,8 +39,9 @@ TargetIndex = Annotated[int, Meta(ge=0, le=MAX_TARGETS - 1)]
 Team = Annotated[tuple[PiccoloId, ...], Meta(max_length=MAX_TEAM)]
 #: How many times one UAV left a mission, or came back (fleet.consensus.membership).
 MembershipCount = Annotated[int, Meta(ge=0, le=0xFFFF)]
-#: An epoch is the sum of every team UAV's two counts and the mission's revision.
-MAX_EPOCH = 2 * MAX_TEAM * 0xFFFF + 0xFFFF
+#: An epoch is the sum of every team UAV's three counts (left, back, asked) and the
+#: mission's revision.
+MAX_EPOCH = 3 * MAX_TEAM * 0xFFFF + 0xFFFF
 #: One UAV's ordered targets.
 Queue = Annotated[tuple[TargetIndex, ...], Meta(max_length=MAX_TARGETS)]
 Arrivals = Annotated[tuple[float, ...], Meta(max_length=MAX_TARGETS)]
@@ -183,6 +184,10 @@ class UavResult(msgspec.Struct, frozen=True):
     #: of itself only: a target it says another UAV reached is planned again, and
     #: skipped by its holder if that UAV's own outcome says it reached it).
     reached: Annotated[tuple[TargetIndex, ...], Meta(max_length=MAX_TARGETS)] = ()
+    #: With `basis`: how many re-plans in changed air this UAV asked for so far (its own
+    #: count, fleet.consensus.membership): a teammate that counts fewer takes it, and
+    #: re-plans that epoch too (onboard.air_watch).
+    asked: MembershipCount = 0
 
 
 class MissionAbort(msgspec.Struct, frozen=True):
@@ -254,6 +259,9 @@ class AssignmentReport(msgspec.Struct, frozen=True):
     #: A re-plan solved again from the survivors' standings (fleet.consensus.resolve):
     #: the digest of the epoch's append plan it replaces. None: not resolved.
     basis: Annotated[str, Meta(max_length=64)] | None = None
+    #: How many re-plans in changed air each UAV asked for (fleet.consensus.membership);
+    #: empty while none did. Counted in the epoch.
+    asked: Annotated[dict[PiccoloId, MembershipCount], Meta(max_length=MAX_TEAM)] = {}
 
 
 class PlanProposal(msgspec.Struct, frozen=True):
@@ -296,6 +304,8 @@ class AssignmentHeader(msgspec.Struct, frozen=True):
     #: The epoch-0 team the plan is built on: two plans of one mission after a heal
     #: (fleet.consensus.heal).
     team: Team = ()
+    #: Re-plans in changed air asked for, by UAV (fleet.consensus.membership).
+    asked: Annotated[dict[PiccoloId, MembershipCount], Meta(max_length=MAX_TEAM)] = {}
 
 
 class TargetOutcome(msgspec.Struct, frozen=True):

@@ -121,6 +121,12 @@ class MissionLog:
     #: Each UAV's time for each leg as it said when it began the leg (its state's
     #: `leg_s`, the first heard): uav -> target -> seconds.
     leg_said: dict[int, dict[int, float]] = field(default_factory=dict)
+    #: Every assignment each UAV put as the one it follows (its assignment key), in the
+    #: order heard: (t, report). The plan in force when one of its legs began.
+    followed: dict[int, list[tuple[float, AssignmentReport]]] = field(default_factory=dict)
+    #: Each UAV's standings for re-plans (results with a `basis`), by (UAV, basis): the
+    #: air a resolved re-plan timed its legs in.
+    standings: dict[tuple[int, str], UavResult] = field(default_factory=dict)
 
     def plan_of(self, uav: int) -> AssignmentReport | None:
         """The plan the UAV flew last: the latest re-plan, unless it was released by it
@@ -140,34 +146,100 @@ class MissionLog:
             return report.queues.get(uav, ())
         return () if report.target is None else (report.target,)
 
+    def plan_at(self, uav: int, t: float | None) -> tuple[float, AssignmentReport] | None:
+        """The plan the UAV followed at `t` (the latest it put at or before it), with when
+        it put it; its first commitment where `t` is None or before it."""
+        followed = self.followed.get(uav, [])
+        if not followed:
+            report = self.assignments.get(uav)
+            at = self.committed.get(uav)
+            return None if report is None or at is None else (at, report)
+        if t is None:
+            return followed[0]
+        before = [entry for entry in followed if entry[0] <= t]
+        return before[-1] if before else followed[0]
+
+    def air_result(self, uav: int, report: AssignmentReport) -> UavResult | None:
+        """The result whose air `report` timed `uav`'s legs in: its standing for a
+        resolved re-plan, else its first result."""
+        if report.basis is not None:
+            return self.standings.get((uav, report.basis))
+        return self.results.get(uav)
+
+    def flown_order(self, uav: int) -> list[int]:
+        """The targets the UAV reached, in the order it reached them, then the rest of its
+        queue in the plan it flew last (`queue_of`) that nobody was heard to reach."""
+        order: list[int] = []
+        for _, target in self.arrivals.get(uav, []):
+            if target not in order:
+                order.append(target)
+        anyone = {target for heard in self.arrivals.values() for _, target in heard}
+        return order + [t for t in self.queue_of(uav) if t not in order and t not in anyone]
+
+    def leg_plans(self, uav: int) -> list[LegPlan]:
+        """Each leg of the UAV's `flown_order`: when it began (the previous arrival, or
+        its commitment; or, where it turned to the target mid-leg on a re-plan, that
+        re-plan), and the plan in force then, whose time for the leg is `predicted`."""
+        reached: dict[int, float] = {}
+        for t, target in self.arrivals.get(uav, []):
+            reached.setdefault(target, t)
+        legs: list[LegPlan] = []
+        previous: int | None = None
+        for target in self.flown_order(uav):
+            begun = self.committed.get(uav) if previous is None else reached.get(previous)
+            plan = self.plan_at(uav, begun)
+            seconds = None if plan is None else _leg_time(plan[1], uav, previous, target)
+            if seconds is None and begun is not None:
+                # Not next in the plan in force as the leg began: a later re-plan turned
+                # the UAV to it on the way (its new first target): the leg began there.
+                turned = self._turned_to(uav, target, begun, reached.get(target))
+                if turned is not None:
+                    plan, begun = turned, turned[0]
+                    seconds = _leg_time(plan[1], uav, None, target)
+            legs.append(LegPlan(target, previous, begun, plan, seconds))
+            previous = target
+        return legs
+
+    def _turned_to(
+        self, uav: int, target: int, after: float, until: float | None
+    ) -> tuple[float, AssignmentReport] | None:
+        """The first plan the UAV put after `after` (and before `until`) whose queue
+        starts with `target` for it: the re-plan that turned it there."""
+        for at, report in self.followed.get(uav, []):
+            if at <= after or (until is not None and at > until):
+                continue
+            queue = _queue(report, uav)
+            if queue and queue[0] == target:
+                return at, report
+        return None
+
     def legs(self, uav: int, tracks: dict[int, Track]) -> list[dict[str, Any]]:
-        """Each target of the UAV's queue: the plan's predicted leg time (s) and the one
-        flown (aircraft clock, from the previous arrival or the commitment), None where
-        it was not seen reached; and `begun_s`, the UAV's time for the leg said as it
-        began it (its state's `leg_s`), where it said one."""
-        report = self.plan_of(uav)
-        queue = self.queue_of(uav)
-        if report is None or not queue:
+        """Each leg of the UAV's `flown_order`: the time the plan in force when it began
+        gave it (`leg_plans`; `epoch` names that plan where it is a re-plan's), and the
+        time flown (aircraft clock, from when it began to the arrival), None where it was
+        not seen reached; and `begun_s`, the UAV's time for the leg said as it began it
+        (its state's `leg_s`), where it said one."""
+        if self.assignments.get(uav) is None:
             return []
-        planned = report.arrivals.get(uav, ())
         track = tracks.get(uav)
         reached = {target: t for t, target in self.arrivals.get(uav, [])}
-        committed = self.committed.get(uav)
-        previous_plan, previous_at = 0.0, committed
         rows: list[dict[str, Any]] = []
-        for i, target in enumerate(queue):
-            plan = planned[i] - previous_plan if i < len(planned) else None
-            at = reached.get(target)
+        for leg in self.leg_plans(uav):
+            at = reached.get(leg.target)
             flown = None
-            if track is not None and at is not None and previous_at is not None:
-                flown = track.flown_between(previous_at, at)
-            row: dict[str, Any] = {"target": target, "predicted_s": plan, "flown_s": flown}
-            said = self.leg_said.get(uav, {}).get(target)
+            if track is not None and at is not None and leg.begun is not None:
+                flown = track.flown_between(leg.begun, at)
+            row: dict[str, Any] = {
+                "target": leg.target,
+                "predicted_s": leg.predicted,
+                "flown_s": flown,
+            }
+            if leg.plan is not None and leg.plan[1].epoch:
+                row["epoch"] = leg.plan[1].epoch
+            said = self.leg_said.get(uav, {}).get(leg.target)
             if said is not None:  # the UAV's time for the leg, said as it began it
                 row["begun_s"] = said
             rows.append(row)
-            previous_plan = planned[i] if i < len(planned) else previous_plan
-            previous_at = at
         return rows
 
     def target_of(self, uav: int) -> int | None:
@@ -208,6 +280,45 @@ class MissionLog:
             last = max(self.resumed.values())
             found["resumed"] = min(self.end, last + max(5.0, 0.25 * (last - self.sent)))
         return found
+
+
+@dataclass(frozen=True)
+class LegPlan:
+    """One leg of a UAV's queue and the plan in force when it began."""
+
+    target: int
+    previous: int | None  #: the target before it; None for the first
+    begun: float | None  #: when it began (recording time)
+    plan: tuple[float, AssignmentReport] | None  #: (when put, the plan in force then)
+    predicted: float | None  #: that plan's time for the leg (s)
+
+
+def _queue(report: AssignmentReport, uav: int) -> tuple[int, ...]:
+    if report.queues:
+        return report.queues.get(uav, ())
+    return () if report.target is None or report.uav != uav else (report.target,)
+
+
+def _leg_time(
+    report: AssignmentReport, uav: int, previous: int | None, target: int
+) -> float | None:
+    """`report`'s time for `uav`'s leg to `target` after `previous`: its arrival there
+    less its arrival at the target before in its queue; the arrival itself where the
+    target is its queue's first (from where the UAV planned); None where the target is
+    not next in its queue after `previous`."""
+    queue, arrivals = _queue(report, uav), report.arrivals.get(uav, ())
+    if not report.arrivals and report.eta_s is not None and queue[:1] == (target,):
+        arrivals = (report.eta_s,)
+    if target not in queue:
+        return None
+    j = queue.index(target)
+    if j >= len(arrivals):
+        return None
+    if j == 0:
+        return arrivals[0]
+    if previous is not None and previous not in queue:
+        return None
+    return arrivals[j] - arrivals[j - 1]
 
 
 @dataclass
@@ -342,7 +453,11 @@ class _Builder:
                 )
         elif kind == "result":
             result = msgspec.convert(value, UavResult, str_keys=True)
-            if (log := self.missions.get(result.mission)) is not None:
+            if (log := self.missions.get(result.mission)) is None:
+                pass
+            elif result.basis is not None:
+                log.standings.setdefault((result.uav, result.basis), result)
+            else:
                 log.results.setdefault(result.uav, result)
         elif kind == "assignment":
             report = msgspec.convert(value, AssignmentReport, str_keys=True)
@@ -351,6 +466,7 @@ class _Builder:
                     raise ValueError(f"target {report.target} is not one of the mission's")
                 log.assignments.setdefault(report.uav, report)
                 log.committed.setdefault(report.uav, t)
+                log.followed.setdefault(report.uav, []).append((t, report))
         elif kind == "replan":
             report = msgspec.convert(value, AssignmentReport, str_keys=True)
             log = self.missions.get(report.mission)

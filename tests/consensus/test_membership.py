@@ -77,3 +77,23 @@ def test_merging_in_any_order_gives_the_same_counts(histories: list[list[tuple[s
         assert all(merged.covers(v.left, v.back) for v in views)
         results.add((tuple(sorted(merged.left.items())), tuple(sorted(merged.back.items()))))
     assert len(results) == 1
+
+
+def test_re_plans_asked_in_changed_air_are_counted_in_the_epoch_and_merged_in_any_order() -> None:
+    a, b = Membership(TEAM), Membership(TEAM)
+    assert a.ask(101) and a.asked == {101: 1} and a.epoch == 1 and a.out() == frozenset()
+    assert not a.ask(999)  # not of the team
+    b.leave([104])
+    b.ask(102)
+    b.ask(102)
+    a.merge(b.left, b.back, b.asked)
+    b.merge(a.left, a.back, a.asked)
+    assert (a.left, a.back, a.asked) == (b.left, b.back, b.asked)
+    assert a.asked == {101: 1, 102: 2} and a.left == {104: 1}
+    assert a.epoch == b.epoch == 4
+    assert a.covers(b.left, b.back, b.asked) and not a.covers({}, {}, {101: 2})
+    digest = membership_digest("d", a.left, a.back, a.asked)
+    assert digest == membership_digest("d", b.left, b.back, b.asked)
+    # Asked counts name another plan; none asked leaves the digest of before.
+    assert digest != membership_digest("d", a.left, a.back)
+    assert membership_digest("d", a.left, a.back, {}) == membership_digest("d", a.left, a.back)

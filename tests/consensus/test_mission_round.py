@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from fleet.consensus.assignment import results_digest
-from fleet.consensus.mission_round import FETCH_INTERVAL, MissionRound, assignment_problem
+from fleet.consensus.mission_round import FETCH_INTERVAL, MissionRound, Settled, assignment_problem
 from fleet.mission.messages import (
     AssignmentHeader,
     AssignmentReport,
@@ -292,3 +292,19 @@ def test_prepare_computes_the_legs_before_any_result() -> None:
     legs = mission_round.prepare()
     assert len(legs) == 2 and legs[0][1] == legs[1][0] > 0.0
     assert mission_round.legs is legs  # the decision uses these, not new ones
+
+
+def test_a_report_with_more_re_plans_asked_in_changed_air_is_not_covered_by_the_settled() -> None:
+    settled = Settled(
+        mission=1,
+        own_id=112,
+        committed=True,
+        aborted=False,
+        team=frozenset({74, 112}),
+        done=frozenset(),
+        following=None,
+        asked=((74, 1),),
+    )
+    same = AssignmentHeader(mission=1, uav=74, epoch=1, asked={74: 1})
+    more = AssignmentHeader(mission=1, uav=74, epoch=2, asked={74: 2})
+    assert settled.covers(same) and not settled.covers(more)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import msgspec
+
 from fleet.mission.messages import (
     AssignmentReport,
     MissionProgress,
@@ -183,3 +185,17 @@ def test_mission_shows_who_left_and_came_back_and_every_target_flown_twice() -> 
     assert "  target 0: FLOWN TWICE, by UAVs 101, 103" in lines
     assert any("UAV 102: left 2x (no telemetry for 60 s), came back 1x: out" in s for s in lines)
     assert "  re-planned: epoch 4 (mission revision 1)" in lines
+
+
+def test_mission_shows_who_asked_for_a_re_plan_in_the_air_of_now() -> None:
+    team = (101, 102)
+    report = AssignmentReport(
+        1, 101, 0, {101: 0, 102: 1}, (), team, "d", epoch=2, asked={101: 1, 102: 1}
+    )
+    outcome = MissionOutcome(mission=1, team=team, targets=TARGETS)
+    outcome.assignments = {101: report, 102: msgspec.structs.replace(report, uav=102, target=1)}
+    assert outcome.asked() == {101: 1, 102: 1} and outcome.membership() == []
+    assert outcome.to_json()["asked"] == {"101": 1, "102": 1}
+    assert "  re-planned in the air of now: asked by UAV 101 1x, UAV 102 1x" in summary_lines(
+        outcome
+    )

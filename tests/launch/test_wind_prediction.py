@@ -13,6 +13,7 @@ test fails if the wind is not in the plan.
 from __future__ import annotations
 
 import json
+import logging
 import math
 import subprocess
 import sys
@@ -31,12 +32,18 @@ from tests.support.processes import RunningFleet, fleet_up
 from tests.support.targets import windy_nine_csv
 
 pytestmark = pytest.mark.e2e
+log = logging.getLogger(__name__)
 
 TIMEOUT_S = 120.0
 #: How far a published ETA may be from the time flown.
 TOLERANCE = 0.10
-#: How far a plan's leg time may be from the time flown when the wind drifts after the
-#: plan (the nine targets' test).
+#: How far a leg's time, as the plan in force when it began timed it, may be from the
+#: time flown when the wind drifts after the plan (the nine targets' test). A UAV whose
+#: air drifted from its plan's asks for a re-plan in the air of now (docs/lifecycle.md),
+#: but at speedup 4 here its averages (the onboard's 20 s of wall clock, 80 s of the
+#: aircraft's, then the watch's 60 s) see the drift only ~400-500 s into the mission,
+#: about when the last legs begin: in one run of six the re-plan came first (worst leg
+#: 5.4 %), in five it did not (10.3-13.5 %; docs/benchmarks.md). So 15 %, not 10 %.
 PLAN_TOLERANCE = 0.15
 WINDY = shipped_scenario("windy")
 
@@ -104,16 +111,16 @@ def test_every_leg_of_every_queue_flies_in_the_time_its_uav_said_in_a_10_ms_wind
     tmp_path: Path,
 ) -> None:
     """Nine targets on three UAVs (min-sum: queues of three), every leg of every queue
-    within 10 % of the time flown, as the UAV timed it when it began the leg (the first:
-    its result's approach time; a later one: the plan's leg model in its air then).
+    within 10 % of the time flown as the UAV timed it when it began the leg (the first:
+    its result's approach time; a later one: the plan's leg model in its air then), and
+    within 15 % as the plan in force when the leg began timed it.
 
-    The plan's own leg times are in the air at the plan: this scenario's mean wind turns
-    by ~1.3 m/s over the ~11 minutes the queues take (its drift, by design), and each
-    result's wind is off the true mean by its autopilot's estimate's bias (0.3-0.7 m/s
-    here, by design too; nothing else: docs/benchmarks.md), so a last leg is flown up to
-    ~11 % slower than planned (the same leg timed by the plan's model in the true wind of
-    its time is within 2 %). They are held within 15 % here: before each UAV's legs were
-    timed in its air, they were +10 to +55 % off."""
+    This scenario's mean wind turns by ~1.3 m/s over the ~11 minutes the queues take (its
+    drift, by design): timed in the air of the first plan alone, a last leg is flown up
+    to ~13 % slower than planned. A UAV whose air moved 0.7 m/s from its plan's asks the
+    team for a re-plan in the air of now, so the legs begun after it are timed in the air
+    of their time, when it comes before them (`PLAN_TOLERANCE`). Before each UAV's legs
+    were timed in its air, they were +10 to +55 % off."""
     with fleet_up("windy", "--speedup", "4", "--log-dir", str(tmp_path), timeout=90.0) as up:
         sent = ground_cli(
             "send-targets", str(windy_nine_csv(tmp_path / "nine.csv")), "--objective", "min-sum",
@@ -127,6 +134,8 @@ def test_every_leg_of_every_queue_flies_in_the_time_its_uav_said_in_a_10_ms_wind
     legs = {uav: mission["legs"][uav] for uav in ("201", "202", "203")}
     assert sorted(row["target"] for rows in legs.values() for row in rows) == list(range(9))
     assert sum(len(rows) > 1 for rows in legs.values()) >= 2, legs  # queues, not one each
+    replans = sorted({row.get("epoch", 0) for rows in legs.values() for row in rows})
+    log.info("legs timed by plans of epochs %s: %s", replans, legs)
     for uav, rows in legs.items():
         for row in rows:
             begun, planned, flown = row["begun_s"], row["predicted_s"], row["flown_s"]
