@@ -134,8 +134,8 @@ class MissionOutcome:
     def membership(self) -> list[dict[str, Any]]:
         """Who left the mission after its commitment and who came back, at the latest
         epoch (fleet.consensus.membership): each such UAV's counts, whether it is out now,
-        and why it left where its own outcome says (failed, link lost), else its
-        liveliness went."""
+        and why it left where its own outcome says (failed, link lost), else that it was
+        counted in to a plan built without it, else its liveliness went."""
         report = self.latest()
         if report is None:
             return []
@@ -145,9 +145,14 @@ class MissionOutcome:
         for uav in sorted(left.keys() | back.keys()):
             outcome = self.outcomes.get(uav)
             dropped = outcome is not None and outcome.phase in (Phase.FAILED, Phase.LINK_LOST)
-            why = (
-                (outcome.reason or str(outcome.phase)) if dropped and outcome else "liveliness lost"
-            )
+            if dropped and outcome:
+                why = outcome.reason or str(outcome.phase)
+            elif uav not in report.team:
+                # Counted out once and back once by the rule that counts in a UAV the
+                # epoch-0 plan was built without (fleet.consensus.membership `join`).
+                why = "counted in: the first plan was built without it"
+            else:
+                why = "liveliness lost"
             rows.append(
                 {
                     "uav": uav,

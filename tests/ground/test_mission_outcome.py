@@ -179,6 +179,15 @@ def test_mission_shows_who_left_and_came_back_and_every_target_flown_twice() -> 
         "uav": 102, "left": 2, "back": 1, "out": True, "why": "no telemetry for 60 s"
     }  # fmt: skip
     assert rows[103]["out"] is False and rows[103]["why"] == "liveliness lost"
+    # A UAV the first plan was built without (a side re-based onto it after a heal) is
+    # counted out once and back once: it joined, its liveliness never went.
+    joined = msgspec.structs.replace(report(101), left={104: 1}, back={104: 1}, released=())
+    outcome.assignments[101] = joined
+    assert outcome.membership() == [
+        {"uav": 104, "left": 1, "back": 1, "out": False,
+         "why": "counted in: the first plan was built without it"}
+    ]  # fmt: skip
+    outcome.assignments[101] = report(101)
     report_json = outcome.to_json()
     assert report_json["flown_twice"] == {"0": [101, 103]} and report_json["revision"] == 1
     lines = summary_lines(outcome)
