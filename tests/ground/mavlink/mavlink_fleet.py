@@ -4,6 +4,7 @@ on a TCP port, `ground-cli` against it, and the gateway as its own process."""
 from __future__ import annotations
 
 import json
+import re
 import signal
 import sys
 import time
@@ -21,6 +22,14 @@ from tests.support.waiting import wait_until
 SERVING = "fleet mavlink: serving on "
 #: How long `fleet up` may take to say its fleet is up.
 START_S = 90.0
+#: MAVProxy's prompts ("MAV> ", "Mode(393216)> "): its console prints them with no
+#: newline, so the next line it prints may come after one, or several.
+_PROMPTS = re.compile(r"^(?:\S+> )+")
+
+
+def said(line: str) -> str:
+    """A line of MAVProxy's console without the prompts before it."""
+    return _PROMPTS.sub("", line)
 
 
 class FleetUp:

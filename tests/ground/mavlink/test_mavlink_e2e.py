@@ -18,6 +18,7 @@ from tests.ground.mavlink.mavlink_fleet import (
     FleetUp,
     mavsdk_systems,
     running_fleet,
+    said,
     served_port,
     stop,
 )
@@ -72,6 +73,7 @@ def test_mavproxy_sees_every_uav_and_its_mission_is_assigned_across_the_team(
         # cause).
         def detects_all_and_fetched(line: str) -> bool:
             nonlocal fetched
+            line = said(line)
             if line.startswith("Detected vehicle "):
                 detected.add(int(line.split()[2].split(":")[0]))
             fetched = fetched or line.startswith("Received 5 parameters")
@@ -83,7 +85,7 @@ def test_mavproxy_sees_every_uav_and_its_mission_is_assigned_across_the_team(
         proxy.process.stdin.flush()
         proxy.wait_for_line(lambda line: "Got MISSION_ACK: TYPE_MISSION: ACCEPTED" in line, WAIT_S)
         # The fleet's own status messages come back as STATUSTEXT, from UAV 102's system id.
-        line = proxy.wait_for_line(lambda line: line.startswith("AP: mission "), WAIT_S)
+        line = said(proxy.wait_for_line(lambda line: said(line).startswith("AP: mission "), WAIT_S))
         mission = int(line.split()[2].rstrip(":"))
 
         def assigned() -> bool:

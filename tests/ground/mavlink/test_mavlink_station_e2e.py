@@ -26,6 +26,7 @@ from tests.ground.mavlink.mavlink_fleet import (
     FleetUp,
     mavsdk_systems,
     running_fleet,
+    said,
     served_port,
     stop,
 )
@@ -219,7 +220,7 @@ def test_mavproxy_reports_no_fence_breach(fleet_up: FleetUp) -> None:
     with fleet_up.mavproxy_gateway() as (proxy, _):
         # It loads the parameters once it has heard a vehicle's heartbeat, and each
         # heartbeat comes with a SYS_STATUS, which its fence module reads: by then it has.
-        proxy.wait_for_line(lambda line: line.startswith("Received 5 parameters"), WAIT_S)
+        proxy.wait_for_line(lambda line: said(line).startswith("Received 5 parameters"), WAIT_S)
         assert not [line for line in proxy.history if "fence" in line.lower()], proxy.history
 
 
@@ -343,14 +344,14 @@ def test_mavproxy_commands_once_it_signs_with_its_passphrase(fleet_up: FleetUp) 
     keys.chmod(0o600)
     signed = fleet_up.mavproxy_gateway("--signing-key", str(keys), state="mavproxy-signed")
     with signed as (proxy, gateway):
-        proxy.wait_for_line(lambda line: line.startswith("Detected vehicle"), WAIT_S)
+        proxy.wait_for_line(lambda line: said(line).startswith("Detected vehicle"), WAIT_S)
         assert proxy.process.stdin is not None
         # Unsigned first (refused, counted), then signed.
         proxy.process.stdin.write(f"wp list\nsigning key {passphrase}\nwp list\n")
         proxy.process.stdin.flush()
         # Answered: the count of the mission the UAV flies (none, or an earlier test's).
         proxy.wait_for_line(
-            lambda line: line.startswith("Requesting ") and "waypoints" in line, WAIT_S
+            lambda line: said(line).startswith("Requesting ") and "waypoints" in line, WAIT_S
         )
         proxy.process.stdin.write("exit\n")
         proxy.process.stdin.flush()
