@@ -26,9 +26,10 @@ again from there. Pure: no I/O.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from fleet.geo.wind import Wind
+from onboard.time_average import TimeAverage
 
 #: A wind (vector) or airspeed change this large (m/s) from the plan's makes a re-plan:
 #: 0.7 m/s along an upwind leg at 22 m/s in a 10 m/s wind is ~6 % of its time.
@@ -75,8 +76,14 @@ class AirWatch:
     #: Since when the change has been above the threshold (and not below the band).
     _over_since: float | None = None
     _last_clock: float | None = None
-    #: The air now, averaged over `average_s` (None before any).
-    _average: FlyingAir | None = None
+    #: The air now (its wind, and its airspeed where it has one), averaged over
+    #: `average_s` of the aircraft's clock.
+    _wind: TimeAverage = field(init=False, repr=False, compare=False)
+    _airspeed: TimeAverage = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        self._wind = TimeAverage(self.average_s)
+        self._airspeed = TimeAverage(self.average_s)
 
     def follow(self, air: FlyingAir | None, clock: float | None) -> None:
         """The plan in force times this UAV's legs in `air` (None: it does not say)."""
@@ -96,11 +103,10 @@ class AirWatch:
         if last is not None and clock < last:
             self._quiet_from = clock  # the autopilot's clock restarted: wait again
             self._over_since = None
-            last = None
         self._last_clock = clock
         if self._quiet_from is None:
             self._quiet_from = clock
-        average = self._averaged(now_air, None if last is None else clock - last)
+        average = self._averaged(now_air, clock)
         reference = self.reference
         if reference is None or average is None:
             self._over_since = None
@@ -117,20 +123,17 @@ class AirWatch:
         self._over_since = None
         return True
 
-    def _averaged(self, air: FlyingAir | None, elapsed: float | None) -> FlyingAir | None:
-        """`air` averaged in over `elapsed` seconds (an exponential moving average in
-        time; the first reading, or one after a gap in the readings, as it is)."""
-        held = self._average
-        if air is None or held is None or elapsed is None or self.average_s <= 0.0:
-            self._average = air
-            return air
-        weight = 1.0 - math.exp(-elapsed / self.average_s)
+    def _averaged(self, air: FlyingAir | None, clock: float) -> FlyingAir | None:
+        """`air` averaged in at `clock` (onboard.time_average: the first reading, or one
+        after a gap in the readings or a clock gone back, as it is)."""
+        if air is None:
+            self._wind.reset()
+            self._airspeed.reset()
+            return None
+        east, north = self._wind.add((air.wind.east, air.wind.north), clock)
         speed = air.airspeed
-        if speed is not None and held.airspeed is not None:
-            speed = held.airspeed + weight * (speed - held.airspeed)
-        wind = Wind(
-            held.wind.east + weight * (air.wind.east - held.wind.east),
-            held.wind.north + weight * (air.wind.north - held.wind.north),
-        )
-        self._average = FlyingAir(speed, wind)
-        return self._average
+        if speed is None:
+            self._airspeed.reset()
+        else:
+            (speed,) = self._airspeed.add((speed,), clock)
+        return FlyingAir(speed, Wind(east, north))

@@ -1,5 +1,5 @@
-"""Watching the autopilot link: the latest telemetry, the wind it reports (smoothed),
-and whether it stopped coming.
+"""Watching the autopilot link: the latest telemetry, the wind and airspeed it reports
+(smoothed on the aircraft's clock), and whether it stopped coming.
 
 Telemetry silent for LINK_LOST_S counts as a lost link, said once when it happens and
 once when telemetry flows again; what a lost link does to a held target is the target
@@ -16,6 +16,7 @@ from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock, Telemetry
 from onboard.planner.wind_estimate import WindEstimate
 from onboard.state_report import Say
+from onboard.time_average import AircraftClock, TimeAverage
 
 #: With no telemetry for this long (wall seconds), the autopilot link counts as lost.
 LINK_LOST_S = 3.0
@@ -33,16 +34,17 @@ class LinkWatch:
     started_at: float | None = None
     _said_lost: bool = False
     wind: WindEstimate = field(default_factory=WindEstimate)
-    #: The air data's true airspeed averaged like the wind (`smoothed_airspeed`), and
-    #: when it was last averaged in.
-    _airspeed_mean: float | None = None
-    _airspeed_at: float | None = None
+    #: The clock the averages run on: the weather's seconds, whatever the speedup.
+    clock: AircraftClock = field(default_factory=AircraftClock)
+    #: The air data's true airspeed averaged like the wind (`smoothed_airspeed`).
+    _airspeed: TimeAverage | None = None
 
     def on_telemetry(self, telemetry: Telemetry, now: float) -> None:
         self.telemetry = telemetry
         self.telemetry_at = now
-        self.wind.on_telemetry(telemetry, now)
-        self._average_airspeed(telemetry, now)
+        aircraft_s = self.clock.tick(telemetry.system_time_ms, now)
+        self.wind.on_telemetry(telemetry, aircraft_s)
+        self._average_airspeed(telemetry, aircraft_s)
         if self._said_lost:
             self._said_lost = False
             self.say(StatusKind.LINK_BACK, "autopilot link back: telemetry flowing again", now)
@@ -68,27 +70,24 @@ class LinkWatch:
         `airspeed()`. A leg timed at one instant's reading is off by that instant's gust:
         on JSBSim the reading spreads 0.9 m/s about the commanded 22 (docs/benchmarks.md),
         an upwind time ~10 % for 1 m/s."""
-        return self._airspeed_mean if self._airspeed_mean is not None else self.airspeed()
+        mean = self.air_data_airspeed()
+        return mean if mean is not None else self.airspeed()
 
     def air_data_airspeed(self) -> float | None:
         """The air data's true airspeed averaged like the wind; None where the autopilot
         reports none (`smoothed_airspeed` then falls back on the GPS velocity less the
         wind, which moves with every turn)."""
-        return self._airspeed_mean
+        average = self._airspeed
+        return None if average is None or average.value is None else average.value[0]
 
-    def _average_airspeed(self, telemetry: Telemetry, now: float) -> None:
+    def _average_airspeed(self, telemetry: Telemetry, aircraft_s: float) -> None:
         sensor = telemetry.sensor
         speed = sensor.true_airspeed() if sensor is not None else None
         if speed is None or not math.isfinite(speed):
             return
-        last = self._airspeed_at
-        if self._airspeed_mean is None or last is None or now <= last:
-            # The first reading, or one from a clock that went back: taken as it is.
-            self._airspeed_mean, self._airspeed_at = speed, now
-            return
-        weight = 1.0 - math.exp(-(now - last) / self.wind.time_constant_s)
-        self._airspeed_mean += weight * (speed - self._airspeed_mean)
-        self._airspeed_at = now
+        if self._airspeed is None:
+            self._airspeed = TimeAverage(self.wind.time_constant_s)
+        self._airspeed.add((speed,), aircraft_s)
 
     def lost(self, now: float) -> bool:
         """True while no telemetry has arrived for LINK_LOST_S (or none ever did)."""

@@ -4,9 +4,11 @@ A Piccolo reports its wind estimate in every telemetry packet (`wind_south`,
 `wind_west`). That estimate moves with every gust and with the estimator's own noise,
 while an approach time is a promise over minutes: the mean wind matters, not the gust
 of the moment. So the estimates are averaged over `time_constant_s` (an exponential
-moving average in time, not in samples: the main loop sees telemetry at an irregular
-rate). The first estimate is taken as it is, so a module that starts mid-flight plans
-with the wind at once. Pure: time comes in as `now`.
+moving average in time, onboard.time_average: the main loop sees telemetry at an
+irregular rate). The first estimate is taken as it is, so a module that starts
+mid-flight plans with the wind at once. Pure: time comes in as `now` (the module's
+link watch gives the aircraft's clock, so the average spans the weather's seconds
+whatever a simulator's speedup).
 
 An estimate that is not a number, or faster than `MAX_PLAUSIBLE_WIND` (no aircraft of
 this fleet flies in it: a corrupt field), is dropped and counted, never averaged in.
@@ -15,10 +17,11 @@ this fleet flies in it: a corrupt field), is dropped and counted, never averaged
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from fleet.geo.wind import CALM_AIR, Wind
 from fleet.piccolo.telemetry import Telemetry
+from onboard.time_average import TimeAverage
 
 __all__ = ["DEFAULT_TIME_CONSTANT_S", "MAX_PLAUSIBLE_WIND", "WindEstimate"]
 
@@ -37,7 +40,10 @@ class WindEstimate:
     value: Wind = CALM_AIR  #: the wind to plan with (calm until an estimate came)
     samples: int = 0  #: estimates averaged in
     dropped: int = 0  #: estimates refused (not a number, or implausibly fast)
-    _at: float | None = None
+    _average: TimeAverage = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        self._average = TimeAverage(self.time_constant_s)
 
     def on_telemetry(self, telemetry: Telemetry, now: float) -> None:
         if telemetry.sensor is not None:
@@ -53,14 +59,5 @@ class WindEstimate:
             self.dropped += 1
             return
         self.samples += 1
-        if self._at is None or now <= self._at:
-            # The first estimate, or one from a clock that went back: taken as it is
-            # rather than weighed by a negative time.
-            weight = 1.0 if self._at is None else 0.0
-        else:
-            weight = 1.0 - math.exp(-(now - self._at) / self.time_constant_s)
-        self._at = now if self._at is None else max(self._at, now)
-        self.value = Wind(
-            self.value.east + weight * (wind.east - self.value.east),
-            self.value.north + weight * (wind.north - self.value.north),
-        )
+        east, north = self._average.add((wind.east, wind.north), now)
+        self.value = Wind(east, north)

@@ -90,9 +90,31 @@ def test_the_smoothed_airspeed_averages_the_air_data_over_the_wind_s_time_consta
     assert watch.airspeed() == pytest.approx(25.0)
     weight = 1.0 - math.exp(-1.0 / watch.wind.time_constant_s)
     assert watch.smoothed_airspeed() == pytest.approx(22.0 + 3.0 * weight)
-    reading(22.0, 0.5)  # a clock that went back: taken as it is
-    assert watch.smoothed_airspeed() == pytest.approx(22.0)
+    reading(22.0, 0.5)  # a wall clock gone back, the aircraft's standing: no time passed
+    assert watch.smoothed_airspeed() == pytest.approx(22.0 + 3.0 * weight)
     plain = LinkWatch(lambda *_args, **_kwargs: None)
     no_pitot = msgspec.structs.replace(base, indicated_airspeed=0.0)
     plain.on_telemetry(msgspec.structs.replace(telemetry, sensor=no_pitot), 0.0)
     assert plain.smoothed_airspeed() == pytest.approx(plain.airspeed())
+
+
+def test_the_averages_run_on_the_aircraft_s_clock_whatever_the_speedup() -> None:
+    """A simulator at speedup 4 flies 4 s of weather a wall second: the wind and the
+    airspeed are averaged over the aircraft's seconds (telemetry `system_time_ms`), so
+    their time constant spans the same weather at any speedup."""
+    watch = LinkWatch(lambda *_args, **_kwargs: None)
+    base = sample_telemetry().sensor
+    assert base is not None
+
+    def reading(speed: float, wind_west: float, time_ms: int, wall: float) -> None:
+        sensor = msgspec.structs.replace(
+            base, indicated_airspeed=speed, density_ratio=1.0, wind_south=0.0, wind_west=wind_west
+        )
+        watch.on_telemetry(msgspec.structs.replace(sample_telemetry(time_ms), sensor=sensor), wall)
+
+    reading(22.0, -10.0, 1000, 0.0)
+    reading(25.0, -12.0, 5000, 1.0)  # 4 s of the aircraft's time in 1 s of the wall's
+    weight = 1.0 - math.exp(-4.0 / watch.wind.time_constant_s)
+    assert watch.clock.now_s == pytest.approx(4.0)
+    assert watch.air_data_airspeed() == pytest.approx(22.0 + 3.0 * weight)
+    assert watch.wind.value.east == pytest.approx(10.0 + 2.0 * weight)
