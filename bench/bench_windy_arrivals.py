@@ -267,6 +267,7 @@ def _mission(
         found: dict[str, Any] = json.loads(report.stdout)
         if KEEP[0] is not None:  # the recording kept for a closer look
             kept = Path(KEEP[0]) / f"{dynamics}-{int(time.time())}.mcap"
+            kept.parent.mkdir(parents=True, exist_ok=True)
             kept.write_bytes((logs / "fleet.mcap").read_bytes())
             print(f"recording kept: {kept}", flush=True)
         if nine or estimate:

@@ -18,6 +18,14 @@ its own, fleet.consensus.membership `asked`), so gusts never make one:
   ask and from when the plan in force changed the air it is timed in (any re-plan, the
   team's or its own: after one, every UAV's reference is its fresh standing's air).
 
+Before a leg begins (the UAV within `BEFORE_LEG_S` of the target it flies, with more of
+its queue after it) the watch asks on a smaller change (`before_leg_mps`, held
+`before_leg_dwell_s`, `before_leg_interval_s` after the plan's air last changed). A
+drift asks on the threshold only once it is large, minutes after it began; a leg timed
+in the air of its start is what the plan promises, and the next leg is about to be
+flown in the air of now. So the moment a leg begins is when a smaller change is worth a
+re-plan, and it comes at most once a leg: gusts can make one there, never a run of them.
+
 Times are the aircraft's clock (telemetry `system_time_ms`): mission time, whatever the
 simulator's speedup. A clock that goes back (an autopilot restart) starts the waits
 again from there. Pure: no I/O.
@@ -43,6 +51,18 @@ AIR_DWELL_S = 30.0
 #: At most one ask per this long (s, aircraft clock), and none this soon after the plan
 #: in force changed its air.
 AIR_INTERVAL_S = 150.0
+#: A UAV this close (s of its ground speed) to the target it flies, with legs after it,
+#: is about to begin a leg: the watch then asks on the smaller change below. Long enough
+#: for a re-plan to be committed before the arrival (a standing waits up to 3 s wall).
+BEFORE_LEG_S = 60.0
+#: The change (m/s) that asks just before a leg: 0.4 m/s along an upwind leg at 22 m/s
+#: in a 10 m/s wind is ~3 % of its time; the band below which it clears.
+BEFORE_LEG_MPS = 0.4
+BEFORE_LEG_CLEAR_MPS = 0.3
+#: How long (s, aircraft clock) the change must hold just before a leg, and how long
+#: after the plan's air changed (or this UAV asked) it may ask there.
+BEFORE_LEG_DWELL_S = 5.0
+BEFORE_LEG_INTERVAL_S = 60.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -69,6 +89,10 @@ class AirWatch:
     dwell_s: float = AIR_DWELL_S
     interval_s: float = AIR_INTERVAL_S
     average_s: float = AIR_AVERAGE_S
+    before_leg_mps: float = BEFORE_LEG_MPS
+    before_leg_clear_mps: float = BEFORE_LEG_CLEAR_MPS
+    before_leg_dwell_s: float = BEFORE_LEG_DWELL_S
+    before_leg_interval_s: float = BEFORE_LEG_INTERVAL_S
     #: The air the plan in force times this UAV's legs in; None: nothing to compare.
     reference: FlyingAir | None = None
     #: When (aircraft clock) the reference last changed, or this UAV last asked.
@@ -94,9 +118,12 @@ class AirWatch:
         if clock is not None:
             self._quiet_from = clock
 
-    def check(self, now_air: FlyingAir | None, clock: float | None) -> bool:
+    def check(
+        self, now_air: FlyingAir | None, clock: float | None, before_leg: bool = False
+    ) -> bool:
         """True when this UAV should ask for a re-plan in `now_air` (the air it flies in
-        now, at `clock` on the aircraft's clock); the ask is counted then."""
+        now, at `clock` on the aircraft's clock; `before_leg`: it is about to begin a leg
+        the plan timed, `BEFORE_LEG_S`); the ask is counted then."""
         if clock is None or not math.isfinite(clock):
             return False
         last = self._last_clock
@@ -111,13 +138,23 @@ class AirWatch:
         if reference is None or average is None:
             self._over_since = None
             return False
+        change, clear, dwell, interval = (
+            (
+                self.before_leg_mps,
+                self.before_leg_clear_mps,
+                self.before_leg_dwell_s,
+                self.before_leg_interval_s,
+            )
+            if before_leg
+            else (self.change_mps, self.clear_mps, self.dwell_s, self.interval_s)
+        )
         off = average.off_by(reference)
-        if off < self.clear_mps or (self._over_since is None and off <= self.change_mps):
+        if off < clear or (self._over_since is None and off <= change):
             self._over_since = None
             return False
         if self._over_since is None:
             self._over_since = clock
-        if clock - self._over_since < self.dwell_s or clock - self._quiet_from < self.interval_s:
+        if clock - self._over_since < dwell or clock - self._quiet_from < interval:
             return False
         self._quiet_from = clock
         self._over_since = None

@@ -16,6 +16,7 @@ air (smoothed wind, airspeed) moved away from the air its plan timed its legs in
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -51,7 +52,7 @@ from fleet.mission.recent_ids import RecentIds
 from fleet.mission.status_kind import StatusKind
 from fleet.transport.bus_codec import DROPPED, DropReason
 from fleet.transport.refusal_log import RefusalLog
-from onboard.air_watch import AirWatch, FlyingAir
+from onboard.air_watch import BEFORE_LEG_S, AirWatch, FlyingAir
 from onboard.approach_plan import ApproachPlan
 from onboard.catch_up import CatchUp
 from onboard.link_watch import LINK_LOST_S, LinkWatch
@@ -921,6 +922,15 @@ class MissionParticipation:
             t not in mission_round.reached_targets and not mission_round.removed(t) for t in rest
         )
 
+    def _leg_begins_soon(self) -> bool:
+        """Its target is within BEFORE_LEG_S of its ground speed (straight there): the
+        next leg of its queue is about to begin (onboard.air_watch)."""
+        gps, distance = self.link.gps, self.flight.target_distance()
+        if gps is None or distance is None:
+            return False
+        speed = math.hypot(gps.vel_east, gps.vel_north)
+        return speed > 1.0 and distance <= BEFORE_LEG_S * speed
+
     def _watch_air(self, now: float) -> None:
         """Ask the team for a re-plan in the air of now when the air moved away from the
         air the plan in force times this UAV's legs in (onboard.air_watch): a new epoch,
@@ -932,7 +942,7 @@ class MissionParticipation:
             return
         flying = self._flying_air() if self._legs_ahead() else None
         reference = self.air.reference
-        if not self.air.check(flying, self._aircraft_clock()):
+        if not self.air.check(flying, self._aircraft_clock(), self._leg_begins_soon()):
             return
         assert flying is not None and reference is not None
         if not mission_round.ask_air():

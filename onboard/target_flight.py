@@ -127,7 +127,7 @@ class TargetFlight:
     def on_telemetry(self, now: float) -> FlightNews | None:
         self._fixes.on_fix(self.link.gps, self.link.outages)
         if self.life.holds_target():
-            distance = self._target_distance()
+            distance = self.target_distance()
             if distance is not None and distance <= REACHED_RADIUS_M:
                 return self._reached(distance, now)
             if self._departed_to is not None and self.life.phase == Phase.FLYING:
@@ -136,7 +136,7 @@ class TargetFlight:
                 return self._left_target_route(self._departed_to, now)
         return None
 
-    def _target_distance(self) -> float | None:
+    def target_distance(self) -> float | None:
         """Metres from the latest GPS fix to the held target; None if either is unknown."""
         gps = self.link.gps
         if self.target is None or gps is None or self._target_at is None:
@@ -172,7 +172,7 @@ class TargetFlight:
     def _left_target_route(self, waypoint: int, now: float) -> FlightNews | None:
         """The autopilot stopped tracking the target: arrival if telemetry says so."""
         self._departed_to = None
-        distance = self._target_distance()
+        distance = self.target_distance()
         if distance is not None and distance <= REACHED_RADIUS_M:
             return self._reached(distance, now)
         outages = self.link.outages

@@ -10,6 +10,9 @@ from onboard.air_watch import (
     AIR_CHANGE_MPS,
     AIR_DWELL_S,
     AIR_INTERVAL_S,
+    BEFORE_LEG_DWELL_S,
+    BEFORE_LEG_INTERVAL_S,
+    BEFORE_LEG_MPS,
     AirWatch,
     FlyingAir,
 )
@@ -113,3 +116,28 @@ def test_no_reference_or_a_clock_that_goes_back_asks_nothing() -> None:
     assert _asks(watch, [(float(t), moved) for t in range(400, 500)]) == []
     # The autopilot restarted: its clock from 0 again; the interval starts there.
     assert _asks(watch, [(float(t), moved) for t in range(0, 200)]) == [AIR_INTERVAL_S]
+
+
+def test_just_before_a_leg_a_smaller_change_asks_once_the_leg_s_interval_passed() -> None:
+    """0.5 m/s off never asks in flight (under the threshold), but about to begin a leg
+    it does, after its short dwell, once `BEFORE_LEG_INTERVAL_S` passed since the plan's
+    air changed; then not again until the plan's air changes or the interval passes."""
+    watch = _watch()
+    watch.follow(PLAN, 0.0)
+    drifted = FlyingAir(22.0, Wind(10.0, BEFORE_LEG_MPS + 0.1))
+    assert _asks(watch, [(float(t), drifted) for t in range(0, 400)]) == []
+    asks = [t for t in range(400, 460) if watch.check(drifted, float(t), before_leg=True)]
+    assert asks == [400 + BEFORE_LEG_DWELL_S]
+    watch.follow(drifted, 410.0)  # the team re-planned in the air of now
+    assert [t for t in range(410, 600) if watch.check(drifted, float(t), True)] == []
+    soon = _watch()
+    soon.follow(PLAN, 0.0)  # a plan younger than the interval: it waits for it
+    asks = [t for t in range(0, 100) if soon.check(drifted, float(t), before_leg=True)]
+    assert asks == [BEFORE_LEG_INTERVAL_S]
+
+
+def test_just_before_a_leg_air_within_the_smaller_change_asks_nothing() -> None:
+    watch = _watch()
+    watch.follow(PLAN, 0.0)
+    near = FlyingAir(22.0, Wind(10.0 + BEFORE_LEG_MPS - 0.05, 0.0))
+    assert [t for t in range(0, 600) if watch.check(near, float(t), before_leg=True)] == []
