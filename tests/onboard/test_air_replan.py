@@ -32,13 +32,19 @@ SPACE = KeySpace()
 TEAM = (74, 112)
 
 
-def _telemetry(clock_s: float, wind_east: float) -> Telemetry:
+def _telemetry(
+    clock_s: float, wind_east: float, where: tuple[float, float] | None = None
+) -> Telemetry:
     """The sample telemetry at `clock_s` on the aircraft's clock, its autopilot's wind
-    estimate blowing `wind_east` m/s to the east."""
+    estimate blowing `wind_east` m/s to the east (at `where`, latitude and longitude,
+    instead of the sample's position)."""
     sample = sample_telemetry(round(clock_s * 1000))
-    assert sample.sensor is not None
+    assert sample.sensor is not None and sample.gps is not None
     sensor = msgspec.structs.replace(sample.sensor, wind_west=-wind_east)
-    return msgspec.structs.replace(sample, sensor=sensor)
+    gps = sample.gps
+    if where is not None:
+        gps = msgspec.structs.replace(gps, lat=where[0], lon=where[1])
+    return msgspec.structs.replace(sample, sensor=sensor, gps=gps)
 
 
 class Pair:
@@ -75,14 +81,22 @@ class Pair:
                         elif isinstance(message, AssignmentReport) and "/replan/" in key:
                             core.on_assignment(message, now)
 
-    def fly(self, start: float, end: float, wind: Callable[[int, float], float]) -> None:
+    def fly(
+        self,
+        start: float,
+        end: float,
+        wind: Callable[[int, float], float],
+        where: dict[int, tuple[float, float]] | None = None,
+    ) -> None:
         """Both modules from `start` to `end` (s), telemetry each second with the
-        autopilots' wind `wind(uav, t)`, their clocks the same as `now`."""
+        autopilots' wind `wind(uav, t)` (at `where[uav]`, else the sample's position),
+        their clocks the same as `now`."""
         now = start
         while now < end:
             now += 1.0
             for uav, (core, _) in self.cores.items():
-                core.on_telemetry(_telemetry(now, wind(uav, now)), now)
+                at = (where or {}).get(uav)
+                core.on_telemetry(_telemetry(now, wind(uav, now), at), now)
                 core.tick(now)
             self.relay(now)
 
@@ -177,3 +191,22 @@ def test_gusts_below_the_threshold_or_shorter_than_the_dwell_make_no_re_plan() -
     pair.fly(1.2, 6 * AIR_INTERVAL_S, gusty)
     assert [pair.replans(uav) for uav in TEAM] == [[], []]
     assert [pair.standings(uav) for uav in TEAM] == [[], []]
+
+
+def test_a_smaller_change_makes_one_re_plan_just_before_a_leg_begins_not_in_flight() -> None:
+    """0.6 m/s off the plan's air (under the in-flight threshold, over the one just
+    before a leg): nothing while 74's target is minutes away; one re-plan once 74 is
+    within a minute of its target 0, with target 2 after it (onboard.air_watch)."""
+    pair = _committed_pair()
+
+    def drifted(uav: int, t: float) -> float:
+        return 0.6 if uav == 74 else 0.0
+
+    pair.fly(1.2, 2.5 * AIR_INTERVAL_S, drifted)  # 1.4 km from target 0: over a minute
+    assert [pair.replans(uav) for uav in TEAM] == [[], []]
+    near = {74: (42.366, -71.084)}  # ~600 m from target 0 (42.37, -71.08): ~30 s
+    pair.fly(2.5 * AIR_INTERVAL_S, 3 * AIR_INTERVAL_S, drifted, near)
+    for uav in TEAM:
+        (replan,) = pair.replans(uav)
+        assert replan.asked == {74: 1} and replan.epoch == 1
+    assert len({pair.replans(uav)[0].digest for uav in TEAM}) == 1
