@@ -513,7 +513,23 @@ class MissionParticipation:
         it counts out that is alive here and did not drop out by its own word (this UAV
         itself included) are left out, a hint: this UAV asks for that UAV's own outcome
         (failed, link lost), which releases it when it says so. The reporter counts it
-        back once it sees it alive again, and the counts meet."""
+        back once it sees it alive again, and the counts meet.
+
+        That another UAV asked for a re-plan in changed air is believed from that UAV's
+        word alone (fleet.consensus.membership `own_asked`): a report that says so is a
+        hint, and this UAV asks that UAV for its standing for the report's append plan,
+        which carries its count (`_on_standing` takes it)."""
+        claimed = mission_round.asks_claimed(report)
+        if claimed:
+            log.info(
+                "mission %d: UAV %d's re-plan says %s asked for a re-plan in changed air: "
+                "asking for their own standings",
+                report.mission,
+                report.uav,
+                ", ".join(map(str, claimed)),
+            )
+            basis = report.basis or report.digest
+            self.outputs.fetch_standings(mission_round.mission, claimed, basis)
         disputed = tuple(
             sorted(
                 uav
