@@ -75,6 +75,9 @@ class ProposalRefused(StrEnum):
 
     NO_RIGHT = "proposal_no_right"  #: from a proposer the mission does not entitle
     INVALID = "proposal_invalid"  #: not a plan of the round's inputs (`proposal_problem`)
+    #: not for the mission the UAV holds: an older one's (superseded), or a later one's
+    #: pushed out of the few kept until it arrives (onboard.early_proposals)
+    NO_MISSION = "proposal_no_mission"
 
 
 def right_problem(proposer: int, named: Collection[int], team: Collection[int]) -> str | None:
