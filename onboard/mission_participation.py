@@ -55,6 +55,7 @@ from fleet.transport.refusal_log import RefusalLog
 from onboard.air_watch import BEFORE_LEG_S, AirWatch, FlyingAir
 from onboard.approach_plan import ApproachPlan
 from onboard.catch_up import CatchUp
+from onboard.early_proposals import EarlyProposals
 from onboard.link_watch import LINK_LOST_S, LinkWatch
 from onboard.mission_decision import MissionDecision
 from onboard.mission_phase import MissionPhase
@@ -107,6 +108,8 @@ class MissionParticipation:
     decision: MissionDecision = field(init=False)
     own: OwnResult = field(init=False)
     _early_results: list[UavResult] = field(default_factory=list)
+    #: Proposals for missions not held yet, checked when the mission arrives (bounded).
+    _early_proposals: EarlyProposals = field(default_factory=EarlyProposals)
     #: The missions aborted, the newest only: a stream of aborts cannot grow it forever.
     _aborted: RecentIds = field(default_factory=RecentIds)
     _abort: MissionAbort | None = None  #: the abort this UAV obeyed last (relayed by query)
@@ -244,6 +247,10 @@ class MissionParticipation:
                 self.round.add_result(result)
             elif result.mission > targets.mission:
                 self._early_results.append(result)
+        proposals, stale = self._early_proposals.take(targets.mission)
+        self._no_mission(stale, f"mission {targets.mission} superseded it")
+        for proposal in proposals:
+            self.on_proposal(proposal, now)  # checked as if heard now
         self._settle()
         return self.round
 
@@ -424,9 +431,17 @@ class MissionParticipation:
         """A plan proposed for the current mission: kept for the decision, which
         verifies and scores it (fleet.consensus.proposal); after it, changes nothing.
         One from a proposer the mission does not entitle is refused and counted, before
-        or after the decision (its signature only says who wrote it)."""
+        or after the decision (its signature only says who wrote it). One for a later
+        mission is kept for when it arrives (onboard.early_proposals), a few at most;
+        one for an older mission, or pushed out of those kept, is counted."""
         mission_round = self.round
-        if mission_round is None or proposal.mission != mission_round.mission:
+        if mission_round is None or proposal.mission > mission_round.mission:
+            # Its mission may come later (another path, a catch-up): kept till then.
+            pushed_out = self._early_proposals.keep(proposal)
+            self._no_mission(pushed_out, "pushed out by later proposals")
+            return
+        if proposal.mission < mission_round.mission:
+            self._no_mission([proposal], f"mission {mission_round.mission} superseded it")
             return
         why = mission_round.right_problem(proposal)
         if why is not None:
@@ -441,6 +456,16 @@ class MissionParticipation:
                 "mission %d: a plan proposed by %d, to verify at the decision",
                 proposal.mission,
                 proposal.proposer,
+            )
+
+    @staticmethod
+    def _no_mission(proposals: list[PlanProposal], why: str) -> None:
+        """Proposals dropped, not for the mission this UAV holds: counted and logged."""
+        for proposal in proposals:
+            DROPPED.add(ProposalRefused.NO_MISSION)
+            _refusals.warn(
+                f"mission {proposal.mission}: the plan proposed by {proposal.proposer} "
+                f"dropped, not for the mission held here: {why}"
             )
 
     def on_assignment(self, report: AssignmentReport, now: float) -> None:
@@ -514,7 +539,23 @@ class MissionParticipation:
         it counts out that is alive here and did not drop out by its own word (this UAV
         itself included) are left out, a hint: this UAV asks for that UAV's own outcome
         (failed, link lost), which releases it when it says so. The reporter counts it
-        back once it sees it alive again, and the counts meet."""
+        back once it sees it alive again, and the counts meet.
+
+        That another UAV asked for a re-plan in changed air is believed from that UAV's
+        word alone (fleet.consensus.membership `own_asked`): a report that says so is a
+        hint, and this UAV asks that UAV for its standing for the report's append plan,
+        which carries its count (`_on_standing` takes it)."""
+        claimed = mission_round.asks_claimed(report)
+        if claimed:
+            log.info(
+                "mission %d: UAV %d's re-plan says %s asked for a re-plan in changed air: "
+                "asking for their own standings",
+                report.mission,
+                report.uav,
+                ", ".join(map(str, claimed)),
+            )
+            basis = report.basis or report.digest
+            self.outputs.fetch_standings(mission_round.mission, claimed, basis)
         disputed = tuple(
             sorted(
                 uav

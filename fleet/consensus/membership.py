@@ -23,11 +23,19 @@ equals the number of UAVs out while nobody came back (`len(released)`, as before
 
 A third count per UAV, `asked`, is how many re-plans in changed air it asked for: a
 UAV whose smoothed wind or airspeed moved away from the air its plan timed its legs in
-(onboard.air_watch) adds one to its own, and its teammates take it from the standing
-it gives for that epoch (its own word, of itself) or from any later report. It is an
-epoch like a departure or a return: the same team, solved again from every UAV's fresh
-standing (fleet.consensus.resolve), so the plan in force is timed in the air of about
-the time its legs are flown.
+(onboard.air_watch) adds one to its own. It is an epoch like a departure or a return:
+the same team, solved again from every UAV's fresh standing (fleet.consensus.resolve),
+so the plan in force is timed in the air of about the time its legs are flown.
+
+Unlike a departure, which its teammates see for themselves (liveliness), an ask is known
+only from the asking UAV's word, so only its word is believed: its teammates take it
+from the standing it gives for that epoch or from any later report of its own (a
+message's author is the UAV its key names, its signature checked under the secure
+profile), never from a report that says another UAV asked (`own_asked`). Otherwise one
+UAV, a captured identity say, could re-plan the team as often as it liked in another's
+name. The rule keeps the merge a join-semilattice: what a report is believed for depends
+on the report alone, each UAV's own count only grows, and every UAV that heard the
+asker's latest word holds the same count.
 
 Pure: no I/O.
 """
@@ -129,6 +137,13 @@ class Membership:
             for mine, theirs in ((self.left, left), (self.back, back), (self.asked, asked))
             for uav, count in theirs.items()
         )
+
+
+def own_asked(author: int, asked: Mapping[int, int]) -> dict[int, int]:
+    """The `asked` counts a report written by team UAV `author` is believed for: its own
+    ask count only (an ask is known from the asker's own word alone)."""
+    count = asked.get(author, 0)
+    return {author: count} if count > 0 else {}
 
 
 def report_counts(

@@ -36,7 +36,12 @@ import msgspec
 from fleet.consensus.assignment import air_bytes, results_digest
 from fleet.consensus.heal import Rank, rank
 from fleet.consensus.legs import Air, AirLegs, LegGeometry, leg_times
-from fleet.consensus.membership import Membership, membership_digest, report_counts
+from fleet.consensus.membership import (
+    Membership,
+    membership_digest,
+    own_asked,
+    report_counts,
+)
 from fleet.consensus.mission_change import (
     added_targets,
     change_digest,
@@ -162,6 +167,8 @@ class Settled:
         if header.revision > self.revision:
             return False
         if header.left or header.back or header.asked:
+            # Another UAV's ask beyond ours is not believed from the header's author, but
+            # is not covered either: a hint, whose asker's own word the module asks for.
             left, back = report_counts(header.released, header.left, header.back)
             view = Membership(self.team, dict(self.left), dict(self.back), dict(self.asked))
             return view.covers(left, back, header.asked)
@@ -207,6 +214,10 @@ class MissionRound:
     #: (UAV, target) pairs a teammate's outcome named reached whose own outcome this
     #: UAV asked for (once each: a claim about another UAV is a hint, not a fact).
     hints_asked: set[tuple[int, int]] = field(default_factory=set)
+    #: (UAV, count): asks for a re-plan in changed air a teammate's report said another
+    #: UAV made, beyond what this UAV counts, whose asker's own word this UAV asked for
+    #: (once each: an ask is believed from its asker alone, `asks_claimed`).
+    asks_hinted: set[tuple[int, int]] = field(default_factory=set)
     #: The team as a set (membership is asked of every message heard).
     team: frozenset[int] = field(init=False, repr=False, compare=False)
     #: Each result's greedy order and digest bytes, computed as it arrives.
@@ -746,6 +757,25 @@ class MissionRound:
         membership = self.membership
         return not membership.left.get(uav) and not membership.back.get(uav)
 
+    def asks_claimed(self, report: AssignmentReport) -> tuple[int, ...]:
+        """Teammates other than its author that `report` says asked for more re-plans in
+        changed air than this UAV counts, not asked about yet for that count: a hint,
+        not a fact (fleet.consensus.membership `own_asked`). Their own word (a standing
+        that carries their count) is to be asked for; marked asked here."""
+        counted = self.membership.asked
+        claimed = tuple(
+            sorted(
+                uav
+                for uav, count in report.asked.items()
+                if uav not in (report.uav, self.own_id)
+                and uav in self.team
+                and count > counted.get(uav, 0)
+                and (uav, count) not in self.asks_hinted
+            )
+        )
+        self.asks_hinted.update((uav, report.asked[uav]) for uav in claimed)
+        return claimed
+
     def counted_out(self, report: AssignmentReport) -> set[int]:
         """The team UAVs a teammate's report counts out of the mission."""
         left, back = report_counts(report.released, report.left, report.back)
@@ -1035,6 +1065,7 @@ class MissionRound:
 
 
 def _counts(report: AssignmentReport) -> tuple[dict[int, int], dict[int, int], dict[int, int]]:
-    """A report's membership counts: left, back (`report_counts`) and asked."""
+    """A report's membership counts: left, back (`report_counts`) and asked, of its
+    author only (`own_asked`: another UAV's ask is believed from that UAV's word)."""
     left, back = report_counts(report.released, report.left, report.back)
-    return left, back, dict(report.asked)
+    return left, back, own_asked(report.uav, report.asked)

@@ -75,6 +75,9 @@ class ProposalRefused(StrEnum):
 
     NO_RIGHT = "proposal_no_right"  #: from a proposer the mission does not entitle
     INVALID = "proposal_invalid"  #: not a plan of the round's inputs (`proposal_problem`)
+    #: not for the mission the UAV holds: an older one's (superseded), or a later one's
+    #: pushed out of the few kept until it arrives (onboard.early_proposals)
+    NO_MISSION = "proposal_no_mission"
 
 
 def right_problem(proposer: int, named: Collection[int], team: Collection[int]) -> str | None:
@@ -198,6 +201,7 @@ class Verdict(StrEnum):
     WAITING = "waiting"  #: no decision heard yet
     ADOPTED = "adopted"  #: every decision heard adopted it
     BASELINE = "baseline"  #: every decision heard kept the baseline
+    OTHER = "other"  #: every decision heard took another plan (a proposal, other results)
     MIXED = "mixed"  #: the decisions heard differ
 
 
@@ -241,6 +245,8 @@ class Adoption:
                 f"not adopted: {ids(self.baseline_by)} kept the baseline "
                 f"(digest {self.baseline_digest})"
             )
+        if verdict is Verdict.OTHER:
+            return f"not adopted: {ids(self.other_by)} took another plan"
         return (
             f"adopted by {ids(self.adopted_by)}, the baseline by {ids(self.baseline_by)}, "
             f"other plans by {ids(self.other_by)}"
@@ -254,6 +260,8 @@ class Adoption:
             return Verdict.ADOPTED
         if not (self.adopted_by or self.other_by):
             return Verdict.BASELINE
+        if not (self.adopted_by or self.baseline_by):
+            return Verdict.OTHER
         return Verdict.MIXED
 
 

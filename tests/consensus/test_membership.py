@@ -8,7 +8,7 @@ import itertools
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fleet.consensus.membership import Membership, membership_digest, report_counts
+from fleet.consensus.membership import Membership, membership_digest, own_asked, report_counts
 
 TEAM = frozenset({101, 102, 103, 104})
 
@@ -97,3 +97,40 @@ def test_re_plans_asked_in_changed_air_are_counted_in_the_epoch_and_merged_in_an
     # Asked counts name another plan; none asked leaves the digest of before.
     assert digest != membership_digest("d", a.left, a.back)
     assert membership_digest("d", a.left, a.back, {}) == membership_digest("d", a.left, a.back)
+
+
+def test_an_ask_is_counted_from_its_askers_own_report_not_from_a_teammates() -> None:
+    # 102 says 101 asked three times and itself once: only its own ask is believed.
+    assert own_asked(102, {101: 3, 102: 1}) == {102: 1}
+    assert own_asked(102, {101: 3}) == {}  # nothing of its own: nothing taken
+    view = Membership(TEAM)
+    assert not view.merge({}, {}, own_asked(102, {101: 3}))
+    assert view.asked == {} and view.epoch == 0  # no epoch in 101's name
+    assert view.merge({}, {}, own_asked(101, {101: 1, 103: 5}))
+    assert view.asked == {101: 1} and view.epoch == 1
+
+
+ASK_REPORTS = st.lists(
+    st.tuples(
+        st.sampled_from(sorted(TEAM)),  # the report's author
+        st.dictionaries(st.sampled_from(sorted(TEAM)), st.integers(1, 4), max_size=4),
+    ),
+    min_size=1,
+    max_size=6,
+)
+
+
+@given(ASK_REPORTS)
+def test_asks_believed_of_their_authors_merge_to_the_same_counts_in_any_order(
+    reports: list[tuple[int, dict[int, int]]],
+) -> None:
+    results = set()
+    for order in itertools.islice(itertools.permutations(reports), 24):
+        view = Membership(TEAM)
+        for author, asked in order:
+            view.merge({}, {}, own_asked(author, asked))
+        results.add(tuple(sorted(view.asked.items())))
+        # Each count is the largest its own UAV reported of itself, whoever else spoke.
+        for uav, count in view.asked.items():
+            assert count == max(a.get(uav, 0) for author, a in reports if author == uav)
+    assert len(results) == 1

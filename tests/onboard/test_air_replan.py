@@ -16,6 +16,7 @@ from fleet.mission.messages import (
     AssignmentReport,
     MissionTargets,
     StatusText,
+    Target,
     UavResult,
 )
 from fleet.mission.objective import Objective
@@ -30,6 +31,8 @@ from tests.support.link_samples import sample_telemetry
 
 SPACE = KeySpace()
 TEAM = (74, 112)
+#: A fourth target, 150 m from target 0.
+NEAR_0 = Target(TARGETS[0].lat + 0.00135, TARGETS[0].lon, TARGETS[0].alt)
 
 
 def _telemetry(
@@ -48,18 +51,22 @@ def _telemetry(
 
 
 class Pair:
-    """Two modules whose every put reaches the other, as the bus would carry it."""
+    """Modules whose every put reaches the others, as the bus would carry it (two by
+    default), but for the links `cut` (from, to)."""
 
-    def __init__(self) -> None:
+    def __init__(self, times: dict[int, tuple[float, ...]] | None = None) -> None:
+        times = times or {74: (10.0, 90.0, 95.0), 112: (80.0, 40.0, 60.0)}
+        team = tuple(times)
+        self.team = team
         self.cores: dict[int, tuple[OnboardCore, Recorder]] = {}
         self._seen: dict[int, int] = {}
-        times = {74: (10.0, 90.0, 95.0), 112: (80.0, 40.0, 60.0)}
-        for uav in TEAM:
+        self.cut: set[tuple[int, int]] = set()
+        for uav in team:
             core, out = make_core(uav=uav, times=times[uav], fresh_replans=True)
             self.cores[uav] = (core, out)
             self._seen[uav] = 0
         for uav, (core, _) in self.cores.items():
-            for other in TEAM:
+            for other in team:
                 if other != uav:
                     core.on_alive(other, True, 0.0)
 
@@ -74,7 +81,7 @@ class Pair:
                 for key, message in fresh:
                     moved = True
                     for other, (core, _) in self.cores.items():
-                        if other == uav:
+                        if other == uav or (uav, other) in self.cut:
                             continue
                         if isinstance(message, UavResult):
                             core.on_result(message, now)
@@ -110,10 +117,18 @@ class Pair:
         return [m for m in results if isinstance(m, UavResult) and m.basis is not None]
 
 
-def _committed_pair() -> Pair:
-    """Mission 1 of three targets, min-sum: 74 flies targets 0 then 2, 112 target 1."""
-    pair = Pair()
-    mission = MissionTargets(mission=1, team=TEAM, targets=TARGETS, objective=Objective.MIN_SUM)
+def _committed_pair(
+    times: dict[int, tuple[float, ...]] | None = None,
+    queues: dict[int, tuple[int, ...]] | None = None,
+) -> Pair:
+    """Mission 1 of three targets, min-sum: 74 flies targets 0 then 2, 112 target 1
+    (or, with `times`, of as many targets, to plan `queues`)."""
+    pair = Pair(times)
+    expected = queues or {74: (0, 2), 112: (1,)}
+    targets = TARGETS if times is None else (*TARGETS, NEAR_0)
+    mission = MissionTargets(
+        mission=1, team=pair.team, targets=targets, objective=Objective.MIN_SUM
+    )
     for core, _ in pair.cores.values():
         core.on_targets(mission, 1.0)
     for core, _ in pair.cores.values():
@@ -124,7 +139,9 @@ def _committed_pair() -> Pair:
     pair.relay(1.2)
     for uav, (core, out) in pair.cores.items():
         assert core.round is not None and core.round.committed is not None, uav
-        assert core.round.committed.queues == {74: (0, 2), 112: (1,)}
+        assert core.round.committed.queues == expected
+        if uav not in expected:
+            continue
         (waypoint,) = out.autopilot  # the autopilot echoes its target and tracks it
         assert isinstance(waypoint, Waypoint)
         core.on_waypoint(waypoint, 1.3)
@@ -210,3 +227,78 @@ def test_a_smaller_change_makes_one_re_plan_just_before_a_leg_begins_not_in_flig
         (replan,) = pair.replans(uav)
         assert replan.asked == {74: 1} and replan.epoch == 1
     assert len({pair.replans(uav)[0].digest for uav in TEAM}) == 1
+
+
+THREE = (74, 112, 200)
+#: Three UAVs, four targets: 74 flies 0 then 3 (legs ahead: it may ask), 112 flies 1 and
+#: 200 flies 2.
+TIMES_OF_THREE: dict[int, tuple[float, ...]] = {
+    74: (10.0, 90.0, 95.0, 12.0),
+    112: (80.0, 40.0, 60.0, 82.0),
+    200: (95.0, 85.0, 30.0, 97.0),
+}
+QUEUES_OF_THREE = {74: (0, 3), 112: (1,), 200: (2,)}
+
+
+def test_an_ask_is_believed_from_the_asker_alone_not_from_a_teammate_that_says_it_asked() -> None:
+    """A report by 112 that says 74 asked for a re-plan in changed air (112 a captured
+    identity, say) makes no epoch on 74 or 200; 200 asks 74 for its own word, which it
+    has not got to give; 112's own ask, in its own report, is believed."""
+    pair = _committed_pair(TIMES_OF_THREE, QUEUES_OF_THREE)
+    core_112, _ = pair.cores[112]
+    assert core_112.round is not None and core_112.round.committed is not None
+    forged = msgspec.structs.replace(
+        core_112.round.committed, epoch=1, asked={74: 1}, digest="f" * 16
+    )
+    for uav in (74, 200):
+        core, _ = pair.cores[uav]
+        core.on_assignment(forged, 2.0)
+        core.tick(2.1)
+        assert core.round is not None and core.round.membership.asked == {}, uav
+        assert core.round.membership.epoch == 0 and core.round.awaiting is None, uav
+        assert pair.replans(uav) == [] and pair.standings(uav) == [], uav
+    _, out_200 = pair.cores[200]
+    assert out_200.standing_fetches == [(1, (74,), "f" * 16)]  # 74's word asked for, once
+    core_200, _ = pair.cores[200]
+    core_200.on_assignment(forged, 2.2)
+    assert out_200.standing_fetches == [(1, (74,), "f" * 16)]
+    # Its own ask, in its own report: believed, an epoch like any other.
+    own = msgspec.structs.replace(forged, asked={112: 1}, digest="e" * 16)
+    core_200.on_assignment(own, 2.3)
+    assert core_200.round is not None and core_200.round.membership.asked == {112: 1}
+    assert core_200.round.membership.epoch == 1
+
+
+def test_a_uav_that_missed_the_askers_standing_takes_the_ask_from_the_askers_own_word() -> None:
+    """74's wind turns and it asks; 200 hears nothing from 74 (a link cut one way), only
+    112's re-plan, which says 74 asked: 200 makes no epoch of it but asks 74 for its
+    standing, and once 74's own word is in, the three commit one plan, solved again."""
+    pair = _committed_pair(TIMES_OF_THREE, QUEUES_OF_THREE)
+    pair.cut.add((74, 200))
+
+    def turned(uav: int, t: float) -> float:
+        return 1.5 if uav == 74 else 0.0
+
+    now = 1.2
+    while not pair.replans(112):
+        assert now < 2.5 * AIR_INTERVAL_S, "74 never asked"
+        pair.fly(now, now + 1.0, turned)
+        now += 1.0
+    # 112 waited for 200's standing in vain, and committed the epoch's append plan.
+    (replan_112,) = pair.replans(112)
+    assert replan_112.asked == {74: 1} and replan_112.basis is None
+    core_200, out_200 = pair.cores[200]
+    assert core_200.round is not None and core_200.round.membership.asked == {}
+    assert pair.replans(200) == [] and pair.standings(200) == []
+    assert out_200.standing_fetches == [(1, (74,), replan_112.digest)]
+    # 74 answers the query with its standing for that plan, as it put it.
+    core_74, _ = pair.cores[74]
+    assert core_74.round is not None
+    answer = core_74.round.standing_of(74, replan_112.digest)
+    assert answer is not None and answer.asked == 1
+    core_200.on_result(answer, now)
+    pair.fly(now, now + 3.0, turned)
+    assert core_200.round.membership.asked == {74: 1}
+    latest = [pair.replans(uav)[-1] for uav in THREE]
+    assert len({(p.digest, str(p.queues)) for p in latest}) == 1
+    assert latest[0].asked == {74: 1} and latest[0].basis == replan_112.digest
