@@ -54,6 +54,7 @@ class MissionFollower(Declarations):
         listener: Listener | None = None,
         team: Iterable[int] = (),
         on_revision: Callable[[MissionTargets], object] | None = None,
+        on_proposal: Callable[[PlanProposal], object] | None = None,
     ) -> None:
         self._bus = bus
         self._space = space
@@ -61,12 +62,14 @@ class MissionFollower(Declarations):
         self._listener = listener
         self._team = frozenset(team)
         self._on_revision = on_revision
+        self._on_proposal = on_proposal
         self._changed = threading.Condition()
         self.results: dict[int, UavResult] = {}
         self.assignments: dict[int, AssignmentReport] = {}
         self.outcomes: dict[int, TargetOutcome] = {}
-        #: The UAVs' proposals for this mission, by proposer (each on its own key, signed
-        #: by it: the bus checks both).
+        #: The proposals for this mission heard, by proposer: the ground's and each UAV's
+        #: (each on its own key, signed by it: the bus checks both). Put, never served:
+        #: only those put while this follower listens.
         self.proposals: dict[int, PlanProposal] = {}
         self.lost: set[int] = set()  #: UAVs whose liveliness token went away
         self.superseded_by: int | None = None  #: the highest later mission of the team
@@ -77,6 +80,7 @@ class MissionFollower(Declarations):
         enter(bus.subscribe(space.mission_results(mission), self._on_result_sample))
         enter(bus.subscribe(space.mission_assignments(mission), self._on_assignment_sample))
         enter(bus.subscribe(space.mission_outcomes(mission), self._on_outcome_sample))
+        enter(bus.subscribe(space.mission_proposal(mission), self._on_proposal_sample))
         enter(bus.subscribe(space.mission_proposals(mission), self._on_proposal_sample))
         # The tokens present now are reported too: each is a UAV not lost, a no-op.
         enter(bus.subscribe_presence(space.all_alive, self._on_alive))
@@ -130,9 +134,21 @@ class MissionFollower(Declarations):
 
     def _on_proposal_sample(self, sample: BusSample) -> None:
         proposal = decode_sample(sample, PlanProposal)
-        if proposal is not None and proposal.mission == self.mission:
-            with self._changed:
-                self.proposals[proposal.proposer] = proposal
+        if proposal is not None:
+            self.add_proposal(proposal)
+
+    def add_proposal(self, proposal: PlanProposal) -> None:
+        """Keep a proposal for this mission (the latest of each proposer, as a UAV does
+        until its decision); `on_proposal` hears it."""
+        if proposal.mission != self.mission:
+            return
+        with self._changed:
+            if self.proposals.get(proposal.proposer) == proposal:
+                return
+            self.proposals[proposal.proposer] = proposal
+            self._changed.notify_all()
+        if self._on_proposal is not None:
+            self._on_proposal(proposal)
 
     def _on_outcome_sample(self, sample: BusSample) -> None:
         outcome = decode_sample(sample, TargetOutcome)

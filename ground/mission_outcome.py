@@ -26,7 +26,6 @@ from typing import Any
 
 import msgspec
 
-from fleet.consensus.proposal import Adoption
 from fleet.mission.claims import flown_by, reached_by
 from fleet.mission.messages import (
     AssignmentReport,
@@ -37,6 +36,7 @@ from fleet.mission.messages import (
     UavState,
 )
 from fleet.mission.phase import Phase
+from ground.proposals_heard import HeardProposal
 
 log = logging.getLogger(__name__)
 
@@ -96,10 +96,11 @@ class MissionOutcome:
     zones: tuple[NoFlyZone, ...] = ()
     #: Targets taken off the mission in flight: never flown from then on.
     removed: frozenset[int] = frozenset()
-    #: What the UAVs' first plans say of the ground's proposal (send-targets --propose).
-    proposal: Adoption | None = None
+    #: The ground's proposal (send-targets --propose), checked as the UAVs check it, and
+    #: what their first plans say of it.
+    proposal: HeardProposal | None = None
     #: The same of each UAV's proposal heard (send-targets --proposers), by proposer.
-    uav_proposals: dict[int, Adoption] = field(default_factory=dict)
+    uav_proposals: dict[int, HeardProposal] = field(default_factory=dict)
 
     @property
     def declined(self) -> list[int]:

@@ -15,9 +15,9 @@ from dataclasses import dataclass
 from typing import TextIO
 
 from fleet.consensus.deadline import consensus_deadline
-from fleet.consensus.proposal import adoption
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
+    MISSION_MANAGER,
     AssignmentReport,
     MissionTargets,
     NoFlyZone,
@@ -38,6 +38,7 @@ from ground.mission_follower import Listener, MissionFollower
 from ground.mission_ids import TargetsServer, claim_mission, contest_grace_s
 from ground.mission_outcome import MissionOutcome, check_agreement
 from ground.mission_summary import summary_lines
+from ground.proposals_heard import heard_proposals
 from ground.propose import named_proposers, proposal_window, propose_when_results
 from ground.targets_command import read_or_say
 from ground.zones_command import zones_or_say
@@ -242,19 +243,36 @@ def _send_and_follow(
         outcome.lost = set(follower.lost) & set(team)
         if options.wait:
             _read_phases(bus, options.key_space, outcome, follower, options.query_timeout)
-        if proposal is not None and options.wait:
-            # What the UAVs' first plans say of it: their reported digests, nothing else.
-            outcome.proposal = adoption(proposal, outcome.assignments.values())
-            said = outcome.proposal.summary()
-            print(f"mission {mission}: the ground's proposal: {said}", file=progress)
-        if options.proposers and options.wait:
-            for uav, heard in sorted(follower.proposal_snapshot().items()):
-                outcome.uav_proposals[uav] = adoption(heard, outcome.assignments.values())
-                said = outcome.uav_proposals[uav].summary()
-                print(f"mission {mission}: UAV {uav}'s proposal: {said}", file=progress)
-            for uav in sorted(set(options.proposers) - outcome.uav_proposals.keys()):
-                print(f"mission {mission}: no proposal heard from UAV {uav}", file=progress)
+        if options.wait and (proposal is not None or options.proposers):
+            _judge_proposals(message, follower, proposal, outcome, progress)
     return outcome
+
+
+def _judge_proposals(
+    message: MissionTargets,
+    follower: MissionFollower,
+    proposal: PlanProposal | None,
+    outcome: MissionOutcome,
+    progress: TextIO,
+) -> None:
+    """Each proposal heard (this ground's own `proposal` as it was put), checked as the
+    UAVs check it, and what the UAVs' first plans say of it: their reported digests,
+    nothing else (`ground.proposals_heard`, as the page shows them)."""
+    mission = message.mission
+    proposals = follower.proposal_snapshot()
+    if proposal is not None:
+        proposals[MISSION_MANAGER] = proposal
+    heard = heard_proposals(message, outcome.results, proposals, outcome.assignments.values())
+    for seen in heard:
+        if seen.proposer == MISSION_MANAGER:
+            outcome.proposal = seen
+            print(f"mission {mission}: the ground's proposal: {seen.summary()}", file=progress)
+        else:
+            outcome.uav_proposals[seen.proposer] = seen
+            said = seen.summary()
+            print(f"mission {mission}: UAV {seen.proposer}'s proposal: {said}", file=progress)
+    for uav in sorted(set(message.proposers) - proposals.keys() - {MISSION_MANAGER}):
+        print(f"mission {mission}: no proposal heard from UAV {uav}", file=progress)
 
 
 def _propose(

@@ -201,6 +201,7 @@ class Verdict(StrEnum):
     WAITING = "waiting"  #: no decision heard yet
     ADOPTED = "adopted"  #: every decision heard adopted it
     BASELINE = "baseline"  #: every decision heard kept the baseline
+    OTHER = "other"  #: every decision heard took another plan (a proposal, other results)
     MIXED = "mixed"  #: the decisions heard differ
 
 
@@ -244,6 +245,8 @@ class Adoption:
                 f"not adopted: {ids(self.baseline_by)} kept the baseline "
                 f"(digest {self.baseline_digest})"
             )
+        if verdict is Verdict.OTHER:
+            return f"not adopted: {ids(self.other_by)} took another plan"
         return (
             f"adopted by {ids(self.adopted_by)}, the baseline by {ids(self.baseline_by)}, "
             f"other plans by {ids(self.other_by)}"
@@ -257,6 +260,8 @@ class Adoption:
             return Verdict.ADOPTED
         if not (self.adopted_by or self.other_by):
             return Verdict.BASELINE
+        if not (self.adopted_by or self.baseline_by):
+            return Verdict.OTHER
         return Verdict.MIXED
 
 

@@ -34,15 +34,16 @@ from typing import Annotated, Any
 import msgspec
 
 from fleet.consensus.deadline import MAX_DEADLINE_S, consensus_deadline
-from fleet.consensus.proposal import adoption
 from fleet.errors import CodecError
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
     MAX_TEAM,
     MAX_ZONES,
+    MISSION_MANAGER,
     AssignmentReport,
     MissionTargets,
     NoFlyZone,
+    PlanProposal,
     Target,
     TargetIndex,
 )
@@ -56,6 +57,7 @@ from ground.mission_control import MissionError, publish_targets, send_abort, se
 from ground.mission_follower import MissionFollower
 from ground.mission_ids import MAX_MISSION_ID, TargetsServer, claim_mission, current_mission_id
 from ground.mission_outcome import MissionOutcome
+from ground.proposals_heard import HeardProposal, heard_proposals, team_plans
 from ground.propose import (
     ProposalAttempt,
     named_proposers,
@@ -199,6 +201,11 @@ class MissionDesk:
         self._decisions: dict[int, AssignmentReport] = {}
         self._decisions_lock = threading.Lock()
         self._proposal: ProposalTrack | None = None
+        #: The followed mission as the page first heard it: the proposals are for it.
+        self._first: MissionTargets | None = None
+        #: The proposals heard, checked (`heard_proposals`): kept until what they are
+        #: judged from changes, so a push does not check them again.
+        self._judged: tuple[object, list[HeardProposal]] | None = None
 
     def _heard(self, mission: int, message: object) -> None:  # a bus thread
         if isinstance(message, AssignmentReport) and not (message.epoch or message.revision):
@@ -217,12 +224,17 @@ class MissionDesk:
         self._server = None
         mission = message.mission
         follower = MissionFollower(
-            self._bus, self.space, mission, lambda _, heard: self._heard(mission, heard)
+            self._bus,
+            self.space,
+            mission,
+            lambda _, heard: self._heard(mission, heard),
+            on_proposal=lambda _: self._on_change(),
         )
         self._follower = self._stack.enter_context(follower)
         if serve:
             self._server = self._stack.enter_context(TargetsServer(self._bus, self.space, message))
-        self._targets = message
+        self._targets = self._first = message
+        self._judged = None
 
     def send(
         self,
@@ -291,13 +303,61 @@ class MissionDesk:
         track.attempt = attempt
         self._on_change()
 
+    def _heard_proposals(self) -> tuple[MissionTargets, list[HeardProposal]] | None:
+        """Every proposal heard for the followed mission (the ground's from this page as
+        it put it), checked as the UAVs check them and judged from their first plans."""
+        with self._lock:
+            first, follower, track = self._first, self._follower, self._proposal
+        if first is None or follower is None:
+            return None
+        proposals: dict[int, PlanProposal] = follower.proposal_snapshot()
+        attempt = track.attempt if track is not None else None
+        if attempt is not None and attempt.proposal is not None:
+            proposals[MISSION_MANAGER] = attempt.proposal
+        results = follower.snapshot()[0]
+        with self._decisions_lock:
+            decisions = dict(self._decisions)
+        inputs = (
+            first.mission,
+            sorted(proposals.items()),
+            sorted(results.items()),
+            sorted(decisions.items()),
+        )
+        judged = self._judged
+        if judged is not None and judged[0] == inputs:
+            return first, judged[1]
+        heard = heard_proposals(first, results, proposals, list(decisions.values()))
+        self._judged = (inputs, heard)
+        return first, heard
+
+    def proposals_json(self) -> dict[str, Any] | None:
+        """Every proposal heard for the followed mission, for the page: by whom, the
+        UAVs' checks of it (right, validity, score) run here, and what the UAVs' first
+        plans say of it (their reported digests); the named proposers not heard; the
+        plans the UAVs committed to, with their scores. None for a mission with no
+        proposal window and no proposal heard."""
+        judged = self._heard_proposals()
+        if judged is None:
+            return None
+        first, heard = judged
+        if not heard and first.proposals_s <= 0.0:
+            return None
+        with self._decisions_lock:
+            decisions = list(self._decisions.values())
+        proposers = {seen.proposer for seen in heard}
+        return {
+            "named": list(first.proposers),
+            "window_s": first.proposals_s,
+            "heard": [seen.to_json() for seen in heard],
+            "not_heard": [p for p in first.proposers if p not in proposers],
+            "plans": team_plans(decisions, first.mission),
+        }
+
     def proposal_json(self) -> dict[str, Any] | None:
         """The ground's proposal for the followed mission and what the UAVs' decisions
         say of it (their reported digests), for the page; None without one."""
         with self._lock:
             track = self._proposal
-        with self._decisions_lock:
-            decisions = list(self._decisions.values())
         if track is None:
             return None
         attempt = track.attempt
@@ -310,8 +370,11 @@ class MissionDesk:
         }
         if attempt is None or attempt.proposal is None:
             return data
-        data["proposer"] = attempt.proposal.proposer
-        data.update(adoption(attempt.proposal, decisions).to_json())
+        # The same verdict and check as every proposal heard (`proposals_json`).
+        judged = self._heard_proposals()
+        for seen in judged[1] if judged is not None else ():
+            if seen.proposer == attempt.proposal.proposer:
+                data.update(seen.to_json())
         return data
 
     @property

@@ -300,8 +300,11 @@ class GuiServer:
         self.model.note_views(views)
         mission = self.model.mission_json(self._desk.outcome(), views)
         if mission is not None:
-            # The ground's proposed plan, when the page asked for one, and its adoption.
+            # The ground's proposed plan, when the page asked for one, and its adoption;
+            # then every proposal heard (the ground's and the UAVs'), each checked and
+            # judged from the UAVs' reported digests.
             mission["proposal"] = self._desk.proposal_json()
+            mission["proposals"] = self._desk.proposals_json()
         return {
             "type": "snapshot",
             "time": time.time(),

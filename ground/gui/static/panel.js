@@ -210,6 +210,7 @@ export function drawMission() {
     $('#mission-line').textContent = 'no mission yet';
     $('#agreement').textContent = '';
     $('#proposal').hidden = true;
+    $('#proposals').hidden = true;
     table.hidden = true;
     $('#mission-summary').textContent = 'no mission';
     return;
@@ -230,6 +231,7 @@ export function drawMission() {
   setText(line, `agreement: ${agreement}`);
   if (line.className !== agreementClass) line.className = agreementClass;
   drawProposal(m.proposal);
+  drawProposals(m.proposals, m.proposal);
   table.hidden = false;
   const body = table.querySelector('tbody');
   const rows = m.target_states.map((t) => {
@@ -250,9 +252,38 @@ export function drawMission() {
   setText($('#mission-summary'), summary);
 }
 
+// The ground's Piccolo ID, as a proposer.
+const MISSION_MANAGER = 0xFFFE;
+
+// What the UAVs' first plans say of a proposal (the ground's or a UAV's): adopted only when
+// their reported digest is the digest of a plan adopted from it.
+function verdictText(p) {
+  const ids = (uavs) => uavs.join(', ') || 'none';
+  if (p.verdict === 'adopted') return `adopted by ${ids(p.adopted_by)} (proposer ${p.proposer}, digest ${p.adopted_digest})`;
+  if (p.verdict === 'baseline') return `not adopted: ${ids(p.baseline_by)} kept the baseline (digest ${p.baseline_digest})`;
+  const instead = (p.instead || []).map((i) => `${i.proposer === MISSION_MANAGER ? "the ground's" : `UAV ${i.proposer}'s`} adopted by ${ids(i.adopted_by)}`);
+  const also = instead.length ? ` (${instead.join('; ')})` : '';
+  if (p.verdict === 'other') return `not adopted: ${ids(p.other_by)} took another plan${also}`;
+  if (p.verdict === 'mixed') {
+    return `adopted by ${ids(p.adopted_by)}, baseline by ${ids(p.baseline_by)}, other plans by ${ids(p.other_by)}${also}`;
+  }
+  if (p.verdict === 'waiting') return 'no commitment heard yet';
+  return '';
+}
+
+// The UAVs' checks of a proposal, run by the ground on the team's results: its score
+// (last arrival, arrivals summed), or why every UAV refuses it, or why it is not checked.
+function checkText(p) {
+  if (p.check === 'valid' && p.score) {
+    return `last arrival ${formatSeconds(p.score.makespan_s)}, summed ${formatSeconds(p.score.total_s)}`;
+  }
+  if (p.check === 'refused') return `refused by the UAVs' checks: ${p.problem}`;
+  if (p.check === 'unchecked') return `not checked: ${p.problem}`;
+  return '';
+}
+
 // The ground's proposed plan for the mission (sent with "propose a plan"), and what the
-// UAVs' commitments say of it: adopted only when their reported digest is the digest of
-// a plan adopted from it.
+// UAVs' commitments say of it.
 function drawProposal(p) {
   const box = $('#proposal');
   if (!p) {
@@ -263,18 +294,54 @@ function drawProposal(p) {
   let text = `proposal: ${p.state}`;
   if (p.reason) text += ` (${p.reason})`;
   if (p.cpu_s !== null && p.cpu_s !== undefined) text += `, ${p.cpu_s.toFixed(2)} s of CPU`;
-  if (p.verdict === 'adopted') {
-    text += `; adopted by ${p.adopted_by.join(', ')} (proposer ${p.proposer}, digest ${p.adopted_digest})`;
-  } else if (p.verdict === 'baseline') {
-    text += `; not adopted: ${p.baseline_by.join(', ')} kept the baseline (digest ${p.baseline_digest})`;
-  } else if (p.verdict === 'mixed') {
-    text += `; adopted by ${p.adopted_by.join(', ') || 'none'}, baseline by ${p.baseline_by.join(', ') || 'none'}`
-      + `, other plans by ${p.other_by.join(', ') || 'none'}`;
-  } else if (p.verdict === 'waiting') {
-    text += '; no commitment heard yet';
-  }
+  const verdict = verdictText(p);
+  if (verdict) text += `; ${verdict}`;
+  const check = checkText(p);
+  if (check) text += `; ${check}`;
   setText(box, text);
   setAttributes(box, { 'data-verdict': p.verdict, 'data-state': p.state });
+}
+
+// The list's item keyed `key`, made if it is not there yet (kept across pushes, as rows are).
+function keyedItem(list, key) {
+  let item = list.querySelector(`li[data-proposal="${key}"]`);
+  if (!item) item = html('li', '', { 'data-proposal': key });
+  return item;
+}
+
+// Every proposal heard for the mission (a UAV's, and the ground's unless this page's own
+// line above shows it), each with its proposer, its score and its verdict; the named
+// proposers not heard; the plans the UAVs committed to, with their scores.
+function drawProposals(all, own) {
+  const list = $('#proposals');
+  if (!all) {
+    list.hidden = true;
+    return;
+  }
+  const rows = [];
+  for (const p of all.heard) {
+    if (own && own.proposer === p.proposer) continue;
+    const row = keyedItem(list, `p${p.proposer}`);
+    setText(row, `${p.by}'s proposal: ${[checkText(p), verdictText(p)].filter(Boolean).join('; ')}`);
+    setAttributes(row, { 'data-proposer': p.proposer, 'data-verdict': p.verdict, 'data-check': p.check });
+    rows.push(row);
+  }
+  for (const uav of all.not_heard) {
+    if (uav === MISSION_MANAGER) continue; // the ground's own: the line above says why
+    const row = keyedItem(list, `n${uav}`);
+    setText(row, `UAV ${uav}: no proposal heard`);
+    setAttributes(row, { 'data-proposer': uav, 'data-verdict': 'none' });
+    rows.push(row);
+  }
+  for (const plan of all.plans) {
+    const row = keyedItem(list, `d${plan.digest}`);
+    setText(row, `committed by ${plan.by.join(', ')}: digest ${plan.digest}, last arrival `
+      + `${formatSeconds(plan.score.makespan_s)}, summed ${formatSeconds(plan.score.total_s)}`);
+    setAttributes(row, { 'data-plan': plan.digest });
+    rows.push(row);
+  }
+  placeRows(list, rows);
+  list.hidden = rows.length === 0;
 }
 
 export function onMissionTableClick(event) {

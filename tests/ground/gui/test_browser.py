@@ -68,6 +68,10 @@ REACH_TIMEOUT_S = 120.0
 ADDED = [(35.7050, -120.7600), (35.7350, -120.7850)]
 
 PROPOSAL_VERDICT = "return document.querySelector('#proposal').dataset.verdict || null;"
+#: The plans the UAVs committed to, as the Mission box lists them under the proposals.
+COMMITTED_PLANS = (
+    "return [...document.querySelectorAll('#proposals li[data-plan]')].map(li => li.textContent);"
+)
 
 #: Whether the Mission table's remove button of a target is shown.
 REMOVE_SHOWN = """
@@ -581,6 +585,12 @@ def test_every_press_takes_effect_the_first_time_while_telemetry_flows(
     assert "proposed by the ground" in shown and "s of CPU" in shown
     agreed = re.search(r"digest ([0-9a-f]{12})", text_of(browser, "agreement"))
     assert agreed is not None and f"digest {agreed[1]}" in shown, shown
+    # Its score, by the UAVs' own checks run on the page, and the plan both committed
+    # to with its score (from the arrivals they reported).
+    assert "last arrival" in shown, shown
+    committed = browser.execute_script(COMMITTED_PLANS)
+    assert len(committed) == 1 and f"digest {agreed[1]}" in committed[0], committed
+    assert "committed by 74, 112" in committed[0] and "last arrival" in committed[0], committed
 
 
 class CommandsSeen:

@@ -1,7 +1,9 @@
 """The page's mission changes and proposed plan against three real onboards in memory
 (tests/support/memory_world.py), through the page's own WebSocket as a browser uses it:
 Send with "propose a plan" (the ground solves with PyVRP, as `send-targets --propose`),
-the proposal's adoption shown as the UAVs' reported digests say; targets added and one
+the proposal's adoption shown as the UAVs' reported digests say; every proposal heard
+(a UAV's solved on board too, and one put under a name the mission does not entitle)
+shown with its score and the digests' verdict; targets added and one
 removed in flight, each answered only once every UAV planned the new revision, and the
 page's mission showing it, and a change made by another ground's CLI. The same in a
 real browser against a real fleet is tests/ground/gui/test_browser.py."""
@@ -16,9 +18,12 @@ from pathlib import Path
 from typing import Any
 
 import aiohttp
+import msgspec
 import pytest
 
 from fleet.mission.key_space import KeySpace
+from fleet.mission.messages import MISSION_MANAGER, PlanProposal
+from fleet.transport.bus import BusSample, decode_sample
 from fleet.transport.cli import ExitCode
 from ground.mission_change_command import AddOptions, run_add_targets
 from tests.support.agreement import AssignmentsHeard
@@ -31,6 +36,9 @@ pytest.importorskip("pyvrp", reason="PyVRP is not installed: pip install '.[solv
 SPACE = KeySpace()
 TARGETS = ring_targets(9, seed=35)
 FIRST, LATER = TARGETS[:7], TARGETS[7:]
+#: Twelve targets on which PyVRP's plan beat the baseline in runs of the test (the
+#: adopted one is then UAV 101's: tied with the ground's, the lower Piccolo ID wins).
+PROPOSED = ring_targets(12, seed=1)
 
 
 def as_json(targets: Any) -> list[dict[str, float]]:
@@ -158,3 +166,90 @@ def test_the_page_proposes_a_plan_then_adds_and_removes_targets_in_flight(
                     assert len(shown["target_states"]) == 10 and shown["removed"] == [8]
 
             asyncio.run(scenario())
+
+
+def test_the_page_shows_each_proposal_heard_and_whether_the_team_adopted_it(
+    tmp_path: Path,
+) -> None:
+    """UAV 101 proposes on board and the ground too (the page's "UAV proposers" and
+    "propose a plan"): the page shows each proposal heard with its proposer, its score
+    (the UAVs' scorer, run on the team's results) and the verdict the UAVs' reported
+    digests give; a copy of 101's plan put under UAV 102's name, which the mission does
+    not entitle, is shown refused and never adopted."""
+    with memory_fleet(ring_file(tmp_path, 3), proposers=frozenset({101})) as fleet:
+        team = sorted(fleet.ids)
+        bus = fleet.bus()
+        heard = AssignmentsHeard(bus, SPACE)
+        forged: list[PlanProposal] = []
+
+        def forge(sample: BusSample) -> None:
+            proposal = decode_sample(sample, PlanProposal)
+            if proposal is not None and proposal.proposer == 101 and not forged:
+                forged.append(msgspec.structs.replace(proposal, proposer=102))
+                bus.publish(SPACE.uav_proposal(proposal.mission, 102), forged[0])
+
+        bus.subscribe(SPACE.all_uav_proposals, forge)
+        with serving(fleet.bus()) as url:
+
+            async def scenario() -> dict[str, Any]:
+                async with (
+                    aiohttp.ClientSession() as http,
+                    http.ws_connect(websocket_url(url)) as ws,
+                ):
+                    page = Page(ws)
+                    sent = await page.command(
+                        {"cmd": "send", "id": "q-1", "team": team, "targets": as_json(PROPOSED),
+                         "objective": "min-max", "propose": True, "proposers": [101]}
+                    )  # fmt: skip
+                    assert sent["ok"], sent
+
+                    def judged(m: dict[str, Any]) -> bool:
+                        proposals = m.get("proposals") or {}
+                        shown = {p["proposer"]: p for p in proposals.get("heard", [])}
+                        return (
+                            m["complete"]
+                            and {101, 102, MISSION_MANAGER} <= shown.keys()
+                            and all(p["verdict"] != "waiting" for p in shown.values())
+                            and len(proposals.get("plans", [])) == 1
+                        )
+
+                    return await page.until("every proposal judged", judged)
+
+            shown = asyncio.run(scenario())
+    reports = heard.latest()
+    (digest,) = {reports[uav].digest for uav in team}
+    proposals = shown["proposals"]
+    assert proposals["named"] == [101, MISSION_MANAGER] and proposals["not_heard"] == []
+    (plan,) = proposals["plans"]
+    assert plan["digest"] == digest and plan["by"] == team
+    by = {p["proposer"]: p for p in proposals["heard"]}
+    assert by[101]["by"] == "UAV 101" and by[MISSION_MANAGER]["by"] == "the ground"
+    # The verdict is the UAVs' digests': adopted by every UAV when their one digest is the
+    # proposal's own, else not adopted: the baseline kept, or the other proposal taken.
+    key = 0  # min-max: the last arrival first
+    for proposer in (101, MISSION_MANAGER):
+        seen = by[proposer]
+        assert seen["check"] == "valid" and seen["score"] is not None, seen
+        figures = (seen["score"]["makespan_s"], seen["score"]["total_s"])
+        committed = (plan["score"]["makespan_s"], plan["score"]["total_s"])
+        if seen["adopted_digest"] == digest:
+            assert (seen["verdict"], seen["adopted_by"]) == ("adopted", team)
+            # The score shown is what the UAVs adopting it reported.
+            assert figures == pytest.approx(committed, abs=0.11)
+        elif seen["baseline_digest"] == digest:
+            assert (seen["verdict"], seen["baseline_by"]) == ("baseline", team)
+        else:
+            assert (seen["verdict"], seen["other_by"]) == ("other", team)
+            (instead,) = seen["instead"]
+            assert instead["adopted_by"] == team
+            assert by[instead["proposer"]]["adopted_digest"] == digest
+        # The team adopts the best: no valid proposal scores better than what it took.
+        assert figures[key] >= committed[key] - 0.11
+    assert shown["proposal"]["verdict"] == by[MISSION_MANAGER]["verdict"]
+    assert shown["proposal"]["score"] == by[MISSION_MANAGER]["score"]
+    # The copy under 102's name: the UAVs refuse it, and the page never says adopted.
+    assert forged
+    copy = by[102]
+    assert copy["check"] == "refused" and copy["score"] is None
+    assert "102 is not among the mission's proposers (101, 65534)" in copy["problem"]
+    assert copy["verdict"] != "adopted" and digest != copy["adopted_digest"]
