@@ -155,15 +155,16 @@ class BusEdge:
             self.state_relays = bus.declare_queryable(space.all_state, self.wake)
         self.command_queries = bus.declare_queryable(space.command(self.uav_id, "*"), self.wake)
         # Each UAV answers for the targets and the abort of its current mission, for its
-        # own result and assignment only, so a teammate's query for a missing result
-        # reaches the UAV that owes it, and for every outcome: its own, and a teammate's
-        # relayed to a query naming it (a claim about another UAV is fetched from it).
+        # own assignment only, so a teammate's query for a missing one reaches the UAV
+        # that owes it, and for every result and outcome: its own, and a teammate's
+        # standing or outcome relayed to a query naming it (a claim about another UAV is
+        # fetched from it, by name: its own word, which outlives it).
         self.mission_queries = [
             bus.declare_queryable(key, self.wake)
             for key in (
                 space.all_mission_targets,
                 space.all_mission_aborts,
-                space.results_of(self.uav_id),
+                space.all_mission_results,
                 space.assignments_of(self.uav_id),
                 space.all_mission_outcomes,
             )

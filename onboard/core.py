@@ -325,6 +325,14 @@ class OnboardCore:
             return None
         return self.round.standing_of(self.uav_id, basis)
 
+    def teammate_standing(self, mission: int, uav: int, basis: str) -> UavResult | None:
+        """Teammate `uav`'s standing for append plan `basis` of `mission`, as it signed
+        it: relayed to whoever asks by name (an ask for a re-plan in changed air is
+        believed from its asker's own standing, and the asker may be gone)."""
+        if self.round is None or self.round.mission != mission or uav == self.uav_id:
+            return None
+        return self.round.standing_of(uav, basis)
+
     def own_assignment(self, mission: int) -> AssignmentReport | None:
         if self.round is None or self.round.mission != mission:
             return None

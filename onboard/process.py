@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import msgspec
 import zenoh
 
+from fleet.mission.key_check import WrongKey, parse_key
 from fleet.mission.key_space import DEFAULT_SPACE, KeySpace
 from fleet.mission.messages import (
     BROADCAST,
@@ -507,11 +508,12 @@ class OnboardProcess:
             return
         mission = targets.mission
         asked, basis = standing_asked(query.parameters)
-        if asked:  # a standing, not the first result: from this UAV only, as it put it
+        if asked:  # a standing, not the first result: its own, as it put it
             key = self.space.mission_result(mission, self.settings.uav_id)
             standing = self.core.own_standing(mission, basis)
             if standing is not None and query.intersects(key):
                 query.reply(key, standing)
+            self._relay_standing(query, mission, basis)
             return
         answers: list[tuple[str, msgspec.Struct | None]] = [
             (self.space.mission_targets(mission), targets),
@@ -540,6 +542,24 @@ class OnboardProcess:
             key = self.space.mission_outcome(mission, uav)
             if query.key == key:
                 query.reply(key, relayed)
+
+    def _relay_standing(self, query: BusQuery, mission: int, basis: str | None) -> None:
+        """A teammate's standing for append plan `basis`, only to a query naming that
+        UAV and that plan: relayed as its UAV signed it (the bus passes its envelope on),
+        for a UAV that heard a teammate's report say it asked for a re-plan in changed
+        air, which is believed from the asker's own standing alone (the asker may be
+        gone). A query for every standing gets each from its own UAV."""
+        if basis is None:
+            return
+        try:
+            uav = parse_key(query.key, self.space).uav
+        except WrongKey:
+            return
+        if uav is None or query.key != self.space.mission_result(mission, uav):
+            return
+        relayed = self.core.teammate_standing(mission, uav, basis)
+        if relayed is not None:
+            query.reply(query.key, relayed)
 
 
 def _author_uav(message: object) -> int | None:

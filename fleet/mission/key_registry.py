@@ -25,7 +25,7 @@ Layout (under the prefix, `fleet` by default):
     uav/{id}/cmd/waypoint        queryable: Waypoint in, CommandResult out
     uav/{id}/cmd/track           queryable: Track in, CommandResult out
     mission/{m}/targets          MissionTargets, ground -> team (served too)
-    mission/{m}/result/{id}      UavResult (served too: late fetch)
+    mission/{m}/result/{id}      UavResult (served too: late fetch; a standing relayed)
     mission/{m}/assignment/{id}  AssignmentReport (republished at each re-plan epoch)
     mission/{m}/replan/{id}      AssignmentReport of a re-plan (epoch > 0) only: what
                                  teammates subscribe to (docs/lifecycle.md)
@@ -178,9 +178,14 @@ TARGETS = KeySpec(
     reply=messages.MissionTargets, servers=frozenset({Party.GROUND, Party.ANY_UAV}),
     uavs_fetch=True,
 )  # fmt: skip
+#: Served by its UAV; a standing (a result for a re-plan) is relayed too, with its UAV's
+#: signature, by every teammate that heard it, to a query naming it and its plan: an ask
+#: for a re-plan in changed air is believed from the asker's own standing only
+#: (fleet.consensus.membership), which may outlive the asker.
 RESULT = KeySpec(
     "mission/{m}/result/{id}", messages.UavResult, carriage=Carriage.PUT | Carriage.QUERY,
-    urgency=Urgency.URGENT, reply=messages.UavResult, servers=_OWN, uavs_fetch=True,
+    urgency=Urgency.URGENT, reply=messages.UavResult,
+    servers=frozenset({Party.OWN_UAV, Party.ANY_UAV}), uavs_fetch=True,
 )  # fmt: skip
 ASSIGNMENT = KeySpec(
     "mission/{m}/assignment/{id}", messages.AssignmentReport,

@@ -122,10 +122,11 @@ POLICY_74 = [
     (
         "uav-74-relay", ("uav-74", "router-74"), ("ingress",), ("reply",),
         # A teammate's outcome, relayed with its own signature (fleet.mission.claims);
-        # a teammate's latest state, the same way (how a frozen UAV stays on the team).
+        # a teammate's latest state, the same way (how a frozen UAV stays on the team);
+        # a teammate's standing, the same way (an ask is believed from its asker alone).
         {
             "fleet/mission/*/abort", "fleet/mission/*/targets", "fleet/mission/*/outcome/*",
-            "fleet/uav/*/state",
+            "fleet/mission/*/result/*", "fleet/uav/*/state",
         },
     ),
     (

@@ -10,6 +10,7 @@ import math
 from collections.abc import Callable
 
 import msgspec
+import pytest
 
 from fleet.mission.key_space import KeySpace
 from fleet.mission.messages import (
@@ -269,10 +270,14 @@ def test_an_ask_is_believed_from_the_asker_alone_not_from_a_teammate_that_says_i
     assert core_200.round.membership.epoch == 1
 
 
-def test_a_uav_that_missed_the_askers_standing_takes_the_ask_from_the_askers_own_word() -> None:
+@pytest.mark.parametrize("answerer", [74, 112], ids=["the asker", "a teammate relaying it"])
+def test_a_uav_that_missed_the_askers_standing_takes_the_ask_from_the_askers_own_word(
+    answerer: int,
+) -> None:
     """74's wind turns and it asks; 200 hears nothing from 74 (a link cut one way), only
-    112's re-plan, which says 74 asked: 200 makes no epoch of it but asks 74 for its
-    standing, and once 74's own word is in, the three commit one plan, solved again."""
+    112's re-plan, which says 74 asked: 200 makes no epoch of it but asks for 74's
+    standing, and once 74's own word is in (from 74, or relayed by 112 as 74 signed it:
+    74 may be gone), the three commit one plan, solved again."""
     pair = _committed_pair(TIMES_OF_THREE, QUEUES_OF_THREE)
     pair.cut.add((74, 200))
 
@@ -291,11 +296,14 @@ def test_a_uav_that_missed_the_askers_standing_takes_the_ask_from_the_askers_own
     assert core_200.round is not None and core_200.round.membership.asked == {}
     assert pair.replans(200) == [] and pair.standings(200) == []
     assert out_200.standing_fetches == [(1, (74,), replan_112.digest)]
-    # 74 answers the query with its standing for that plan, as it put it.
-    core_74, _ = pair.cores[74]
-    assert core_74.round is not None
-    answer = core_74.round.standing_of(74, replan_112.digest)
-    assert answer is not None and answer.asked == 1
+    # 74 answers the query with its standing for that plan, as it put it; 112 relays
+    # the one it holds, 74's own (in a process, with 74's signature).
+    core, _ = pair.cores[answerer]
+    if answerer == 74:
+        answer = core.own_standing(1, replan_112.digest)
+    else:
+        answer = core.teammate_standing(1, 74, replan_112.digest)
+    assert answer is not None and answer.uav == 74 and answer.asked == 1
     core_200.on_result(answer, now)
     pair.fly(now, now + 3.0, turned)
     assert core_200.round.membership.asked == {74: 1}

@@ -16,11 +16,19 @@ import msgspec
 import pytest
 
 from fleet.mission.key_space import KeySpace
-from fleet.mission.messages import CommandResult, MissionTargets, OpmCommand, Target, UavState
+from fleet.mission.messages import (
+    CommandResult,
+    MissionTargets,
+    OpmCommand,
+    Target,
+    UavResult,
+    UavState,
+)
 from fleet.piccolo.track import Track
 from fleet.piccolo.waypoint import Waypoint
 from fleet.transport.bus import Bus, BusSample, decode_sample
 from fleet.transport.bus_codec import encode
+from onboard.bus_edge import standing_selector
 from tests.support.ground_view import GroundView
 from tests.support.memory_world import SPEEDUP, memory_fleet
 from tests.support.waiting import wait_until
@@ -168,3 +176,28 @@ def test_malformed_targets_give_a_status_error_naming_the_problem() -> None:
             lambda: any("longitude 200.0" in s for s in seen.statuses(UAV)), 10.0, "the error"
         )
         assert UAV not in seen.assignments
+
+
+def test_a_teammates_standing_is_relayed_to_a_query_naming_it_and_its_plan() -> None:
+    """An ask for a re-plan in changed air is believed from the asker's own standing
+    only, and the asker may be gone: UAV 112 relays teammate 74's standing (as it signed
+    it, under the secure profile) to a query naming 74 and the plan; nothing else."""
+    targets = (Target(35.72, -120.76, 600.0), Target(35.73, -120.75, 600.0))
+    mission = MissionTargets(mission=7, team=(74, UAV), targets=targets)
+    standing = UavResult(7, 74, (100.0, 120.0), basis="b" * 16, asked=1)
+    named = standing_selector(SPACE.mission_result(7, 74), "b" * 16)
+    with single_uav() as (ground, _):
+        ground.publish(SPACE.mission_targets(7), mission)
+
+        def relayed() -> bool:
+            ground.publish(SPACE.mission_result(7, 74), standing)  # again: it may be early
+            return ground.query_messages(named, UavResult, 2.0) == [
+                (SPACE.mission_result(7, 74), standing)
+            ]
+
+        wait_until(relayed, 30.0, "UAV 112 relaying 74's standing")
+        # Not for another plan, nor to a query for every UAV's (each answers its own).
+        other = standing_selector(SPACE.mission_result(7, 74), "c" * 16)
+        assert ground.query_messages(other, UavResult, 2.0) == []
+        every = standing_selector(SPACE.mission_results(7), "b" * 16)
+        assert ground.query_messages(every, UavResult, 2.0) == []
