@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import importlib.util
 import logging
 import sys
 
 import zenoh
 
 from fleet.errors import CertError, RosterError
+from fleet.solver.pyvrp_plan import solver_available
 from fleet.transport.bus_factory import open_bus
 from fleet.transport.cli import (
     ExitCode,
@@ -124,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
     except ZenohConfigError as error:
         return fail("onboard", str(error))
     settings = settings_from(args, config)
-    if settings.propose and importlib.util.find_spec("pyvrp") is None:
+    if settings.propose and not solver_available():
         return fail("onboard", "--propose needs PyVRP: pip install '.[solver]'")
     try:
         bus = open_bus(config)

@@ -133,7 +133,13 @@ class MissionParticipation:
         self.catch_up = CatchUp(self.outputs, lambda: self.round.mission if self.round else None)
         self.decision = MissionDecision(self.uav_id, self.outputs, self.team, self.say)
         self.own = OwnResult(
-            self.uav_id, self.key_space, self.outputs, self.plan, self.life, self.say
+            self.uav_id,
+            self.key_space,
+            self.outputs,
+            self.plan,
+            self.life,
+            self.say,
+            will_propose=self.proposer.will_propose if self.proposer is not None else None,
         )
 
     # ---- what the flight tells its mission ---------------------------------------------------

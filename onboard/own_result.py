@@ -8,6 +8,7 @@ publishes an all-None result, so that its teammates need not wait for it.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -18,7 +19,7 @@ from fleet.geo.aircraft import AircraftLimits
 from fleet.geo.wind import CALM_AIR, Wind
 from fleet.mission.key_space import KeySpace
 from fleet.mission.lifecycle import Observation
-from fleet.mission.messages import UavResult
+from fleet.mission.messages import MissionTargets, UavResult
 from fleet.mission.phase import Phase
 from fleet.mission.status_kind import StatusKind
 from fleet.piccolo.telemetry import GpsBlock
@@ -69,6 +70,9 @@ class OwnResult:
     standing: tuple[str, int | None, tuple[int, ...]] | None = None
     #: The bases this UAV gave (or is giving) a standing for: one each.
     stood: set[str] = field(default_factory=set)
+    #: Whether this UAV will propose a plan for a mission (onboard.plan_proposer), said
+    #: in its result for it; None: it proposes nothing (started without `--propose`).
+    will_propose: Callable[[MissionTargets], bool] | None = None
 
     def start(
         self,
@@ -178,6 +182,15 @@ class OwnResult:
         result = UavResult(mission=mission_round.mission, uav=self.uav_id, times=times, **fields)
         return with_air(result, air)
 
+    def _proposes(self, targets: MissionTargets) -> bool | None:
+        """What this UAV's result says of its proposing for `targets`: its teammates wait
+        for no plan of a named UAV that says it will not (fleet.consensus.proposal.
+        awaited_proposers). None (unsaid, the digest as before) for a mission that waits
+        for no named proposer."""
+        if not targets.proposers or targets.proposals_s <= 0.0:
+            return None
+        return self.will_propose is not None and self.will_propose(targets)
+
     def publish_none(self, mission_round: MissionRound, now: float) -> None:
         """Take no part: an all-None result says so to the team."""
         self.publish(mission_round, tuple(None for _ in mission_round.targets.targets), now)
@@ -192,7 +205,12 @@ class OwnResult:
         air: FlownAir | None = None,
     ) -> None:
         result = self._result(
-            mission_round, times, air, model_times=model_times, fallback_times=fallback_times
+            mission_round,
+            times,
+            air,
+            model_times=model_times,
+            fallback_times=fallback_times,
+            proposes=self._proposes(mission_round.targets),
         )
         mission_round.add_result(result)
         # Teammates are computing too: the first fetch waits one interval.

@@ -7,6 +7,11 @@ publishes the proposal on its own key (`mission/{m}/proposal/{id}`), signed with
 own key like all it writes. Its teammates verify and score it as any proposal
 (`fleet.consensus.proposal`); so does this UAV. A solve that fails (PyVRP missing, bad
 input) is said once and changes nothing: the team decides on what it holds.
+
+Whether it will propose is said beforehand, in this UAV's result for the mission
+(`UavResult.proposes`, `will_propose`): its teammates then wait for no proposal of a
+named UAV that says it will not (started without `--propose`, or without PyVRP), and
+decide as soon as every result is in, all alike (fleet.consensus.proposal).
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ from fleet.mission.messages import MissionTargets, PlanProposal, UavResult
 from fleet.mission.objective import Objective
 from fleet.mission.status_kind import StatusKind
 from fleet.solver.proposer import proposal_for
+from fleet.solver.pyvrp_plan import solver_available
 from onboard.state_report import Say
 
 log = logging.getLogger(__name__)
@@ -42,6 +48,8 @@ class PlanProposer:
     say: Say
     solve: Solve = proposal_for
     run: Run = _in_thread
+    #: Whether its solver can be imported here (PyVRP): without it, it proposes nothing.
+    solvable: bool = field(default_factory=solver_available)
     #: The mission whose proposal is being solved or was, once each.
     _mission: int | None = None
     _lock: threading.Lock = field(default_factory=threading.Lock)
@@ -73,12 +81,20 @@ class PlanProposer:
         self.run(work)
         return self._collect(mission_round, now)
 
-    def _should_propose(self, mission_round: MissionRound) -> bool:
-        targets = mission_round.targets
+    def will_propose(self, targets: MissionTargets) -> bool:
+        """Whether this UAV will propose a plan for the mission `targets` (what its
+        result says, `UavResult.proposes`): named, a window and an objective to propose
+        for, and its solver here."""
         return (
-            self.uav_id in targets.proposers
+            self.solvable
+            and self.uav_id in targets.proposers
             and targets.proposals_s > 0.0
             and targets.objective is not Objective.GREEDY
+        )
+
+    def _should_propose(self, mission_round: MissionRound) -> bool:
+        return (
+            self.will_propose(mission_round.targets)
             and mission_round.committed is None
             and mission_round.team <= mission_round.results.keys()
         )

@@ -39,6 +39,7 @@ __all__ = [
     "Assignment",
     "air_bytes",
     "greedy_assign",
+    "proposes_bytes",
     "results_digest",
     "row_bytes",
     "row_order",
@@ -162,11 +163,15 @@ _TIME = struct.Struct("<d")
 #   then, per UAV whose result says how it flies (fleet.consensus.legs.Air), in increasing
 #   Piccolo ID order: `air_bytes`: b'air\0', '<q' Piccolo ID, then per number (airspeed,
 #   wind east, wind north, lat, lon) b'T' + '<d' or b'N' for None;
+#   then, per UAV whose result says whether it will propose a plan (UavResult.proposes),
+#   in increasing Piccolo ID order: `proposes_bytes`: b'proposes\0', '<q' Piccolo ID,
+#   b'Y' or b'N';
 #   then, for a mission with no-fly zones only: b'zones\0', '<Q' their length, their bytes.
 _ZONES_TAG = b"zones\x00"
 _ZONES_LENGTH = struct.Struct("<Q")
 _AIR_TAG = b"air\x00"
 _AIR_UAV = struct.Struct("<q")
+_PROPOSES_TAG = b"proposes\x00"
 
 
 def results_digest(
@@ -174,6 +179,7 @@ def results_digest(
     zones: bytes = b"",
     rows_bytes: Mapping[int, bytes] | None = None,
     air: Mapping[int, bytes] | None = None,
+    proposes: Mapping[int, bytes] | None = None,
 ) -> str:
     """A stable 16-hex-digit digest (SHA-256 prefix) of exactly these results.
 
@@ -182,7 +188,8 @@ def results_digest(
     the digest of the results alone). `rows_bytes[uav]`, where given, must be
     `row_bytes(uav, results[uav])` (computed as the result arrived); the others are
     packed here. `air[uav]`: `air_bytes` of its result (none, or empty: it says nothing,
-    and the digest is the one of its times alone).
+    and the digest is the one of its times alone). `proposes[uav]`: `proposes_bytes` of
+    its result (none, or empty: it does not say).
     """
     given = rows_bytes if rows_bytes is not None else {}
     parts = [_DIGEST_VERSION]
@@ -191,6 +198,8 @@ def results_digest(
     ]
     if air:
         parts += [air[uav] for uav in sorted(results) if air.get(uav)]
+    if proposes:
+        parts += [proposes[uav] for uav in sorted(results) if proposes.get(uav)]
     if zones:
         parts += [_ZONES_TAG, _ZONES_LENGTH.pack(len(zones)), zones]
     # One buffer hashed once: the same bytes as an update per field, in a third of the
@@ -205,6 +214,14 @@ def air_bytes(uav: int, numbers: Sequence[float | None]) -> bytes:
         return b""
     entries = [b"N" if n is None else b"T" + _TIME.pack(n) for n in numbers]
     return _AIR_TAG + _AIR_UAV.pack(uav) + b"".join(entries)
+
+
+def proposes_bytes(uav: int, proposes: bool | None) -> bytes:
+    """What `results_digest` hashes of whether `uav` will propose a plan; empty if its
+    result does not say."""
+    if proposes is None:
+        return b""
+    return _PROPOSES_TAG + _AIR_UAV.pack(uav) + (b"Y" if proposes else b"N")
 
 
 def row_bytes(uav: int, row: Sequence[float | None]) -> bytes:

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import msgspec
 
-from fleet.consensus.assignment import air_bytes, results_digest
+from fleet.consensus.assignment import air_bytes, proposes_bytes, results_digest
 from fleet.consensus.heal import Rank, rank
 from fleet.consensus.legs import Air, AirLegs, LegGeometry, leg_times
 from fleet.consensus.membership import (
@@ -440,24 +440,27 @@ class MissionRound:
         """The mission expects a proposed plan (`proposals_s`), its window is still open,
         and a proposal that could be adopted now is still to come: a valid one from each
         proposer the mission names and entitles (a named UAV outside the team is not
-        waited for), or any valid one if it names none. A decision that would leave a
-        team UAV out (gone by `alive`; None: every team UAV alive) waits for none: each
-        proposal is solved from every team UAV's result, so none could be adopted
-        (fleet.consensus.proposal). An invalid proposal does not close the window."""
+        waited for, nor one whose result says it will not propose), or any valid one if
+        it names none. A decision that would leave a team UAV out (gone by `alive`;
+        None: every team UAV alive) waits for none: each proposal is solved from every
+        team UAV's result, so none could be adopted (fleet.consensus.proposal). An
+        invalid proposal does not close the window."""
         window = self.targets.proposals_s
         if window <= 0.0 or now >= self.started + window:
             return False
         gone = self.team - alive - {self.own_id} if alive is not None else frozenset()
-        awaited = awaited_proposers(self.targets.proposers, self.team, gone)
-        if awaited is not None and not awaited:
-            return False
-        if not self.proposals:
-            return True
         used = {
             uav: result.times
             for uav, result in self.results.items()
             if alive is None or uav in alive or uav == self.own_id
         }
+        # Named UAVs whose results (the ones decided on) say they will not propose.
+        silent = {uav for uav in used if self.results[uav].proposes is False}
+        awaited = awaited_proposers(self.targets.proposers, self.team, gone, silent)
+        if awaited is not None and not awaited:
+            return False
+        if not self.proposals:
+            return True
         legs = self.air_legs(used)
         inputs = self.results_digest(used)
         objective = self.targets.objective
@@ -487,8 +490,13 @@ class MissionRound:
 
     def results_digest(self, used: dict[int, tuple[float | None, ...]]) -> str:
         """The digest of exactly these results, as the decision computes it."""
+        proposes = {uav: proposes_bytes(uav, self.results[uav].proposes) for uav in used}
         return results_digest(
-            used, zones_bytes(self.targets.zones), self.rows.packed(used), self._air_bytes(used)
+            used,
+            zones_bytes(self.targets.zones),
+            self.rows.packed(used),
+            self._air_bytes(used),
+            proposes,
         )
 
     def excluded(self, alive: set[int]) -> frozenset[int]:

@@ -29,9 +29,11 @@ decision and by others after it would split the team.
 How long the decision waits (`awaited_proposers`): every proposer solves from every team
 UAV's result, and its proposal's digest says so. A UAV that would decide without a
 teammate's result (gone by its liveliness) can therefore adopt no proposal at all, and
-waits for none; otherwise it waits for each named proposer entitled to propose. What
-every UAV can agree on is the results it decides from: two UAVs deciding on the same
-results wait for the same proposers. One that sees a teammate gone decides on other
+waits for none; otherwise it waits for each named proposer entitled to propose, except
+a UAV whose result says it will not (`UavResult.proposes`: not started to propose, or
+without its solver). What every UAV can agree on is the results it decides from (that
+word of each UAV is digested with them): two UAVs deciding on the same results wait for
+the same proposers. One that sees a teammate gone decides on other
 results than one that does not, with or without the wait; that split is liveliness's,
 visible in the digests, as for a mission with no proposer.
 
@@ -95,17 +97,21 @@ def right_problem(proposer: int, named: Collection[int], team: Collection[int]) 
 
 
 def awaited_proposers(
-    named: Collection[int], team: Collection[int], gone: Collection[int]
+    named: Collection[int],
+    team: Collection[int],
+    gone: Collection[int],
+    silent: Collection[int] = (),
 ) -> frozenset[int] | None:
     """The proposers whose valid proposals a decision waits for while the team UAVs
     `gone` are out of it (their results left out): an empty set, none (no proposal can
     be valid without every team UAV's result); None: any one valid proposal (a mission
-    naming no proposer: the ground's)."""
+    naming no proposer: the ground's). The UAVs `silent` said in their results that they
+    will not propose (UavResult.proposes): never waited for either."""
     if gone:
         return frozenset()
     if not named:
         return None
-    return frozenset(p for p in named if right_problem(p, named, team) is None)
+    return frozenset(p for p in named if p not in silent and right_problem(p, named, team) is None)
 
 
 def _ids(uavs: Iterable[int]) -> str:

@@ -188,6 +188,13 @@ class UavResult(msgspec.Struct, frozen=True):
     #: count, fleet.consensus.membership): a teammate that counts fewer takes it, and
     #: re-plans that epoch too (onboard.air_watch).
     asked: MembershipCount = 0
+    #: Whether this UAV will propose a plan for the mission (started with `--propose`,
+    #: its solver importable, named among the mission's proposers, a window and an
+    #: objective to propose for). Digested with the times: every UAV holding the same
+    #: results waits for the same proposers, and none for a named UAV that says False
+    #: (fleet.consensus.proposal.awaited_proposers). None: it does not say (an older
+    #: UAV, a standing, the payload link): it may propose.
+    proposes: bool | None = None
 
 
 class MissionAbort(msgspec.Struct, frozen=True):

@@ -19,6 +19,7 @@ centiseconds (PyVRP's matrices are integers). Each UAV's own legs are its own pr
 
 from __future__ import annotations
 
+import importlib.util
 import itertools
 import math
 import warnings
@@ -31,7 +32,7 @@ from fleet.errors import FleetError
 from fleet.mission.objective import Objective
 from fleet.solver.min_sum_search import search_min_sum
 
-__all__ = ["SolverUnavailable", "solve_queues"]
+__all__ = ["SolverUnavailable", "solve_queues", "solver_available"]
 
 #: The solver's unit: seconds x SCALE are its integers.
 SCALE = 100
@@ -44,6 +45,11 @@ BISECTION_STEPS = 12
 
 class SolverUnavailable(FleetError, RuntimeError):
     """PyVRP is not installed: `pip install '.[solver]'`."""
+
+
+def solver_available() -> bool:
+    """Whether PyVRP can be imported here (found, not imported: it loads in seconds)."""
+    return importlib.util.find_spec("pyvrp") is not None
 
 
 def solve_queues(

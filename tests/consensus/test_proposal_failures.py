@@ -252,3 +252,86 @@ def test_a_gone_teammate_that_is_not_the_proposer_ends_the_wait_too() -> None:
     mission_round.team = frozenset({3, 5, 8})
     assert not mission_round.awaiting_proposal(1.0, {3, 5})
     assert mission_round.awaiting_proposal(1.0, {3, 5, 8})  # 8 alive: its result may come
+
+
+def _says(mission_round: Any, uav: int, proposes: bool | None) -> None:
+    """`uav`'s result says whether it will propose (UavResult.proposes), heard again."""
+    result = msgspec.structs.replace(mission_round.results[uav], proposes=proposes)
+    assert mission_round.add_result(result)
+
+
+def test_a_named_proposer_that_says_it_will_not_propose_is_not_waited_for() -> None:
+    """UAV 5 is named and alive, but its result says it will not propose (started
+    without `--propose`, or without PyVRP): every UAV holding that result decides as
+    soon as every result is in, not at the window's end, and decides the same."""
+    reports = []
+    for own in (3, 5):
+        mission_round = _round(own)
+        _named(mission_round, (5,), window=20.0)
+        _says(mission_round, 5, False)
+        assert not mission_round.awaiting_proposal(1.0, {3, 5})
+        assert mission_round.ready(1.0, {3, 5})  # at once, not at 20 s
+        reports.append(mission_round.decide({3, 5}))
+    first, second = reports
+    assert (first.digest, first.queues) == (second.digest, second.queues)
+    # Before 5's result (and its word) is in: not ready, the results come first.
+    waiting = _round(3)
+    _named(waiting, (5,), window=20.0)
+    del waiting.results[5]
+    assert not waiting.ready(1.0, {3, 5})
+
+
+def test_a_named_proposer_that_says_it_will_propose_is_awaited_until_it_has() -> None:
+    mission_round = _round(3)
+    _named(mission_round, (5,), window=20.0)
+    _says(mission_round, 5, True)
+    assert mission_round.awaiting_proposal(1.0, {3, 5})
+    assert not mission_round.ready(1.0, {3, 5})
+    assert mission_round.add_proposal(_proposal(mission_round, proposer=5))
+    assert not mission_round.awaiting_proposal(1.0, {3, 5})  # each awaited one proposed
+    assert mission_round.ready(1.0, {3, 5})
+
+
+def test_only_the_named_proposers_that_will_propose_are_awaited() -> None:
+    """UAV 3 says it will not, UAV 5 that it will: 5's plan alone is awaited. With the
+    ground named too, its plan is still awaited (it has no result to say otherwise)."""
+    mission_round = _round(3)
+    _named(mission_round, (3, 5), window=20.0)
+    _says(mission_round, 3, False)
+    _says(mission_round, 5, True)
+    assert mission_round.awaiting_proposal(1.0, {3, 5})
+    assert mission_round.add_proposal(_proposal(mission_round, proposer=5))
+    assert not mission_round.awaiting_proposal(1.0, {3, 5})
+    with_ground = _round(3)
+    _named(with_ground, (5, MISSION_MANAGER), window=20.0)
+    _says(with_ground, 5, False)
+    assert with_ground.awaiting_proposal(1.0, {3, 5})  # the ground's plan
+    assert with_ground.add_proposal(_proposal(with_ground))
+    assert not with_ground.awaiting_proposal(1.0, {3, 5})
+    # A mission naming none waits for the ground's plan whatever the results say.
+    nobody = _round(3)
+    _named(nobody, (), window=20.0)
+    _says(nobody, 5, False)
+    assert nobody.awaiting_proposal(1.0, {3, 5})
+
+
+def test_a_result_that_does_not_say_keeps_the_wait() -> None:
+    """An older UAV's result (no `proposes`): it may propose, so it is awaited."""
+    mission_round = _round(3)
+    _named(mission_round, (5,), window=20.0)
+    _says(mission_round, 5, None)
+    assert mission_round.awaiting_proposal(1.0, {3, 5})
+    assert not mission_round.awaiting_proposal(20.0, {3, 5})  # the window's end
+
+
+def test_what_a_result_says_of_proposing_is_digested() -> None:
+    """Every UAV computes the same digest from the same word, and another from another:
+    a UAV that heard a teammate say it will propose does not decide as one that heard it
+    will not, under one digest. Unsaid, the digest is the one before the field."""
+    digests = []
+    for proposes in (None, False, True):
+        mission_round = _round(3)
+        _says(mission_round, 5, proposes)
+        digests.append(_inputs(mission_round))
+    assert len(set(digests)) == 3
+    assert digests[0] == _inputs(_round(3))

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import msgspec
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 from hypothesis import given
 from hypothesis import strategies as st
 
 from fleet.mission import signature
 from fleet.mission.key_space import KeySpace
+from fleet.mission.messages import UavResult
 from fleet.mission.signature import Delivery, Envelope, Freshness, Refusal, Roster, sign, verify
+from fleet.transport.bus_codec import encode
 
 SPACE = KeySpace()
 S = 1_000_000_000
@@ -188,3 +191,16 @@ def test_the_replay_marks_stay_bounded() -> None:
     # Marks past the window go as time passes.
     fresh.check(SPACE.opm(1), envelope_at(NOW + 60 * S), Delivery.PUT, NOW + 60 * S)
     assert len(fresh._marks) == 1
+
+
+def test_a_results_word_on_proposing_is_signed_with_it() -> None:
+    """Whether a UAV will propose (UavResult.proposes) is signed with its result: a
+    relay that turns its "no" into a "yes" (or back) breaks the signature."""
+    key = SPACE.mission_result(5, 74)
+    said = UavResult(5, 74, (10.0, 20.0), proposes=False)
+    payload = encode(said)
+    by_74 = signed("uav-74", key, payload)
+    assert verify(ROSTER, SPACE, key, payload, by_74, Delivery.REPLY)[1] is None
+    forged = encode(msgspec.structs.replace(said, proposes=True))
+    assert forged != payload
+    assert verify(ROSTER, SPACE, key, forged, by_74, Delivery.REPLY)[1] is Refusal.BAD_SIGNATURE

@@ -99,6 +99,7 @@ def make_core(
     liveliness_grace_s: float = 0.0,  # most tests: a lost teammate is released at once
     vouch_teammates: bool = False,  # the secure profile: a token counts once its UAV spoke
     fresh_replans: bool = False,
+    propose: bool = False,  # `--propose`: it proposes plans for missions naming it
 ) -> tuple[OnboardCore, Recorder]:
     """A core on a scripted planner. Its scripted teammates give no standings, so the
     role tests of the re-plan check the append rule, committed at once (what a re-plan
@@ -112,6 +113,7 @@ def make_core(
         liveliness_grace_s=liveliness_grace_s,
         vouch_teammates=vouch_teammates,
         fresh_replans=fresh_replans,
+        propose=propose,
     )
     core.on_telemetry(sample_telemetry(), 0.0)
     core.on_track(Track(2), 0.0)
