@@ -26,6 +26,7 @@ from typing import Any
 
 import msgspec
 
+from fleet.consensus.membership import own_asked
 from fleet.mission.claims import flown_by, reached_by
 from fleet.mission.messages import (
     AssignmentReport,
@@ -166,10 +167,15 @@ class MissionOutcome:
         return rows
 
     def asked(self) -> dict[int, int]:
-        """Re-plans in changed air each UAV asked for, at the latest epoch
-        (fleet.consensus.membership `asked`, docs/lifecycle.md)."""
-        report = self.latest()
-        return {} if report is None else dict(sorted(report.asked.items()))
+        """Re-plans in changed air each team UAV asked for, by its own latest report
+        (fleet.consensus.membership `asked`, docs/lifecycle.md): an ask is believed from
+        the asker's own word alone, as the UAVs believe it, not from a teammate's report
+        that says another UAV asked."""
+        counted: dict[int, int] = {}
+        for uav, report in sorted(self.assignments.items()):
+            if uav in self.team and report.uav == uav:
+                counted.update(own_asked(uav, report.asked))
+        return counted
 
     def reached_by(self) -> dict[int, int]:
         """Target index -> the UAV whose telemetry put it inside the acceptance radius, as

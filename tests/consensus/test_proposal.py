@@ -4,45 +4,20 @@ UAV holding the same results and proposals reports the same plan and digest."""
 
 from __future__ import annotations
 
-import random
-
 import msgspec
 import pytest
 
 from fleet.consensus.mission_round import MissionRound
 from fleet.consensus.proposal import Verdict, adoption, plan_key
 from fleet.consensus.queues import finish
-from fleet.geo.mercator import MercatorProjection
-from fleet.mission.messages import MISSION_MANAGER, MissionTargets, PlanProposal, Target, UavResult
+from fleet.mission.messages import MISSION_MANAGER, PlanProposal
 from fleet.mission.objective import Objective
-
-PROJECTION = MercatorProjection(35.72, -120.76)
-#: The optimum of this instance (found by enumerating every plan): better than the
-#: baseline's local search, by the same scorer.
-BETTER = {3: (4, 0), 5: (2, 1, 5, 3)}
+from tests.support.proposal_instance import BETTER, mission_and_results
 
 
 def _round(own: int, proposals_s: float = 0.0) -> MissionRound:
-    rng = random.Random(1)
-    points = [(rng.uniform(-4000, 4000), rng.uniform(-4000, 4000)) for _ in range(6)]
-    targets = tuple(Target(*PROJECTION.to_latlon(x, y), 600.0) for x, y in points)
-    mission = MissionTargets(
-        mission=9,
-        team=(3, 5),
-        targets=targets,
-        objective=Objective.MIN_SUM,
-        deadline_s=30.0,
-        proposals_s=proposals_s,
-    )
+    mission, results = mission_and_results(proposals_s)
     mission_round = MissionRound(targets=mission, own_id=own, started=0.0)
-    results = []
-    for uav in (3, 5):
-        times = tuple(rng.uniform(60, 400) for _ in points)
-        results.append(
-            UavResult(
-                9, uav, times, airspeed=22.0, wind_east=8.0, wind_north=2.0, lat=35.72, lon=-120.76
-            )
-        )
     for result in results if own == 3 else reversed(results):
         assert mission_round.add_result(result)
     return mission_round

@@ -208,3 +208,14 @@ def test_mission_shows_who_asked_for_a_re_plan_in_the_air_of_now() -> None:
     assert "  re-planned in the air of now: asked by UAV 101 1x, UAV 102 1x" in summary_lines(
         outcome
     )
+
+
+def test_an_ask_is_shown_from_the_askers_own_report_not_from_a_teammates() -> None:
+    """101's report says 102 asked three times; 102's own says once, 101 never asked:
+    the ground shows what each asker said of itself, as the UAVs believe it."""
+    team = (101, 102)
+    claims = AssignmentReport(1, 101, 0, {101: 0, 102: 1}, (), team, "d", epoch=3, asked={102: 3})
+    own = msgspec.structs.replace(claims, uav=102, target=1, epoch=1, asked={102: 1})
+    outcome = MissionOutcome(mission=1, team=team, targets=TARGETS)
+    outcome.assignments = {101: claims, 102: own}
+    assert outcome.asked() == {102: 1}

@@ -5,52 +5,23 @@ reports; and what the UAVs did with each proposal is read from their digests alo
 
 from __future__ import annotations
 
-import random
-
 import msgspec
 
 from fleet.consensus.mission_round import MissionRound
 from fleet.consensus.proposal import Verdict
 from fleet.consensus.proposal_review import Check, Score, review_proposals
-from fleet.geo.mercator import MercatorProjection
-from fleet.mission.messages import MISSION_MANAGER, MissionTargets, PlanProposal, Target, UavResult
+from fleet.mission.messages import MISSION_MANAGER, MissionTargets, PlanProposal, UavResult
 from fleet.mission.objective import Objective
 from ground.proposals_heard import heard_proposals, team_plans
+from tests.support.proposal_instance import BETTER
+from tests.support.proposal_instance import mission_and_results as instance
 
-PROJECTION = MercatorProjection(35.72, -120.76)
-#: Better than the baseline by the scorer (tests/consensus/test_proposal.py).
-BETTER = {3: (4, 0), 5: (2, 1, 5, 3)}
 #: Every target on UAV 3: valid, and worse than the baseline.
 WORSE = {3: (0, 1, 2, 3, 4, 5), 5: ()}
 
 
 def mission_and_results(proposers: tuple[int, ...] = ()) -> tuple[MissionTargets, list[UavResult]]:
-    rng = random.Random(1)
-    points = [(rng.uniform(-4000, 4000), rng.uniform(-4000, 4000)) for _ in range(6)]
-    targets = tuple(Target(*PROJECTION.to_latlon(x, y), 600.0) for x, y in points)
-    mission = MissionTargets(
-        mission=9,
-        team=(3, 5),
-        targets=targets,
-        objective=Objective.MIN_SUM,
-        deadline_s=30.0,
-        proposals_s=20.0,
-        proposers=proposers,
-    )
-    results = [
-        UavResult(
-            9,
-            uav,
-            tuple(rng.uniform(60, 400) for _ in points),
-            airspeed=22.0,
-            wind_east=8.0,
-            wind_north=2.0,
-            lat=35.72,
-            lon=-120.76,
-        )
-        for uav in (3, 5)
-    ]
-    return mission, results
+    return instance(20.0, proposers)
 
 
 def on_board(mission: MissionTargets, results: list[UavResult], own: int) -> MissionRound:
