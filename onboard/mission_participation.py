@@ -435,7 +435,8 @@ class MissionParticipation:
 
     def on_proposal(self, proposal: PlanProposal, now: float) -> None:
         """A plan proposed for the current mission: kept for the decision, which
-        verifies and scores it (fleet.consensus.proposal); after it, changes nothing.
+        verifies and scores it (fleet.consensus.proposal); after it, changes nothing
+        (counted and logged).
         One from a proposer the mission does not entitle is refused and counted, before
         or after the decision (its signature only says who wrote it). One for a later
         mission is kept for when it arrives (onboard.early_proposals), a few at most;
@@ -462,6 +463,14 @@ class MissionParticipation:
                 "mission %d: a plan proposed by %d, to verify at the decision",
                 proposal.mission,
                 proposal.proposer,
+            )
+        elif mission_round.committed is not None:
+            # After the decision it changes nothing; counted, so that a proposer that is
+            # always late (too slow for the window) shows in the UAV's state.
+            DROPPED.add(ProposalRefused.LATE)
+            _refusals.warn(
+                f"mission {proposal.mission}: the plan proposed by {proposal.proposer} "
+                "came after the decision: it changes nothing"
             )
 
     @staticmethod

@@ -80,6 +80,9 @@ class ProposalRefused(StrEnum):
     #: not for the mission the UAV holds: an older one's (superseded), or a later one's
     #: pushed out of the few kept until it arrives (onboard.early_proposals)
     NO_MISSION = "proposal_no_mission"
+    #: for the mission held, entitled, but heard after this UAV's decision: it changes
+    #: nothing (the window closed, or every awaited plan was in)
+    LATE = "proposal_late"
 
 
 def right_problem(proposer: int, named: Collection[int], team: Collection[int]) -> str | None:

@@ -111,3 +111,30 @@ def test_proposals_for_a_mission_not_held_are_counted_when_dropped() -> None:
     # An older mission's proposal: counted.
     core.on_proposal(_proposal(1), 4.0)
     assert _no_mission() == before + 4 - PER_PROPOSER + 2
+
+
+def test_a_proposal_for_the_mission_held_after_the_decision_is_counted_late() -> None:
+    """Entitled and for the mission held, but heard after this UAV decided: it changes
+    nothing, and is counted (`bus_proposal_late` in the UAV's state) and logged."""
+    core, _ = make_core(uav=112)
+    _start(core, proposals_s=0.0)
+    assert core.round is not None and core.round.committed is not None
+    committed = core.round.committed
+    counts = DROPPED.counts()
+    late = counts.get(ProposalRefused.LATE, 0)
+    no_right = counts.get(ProposalRefused.NO_RIGHT, 0)
+    core.on_proposal(_proposal(1), 2.0)  # the ground's: entitled, late
+    assert DROPPED.counts().get(ProposalRefused.LATE, 0) == late + 1
+    assert core.round.committed is committed and not core.round.proposals
+    # One without the right is counted for that, not as late.
+    core.on_proposal(_proposal(1, proposer=74), 2.0)
+    counts = DROPPED.counts()
+    assert counts.get(ProposalRefused.LATE, 0) == late + 1
+    assert counts.get(ProposalRefused.NO_RIGHT, 0) == no_right + 1
+    # Before the decision it is kept, not counted.
+    early, _ = make_core(uav=112)
+    _start(early, proposals_s=5.0)
+    assert early.round is not None and early.round.committed is None
+    early.on_proposal(_proposal(1, digest="other"), 1.2)
+    assert set(early.round.proposals) == {MISSION_MANAGER}
+    assert DROPPED.counts().get(ProposalRefused.LATE, 0) == late + 1
