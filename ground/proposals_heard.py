@@ -26,11 +26,22 @@ from fleet.mission.messages import (
     UavResult,
 )
 
-__all__ = ["HeardProposal", "heard_proposals", "proposer_name", "team_plans"]
+__all__ = ["HeardProposal", "declined", "heard_proposals", "proposer_name", "team_plans"]
 
 
 def proposer_name(proposer: int) -> str:
     return "the ground" if proposer == MISSION_MANAGER else f"UAV {proposer}"
+
+
+def declined(targets: MissionTargets, results: Mapping[int, UavResult]) -> list[int]:
+    """The named UAV proposers whose result said they will not propose (started without
+    `--propose`, or without a solver): the team does not wait for them
+    (fleet.consensus.proposal `awaited_proposers`)."""
+    return [
+        uav
+        for uav in targets.proposers
+        if uav != MISSION_MANAGER and uav in results and results[uav].proposes is False
+    ]
 
 
 def _ids(uavs: Iterable[int]) -> str:

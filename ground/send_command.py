@@ -38,7 +38,7 @@ from ground.mission_follower import Listener, MissionFollower
 from ground.mission_ids import TargetsServer, claim_mission, contest_grace_s
 from ground.mission_outcome import MissionOutcome, check_agreement
 from ground.mission_summary import summary_lines
-from ground.proposals_heard import heard_proposals
+from ground.proposals_heard import declined, heard_proposals
 from ground.propose import named_proposers, proposal_window, propose_when_results
 from ground.targets_command import read_or_say
 from ground.zones_command import zones_or_say
@@ -271,8 +271,10 @@ def _judge_proposals(
             outcome.uav_proposals[seen.proposer] = seen
             said = seen.summary()
             print(f"mission {mission}: UAV {seen.proposer}'s proposal: {said}", file=progress)
+    said_no = declined(message, outcome.results)
     for uav in sorted(set(message.proposers) - proposals.keys() - {MISSION_MANAGER}):
-        print(f"mission {mission}: no proposal heard from UAV {uav}", file=progress)
+        why = " (its result said it will not propose: not waited for)" if uav in said_no else ""
+        print(f"mission {mission}: no proposal heard from UAV {uav}{why}", file=progress)
 
 
 def _propose(

@@ -57,7 +57,7 @@ from ground.mission_control import MissionError, publish_targets, send_abort, se
 from ground.mission_follower import MissionFollower
 from ground.mission_ids import MAX_MISSION_ID, TargetsServer, claim_mission, current_mission_id
 from ground.mission_outcome import MissionOutcome
-from ground.proposals_heard import HeardProposal, heard_proposals, team_plans
+from ground.proposals_heard import HeardProposal, declined, heard_proposals, team_plans
 from ground.propose import (
     ProposalAttempt,
     named_proposers,
@@ -344,12 +344,16 @@ class MissionDesk:
             return None
         with self._decisions_lock:
             decisions = list(self._decisions.values())
+        with self._lock:
+            follower = self._follower
+        results = follower.snapshot()[0] if follower is not None else {}
         proposers = {seen.proposer for seen in heard}
         return {
             "named": list(first.proposers),
             "window_s": first.proposals_s,
             "heard": [seen.to_json() for seen in heard],
             "not_heard": [p for p in first.proposers if p not in proposers],
+            "declined": declined(first, results),
             "plans": team_plans(decisions, first.mission),
         }
 

@@ -12,7 +12,7 @@ from fleet.consensus.proposal import Verdict
 from fleet.consensus.proposal_review import Check, Score, review_proposals
 from fleet.mission.messages import MISSION_MANAGER, MissionTargets, PlanProposal, UavResult
 from fleet.mission.objective import Objective
-from ground.proposals_heard import heard_proposals, team_plans
+from ground.proposals_heard import declined, heard_proposals, team_plans
 from tests.support.proposal_instance import BETTER
 from tests.support.proposal_instance import mission_and_results as instance
 
@@ -111,3 +111,16 @@ def test_each_proposal_heard_is_judged_from_the_digests_the_uavs_reported() -> N
     # No decision heard yet: waiting, whatever the check says.
     (waiting, _) = heard_proposals(mission, held, proposals, [])
     assert waiting.adoption.verdict is Verdict.WAITING
+
+
+def test_named_proposers_whose_result_said_no_are_named_as_declined() -> None:
+    """A named UAV whose result said it will not propose is not waited for, and the
+    ground says why no proposal came from it; one that said yes, or did not say, or whose
+    result is not in yet, is not declined."""
+    mission, results = mission_and_results(proposers=(3, 5, MISSION_MANAGER))
+    by_uav = {r.uav: r for r in results}
+    assert declined(mission, by_uav) == []  # neither said (None)
+    by_uav[3] = msgspec.structs.replace(by_uav[3], proposes=False)
+    by_uav[5] = msgspec.structs.replace(by_uav[5], proposes=True)
+    assert declined(mission, by_uav) == [3]
+    assert declined(mission, {5: by_uav[5]}) == []

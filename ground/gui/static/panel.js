@@ -329,7 +329,10 @@ function drawProposals(all, own) {
   for (const uav of all.not_heard) {
     if (uav === MISSION_MANAGER) continue; // the ground's own: the line above says why
     const row = keyedItem(list, `n${uav}`);
-    setText(row, `UAV ${uav}: no proposal heard`);
+    const declined = (all.declined || []).includes(uav);
+    setText(row, declined
+      ? `UAV ${uav}: no proposal (its result said it will not propose: not waited for)`
+      : `UAV ${uav}: no proposal heard`);
     setAttributes(row, { 'data-proposer': uav, 'data-verdict': 'none' });
     rows.push(row);
   }

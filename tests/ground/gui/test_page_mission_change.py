@@ -219,7 +219,11 @@ def test_the_page_shows_each_proposal_heard_and_whether_the_team_adopted_it(
     reports = heard.latest()
     (digest,) = {reports[uav].digest for uav in team}
     proposals = shown["proposals"]
-    assert proposals["named"] == [101, MISSION_MANAGER] and proposals["not_heard"] == []
+    assert (
+        proposals["named"] == [101, MISSION_MANAGER]
+        and proposals["not_heard"] == []
+        and proposals["declined"] == []
+    )
     (plan,) = proposals["plans"]
     assert plan["digest"] == digest and plan["by"] == team
     by = {p["proposer"]: p for p in proposals["heard"]}
