@@ -348,6 +348,16 @@ class MissionOutcome:
         taken = {self.target_of(uav) for uav in self.team}
         return [i for i in range(len(self.targets)) if i not in taken]
 
+    def proposals_json(self) -> dict[str, Any]:
+        """The proposals heard, as `send-targets --json` and the page's `/api/mission` add
+        them to `to_json`: `proposal` (the ground's) and `uav_proposals` (by proposer)."""
+        data: dict[str, Any] = {}
+        if self.proposal is not None:
+            data["proposal"] = self.proposal.to_json()
+        if self.uav_proposals:
+            data["uav_proposals"] = {str(u): a.to_json() for u, a in self.uav_proposals.items()}
+        return data
+
     def to_json(self) -> dict[str, Any]:
         """The `send-targets --json` object (docs/ground.md)."""
         agreement = self.agreement

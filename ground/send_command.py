@@ -187,11 +187,9 @@ def run_send_targets(bus: Bus, options: SendOptions, out: TextIO) -> int:
         print(f"error: {error}; nothing sent", file=sys.stderr)
         return ExitCode.FAILED
     if options.json:
-        data = outcome.to_json()
-        if outcome.proposal is not None:
-            data["proposal"] = outcome.proposal.to_json()
+        data = outcome.to_json() | outcome.proposals_json()
         if options.proposers:
-            data["uav_proposals"] = {str(u): a.to_json() for u, a in outcome.uav_proposals.items()}
+            data.setdefault("uav_proposals", {})
         print(json.dumps(data), file=out)
     elif options.wait:
         print("\n".join(summary_lines(outcome)), file=out)

@@ -444,6 +444,12 @@ class MissionDesk:
         outcome.zones = message.zones
         outcome.results, outcome.assignments = follower.snapshot()
         outcome.outcomes = follower.outcome_snapshot()
+        judged = self._heard_proposals()
+        for seen in judged[1] if judged is not None else ():
+            if seen.proposer == MISSION_MANAGER:
+                outcome.proposal = seen
+            else:
+                outcome.uav_proposals[seen.proposer] = seen
         return outcome
 
     def close(self) -> None:

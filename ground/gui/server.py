@@ -269,7 +269,7 @@ class GuiServer:
         outcome = self._desk.outcome() if self._desk is not None else None
         if outcome is None:
             return web.json_response({"error": "no mission followed yet"}, status=404)
-        return web.json_response(outcome.to_json())
+        return web.json_response(outcome.to_json() | outcome.proposals_json())
 
     async def _api_import(self, request: web.Request) -> web.Response:
         name = request.query.get("name", "targets.bin")

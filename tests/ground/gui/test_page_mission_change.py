@@ -213,7 +213,10 @@ def test_the_page_shows_each_proposal_heard_and_whether_the_team_adopted_it(
                             and len(proposals.get("plans", [])) == 1
                         )
 
-                    return await page.until("every proposal judged", judged)
+                    shown = await page.until("every proposal judged", judged)
+                    async with http.get(f"{url}/api/mission") as response:
+                        shown["api"] = await response.json()
+                    return shown
 
             shown = asyncio.run(scenario())
     reports = heard.latest()
@@ -226,6 +229,11 @@ def test_the_page_shows_each_proposal_heard_and_whether_the_team_adopted_it(
     )
     (plan,) = proposals["plans"]
     assert plan["digest"] == digest and plan["by"] == team
+    # `/api/mission` carries the same verdicts, as `send-targets --json` does.
+    api = shown["api"]
+    heard_by = {p["proposer"]: p["verdict"] for p in proposals["heard"]}
+    assert api["uav_proposals"]["101"]["verdict"] == heard_by[101]
+    assert api["proposal"]["verdict"] == heard_by[MISSION_MANAGER]
     by = {p["proposer"]: p for p in proposals["heard"]}
     assert by[101]["by"] == "UAV 101" and by[MISSION_MANAGER]["by"] == "the ground"
     # The verdict is the UAVs' digests': adopted by every UAV when their one digest is the
