@@ -998,7 +998,9 @@ class MissionParticipation:
             return
         flying = self._flying_air() if self._legs_ahead() else None
         reference = self.air.reference
-        if not self.air.check(flying, self._aircraft_clock(), self._leg_begins_soon()):
+        # Only a UAV with legs ahead is about to begin one: no distance worked out otherwise.
+        before_leg = flying is not None and self._leg_begins_soon()
+        if not self.air.check(flying, self._aircraft_clock(), before_leg):
             return
         assert flying is not None and reference is not None
         if not mission_round.ask_air():
